@@ -1,0 +1,48 @@
+# mfc-shm — every target sets itself up on a fresh machine.
+SHELL := /bin/bash
+PY ?= python3
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+OUT ?= out
+export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
+export MPLBACKEND := Agg
+export PYTHONHASHSEED := 0
+
+.PHONY: setup system-packages run test lint bench clean
+
+setup: $(STAMP) system-packages
+
+$(STAMP): pyproject.toml
+	$(PY) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[dev]'
+	touch $(STAMP)
+
+# Debian packages used by the integration tests (a real Modbus master, pty pairs).
+# Never fatal: the tests that need them skip with the reason printed.
+system-packages:
+	@if ! command -v mbpoll >/dev/null 2>&1 || ! command -v socat >/dev/null 2>&1; then \
+	  if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
+	    (apt-get update -qq >/dev/null 2>&1; DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mbpoll socat >/dev/null 2>&1) \
+	      || echo "note: could not install mbpoll/socat; the tests that need them will be skipped"; \
+	  else echo "note: mbpoll/socat missing and apt-get not usable; the tests that need them will be skipped"; fi; \
+	fi
+
+run: setup
+	$(BIN)/shm run --out $(OUT)/run
+
+test: setup
+	$(BIN)/ruff check .
+	$(BIN)/lint-imports
+	$(BIN)/pytest -n 2 --timeout=600
+
+lint: setup
+	$(BIN)/ruff check .
+	$(BIN)/lint-imports
+
+bench: setup
+	$(BIN)/python -m bench --out $(OUT)/bench
+
+clean:
+	rm -rf $(VENV) .cache $(OUT) build *.egg-info

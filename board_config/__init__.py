@@ -1,0 +1,33 @@
+"""Typed, validated configuration: parameter sets (TOML, SI units), MFC limits, monitor settings.
+
+This package imports nothing else of ours.
+"""
+
+from board_config.errors import ConfigError
+from board_config.parameter_sets import (
+    CORE_PARAMETER_NAMES,
+    CORE_SCHEMA,
+    EffectEntry,
+    ParameterSet,
+    available_parameter_sets,
+    load_parameter_set,
+)
+from board_config.quantities import QuantitySpec, parse_quantities, read_toml
+from board_config.tables import MfcLimits, MonitorSettings, load_mfc_limits, load_monitor_settings
+
+__all__ = [
+    "CORE_PARAMETER_NAMES",
+    "CORE_SCHEMA",
+    "ConfigError",
+    "EffectEntry",
+    "MfcLimits",
+    "MonitorSettings",
+    "ParameterSet",
+    "QuantitySpec",
+    "available_parameter_sets",
+    "load_mfc_limits",
+    "load_monitor_settings",
+    "load_parameter_set",
+    "parse_quantities",
+    "read_toml",
+]

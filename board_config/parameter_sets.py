@@ -1,0 +1,181 @@
+"""Model parameter sets: TOML files in SI units, validated on load.
+
+A parameter set has the seventeen core parameters of the seed paper's Table 2 (section ``[parameters]``)
+and, optionally, added physical effects with their own parameters (an array of tables ``[[effects]]``),
+as written by ``shm fit --save``. The configuration layer checks the structure of the effect tables;
+the plant checks their names, units and bounds when it composes the model (it knows the effects).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+from board_config.errors import ConfigError
+from board_config.quantities import QuantitySpec, parse_quantities, read_toml
+
+PARAMS_DIR = Path(__file__).resolve().parent / "params"
+
+_POS = {"lower": 0.0, "lower_open": True}
+#: The core parameters (seed paper Table 2), their SI units and physical bounds.
+CORE_SCHEMA: Mapping[str, QuantitySpec] = MappingProxyType(
+    {
+        "R_ep": QuantitySpec("ohm", **_POS),
+        "C_ep": QuantitySpec("F", **_POS),
+        "d_ep": QuantitySpec("m/V", **_POS),
+        "m1": QuantitySpec("kg", **_POS),
+        "m2": QuantitySpec("kg", **_POS),
+        "m3": QuantitySpec("kg", **_POS),
+        "k1": QuantitySpec("N/m", **_POS),
+        "k2": QuantitySpec("N/m", **_POS),
+        "k3": QuantitySpec("N/m", **_POS),
+        "c1": QuantitySpec("N*s/m", lower=0.0),
+        "c2": QuantitySpec("N*s/m", lower=0.0),
+        "c3": QuantitySpec("N*s/m", lower=0.0),
+        "alpha_h": QuantitySpec("1", lower=0.0, upper=1.0),
+        "A_h": QuantitySpec("1"),
+        "n_h": QuantitySpec("1", lower=0.0, lower_open=True),
+        "beta_h": QuantitySpec("C^-n"),
+        "gamma_h": QuantitySpec("C^-n"),
+    }
+)
+CORE_PARAMETER_NAMES: tuple[str, ...] = tuple(CORE_SCHEMA)
+
+
+@dataclass(frozen=True)
+class EffectEntry:
+    """An added physical effect as written in a parameter set: name or dotted path, and parameter values."""
+
+    name: str
+    parameters: Mapping[str, float] = field(default_factory=dict)
+    units: Mapping[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ParameterSet:
+    """A validated parameter set. ``values`` holds the core parameters in SI units."""
+
+    name: str
+    values: Mapping[str, float]
+    details: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
+    effects: tuple[EffectEntry, ...] = ()
+    meta: Mapping[str, Any] = field(default_factory=dict)
+    source: str = "<memory>"
+
+    def __getitem__(self, key: str) -> float:
+        return self.values[key]
+
+    def with_values(self, name: str | None = None, **changes: float) -> ParameterSet:
+        """A copy with some core values changed (validated like a file would be)."""
+        values = dict(self.values)
+        for key, value in changes.items():
+            if key not in CORE_SCHEMA:
+                raise ConfigError(self.source, f"parameters.{key}", "unknown core parameter")
+            values[key] = CORE_SCHEMA[key].check(self.source, f"parameters.{key}.value", value)
+        return ParameterSet(name or self.name, MappingProxyType(values), self.details, self.effects,
+                            self.meta, self.source)
+
+    def with_effects(self, effects: tuple[EffectEntry, ...], name: str | None = None) -> ParameterSet:
+        return ParameterSet(name or self.name, self.values, self.details, tuple(effects), self.meta,
+                            self.source)
+
+    def to_toml(self) -> str:
+        """Serialise to the same TOML format the loader reads (round-trips through :func:`load_parameter_set`)."""
+        lines = ["[meta]", f"name = {_toml_str(self.name)}"]
+        for key, value in self.meta.items():
+            if key != "name" and isinstance(value, (str, int, float)) and not isinstance(value, bool):
+                lines.append(f"{key} = {_toml_value(value)}")
+        lines += ["", "[parameters]"]
+        for key in CORE_PARAMETER_NAMES:
+            det = dict(self.details.get(key, {}))
+            det["unit"] = CORE_SCHEMA[key].unit
+            fields = [f"value = {_toml_value(self.values[key])}"]
+            fields += [f"{f} = {_toml_str(str(v))}" for f, v in det.items()]
+            lines.append(f"{key} = {{ {', '.join(fields)} }}")
+        for eff in self.effects:
+            lines += ["", "[[effects]]", f"name = {_toml_str(eff.name)}", "[effects.parameters]"]
+            for key, value in eff.parameters.items():
+                unit = eff.units.get(key, "1")
+                lines.append(f"{key} = {{ value = {_toml_value(value)}, unit = {_toml_str(unit)} }}")
+        return "\n".join(lines) + "\n"
+
+
+def _toml_str(text: str) -> str:
+    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def _toml_value(value: float | int | str) -> str:
+    if isinstance(value, str):
+        return _toml_str(value)
+    if isinstance(value, float):
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    return str(value)
+
+
+def available_parameter_sets() -> list[str]:
+    """Names of the parameter sets shipped with the package."""
+    return sorted(p.stem for p in PARAMS_DIR.glob("*.toml"))
+
+
+def resolve_parameter_file(name_or_path: str | Path) -> Path:
+    """A shipped set's name (``table2``) or a path to a TOML file."""
+    text = str(name_or_path)
+    candidate = Path(text)
+    if text.endswith(".toml") or candidate.exists() or "/" in text:
+        return candidate
+    shipped = PARAMS_DIR / f"{text}.toml"
+    if not shipped.exists():
+        raise ConfigError(text, "-", f"unknown parameter set (shipped sets: {', '.join(available_parameter_sets())};"
+                                     " or give a path to a .toml file)")
+    return shipped
+
+
+def load_parameter_set(name_or_path: str | Path) -> ParameterSet:
+    """Load and validate a parameter set; errors name file, key and reason."""
+    path = resolve_parameter_file(name_or_path)
+    data = read_toml(path)
+    file = str(path)
+    unknown = set(data) - {"meta", "parameters", "effects"}
+    if unknown:
+        raise ConfigError(file, sorted(unknown)[0], "unknown section (expected meta, parameters, effects)")
+    meta = data.get("meta", {})
+    if not isinstance(meta, Mapping):
+        raise ConfigError(file, "meta", "expected a table")
+    if "parameters" not in data:
+        raise ConfigError(file, "parameters", "missing required section")
+    values, details = parse_quantities(file, "parameters", data["parameters"], CORE_SCHEMA)
+    effects = []
+    raw_effects = data.get("effects", [])
+    if not isinstance(raw_effects, list):
+        raise ConfigError(file, "effects", "expected an array of tables [[effects]]")
+    for i, entry in enumerate(raw_effects):
+        where = f"effects[{i}]"
+        if not isinstance(entry, Mapping):
+            raise ConfigError(file, where, "expected a table")
+        extra = set(entry) - {"name", "parameters"}
+        if extra:
+            raise ConfigError(file, f"{where}.{sorted(extra)[0]}", "unknown key (expected name, parameters)")
+        name = entry.get("name")
+        if not isinstance(name, str) or not name:
+            raise ConfigError(file, f"{where}.name", "missing or empty effect name")
+        pvals, pdet = parse_quantities(file, f"{where}.parameters", entry.get("parameters", {}), {},
+                                       allow_unknown=True)
+        effects.append(EffectEntry(name, MappingProxyType({k: float(v) for k, v in pvals.items()}),
+                                   MappingProxyType({k: d["unit"] for k, d in pdet.items()})))
+    name = meta.get("name", path.stem)
+    return ParameterSet(
+        name=str(name),
+        values=MappingProxyType({k: float(v) for k, v in values.items()}),
+        details=MappingProxyType({k: MappingProxyType(v) for k, v in details.items()}),
+        effects=tuple(effects),
+        meta=MappingProxyType(dict(meta)),
+        source=file,
+    )

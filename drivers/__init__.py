@@ -1,0 +1,27 @@
+"""Hardware-link layer: the ``Link`` protocol and its implementations. Imports only board_config."""
+
+from drivers.link import (
+    FLAG_LIMIT_REFUSED,
+    FLAG_RIG_FAULT,
+    FLAG_SENSOR_FAULT,
+    ActuatorCommand,
+    Link,
+    LinkError,
+    RigSample,
+    open_link,
+    register_link_scheme,
+    registered_schemes,
+)
+
+__all__ = [
+    "FLAG_LIMIT_REFUSED",
+    "FLAG_RIG_FAULT",
+    "FLAG_SENSOR_FAULT",
+    "ActuatorCommand",
+    "Link",
+    "LinkError",
+    "RigSample",
+    "open_link",
+    "register_link_scheme",
+    "registered_schemes",
+]

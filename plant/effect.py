@@ -1,0 +1,192 @@
+"""The physical-effect seam.
+
+The plant is a composition of *physical effects*. Each effect is a small class that declares
+
+* ``name`` — a short identifier (``"bouc_wen"``), unique in a model;
+* ``parameters`` — :class:`Parameter` objects (name, SI unit, default, bounds, description);
+* ``states`` — extra states it adds (:class:`StateSpec`: name, unit, typical magnitude, initial value);
+* ``outputs`` — extra output channels it adds (:class:`OutputSpec`);
+* its contribution to the equations, as up to four *hooks* (plain functions that numba compiles):
+
+  ``pre(t, x, p, bus, dx, so, po)``
+      compute derived signals from the states into the bus (e.g. the hysteretic charge ``q_h``);
+  ``rates(t, x, p, bus, dx, so, po)``
+      add forces to the bus (``B_S`` section forces, ``B_FM`` forces on masses) and add to rates ``dx``;
+  ``post(t, x, p, bus, dx, so, po)``
+      work that needs the completed rates of other states (Bouc-Wen needs q̇, the mass chain needs
+      every force);
+  ``output(t, x, p, bus, y, so, po, yo)``
+      write or modify output channels (``y``).
+
+``x`` is the state vector, ``p`` the parameter vector, ``bus`` the signal bus (see :mod:`plant.layout`),
+``dx`` the state-rate vector being assembled. ``so``/``po``/``yo`` are the offsets of *this effect's*
+extra states, parameters and outputs. Core states, core parameters and bus slots have fixed indices
+(:mod:`plant.layout`). Hooks run in model order within each phase: all ``pre``, then all ``rates``, then
+all ``post``. Kernels must be numba-compilable (scalars, numpy arrays, math); a kernel that does not
+compile is reported with the effect's name.
+
+A user's own effect is loaded by dotted path, ``package.module:ClassName``, through the same registry
+as the built-ins (:func:`resolve_effect`).
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+
+
+class EffectError(ValueError):
+    """An effect is unknown, cannot be imported, or is ill-formed."""
+
+
+@dataclass(frozen=True)
+class Parameter:
+    """A parameter of an effect. ``core_index`` is set for the Table 2 parameters (fixed layout)."""
+
+    name: str
+    unit: str
+    default: float
+    lower: float = -np.inf
+    upper: float = np.inf
+    description: str = ""
+    core_index: int | None = None
+
+    def check(self, value: float, where: str) -> float:
+        value = float(value)
+        if not np.isfinite(value):
+            raise EffectError(f"{where}: parameter '{self.name}' must be finite, got {value!r}")
+        if value < self.lower or value > self.upper:
+            raise EffectError(f"{where}: parameter '{self.name}' = {value!r} {self.unit} outside its bounds "
+                              f"[{self.lower:g}, {self.upper:g}] {self.unit}")
+        return value
+
+
+@dataclass(frozen=True)
+class StateSpec:
+    """An extra state: name, SI unit, typical magnitude (sets the integrator's absolute tolerance), x0."""
+
+    name: str
+    unit: str
+    scale: float
+    initial: float = 0.0
+
+
+@dataclass(frozen=True)
+class OutputSpec:
+    """An extra output channel with its SI unit."""
+
+    name: str
+    unit: str
+
+
+Hook = Callable[..., None]
+
+
+class PhysicalEffect:
+    """Base class of every physical effect (built-in or a user's own). See the module docstring."""
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    #: "core" effects make up the nominal model; "terminal" decides the patch terminal voltage (exactly one
+    #: per model); "effect" is anything added on top.
+    role: ClassVar[str] = "effect"
+    parameters: ClassVar[tuple[Parameter, ...]] = ()
+    states: ClassVar[tuple[StateSpec, ...]] = ()
+    outputs: ClassVar[tuple[OutputSpec, ...]] = ()
+    #: What the effect's absence leaves in residuals (used by the workbench to explain a diagnosis).
+    signature: ClassVar[str] = ""
+    #: Physical origin, for the effects library documentation.
+    origin: ClassVar[str] = ""
+
+    pre: ClassVar[Hook | None] = None
+    rates: ClassVar[Hook | None] = None
+    post: ClassVar[Hook | None] = None
+    output: ClassVar[Hook | None] = None
+
+    @classmethod
+    def guess(cls, data: Mapping[str, Any] | None = None) -> dict[str, float]:
+        """A starting guess of the effect's own (non-core) parameters from data; defaults otherwise."""
+        return {p.name: p.default for p in cls.parameters if p.core_index is None}
+
+    @classmethod
+    def own_parameters(cls) -> tuple[Parameter, ...]:
+        return tuple(p for p in cls.parameters if p.core_index is None)
+
+    @classmethod
+    def validate_class(cls) -> None:
+        """Raise :class:`EffectError` when the class is ill-formed (checked at registration and load)."""
+        label = f"effect {cls.__module__}.{cls.__qualname__}"
+        if not isinstance(cls.name, str) or not cls.name.isidentifier():
+            raise EffectError(f"{label}: 'name' must be a Python identifier, got {cls.name!r}")
+        if cls.role not in ("core", "terminal", "effect"):
+            raise EffectError(f"{label}: role must be core, terminal or effect, got {cls.role!r}")
+        if all(getattr(cls, h) is None for h in ("pre", "rates", "post", "output")):
+            raise EffectError(f"{label}: defines none of the hooks pre, rates, post, output")
+        seen: set[str] = set()
+        for par in cls.parameters:
+            if not isinstance(par, Parameter):
+                raise EffectError(f"{label}: parameters must be Parameter objects, got {par!r}")
+            if par.name in seen:
+                raise EffectError(f"{label}: parameter '{par.name}' declared twice")
+            seen.add(par.name)
+            if par.core_index is None:
+                par.check(par.default, label)
+        for st in cls.states:
+            if not isinstance(st, StateSpec) or not st.scale > 0:
+                raise EffectError(f"{label}: states must be StateSpec objects with a positive scale, got {st!r}")
+
+
+_REGISTRY: dict[str, type[PhysicalEffect]] = {}
+
+
+def register_effect(cls: type[PhysicalEffect]) -> type[PhysicalEffect]:
+    """Class decorator: make an effect available by its short name."""
+    cls.validate_class()
+    if cls.name in _REGISTRY and _REGISTRY[cls.name] is not cls:
+        raise EffectError(f"an effect named '{cls.name}' is already registered "
+                          f"({_REGISTRY[cls.name].__module__}.{_REGISTRY[cls.name].__qualname__})")
+    _REGISTRY[cls.name] = cls
+    return cls
+
+
+def registered_effects() -> dict[str, type[PhysicalEffect]]:
+    """Short name -> class, for every registered effect (built-ins are registered on import of plant)."""
+    return dict(_REGISTRY)
+
+
+def resolve_effect(spec: str | type[PhysicalEffect]) -> type[PhysicalEffect]:
+    """An effect class from a registered name or a dotted path ``package.module:ClassName``."""
+    if isinstance(spec, type):
+        if not issubclass(spec, PhysicalEffect):
+            raise EffectError(f"{spec!r} is not a PhysicalEffect subclass")
+        spec.validate_class()
+        return spec
+    if not isinstance(spec, str) or not spec:
+        raise EffectError(f"effect must be a name or 'package.module:ClassName', got {spec!r}")
+    if ":" not in spec:
+        try:
+            return _REGISTRY[spec]
+        except KeyError:
+            known = ", ".join(sorted(_REGISTRY))
+            raise EffectError(f"unknown effect '{spec}' (registered: {known}; or give a dotted path "
+                              "'package.module:ClassName')") from None
+    module_name, _, attr = spec.partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except Exception as exc:
+        raise EffectError(f"cannot import module '{module_name}' for effect '{spec}': "
+                          f"{type(exc).__name__}: {exc}") from exc
+    obj: Any = module
+    for part in attr.split("."):
+        try:
+            obj = getattr(obj, part)
+        except AttributeError:
+            raise EffectError(f"module '{module_name}' has no attribute '{attr}' (effect '{spec}')") from None
+    if not isinstance(obj, type) or not issubclass(obj, PhysicalEffect):
+        raise EffectError(f"'{spec}' is not a PhysicalEffect subclass (got {obj!r})")
+    obj.validate_class()
+    return obj

@@ -1,0 +1,56 @@
+"""Laminate modes: three bending sections of the cantilever as a chain of lumped masses (Eq. 1, 3)."""
+
+from __future__ import annotations
+
+from plant.effect import Parameter, PhysicalEffect
+from plant.layout import B_FM, B_S, B_Z, B_Z0DD, B_ZD, P_C, P_K, P_M, X_DDELTA, X_DELTA
+
+
+class LaminateModes(PhysicalEffect):
+    """Shear chain of three masses: m_j z̈_j = S_j − S_{j+1} + F_mj − m_j z̈0 (z relative to the base).
+
+    Section i contributes its elastic and structural-damping force to the section force
+    S_i = −k_i δ_i − c_i δ̇_i (+ piezo and added forces from other effects); z_i = δ_1 + … + δ_i.
+    """
+
+    name = "laminate"
+    role = "core"
+    description = "Three bending sections (masses m_i, stiffness k_i, structural damping c_i)"
+    origin = "Seed paper Eq. (1)-(3): lumped-parameter cantilever with three bending deformations"
+    parameters = (
+        Parameter("m1", "kg", 1.16e-3, 0.0, float("inf"), "Root section mass", core_index=P_M),
+        Parameter("m2", "kg", 2.32e-3, 0.0, float("inf"), "Intermediate section mass", core_index=P_M + 1),
+        Parameter("m3", "kg", 1.39e-3, 0.0, float("inf"), "Tip section mass", core_index=P_M + 2),
+        Parameter("k1", "N/m", 332.98, 0.0, float("inf"), "Root bending stiffness", core_index=P_K),
+        Parameter("k2", "N/m", 125.40, 0.0, float("inf"), "Intermediate bending stiffness", core_index=P_K + 1),
+        Parameter("k3", "N/m", 21.28, 0.0, float("inf"), "Tip bending stiffness", core_index=P_K + 2),
+        Parameter("c1", "N*s/m", 0.098, 0.0, float("inf"), "Root structural damping", core_index=P_C),
+        Parameter("c2", "N*s/m", 0.020, 0.0, float("inf"), "Intermediate structural damping", core_index=P_C + 1),
+        Parameter("c3", "N*s/m", 0.025, 0.0, float("inf"), "Tip structural damping", core_index=P_C + 2),
+    )
+
+    @staticmethod
+    def pre(t, x, p, bus, dx, so, po):
+        z = 0.0
+        zd = 0.0
+        for i in range(3):
+            z += x[X_DELTA + i]
+            zd += x[X_DDELTA + i]
+            bus[B_Z + i] = z
+            bus[B_ZD + i] = zd
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        for i in range(3):
+            dx[X_DELTA + i] = x[X_DDELTA + i]
+            bus[B_S + i] += -p[P_K + i] * x[X_DELTA + i] - p[P_C + i] * x[X_DDELTA + i]
+
+    @staticmethod
+    def post(t, x, p, bus, dx, so, po):
+        z0dd = bus[B_Z0DD]
+        a1 = (bus[B_S] - bus[B_S + 1] + bus[B_FM]) / p[P_M] - z0dd
+        a2 = (bus[B_S + 1] - bus[B_S + 2] + bus[B_FM + 1]) / p[P_M + 1] - z0dd
+        a3 = (bus[B_S + 2] + bus[B_FM + 2]) / p[P_M + 2] - z0dd
+        dx[X_DDELTA] += a1
+        dx[X_DDELTA + 1] += a2 - a1
+        dx[X_DDELTA + 2] += a3 - a2

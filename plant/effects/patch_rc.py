@@ -1,0 +1,35 @@
+"""Patch R-C: each patch couple is a capacitor C_ep charged through its resistance R_ep."""
+
+from __future__ import annotations
+
+from plant.effect import Parameter, PhysicalEffect
+from plant.layout import B_IR, B_QH, B_VA, B_VC, P_C_EP, P_R_EP, X_Q
+
+
+class PatchRC(PhysicalEffect):
+    """R_ep·i_R,i = v_a − q_i/C_ep, and i_R,i adds to q̇_i (the piezo current source takes its share).
+
+    Sets the default effective charge q_hi = q_i (the Bouc-Wen effect, when present, overrides it).
+    """
+
+    name = "patch_rc"
+    role = "core"
+    description = "Patch resistance and capacitance: the R-C charge dynamics (real pole 1/(2π R C))"
+    origin = "Seed paper Eq. (1), fourth line; Table 2 R_ep, C_ep"
+    parameters = (
+        Parameter("R_ep", "ohm", 1500.0, 0.0, float("inf"), "Patch resistance", core_index=P_R_EP),
+        Parameter("C_ep", "F", 1.06e-5, 0.0, float("inf"), "Patch capacitance", core_index=P_C_EP),
+    )
+
+    @staticmethod
+    def pre(t, x, p, bus, dx, so, po):
+        for i in range(3):
+            bus[B_VC + i] = x[X_Q + i] / p[P_C_EP]
+            bus[B_QH + i] = x[X_Q + i]
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        for i in range(3):
+            ir = (bus[B_VA] - bus[B_VC + i]) / p[P_R_EP]
+            bus[B_IR + i] += ir
+            dx[X_Q + i] += ir

@@ -1,0 +1,28 @@
+"""Electromechanical coupling of the patches with the laminate sections."""
+
+from __future__ import annotations
+
+from plant.effect import Parameter, PhysicalEffect
+from plant.layout import B_P_PIEZO, B_QH, B_S, P_C_EP, P_D_EP, P_K, X_DDELTA, X_Q
+
+
+class PiezoCoupling(PhysicalEffect):
+    """Force θ_i q_hi / C_ep on section i, and the piezo current θ_i δ̇_i drawn from q̇_i (θ_i = k_i d_ep)."""
+
+    name = "piezo_coupling"
+    role = "core"
+    description = "Piezo force θ q_h / C on each section and back-coupling current θ δ̇, θ_i = k_i d_ep"
+    origin = "Seed paper Eq. (1): terms k_i d_ep q_hi / C_ep and R_ep k_i d_ep δ̇_i"
+    parameters = (
+        Parameter("d_ep", "m/V", 1.37e-5, 0.0, float("inf"), "Patch piezoelectric coefficient",
+                  core_index=P_D_EP),
+    )
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        for i in range(3):
+            theta = p[P_K + i] * p[P_D_EP]
+            force = theta * bus[B_QH + i] / p[P_C_EP]
+            bus[B_S + i] += force
+            bus[B_P_PIEZO] += force * x[X_DDELTA + i]
+            dx[X_Q + i] -= theta * x[X_DDELTA + i]

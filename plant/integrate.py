@@ -1,0 +1,221 @@
+"""Batched, compiled integration: Dormand–Prince 5(4) with step-size control, one trajectory per
+batch member, batch members in parallel threads (numba ``prange``).
+
+Inputs are sampled on a uniform grid and linearly interpolated (held constant outside it). Steps are
+clipped to land exactly on every output time, so outputs need no interpolation. Each trajectory has its
+own step size; a trajectory that produces a non-finite state or needs a step below ``h_min`` stops
+with a status code, filling the rest of its outputs with NaN, without affecting the others.
+
+The integrator is kept as source text (:data:`INTEGRATOR_SOURCE`): :mod:`plant.compose` writes it into a
+generated module together with the composed right-hand side, so that numba can cache the compiled
+machine code on disk (a composition compiles once per machine, not once per process).
+"""
+
+from __future__ import annotations
+
+from enum import IntEnum
+
+# Dormand–Prince 5(4) tableau
+_C2, _C3, _C4, _C5 = 1 / 5, 3 / 10, 4 / 5, 8 / 9
+_A21 = 1 / 5
+_A31, _A32 = 3 / 40, 9 / 40
+_A41, _A42, _A43 = 44 / 45, -56 / 15, 32 / 9
+_A51, _A52, _A53, _A54 = 19372 / 6561, -25360 / 2187, 64448 / 6561, -212 / 729
+_A61, _A62, _A63, _A64, _A65 = 9017 / 3168, -355 / 33, 46732 / 5247, 49 / 176, -5103 / 18656
+_B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
+_E1, _E3, _E4, _E5, _E6, _E7 = (
+    71 / 57600, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40,
+)
+
+
+class IntegrationStatus(IntEnum):
+    OK = 0
+    DIVERGED = 1  # a state became NaN or infinite
+    STEP_TOO_SMALL = 2  # the step-size controller hit h_min
+    TOO_MANY_STEPS = 3
+
+    @property
+    def message(self) -> str:
+        return {
+            0: "ok",
+            1: "the state became non-finite (the model diverged)",
+            2: "the step size fell below its minimum (stiff or discontinuous dynamics)",
+            3: "the step budget was exhausted",
+        }[int(self)]
+
+
+INTEGRATOR_SOURCE = r'''
+@numba.njit(cache=CACHE, nogil=True)
+def input_at(u, bu, t, u_t0, u_dt, uvec):
+    m = u.shape[1]
+    if m == 1:
+        for k in range(u.shape[2]):
+            uvec[k] = u[bu, 0, k]
+        return
+    s = (t - u_t0) / u_dt
+    if s <= 0.0:
+        i = 0
+        f = 0.0
+    elif s >= m - 1:
+        i = m - 2
+        f = 1.0
+    else:
+        i = int(s)
+        if i > m - 2:
+            i = m - 2
+        f = s - i
+    for k in range(u.shape[2]):
+        uvec[k] = u[bu, i, k] * (1.0 - f) + u[bu, i + 1, k] * f
+
+@numba.njit(cache=CACHE, nogil=True)
+def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
+        y, xs, bs, record_x, record_bus, status, nsteps):
+    n = N_STATES
+    bu = np.int64(0)
+    if u.shape[0] > 1:
+        bu = np.int64(b)
+    x = x0[b].copy()
+    pb = p[b]
+    bus = np.zeros(N_BUS)
+    dx = np.zeros(n)
+    uvec = np.zeros(u.shape[2])
+    k1 = np.zeros(n)
+    k2 = np.zeros(n)
+    k3 = np.zeros(n)
+    k4 = np.zeros(n)
+    k5 = np.zeros(n)
+    k6 = np.zeros(n)
+    k7 = np.zeros(n)
+    xt = np.zeros(n)
+    xn = np.zeros(n)
+    ny = y.shape[2]
+    yv = np.zeros(ny)
+    t = t_out[0]
+    # output at t0
+    input_at(u, bu, t, u_t0, u_dt, uvec)
+    out(t, x, pb, uvec, bus, dx, yv)
+    for k in range(ny):
+        y[b, 0, k] = yv[k]
+    if record_x:
+        for k in range(n):
+            xs[b, 0, k] = x[k]
+    if record_bus:
+        for k in range(N_BUS):
+            bs[b, 0, k] = bus[k]
+    input_at(u, bu, t, u_t0, u_dt, uvec)
+    rhs(t, x, pb, uvec, bus, k1)
+    h = min(h_max, 1e-4)
+    steps = 0
+    code = 0
+    nout = t_out.shape[0]
+    j = 1
+    while j < nout:
+        t_target = t_out[j]
+        while t < t_target:
+            remaining = t_target - t
+            last = False
+            if h >= remaining * (1.0 - 1e-9):
+                h_use = remaining
+                last = True
+            else:
+                h_use = h
+            for k in range(n):
+                xt[k] = x[k] + h_use * _A21 * k1[k]
+            input_at(u, bu, t + _C2 * h_use, u_t0, u_dt, uvec)
+            rhs(t + _C2 * h_use, xt, pb, uvec, bus, k2)
+            for k in range(n):
+                xt[k] = x[k] + h_use * (_A31 * k1[k] + _A32 * k2[k])
+            input_at(u, bu, t + _C3 * h_use, u_t0, u_dt, uvec)
+            rhs(t + _C3 * h_use, xt, pb, uvec, bus, k3)
+            for k in range(n):
+                xt[k] = x[k] + h_use * (_A41 * k1[k] + _A42 * k2[k] + _A43 * k3[k])
+            input_at(u, bu, t + _C4 * h_use, u_t0, u_dt, uvec)
+            rhs(t + _C4 * h_use, xt, pb, uvec, bus, k4)
+            for k in range(n):
+                xt[k] = x[k] + h_use * (_A51 * k1[k] + _A52 * k2[k] + _A53 * k3[k] + _A54 * k4[k])
+            input_at(u, bu, t + _C5 * h_use, u_t0, u_dt, uvec)
+            rhs(t + _C5 * h_use, xt, pb, uvec, bus, k5)
+            for k in range(n):
+                xt[k] = x[k] + h_use * (_A61 * k1[k] + _A62 * k2[k] + _A63 * k3[k] + _A64 * k4[k]
+                                        + _A65 * k5[k])
+            t_new = t_target if last else t + h_use
+            input_at(u, bu, t_new, u_t0, u_dt, uvec)
+            rhs(t_new, xt, pb, uvec, bus, k6)
+            for k in range(n):
+                xn[k] = x[k] + h_use * (_B1 * k1[k] + _B3 * k3[k] + _B4 * k4[k] + _B5 * k5[k]
+                                        + _B6 * k6[k])
+            rhs(t_new, xn, pb, uvec, bus, k7)
+            err = 0.0
+            finite = True
+            for k in range(n):
+                e = h_use * (_E1 * k1[k] + _E3 * k3[k] + _E4 * k4[k] + _E5 * k5[k] + _E6 * k6[k]
+                             + _E7 * k7[k])
+                sc = atol[k] + rtol * max(abs(x[k]), abs(xn[k]))
+                r = e / sc
+                err += r * r
+                if not np.isfinite(xn[k]):
+                    finite = False
+            err = np.sqrt(err / n)
+            steps += 1
+            if not finite or not np.isfinite(err):
+                if h_use <= h_min:
+                    code = 1
+                    break
+                h = h_use * 0.2
+                continue
+            if err <= 1.0:
+                t = t_new
+                for k in range(n):
+                    x[k] = xn[k]
+                    k1[k] = k7[k]
+                fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** -0.2))
+                if last:
+                    # do not let a clipped step shrink the controller's step size
+                    h = max(h, h_use * fac)
+                else:
+                    h = h_use * fac
+                h = min(h, h_max)
+            else:
+                h = h_use * max(0.2, 0.9 * err ** -0.25)
+                if h < h_min:
+                    code = 2
+                    break
+            if steps >= max_steps:
+                code = 3
+                break
+        if code != 0:
+            break
+        input_at(u, bu, t, u_t0, u_dt, uvec)
+        out(t, x, pb, uvec, bus, dx, yv)
+        for k in range(ny):
+            y[b, j, k] = yv[k]
+        if record_x:
+            for k in range(n):
+                xs[b, j, k] = x[k]
+        if record_bus:
+            for k in range(N_BUS):
+                bs[b, j, k] = bus[k]
+        j += 1
+    if code != 0:
+        for jj in range(j, nout):
+            for k in range(ny):
+                y[b, jj, k] = np.nan
+            if record_x:
+                for k in range(n):
+                    xs[b, jj, k] = np.nan
+    status[b] = code
+    nsteps[b] = steps
+
+@numba.njit(cache=CACHE, nogil=True)
+def run_chunk(lo, hi, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
+              y, xs, bs, record_x, record_bus, status, nsteps):
+    for b in range(lo, hi):
+        one(np.int64(b), x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
+            y, xs, bs, record_x, record_bus, status, nsteps)
+
+'''
+
+
+#: names of the tableau constants the generated integrator module imports from here
+TABLEAU_NAMES: tuple[str, ...] = tuple(n for n in list(globals()) if n.startswith(("_A", "_B", "_C", "_E"))
+                                       and n[2:].isdigit())

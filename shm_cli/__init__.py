@@ -1,0 +1,1 @@
+"""The ``shm`` command line: one entry point fronting the whole product."""

@@ -1,0 +1,1 @@
+"""Model workbench: measurements in, model replayed, where it fails, which effect is missing, refit."""
