@@ -74,6 +74,23 @@ class Link(Protocol):
     def exchange(self, command: ActuatorCommand) -> RigSample: ...
 
 
+@runtime_checkable
+class RigEndpoint(Protocol):
+    """The rig side, as a link server or the in-process link sees it (implemented by ``hil_stub``).
+
+    ``apply`` takes the latest board command (the rig validates it and refuses out-of-limit demands,
+    keeping its last safe output); ``advance`` moves rig time forward by ``dt`` seconds (the caller owns the
+    clock: virtual time in-process, wall-clock pacing in the HIL server); ``sample`` returns the latest
+    snapshot without advancing anything.
+    """
+
+    def apply(self, command: ActuatorCommand) -> None: ...
+
+    def advance(self, dt: float) -> None: ...
+
+    def sample(self) -> RigSample: ...
+
+
 LinkFactory = Callable[[str], Link]
 _SCHEMES: dict[str, LinkFactory] = {}
 

@@ -1,0 +1,46 @@
+"""Run the benchmarks: ``python -m bench [--out DIR] [--quick] [--only NAME ...]``."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import json
+import sys
+import time
+from pathlib import Path
+
+#: benchmark modules in order; adding one is one new module plus one line here
+BENCHMARKS: tuple[str, ...] = (
+    "bench.bench_plant",
+)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench", description="mfc-shm benchmarks")
+    ap.add_argument("--out", default="out/bench", help="output directory (JSON results and figures)")
+    ap.add_argument("--quick", action="store_true", help="smaller sizes (a smoke run, not for quoting)")
+    ap.add_argument("--only", nargs="*", default=None, help="run only these benchmark modules (short names)")
+    args = ap.parse_args(argv)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    results = {}
+    for name in BENCHMARKS:
+        short = name.rsplit(".", 1)[-1]
+        if args.only and short not in args.only and short.removeprefix("bench_") not in args.only:
+            continue
+        print(f"== {short}", flush=True)
+        t0 = time.perf_counter()
+        res = importlib.import_module(name).run(out, args.quick)
+        res["wall_s_total"] = time.perf_counter() - t0
+        results[short] = res
+        (out / f"{short}.json").write_text(json.dumps(res, indent=2, default=float))
+        for key, value in res.items():
+            if not isinstance(value, (dict, list)):
+                print(f"   {key}: {value}")
+    (out / "summary.json").write_text(json.dumps(results, indent=2, default=float))
+    print(f"results in {out}/")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
