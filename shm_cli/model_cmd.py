@@ -1,0 +1,199 @@
+"""``shm model info|frf|step|loop``: the plant's modes, frequency responses and validation time responses."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir, pyplot, write_csv
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("model", help="plant model: modes, frequency responses, step and hysteresis-loop responses",
+                       description="Inspect the plant model of a parameter set.")
+    msub = p.add_subparsers(dest="model_command", metavar="SUBCOMMAND")
+    msub.required = True
+
+    pi = msub.add_parser("info", help="modes, damping, RC pole, static gain, harvesting gains")
+    add_params_arg(pi)
+    pi.add_argument("--json", action="store_true", help="print the summary as JSON")
+    pi.set_defaults(func=cmd_info)
+
+    pf = msub.add_parser("frf", help="frequency responses: z3/v_a (Fig. 6a) and stored voltage/z0dd (Fig. 6b)")
+    add_params_arg(pf)
+    pf.add_argument("--f-min-hz", type=float, default=0.1)
+    pf.add_argument("--f-max-hz", type=float, default=200.0)
+    pf.add_argument("--points", type=int, default=2000)
+    add_out_arg(pf)
+    pf.set_defaults(func=cmd_frf)
+
+    ps = msub.add_parser("step", help="nonlinear step response (Fig. 7b)")
+    add_params_arg(ps)
+    ps.add_argument("--amplitude-v", type=float, default=300.0, help="differential step amplitude (V)")
+    ps.add_argument("--duration-s", type=float, default=2.0)
+    add_out_arg(ps)
+    ps.set_defaults(func=cmd_step)
+
+    pl = msub.add_parser("loop", help="quasi-static hysteresis loop (Fig. 7a)")
+    add_params_arg(pl)
+    pl.add_argument("--amplitude-v", type=float, default=600.0, help="differential sine amplitude (V)")
+    pl.add_argument("--freq-hz", type=float, default=0.01)
+    pl.add_argument("--cycles", type=float, default=1.25)
+    add_out_arg(pl)
+    pl.set_defaults(func=cmd_loop)
+
+
+def model_summary(params: str) -> dict:
+    """Everything ``shm model info`` reports, as a dict (SI units in the key names)."""
+    from plant import PlantModel
+    from plant.linear import (
+        harvest_gain_v_per_g,
+        linearise,
+        modal_summary,
+        peak_near,
+        static_tip_gain,
+        static_tip_gain_closed_form,
+    )
+
+    model = PlantModel(params)
+    lin = linearise(model)
+    modal = modal_summary(lin)
+    lin_oc = linearise(PlantModel(model.params, terminal="open_circuit"))
+    f = np.logspace(-1, np.log10(300.0), 3000)
+    gain = np.abs(lin_oc.frf(f, "v_stored", "z0dd")) * 9.80665
+    peaks = []
+    for mode in modal.modes:
+        fp, gp = peak_near(f, gain, mode["frequency_Hz"], 0.15)
+        peaks.append({"mode_frequency_Hz": mode["frequency_Hz"], "peak_frequency_Hz": fp, "gain_V_per_g": gp})
+    r, c = model.param_value("R_ep"), model.param_value("C_ep")
+    return {
+        "parameter_set": model.params.name,
+        "source": model.params.source,
+        "effects": list(model.effect_names),
+        "modes": modal.modes,
+        "real_poles": modal.real_poles,
+        "pure_integrators": modal.integrators,
+        "rc_pole_closed_form_Hz": 1.0 / (2 * np.pi * r * c),
+        "static_tip_gain_m_per_V": static_tip_gain(lin),
+        "static_tip_gain_closed_form_m_per_V": static_tip_gain_closed_form(model),
+        "static_tip_deflection_at_600V_m": 600.0 * static_tip_gain(lin),
+        "harvest_gain_at_5_8Hz_V_per_g": harvest_gain_v_per_g(lin_oc, 5.8),
+        "harvest_gain_at_37Hz_V_per_g": harvest_gain_v_per_g(lin_oc, 37.0),
+        "harvest_gain_peaks": peaks,
+    }
+
+
+def cmd_info(args: argparse.Namespace) -> int:
+    s = model_summary(args.params)
+    if args.json:
+        print(dump_json(s))
+        return 0
+    print(f"parameter set: {s['parameter_set']}  ({s['source']})")
+    print(f"effects: {', '.join(s['effects'])}")
+    print("bending modes:")
+    for i, m in enumerate(s["modes"], 1):
+        print(f"  mode {i}: {m['frequency_Hz']:8.3f} Hz   damping ratio {100 * m['damping_ratio']:5.2f} %")
+    print("real poles:")
+    for rp in s["real_poles"]:
+        print(f"  {rp['frequency_Hz']:8.3f} Hz   (time constant {1e3 * rp['time_constant_s']:.2f} ms)")
+    print(f"  R_ep*C_ep closed form: {s['rc_pole_closed_form_Hz']:.3f} Hz")
+    print(f"pure integrators (Bouc-Wen remanence states): {s['pure_integrators']}")
+    print(f"static tip gain z3/v_a: {1e6 * s['static_tip_gain_m_per_V']:.4f} um/V "
+          f"(closed form {1e6 * s['static_tip_gain_closed_form_m_per_V']:.4f} um/V); "
+          f"at 600 V: {1e3 * s['static_tip_deflection_at_600V_m']:.3f} mm")
+    print(f"harvesting (open circuit) gain: {s['harvest_gain_at_5_8Hz_V_per_g']:.4g} V/g at 5.8 Hz, "
+          f"{s['harvest_gain_at_37Hz_V_per_g']:.4g} V/g at 37 Hz")
+    for pk in s["harvest_gain_peaks"]:
+        print(f"  peak {pk['gain_V_per_g']:.4g} V/g at {pk['peak_frequency_Hz']:.2f} Hz")
+    return 0
+
+
+def cmd_frf(args: argparse.Namespace) -> int:
+    from plant import PlantModel
+    from plant.linear import linearise
+
+    if not (0 < args.f_min_hz < args.f_max_hz):
+        raise ValueError(f"need 0 < --f-min-hz < --f-max-hz, got {args.f_min_hz} and {args.f_max_hz}")
+    if args.points < 2:
+        raise ValueError(f"--points must be at least 2, got {args.points}")
+    out = out_dir(args.out)
+    model = PlantModel(args.params)
+    lin = linearise(model)
+    lin_oc = linearise(PlantModel(model.params, terminal="open_circuit"))
+    f = np.logspace(np.log10(args.f_min_hz), np.log10(args.f_max_hz), args.points)
+    h_z = lin.frf(f, "z3", "va")
+    h_v = lin_oc.frf(f, "v_stored", "z0dd") * 9.80665
+    write_csv(out / "frf_z3_per_va.csv", {"frequency_Hz": f, "amplitude_m_per_V": np.abs(h_z),
+                                          "phase_deg": np.degrees(np.unwrap(np.angle(h_z)))})
+    write_csv(out / "frf_vstored_per_accel.csv", {"frequency_Hz": f, "amplitude_V_per_g": np.abs(h_v),
+                                                  "phase_deg": np.degrees(np.unwrap(np.angle(h_v)))})
+    plt = pyplot()
+    for name, h, ylabel, title in (
+        ("frf_z3_per_va", h_z * 1e6, "|z3 / v_a| (µm/V)", "Tip deformation response to voltage (cf. Fig. 6a)"),
+        ("frf_vstored_per_accel", h_v, "|v_stored / z̈0| (V/g)",
+         "Stored voltage response to base acceleration (cf. Fig. 6b)"),
+    ):
+        fig, (a1, a2) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
+        a1.loglog(f, np.abs(h))
+        a1.set_ylabel(ylabel)
+        a1.set_title(f"{title} — {model.params.name}")
+        a1.grid(True, which="both", alpha=0.3)
+        a2.semilogx(f, np.degrees(np.unwrap(np.angle(h))))
+        a2.set_ylabel("phase (deg)")
+        a2.set_xlabel("frequency (Hz)")
+        a2.grid(True, which="both", alpha=0.3)
+        fig.tight_layout()
+        fig.savefig(out / f"{name}.png", dpi=120)
+        plt.close(fig)
+    print(f"wrote {out}/frf_z3_per_va.(csv|png) and {out}/frf_vstored_per_accel.(csv|png)")
+    return 0
+
+
+def _plot_time(out: Path, name: str, resp, xy_loop: bool, title: str) -> None:
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    if xy_loop:
+        ax.plot(resp.va, resp.z3 * 1e3)
+        ax.set_xlabel("differential drive v_a (V)")
+    else:
+        ax.plot(resp.t, resp.z3 * 1e3)
+        ax.set_xlabel("time (s)")
+    ax.set_ylabel("tip displacement z3 (mm)")
+    ax.set_title(title)
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(out / f"{name}.png", dpi=120)
+    plt.close(fig)
+
+
+def cmd_step(args: argparse.Namespace) -> int:
+    from plant import PlantModel
+    from plant.responses import step_response
+
+    if args.duration_s <= 0.1:
+        raise ValueError(f"--duration-s must be above 0.1 s (the step is applied at 0.1 s), got {args.duration_s}")
+    out = out_dir(args.out)
+    model = PlantModel(args.params)
+    resp = step_response(model, args.amplitude_v, args.duration_s)
+    write_csv(out / "step.csv", resp.columns())
+    _plot_time(out, "step", resp, False, f"Step response, {resp.label} — {model.params.name} (cf. Fig. 7b)")
+    print(f"final z3 {resp.z3[-1] * 1e3:.4f} mm; wrote {out}/step.csv and step.png", file=sys.stdout)
+    return 0
+
+
+def cmd_loop(args: argparse.Namespace) -> int:
+    from plant import PlantModel
+    from plant.responses import hysteresis_loop
+
+    if args.freq_hz <= 0 or args.cycles <= 0:
+        raise ValueError(f"--freq-hz and --cycles must be positive, got {args.freq_hz} and {args.cycles}")
+    out = out_dir(args.out)
+    model = PlantModel(args.params)
+    resp = hysteresis_loop(model, args.amplitude_v, args.freq_hz, args.cycles)
+    write_csv(out / "loop.csv", resp.columns())
+    _plot_time(out, "loop", resp, True, f"Hysteresis loop, {resp.label} — {model.params.name} (cf. Fig. 7a)")
+    print(f"z3 range {resp.z3.min() * 1e3:.4f} .. {resp.z3.max() * 1e3:.4f} mm; wrote {out}/loop.csv and loop.png")
+    return 0
