@@ -1,0 +1,93 @@
+"""Support for the effects library: fit ranges and the data an effect's ``guess`` may read.
+
+Library effects (creep, stiffening, air damping, ...) declare, besides the seam's required attributes:
+
+``neutral``
+    parameter values at which the effect leaves the response exactly unchanged (the nominal model);
+``fit_ranges``
+    for each parameter the workbench should fit by default, a :class:`FitRange` (search interval, linear or
+    logarithmic scaling). Parameters not listed stay at their value (e.g. a literature coefficient whose
+    product with another parameter is all the data can identify).
+
+The ``guess(data)`` hook of an effect receives a mapping with any of these keys (all optional; an effect
+falls back to its defaults for what is missing):
+
+``"t_s"``        1-D time array (s);
+``"inputs"``     ``{"v_ch1": V, "v_ch2": V, "z0dd": m/s^2}`` arrays on ``t_s``;
+``"measured"``   measured channels by model output name (``"z3_meas"`` in m, ``"v_stored"`` in V, ...);
+``"predicted"``  every output of the current model (without the effect) by name, on ``t_s``;
+``"params"``     the current model's parameter values by name (SI).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class FitRange:
+    """Where the workbench searches a parameter: ``[lower, upper]`` in SI units, ``log`` for scale parameters
+    that span decades (fitted as log10 of the value; the interval must then be positive)."""
+
+    lower: float
+    upper: float
+    log: bool = False
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.lower) and math.isfinite(self.upper) and self.lower < self.upper):
+            raise ValueError(f"FitRange needs finite lower < upper, got [{self.lower}, {self.upper}]")
+        if self.log and self.lower <= 0:
+            raise ValueError(f"a logarithmic FitRange needs a positive lower bound, got {self.lower}")
+
+    def clip(self, value: float) -> float:
+        return float(min(max(value, self.lower), self.upper))
+
+
+def series(data: Mapping[str, Any] | None, group: str, name: str) -> np.ndarray | None:
+    """``data[group][name]`` as a float array, or None when absent or malformed."""
+    if not data:
+        return None
+    table = data.get(group)
+    if not isinstance(table, Mapping) or name not in table:
+        return None
+    arr = np.asarray(table[name], dtype=float).ravel()
+    return arr if arr.size and np.all(np.isfinite(arr)) else None
+
+
+def residual(data: Mapping[str, Any] | None, channel: str = "z3_meas") -> tuple[np.ndarray, np.ndarray] | None:
+    """(measured − predicted, predicted) on ``channel``, or None when either is missing."""
+    meas = series(data, "measured", channel)
+    pred = series(data, "predicted", channel)
+    if meas is None or pred is None or meas.size != pred.size:
+        return None
+    return meas - pred, pred
+
+
+def param(data: Mapping[str, Any] | None, name: str, default: float) -> float:
+    """A model parameter from ``data["params"]``, else ``default``."""
+    if data and isinstance(data.get("params"), Mapping) and name in data["params"]:
+        value = float(data["params"][name])
+        if math.isfinite(value):
+            return value
+    return default
+
+
+def time_axis(data: Mapping[str, Any] | None, n: int) -> np.ndarray:
+    """``data["t_s"]`` if it has ``n`` samples, else sample indices (s unknown)."""
+    t = None if not data else data.get("t_s")
+    if t is not None:
+        arr = np.asarray(t, dtype=float).ravel()
+        if arr.size == n:
+            return arr
+    return np.arange(n, dtype=float)
+
+
+def regress(y: np.ndarray, x: np.ndarray) -> float:
+    """Least-squares slope b of y ≈ b·x (through the origin); 0 when x carries nothing."""
+    den = float(np.dot(x, x))
+    return float(np.dot(x, y) / den) if den > 0 else 0.0
