@@ -4,6 +4,7 @@ This package imports nothing else of ours.
 """
 
 from board_config.errors import ConfigError
+from board_config.mbit import MbitDefinition, load_mbit, load_mbit_definitions
 from board_config.parameter_sets import (
     CORE_PARAMETER_NAMES,
     CORE_SCHEMA,
@@ -20,11 +21,14 @@ __all__ = [
     "CORE_SCHEMA",
     "ConfigError",
     "EffectEntry",
+    "MbitDefinition",
     "MfcLimits",
     "MonitorSettings",
     "ParameterSet",
     "QuantitySpec",
     "available_parameter_sets",
+    "load_mbit",
+    "load_mbit_definitions",
     "load_mfc_limits",
     "load_monitor_settings",
     "load_parameter_set",

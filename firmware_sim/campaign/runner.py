@@ -1,0 +1,207 @@
+"""Run a campaign's batches on an executor — in-process, a local process pool (default) or a Dask cluster — and
+keep every finished batch in the result store, whatever happens to the others.
+
+All three paths submit the same module-level task (:func:`~firmware_sim.campaign.worker.run_batch`) through the
+``concurrent.futures`` interface (Dask's ``Client.get_executor()``), and the results do not depend on which one
+ran them (see :mod:`firmware_sim.campaign.spec`). A worker that dies (a crashed process, a Dask ``KilledWorker``)
+or a task that raises is reported per batch; the batches that finished are already stored, and rerunning the
+same campaign into the same directory computes only what is missing.
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import time
+from collections.abc import Callable
+from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from firmware_sim.campaign.results import CampaignResult
+from firmware_sim.campaign.spec import BatchSpec, CampaignSpec
+from firmware_sim.campaign.store import ResultStore
+from firmware_sim.campaign.worker import BatchResult, mbit_sequence, model_from_toml, run_batch
+
+ProgressFn = Callable[[int], None]
+BatchFn = Callable[..., BatchResult]
+
+
+class CampaignError(ValueError):
+    """The campaign cannot start (e.g. the Dask scheduler is unreachable)."""
+
+
+@dataclass(frozen=True)
+class BatchFailure:
+    key: str
+    message: str
+
+
+@dataclass
+class CampaignOutcome:
+    """What a call of :func:`run_campaign` achieved."""
+
+    spec: CampaignSpec
+    out_dir: Path
+    result: CampaignResult | None  # None unless every batch finished
+    n_batches: int
+    n_reused: int  # batches taken from the store (resume)
+    n_computed: int
+    failures: list[BatchFailure]
+    notes: list[str] = field(default_factory=list)
+    wall_s: float = 0.0
+    executor: str = ""
+    clamp: dict[str, Any] = field(default_factory=dict)
+    compute_s: float = 0.0  # summed task time over all workers (s)
+
+    @property
+    def complete(self) -> bool:
+        return self.result is not None
+
+    def failure_message(self) -> str:
+        done = self.n_reused + self.n_computed
+        lines = [f"{len(self.failures)} of {self.n_batches} batches did not finish ({done} finished and stored in "
+                 f"{self.out_dir / 'batches'}):"]
+        lines += [f"  {f.key}: {f.message}" for f in self.failures[:10]]
+        if len(self.failures) > 10:
+            lines.append(f"  ... and {len(self.failures) - 10} more")
+        lines.append("rerun the same command with the same --out to resume (finished batches are reused)")
+        return "\n".join(lines)
+
+
+def _describe_exception(exc: BaseException) -> str:
+    if isinstance(exc, BrokenProcessPool):
+        return ("a worker process died (crashed or was killed) while this batch was running or queued: "
+                f"{exc}")
+    name = type(exc).__name__
+    if name == "KilledWorker":
+        return f"the Dask workers running this batch died repeatedly (KilledWorker): {exc}"
+    return f"{name}: {exc}"
+
+
+def _process_executor(workers: int) -> ProcessPoolExecutor:
+    methods = mp.get_all_start_methods()
+    if "forkserver" in methods:
+        ctx = mp.get_context("forkserver")
+        ctx.set_forkserver_preload(["firmware_sim.campaign.worker"])
+    else:
+        ctx = mp.get_context("spawn")
+    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+
+
+def connect_dask(address: str, timeout_s: float = 10.0) -> Any:
+    """A ``distributed.Client`` for ``address``; a clear :class:`CampaignError` if it cannot be reached."""
+    try:
+        from distributed import Client
+    except ImportError:
+        raise CampaignError("--dask-scheduler needs Dask: install the optional extra, "
+                            "pip install 'mfc-shm[cluster]'") from None
+    try:
+        return Client(address, timeout=f"{timeout_s}s", set_as_default=False)
+    except (OSError, TimeoutError) as exc:
+        raise CampaignError(f"cannot reach the Dask scheduler at {address!r} within {timeout_s:g} s ({exc})"
+                            ) from None
+    except Exception as exc:  # malformed address and other connection errors
+        raise CampaignError(f"cannot connect to the Dask scheduler at {address!r}: {type(exc).__name__}: {exc}"
+                            ) from None
+
+
+def run_campaign(
+    spec: CampaignSpec,
+    out_dir: str | Path,
+    *,
+    workers: int | None = None,
+    dask_scheduler: str | None = None,
+    dask_client: Any = None,
+    dask_timeout_s: float = 10.0,
+    fresh: bool = False,
+    progress: ProgressFn | None = None,
+    batch_fn: BatchFn = run_batch,
+) -> CampaignOutcome:
+    """Run (or resume) a campaign into ``out_dir``.
+
+    ``workers``: local processes (default ``os.cpu_count()``); ``1`` runs in this process (with the plant's
+    batch threads). ``dask_scheduler``: address of a Dask scheduler (``tcp://host:8786``) — or pass a connected
+    ``dask_client`` — to run the same tasks there. ``progress(n_runs)`` is called as runs finish (reused batches
+    first). ``batch_fn`` is the task (a module-level callable taking ``(BatchSpec, threads)``).
+    """
+    t_start = time.perf_counter()
+    if workers is not None and workers < 1:
+        raise ValueError(f"--workers must be >= 1, got {workers}")
+    if dask_scheduler is not None and workers is not None:
+        raise ValueError("--workers and --dask-scheduler are exclusive (the cluster decides its workers)")
+    out_dir = Path(out_dir)
+    # fail fast on the model and the MBIT sequences in this process (clear errors, clamp reports)
+    model = model_from_toml(spec.params_toml)
+    clamp = {m.key: mbit_sequence(m).clamp.describe() for m in spec.mbits}
+    notes = [mbit_sequence(m).clamp.message(m.label) for m in spec.mbits if mbit_sequence(m).clamp.clamped]
+    store = ResultStore(out_dir, spec, fresh=fresh)
+    batches = spec.batches()
+    stored = store.finished()
+    todo = [b for b in batches if b.key not in stored]
+    if progress is not None and stored:
+        progress(sum(b.n for b in batches if b.key in stored))
+
+    failures: list[BatchFailure] = []
+    computed: dict[str, dict] = {}
+    compute_s = 0.0
+
+    def accept(batch: BatchSpec, res: BatchResult) -> None:
+        nonlocal compute_s
+        store.save(res)
+        computed[batch.key] = res.arrays
+        compute_s += res.elapsed_s
+        if progress is not None:
+            progress(batch.n)
+
+    client = None
+    executor: Executor | None = None
+    if not todo:
+        desc = "none (all batches reused from the store)"
+    elif dask_scheduler is not None or dask_client is not None:
+        client = dask_client if dask_client is not None else connect_dask(dask_scheduler, dask_timeout_s)
+        executor = client.get_executor(pure=False)
+        desc = f"dask {client.scheduler.address}"
+    elif (workers or os.cpu_count() or 1) == 1:
+        desc = "in-process"
+    else:
+        n_proc = min(workers or os.cpu_count() or 1, len(todo))
+        executor = _process_executor(n_proc)
+        desc = f"process pool ({n_proc} workers)"
+
+    try:
+        if todo and executor is None:
+            for batch in todo:
+                try:
+                    accept(batch, batch_fn(batch, None))
+                except Exception as exc:  # a failing batch must not lose the others
+                    failures.append(BatchFailure(batch.key, _describe_exception(exc)))
+        elif todo:
+            assert executor is not None
+            futures: dict[Future, BatchSpec] = {executor.submit(batch_fn, b, 1): b for b in todo}
+            for fut in as_completed(futures):
+                batch = futures[fut]
+                try:
+                    res = fut.result()
+                except Exception as exc:
+                    failures.append(BatchFailure(batch.key, _describe_exception(exc)))
+                    continue
+                accept(batch, res)
+    finally:
+        if isinstance(executor, ProcessPoolExecutor):
+            executor.shutdown(wait=True, cancel_futures=True)
+        if client is not None and dask_client is None:
+            client.close()
+
+    notes += store.notes
+    result = None
+    if not failures:
+        arrays = [stored[b.key] if b.key in stored else computed[b.key] for b in batches]
+        result = CampaignResult.from_batches(spec, arrays, tuple(model.param_units[model.param_index(n)]
+                                                                 for n in spec.deviated))
+    failures.sort(key=lambda f: f.key)
+    return CampaignOutcome(spec=spec, out_dir=out_dir, result=result, n_batches=len(batches),
+                           n_reused=len(stored), n_computed=len(computed), failures=failures, notes=notes,
+                           wall_s=time.perf_counter() - t_start, executor=desc, clamp=clamp, compute_s=compute_s)
