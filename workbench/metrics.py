@@ -1,0 +1,177 @@
+"""Agreement metrics: fit % (1 − NRMSE, as MATLAB ``compare``), RMSE, and the paper's normalised error.
+
+The seed paper (Sec. 3.2) observes that the model error grows linearly with the amplitude of the variable,
+Eq. (4):  ``|y_md − y_hw| = e0 + kerr·|y_hw|``, and normalises the error by that law, Eq. (5):
+
+    ε(t) = |y_md − y_hw| / (|y_hw| + e0/kerr)
+
+``e0`` (bias, in the variable's unit) and ``kerr`` (gain, 1) are fitted to the record per Eq. (4) by
+non-negative least squares, or given (the paper's monitor uses e0z = 0.75 mm, kerr = 0.075 for z3,
+Sec. 4.1). We evaluate ε in the equivalent form ``kerr·|e| / (kerr·|y_hw| + e0)``, which stays defined
+when the fit returns ``kerr = 0`` (then ε is reported as undefined: the error does not grow with amplitude).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+from scipy.optimize import nnls
+
+
+def fit_percent(measured: np.ndarray, model: np.ndarray) -> float:
+    """MATLAB-style fit: ``100·(1 − ‖y − ŷ‖ / ‖y − mean(y)‖)`` (%). 100 is perfect; it can be negative."""
+    y = np.asarray(measured, float)
+    e = y - np.asarray(model, float)
+    den = float(np.linalg.norm(y - y.mean()))
+    if den == 0.0:
+        return float("nan")
+    return 100.0 * (1.0 - float(np.linalg.norm(e)) / den)
+
+
+def nrmse(measured: np.ndarray, model: np.ndarray) -> float:
+    """``‖y − ŷ‖ / ‖y − mean(y)‖`` (1): the RMS error relative to the signal's own variation."""
+    y = np.asarray(measured, float)
+    den = float(np.linalg.norm(y - y.mean()))
+    return float(np.linalg.norm(y - np.asarray(model, float)) / den) if den > 0 else float("nan")
+
+
+def rmse(measured: np.ndarray, model: np.ndarray) -> float:
+    return float(np.sqrt(np.mean((np.asarray(measured, float) - np.asarray(model, float)) ** 2)))
+
+
+@dataclass(frozen=True)
+class Eq4Fit:
+    """Eq. (4) fitted: ``|e| ≈ e0 + kerr·|y_hw|`` with e0, kerr ≥ 0; ``r2`` is the fit's coefficient of
+    determination (how well the error really follows the amplitude law)."""
+
+    e0: float
+    kerr: float
+    r2: float
+    source: str  # "fitted (Eq. 4)" or "given"
+
+
+def fit_eq4(measured: np.ndarray, model: np.ndarray) -> Eq4Fit:
+    """Fit Eq. (4) by non-negative least squares of ``|y_md − y_hw|`` on ``[1, |y_hw|]``."""
+    y = np.abs(np.asarray(measured, float))
+    e = np.abs(np.asarray(model, float) - np.asarray(measured, float))
+    a = np.column_stack([np.ones_like(y), y])
+    scale = np.array([1.0, 1.0 / max(float(y.max(initial=0.0)), 1e-300) * max(float(e.max(initial=0.0)), 1e-300)])
+    coef, _ = nnls(a * scale, e)
+    e0, k = coef * scale
+    pred = e0 + k * y
+    ss = float(np.sum((e - e.mean()) ** 2))
+    r2 = 1.0 - float(np.sum((e - pred) ** 2)) / ss if ss > 0 else float("nan")
+    return Eq4Fit(float(e0), float(k), r2, "fitted (Eq. 4)")
+
+
+def normalised_error(measured: np.ndarray, model: np.ndarray, e0: float, kerr: float) -> np.ndarray:
+    """Eq. (5): ``|y_md − y_hw| / (|y_hw| + e0/kerr)`` evaluated as ``kerr·|e| / (kerr·|y_hw| + e0)``.
+
+    Undefined (NaN everywhere) when ``kerr = 0``: Eq. (5) then divides by an infinite floor.
+    """
+    y = np.asarray(measured, float)
+    e = np.abs(np.asarray(model, float) - y)
+    if kerr <= 0.0:
+        return np.full_like(e, np.nan)
+    den = kerr * np.abs(y) + e0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        eps = np.where(den > 0, kerr * e / np.where(den > 0, den, 1.0), np.where(e > 0, np.inf, 0.0))
+    return eps
+
+
+@dataclass(frozen=True)
+class EpsStats:
+    """Summary of ε(t) over a stretch: mean, standard deviation, 95th percentile, maximum, and the fraction of
+    samples above the monitor's threshold ε_th (Table 3: 0.225)."""
+
+    mean: float
+    std: float
+    p95: float
+    max: float
+    frac_above_th: float
+
+    @classmethod
+    def of(cls, eps: np.ndarray, eps_th: float) -> EpsStats:
+        e = eps[np.isfinite(eps)]
+        if e.size == 0:
+            return cls(*(float("nan"),) * 5)
+        return cls(float(e.mean()), float(e.std()), float(np.percentile(e, 95)), float(e.max()),
+                   float(np.mean(e > eps_th)))
+
+
+@dataclass(frozen=True)
+class ChannelMetrics:
+    """Agreement of one channel (free-run simulation unless stated). Units: the channel's SI unit."""
+
+    channel: str
+    unit: str
+    n_samples: int
+    skip_s: float
+    fit_pct: float
+    nrmse: float
+    rmse: float
+    max_abs_error: float
+    mean_error: float  # mean of measured − model (bias)
+    eq4_fitted: Eq4Fit
+    eps_fitted: EpsStats
+    eq4_given: Eq4Fit | None
+    eps_given: EpsStats | None
+
+    def to_dict(self) -> dict:
+        return asdict(self)
+
+
+def channel_metrics(channel: str, unit: str, t: np.ndarray, measured: np.ndarray, model: np.ndarray, *,
+                    skip_s: float = 0.0, given: tuple[float, float] | None = None, eps_th: float = 0.225
+                    ) -> ChannelMetrics:
+    """All metrics of one channel over ``t >= t[0] + skip_s`` (transient skip, as nonlinearbenchmark.org)."""
+    k = np.asarray(t) >= t[0] + skip_s
+    if np.count_nonzero(k) < 2:
+        raise ValueError(f"channel '{channel}': transient skip {skip_s} s leaves fewer than 2 samples")
+    y, yh = np.asarray(measured, float)[k], np.asarray(model, float)[k]
+    e = y - yh
+    fit4 = fit_eq4(y, yh)
+    eps_f = EpsStats.of(normalised_error(y, yh, fit4.e0, fit4.kerr), eps_th)
+    g4 = eps_g = None
+    if given is not None:
+        g4 = Eq4Fit(float(given[0]), float(given[1]), float("nan"), "given")
+        eps_g = EpsStats.of(normalised_error(y, yh, g4.e0, g4.kerr), eps_th)
+    return ChannelMetrics(
+        channel=channel, unit=unit, n_samples=int(y.size), skip_s=float(skip_s), fit_pct=fit_percent(y, yh),
+        nrmse=nrmse(y, yh), rmse=rmse(y, yh), max_abs_error=float(np.max(np.abs(e))), mean_error=float(e.mean()),
+        eq4_fitted=fit4, eps_fitted=eps_f, eq4_given=g4, eps_given=eps_g,
+    )
+
+
+@dataclass(frozen=True)
+class FrfMetrics:
+    """Agreement of a frequency response: complex fit % ``100·(1 − ‖H − Ĥ‖/‖H‖)``, amplitude error (dB) and
+    phase error (deg) statistics, and where the peaks sit (resonance shift)."""
+
+    channel: str
+    unit: str
+    fit_pct: float
+    amp_err_db_rms: float
+    amp_err_db_max: float
+    phase_err_deg_rms: float
+    phase_err_deg_max: float
+    peak_measured_Hz: float
+    peak_model_Hz: float
+
+
+def frf_metrics(channel: str, unit: str, f: np.ndarray, measured: np.ndarray, model: np.ndarray) -> FrfMetrics:
+    h, hm = np.asarray(measured, complex), np.asarray(model, complex)
+    den = float(np.linalg.norm(h))
+    fit = 100.0 * (1.0 - float(np.linalg.norm(h - hm)) / den) if den > 0 else float("nan")
+    with np.errstate(divide="ignore", invalid="ignore"):
+        db = 20 * np.log10(np.abs(hm) / np.abs(h))
+    ph = np.degrees(np.angle(hm / np.where(h == 0, 1, h)))
+    db_f = db[np.isfinite(db)]
+    return FrfMetrics(
+        channel, unit, fit,
+        float(np.sqrt(np.mean(db_f ** 2))) if db_f.size else float("nan"),
+        float(np.max(np.abs(db_f))) if db_f.size else float("nan"),
+        float(np.sqrt(np.mean(ph ** 2))), float(np.max(np.abs(ph))),
+        float(f[int(np.argmax(np.abs(h)))]), float(f[int(np.argmax(np.abs(hm)))]),
+    )
