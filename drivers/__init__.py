@@ -1,5 +1,6 @@
 """Hardware-link layer: the ``Link`` protocol and its implementations. Imports only board_config."""
 
+from drivers import hardware_links as _hardware_links  # noqa: F401  (registers serial/socket/Modbus URLs)
 from drivers.link import (
     FLAG_LIMIT_REFUSED,
     FLAG_RIG_FAULT,

@@ -1,0 +1,310 @@
+"""``ModbusLink``: the board as a Modbus master (pymodbus 3.16 sync clients), TCP or RTU.
+
+URLs (registered in :mod:`drivers.hardware_links`)::
+
+    modbus-tcp://HOST:PORT?unit=1&timeout=0.004
+    modbus-rtu:/dev/ttyUSB0?baud=115200&parity=N&unit=1&timeout=0.02
+
+Options (URL query):
+
+    unit      Modbus unit (slave) id, 1..247 (default 1)
+    timeout   per-request reply timeout in seconds (default 0.004 for TCP; for RTU 0.004 s plus twice the wire
+              time of the longest frame at the given baud rate, 8.6 ms at 115200 baud)
+    baud, parity, stopbits   RTU line settings (default 115200, N, 1)
+    reopen    consecutive timeouts after which the connection is closed and reopened (default 25)
+
+One :meth:`ModbusLink.exchange` per tick is two transactions: FC 16 writes the command block (holding
+registers 0–7), FC 04 reads the sample block (input registers 0–21); the map is :mod:`drivers.modbus_registers`.
+A command refused with exception 03 (outside the rig's limits) still returns the sample, with
+``FLAG_LIMIT_REFUSED`` set, as the in-process link does; every other exception reply, a timeout, a reply of
+the wrong kind or a lost connection is a ``LinkError``. A lost connection is reopened with a back-off counted
+in exchange calls (1, 2, 4 … 64). Incidents go to the ``drivers.modbus_link`` logger and
+:attr:`ModbusLink.stats`.
+
+On a slow RTU line (19200 baud needs ~22 ms for this poll) one exchange does not fit a 10 ms tick: use
+115200 baud or faster, or a Modbus TCP gateway.
+"""
+
+from __future__ import annotations
+
+import logging
+import select
+from collections import Counter
+from urllib.parse import parse_qsl, urlsplit
+
+from pymodbus.client import ModbusSerialClient, ModbusTcpClient
+from pymodbus.exceptions import ConnectionException, ModbusException
+from pymodbus.framer import FramerType
+
+from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, LinkError, RigSample
+from drivers.modbus_registers import (
+    COMMAND_START,
+    INPUT_COUNT,
+    INPUT_START,
+    ModbusExceptionCode,
+    decode_input_block,
+    encode_command_block,
+)
+
+log = logging.getLogger("drivers.modbus_link")
+MAX_BACKOFF_CALLS = 64
+_KNOWN = {"tcp": {"unit", "timeout", "reopen"},
+          "rtu": {"unit", "timeout", "reopen", "baud", "parity", "stopbits"}}
+# longest RTU frame of an exchange: FC04 reply with 22 registers = 1+1+1+44+2 bytes
+_RTU_LONGEST_FRAME = 49
+
+
+class _RtuClient(ModbusSerialClient):
+    """pymodbus' sync RTU client with an event-driven receive.
+
+    The stock ``recv(None)`` polls ``in_waiting`` with ``time.sleep`` and waits until the byte count stops
+    growing (≥ 2 ms per reply, 4 ms per exchange). Here ``recv(None)`` blocks in ``select`` until bytes are
+    there and returns them at once; pymodbus' RTU framer already asks for more while a frame is incomplete
+    (its length follows from the function code), so nothing else changes.
+    """
+
+    def recv(self, size: int | None) -> bytes:
+        sock = self.socket
+        if size is not None or sock is None or not hasattr(sock, "fileno"):
+            return super().recv(size)
+        try:
+            if not sock.in_waiting:
+                ready, _, _ = select.select([sock.fileno()], [], [], self.comm_params.timeout_connect or 0)
+                if not ready:
+                    return b""
+            return sock.read(max(1, sock.in_waiting))
+        except (OSError, ValueError) as exc:
+            self.close()
+            raise ConnectionException(f"serial port lost: {exc}") from None
+
+
+def _num(opts: dict[str, str], key: str, default: float, url: str, lo: float, hi: float) -> float:
+    if key not in opts:
+        return default
+    try:
+        v = float(opts[key])
+    except ValueError:
+        raise ValueError(f"link URL '{url}': option {key}={opts[key]!r} is not a number") from None
+    if not lo <= v <= hi:
+        raise ValueError(f"link URL '{url}': option {key}={v:g} outside the allowed range [{lo:g}, {hi:g}]")
+    return v
+
+
+def parse_modbus_url(url: str) -> dict[str, object]:
+    """Parse a ``modbus-tcp://`` or ``modbus-rtu:`` URL into client settings; ``ValueError`` names the problem."""
+    if url.startswith("modbus-tcp://"):
+        kind = "tcp"
+        parts = urlsplit(url.replace("modbus-tcp://", "tcp://", 1))
+        if not parts.hostname:
+            raise ValueError(f"link URL '{url}': expected modbus-tcp://HOST:PORT")
+        try:
+            port = parts.port or 502
+        except ValueError:
+            raise ValueError(f"link URL '{url}': bad port") from None
+        target: dict[str, object] = {"host": parts.hostname, "port": port}
+        query = parts.query
+    elif url.startswith("modbus-rtu:"):
+        kind = "rtu"
+        path, _, query = url.removeprefix("modbus-rtu:").partition("?")
+        if not path:
+            raise ValueError(f"link URL '{url}': expected modbus-rtu:PATH (a serial device or pty)")
+        target = {"port": path}
+    else:
+        raise ValueError(f"link URL '{url}': not a modbus-tcp:// or modbus-rtu: URL")
+    opts = dict(parse_qsl(query, keep_blank_values=True))
+    unknown = set(opts) - _KNOWN[kind]
+    if unknown:
+        raise ValueError(f"link URL '{url}': unknown option(s) {', '.join(sorted(unknown))} "
+                         f"(known: {', '.join(sorted(_KNOWN[kind]))})")
+    settings: dict[str, object] = {"kind": kind, **target,
+                                   "unit": int(_num(opts, "unit", 1, url, 1, 247)),
+                                   "reopen": int(_num(opts, "reopen", 25, url, 1, 1e9))}
+    if kind == "rtu":
+        baud = int(_num(opts, "baud", 115200, url, 300, 4_000_000))
+        parity = opts.get("parity", "N").upper()
+        if parity not in ("N", "E", "O"):
+            raise ValueError(f"link URL '{url}': parity={parity!r}, allowed N, E, O")
+        stopbits = int(_num(opts, "stopbits", 1, url, 1, 2))
+        wire = _RTU_LONGEST_FRAME * (1 + 8 + stopbits + (parity != "N")) / baud
+        settings.update(baud=baud, parity=parity, stopbits=stopbits,
+                        timeout=_num(opts, "timeout", 0.004 + 2 * wire, url, 1e-4, 60.0))
+    else:
+        settings["timeout"] = _num(opts, "timeout", 0.004, url, 1e-4, 60.0)
+    return settings
+
+
+class ModbusLink:
+    """The board side over Modbus TCP or RTU (see the module docstring)."""
+
+    def __init__(self, url: str) -> None:
+        self.url = url
+        self.settings = parse_modbus_url(url)
+        self.unit = int(self.settings["unit"])  # type: ignore[arg-type]
+        self.timeout = float(self.settings["timeout"])  # type: ignore[arg-type]
+        self.reopen_after = int(self.settings["reopen"])  # type: ignore[arg-type]
+        self._client = None
+        self._down = True
+        self._backoff = 1
+        self._calls_while_down = 0
+        self._timeouts_in_row = 0
+        self.stats: Counter[str] = Counter()
+        self.last_exception_code: int | None = None
+
+    # ------------------------------------------------------------------------------------------ lifecycle
+    def _make_client(self):
+        s = self.settings
+        if s["kind"] == "tcp":
+            return ModbusTcpClient(str(s["host"]), port=int(s["port"]), timeout=self.timeout,  # type: ignore[arg-type]
+                                   retries=0, name="shm-board")
+        return _RtuClient(str(s["port"]), framer=FramerType.RTU, baudrate=int(s["baud"]),  # type: ignore[arg-type]
+                                  parity=str(s["parity"]), stopbits=int(s["stopbits"]),  # type: ignore[arg-type]
+                                  bytesize=8, timeout=self.timeout, retries=0, name="shm-board")
+
+    def open(self) -> None:
+        """Connect and read the sample block once (the rig must answer). Raises ``LinkError``."""
+        self._connect()
+        try:
+            self._read_inputs()
+        except LinkError:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        client, self._client = self._client, None
+        self._down = True
+        if client is not None:
+            try:
+                client.close()
+            except Exception:
+                pass
+
+    @property
+    def is_open(self) -> bool:
+        return not self._down
+
+    def __enter__(self) -> ModbusLink:
+        self.open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _connect(self) -> None:
+        if self._client is None:
+            self._client = self._make_client()
+        try:
+            ok = self._client.connect()
+        except Exception as exc:
+            ok = False
+            log.debug("%s: connect raised %r", self.url, exc)
+        if not ok:
+            self._client.close()
+            raise LinkError(f"{self.url}: cannot connect")
+        self._down = False
+        self._backoff = 1
+        self._calls_while_down = 0
+        self._timeouts_in_row = 0
+
+    def _link_down(self, why: str) -> LinkError:
+        self.stats["link_down"] += 1
+        log.warning("%s: link down (%s); reconnecting with back-off", self.url, why)
+        if self._client is not None:
+            try:
+                self._client.close()
+            except Exception:
+                pass
+        self._down = True
+        self._calls_while_down = 0
+        return LinkError(f"{self.url}: {why}")
+
+    def _ensure_up(self) -> None:
+        if not self._down:
+            return
+        self._calls_while_down += 1
+        if self._calls_while_down < self._backoff:
+            self.stats["down_exchanges"] += 1
+            raise LinkError(f"{self.url}: link down (next reconnect attempt in "
+                            f"{self._backoff - self._calls_while_down} exchange(s))")
+        self._calls_while_down = 0
+        try:
+            self._connect()
+        except LinkError:
+            self._backoff = min(2 * self._backoff, MAX_BACKOFF_CALLS)
+            self.stats["reconnect_failed"] += 1
+            raise
+        self.stats["reconnected"] += 1
+        log.warning("%s: reconnected", self.url)
+
+    # ------------------------------------------------------------------------------------------ exchange
+    def _call(self, what: str, fn, *args, **kwargs):
+        try:
+            rr = fn(*args, device_id=self.unit, **kwargs)
+        except ConnectionException as exc:
+            raise self._link_down(f"{what}: connection lost ({exc})") from exc
+        except ModbusException as exc:  # ModbusIOException: no (valid) reply within the timeout
+            self.stats["timeouts"] += 1
+            self._timeouts_in_row += 1
+            log.warning("%s: %s: no valid reply within %.1f ms", self.url, what, 1e3 * self.timeout)
+            if self._timeouts_in_row >= self.reopen_after:
+                raise self._link_down(f"{self._timeouts_in_row} timeouts in a row") from exc
+            raise LinkError(f"{self.url}: {what}: no valid reply within {1e3 * self.timeout:.1f} ms") from exc
+        except (OSError, ValueError) as exc:  # serial port vanished under pyserial, etc.
+            raise self._link_down(f"{what}: {exc}") from exc
+        if rr is None:
+            raise LinkError(f"{self.url}: {what}: no reply")
+        self._timeouts_in_row = 0
+        return rr
+
+    def _read_inputs(self):
+        rr = self._call("read sample (FC04)", self._client.read_input_registers, INPUT_START, count=INPUT_COUNT)
+        if rr.isError():
+            self.stats["exception_replies"] += 1
+            code = getattr(rr, "exception_code", None)
+            self.last_exception_code = code
+            log.warning("%s: sample read refused with exception %s", self.url, code)
+            raise LinkError(f"{self.url}: sample read refused with Modbus exception {code}")
+        regs = getattr(rr, "registers", None)
+        if rr.function_code != 0x04 or regs is None or len(regs) != INPUT_COUNT:
+            self.stats["bad_reply"] += 1
+            raise LinkError(f"{self.url}: unexpected reply to the sample read (function {rr.function_code}, "
+                            f"{0 if regs is None else len(regs)} registers)")
+        return decode_input_block(regs)
+
+    def exchange(self, command: ActuatorCommand) -> RigSample:
+        """Write ``command``, read the sample. Raises ``LinkError`` on any failure (see the module docstring)."""
+        self._ensure_up()
+        try:
+            words = encode_command_block(command)
+        except ValueError as exc:
+            self.stats["bad_command"] += 1
+            raise LinkError(f"{self.url}: command not sendable: {exc}") from exc
+        self.stats["requests"] += 1
+        rr = self._call("write command (FC16)", self._client.write_registers, COMMAND_START, words)
+        refused = False
+        if rr.isError():
+            code = getattr(rr, "exception_code", None)
+            self.last_exception_code = code
+            self.stats["exception_replies"] += 1
+            if code == ModbusExceptionCode.ILLEGAL_VALUE:
+                refused = True
+                self.stats["refused"] += 1
+                log.warning("%s: rig refused command seq %d (v_ch1=%g V, v_ch2=%g V): exception 03", self.url,
+                            command.seq, command.v_ch1, command.v_ch2)
+            else:
+                log.warning("%s: command write refused with exception %s", self.url, code)
+                raise LinkError(f"{self.url}: command write refused with Modbus exception {code}")
+        elif rr.function_code != 0x10:
+            self.stats["bad_reply"] += 1
+            raise LinkError(f"{self.url}: unexpected reply to the command write (function {rr.function_code})")
+        block = self._read_inputs()
+        self.stats["replies"] += 1
+        sample = block.sample
+        if refused:
+            sample = RigSample(seq=sample.seq, t=sample.t, z3=sample.z3, v_patch=sample.v_patch, z0dd=sample.z0dd,
+                               v_battery=sample.v_battery, hv_present=sample.hv_present,
+                               flags=sample.flags | FLAG_LIMIT_REFUSED)
+        elif block.cmd_seq_applied != command.seq & 0xFFFFFFFF:
+            self.stats["seq_mismatch"] += 1
+            log.warning("%s: rig reports command seq %d applied, sent %d (another master?)", self.url,
+                        block.cmd_seq_applied, command.seq)
+        return sample

@@ -1,0 +1,262 @@
+"""``SerialLink``: the framed rig protocol (``drivers.framing``) over any pyserial port.
+
+URLs (registered in :mod:`drivers.hardware_links`)::
+
+    serial:/dev/ttyUSB0?baud=115200          a serial device or a pty path (``serial:`` + any pyserial URL:
+    serial:/tmp/shm-hil/rig.pty              ``serial:loop://``, ``serial:rfc2217://host:port`` ...)
+    socket://127.0.0.1:7000?timeout=0.02     raw TCP (pyserial's socket:// handler)
+    rfc2217://host:port                      a networked serial server (RFC 2217)
+
+Link options, given in the URL query and removed before the URL reaches pyserial:
+
+    baud       line speed (default 115200; ignored by ptys and sockets)
+    parity     N, E or O (default N)
+    timeout    reply timeout per exchange in seconds (default 0.008: a command+sample round trip is
+               62 bytes, 5.4 ms on a 115200-baud line)
+    handshake  1 (default) sends a PING at open() and checks the protocol version; 0 skips it
+    reopen     consecutive timeouts after which the port is closed and reopened (default 25)
+
+One :meth:`SerialLink.exchange` per tick: write a COMMAND frame, read until the SAMPLE with the same
+sequence number arrives or the timeout expires. Stale replies (earlier sequence numbers), garbage and
+bad frames are counted and skipped. A lost port (pty closed, EIO, socket reset) closes the link; it is
+reopened with a back-off counted in exchange calls (1, 2, 4 … 64), so a dead port costs one cheap
+``LinkError`` per tick and never blocks the tick loop. Every incident is logged on the
+``drivers.serial_link`` logger and counted in :attr:`SerialLink.stats`.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import Counter
+from urllib.parse import parse_qsl, urlencode
+
+import serial
+
+from drivers.framing import (
+    PROTOCOL_VERSION,
+    FrameDecoder,
+    FramingError,
+    MessageType,
+    decode_nak,
+    decode_pong,
+    decode_sample,
+    encode_command,
+    encode_ping,
+)
+from drivers.link import ActuatorCommand, LinkError, RigSample
+
+log = logging.getLogger("drivers.serial_link")
+
+_OUR_KEYS = ("baud", "parity", "timeout", "handshake", "reopen")
+MAX_BACKOFF_CALLS = 64
+
+
+def split_link_options(target: str) -> tuple[str, dict[str, str]]:
+    """Split ``target`` into (URL for pyserial, our options). Unknown query keys stay with pyserial."""
+    base, sep, query = target.partition("?")
+    if not sep:
+        return target, {}
+    ours: dict[str, str] = {}
+    theirs: list[tuple[str, str]] = []
+    for key, value in parse_qsl(query, keep_blank_values=True):
+        (ours.__setitem__(key, value) if key in _OUR_KEYS else theirs.append((key, value)))
+    return (base + ("?" + urlencode(theirs) if theirs else "")), ours
+
+
+def _option(opts: dict[str, str], key: str, default: float, url: str, lo: float, hi: float) -> float:
+    raw = opts.get(key)
+    if raw is None:
+        return default
+    try:
+        value = float(raw)
+    except ValueError:
+        raise ValueError(f"link URL '{url}': option {key}={raw!r} is not a number") from None
+    if not lo <= value <= hi:
+        raise ValueError(f"link URL '{url}': option {key}={value:g} outside the allowed range [{lo:g}, {hi:g}]")
+    return value
+
+
+class SerialLink:
+    """The board side of the framed protocol over a pyserial port (see the module docstring for URLs)."""
+
+    def __init__(self, url: str, *, timeout: float | None = None, baudrate: int | None = None,
+                 handshake: bool | None = None) -> None:
+        self.url = url
+        target = url.removeprefix("serial:") if url.startswith("serial:") else url
+        self.port_url, opts = split_link_options(target)
+        if not self.port_url:
+            raise ValueError(f"link URL '{url}': no port given (e.g. serial:/dev/ttyUSB0 or socket://HOST:PORT)")
+        self.baudrate = int(baudrate or _option(opts, "baud", 115200, url, 50, 20_000_000))
+        parity = opts.get("parity", "N").upper()
+        if parity not in ("N", "E", "O"):
+            raise ValueError(f"link URL '{url}': parity={parity!r}, allowed N, E, O")
+        self.parity = parity
+        self.timeout = float(timeout if timeout is not None else _option(opts, "timeout", 0.008, url, 1e-4, 60.0))
+        self.handshake = bool(handshake if handshake is not None else _option(opts, "handshake", 1, url, 0, 1))
+        self.reopen_after = int(_option(opts, "reopen", 25, url, 1, 1e9))
+        self._port: serial.SerialBase | None = None
+        self._decoder = FrameDecoder()
+        self._backoff = 1
+        self._calls_while_down = 0
+        self._timeouts_in_row = 0
+        self._ping_seq = 0
+        self.stats: Counter[str] = Counter()
+        self.rig_protocol_version: int | None = None
+
+    # ------------------------------------------------------------------------------------------ lifecycle
+    def open(self) -> None:
+        """Open the port (and check the rig answers a PING unless ``handshake=0``). Raises ``LinkError``."""
+        self._open_port()
+        if self.handshake:
+            try:
+                self.rig_protocol_version = self.ping(attempts=5)
+            except LinkError:
+                self.close()
+                raise
+            if self.rig_protocol_version != PROTOCOL_VERSION:
+                self.close()
+                raise LinkError(f"{self.url}: rig speaks protocol version {self.rig_protocol_version}, "
+                                f"this board speaks {PROTOCOL_VERSION}")
+
+    def close(self) -> None:
+        port, self._port = self._port, None
+        if port is not None:
+            try:
+                port.close()
+            except (OSError, serial.SerialException):  # closing a vanished port
+                pass
+
+    @property
+    def is_open(self) -> bool:
+        return self._port is not None
+
+    def __enter__(self) -> SerialLink:
+        self.open()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def _open_port(self) -> None:
+        try:
+            port = serial.serial_for_url(self.port_url, baudrate=self.baudrate, parity=self.parity,
+                                         timeout=min(self.timeout, 0.002), write_timeout=max(self.timeout, 0.05),
+                                         do_not_open=False)
+        except (OSError, serial.SerialException, ValueError) as exc:
+            raise LinkError(f"{self.url}: cannot open port '{self.port_url}': {exc}") from exc
+        try:
+            port.reset_input_buffer()
+        except (OSError, serial.SerialException, NotImplementedError):
+            pass
+        self._port = port
+        self._decoder.reset()
+        self._timeouts_in_row = 0
+        self._backoff = 1
+        self._calls_while_down = 0
+
+    def _link_down(self, why: str) -> LinkError:
+        self.stats["link_down"] += 1
+        log.warning("%s: link down (%s); reopening with back-off", self.url, why)
+        self.close()
+        self._calls_while_down = 0
+        return LinkError(f"{self.url}: {why}")
+
+    def _ensure_open(self) -> serial.SerialBase:
+        if self._port is not None:
+            return self._port
+        self._calls_while_down += 1
+        if self._calls_while_down < self._backoff:
+            self.stats["down_exchanges"] += 1
+            raise LinkError(f"{self.url}: link down (next reopen attempt in "
+                            f"{self._backoff - self._calls_while_down} exchange(s))")
+        self._calls_while_down = 0
+        try:
+            self._open_port()
+        except LinkError:
+            self._backoff = min(2 * self._backoff, MAX_BACKOFF_CALLS)
+            self.stats["reopen_failed"] += 1
+            raise
+        self.stats["reopened"] += 1
+        log.warning("%s: port reopened", self.url)
+        assert self._port is not None
+        return self._port
+
+    # ------------------------------------------------------------------------------------------ exchange
+    def exchange(self, command: ActuatorCommand) -> RigSample:
+        """Send ``command``; return the rig's sample answering it. Raises ``LinkError`` on any failure."""
+        try:
+            frame = encode_command(command)
+        except FramingError as exc:
+            self.stats["bad_command"] += 1
+            raise LinkError(f"{self.url}: command not sendable: {exc}") from exc
+        reply = self._transact(frame, MessageType.COMMAND, command.seq & 0xFFFFFFFF)
+        try:
+            return decode_sample(reply)
+        except FramingError as exc:  # a SAMPLE of the wrong size from a foreign rig
+            self.stats["bad_reply"] += 1
+            raise LinkError(f"{self.url}: bad reply: {exc}") from exc
+
+    def ping(self, attempts: int = 1) -> int:
+        """Round trip a PING; return the rig's protocol version."""
+        last: LinkError | None = None
+        for _ in range(max(1, attempts)):
+            self._ping_seq = (self._ping_seq + 1) & 0xFFFFFFFF
+            try:
+                return decode_pong(self._transact(encode_ping(self._ping_seq), MessageType.PING, self._ping_seq))
+            except FramingError as exc:
+                last = LinkError(f"{self.url}: bad PONG: {exc}")
+            except LinkError as exc:
+                last = exc
+        assert last is not None
+        raise last
+
+    def _transact(self, frame: bytes, request: MessageType, seq: int):
+        port = self._ensure_open()
+        want = MessageType.SAMPLE if request == MessageType.COMMAND else MessageType.PONG
+        self.stats["requests"] += 1
+        try:
+            port.write(frame)
+        except (OSError, serial.SerialException) as exc:
+            raise self._link_down(f"write failed: {exc}") from exc
+        deadline = time.monotonic() + self.timeout  # timeouts are the link's only use of a clock
+        while True:
+            try:
+                data = port.read(max(1, port.in_waiting))
+            except (OSError, serial.SerialException) as exc:
+                raise self._link_down(f"read failed: {exc}") from exc
+            if data:
+                before = self._decoder.stats.as_dict()
+                frames = self._decoder.feed(data)
+                self._count_decoder(before)
+                for fr in frames:
+                    if fr.type == want and fr.seq == seq:
+                        self._timeouts_in_row = 0
+                        self.stats["replies"] += 1
+                        return fr
+                    if fr.type == MessageType.NAK and fr.seq == seq:
+                        rejected, reason = decode_nak(fr) if len(fr.payload) == 2 else (fr.type, "?")
+                        self.stats["nak"] += 1
+                        log.warning("%s: rig NAK for seq %d (type 0x%02X, reason %s)", self.url, seq,
+                                    rejected, getattr(reason, "name", reason))
+                        raise LinkError(f"{self.url}: rig refused request seq {seq}: "
+                                        f"{getattr(reason, 'name', reason)}")
+                    self.stats["stale_or_unexpected"] += 1
+                    log.debug("%s: skipped frame type 0x%02X seq %d while waiting for seq %d", self.url,
+                              fr.type, fr.seq, seq)
+            if time.monotonic() >= deadline:
+                self.stats["timeouts"] += 1
+                self._timeouts_in_row += 1
+                log.warning("%s: no reply to seq %d within %.1f ms", self.url, seq, 1e3 * self.timeout)
+                if self._timeouts_in_row >= self.reopen_after:
+                    raise self._link_down(f"{self._timeouts_in_row} timeouts in a row")
+                raise LinkError(f"{self.url}: no reply to seq {seq} within {1e3 * self.timeout:.1f} ms")
+
+    def _count_decoder(self, before: dict[str, int]) -> None:
+        after = self._decoder.stats.as_dict()
+        for key in ("crc_errors", "oversized", "discarded_bytes"):
+            delta = after[key] - before[key]
+            if delta:
+                self.stats[key] += delta
+                what = "byte(s) of garbage skipped" if key == "discarded_bytes" else f"frame(s) dropped ({key})"
+                log.warning("%s: %d %s", self.url, delta, what)

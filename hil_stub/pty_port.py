@@ -1,0 +1,139 @@
+"""Pseudo-terminals for the HIL stub, without socat.
+
+:class:`PtyPort` — one pty: the stub reads and writes the master side; the board opens the slave side by a
+stable symlink (like ``/dev/serial/by-id/...``), so when the stub closes the pty ("the port vanishes") and
+later opens a new one, the board's reconnect finds it again under the same name.
+
+:class:`PtyPair` — two ptys whose masters are joined by a relay thread (what ``socat pty pty`` does): two
+openable device paths, one for a server that insists on opening a path itself (pymodbus' RTU server), one for
+the board.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import os
+import select
+import tempfile
+import threading
+import tty
+from pathlib import Path
+
+
+def _make_link(target: str, link: Path) -> None:
+    tmp = link.with_name(f".{link.name}.{os.getpid()}.tmp")
+    with contextlib.suppress(FileNotFoundError):
+        tmp.unlink()
+    os.symlink(target, tmp)
+    os.replace(tmp, link)  # atomic: the board never sees a missing link during a swap
+
+
+class PtyPort:
+    """One pty with a stable symlink to its slave side."""
+
+    def __init__(self, link: str | Path | None = None) -> None:
+        if link is None:
+            link = Path(tempfile.mkdtemp(prefix="shm-hil-")) / "serial"
+        self.link = Path(link)
+        self.master: int | None = None
+        self._slave: int | None = None
+        self.slave_name = ""
+        self.dropped_bytes = 0
+
+    def open(self) -> str:
+        """Create the pty (raw mode both sides) and point the symlink at it. Returns the symlink path."""
+        master, slave = os.openpty()
+        tty.setraw(master)
+        tty.setraw(slave)
+        os.set_blocking(master, False)
+        self.master, self._slave = master, slave  # keeping the slave open: the board may come and go
+        self.slave_name = os.ttyname(slave)
+        _make_link(self.slave_name, self.link)
+        return str(self.link)
+
+    def close(self) -> None:
+        """Close both sides and remove the symlink: the port vanishes (the board's reads fail with EIO)."""
+        with contextlib.suppress(FileNotFoundError):
+            self.link.unlink()
+        for fd in (self.master, self._slave):
+            if fd is not None:
+                with contextlib.suppress(OSError):
+                    os.close(fd)
+        self.master = self._slave = None
+
+    @property
+    def is_open(self) -> bool:
+        return self.master is not None
+
+    def read(self, timeout: float) -> bytes:
+        """Bytes from the board (b"" on timeout)."""
+        if self.master is None:
+            raise OSError(errno.EBADF, "pty closed")
+        ready, _, _ = select.select([self.master], [], [], timeout)
+        if not ready:
+            return b""
+        try:
+            return os.read(self.master, 4096)
+        except BlockingIOError:
+            return b""
+
+    def write(self, data: bytes) -> None:
+        """Send to the board; if nobody reads and the pty buffer is full, the bytes are dropped (counted)."""
+        if self.master is None:
+            raise OSError(errno.EBADF, "pty closed")
+        try:
+            n = os.write(self.master, data)
+        except BlockingIOError:
+            n = 0
+        self.dropped_bytes += len(data) - n
+
+
+class PtyPair:
+    """Two joined ptys: ``path_a`` and ``path_b`` behave like the two ends of a null-modem cable."""
+
+    def __init__(self, directory: str | Path | None = None, names: tuple[str, str] = ("rig", "board")) -> None:
+        d = Path(directory) if directory is not None else Path(tempfile.mkdtemp(prefix="shm-hil-"))
+        self.a = PtyPort(d / names[0])
+        self.b = PtyPort(d / names[1])
+        self._stop = threading.Event()
+        self._thread: threading.Thread | None = None
+
+    @property
+    def path_a(self) -> str:
+        return str(self.a.link)
+
+    @property
+    def path_b(self) -> str:
+        return str(self.b.link)
+
+    def open(self) -> tuple[str, str]:
+        self.a.open()
+        self.b.open()
+        self._stop.clear()
+        self._thread = threading.Thread(target=self._relay, name="pty-relay", daemon=True)
+        self._thread.start()
+        return self.path_a, self.path_b
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread is not None:
+            self._thread.join(timeout=1.0)
+            self._thread = None
+        self.a.close()
+        self.b.close()
+
+    def _relay(self) -> None:
+        ma, mb = self.a.master, self.b.master
+        assert ma is not None and mb is not None
+        while not self._stop.is_set():
+            try:
+                ready, _, _ = select.select([ma, mb], [], [], 0.05)
+                for fd in ready:
+                    try:
+                        data = os.read(fd, 4096)
+                    except BlockingIOError:
+                        continue
+                    (self.b if fd == ma else self.a).write(data)
+            except OSError:
+                return
