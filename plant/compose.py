@@ -33,7 +33,7 @@ HOOK_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], typ
 OUT_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], types.float64[::1],
                      types.float64[::1], types.int64, types.int64, types.int64)
 PHASES = ("pre", "rates", "post")
-_GENERATOR_VERSION = "3"
+_GENERATOR_VERSION = "4"
 
 _LOADED: dict[str, ModuleType] = {}
 _LOCK = threading.Lock()

@@ -1,8 +1,9 @@
 """Batched, compiled integration: Dormand–Prince 5(4) with step-size control, one trajectory per
 batch member, batch members in parallel threads (numba ``prange``).
 
-Inputs are sampled on a uniform grid and linearly interpolated (held constant outside it). Steps are
-clipped to land exactly on every output time, so outputs need no interpolation. Each trajectory has its
+Inputs are sampled on a uniform grid and linearly interpolated (held constant outside it). Outputs
+between steps come from the method's 4th-order dense output, so the step size is set by accuracy and stability,
+not by the output rate; the last step lands exactly on the final time. Each trajectory has its
 own step size; a trajectory that produces a non-finite state or needs a step below ``h_min`` stops
 with a status code, filling the rest of its outputs with NaN, without affecting the others.
 
@@ -26,6 +27,13 @@ _B1, _B3, _B4, _B5, _B6 = 35 / 384, 500 / 1113, 125 / 192, -2187 / 6784, 11 / 84
 _E1, _E3, _E4, _E5, _E6, _E7 = (
     71 / 57600, -71 / 16695, 71 / 1920, -17253 / 339200, 22 / 525, -1 / 40,
 )
+# dense output: x(t + θh) = x + h Σ_i k_i P_i(θ), P_i(θ) = Σ_m P_im θ^m (Hairer's DOPRI5, as in scipy's RK45)
+_P12, _P13, _P14 = -8048581381 / 2820520608, 8663915743 / 2820520608, -12715105075 / 11282082432
+_P32, _P33, _P34 = 131558114200 / 32700410799, -68118460800 / 10900136933, 87487479700 / 32700410799
+_P42, _P43, _P44 = -1754552775 / 470086768, 14199869525 / 1410260304, -10690763975 / 1880347072
+_P52, _P53, _P54 = 127303824393 / 49829197408, -318862633887 / 49829197408, 701980252875 / 199316789632
+_P62, _P63, _P64 = -282668133 / 205662961, 2019193451 / 616988883, -1453857185 / 822651844
+_P72, _P73, _P74 = 40617522 / 29380423, -110615467 / 29380423, 69997945 / 29380423
 
 
 class IntegrationStatus(IntEnum):
@@ -68,6 +76,20 @@ def input_at(u, bu, t, u_t0, u_dt, uvec):
         uvec[k] = u[bu, i, k] * (1.0 - f) + u[bu, i + 1, k] * f
 
 @numba.njit(cache=CACHE, nogil=True)
+def emit(b, j, t, xo, pb, u, bu, u_t0, u_dt, uvec, bus, dx, yv, y, xs, bs, record_x, record_bus):
+    input_at(u, bu, t, u_t0, u_dt, uvec)
+    out(t, xo, pb, uvec, bus, dx, yv)
+    for k in range(yv.shape[0]):
+        y[b, j, k] = yv[k]
+    if record_x:
+        for k in range(xo.shape[0]):
+            xs[b, j, k] = xo[k]
+    if record_bus:
+        for k in range(N_BUS):
+            bs[b, j, k] = bus[k]
+
+
+@numba.njit(cache=CACHE, nogil=True)
 def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
         y, xs, bs, record_x, record_bus, status, nsteps):
     n = N_STATES
@@ -88,123 +110,124 @@ def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
     k7 = np.zeros(n)
     xt = np.zeros(n)
     xn = np.zeros(n)
-    ny = y.shape[2]
-    yv = np.zeros(ny)
+    xo = np.zeros(n)
+    yv = np.zeros(y.shape[2])
+    nout = t_out.shape[0]
     t = t_out[0]
-    # output at t0
-    input_at(u, bu, t, u_t0, u_dt, uvec)
-    out(t, x, pb, uvec, bus, dx, yv)
-    for k in range(ny):
-        y[b, 0, k] = yv[k]
-    if record_x:
-        for k in range(n):
-            xs[b, 0, k] = x[k]
-    if record_bus:
-        for k in range(N_BUS):
-            bs[b, 0, k] = bus[k]
+    t_end = t_out[nout - 1]
+    emit(b, 0, t, x, pb, u, bu, u_t0, u_dt, uvec, bus, dx, yv, y, xs, bs, record_x, record_bus)
     input_at(u, bu, t, u_t0, u_dt, uvec)
     rhs(t, x, pb, uvec, bus, k1)
     h = min(h_max, 1e-4)
     steps = 0
     code = 0
-    nout = t_out.shape[0]
     j = 1
     while j < nout:
-        t_target = t_out[j]
-        while t < t_target:
-            remaining = t_target - t
-            last = False
-            if h >= remaining * (1.0 - 1e-9):
-                h_use = remaining
-                last = True
-            else:
-                h_use = h
-            for k in range(n):
-                xt[k] = x[k] + h_use * _A21 * k1[k]
-            input_at(u, bu, t + _C2 * h_use, u_t0, u_dt, uvec)
-            rhs(t + _C2 * h_use, xt, pb, uvec, bus, k2)
-            for k in range(n):
-                xt[k] = x[k] + h_use * (_A31 * k1[k] + _A32 * k2[k])
-            input_at(u, bu, t + _C3 * h_use, u_t0, u_dt, uvec)
-            rhs(t + _C3 * h_use, xt, pb, uvec, bus, k3)
-            for k in range(n):
-                xt[k] = x[k] + h_use * (_A41 * k1[k] + _A42 * k2[k] + _A43 * k3[k])
-            input_at(u, bu, t + _C4 * h_use, u_t0, u_dt, uvec)
-            rhs(t + _C4 * h_use, xt, pb, uvec, bus, k4)
-            for k in range(n):
-                xt[k] = x[k] + h_use * (_A51 * k1[k] + _A52 * k2[k] + _A53 * k3[k] + _A54 * k4[k])
-            input_at(u, bu, t + _C5 * h_use, u_t0, u_dt, uvec)
-            rhs(t + _C5 * h_use, xt, pb, uvec, bus, k5)
-            for k in range(n):
-                xt[k] = x[k] + h_use * (_A61 * k1[k] + _A62 * k2[k] + _A63 * k3[k] + _A64 * k4[k]
-                                        + _A65 * k5[k])
-            t_new = t_target if last else t + h_use
-            input_at(u, bu, t_new, u_t0, u_dt, uvec)
-            rhs(t_new, xt, pb, uvec, bus, k6)
-            for k in range(n):
-                xn[k] = x[k] + h_use * (_B1 * k1[k] + _B3 * k3[k] + _B4 * k4[k] + _B5 * k5[k]
-                                        + _B6 * k6[k])
-            rhs(t_new, xn, pb, uvec, bus, k7)
-            err = 0.0
-            finite = True
-            for k in range(n):
-                e = h_use * (_E1 * k1[k] + _E3 * k3[k] + _E4 * k4[k] + _E5 * k5[k] + _E6 * k6[k]
-                             + _E7 * k7[k])
-                sc = atol[k] + rtol * max(abs(x[k]), abs(xn[k]))
-                r = e / sc
-                err += r * r
-                if not np.isfinite(xn[k]):
-                    finite = False
-            err = np.sqrt(err / n)
-            steps += 1
-            if not finite or not np.isfinite(err):
-                if h_use <= h_min:
-                    code = 1
-                    break
-                h = h_use * 0.2
-                continue
-            if err <= 1.0:
-                t = t_new
-                for k in range(n):
-                    x[k] = xn[k]
-                    k1[k] = k7[k]
-                fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** -0.2))
-                if last:
-                    # do not let a clipped step shrink the controller's step size
-                    h = max(h, h_use * fac)
-                else:
-                    h = h_use * fac
-                h = min(h, h_max)
-            else:
-                h = h_use * max(0.2, 0.9 * err ** -0.25)
-                if h < h_min:
-                    code = 2
-                    break
-            if steps >= max_steps:
-                code = 3
+        remaining = t_end - t
+        last = False
+        if h >= remaining * (1.0 - 1e-9):
+            h_use = remaining
+            last = True
+        else:
+            h_use = h
+        for k in range(n):
+            xt[k] = x[k] + h_use * _A21 * k1[k]
+        input_at(u, bu, t + _C2 * h_use, u_t0, u_dt, uvec)
+        rhs(t + _C2 * h_use, xt, pb, uvec, bus, k2)
+        for k in range(n):
+            xt[k] = x[k] + h_use * (_A31 * k1[k] + _A32 * k2[k])
+        input_at(u, bu, t + _C3 * h_use, u_t0, u_dt, uvec)
+        rhs(t + _C3 * h_use, xt, pb, uvec, bus, k3)
+        for k in range(n):
+            xt[k] = x[k] + h_use * (_A41 * k1[k] + _A42 * k2[k] + _A43 * k3[k])
+        input_at(u, bu, t + _C4 * h_use, u_t0, u_dt, uvec)
+        rhs(t + _C4 * h_use, xt, pb, uvec, bus, k4)
+        for k in range(n):
+            xt[k] = x[k] + h_use * (_A51 * k1[k] + _A52 * k2[k] + _A53 * k3[k] + _A54 * k4[k])
+        input_at(u, bu, t + _C5 * h_use, u_t0, u_dt, uvec)
+        rhs(t + _C5 * h_use, xt, pb, uvec, bus, k5)
+        for k in range(n):
+            xt[k] = x[k] + h_use * (_A61 * k1[k] + _A62 * k2[k] + _A63 * k3[k] + _A64 * k4[k]
+                                    + _A65 * k5[k])
+        t_new = t_end if last else t + h_use
+        input_at(u, bu, t_new, u_t0, u_dt, uvec)
+        rhs(t_new, xt, pb, uvec, bus, k6)
+        for k in range(n):
+            xn[k] = x[k] + h_use * (_B1 * k1[k] + _B3 * k3[k] + _B4 * k4[k] + _B5 * k5[k] + _B6 * k6[k])
+        rhs(t_new, xn, pb, uvec, bus, k7)
+        err = 0.0
+        finite = True
+        for k in range(n):
+            e = h_use * (_E1 * k1[k] + _E3 * k3[k] + _E4 * k4[k] + _E5 * k5[k] + _E6 * k6[k] + _E7 * k7[k])
+            sc = atol[k] + rtol * max(abs(x[k]), abs(xn[k]))
+            r = e / sc
+            err += r * r
+            if not np.isfinite(xn[k]):
+                finite = False
+        err = np.sqrt(err / n)
+        steps += 1
+        if not finite or not np.isfinite(err):
+            if h_use <= h_min:
+                code = 1
                 break
-        if code != 0:
-            break
-        input_at(u, bu, t, u_t0, u_dt, uvec)
-        out(t, x, pb, uvec, bus, dx, yv)
-        for k in range(ny):
-            y[b, j, k] = yv[k]
-        if record_x:
+            h = h_use * 0.2
+            continue
+        if err <= 1.0:
+            # dense output (4th order, Dormand-Prince) for every output time inside (t, t_new]
+            while j < nout and t_out[j] <= t_new + 1e-12 * abs(t_new):
+                th = (t_out[j] - t) / h_use
+                if th >= 1.0:
+                    for k in range(n):
+                        xo[k] = xn[k]
+                else:
+                    th2 = th * th
+                    th3 = th2 * th
+                    th4 = th3 * th
+                    q1 = th + _P12 * th2 + _P13 * th3 + _P14 * th4
+                    q3 = _P32 * th2 + _P33 * th3 + _P34 * th4
+                    q4 = _P42 * th2 + _P43 * th3 + _P44 * th4
+                    q5 = _P52 * th2 + _P53 * th3 + _P54 * th4
+                    q6 = _P62 * th2 + _P63 * th3 + _P64 * th4
+                    q7 = _P72 * th2 + _P73 * th3 + _P74 * th4
+                    for k in range(n):
+                        xo[k] = x[k] + h_use * (q1 * k1[k] + q3 * k3[k] + q4 * k4[k] + q5 * k5[k] + q6 * k6[k]
+                                                + q7 * k7[k])
+                emit(b, j, t_out[j], xo, pb, u, bu, u_t0, u_dt, uvec, bus, dx, yv, y, xs, bs, record_x,
+                     record_bus)
+                j += 1
+            t = t_new
             for k in range(n):
-                xs[b, j, k] = x[k]
-        if record_bus:
-            for k in range(N_BUS):
-                bs[b, j, k] = bus[k]
-        j += 1
+                x[k] = xn[k]
+                k1[k] = k7[k]
+            fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** -0.2))
+            if last:
+                h = max(h, h_use * fac)
+            else:
+                h = h_use * fac
+            h = min(h, h_max)
+        else:
+            h = h_use * max(0.2, 0.9 * err ** -0.25)
+            if h < h_min:
+                code = 2
+                break
+        if steps >= max_steps:
+            code = 3
+            break
     if code != 0:
         for jj in range(j, nout):
-            for k in range(ny):
+            for k in range(y.shape[2]):
                 y[b, jj, k] = np.nan
             if record_x:
                 for k in range(n):
                     xs[b, jj, k] = np.nan
+    else:
+        # leave the final state exactly at the end of the interval (the stepper continues from it)
+        if record_x:
+            for k in range(n):
+                xs[b, nout - 1, k] = x[k]
     status[b] = code
     nsteps[b] = steps
+
 
 @numba.njit(cache=CACHE, nogil=True)
 def run_chunk(lo, hi, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
@@ -217,5 +240,5 @@ def run_chunk(lo, hi, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max
 
 
 #: names of the tableau constants the generated integrator module imports from here
-TABLEAU_NAMES: tuple[str, ...] = tuple(n for n in list(globals()) if n.startswith(("_A", "_B", "_C", "_E"))
+TABLEAU_NAMES: tuple[str, ...] = tuple(n for n in list(globals()) if n.startswith(("_A", "_B", "_C", "_E", "_P"))
                                        and n[2:].isdigit())

@@ -23,6 +23,12 @@ from plant.signals import InputSignals
 CORE_STATE_SCALES = np.array([1e-3] * 3 + [1e-2] * 3 + [1e-3] * 6)
 
 
+#: default largest integration step (s). Outputs come from dense output, so this is not tied to the output rate;
+#: the 102 Hz mode of table2 limits explicit steps to ~3 ms anyway. Inputs are sampled at the stage points of each
+#: step: pass ``h_max`` = the input sample interval when the input carries content above ~1/(10 h_max).
+DEFAULT_H_MAX = 0.01
+
+
 def default_threads() -> int:
     """Threads used to integrate a batch (``$MFC_SHM_THREADS``, else the number of CPUs)."""
     env = os.environ.get("MFC_SHM_THREADS")
@@ -282,7 +288,7 @@ class PlantModel:
         atol_v = np.array(self.state_scales * rtol if atol is None else
                           np.broadcast_to(np.asarray(atol, float), (self.n_states,)), dtype=float, order="C")
         if h_max is None:
-            h_max = float(np.min(np.diff(t_out))) if t_out.size > 1 else 1e-3
+            h_max = DEFAULT_H_MAX
         run_chunk = self.kernels().run_chunk
         y = np.empty((batch, t_out.size, self.n_outputs))
         xs = np.empty((batch, t_out.size, self.n_states)) if record_states else np.empty((1, 1, 1))
