@@ -15,6 +15,8 @@ from collections.abc import Sequence
 #: command modules, each with ``register(subparsers)``; the handler is set with ``set_defaults(func=...)``
 COMMAND_MODULES: tuple[str, ...] = (
     "shm_cli.model_cmd",
+    "shm_cli.campaign_cmd",
+    "shm_cli.harvest_cmd",
 )
 
 EXIT_OK = 0

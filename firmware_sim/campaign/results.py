@@ -152,10 +152,10 @@ class CampaignResult:
                  "runs_csv": out / "runs.csv", "paper_csv": out / "paper_comparison.csv",
                  "traces": out / "traces.npz"}
         rows = [s.row() for s in self.summary()]
-        _write_rows(paths["table_csv"], rows)
+        write_rows(paths["table_csv"], rows)
         paths["table_md"].write_text(self.markdown_table() + "\n")
-        _write_rows(paths["paper_csv"], self.paper_comparison())
-        _write_rows(paths["runs_csv"], self.run_rows())
+        write_rows(paths["paper_csv"], self.paper_comparison())
+        write_rows(paths["runs_csv"], self.run_rows())
         arrays: dict[str, np.ndarray] = {
             "range_lo": self.range_lo, "range_hi": self.range_hi, "run_index": self.run_index,
             "rel_dev": self.rel_dev, "values": self.values, "deviated": np.array(self.spec.deviated),
@@ -215,7 +215,7 @@ def _unit_tag(unit: str) -> str:
     return unit.replace("*", "").replace("/", "_per_").replace(" ", "")
 
 
-def _write_rows(path: Path, rows: list[dict[str, Any]]) -> None:
+def write_rows(path: Path, rows: list[dict[str, Any]]) -> None:
     tmp = path.with_name(f".{path.name}.tmp")
     with tmp.open("w", newline="") as fh:
         if rows:
@@ -299,4 +299,5 @@ def jsonable(obj: Any) -> Any:
     return obj
 
 
-__all__ = ["CampaignResult", "MbitRuns", "StoredTraces", "jsonable", "load_traces", "save_json", "wilson_interval"]
+__all__ = ["CampaignResult", "MbitRuns", "StoredTraces", "jsonable", "load_traces", "save_json", "wilson_interval",
+           "write_rows"]

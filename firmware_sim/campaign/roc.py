@@ -7,10 +7,10 @@ serves every ``count_max``.
 
 Classes (maintenance view): a unit whose deviation range lies entirely at or below ``healthy_max`` (default 10 %)
 is *acceptable*: a fault on it is a **false alarm**. A unit whose range starts at or above ``faulty_min``
-(default 20 %) is *degraded*: a fault on it is a **detection**. Ranges in between are a grey zone and count in
-neither. ``P_fa`` and ``P_d`` are fractions of the runs of each class (integration failures excluded), with 95 %
-Wilson intervals. Without measurement noise a 0 % deviation unit can never alarm (the model is the hardware),
-so false alarms come from small but real deviations, as in the paper.
+(default also 10 %) is *degraded*: a fault on it is a **detection**. With ``faulty_min > healthy_max`` the
+ranges in between are a grey zone that counts in neither. ``P_fa`` and ``P_d`` are fractions of the runs of each
+class (integration failures excluded), with 95 % Wilson intervals. Without measurement noise a 0 % deviation unit
+can never alarm (the model is the hardware), so false alarms come from small but real deviations, as in the paper.
 """
 
 from __future__ import annotations
@@ -76,7 +76,7 @@ def peak_counts(eps: np.ndarray, eps_th: float, settings: MonitorSettings) -> np
 
 def roc_sweep(eps: np.ndarray, range_lo: np.ndarray, range_hi: np.ndarray, ok: np.ndarray,
               eps_grid: np.ndarray, count_grid: np.ndarray, settings: MonitorSettings, *, mbit: str = "",
-              label: str = "", healthy_max: float = 0.10, faulty_min: float = 0.20) -> RocTable:
+              label: str = "", healthy_max: float = 0.10, faulty_min: float = 0.10) -> RocTable:
     """Fault counts of the acceptable and degraded classes over the threshold grid (see the module doc)."""
     eps = np.asarray(eps, dtype=float)
     eps_grid = np.asarray(eps_grid, dtype=float)
@@ -85,8 +85,8 @@ def roc_sweep(eps: np.ndarray, range_lo: np.ndarray, range_hi: np.ndarray, ok: n
         raise ValueError("eps_th grid must be a non-empty list of positive thresholds")
     if count_grid.ndim != 1 or count_grid.size == 0 or np.any(count_grid < 1):
         raise ValueError("count_max grid must be a non-empty list of integers >= 1")
-    if not 0 <= healthy_max < faulty_min:
-        raise ValueError(f"need 0 <= healthy_max < faulty_min, got {healthy_max!r}, {faulty_min!r}")
+    if not 0 <= healthy_max <= faulty_min:
+        raise ValueError(f"need 0 <= healthy_max <= faulty_min, got {healthy_max!r}, {faulty_min!r}")
     ok = np.asarray(ok, dtype=bool)
     healthy = ok & (np.asarray(range_hi) <= healthy_max + _TOL)
     degraded = ok & (np.asarray(range_lo) >= faulty_min - _TOL)
