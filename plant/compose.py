@@ -33,7 +33,7 @@ HOOK_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], typ
 OUT_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], types.float64[::1],
                      types.float64[::1], types.int64, types.int64, types.int64)
 PHASES = ("pre", "rates", "post")
-_GENERATOR_VERSION = "4"
+_GENERATOR_VERSION = "5"
 
 _LOADED: dict[str, ModuleType] = {}
 _LOCK = threading.Lock()
@@ -92,11 +92,12 @@ def generate_source(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int,
         for hook in (*PHASES, "output"):
             if getattr(cls, hook) is not None:
                 sig = "OUT_SIG" if hook == "output" else "HOOK_SIG"
-                lines.append(f"e{k}_{hook} = numba.njit({sig}, cache=CACHE, nogil=True)(_EFF{k}.{hook})")
+                lines.append(f"e{k}_{hook} = numba.njit({sig}, cache=CACHE, nogil=True, error_model='numpy')"
+                             f"(_EFF{k}.{hook})")
     lines += [
         "",
         "",
-        "@numba.njit(cache=CACHE, nogil=True)",
+        "@numba.njit(cache=CACHE, nogil=True, error_model='numpy')",
         "def rhs(t, x, p, u, bus, dx):",
         "    for i in range(bus.shape[0]):",
         "        bus[i] = 0.0",
@@ -114,7 +115,7 @@ def generate_source(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int,
     lines += [
         "",
         "",
-        "@numba.njit(cache=CACHE, nogil=True)",
+        "@numba.njit(cache=CACHE, nogil=True, error_model='numpy')",
         "def out(t, x, p, u, bus, dx, y):",
         "    rhs(t, x, p, u, bus, dx)",
         "    for i in range(3):",

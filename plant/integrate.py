@@ -53,7 +53,7 @@ class IntegrationStatus(IntEnum):
 
 
 INTEGRATOR_SOURCE = r'''
-@numba.njit(cache=CACHE, nogil=True)
+@numba.njit(cache=CACHE, nogil=True, error_model="numpy")
 def input_at(u, bu, t, u_t0, u_dt, uvec):
     m = u.shape[1]
     if m == 1:
@@ -75,7 +75,7 @@ def input_at(u, bu, t, u_t0, u_dt, uvec):
     for k in range(u.shape[2]):
         uvec[k] = u[bu, i, k] * (1.0 - f) + u[bu, i + 1, k] * f
 
-@numba.njit(cache=CACHE, nogil=True)
+@numba.njit(cache=CACHE, nogil=True, error_model="numpy")
 def emit(b, j, t, xo, pb, u, bu, u_t0, u_dt, uvec, bus, dx, yv, y, xs, bs, record_x, record_bus):
     input_at(u, bu, t, u_t0, u_dt, uvec)
     out(t, xo, pb, uvec, bus, dx, yv)
@@ -89,7 +89,7 @@ def emit(b, j, t, xo, pb, u, bu, u_t0, u_dt, uvec, bus, dx, yv, y, xs, bs, recor
             bs[b, j, k] = bus[k]
 
 
-@numba.njit(cache=CACHE, nogil=True)
+@numba.njit(cache=CACHE, nogil=True, error_model="numpy")
 def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
         y, xs, bs, record_x, record_bus, status, nsteps):
     n = N_STATES
@@ -229,7 +229,7 @@ def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
     nsteps[b] = steps
 
 
-@numba.njit(cache=CACHE, nogil=True)
+@numba.njit(cache=CACHE, nogil=True, error_model="numpy")
 def run_chunk(lo, hi, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
               y, xs, bs, record_x, record_bus, status, nsteps):
     for b in range(lo, hi):

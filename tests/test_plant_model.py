@@ -101,8 +101,9 @@ def test_unforced_reciprocal_core_never_gains_energy(state):
     x0 = np.concatenate([*map(np.array, state), np.zeros(3)])
     res = model.simulate(InputSignals.zeros(0.5), t_end=0.5, dt_out=2e-4, x0=x0, record_states=True, rtol=1e-9)
     e = _energy(model, res.states[0], "plain")
-    assert np.all(np.diff(e) <= 1e-9 * e[0] + 1e-18)
-    assert e[-1] < e[0] or e[0] == 0
+    floor = 1e-18  # J: the integrator's absolute tolerances (~1e-12 m, 1e-12 C) make energy noise far below this
+    assert np.all(np.diff(e) <= 1e-9 * e[0] + floor)
+    assert e[-1] <= e[0] + floor
 
 
 @settings(max_examples=25, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -115,7 +116,7 @@ def test_unforced_hysteretic_coupling_dissipates_on_the_anhysteretic_branch(stat
     x0[9:12] = model.param_value("A_h") * x0[6:9]
     res = model.simulate(InputSignals.zeros(0.5), t_end=0.5, dt_out=2e-4, x0=x0, record_states=True, rtol=1e-9)
     e = _energy(model, res.states[0], "qh")
-    assert np.all(np.diff(e) <= 1e-9 * e[0] + 1e-18)
+    assert np.all(np.diff(e) <= 1e-9 * e[0] + 1e-18)  # J floor: see the reciprocal test
 
 
 _CACHE: dict[str, PlantModel] = {}
