@@ -10,7 +10,7 @@ Conventions
   ``-0``, most HMIs) show address + 1.
 * Encoding: every register is big-endian (high byte first, as Modbus requires). 32- and 64-bit values span
   consecutive registers with the **most significant word first** ("big-endian word order", byte order
-  ABCD for float32 and ABCDEFGH for float64; mbpoll reads them with ``-f -B``).
+  ABCD for float32 and ABCDEFGH for float64; mbpoll reads them with ``-t 3:float -B``).
 * Floats are IEEE-754 in SI units (scale 1). The scaled int16/uint16 mirrors are for HMIs that cannot read
   floats: engineering value = raw × scale; values beyond the integer range saturate.
 * A value never appears in a register as NaN or Inf: the rig replaces it by 0 and sets the sensor-fault flag.
@@ -312,7 +312,8 @@ def markdown_table() -> str:
     """The register map as the Markdown tables of ``docs/registers.md``."""
     titles = {"input": "Input registers (FC 04, read-only)",
               "holding": "Holding registers (FC 03 read; FC 06/16 write)",
-              "coil": "Coils (FC 01 read; FC 05/15 write)", "discrete": "Discrete inputs (FC 02, read-only)"}
+              "coil": "Coils (FC 01 read; writes refused, exception 02)",
+              "discrete": "Discrete inputs (FC 02, read-only)"}
     out: list[str] = []
     for table, title in titles.items():
         out += [f"### {title}", "",

@@ -185,6 +185,10 @@ class ModbusRigServer:
             registers[0] = _bits(s.hv_present, bool(s.flags & 1), bool(s.flags & 2), bool(s.flags & 4))
         elif function_code == 0x01:
             registers[0] = _bits(host.snapshot.amplifier_active)
+        elif function_code in (0x05, 0x0F):  # pymodbus ignores readonly= on bit blocks: refuse coil writes here
+            self.stats["exception_02"] += 1
+            host.incident(f"{self.describe()}: coil write refused with exception 02 (read-only)")
+            return ExcCodes.ILLEGAL_ADDRESS
         elif function_code in (0x06, 0x10) and set_values is not None:
             off = HOLDING_START - start_address
             current = registers[off: off + HOLDING_COUNT]

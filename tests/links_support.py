@@ -1,0 +1,59 @@
+"""Helpers for the link tests: a small deterministic rig and bounded waiting."""
+
+from __future__ import annotations
+
+import logging
+import shutil
+import time
+from collections.abc import Callable
+
+from drivers.link import ActuatorCommand, RigSample
+
+logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+
+
+class FakeRig:
+    """A first-order lag from the differential demand to z3 (1e-5 m/V), in rig time; optional link outages."""
+
+    def __init__(self, outages: list[tuple[float, float]] | None = None) -> None:
+        self.t = 0.0
+        self.seq = 0
+        self.v = (0.0, 0.0)
+        self.z3 = 0.0
+        self.applied: list[ActuatorCommand] = []
+        self.outages = outages or []
+
+    def apply(self, command: ActuatorCommand) -> None:
+        self.applied.append(command)
+        self.v = (command.v_ch1, command.v_ch2)
+
+    def advance(self, dt: float) -> None:
+        self.t += dt
+        self.seq += 1
+        target = 1e-5 * (self.v[0] - self.v[1]) / 2
+        self.z3 += (target - self.z3) * min(1.0, dt / 0.05)
+
+    def sample(self) -> RigSample:
+        return RigSample(self.seq, self.t, self.z3, (self.v[0] - self.v[1]) / 2, 0.0, 3.0, True, 0)
+
+    def link_down(self) -> bool:
+        return any(a <= self.t < b for a, b in self.outages)
+
+
+def wait_for(predicate: Callable[[], bool], timeout: float = 5.0, interval: float = 0.005) -> bool:
+    """Poll until ``predicate()`` or ``timeout`` seconds (bounded)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if predicate():
+            return True
+        time.sleep(interval)
+    return bool(predicate())
+
+
+def missing_tools(*names: str) -> str | None:
+    """The reason to skip when a Debian tool is missing (``make setup`` installs mbpoll and socat)."""
+    missing = [n for n in names if shutil.which(n) is None]
+    if missing:
+        return (f"{', '.join(missing)} not installed (make setup installs them: apt-get install -y mbpoll socat); "
+                "this third-party-client test cannot run")
+    return None

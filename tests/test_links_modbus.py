@@ -1,0 +1,228 @@
+"""ModbusLink and the rig's Modbus server (pymodbus 3.16) over loopback TCP and a pty pair (RTU): round trips,
+exception replies, unit-id silence, refused set-points, faults, a restarting server. Ports are always 0."""
+
+from __future__ import annotations
+
+import pytest
+from links_support import FakeRig
+from pymodbus.client import ModbusSerialClient, ModbusTcpClient
+from pymodbus.exceptions import ModbusIOException
+from pymodbus.framer import FramerType
+
+from drivers import ActuatorCommand, LinkError, open_link
+from drivers.link import FLAG_LIMIT_REFUSED
+from drivers.modbus_link import ModbusLink, parse_modbus_url
+from drivers.modbus_registers import BY_NAME as R
+from drivers.modbus_registers import (
+    INPUT_COUNT,
+    decode_input_block,
+    decode_value,
+    encode_command_block,
+    float32_to_registers,
+    registers_to_float32,
+)
+from hil_stub.faults import FaultPlan, LinkFaults
+from hil_stub.service import HilService
+
+pytestmark = pytest.mark.integration
+
+
+def cmd(k: int, v1: float = 100.0, v2: float = -100.0) -> ActuatorCommand:
+    return ActuatorCommand(seq=k, v_ch1=v1, v_ch2=v2, board_current=0.002)
+
+
+def test_url_parsing_and_errors():
+    s = parse_modbus_url("modbus-tcp://127.0.0.1:5020?unit=3&timeout=0.1")
+    assert (s["kind"], s["host"], s["port"], s["unit"], s["timeout"]) == ("tcp", "127.0.0.1", 5020, 3, 0.1)
+    s = parse_modbus_url("modbus-rtu:/dev/ttyUSB1?baud=19200&parity=E")
+    assert (s["port"], s["baud"], s["parity"]) == ("/dev/ttyUSB1", 19200, "E")
+    assert s["timeout"] == pytest.approx(0.004 + 2 * 49 * 11 / 19200)  # twice the longest reply on the wire, 8E1
+    assert isinstance(open_link("modbus-tcp://127.0.0.1:1"), ModbusLink)
+    assert isinstance(open_link("modbus-rtu:/dev/null"), ModbusLink)
+    for bad, msg in [("modbus-tcp://:502", "HOST:PORT"), ("modbus-tcp://h:5?unit=300", "unit=300"),
+                     ("modbus-tcp://h:5?speed=1", "unknown option"), ("modbus-rtu:", "PATH"),
+                     ("modbus-rtu:/dev/x?parity=Q", "parity")]:
+        with pytest.raises(ValueError, match=msg):
+            parse_modbus_url(bad)
+
+
+def test_open_without_a_server_is_a_link_error():
+    with pytest.raises(LinkError, match="cannot connect"):
+        ModbusLink("modbus-tcp://127.0.0.1:1?timeout=0.1").open()
+
+
+@pytest.fixture
+def tcp_lockstep():
+    rig = FakeRig()
+    with HilService(rig, mode="lockstep") as hil:
+        srv = hil.add_modbus_tcp("127.0.0.1:0")
+        yield hil, srv, rig
+
+
+@pytest.fixture
+def raw_client(tcp_lockstep):
+    _, srv, _ = tcp_lockstep
+    c = ModbusTcpClient("127.0.0.1", port=srv.port, timeout=0.3, retries=0)
+    assert c.connect()
+    yield c
+    c.close()
+
+
+def test_lockstep_round_trip(tcp_lockstep):
+    _hil, srv, rig = tcp_lockstep
+    assert srv.port != 0
+    with open_link(srv.board_url + "&timeout=0.5") as link:
+        samples = [link.exchange(cmd(k)) for k in range(1, 41)]
+    assert [s.seq for s in samples] == list(range(1, 41))  # one tick per command (reads do not advance)
+    assert samples[-1].v_patch == pytest.approx(100.0) and samples[-1].hv_present
+    assert [c.seq for c in rig.applied] == list(range(1, 41))
+    assert link.stats["seq_mismatch"] == 0
+
+
+def test_exception_replies_and_no_partial_writes(tcp_lockstep, raw_client):
+    hil, _srv, rig = tcp_lockstep
+    c = raw_client
+    assert not c.read_input_registers(0, count=INPUT_COUNT, device_id=1).isError()
+    # out of the map
+    rr = c.read_input_registers(20, count=5, device_id=1)
+    assert rr.isError() and rr.exception_code == 2
+    assert c.read_holding_registers(14, count=1, device_id=1).exception_code == 2
+    # read-only holding registers and the read-only coil
+    assert c.write_register(8, 7, device_id=1).exception_code == 2
+    assert c.write_registers(10, float32_to_registers(-2000.0), device_id=1).exception_code == 2
+    assert c.write_coil(0, True, device_id=1).exception_code == 2
+    # a write that splits a float
+    assert c.write_register(1, 0, device_id=1).exception_code == 2
+    # a good command, then an out-of-limit one: refused with 03, nothing changes
+    assert not c.write_registers(0, encode_command_block(cmd(5, 300.0, 0.0)), device_id=1).isError()
+    rr = c.write_registers(0, encode_command_block(cmd(6, 1500.5, 0.0)), device_id=1)
+    assert rr.exception_code == 3
+    hold = c.read_holding_registers(0, count=14, device_id=1).registers
+    assert registers_to_float32(hold[0:2]) == 300.0 and decode_value(R["cmd_seq"], hold[6:8]) == 5
+    assert decode_value(R["map_version"], hold[8:9]) == 1 and decode_value(R["rig_tick"], hold[9:10]) == 0.01
+    assert [a.seq for a in rig.applied] == [5]
+    blk = decode_input_block(c.read_input_registers(0, count=INPUT_COUNT, device_id=1).registers)
+    assert blk.sample.flags & FLAG_LIMIT_REFUSED and blk.refused_count == 1 and blk.cmd_seq_applied == 5
+    assert blk.sample.v_patch == pytest.approx(150.0)  # (300 - 0) / 2: the last accepted command
+    bits = c.read_discrete_inputs(0, count=4, device_id=1).bits[:4]
+    assert bits == [True, False, True, False]  # hv present, limit refused
+    assert c.read_coils(0, count=1, device_id=1).bits[0] is True  # amplifier active
+    # NaN set-point
+    assert c.write_registers(2, [0x7FC0, 0], device_id=1).exception_code == 3
+    assert hil.host.refused_count == 2
+
+
+def test_other_unit_ids_get_silence(tcp_lockstep, raw_client):
+    c = raw_client
+    with pytest.raises(ModbusIOException):
+        c.read_input_registers(0, count=2, device_id=7)
+    # after the silence the connection still serves our unit; 255 ("not significant") is answered on TCP
+    c.close()
+    assert c.connect()
+    assert not c.read_input_registers(0, count=2, device_id=1).isError()
+    assert not c.read_input_registers(0, count=2, device_id=255).isError()
+    assert tcp_lockstep[1].stats["other_unit_ignored"] == 1
+
+
+def test_refused_set_point_reaches_the_board_as_a_flag_not_an_error(tcp_lockstep):
+    _hil, srv, rig = tcp_lockstep
+    with open_link(srv.board_url + "&timeout=0.5") as link:
+        link.exchange(cmd(1, 200.0, 0.0))
+        s = link.exchange(cmd(2, -600.0, 0.0))
+        assert s.flags & FLAG_LIMIT_REFUSED and s.v_patch == pytest.approx(100.0)
+        assert not link.exchange(cmd(3, 0.0, 0.0)).flags & FLAG_LIMIT_REFUSED
+    assert link.stats["refused"] == 1 and [a.seq for a in rig.applied] == [1, 3]
+
+
+def test_server_restart_and_outage_are_survived(tcp_lockstep):
+    _hil, srv, _ = tcp_lockstep
+    link = open_link(srv.board_url + "&timeout=0.2")
+    link.open()
+    try:
+        link.exchange(cmd(1))
+        srv.restart()
+        ok = None
+        for k in range(2, 300):  # bounded; the back-off is at most 64 calls
+            try:
+                ok = link.exchange(cmd(k))
+                break
+            except LinkError:
+                pass
+        assert ok is not None
+        srv.loop.run(srv._stop_server())  # down for good: every exchange a LinkError, quickly
+        errors = 0
+        for k in range(300, 340):
+            try:
+                link.exchange(cmd(k))
+            except LinkError:
+                errors += 1
+        assert errors == 40 and link.stats["down_exchanges"] > 10  # most calls never touch the socket
+        srv.loop.run(srv._start())
+        back = None
+        for k in range(340, 700):
+            try:
+                back = link.exchange(cmd(k))
+                break
+            except LinkError:
+                pass
+        assert back is not None
+    finally:
+        link.close()
+    assert link.stats["link_down"] >= 2 and link.stats["reconnected"] >= 2
+
+
+def test_wire_faults_give_only_link_errors():
+    plan = FaultPlan(link=LinkFaults(drop=0.2, corrupt=0.2), seed=11)
+    with HilService(FakeRig(), mode="lockstep", plan=plan) as hil:
+        srv = hil.add_modbus_tcp("127.0.0.1:0")
+        link = ModbusLink(srv.board_url + "&timeout=0.05&reopen=100000")
+        ok = fail = 0
+        for _ in range(20):  # open() itself may hit a dropped reply
+            try:
+                link.open()
+                break
+            except LinkError:
+                pass
+        try:
+            for k in range(1, 101):
+                try:
+                    link.exchange(cmd(k))
+                    ok += 1
+                except LinkError:
+                    fail += 1
+        finally:
+            link.close()
+    # two transactions per exchange, each lost with probability 0.4: about 64 % of exchanges fail
+    assert ok + fail == 100 and 35 <= fail <= 90
+    assert srv.stats["replies_dropped"] >= 5 and srv.stats["replies_corrupted"] >= 5
+
+
+def test_rtu_over_a_pty_pair():
+    rig = FakeRig()
+    with HilService(rig, mode="lockstep", plan=FaultPlan(link=LinkFaults(corrupt=0.0))) as hil:
+        srv = hil.add_modbus_rtu("pty")
+        assert srv.board_url.startswith("modbus-rtu:") and "baud=115200" in srv.board_url
+        with open_link(srv.board_url + "&timeout=0.5") as link:
+            samples = [link.exchange(cmd(k)) for k in range(1, 21)]
+        assert [s.seq for s in samples] == list(range(1, 21))
+        c = ModbusSerialClient(srv.board_path, framer=FramerType.RTU, baudrate=115200, timeout=0.3, retries=0)
+        assert c.connect()
+        try:
+            assert c.read_input_registers(21, count=2, device_id=1).exception_code == 2
+            assert c.write_registers(0, encode_command_block(cmd(99, 1501.0, 0.0)), device_id=1).exception_code == 3
+            with pytest.raises(ModbusIOException):  # another unit on the line: silence
+                c.read_input_registers(0, count=2, device_id=9)
+            assert not c.read_input_registers(0, count=2, device_id=1).isError()
+        finally:
+            c.close()
+    assert [a.seq for a in rig.applied] == list(range(1, 21))
+
+
+def test_rtu_corrupted_replies_fail_the_crc():
+    with HilService(FakeRig(), mode="lockstep", plan=FaultPlan(link=LinkFaults(corrupt=1.0), seed=2)) as hil:
+        srv = hil.add_modbus_rtu("pty")
+        link = ModbusLink(srv.board_url + "&timeout=0.05")
+        with pytest.raises(LinkError, match="no valid reply"):
+            link.open()
+        link.close()
+        assert srv.stats["replies_corrupted"] >= 1
