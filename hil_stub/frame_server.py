@@ -3,7 +3,7 @@
 ``where`` selects the port:
 
 * ``"pty"`` — a new pseudo-terminal; the board opens ``serial:<link>`` where ``<link>`` is a stable symlink
-  to the pty's slave side (:class:`~hil_stub.pty_port.PtyPort`);
+  to the pty's slave side (:class:`~hil_stub.pty_port.PtyPort`); ``"pty:/path/name"`` picks the link's path;
 * ``"socket://HOST:PORT"`` — *listen* on TCP (port 0 picks a free one); the board connects with
   ``socket://HOST:PORT`` (pyserial's raw-socket URL); a new connection replaces the previous one;
 * anything else — a serial device path or pyserial URL the stub opens (a real port looped to the board's,
@@ -167,8 +167,9 @@ class FrameServer:
         self.faulter = ReplyFaulter(faults, seed, stream)
         self.stats: Counter[str] = Counter()
         self._decoder = FrameDecoder()
-        if where == "pty":
-            self._channel: _Channel = _PtyChannel(Path(link_path) if link_path else None)
+        if where == "pty" or where.startswith("pty:"):
+            link = link_path or (where[4:] or None if where.startswith("pty:") else None)
+            self._channel: _Channel = _PtyChannel(Path(link) if link else None)
         elif where.startswith("socket://"):
             hostport = where.removeprefix("socket://").split("?", 1)[0]
             h, _, p = hostport.rpartition(":")

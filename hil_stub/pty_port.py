@@ -33,6 +33,7 @@ class PtyPort:
     """One pty with a stable symlink to its slave side."""
 
     def __init__(self, link: str | Path | None = None) -> None:
+        self._own_dir = link is None
         if link is None:
             link = Path(tempfile.mkdtemp(prefix="shm-hil-")) / "serial"
         self.link = Path(link)
@@ -43,6 +44,7 @@ class PtyPort:
 
     def open(self) -> str:
         """Create the pty (raw mode both sides) and point the symlink at it. Returns the symlink path."""
+        self.link.parent.mkdir(parents=True, exist_ok=True)
         master, slave = os.openpty()
         tty.setraw(master)
         tty.setraw(slave)
@@ -56,6 +58,9 @@ class PtyPort:
         """Close both sides and remove the symlink: the port vanishes (the board's reads fail with EIO)."""
         with contextlib.suppress(FileNotFoundError):
             self.link.unlink()
+        if self._own_dir:
+            with contextlib.suppress(OSError):
+                self.link.parent.rmdir()  # only if empty; open() recreates it
         for fd in (self.master, self._slave):
             if fd is not None:
                 with contextlib.suppress(OSError):
@@ -93,7 +98,9 @@ class PtyPair:
     """Two joined ptys: ``path_a`` and ``path_b`` behave like the two ends of a null-modem cable."""
 
     def __init__(self, directory: str | Path | None = None, names: tuple[str, str] = ("rig", "board")) -> None:
+        self._own_dir = directory is None
         d = Path(directory) if directory is not None else Path(tempfile.mkdtemp(prefix="shm-hil-"))
+        self.dir = d
         self.a = PtyPort(d / names[0])
         self.b = PtyPort(d / names[1])
         self._stop = threading.Event()
@@ -122,6 +129,9 @@ class PtyPair:
             self._thread = None
         self.a.close()
         self.b.close()
+        if self._own_dir:
+            with contextlib.suppress(OSError):
+                self.dir.rmdir()
 
     def _relay(self) -> None:
         ma, mb = self.a.master, self.b.master

@@ -17,6 +17,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "shm_cli.model_cmd",
     "shm_cli.campaign_cmd",
     "shm_cli.harvest_cmd",
+    "shm_cli.hil_cmd",
 )
 
 EXIT_OK = 0

@@ -1,0 +1,173 @@
+"""``shm hil serve``: the simulated rig, paced in real time (or lock-step), on serial / Modbus TCP / Modbus RTU at once.
+
+Example (two terminals)::
+
+    shm hil serve --scenario maintenance --modbus-tcp 127.0.0.1:5020 --serial pty
+    shm run --scenario maintenance --realtime --link modbus-tcp://127.0.0.1:5020
+
+The stub prints, per endpoint, the URL the board passes to ``--link``. Fault flags make the rig misbehave on
+purpose (all seeded by ``--seed``). Stop with Ctrl-C (or ``--duration``); a summary of what happened is printed
+(and written as JSON with ``--summary FILE``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import signal
+import sys
+import threading
+import time
+from pathlib import Path
+
+from shm_cli.common import to_jsonable
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("hil", help="hardware-in-the-loop stub: the simulated rig served over serial / Modbus",
+                       description="The simulated rig as hardware: serial frames, Modbus TCP, Modbus RTU.")
+    hsub = p.add_subparsers(dest="hil_command", metavar="SUBCOMMAND")
+    hsub.required = True
+    s = hsub.add_parser(
+        "serve", help="serve the rig on every requested endpoint at once",
+        description="Run the truth plant paced in real time (or lock-step) and serve it on every requested endpoint "
+                    "at once. Prints the pty paths and ports and the --link URL for each.",
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog="endpoints (repeatable, at least one):\n"
+               "  --serial pty              a new pty; the board opens the printed stable link\n"
+               "  --serial socket://H:P     listen on TCP for the board's socket://H:P\n"
+               "  --serial /dev/ttyS1       a serial device (or one end of a socat pair)\n"
+               "  --modbus-tcp H:P          Modbus TCP server (port 0: any free port)\n"
+               "  --modbus-rtu pty|PATH     Modbus RTU slave on a built-in pty pair or a serial device\n")
+    g = s.add_argument_group("endpoints")
+    g.add_argument("--serial", action="append", default=[], metavar="pty|URL", help="framed serial protocol endpoint")
+    g.add_argument("--modbus-tcp", action="append", default=[], metavar="HOST:PORT", help="Modbus TCP endpoint")
+    g.add_argument("--modbus-rtu", action="append", default=[], metavar="pty|PATH", help="Modbus RTU endpoint")
+    g.add_argument("--unit", type=int, default=1, help="Modbus unit id (default 1)")
+    g.add_argument("--baud", type=int, default=115200, help="serial line speed, RTU and device paths (default 115200)")
+    g.add_argument("--parity", choices=("N", "E", "O"), default="N", help="RTU parity (default N)")
+    r = s.add_argument_group("rig")
+    r.add_argument("--params", default=None, metavar="NAME",
+                   help="parameter set of the truth plant (default: the scenario's, else table2)")
+    r.add_argument("--scenario", default=None, metavar="NAME|FILE",
+                   help="the rig's environment: vibration, HV presence, scheduled incidents (default: a quiet bench "
+                        "rig with the amplifier connected)")
+    r.add_argument("--seed", type=int, default=None, help="seeds the environment, sensor noise and faults")
+    r.add_argument("--hv", choices=("scenario", "present", "absent"), default="scenario",
+                   help="HV equipment presence: follow the scenario (default), or force it")
+    r.add_argument("--clock", choices=("realtime", "lockstep"), default="realtime",
+                   help="realtime: 100 Hz wall-clock loop (run the board with --realtime); lockstep: one tick per "
+                        "board command (run the board in virtual time)")
+    r.add_argument("--start", choices=("first-command", "now"), default="first-command",
+                   help="when rig time starts (default: at the board's first command)")
+    r.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds (wall clock)")
+    r.add_argument("--summary", default=None, metavar="FILE", help="write the end-of-run summary as JSON")
+    r.add_argument("--status-every", type=float, default=10.0, metavar="S",
+                   help="print a status line every S seconds (0: never)")
+    f = s.add_argument_group("fault injection (seeded by --seed)")
+    f.add_argument("--drop", type=float, default=0.0, metavar="FRAC", help="fraction of replies dropped")
+    f.add_argument("--corrupt", type=float, default=0.0, metavar="FRAC",
+                   help="fraction of replies with one bit flipped")
+    f.add_argument("--latency-ms", type=float, default=0.0, help="added to every reply (ms)")
+    f.add_argument("--jitter-ms", type=float, default=0.0, help="uniform extra reply latency 0..J ms")
+    f.add_argument("--disconnect-at", type=float, default=None, metavar="S",
+                   help="every endpoint disappears at this rig time (s)")
+    f.add_argument("--disconnect-for", type=float, default=1.0, metavar="S", help="... for this long (s)")
+    f.add_argument("--noise", action="append", default=[], metavar="CH=SIGMA",
+                   help="sensor noise, SI units (z3 m, v_patch V, z0dd m/s^2, v_battery V); repeatable")
+    f.add_argument("--stuck", action="append", default=[], metavar="CH[@T]",
+                   help="a channel frozen from rig time T (z3, v_patch, z0dd, v_battery, seq); repeatable")
+    f.add_argument("--deviation", action="append", default=[], metavar="NAME=REL",
+                   help="relative parameter deviation of the truth plant (k3=-0.3: k3 × 0.7); repeatable")
+    f.add_argument("--effect", action="append", default=[], metavar="NAME|module:Class",
+                   help="add a physical effect to the truth plant (registered name or dotted path); repeatable")
+    s.set_defaults(func=cmd_serve)
+
+
+def fault_plan(args: argparse.Namespace, seed: int):
+    """The :class:`~hil_stub.faults.FaultPlan` of the command line (ValueError names a bad flag)."""
+    from hil_stub.faults import FaultPlan, LinkFaults, SensorFaults, TruthChanges, parse_assignments, parse_stuck
+
+    link = LinkFaults(drop=args.drop, corrupt=args.corrupt, latency_s=args.latency_ms / 1e3,
+                      jitter_s=args.jitter_ms / 1e3, disconnect_at_s=args.disconnect_at,
+                      disconnect_for_s=args.disconnect_for)
+    sensors = SensorFaults(noise=parse_assignments("--noise", args.noise), stuck=parse_stuck(args.stuck))
+    truth = TruthChanges(deviations=parse_assignments("--deviation", args.deviation), effects=tuple(args.effect))
+    return FaultPlan(link=link, sensors=sensors, truth=truth, seed=seed)
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    from shm_cli.main import CliError
+
+    if not (args.serial or args.modbus_tcp or args.modbus_rtu):
+        raise CliError("no endpoint requested: give at least one of --serial pty|URL, --modbus-tcp HOST:PORT, "
+                       "--modbus-rtu pty|PATH")
+    if args.duration is not None and not args.duration > 0:
+        raise CliError(f"--duration {args.duration!r}: must be > 0 s")
+    logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s: %(message)s", stream=sys.stderr)
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+    from board_config.scenario import load_scenario
+    from hil_stub.service import HilService
+    from hil_stub.truth import build_truth_rig
+
+    scenario = load_scenario(args.scenario) if args.scenario else None
+    seed = args.seed if args.seed is not None else (scenario.seed if scenario else 0)
+    plan = fault_plan(args, seed)
+    hv = {"scenario": None, "present": True, "absent": False}[args.hv]
+    rig = build_truth_rig(scenario, seed=seed, params=args.params, truth=plan.truth, hv_present=hv)
+    service = HilService(rig, mode=args.clock, plan=plan, start=args.start)
+    for where in args.serial:
+        service.add_serial(where, baudrate=args.baud)
+    for where in args.modbus_tcp:
+        service.add_modbus_tcp(where, unit=args.unit)
+    for where in args.modbus_rtu:
+        service.add_modbus_rtu(where, unit=args.unit, baudrate=args.baud, parity=args.parity)
+
+    stop = threading.Event()
+
+    def _on_signal(signum, _frame):
+        stop.set()
+
+    old = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        try:
+            service.start()
+        except OSError as exc:
+            raise CliError(f"cannot open an endpoint: {exc}") from exc
+        desc = rig.describe()
+        print(f"shm hil: rig {desc['params']}"
+              + (f", scenario {desc['scenario']}" if desc["scenario"] else ", no scenario (bench rig)")
+              + f", seed {seed}; clock {args.clock} at {1 / service.host.dt:g} Hz"
+              + (", rig time starts at the board's first command" if args.start == "first-command" else ""),
+              flush=True)
+        for srv in service.servers:
+            print(f"  {srv.describe()}", flush=True)
+            print(f"    board: --link {srv.board_url}", flush=True)
+        for line in plan.describe():
+            print(f"  fault: {line}", flush=True)
+        t0 = time.monotonic()
+        next_status = t0 + args.status_every if args.status_every > 0 else float("inf")
+        while not stop.is_set():
+            stop.wait(0.1)
+            now = time.monotonic()
+            if args.duration is not None and now - t0 >= args.duration:
+                break
+            if now >= next_status:
+                next_status += args.status_every
+                h = service.host
+                p = h.pacing
+                print(f"  [{now - t0:7.1f} s] rig t = {h.snapshot.sample.t:8.2f} s, commands {h.commands}, "
+                      f"refused {h.refused_count}, deadline misses {p.deadline_misses}, incidents {h.incident_count}",
+                      file=sys.stderr, flush=True)
+    finally:
+        service.stop()
+        for sig, handler in old.items():
+            signal.signal(sig, handler)
+    summary = service.summary()
+    summary["incident_log"] = service.host.incidents[-50:]
+    print("shm hil: stopped. " + json.dumps(to_jsonable({k: v for k, v in summary.items() if k != "incident_log"})),
+          flush=True)
+    if args.summary:
+        Path(args.summary).write_text(json.dumps(to_jsonable(summary), indent=2))
+    return 0
