@@ -159,7 +159,7 @@ class SensorFaultRig:
         s = self.inner.sample()
         changes: dict[str, float | int] = {k: getattr(s, k) + v for k, v in self._noise.items()}
         for k, t_at in self.faults.stuck.items():
-            if s.t >= t_at:
+            if s.t >= t_at - 1e-9:  # rig time accumulates rounding: 10 x 0.01 s is 0.0999...9 s
                 if k not in self._frozen:
                     self._frozen[k] = changes.get(k, getattr(s, k))
                 changes[k] = self._frozen[k]
