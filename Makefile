@@ -5,7 +5,8 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 OUT ?= out
-export NUMBA_CACHE_DIR := $(CURDIR)/.cache/numba
+# Compiled plant kernels are cached per machine (content-addressed; a cold cache only costs compile time).
+export NUMBA_CACHE_DIR ?= $(HOME)/.cache/mfc-shm/numba
 export MPLBACKEND := Agg
 export PYTHONHASHSEED := 0
 
