@@ -185,6 +185,9 @@ class SimulatedRig:
             raise ConfigError(where, "rig.battery_initial_voltage",
                               f"{v0:g} V is outside the cell's open-circuit-voltage table [{lo:g}, {hi:g}] V")
         self._qd = float(self._battery_spec.discharged_capacity(v0))  # discharged capacity when not in the plant, C
+        # the cell curve tabulated finely for per-tick use (linear between 2049 points of the PCHIP curve)
+        self._ocv_q = np.linspace(-0.05, 1.05, 2049) * self._battery_spec.capacity
+        self._ocv_v = np.asarray(self._battery_spec.ocv(self._ocv_q), dtype=float)
         self._active = self._flight
         self.t = 0.0
         self._x = self._flight.model.x0_nominal.copy()
@@ -438,7 +441,16 @@ class SimulatedRig:
         if self._active.has_battery and self._active.i_vbat >= 0:
             return float(self._y[self._active.i_vbat])
         i_load = self._i_board + self.env.extra_load(self.t)
-        return float(self._battery_spec.ocv(self._qd)) - self._battery_spec_r_int * i_load
+        return self._ocv(self._qd) - self._battery_spec_r_int * i_load
+
+    def _ocv(self, qd: float) -> float:
+        q, v = self._ocv_q, self._ocv_v
+        if qd <= q[0] or qd >= q[-1]:
+            return float(self._battery_spec.ocv(qd))
+        h = q[1] - q[0]
+        i = int((qd - q[0]) / h)
+        f = (qd - q[i]) / h
+        return float(v[i] + (v[i + 1] - v[i]) * f)
 
     def _draw_noise(self) -> np.ndarray:
         if self._noise_i >= self._noise.shape[0]:

@@ -1,0 +1,278 @@
+"""The board: composition of the pieces, one call per 100 Hz tick — ``tick(sample, k) -> command + events``.
+
+Per tick ``k`` (board time ``k / rate``), given the rig sample the link returned (``None`` if the exchange failed):
+
+1. **Percepts** (pure): plausibility of the sample (NaN/Inf, out of range, rig fault flags, frozen sequence number
+   for ``[tick] stale_ticks``) → sensor fault; the rig's "limit refused" flag or a demand the output guard had to
+   clamp → limit violation; the wake comparator (|v_patch| ≥ ``[wake] patch_voltage`` or |z̈0| ≥
+   ``[wake] base_acceleration``); HV presence; the scheduler's overrun flag; an operator re-arm request.
+2. **Power manager** (``power_manager.power_step``): brown-out and "energy to wake".
+3. **Regimes** (``regimes.step``): the transition table decides the regime.
+4. **Regime work**: entering SENSING opens a usage episode (``usage.UsageEpisode``), fed every SENSING tick and
+   summarised on exit or every ``[sensing] max_episode``; MAINTENANCE runs the MBIT sequence
+   (``maintenance.MaintenanceSequencer``: condition monitor + nominal model in lock-step); leaving either closes it.
+5. **Output guard**: a non-zero demand only in MAINTENANCE; every channel voltage checked against Table 1
+   (``board_config.load_mfc_limits()``) — never leaves the range whatever the sequencer, config or link say; a
+   demand that had to be clamped is an incident and a limit violation (→ SAFE next tick).
+6. **Command**: the channel voltages and the board's current draw for its regime (the rig's battery sees it).
+
+Events (``events.BoardEvent``) go to the usage log; the board itself does no I/O and reads no clock. Deterministic:
+the same samples give the same commands and events.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import NamedTuple
+
+from board_config import (
+    MbitDefinition,
+    MfcLimits,
+    MonitorSettings,
+    ParameterSet,
+    load_mbit_definitions,
+    load_mfc_limits,
+    load_monitor_settings,
+)
+from board_config.board import BoardConfig, load_board_config
+from drivers.link import FLAG_LIMIT_REFUSED, FLAG_RIG_FAULT, FLAG_SENSOR_FAULT, ActuatorCommand, RigSample
+from firmware_sim.events import BoardEvent
+from firmware_sim.maintenance import MaintenanceSequencer
+from firmware_sim.power_manager import PowerBudget, PowerState, power_step
+from firmware_sim.regimes import Regime, RegimeState, RegimeTimers, TickInputs, Trigger
+from firmware_sim.regimes import step as regime_step
+from firmware_sim.usage import UsageEpisode
+from plant import PlantModel
+
+
+class TickResult(NamedTuple):
+    command: ActuatorCommand
+    events: list[BoardEvent]
+    regime: Regime
+
+
+def check_sample(sample: RigSample, cfg: BoardConfig) -> str:
+    """Why ``sample`` cannot be trusted ('' if it can): NaN/Inf, out-of-range value, or a rig fault flag."""
+    if sample.flags & (FLAG_SENSOR_FAULT | FLAG_RIG_FAULT):
+        return f"rig flags 0x{sample.flags:x} (sensor/rig fault)"
+    z3, vp, acc, vb = sample.z3, sample.v_patch, sample.z0dd, sample.v_battery
+    if not (abs(z3) <= cfg.sensors_z3_limit):  # also catches NaN
+        return f"z3 = {z3!r} m outside ±{cfg.sensors_z3_limit:g} m"
+    if not (abs(vp) <= cfg.sensors_v_patch_limit):
+        return f"v_patch = {vp!r} V outside ±{cfg.sensors_v_patch_limit:g} V"
+    if not (abs(acc) <= cfg.sensors_z0dd_limit):
+        return f"z0dd = {acc!r} m/s^2 outside ±{cfg.sensors_z0dd_limit:g} m/s^2"
+    if not (0.0 <= vb <= cfg.sensors_v_battery_max):
+        return f"v_battery = {vb!r} V outside [0, {cfg.sensors_v_battery_max:g}] V"
+    if not math.isfinite(sample.t):
+        return f"rig time {sample.t!r} is not finite"
+    return ""
+
+
+class Board:
+    """The SHM board firmware mock.
+
+    Parameters
+    ----------
+    config:
+        Board configuration (default: ``board_config/board.toml``).
+    nominal:
+        The nominal model parameter set for the condition monitor (name, path or ParameterSet; default ``table2``).
+    limits, monitor, mbits:
+        Table 1 limits, Table 3 monitor settings, MBIT definitions (defaults: the shipped ``board_config`` files).
+    """
+
+    def __init__(self, config: BoardConfig | None = None, *, nominal: str | ParameterSet = "table2",
+                 limits: MfcLimits | None = None, monitor: MonitorSettings | None = None,
+                 mbits: Mapping[str, MbitDefinition] | None = None, nominal_model: PlantModel | None = None) -> None:
+        self.cfg = cfg = config if config is not None else load_board_config()
+        self.limits = limits if limits is not None else load_mfc_limits()
+        monitor = monitor if monitor is not None else load_monitor_settings()
+        if abs(monitor.f_mon - cfg.tick_rate) > 1e-9:
+            raise ValueError(f"the condition monitor runs at f_mon = {monitor.f_mon:g} Hz (monitor.toml) but the "
+                             f"board ticks at {cfg.tick_rate:g} Hz (board.toml [tick] rate): they must agree")
+        self.timers = RegimeTimers.from_config(cfg)
+        self.budget = PowerBudget.from_config(cfg)
+        self.period = cfg.tick_period
+        model = nominal_model if nominal_model is not None else PlantModel(nominal, terminal="amplifier")
+        self.maintenance = MaintenanceSequencer(
+            cfg.maintenance_sequence, mbits if mbits is not None else load_mbit_definitions(), self.limits, monitor,
+            model, cfg.ticks(cfg.maintenance_settle), self.period)
+        self.state = RegimeState()
+        self.power = PowerState()
+        self.episode: UsageEpisode | None = None
+        self._episode_ticks = max(1, cfg.ticks(cfg.sensing_max_episode))
+        self._telemetry_ticks = max(1, cfg.ticks(cfg.log_telemetry_period))
+        self._rearm = False
+        self._limit_pending = ""
+        self._prev_seq: int | None = None
+        self._stale = 0
+        self._fault_reason = ""
+        self._link_error = ""
+        self.incidents = 0
+        self.last_sample: RigSample | None = None
+        self.demand = (0.0, 0.0)
+        self.ticks = 0
+        self._v_batt = math.nan
+
+    # --- operator -----------------------------------------------------------------------------------
+    def request_rearm(self) -> None:
+        """Operator re-arm: taken into account at the next tick (refused, and logged, while a cause persists)."""
+        self._rearm = True
+
+    @property
+    def regime(self) -> Regime:
+        return self.state.regime
+
+    @property
+    def monitor_count(self) -> int:
+        return self.maintenance.monitor_count
+
+    # --- the tick -----------------------------------------------------------------------------------
+    def tick(self, sample: RigSample | None, k: int, *, overrun: bool = False, link_error: str = "") -> TickResult:
+        """Process tick ``k``: the sample the link returned (``None``: the exchange failed, ``link_error`` says why),
+        whether the previous tick overran its deadline; return the command for the next interval and the events."""
+        cfg = self.cfg
+        now = k * self.period
+        events: list[BoardEvent] = []
+        self.ticks += 1
+
+        # 1. percepts
+        ok = sample is not None
+        sensor_fault = False
+        limit = bool(self._limit_pending)
+        wake = hv = False
+        if ok:
+            assert sample is not None
+            reason = check_sample(sample, cfg)
+            if self._prev_seq is not None and sample.seq == self._prev_seq:
+                self._stale += 1
+                if self._stale >= cfg.tick_stale_ticks and not reason:
+                    reason = f"rig sample sequence frozen at {sample.seq} for {self._stale} ticks"
+            else:
+                self._stale = 0
+            self._prev_seq = sample.seq
+            if reason:
+                sensor_fault = True
+                if reason != self._fault_reason:
+                    events.append(self._incident(k, "sensor_fault", reason))
+            self._fault_reason = reason
+            if sample.flags & FLAG_LIMIT_REFUSED:
+                limit = True
+                if not self._limit_pending:
+                    self._limit_pending = "the rig refused a command (limit refused flag)"
+            if not sensor_fault:
+                wake = abs(sample.v_patch) >= cfg.wake_patch_voltage or abs(sample.z0dd) >= cfg.wake_base_acceleration
+                self._v_batt = sample.v_battery
+            hv = sample.hv_present
+            if self._link_error:
+                events.append(self._incident(k, "link_restored", f"link answered again after: {self._link_error}"))
+                self._link_error = ""
+            self.last_sample = sample
+        elif link_error != self._link_error:
+            if not self._link_error:
+                events.append(self._incident(k, "link_error", link_error or "exchange failed"))
+            self._link_error = link_error or "exchange failed"
+        if limit and self._limit_pending:
+            events.append(self._incident(k, "limit_violation", self._limit_pending))
+        self._limit_pending = ""
+
+        # 2. power manager (the battery voltage of a faulty sample is not trusted)
+        self.power, pstat, pev = power_step(self.power, self._v_batt if (ok and not sensor_fault) else math.nan,
+                                            self.state.regime, k, self.budget)
+        if pev:
+            events.extend(pev)
+            self.incidents += len(pev)
+
+        # 3. regimes
+        inputs = TickInputs(ok, sensor_fault, limit, overrun, wake, hv, pstat.energy_ok, pstat.brownout, self._rearm)
+        self._rearm = False
+        old = self.state.regime
+        self.state, out, rev = regime_step(self.state, inputs, k, self.timers)
+        for ev in rev:
+            if ev.kind == "regime_change":
+                data = dict(ev.data)
+                data["v_battery_V"] = self._v_batt
+                ev = BoardEvent(ev.kind, ev.tick, ev.time, data)
+            else:
+                self.incidents += 1
+            events.append(ev)
+        if out.changed:
+            events.extend(self._on_change(old, out.regime, out.trigger, k))
+
+        # 4. regime work
+        regime = out.regime
+        demand = (0.0, 0.0)
+        if regime is Regime.SENSING and ok and not sensor_fault:
+            ep = self.episode
+            if ep is None:  # pragma: no cover - opened on entry
+                ep = self.episode = self._new_episode(now)
+            assert sample is not None
+            ep.add(now, sample.z3, sample.z0dd)
+            if ep.samples >= self._episode_ticks:
+                events.append(self._summary(k, "max_episode"))
+                self.episode = self._new_episode(now)
+        elif regime is Regime.MAINTENANCE and self.maintenance.active:
+            z3 = sample.z3 if (ok and not sensor_fault) else math.nan  # type: ignore[union-attr]
+            demand, mev = self.maintenance.step(k, z3)
+            events.extend(mev)
+
+        # 5. output guard: zero outside MAINTENANCE, Table 1 always
+        v1, v2 = demand
+        if not out.actuation_allowed:
+            v1 = v2 = 0.0
+        lo, hi = self.limits.voltage_min, self.limits.voltage_max
+        if not (lo <= v1 <= hi and lo <= v2 <= hi):
+            self._limit_pending = f"demand ({v1!r}, {v2!r}) V outside Table 1 [{lo:g}, {hi:g}] V: zero sent"
+            v1 = v2 = 0.0
+        self.demand = (v1, v2)
+
+        # 6. telemetry and command
+        if k % self._telemetry_ticks == 0:
+            events.append(BoardEvent("telemetry", k, now, {
+                "regime": regime.value, "v_battery_V": self._v_batt, "monitor_count": self.maintenance.monitor_count,
+                "charge_used_C": self.power.charge_used, "incidents_total": self.incidents}))
+        return TickResult(ActuatorCommand(k & 0xFFFFFFFF, v1, v2, pstat.current), events, regime)
+
+    # --- helpers ------------------------------------------------------------------------------------
+    def _incident(self, k: int, kind: str, detail: str) -> BoardEvent:
+        self.incidents += 1
+        return BoardEvent("incident", k, k * self.period,
+                          {"incident": kind, "regime": self.state.regime.value, "detail": detail})
+
+    def _new_episode(self, now: float) -> UsageEpisode:
+        c = self.cfg
+        return UsageEpisode(now, self.period, c.sensing_exceedance_levels, c.sensing_rainflow_gate,
+                            c.sensing_rainflow_bin_width)
+
+    def _summary(self, k: int, reason: str) -> BoardEvent:
+        assert self.episode is not None
+        summ = self.episode.summary(k * self.period, reason)
+        return BoardEvent("usage_summary", k, k * self.period, summ.as_record())
+
+    def _on_change(self, old: Regime, new: Regime, trigger: Trigger | None, k: int) -> list[BoardEvent]:
+        events: list[BoardEvent] = []
+        reason = trigger.value if trigger is not None else "?"
+        if old is Regime.SENSING and self.episode is not None:
+            events.append(self._summary(k, reason))
+            self.episode = None
+        if old is Regime.MAINTENANCE:
+            events.extend(self.maintenance.abort(k, reason))
+            self.maintenance.finish()
+        if new is Regime.SENSING:
+            self.episode = self._new_episode(k * self.period)
+        elif new is Regime.MAINTENANCE:
+            events.extend(self.maintenance.start(k))
+        self.incidents += sum(1 for e in events if e.kind == "incident")
+        return events
+
+    def close(self, k: int) -> list[BoardEvent]:
+        """End of the run at tick ``k``: summarise an open usage episode, log an unfinished visit."""
+        events: list[BoardEvent] = []
+        if self.episode is not None:
+            events.append(self._summary(k, "end"))
+            self.episode = None
+        if self.maintenance.active:
+            events.extend(self.maintenance.abort(k, "end of run"))
+        return events

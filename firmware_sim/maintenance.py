@@ -1,0 +1,207 @@
+"""The MAINTENANCE regime's work: the MBIT sequence, driven tick by tick through the link.
+
+Sequence (``[maintenance] sequence`` of ``board.toml``, default MBIT.a then MBIT.b): a settle period at zero demand
+(``[maintenance] settle``), the first MBIT's channel commands one per tick (``firmware_sim.mbit.generate_mbit``:
+clamped to Table 1, a clamp is logged as an incident), a settle, the next MBIT, ..., then the maintenance verdict.
+
+Model-based monitoring (seed paper Sec. 4): the board carries the *nominal* plant (parameter set of the board, the
+amplifier terminal, no deviations) and steps it in lock-step with the rig through the whole visit — same commands,
+same linear slew between consecutive commands as the rig's amplifier — so the prediction ``z3_md`` has the same
+history (hysteresis included) as the hardware. Each sample returned during an MBIT (the response to command ``j``)
+goes to the condition monitor (``firmware_sim.condition_monitor``, Eq. 11 + fault counter) with ``z3_md``. The
+monitor is reset before each MBIT; the verdict of an MBIT is FAULT if the counter latched, else PASS; the visit's
+verdict is FAULT if any MBIT faulted, PASS if all passed, INCOMPLETE if the visit was cut short (HV removed, SAFE).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from board_config import MbitDefinition, MfcLimits, MonitorSettings
+from firmware_sim.condition_monitor import ConditionMonitor
+from firmware_sim.events import BoardEvent
+from firmware_sim.mbit import MbitSequence, generate_mbit
+from plant import PlantModel, PlantStepper
+
+
+@dataclass(frozen=True)
+class _Step:
+    kind: str  # "settle" | "mbit"
+    ticks: int
+    key: str = ""
+
+
+class MaintenanceSequencer:
+    """Runs the MBIT sequence for one maintenance visit. ``start``, then ``step`` once per tick, ``abort`` if cut."""
+
+    def __init__(self, sequence: tuple[str, ...], definitions: Mapping[str, MbitDefinition], limits: MfcLimits,
+                 monitor: MonitorSettings, nominal: PlantModel, settle_ticks: int, period: float) -> None:
+        missing = [k for k in sequence if k not in definitions]
+        if missing:
+            raise ValueError(f"maintenance sequence names MBIT {missing[0]!r}, which is not defined "
+                             f"(defined: {', '.join(sorted(definitions))})")
+        self.period = float(period)
+        self.sequences: dict[str, MbitSequence] = {}
+        for key in sequence:
+            defn = definitions[key]
+            if abs(defn.sample_rate * period - 1.0) > 1e-9:
+                raise ValueError(f"{defn.source}: mbit.{key}.sample_rate is {defn.sample_rate:g} Hz; the board plays "
+                                 f"one command per tick ({1.0 / period:g} Hz)")
+            self.sequences[key] = generate_mbit(defn, limits, on_clamp="report")
+        self.plan: tuple[_Step, ...] = tuple(
+            s for key in sequence for s in (_Step("settle", settle_ticks), _Step("mbit", len(self.sequences[key]), key))
+            if s.ticks > 0)
+        self.nominal = nominal
+        self._i_z3 = nominal.output_names.index("z3")
+        self.monitor = ConditionMonitor(monitor)
+        self._stepper: PlantStepper | None = None
+        self._u = np.zeros((2, 3))
+        self.active = False
+        self.results: list[dict] = []
+        self._i = 0  # index in plan
+        self._j = 0  # tick within the current plan step
+        self._cmd = (0.0, 0.0)  # last command sent (V)
+        self._prev = (0.0, 0.0)  # the one before (V)
+        self._z3_md = 0.0
+
+    # --- lifecycle ----------------------------------------------------------------------------------
+    def start(self, tick: int) -> list[BoardEvent]:
+        """Begin a visit at ``tick``: nominal model at rest, first settle period, zero demand."""
+        self._stepper = PlantStepper(self.nominal)
+        self.monitor.reset()
+        self.active = True
+        self.results = []
+        self._i = 0
+        self._j = 0
+        self._cmd = self._prev = (0.0, 0.0)
+        events = []
+        for _key, seq in self.sequences.items():
+            if seq.clamp.clamped:
+                events.append(BoardEvent("incident", tick, tick * self.period, {
+                    "incident": "mbit_clamped", "detail": seq.clamp.message(seq.definition.label)}))
+        return events
+
+    @property
+    def done(self) -> bool:
+        return self._i >= len(self.plan)
+
+    @property
+    def current(self) -> str:
+        """What the sequencer is doing: ``settle``, ``MBIT.a``, ..., ``done``."""
+        if self.done:
+            return "done"
+        st = self.plan[self._i]
+        return st.kind if st.kind == "settle" else self.sequences[st.key].definition.label
+
+    @property
+    def monitor_count(self) -> int:
+        return self.monitor.count
+
+    @property
+    def z3_model(self) -> float:
+        """The nominal model's tip displacement for the latest sample (m)."""
+        return self._z3_md
+
+    def step(self, tick: int, z3_meas: float) -> tuple[tuple[float, float], list[BoardEvent]]:
+        """Take this tick's measured z3 (m; the response to the last command) and return the next command (V)."""
+        events: list[BoardEvent] = []
+        now = tick * self.period
+        if not self.active:
+            return (0.0, 0.0), events
+        if self.done:
+            return self._send((0.0, 0.0))
+        # 1. the nominal model follows the command just applied by the rig (slew from the previous one)
+        u = self._u
+        u[0, 0], u[0, 1] = self._prev
+        u[1, 0], u[1, 1] = self._cmd
+        assert self._stepper is not None
+        y = self._stepper.advance(u, self.period)
+        self._z3_md = z3_md = float(y[0, self._i_z3])
+        st = self.plan[self._i]
+        # 2. monitor the response during an MBIT (sample j answers command j-1 of this plan step)
+        if st.kind == "mbit" and self._j > 0:
+            self.monitor.update(now, z3_md, z3_meas)
+            if self._j == st.ticks:
+                events.append(self._result(tick, st.key))
+                self._i += 1
+                self._j = 0
+                if self.done:
+                    events.append(self._verdict(tick, complete=True))
+                    return self._send((0.0, 0.0), events)
+                st = self.plan[self._i]
+        elif st.kind == "settle" and self._j >= st.ticks:
+            self._i += 1
+            self._j = 0
+            st = self.plan[self._i] if not self.done else st
+        # 3. the next command
+        if self.done:
+            return self._send((0.0, 0.0), events)
+        if st.kind == "mbit":
+            if self._j == 0:
+                self.monitor.reset()
+                seq = self.sequences[st.key]
+                events.append(BoardEvent("mbit_start", tick, now, {"mbit": st.key, "label": seq.definition.label}))
+            cmd = self.sequences[st.key].command(self._j)
+        else:
+            cmd = (0.0, 0.0)
+        self._j += 1
+        return self._send(cmd, events)
+
+    def _send(self, cmd: tuple[float, float], events: list[BoardEvent] | None = None
+              ) -> tuple[tuple[float, float], list[BoardEvent]]:
+        self._prev = self._cmd
+        self._cmd = cmd
+        return cmd, events if events is not None else []
+
+    def abort(self, tick: int, reason: str) -> list[BoardEvent]:
+        """The visit is cut short (HV removed, SAFE): log the unfinished MBIT and an INCOMPLETE verdict."""
+        if not self.active:
+            return []
+        events = []
+        if not self.done:
+            st = self.plan[self._i]
+            ran, of = self._j * self.period, st.ticks * self.period
+            events.append(BoardEvent("incident", tick, tick * self.period, {
+                "incident": "mbit_aborted", "detail": f"{self.current} interrupted ({reason}) after {ran:.2f} s "
+                                                      f"of {of:.2f} s"}))
+            events.append(self._verdict(tick, complete=False, reason=reason))
+        self.active = False
+        self._stepper = None
+        return events
+
+    def finish(self) -> None:
+        self.active = False
+        self._stepper = None
+
+    # --- records --------------------------------------------------------------------------------------
+    def _result(self, tick: int, key: str) -> BoardEvent:
+        st = self.monitor.state
+        seq = self.sequences[key]
+        rec = {
+            "mbit": key, "label": seq.definition.label, "verdict": "FAULT" if st.fault else "PASS",
+            "fault_time_s": st.fault_time, "max_count": st.max_count, "max_eps": st.max_eps,
+            "n_samples": st.n_samples, "n_exceed": st.n_exceed, "n_invalid": st.n_invalid,
+            "clamp_json": json.dumps(seq.clamp.describe()),
+        }
+        self.results.append(rec)
+        return BoardEvent("mbit_result", tick, tick * self.period, rec)
+
+    def _verdict(self, tick: int, complete: bool, reason: str = "") -> BoardEvent:
+        labels = [r["label"] for r in self.results]
+        faults = [r["label"] for r in self.results if r["verdict"] == "FAULT"]
+        if faults:
+            verdict = "FAULT"  # a fault found before an interruption still stands
+        elif complete:
+            verdict = "PASS"
+        else:
+            verdict = "INCOMPLETE"
+        detail = (f"faults in {', '.join(faults)}" if faults else "no fault") + (
+            "" if complete else f"; visit cut short ({reason}), ran {', '.join(labels) or 'no MBIT'}")
+        if complete:
+            self.active = False
+        return BoardEvent("maintenance_verdict", tick, tick * self.period,
+                          {"verdict": verdict, "mbits": ",".join(labels), "detail": detail})

@@ -1,0 +1,284 @@
+"""The board's regimes as a documented transition table and one pure step function.
+
+``step(state, inputs, tick, config) -> (next_state, outputs, events)``: no clock, no I/O, no hidden state. The
+supervisory counters (consecutive link failures, wake debounce, quiet time, ...) live in :class:`RegimeState`, so a
+sequence of :class:`TickInputs` replays to the same regimes, tick for tick.
+
+Regimes (seed paper, Introduction):
+
+* ``STANDBY_HARVEST`` — board asleep, patches charge the battery; the wake comparator watches |patch voltage| and
+  |base acceleration| against ``[wake]`` thresholds.
+* ``SENSING`` — woken by a relevant or abnormal load: usage acquisition at 100 Hz; back to stand-by after
+  ``[sensing] quiet_period`` with both comparator inputs below threshold.
+* ``MAINTENANCE`` — external HV equipment present (for ``[maintenance] hv_debounce``): MBIT.a and MBIT.b run
+  through the link with the condition monitor; leaves when the equipment is removed.
+* ``SAFE`` — link lost, limit violation, sensor fault, tick overruns, or a brown-out during maintenance: zero
+  actuation demand; leaves only on an explicit re-arm (the operator's, or the supervisor's after a link-loss-only
+  SAFE once the link has been healthy for ``[safe] link_recovery``), refused while any cause persists.
+
+Each tick the rows of :data:`TRANSITIONS` whose source is the current regime are tried in priority order (lowest
+number first); the first whose trigger holds fires. Nothing else changes the regime: a test checks every observed
+change against the table, and ``docs/board.md`` prints the table from this module.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import StrEnum
+from typing import NamedTuple
+
+from board_config.board import BoardConfig
+from firmware_sim.events import BoardEvent
+
+
+class Regime(StrEnum):
+    STANDBY_HARVEST = "STANDBY_HARVEST"
+    SENSING = "SENSING"
+    MAINTENANCE = "MAINTENANCE"
+    SAFE = "SAFE"
+
+
+#: integer codes for traces and plots
+REGIME_CODES: dict[Regime, int] = {Regime.STANDBY_HARVEST: 0, Regime.SENSING: 1, Regime.MAINTENANCE: 2, Regime.SAFE: 3}
+
+
+class Trigger(StrEnum):
+    """Conditions that fire transitions (evaluated after this tick's counters are updated)."""
+
+    LINK_LOST = "link_lost"  # link_fail >= [tick] link_loss_ticks consecutive failed exchanges
+    SENSOR_FAULT = "sensor_fault"  # sample NaN/Inf, implausible, flagged by the rig, or sequence frozen
+    LIMIT_VIOLATION = "limit_violation"  # a demand outside Table 1 was caught (clamped) or the rig refused one
+    OVERRUN = "overrun"  # >= [tick] overrun_ticks consecutive missed tick deadlines
+    BROWNOUT = "brownout"  # the power manager declares a brown-out
+    HV_PRESENT = "hv_present"  # HV equipment present for [maintenance] hv_debounce, and energy to wake
+    WAKE = "wake"  # comparator above threshold for [wake] debounce_ticks, and energy to wake
+    QUIET = "quiet"  # comparator below both thresholds for [sensing] quiet_period
+    HV_REMOVED = "hv_removed"  # HV equipment absent for [maintenance] hv_debounce
+    REARM = "rearm"  # operator re-arm accepted (no cause of SAFE persists)
+    LINK_RECOVERED = "link_recovered"  # SAFE caused by link loss only, link healthy for [safe] link_recovery
+
+
+@dataclass(frozen=True)
+class Transition:
+    """One row of the transition table."""
+
+    source: Regime
+    trigger: Trigger
+    target: Regime
+    priority: int
+    guard: str  # what must hold besides the trigger (documentation; enforced in the trigger's definition)
+    action: str  # what the board does on this transition
+
+
+S, SE, M, X = Regime.STANDBY_HARVEST, Regime.SENSING, Regime.MAINTENANCE, Regime.SAFE
+_FAULT_ACTION = "zero demand; abort MBIT/usage episode (logged); latch the cause"
+
+#: The transition table. Every regime change the board can make is one of these rows.
+TRANSITIONS: tuple[Transition, ...] = (
+    # faults: every non-SAFE regime
+    *(Transition(src, Trigger.LINK_LOST, X, 1, "", _FAULT_ACTION) for src in (S, SE, M)),
+    *(Transition(src, Trigger.SENSOR_FAULT, X, 2, "", _FAULT_ACTION) for src in (S, SE, M)),
+    *(Transition(src, Trigger.LIMIT_VIOLATION, X, 3, "", _FAULT_ACTION) for src in (S, SE, M)),
+    *(Transition(src, Trigger.OVERRUN, X, 4, "", _FAULT_ACTION) for src in (S, SE, M)),
+    # brown-out: actuation must stop (SAFE) during maintenance; forced stand-by from sensing
+    Transition(M, Trigger.BROWNOUT, X, 5, "", "zero demand; MBIT aborted (logged INCOMPLETE)"),
+    Transition(SE, Trigger.BROWNOUT, S, 5, "", "close the usage episode (summary logged, reason brownout)"),
+    # maintenance
+    Transition(S, Trigger.HV_PRESENT, M, 6, "battery >= wake_min_voltage, no brown-out",
+               "start the MBIT sequence (settle, MBIT.a, settle, MBIT.b)"),
+    Transition(SE, Trigger.HV_PRESENT, M, 6, "", "close the usage episode; start the MBIT sequence"),
+    Transition(M, Trigger.HV_REMOVED, S, 7, "", "zero demand; an unfinished MBIT is logged INCOMPLETE"),
+    # flight
+    Transition(S, Trigger.WAKE, SE, 8, "battery >= wake_min_voltage, no brown-out (else 'wake_refused' logged)",
+               "open a usage episode"),
+    Transition(SE, Trigger.QUIET, S, 9, "", "close the usage episode (summary logged)"),
+    # leaving SAFE
+    Transition(X, Trigger.LINK_RECOVERED, S, 10, "SAFE was caused by link loss only; [safe] link_recovery > 0",
+               "supervisor re-arm (logged)"),
+    Transition(X, Trigger.REARM, S, 11, "link up, sample valid, no brown-out, no overrun (else 'rearm_refused')",
+               "operator re-arm (logged)"),
+)
+
+#: rows per source regime in priority order
+_ROWS: dict[Regime, tuple[Transition, ...]] = {
+    r: tuple(sorted((t for t in TRANSITIONS if t.source is r), key=lambda t: t.priority)) for r in Regime
+}
+ALLOWED: frozenset[tuple[Regime, Regime]] = frozenset((t.source, t.target) for t in TRANSITIONS)
+
+
+class TickInputs(NamedTuple):
+    """This tick's percepts (computed by the board from the link sample, the power manager and the scheduler)."""
+
+    sample_ok: bool = True  # the link delivered a sample this tick
+    sensor_fault: bool = False  # the sample is invalid (only meaningful with sample_ok)
+    limit_violation: bool = False  # a demand outside Table 1 was caught, or the rig refused one
+    overrun: bool = False  # the previous tick missed its deadline
+    wake_signal: bool = False  # the comparator sees |v_patch| or |z0dd| at or above its threshold
+    hv_present: bool = False  # the rig reports HV equipment connected
+    energy_ok: bool = True  # the battery can afford waking (power manager)
+    brownout: bool = False  # brown-out in force (power manager)
+    rearm: bool = False  # the operator asks to re-arm this tick
+
+
+class RegimeState(NamedTuple):
+    """Regime and supervisory counters (ticks)."""
+
+    regime: Regime = Regime.STANDBY_HARVEST
+    entered_tick: int = 0
+    link_fail: int = 0  # consecutive failed exchanges
+    link_ok: int = 0  # consecutive good exchanges
+    overruns: int = 0  # consecutive missed deadlines
+    wake_run: int = 0  # consecutive ticks with the comparator above threshold
+    quiet_run: int = 0  # consecutive ticks with the comparator below threshold
+    hv_run: int = 0  # consecutive ticks with HV present
+    hv_off_run: int = 0  # consecutive ticks with HV absent
+    safe_causes: tuple[str, ...] = ()  # what put (and kept) the board in SAFE
+
+
+class RegimeOutputs(NamedTuple):
+    regime: Regime
+    actuation_allowed: bool  # only MAINTENANCE may command a non-zero voltage
+    changed: bool
+    trigger: Trigger | None
+
+
+@dataclass(frozen=True)
+class RegimeTimers:
+    """The configuration turned into tick counts (computed once)."""
+
+    link_loss: int
+    overrun: int
+    wake_debounce: int
+    quiet: int
+    hv_debounce: int
+    link_recovery: int  # 0 = disabled
+    period: float  # tick period (s)
+
+    @classmethod
+    def from_config(cls, cfg: BoardConfig) -> RegimeTimers:
+        return cls(
+            link_loss=cfg.tick_link_loss_ticks,
+            overrun=cfg.tick_overrun_ticks,
+            wake_debounce=cfg.wake_debounce_ticks,
+            quiet=max(1, cfg.ticks(cfg.sensing_quiet_period)),
+            hv_debounce=max(1, cfg.ticks(cfg.maintenance_hv_debounce)),
+            link_recovery=cfg.ticks(cfg.safe_link_recovery) if cfg.safe_link_recovery > 0 else 0,
+            period=cfg.tick_period,
+        )
+
+
+def _fault_causes(st: RegimeState, inp: TickInputs, tm: RegimeTimers) -> list[Trigger]:
+    causes = []
+    if st.link_fail >= tm.link_loss:
+        causes.append(Trigger.LINK_LOST)
+    if inp.sample_ok and inp.sensor_fault:
+        causes.append(Trigger.SENSOR_FAULT)
+    if inp.limit_violation:
+        causes.append(Trigger.LIMIT_VIOLATION)
+    if st.overruns >= tm.overrun:
+        causes.append(Trigger.OVERRUN)
+    return causes
+
+
+def step(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeTimers
+         ) -> tuple[RegimeState, RegimeOutputs, tuple[BoardEvent, ...]]:
+    """One tick of the regime machine. ``tick`` is the board's tick number; its time is ``tick * timers.period``."""
+    now = tick * timers.period
+    ok = inputs.sample_ok
+    link_fail = 0 if ok else state.link_fail + 1
+    link_ok = state.link_ok + 1 if ok else 0
+    overruns = state.overruns + 1 if inputs.overrun else 0
+    wake = ok and inputs.wake_signal and not inputs.sensor_fault
+    wake_run = state.wake_run + 1 if wake else 0
+    quiet_run = state.quiet_run + 1 if (ok and not wake) else (0 if wake else state.quiet_run)
+    hv_run = state.hv_run + 1 if (ok and inputs.hv_present) else 0
+    hv_off_run = state.hv_off_run + 1 if (ok and not inputs.hv_present) else (0 if ok else state.hv_off_run)
+    regime = state.regime
+    st = RegimeState(regime, state.entered_tick, link_fail, link_ok, overruns, wake_run, quiet_run, hv_run,
+                     hv_off_run, state.safe_causes)
+
+    events: list[BoardEvent] = []
+    fired: Transition | None = None
+    causes: list[Trigger] = []
+    for row in _ROWS[regime]:
+        trig = row.trigger
+        if trig in (Trigger.LINK_LOST, Trigger.SENSOR_FAULT, Trigger.LIMIT_VIOLATION, Trigger.OVERRUN):
+            if not causes:
+                causes = _fault_causes(st, inputs, timers)
+            hit = trig in causes
+        elif trig is Trigger.BROWNOUT:
+            hit = inputs.brownout
+        elif trig is Trigger.HV_PRESENT:
+            hit = hv_run >= timers.hv_debounce
+            if hit and regime is Regime.STANDBY_HARVEST and (not inputs.energy_ok or inputs.brownout):
+                hit = False
+                if hv_run == timers.hv_debounce:
+                    events.append(BoardEvent("incident", tick, now, {
+                        "incident": "wake_refused", "detail": "HV equipment present but the battery cannot afford "
+                                                              "waking into MAINTENANCE"}))
+        elif trig is Trigger.HV_REMOVED:
+            hit = hv_off_run >= timers.hv_debounce
+        elif trig is Trigger.WAKE:
+            hit = wake_run >= timers.wake_debounce
+            if hit and (not inputs.energy_ok or inputs.brownout):
+                hit = False
+                if wake_run == timers.wake_debounce:  # once per comparator episode
+                    events.append(BoardEvent("incident", tick, now, {
+                        "incident": "wake_refused", "detail": "wake comparator fired but the battery cannot afford "
+                                                              "waking (below wake_min_voltage or brown-out)"}))
+        elif trig is Trigger.QUIET:
+            hit = quiet_run >= timers.quiet
+        elif trig is Trigger.LINK_RECOVERED:
+            hit = (timers.link_recovery > 0 and link_ok >= timers.link_recovery
+                   and all(c == Trigger.LINK_LOST.value for c in state.safe_causes)
+                   and not _fault_causes(st, inputs, timers) and not inputs.brownout)
+        elif trig is Trigger.REARM:
+            hit = False
+            if inputs.rearm:
+                persisting = [c.value for c in _fault_causes(st, inputs, timers)]
+                if not ok:
+                    persisting.append("no sample")
+                if inputs.brownout:
+                    persisting.append("brownout")
+                if persisting:
+                    events.append(BoardEvent("incident", tick, now, {
+                        "incident": "rearm_refused", "detail": "re-arm refused: " + ", ".join(persisting)}))
+                else:
+                    hit = True
+        else:  # pragma: no cover - every trigger is handled above
+            raise AssertionError(trig)
+        if hit:
+            fired = row
+            break
+
+    if regime is Regime.SAFE and fired is None:
+        # stay in SAFE, accumulating any new cause
+        new = [c.value for c in (causes or _fault_causes(st, inputs, timers)) if c.value not in st.safe_causes]
+        if new:
+            st = st._replace(safe_causes=st.safe_causes + tuple(new))
+    if fired is None:
+        return st, RegimeOutputs(regime, regime is Regime.MAINTENANCE, False, None), tuple(events)
+
+    target = fired.target
+    safe_causes: tuple[str, ...] = ()
+    if target is Regime.SAFE:
+        safe_causes = (fired.trigger.value,) if fired.trigger is Trigger.BROWNOUT else tuple(c.value for c in causes)
+    st = RegimeState(target, tick, link_fail, link_ok, overruns, 0 if target is Regime.SENSING else wake_run,
+                     0, hv_run, hv_off_run, safe_causes)
+    events.append(BoardEvent("regime_change", tick, now, {
+        "from_regime": regime.value, "to_regime": target.value, "trigger": fired.trigger.value,
+        "causes": list(safe_causes)}))
+    return st, RegimeOutputs(target, target is Regime.MAINTENANCE, True, fired.trigger), tuple(events)
+
+
+def transition_table_markdown() -> str:
+    """The transition table as a Markdown table (docs/board.md prints this)."""
+    lines = ["| from | trigger | to | priority | guard | action |", "| --- | --- | --- | --- | --- | --- |"]
+    for t in sorted(TRANSITIONS, key=lambda t: (list(Regime).index(t.source), t.priority)):
+        lines.append(f"| {t.source.value} | `{t.trigger.value}` | {t.target.value} | {t.priority} | "
+                     f"{t.guard or '—'} | {t.action} |")
+    return "\n".join(lines)
+
+
+def is_allowed(source: Regime, target: Regime) -> bool:
+    return (source, target) in ALLOWED

@@ -1,0 +1,164 @@
+"""The fixed-rate tick scheduler (100 Hz): virtual time or wall-clock pacing; the clock is injected.
+
+The board logic never reads a clock: it gets the tick number (board time = tick / rate). The scheduler decides
+*when* a tick runs:
+
+* :class:`VirtualClock` — as fast as the machine allows, deterministic: the clock jumps to each deadline.
+* :class:`WallClock` — real time: sleep until each deadline (coarse ``time.sleep``, then a short spin for the last
+  ``spin_s``), run the tick, measure.
+
+Per tick ``k`` the deadline is ``start + k / rate``. The tick's *jitter* is its start minus its deadline; it *misses
+its deadline* when it ends after the next deadline (the next tick then starts late — there is no catch-up burst and
+no skipped tick: the board's time is its tick count). The step function learns whether the previous tick overran,
+so the board can go SAFE after ``[tick] overrun_ticks`` in a row. :class:`TickStats` summarises jitter (mean, std,
+p50, p99, max), busy time, deadline misses and the longest run of consecutive misses.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Protocol
+
+import numpy as np
+
+
+class Clock(Protocol):
+    """Monotonic time source (s) that can wait."""
+
+    def now(self) -> float: ...
+
+    def sleep_until(self, t: float) -> None: ...
+
+
+class VirtualClock:
+    """Virtual time: ``sleep_until`` jumps; work takes no time. Deterministic."""
+
+    def __init__(self, t0: float = 0.0) -> None:
+        self.t = float(t0)
+
+    def now(self) -> float:
+        return self.t
+
+    def sleep_until(self, t: float) -> None:
+        if t > self.t:
+            self.t = t
+
+
+class WallClock:
+    """``time.perf_counter``; sleeps coarsely, then spins for the last ``spin_s`` for a tight start."""
+
+    def __init__(self, spin_s: float = 0.0015) -> None:
+        self.spin_s = float(spin_s)
+
+    def now(self) -> float:
+        return time.perf_counter()
+
+    def sleep_until(self, t: float) -> None:
+        while True:
+            remaining = t - time.perf_counter()
+            if remaining <= 0:
+                return
+            if remaining > self.spin_s:
+                time.sleep(remaining - self.spin_s)
+
+
+@dataclass(frozen=True)
+class TickStats:
+    """What a paced (or virtual) run looked like. Times in s."""
+
+    ticks: int
+    rate: float  # Hz
+    paced: bool
+    deadline_misses: int
+    max_consecutive_misses: int
+    jitter_mean: float
+    jitter_std: float
+    jitter_p50: float
+    jitter_p99: float
+    jitter_max: float
+    busy_mean: float  # mean tick duration
+    busy_max: float
+    elapsed: float  # clock time from the first deadline to the end of the last tick
+
+    def as_dict(self) -> dict[str, float | int | bool]:
+        return {"ticks": self.ticks, "rate_Hz": self.rate, "paced": self.paced,
+                "deadline_misses": self.deadline_misses, "max_consecutive_misses": self.max_consecutive_misses,
+                "jitter_mean_s": self.jitter_mean, "jitter_std_s": self.jitter_std, "jitter_p50_s": self.jitter_p50,
+                "jitter_p99_s": self.jitter_p99, "jitter_max_s": self.jitter_max, "busy_mean_s": self.busy_mean,
+                "busy_max_s": self.busy_max, "elapsed_s": self.elapsed}
+
+
+#: step(k, overran_previous) -> True to stop after this tick
+TickFunction = Callable[[int, bool], bool | None]
+
+
+class Scheduler:
+    """Run ``step(k, overran_previous)`` at a fixed rate on an injected clock.
+
+    With a :class:`VirtualClock` nothing waits and no wall time is read (jitter and misses are 0 by
+    construction). With a :class:`WallClock` ticks are paced and measured.
+    """
+
+    def __init__(self, rate: float = 100.0, clock: Clock | None = None) -> None:
+        if not rate > 0:
+            raise ValueError(f"tick rate must be positive, got {rate!r}")
+        self.rate = float(rate)
+        self.period = 1.0 / self.rate
+        self.clock: Clock = clock if clock is not None else VirtualClock()
+        self.paced = not isinstance(self.clock, VirtualClock)
+        self.consecutive_misses = 0
+        self.stats: TickStats | None = None
+
+    def run(self, n_ticks: int, step: TickFunction, first_tick: int = 0,
+            progress: Callable[[int], None] | None = None) -> TickStats:
+        """Run ticks ``first_tick .. first_tick + n_ticks - 1`` (or until ``step`` returns True)."""
+        clock = self.clock
+        period = self.period
+        n = int(n_ticks)
+        jitter = np.zeros(n) if self.paced else None
+        busy = np.zeros(n) if self.paced else None
+        misses = 0
+        run = 0
+        worst_run = 0
+        overran = False
+        start = clock.now()
+        done = 0
+        for i in range(n):
+            k = first_tick + i
+            deadline = start + i * period
+            if self.paced:
+                clock.sleep_until(deadline)
+                t0 = clock.now()
+                stop = step(k, overran)
+                t1 = clock.now()
+                jitter[i] = t0 - deadline  # type: ignore[index]
+                busy[i] = t1 - t0  # type: ignore[index]
+                overran = t1 > deadline + period
+            else:
+                clock.sleep_until(deadline)
+                stop = step(k, False)
+            if overran:
+                misses += 1
+                run += 1
+                worst_run = max(worst_run, run)
+            else:
+                run = 0
+            self.consecutive_misses = run
+            done = i + 1
+            if progress is not None and (i & 255) == 0:
+                progress(i)
+            if stop:
+                break
+        elapsed = clock.now() - start
+        if self.paced and done:
+            j = jitter[:done]  # type: ignore[index]
+            b = busy[:done]  # type: ignore[index]
+            stats = TickStats(done, self.rate, True, misses, worst_run, float(j.mean()), float(j.std()),
+                              float(np.percentile(j, 50)), float(np.percentile(j, 99)), float(j.max()),
+                              float(b.mean()), float(b.max()), float(elapsed))
+        else:
+            stats = TickStats(done, self.rate, self.paced, 0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, float(elapsed))
+        self.stats = stats
+        return stats

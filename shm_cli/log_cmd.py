@@ -1,0 +1,139 @@
+"""``shm log show|export``: read the board's SQLite usage/event log.
+
+    shm log show   --db FILE [--run N] [--table NAME] [--limit N]
+    shm log export --db FILE [--run N] [--table NAME] [--csv] [--out PATH]
+
+``show`` prints the runs, then every record of the run (default: the last) in time order as a readable timeline.
+``export`` writes JSON (one object: table -> list of rows; to stdout or ``--out FILE``) or, with ``--csv``, one CSV
+per table into ``--out DIR`` (a single ``--table`` goes to stdout when ``--out`` is not given). The database is
+opened read-only; a missing or foreign file is a clear error (exit 2).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import io
+import json
+import sys
+from pathlib import Path
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("log", help="show or export the board's SQLite usage/event log",
+                       description="Read the usage/event log written by `shm run` (schema in docs/board.md).")
+    lsub = p.add_subparsers(dest="log_command", metavar="SUBCOMMAND")
+    lsub.required = True
+    ps = lsub.add_parser("show", help="print the runs and a run's records as a timeline")
+    _common(ps)
+    ps.add_argument("--limit", type=int, default=0, help="print at most this many records (0 = all)")
+    ps.set_defaults(func=cmd_show)
+    pe = lsub.add_parser("export", help="export tables as JSON (default) or CSV")
+    _common(pe)
+    pe.add_argument("--csv", action="store_true", help="CSV: one file per table in --out DIR")
+    pe.add_argument("--out", default=None, metavar="PATH", help="output file (JSON) or directory (CSV)")
+    pe.set_defaults(func=cmd_export)
+
+
+def _common(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--db", required=True, metavar="FILE", help="usage log database (e.g. out/run/usage.db)")
+    p.add_argument("--run", type=int, default=None, metavar="N", help="run id (default: the last run)")
+    p.add_argument("--table", default=None, metavar="NAME", help="only this table")
+
+
+def _open(args: argparse.Namespace):
+    from firmware_sim.usage_log import LOG_TABLES, open_log_readonly, read_table
+    from shm_cli.main import CliError
+
+    try:
+        db = open_log_readonly(args.db)
+    except (FileNotFoundError, ValueError) as exc:
+        raise CliError(str(exc)) from None
+    if args.table is not None and args.table not in LOG_TABLES:
+        raise CliError(f"--table {args.table!r}: unknown table (tables: {', '.join(LOG_TABLES)})")
+    cols, runs = read_table(db, "runs")
+    run_ids = [r[0] for r in runs]
+    run = args.run if args.run is not None else (run_ids[-1] if run_ids else None)
+    if args.run is not None and args.run not in run_ids:
+        raise CliError(f"--run {args.run}: no such run in {args.db} (runs: {run_ids or 'none'})")
+    return db, cols, runs, run
+
+
+def cmd_show(args: argparse.Namespace) -> int:
+    from firmware_sim.usage_log import TABLE_COLUMNS, iter_records, read_table
+
+    db, cols, runs, run = _open(args)
+    print(f"{args.db}: {len(runs)} run(s)")
+    for r in runs:
+        d = dict(zip(cols, r))
+        print(f"  run {d['run_id']}: {d['status']}, scenario {d['scenario']}, seed {d['seed']}, link {d['link_url']}, "
+              f"params {d['params']}, started {d['started_utc']}, finished {d['finished_utc'] or '-'}")
+    if run is None:
+        return 0
+    print(f"records of run {run}:")
+    n = 0
+    if args.table is not None and args.table != "runs":
+        tcols, rows = read_table(db, args.table, run)
+        print("  " + " | ".join(tcols))
+        for row in rows:
+            print("  " + " | ".join(_cell(v) for v in row))
+            n += 1
+            if args.limit and n >= args.limit:
+                break
+        return 0
+    for t, table, d in iter_records(db, run):
+        shown = {k: d[k] for k in TABLE_COLUMNS[table] if d.get(k) is not None and not k.endswith("_json")}
+        print(f"  {t:10.2f} s  {table:<20} " + ", ".join(f"{k}={_cell(v)}" for k, v in shown.items()))
+        n += 1
+        if args.limit and n >= args.limit:
+            break
+    return 0
+
+
+def _cell(v) -> str:
+    if isinstance(v, float):
+        return f"{v:.6g}"
+    return str(v)
+
+
+def cmd_export(args: argparse.Namespace) -> int:
+    from firmware_sim.usage_log import LOG_TABLES, read_table
+    from shm_cli.main import CliError
+
+    db, _, _, run = _open(args)
+    tables = [args.table] if args.table else list(LOG_TABLES)
+    data = {}
+    for t in tables:
+        tcols, rows = read_table(db, t, run if t != "runs" else None)
+        if t == "runs" and run is not None:
+            rows = [r for r in rows if r[0] == run]
+        data[t] = (tcols, rows)
+    if args.csv:
+        if args.out is None:
+            if len(tables) != 1:
+                raise CliError("--csv without --out needs a single --table (several tables need a directory)")
+            _write_csv(sys.stdout, *data[tables[0]])
+            return 0
+        d = Path(args.out)
+        if d.exists() and not d.is_dir():
+            raise CliError(f"--out {d}: exists and is not a directory (CSV export writes one file per table)")
+        d.mkdir(parents=True, exist_ok=True)
+        for t, (tcols, rows) in data.items():
+            with (d / f"{t}.csv").open("w", newline="") as fh:
+                _write_csv(fh, tcols, rows)
+        print(f"wrote {', '.join(f'{t}.csv' for t in data)} to {d}/", file=sys.stderr)
+        return 0
+    obj = {t: [dict(zip(tcols, r)) for r in rows] for t, (tcols, rows) in data.items()}
+    text = json.dumps({"database": str(args.db), "run_id": run, "tables": obj}, indent=2, default=str)
+    if args.out is None:
+        print(text)
+    else:
+        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        Path(args.out).write_text(text + "\n")
+    return 0
+
+
+def _write_csv(fh: io.TextIOBase, cols: list[str], rows: list[tuple]) -> None:
+    w = csv.writer(fh)
+    w.writerow(cols)
+    w.writerows(rows)

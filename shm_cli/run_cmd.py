@@ -1,0 +1,278 @@
+"""``shm run``: the board firmware living through a scenario on a rig — the main job (``make run``).
+
+    shm run [--scenario FILE|NAME] [--link sim|URL] [--params NAME] [--seed S] [--realtime|--virtual]
+            [--duration-s S] [--board-config FILE] [--json] [--quiet] --out DIR
+
+Writes to ``--out``: ``usage.db`` (the board's SQLite usage/event log), ``timeline.txt`` (what was printed),
+``trace.csv`` (10 Hz) and ``trace.npz`` (every tick), ``overview.png``, ``maintenance.png``, ``usage.png``,
+``summary.json`` and ``report.html`` (self-contained). Exit code 0 when the run completed (whatever the verdict),
+1 when it could not (the rig's integration failed, the log could not be written), 2 for bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from shm_cli.common import add_out_arg, dump_json, out_dir, write_csv
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "run", help="run the board firmware through a scenario (flight, abnormal loads, maintenance MBITs)",
+        description="Run the 100 Hz board firmware mock against a rig for one scenario: regime changes, usage "
+                    "summaries, MBIT verdicts and incidents go to an SQLite log; a timeline is printed; plots and "
+                    "an HTML summary are written to --out.")
+    p.add_argument("--scenario", default="default", metavar="FILE|NAME",
+                   help="scenario TOML file or shipped name (default, maintenance, degraded, faults); "
+                        "format in docs/scenarios.md")
+    p.add_argument("--link", default="sim", metavar="URL",
+                   help="rig link: 'sim' (in-process simulated rig, default) or a hardware-link URL "
+                        "(serial:PATH, socket://HOST:PORT, modbus-tcp://HOST:PORT, modbus-rtu:PATH)")
+    p.add_argument("--params", default=None, metavar="NAME",
+                   help="parameter set of the board's nominal model and of the simulated rig's truth "
+                        "(default: the scenario's [rig] params)")
+    p.add_argument("--seed", type=int, default=None, help="seed of the simulated rig (default: the scenario's)")
+    pace = p.add_mutually_exclusive_group()
+    pace.add_argument("--realtime", action="store_true",
+                      help="pace the 100 Hz tick on the wall clock (default for hardware links)")
+    pace.add_argument("--virtual", action="store_true",
+                      help="virtual time, as fast as possible (default for --link sim)")
+    p.add_argument("--duration-s", type=float, default=None, help="stop after this much board time (s)")
+    p.add_argument("--board-config", default=None, metavar="FILE", help="board configuration (default: shipped)")
+    p.add_argument("--timeline-every-s", type=float, default=60.0,
+                   help="print a telemetry line this often (s of board time; 0 = never); every record is logged")
+    p.add_argument("--append", action="store_true", help="append to an existing usage.db instead of a fresh one")
+    p.add_argument("--json", action="store_true", help="print the run summary as JSON at the end")
+    p.add_argument("--quiet", action="store_true", help="no timeline on stdout and no progress bar")
+    add_out_arg(p, default="out/run")
+    p.set_defaults(func=cmd_run)
+
+
+# --- timeline ---------------------------------------------------------------------------------------------
+def _fmt_v(v: Any) -> str:
+    try:
+        return f"{float(v):.3f} V"
+    except (TypeError, ValueError):
+        return "? V"
+
+
+def format_event(ev: Any, incidents: int = 0) -> str | None:
+    """One timeline line for a board event (None: not shown)."""
+    d = ev.data
+    t = f"{ev.time:9.2f} s  "
+    if ev.kind == "regime_change":
+        causes = f" [{', '.join(d.get('causes') or [])}]" if d.get("causes") else ""
+        return (f"{t}{d['from_regime']:>15} -> {d['to_regime']:<15} trigger {d['trigger']}{causes}   "
+                f"battery {_fmt_v(d.get('v_battery_V'))}")
+    if ev.kind == "incident":
+        return f"{t}  ! {d['incident']}: {d.get('detail', '')}"
+    if ev.kind == "usage_summary":
+        exc = json.loads(d["exceedance_json"])
+        over = ", ".join(f"|z3|>={e['level_m'] * 1e3:g} mm {e['time_s']:.2f} s" for e in exc if e["time_s"] > 0)
+        return (f"{t}  usage {d['duration_s']:.1f} s ({d['reason']}): peak z3 {d['peak_z3_m'] * 1e3:.3f} mm, "
+                f"peak z0dd {d['peak_z0dd_m_s2']:.2f} m/s^2, {d['n_cycles']:g} cycles "
+                f"(max range {d['max_range_m'] * 1e3:.3f} mm)" + (f"; {over}" if over else ""))
+    if ev.kind == "mbit_start":
+        return f"{t}  {d['label']} started"
+    if ev.kind == "mbit_result":
+        ft = f", fault latched at {d['fault_time_s']:.2f} s" if d.get("fault_time_s") is not None else ""
+        return (f"{t}  {d['label']} {d['verdict']}: fault counter max {d['max_count']}, max eps {d['max_eps']:.3f}, "
+                f"{d['n_exceed']}/{d['n_samples']} samples above eps_th{ft}")
+    if ev.kind == "maintenance_verdict":
+        return f"{t}  MAINTENANCE VERDICT {d['verdict']} ({d['mbits'] or 'no MBIT'}; {d['detail']})"
+    if ev.kind == "telemetry":
+        return (f"{t}  [{d['regime']}] battery {_fmt_v(d['v_battery_V'])}, fault counter {d['monitor_count']}, "
+                f"incidents {d['incidents_total']}, charge used {d['charge_used_C'] * 1e3:.3f} mC")
+    return None
+
+
+class TimelinePrinter:
+    """Prints (and keeps) timeline lines for events as they are committed to the log."""
+
+    def __init__(self, echo: bool, telemetry_every_s: float, write=None) -> None:
+        self.echo = echo
+        self.every = telemetry_every_s
+        self.lines: list[str] = []
+        self._next_tel = 0.0
+        self._write = write or (lambda s: print(s, flush=True))
+
+    def add_line(self, line: str) -> None:
+        self.lines.append(line)
+        if self.echo:
+            self._write(line)
+
+    def __call__(self, ev: Any) -> None:
+        if ev.kind == "telemetry":
+            if self.every <= 0 or ev.time + 1e-9 < self._next_tel:
+                return
+            self._next_tel = ev.time + self.every
+        line = format_event(ev)
+        if line is not None:
+            self.add_line(line)
+
+
+# --- the command --------------------------------------------------------------------------------------
+def cmd_run(args: argparse.Namespace) -> int:
+    from board_config.board import load_board_config
+    from board_config.scenario import load_scenario
+    from drivers.link import open_link
+    from drivers.sim_link import InProcessLink
+    from firmware_sim.board import Board
+    from firmware_sim.runner import BoardRunner
+    from firmware_sim.scheduler import Scheduler, VirtualClock, WallClock
+    from firmware_sim.usage_log import LogError, UsageLog
+    from hil_stub.rig import SimulatedRig
+    from shm_cli.main import CliError
+
+    scenario = load_scenario(args.scenario)
+    seed = args.seed if args.seed is not None else scenario.seed
+    if seed < 0:
+        raise CliError(f"--seed must be >= 0, got {seed}")
+    params = args.params or scenario.rig.params
+    cfg = load_board_config(args.board_config, overrides=scenario.board_overrides, overrides_source=scenario.source)
+    duration = scenario.duration if args.duration_s is None else float(args.duration_s)
+    if not duration > 0:
+        raise CliError(f"--duration-s must be positive, got {duration!r}")
+    out = out_dir(args.out)
+    db_path = out / "usage.db"
+    if not args.append:
+        for suffix in ("", "-wal", "-shm"):
+            Path(str(db_path) + suffix).unlink(missing_ok=True)
+
+    t_setup = time.perf_counter()
+    rig = None
+    if args.link == "sim":
+        rig = SimulatedRig(scenario, seed=seed, params=params, tick=cfg.tick_period)
+        link = InProcessLink(rig, tick=cfg.tick_period)
+    else:
+        link = open_link(args.link)
+    board = Board(cfg, nominal=params)
+    paced = args.realtime or (args.link != "sim" and not args.virtual)
+    scheduler = Scheduler(cfg.tick_rate, WallClock() if paced else VirtualClock())
+    setup_s = time.perf_counter() - t_setup
+
+    bar = None
+    if not args.quiet:
+        from tqdm import tqdm
+
+        bar = tqdm(total=round(duration * cfg.tick_rate), unit="tick", desc=f"shm run {scenario.name}",
+                   file=sys.stderr, mininterval=0.5, leave=False)
+        printer = TimelinePrinter(True, args.timeline_every_s, write=lambda s: bar.write(s, file=sys.stdout))
+    else:
+        printer = TimelinePrinter(False, args.timeline_every_s)
+    printer.add_line(f"shm run: scenario '{scenario.name}' ({scenario.source}), seed {seed}, link {args.link}, "
+                     f"params {params}, {'real time' if paced else 'virtual time'}, {duration:g} s of board time")
+    printer.add_line(f"{'time':>11}  event")
+
+    status = "failed"
+    try:
+        with UsageLog(db_path) as log:
+            run_id = log.start_run(scenario=scenario.name, seed=seed, link_url=args.link, params=params,
+                                   board_config=cfg.as_dict(), rig=rig.describe() if rig is not None else {})
+            runner = BoardRunner(board, link, sink=log, scheduler=scheduler,
+                                 rearm_times=[e.at for e in scenario.events_of("rearm")], on_event=printer)
+            last = [0]
+
+            def progress(i: int) -> None:
+                if bar is not None:
+                    bar.update(i - last[0])
+                    last[0] = i
+
+            link.open()
+            try:
+                result = runner.run(duration, progress=progress)
+            finally:
+                link.close()
+            status = "finished"
+    except FloatingPointError as exc:
+        print(f"shm run: the rig's plant integration failed: {exc}", file=sys.stderr)
+        return 1
+    except LogError as exc:
+        print(f"shm run: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        if bar is not None:
+            bar.close()
+
+    summary = build_summary(args, scenario, seed, params, cfg, board, result, rig, setup_s, paced, db_path, run_id)
+    printer.add_line(_closing_line(summary))
+    (out / "timeline.txt").write_text("\n".join(printer.lines) + "\n")
+    _write_traces(out, result.trace)
+    from shm_cli.run_report import write_plots_and_report
+
+    figures = write_plots_and_report(out, summary, result, printer.lines)
+    summary["figures"] = figures
+    (out / "summary.json").write_text(dump_json(summary))
+    if args.json:
+        print(dump_json(summary))
+    elif not args.quiet:
+        print(f"results in {out}/ (usage.db, timeline.txt, report.html, {', '.join(figures)})")
+    return 0 if status == "finished" else 1
+
+
+def _closing_line(s: dict[str, Any]) -> str:
+    v = s["maintenance_verdicts"]
+    verdict = v[-1]["verdict"] if v else "no maintenance verdict"
+    exp = s["expected_verdict"]
+    as_expected = "as expected" if s["verdict_as_expected"] else "NOT AS EXPECTED"
+    check = "" if exp is None else f" (expected {exp}: {as_expected})"
+    return (f"end: {s['ticks']} ticks = {s['board_time_s']:.1f} s board time in {s['wall_s']:.2f} s wall "
+            f"({s['realtime_factor']:.1f}x real time); final regime {s['final_regime']}; verdict {verdict}{check}; "
+            f"incidents {s['incidents']}; battery {s['battery_last_V']:.3f} V")
+
+
+def build_summary(args, scenario, seed, params, cfg, board, result, rig, setup_s, paced, db_path, run_id
+                  ) -> dict[str, Any]:
+    ev = result.events
+    verdicts = [dict(e.data, time_s=e.time) for e in ev if e.kind == "maintenance_verdict"]
+    mbits = [dict(e.data, time_s=e.time) for e in ev if e.kind == "mbit_result"]
+    changes = [dict(e.data, time_s=e.time) for e in ev if e.kind == "regime_change"]
+    usage = [dict(e.data, time_s=e.time) for e in ev if e.kind == "usage_summary"]
+    incidents = [dict(e.data, time_s=e.time) for e in ev if e.kind == "incident"]
+    expected = scenario.expect_verdict
+    final_verdict = verdicts[-1]["verdict"] if verdicts else "NONE"
+    tr = result.trace.columns() if result.trace is not None else {}
+    time_in: dict[str, float] = {}
+    if tr:
+        from firmware_sim.regimes import REGIME_CODES
+
+        for regime, code in REGIME_CODES.items():
+            time_in[regime.value] = float(np.sum(tr["regime_code"] == code)) * cfg.tick_period * (
+                result.trace.every if result.trace is not None else 1)
+    summary = {
+        "scenario": scenario.name, "scenario_file": scenario.source, "seed": seed, "params": params,
+        "link": args.link, "paced": paced, "run_id": run_id, "database": str(db_path),
+        "ticks": result.ticks, "board_time_s": result.duration_s, "wall_s": result.wall_s, "setup_s": setup_s,
+        "realtime_factor": result.realtime_factor, "tick_stats": result.stats.as_dict(),
+        "final_regime": board.regime.value, "regime_changes": changes, "time_in_regime_s": time_in,
+        "usage_summaries": usage, "mbit_results": mbits, "maintenance_verdicts": verdicts,
+        "incidents_list": incidents, "incidents": len(incidents),
+        "expected_verdict": expected,
+        "verdict_as_expected": None if expected is None else (final_verdict == expected),
+        "battery_first_V": float(tr["v_battery_V"][np.isfinite(tr["v_battery_V"])][0]) if tr and np.isfinite(
+            tr["v_battery_V"]).any() else float("nan"),
+        "battery_last_V": board.power.v_last, "battery_min_V": board.power.v_min,
+        "charge_used_C": board.power.charge_used, "energy_used_J": board.power.energy_used,
+        "brownouts": board.power.brownouts,
+        "board_config": cfg.as_dict(),
+    }
+    if rig is not None:
+        summary["rig"] = rig.describe()
+        summary["rig_truth_end"] = rig.truth()
+    return summary
+
+
+def _write_traces(out: Path, trace) -> None:
+    if trace is None:
+        return
+    cols = trace.columns()
+    np.savez_compressed(out / "trace.npz", **cols)
+    every = max(1, round(10 / max(1, trace.every)))  # ~10 Hz for the CSV
+    write_csv(out / "trace.csv", {k: v[::every] for k, v in cols.items()})
