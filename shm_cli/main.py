@@ -18,6 +18,8 @@ COMMAND_MODULES: tuple[str, ...] = (
     "shm_cli.campaign_cmd",
     "shm_cli.harvest_cmd",
     "shm_cli.hil_cmd",
+    "shm_cli.run_cmd",
+    "shm_cli.log_cmd",
 )
 
 EXIT_OK = 0
