@@ -4,7 +4,7 @@ threshold sweep over a finished campaign's stored error traces.
 ``shm campaign --mbit both --ranges 0:50:10 --n 100 --seed 1 --params table2 --out out/campaign`` writes (in --out):
 ``fig11.png/.svg`` (detected faults and probability per range, 95 % Wilson bars, paper values in red),
 ``fig11_table.csv/.md``, ``paper_comparison.csv``, ``runs.csv`` (one row per unit), ``traces.npz`` (error traces),
-``error_traces.png``, ``roc.png/.csv`` (default grids), ``campaign.json`` and the resumable store
+``error_traces.png``, ``roc.png``/``roc.csv`` (default grids), ``campaign.json`` and the resumable store
 (``manifest.json``, ``batches/``). Rerunning the same command into the same --out reuses finished batches.
 
 Exit codes: 0 done; 1 some batches did not finish (worker crash; finished ones are kept — rerun to resume) or some
@@ -61,6 +61,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--fresh", action="store_true",
                    help="discard batches stored in --out by a different or earlier campaign instead of resuming")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--no-figures", action="store_true",
+                   help="skip the figures (tables, traces, ROC table and JSON are still written)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     add_out_arg(p)
     p.set_defaults(func=cmd_campaign)
@@ -117,14 +119,15 @@ def _roc_tables(traces, eps_grid, count_grid, healthy_max, faulty_min):
                       faulty_min=faulty_min) for k in traces.eps]
 
 
-def _write_roc(tables, directory: Path, mark) -> dict[str, Path]:
+def _write_roc(tables, directory: Path, mark, figure: bool = True) -> dict[str, Path]:
     from firmware_sim.campaign.results import write_rows
     from shm_cli import campaign_figures
 
     csv_path = directory / "roc.csv"
     write_rows(csv_path, [row for t in tables for row in t.rows()])
-    png, _svg = campaign_figures.roc(tables, directory / "roc", mark=mark)
-    return {"roc_csv": csv_path, "roc_png": png}
+    if not figure:
+        return {"roc_csv": csv_path}
+    return {"roc_csv": csv_path, "roc_png": campaign_figures.roc(tables, directory / "roc", mark=mark)[0]}
 
 
 def cmd_campaign(args: argparse.Namespace) -> int:
@@ -167,13 +170,14 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     result = outcome.result
     assert result is not None
     files = {k: str(v) for k, v in result.save(out).items()}
-    files["fig11"] = str(campaign_figures.fig11(result, out / "fig11")[0])
-    files["error_traces"] = str(campaign_figures.error_traces(result, out / "error_traces")[0])
+    if not args.no_figures:
+        files["fig11"] = str(campaign_figures.fig11(result, out / "fig11")[0])
+        files["error_traces"] = str(campaign_figures.error_traces(result, out / "error_traces")[0])
     traces = load_traces(out)
     tables = _roc_tables(traces, parse_grid(DEFAULT_EPS_GRID, "--eps-th"),
                          parse_grid(DEFAULT_COUNT_GRID, "--count-max", integer=True), 0.10, 0.10)
-    files.update({k: str(v) for k, v in _write_roc(tables, out, (spec.monitor.eps_th, spec.monitor.count_max)
-                                                   ).items()})
+    files.update({k: str(v) for k, v in _write_roc(tables, out, (spec.monitor.eps_th, spec.monitor.count_max),
+                                                   figure=not args.no_figures).items()})
     summary = {
         "spec": spec.describe(),
         "fingerprint": spec.fingerprint(),

@@ -11,10 +11,11 @@ from firmware_sim.campaign.paper import PAPER_FAULT_PROBABILITY
 from shm_cli.common import pyplot
 
 
-def _save(fig, path: Path) -> list[Path]:
-    paths = [path.with_suffix(".png"), path.with_suffix(".svg")]
+def _save(fig, path: Path, svg: bool = True) -> list[Path]:
+    paths = [path.with_suffix(".png"), *([path.with_suffix(".svg")] if svg else [])]
     fig.savefig(paths[0], dpi=130)
-    fig.savefig(paths[1])
+    if svg:
+        fig.savefig(paths[1])
     return paths
 
 
@@ -98,7 +99,7 @@ def error_traces(result: CampaignResult, path: Path) -> list[Path]:
         axes[0, col].legend(fontsize=7, ncol=2)
         axes[1, col].legend(fontsize=7)
     fig.tight_layout()
-    out = _save(fig, path)
+    out = _save(fig, path, svg=False)
     plt.close(fig)
     return out
 
@@ -140,6 +141,6 @@ def roc(tables: list[RocTable], path: Path, mark: tuple[float, int] | None = Non
         ax2.grid(alpha=0.3)
         ax2.legend(fontsize=7, loc="center right")
     fig.tight_layout()
-    out = _save(fig, path)
+    out = _save(fig, path, svg=False)
     plt.close(fig)
     return out
