@@ -50,7 +50,7 @@ def test_library_is_registered_and_documented():
             par = next(p for p in cls.own_parameters() if p.name == pname)
             assert par.lower <= value <= par.upper
         assert cls.fit_ranges, name
-        for pname, rng in cls.fit_ranges.items():
+        for pname, rng in {**getattr(cls, "extra_ranges", {}), **cls.fit_ranges}.items():
             par = next(p for p in cls.own_parameters() if p.name == pname)
             assert isinstance(rng, FitRange)
             assert par.lower <= rng.lower < rng.upper <= par.upper, (name, pname)

@@ -1,0 +1,95 @@
+"""``shm diagnose``: which physical effect is missing from the model?"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "diagnose", help="rank candidate physical effects by how much held-out residual each explains",
+        description="For every candidate effect (default: the effects library), add it to the model, fit its few "
+                    "parameters on a training part of the records, score it on held-out blocks (or records), and "
+                    "rank by held-out error reduction with a BIC complexity penalty. Candidates whose free run "
+                    "diverges or goes flat are rejected. Prints the verdict in words (the winner's signature, its "
+                    "parameters with standard errors), or 'nothing missing' / 'not explained by the library' with "
+                    "where the model fails. Writes diagnosis.json, ranking.png, overlay.png and diagnosis.html.")
+    p.add_argument("records", nargs="+", metavar="RECORD", help="time records (.csv or .tdms; docs/records.md)")
+    add_params_arg(p)
+    p.add_argument("--candidates", nargs="+", default=None, metavar="EFFECT",
+                   help="candidate effects (library names or pkg.mod:Class); default: the whole library")
+    p.add_argument("--holdout", choices=("blocks", "records"), default="blocks",
+                   help="held-out data: alternate blocks of every record (default) or every second record")
+    p.add_argument("--blocks", type=int, default=10, help="blocks per record for --holdout blocks (even, default 10)")
+    p.add_argument("--max-rate-hz", type=float, default=250.0,
+                   help="sub-sample records to at most this rate for fitting (default 250 Hz)")
+    p.add_argument("--min-reduction", type=float, default=0.02,
+                   help="held-out residual-energy reduction a candidate must reach to be accepted (default 0.02)")
+    p.add_argument("--workers", type=int, default=1, help="candidates fitted concurrently (threads; default 1)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the multi-start design")
+    p.add_argument("--json", action="store_true", help="print the diagnosis as JSON on stdout")
+    add_out_arg(p)
+    p.set_defaults(func=cmd_diagnose)
+
+
+def cmd_diagnose(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from shm_cli.main import CliError
+    from workbench.diagnose import diagnose
+    from workbench.diagnose_report import overlay_figure, ranking_figure, write_html
+    from workbench.fit import FitError
+    from workbench.records import load_record
+
+    if args.workers < 1 or args.max_rate_hz <= 0 or not 0 <= args.min_reduction < 1:
+        raise CliError("--workers must be >= 1, --max-rate-hz > 0 and --min-reduction in [0, 1)")
+    out = out_dir(args.out)
+    records = [load_record(p) for p in args.records]
+    bar = tqdm(total=None, desc="candidates", unit="effect", file=sys.stderr, disable=None)
+
+    def progress(name, result) -> None:
+        if result is None:
+            bar.set_postfix_str(name)
+        else:
+            bar.update(1)
+
+    try:
+        d = diagnose(records, args.params, args.candidates, holdout=args.holdout, n_blocks=args.blocks,
+                     max_rate_Hz=args.max_rate_hz, min_reduction=args.min_reduction, workers=args.workers,
+                     seed=args.seed, progress=progress)
+    except FitError as exc:
+        raise CliError(str(exc)) from None
+    finally:
+        bar.close()
+    rows = []
+    for rank, c in enumerate(d.ranking, start=1):
+        status = "accepted" if c.accepted else ("rejected: " + c.rejection if not c.stable else "not enough")
+        rows.append([str(rank), c.effect, f"{c.held_rms_sigma:.4g}", f"{100 * c.held_reduction:+.2f}",
+                     f"{c.delta_bic_held:.4g}", f"{c.bic_train:.6g}", status, c.estimates_text()])
+    header = ["rank", "effect", "held-out RMS (σ)", "reduction %", "ΔBIC held", "BIC train", "status",
+              "estimates (± std. error)"]
+    print(f"nominal model ({d.params_name}): training {d.baseline_train_rms_sigma:.4g} σ, held-out "
+          f"{d.baseline_held_rms_sigma:.4g} σ")
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header) - 1)]
+    for r in [header, *rows]:
+        print("  " + "  ".join(str(x).ljust(w) for x, w in zip(r[:-1], widths)) + "  " + str(r[-1]))
+    print()
+    print(d.message)
+    for n in d.notes:
+        print(f"note: {n}")
+    rank_png = ranking_figure(d, out / "ranking.png")
+    after = d.winner.outcome.sim if d.winner and d.winner.outcome else None
+    ov_png = overlay_figure(d.targets, d.baseline_sim, after, out / "overlay.png",
+                            label_after=f"+ {d.winner.effect}" if d.winner else "")
+    result = d.to_dict() | {"figures": [str(rank_png), str(ov_png)]}
+    (out / "diagnosis.json").write_text(dump_json(result), encoding="utf-8")
+    write_html(out / "diagnosis.html", f"shm diagnose: {d.params_name}", d.message,
+               [("Candidates", header, rows)], [rank_png, ov_png],
+               [*d.notes, *("Where the nominal model fails: " + w for w in d.where_it_fails)])
+    print(f"report: {out / 'diagnosis.html'}", file=sys.stderr)
+    if args.json:
+        print(dump_json(result))
+    return 0

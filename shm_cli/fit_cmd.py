@@ -1,0 +1,134 @@
+"""``shm fit``: add physical effects to the model, refit, watch the error fall, save a parameter set."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from shm_cli.common import add_params_arg, dump_json, out_dir
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "fit", help="add physical effects, refit their parameters on records, save a parameter set",
+        description="Add one or more physical effects (library names, see `shm diagnose`, or your own "
+                    "pkg.mod:Class) to the model, fit their parameters (and any --free ones) on the training part of "
+                    "the records with least squares, and show the error falling per iteration (terminal and "
+                    "fit_progress.png). Prints a before/after table on training and held-out data, parameter "
+                    "estimates with standard errors, and writes a parameter set (TOML with [[effects]]) that "
+                    "`shm run` and the board's monitor load at once.")
+    p.add_argument("records", nargs="+", metavar="RECORD", help="time records (.csv or .tdms; docs/records.md)")
+    add_params_arg(p)
+    p.add_argument("--add", action="append", default=[], metavar="EFFECT",
+                   help="effect to add: a library name or pkg.mod:Class (repeatable)")
+    p.add_argument("--free", action="append", default=[], metavar="PARAM[:LO:HI]",
+                   help="also fit this parameter (core, e.g. k3, or an effect's), optionally with its range in SI "
+                        "units (repeatable)")
+    p.add_argument("--save", required=True, metavar="NAME.toml",
+                   help="write the fitted parameter set here (its name is the file's stem)")
+    p.add_argument("--holdout", choices=("blocks", "records"), default="blocks",
+                   help="held-out data: alternate blocks of every record (default) or every second record")
+    p.add_argument("--blocks", type=int, default=10, help="blocks per record for --holdout blocks (even, default 10)")
+    p.add_argument("--max-rate-hz", type=float, default=250.0,
+                   help="sub-sample records to at most this rate for fitting (default 250 Hz)")
+    p.add_argument("--max-nfev", type=int, default=40, help="optimiser evaluations per start (default 40)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the multi-start design")
+    p.add_argument("--out", default=None, metavar="DIR",
+                   help="directory for fit.json, fit_progress.png, fit_overlay.png, fit.html (default: beside --save)")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    p.set_defaults(func=cmd_fit)
+
+
+def _load_records(paths: list[str]):
+    from workbench.records import load_record
+
+    return [load_record(p) for p in paths]
+
+
+def cmd_fit(args: argparse.Namespace) -> int:
+    from board_config import load_parameter_set
+    from shm_cli.main import CliError
+    from workbench.diagnose_report import ProgressPlot, overlay_figure, write_html
+    from workbench.fit import FitError, fit_records
+
+    save = Path(args.save)
+    if save.suffix.lower() != ".toml":
+        raise CliError(f"--save must name a .toml file, got '{args.save}'")
+    if not args.add and not args.free:
+        raise CliError("nothing to fit: give --add EFFECT and/or --free PARAM")
+    if args.max_rate_hz <= 0 or args.max_nfev < 1:
+        raise CliError("--max-rate-hz must be > 0 and --max-nfev >= 1")
+    out = out_dir(args.out) if args.out else out_dir(save.parent if str(save.parent) else ".")
+    records = _load_records(args.records)
+    base = load_parameter_set(args.params)
+    progress: list[ProgressPlot] = []
+
+    def on_baseline(train: float, held: float) -> None:
+        print(f"before: training error {train:.4g} σ, held-out {held:.4g} σ (σ: noise level of each channel)",
+              file=sys.stderr)
+        print(f"{'iter':>5} {'sims':>6} {'train error (σ)':>16}  parameters", file=sys.stderr)
+        progress.append(ProgressPlot(out / "fit_progress.png", train, held))
+
+    def on_iteration(pt) -> None:
+        vals = "  ".join(f"{k}={v:.4g}" for k, v in pt.values.items())
+        print(f"{pt.iteration:5d} {pt.n_sims:6d} {pt.train_rms_sigma:16.4g}  {vals}", file=sys.stderr, flush=True)
+        if progress:
+            progress[0].add(pt)
+
+    print(f"fitting {', '.join(args.add) or '-'}" + (f" + free {', '.join(args.free)}" if args.free else "")
+          + f" on {len(records)} record(s), parameter set {base.name}", file=sys.stderr)
+    try:
+        rep = fit_records(records, base, add=args.add, free=args.free, save_name=save.stem, holdout=args.holdout,
+                          n_blocks=args.blocks, max_rate_Hz=args.max_rate_hz, max_nfev=args.max_nfev,
+                          seed=args.seed, on_iteration=on_iteration, on_baseline=on_baseline)
+    except FitError as exc:
+        raise CliError(str(exc)) from None
+    o = rep.outcome
+    plot = progress[0] if progress else ProgressPlot(out / "fit_progress.png", rep.before_train_rms_sigma,
+                                                         rep.before_held_rms_sigma)
+    plot.draw(held_after=o.held_rms_sigma)
+    overlay = overlay_figure(rep.targets, rep.baseline_sim, o.sim, out / "fit_overlay.png",
+                             label_after=f"+ {', '.join(rep.added) or 'refit'}")
+    tmp = save.with_suffix(".toml.tmp")
+    tmp.write_text(rep.parameter_set.to_toml(), encoding="utf-8")
+    tmp.replace(save)
+    # check that the file loads as it will in `shm run` / the monitor
+    from plant import PlantModel
+
+    PlantModel(load_parameter_set(save))
+    rows = []
+    for b, a in zip(rep.before, rep.after):
+        rows.append([b.record, b.channel, b.part, f"{b.rms:.4g} {b.unit}", f"{b.rms_sigma:.3g}",
+                     f"{a.rms:.4g} {a.unit}", f"{a.rms_sigma:.3g}", f"{b.fit_pct:.2f} → {a.fit_pct:.2f}"])
+    header = ["record", "channel", "part", "RMS before", "before (σ)", "RMS after", "after (σ)", "fit %"]
+    print("\nbefore / after (residual RMS; σ = noise level of the channel):")
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
+    for r in [header, *rows]:
+        print("  " + "  ".join(str(x).ljust(w) for x, w in zip(r, widths)))
+    print(f"\ntraining: {rep.before_train_rms_sigma:.4g} σ → {o.train_rms_sigma:.4g} σ;  held-out: "
+          f"{rep.before_held_rms_sigma:.4g} σ → {o.held_rms_sigma:.4g} σ")
+    print("estimates (± standard error from the Jacobian):")
+    for e in o.estimates:
+        print(f"  {e.describe()}")
+    if len(o.estimates) > 1:
+        names = [e.name for e in o.estimates]
+        strong = [(names[i], names[j], o.correlation[i, j]) for i in range(len(names)) for j in range(i)
+                  if abs(o.correlation[i, j]) > 0.9]
+        for a, b, c in strong:
+            print(f"  note: {a} and {b} are strongly correlated ({c:+.3f}): the data barely separate them")
+    for n in rep.notes:
+        print(f"  note: {n}")
+    print(f"saved parameter set '{rep.parameter_set.name}' to {save} (load it with --params {save})")
+    summary = rep.summary() | {"saved": str(save), "figures": [str(plot.path), str(overlay)]}
+    (out / "fit.json").write_text(dump_json(summary), encoding="utf-8")
+    verdict = (f"Added {', '.join(rep.added) or 'nothing'}; training error {rep.before_train_rms_sigma:.4g} σ → "
+               f"{o.train_rms_sigma:.4g} σ, held-out {rep.before_held_rms_sigma:.4g} σ → {o.held_rms_sigma:.4g} σ.")
+    write_html(out / "fit.html", f"shm fit: {base.name} + {', '.join(rep.added) or 'refit'}", verdict,
+               [("Before / after", header, rows),
+                ("Estimates", ["parameter", "value", "std. error", "unit", "effect"],
+                 [[e.name, f"{e.value:.5g}", f"{e.stderr:.3g}", e.unit, e.owner] for e in o.estimates])],
+               [plot.path, overlay], rep.notes)
+    if args.json:
+        print(dump_json(summary))
+    return 0

@@ -1,0 +1,179 @@
+"""Figures and a self-contained HTML page for ``shm diagnose`` and ``shm fit``.
+
+* ranking: held-out residual (RMS, in units of the noise level σ) of the nominal model and of every candidate,
+  accepted ones highlighted, with the held-out error reduction and ΔBIC;
+* overlay: measured, nominal model and the improved model on every record channel, held-out blocks shaded,
+  and the residuals before/after in σ units;
+* fit progress: the training error (σ) against the optimiser's iterations, with the noise floor and the
+  starting level — updated while the fit runs.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from workbench.fit import FitHistoryPoint, SimBatch, Target
+
+_SI_SCALE = {"m": (1e3, "mm"), "V": (1.0, "V"), "C": (1e6, "µC")}
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _save(fig, path: Path) -> Path:
+    fig.savefig(path, dpi=90)
+    _pyplot().close(fig)
+    return path
+
+
+def _held_spans(tg: Target) -> list[tuple[float, float]]:
+    spans = []
+    k = tg.held.astype(int)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], k, [0]])))
+    for a, b in zip(edges[::2], edges[1::2]):
+        spans.append((float(tg.t[a]), float(tg.t[min(b, tg.t.size - 1)])))
+    return spans
+
+
+def overlay_figure(targets: Sequence[Target], before: SimBatch, after: SimBatch | None, path: Path,
+                   label_after: str = "improved model") -> Path:
+    plt = _pyplot()
+    rows = [(i, j) for i, tg in enumerate(targets) for j in range(len(tg.channels))]
+    fig, axes = plt.subplots(2 * len(rows), 1, figsize=(11, 3.2 * len(rows) + 1.2), squeeze=False)
+    for r, (i, j) in enumerate(rows):
+        tg = targets[i]
+        s, su = _SI_SCALE.get(tg.units[j], (1.0, tg.units[j]))
+        ax, axr = axes[2 * r, 0], axes[2 * r + 1, 0]
+        for a, b in _held_spans(tg):
+            ax.axvspan(a, b, color="0.85", lw=0)
+            axr.axvspan(a, b, color="0.85", lw=0)
+        ax.plot(tg.t, tg.measured[j] * s, color="k", lw=0.8, label="measured")
+        ax.plot(tg.t, before.y[i][0, j] * s, color="tab:red", lw=0.9, label="nominal model")
+        e0 = (tg.measured[j] - before.y[i][0, j]) / tg.sigma[j]
+        axr.plot(tg.t, e0, color="tab:red", lw=0.7, label="nominal")
+        if after is not None:
+            ax.plot(tg.t, after.y[i][0, j] * s, color="tab:blue", lw=0.9, ls="--", label=label_after)
+            e1 = (tg.measured[j] - after.y[i][0, j]) / tg.sigma[j]
+            axr.plot(tg.t, e1, color="tab:blue", lw=0.7, label=label_after)
+        ax.set_ylabel(f"{tg.channels[j]} ({su})")
+        ax.set_title(f"{tg.name} ({tg.record.test}) — grey: held-out blocks", fontsize=9)
+        ax.legend(fontsize=7, loc="upper right")
+        axr.set_ylabel("residual (σ)")
+        axr.axhline(0, color="0.5", lw=0.5)
+        axr.legend(fontsize=7, loc="upper right")
+    axes[-1, 0].set_xlabel("time (s)")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+def ranking_figure(diagnosis: Any, path: Path) -> Path:
+    plt = _pyplot()
+    ranking = diagnosis.ranking
+    names = ["nominal"] + [c.effect for c in ranking]
+    vals = [diagnosis.baseline_held_rms_sigma] + [c.held_rms_sigma for c in ranking]
+    colours = ["0.6"] + ["tab:green" if c.accepted else ("tab:red" if not c.stable else "tab:orange")
+                         for c in ranking]
+    fig, ax = plt.subplots(figsize=(9, 0.45 * len(names) + 1.6))
+    y = np.arange(len(names))[::-1]
+    vals_plot = [v if np.isfinite(v) else 0.0 for v in vals]
+    ax.barh(y, vals_plot, color=colours)
+    for yi, c in zip(y[1:], ranking):
+        txt = (f"{100 * c.held_reduction:+.1f} %, ΔBIC {c.delta_bic_held:.3g}" if c.stable else
+               f"rejected: {c.rejection[:50]}")
+        ax.text(max(vals_plot) * 0.01 + (c.held_rms_sigma if np.isfinite(c.held_rms_sigma) else 0), yi, " " + txt,
+                va="center", fontsize=7)
+    ax.axvline(1.0, color="k", ls=":", lw=1, label="noise floor (1 σ)")
+    ax.set_yticks(y, names)
+    ax.set_xscale("log")
+    ax.set_xlabel("held-out residual RMS (σ)")
+    ax.set_title("Which effect is missing? (green: accepted, orange: not enough, red: unstable)", fontsize=9)
+    ax.legend(fontsize=7, loc="lower right")
+    fig.tight_layout()
+    return _save(fig, path)
+
+
+class ProgressPlot:
+    """The training error against iterations, re-drawn to ``path`` at most every ``min_interval_s`` while a fit
+    runs (open the PNG in a viewer that reloads), and once more at the end."""
+
+    def __init__(self, path: Path, start_rms: float, held_before: float, min_interval_s: float = 1.0):
+        self.path = Path(path)
+        self.start = start_rms
+        self.held_before = held_before
+        self.min_interval_s = min_interval_s
+        self.points: list[FitHistoryPoint] = []
+        self._last = 0.0
+
+    def add(self, pt: FitHistoryPoint) -> None:
+        self.points.append(pt)
+        now = time.monotonic()
+        if now - self._last >= self.min_interval_s:
+            self.draw()
+            self._last = now
+
+    def draw(self, held_after: float | None = None) -> Path:
+        plt = _pyplot()
+        fig, ax = plt.subplots(figsize=(7, 4))
+        it = [0] + [p.iteration for p in self.points]
+        err = [self.start] + [p.train_rms_sigma for p in self.points]
+        ax.plot(it, err, "o-", color="tab:blue", ms=3, label="training error (best so far)")
+        ax.axhline(1.0, color="k", ls=":", lw=1, label="noise floor (1 σ)")
+        ax.axhline(self.start, color="tab:red", ls="--", lw=0.8, label=f"before: {self.start:.3g} σ")
+        if held_after is not None:
+            ax.plot([it[-1]], [held_after], "s", color="tab:green", label=f"held-out after: {held_after:.3g} σ")
+            ax.plot([0], [self.held_before], "s", color="tab:orange",
+                    label=f"held-out before: {self.held_before:.3g} σ")
+        ax.set_yscale("log")
+        ax.set_xlabel("iteration")
+        ax.set_ylabel("residual RMS (σ)")
+        ax.set_title("Error falling while the fit runs", fontsize=9)
+        ax.legend(fontsize=7)
+        fig.tight_layout()
+        return _save(fig, self.path)
+
+
+def _img(path: Path | None) -> str:
+    if path is None:
+        return ""
+    data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
+    return f'<img alt="{html.escape(Path(path).name)}" src="data:image/png;base64,{data}" style="max-width:100%">'
+
+
+def _table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
+    h = "".join(f"<th>{html.escape(str(x))}</th>" for x in header)
+    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(x))}</td>" for x in r) + "</tr>" for r in rows)
+    return f"<table><tr>{h}</tr>{body}</table>"
+
+
+_CSS = ("body{font-family:sans-serif;max-width:1100px;margin:auto;padding:1em}table{border-collapse:collapse;"
+        "font-size:13px;margin:0.5em 0}td,th{border:1px solid #bbb;padding:2px 6px;text-align:left}"
+        ".verdict{font-size:15px;background:#f4f4f4;padding:0.6em;border-left:4px solid #36c}")
+
+
+def write_html(path: Path, title: str, verdict: str, tables: Sequence[tuple[str, Sequence[str], Sequence]],
+               images: Sequence[Path], notes: Sequence[str] = ()) -> Path:
+    parts = [f"<!DOCTYPE html><html><head><meta charset='utf-8'><title>{html.escape(title)}</title>",
+             f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>",
+             f"<p class='verdict'>{html.escape(verdict)}</p>"]
+    for caption, header, rows in tables:
+        parts.append(f"<h2>{html.escape(caption)}</h2>{_table(header, rows)}")
+    for img in images:
+        parts.append(_img(img))
+    if notes:
+        parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>")
+    parts.append("</body></html>")
+    path.write_text("\n".join(parts), encoding="utf-8")
+    return path

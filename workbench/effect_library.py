@@ -1,0 +1,168 @@
+"""The candidate effects the workbench tries, and which of an effect's parameters it fits, over which range.
+
+Library effects (``plant/effects``) declare ``fit_ranges`` (and ``neutral``); a user's own effect usually
+declares neither: then every own parameter is free over its declared bounds (infinite bounds are replaced by a
+range around the default), linear, unless the bounds span more than three decades on the positive side (log).
+Core parameters (Table 2) can be freed too (``--free k3`` or ``--free k3:10:40``): default range a factor of
+three around the current value (log), or ±1 around a value of zero (linear).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+from board_config import CORE_PARAMETER_NAMES
+from plant import PhysicalEffect, PlantModel, resolve_effect
+from plant.effect import EffectError
+
+#: the effects library, in the order the reports list them
+LIBRARY: tuple[str, ...] = (
+    "piezo_creep", "geometric_stiffening", "air_damping", "dielectric_leakage", "amplifier_current_limit",
+    "laser_sensor", "root_compliance", "thermal_drift",
+)
+
+
+@dataclass(frozen=True)
+class FreeParameter:
+    """A parameter the fit varies: SI name and unit, search interval, log or linear scaling, its owner.
+
+    The optimiser works in the unit box: ``u = 0`` at ``lower``, ``u = 1`` at ``upper`` (log10-linear when
+    ``log``)."""
+
+    name: str
+    unit: str
+    lower: float
+    upper: float
+    log: bool = False
+    owner: str = "core"
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.lower) and math.isfinite(self.upper) and self.lower < self.upper):
+            raise ValueError(f"parameter '{self.name}': fit range needs finite lower < upper, got "
+                             f"[{self.lower:g}, {self.upper:g}] {self.unit}")
+        if self.log and self.lower <= 0:
+            raise ValueError(f"parameter '{self.name}': a logarithmic fit range needs lower > 0, got {self.lower:g}")
+
+    def to_unit(self, value: float | np.ndarray) -> np.ndarray:
+        v = np.clip(np.asarray(value, float), self.lower, self.upper)
+        if self.log:
+            return (np.log10(v) - math.log10(self.lower)) / (math.log10(self.upper) - math.log10(self.lower))
+        return (v - self.lower) / (self.upper - self.lower)
+
+    def from_unit(self, u: float | np.ndarray) -> np.ndarray:
+        u = np.clip(np.asarray(u, float), 0.0, 1.0)
+        if self.log:
+            lo, hi = math.log10(self.lower), math.log10(self.upper)
+            return 10.0 ** (lo + u * (hi - lo))
+        return self.lower + u * (self.upper - self.lower)
+
+    def dvalue_du(self, value: float) -> float:
+        """d(value)/du at ``value`` (for turning Jacobians in the unit box into SI)."""
+        if self.log:
+            return float(value) * math.log(10.0) * (math.log10(self.upper) - math.log10(self.lower))
+        return self.upper - self.lower
+
+    def describe(self) -> str:
+        return f"{self.name} in [{self.lower:g}, {self.upper:g}] {self.unit}{' (log)' if self.log else ''}"
+
+
+def resolve_candidates(specs: Sequence[str | type[PhysicalEffect]]) -> list[type[PhysicalEffect]]:
+    """Effect classes from names / dotted paths; the errors name the offending entry."""
+    out: list[type[PhysicalEffect]] = []
+    for spec in specs:
+        cls = resolve_effect(spec)
+        if cls.role != "effect":
+            raise EffectError(f"'{cls.name}' is a {cls.role} effect, not a candidate that can be added "
+                              "(terminals are chosen by the record's 'terminal' metadata)")
+        if not cls.own_parameters():
+            raise EffectError(f"effect '{cls.name}' has no parameters of its own: nothing to fit")
+        if cls not in out:
+            out.append(cls)
+    return out
+
+
+def _auto_range(default: float, lower: float, upper: float) -> tuple[float, float, bool]:
+    lo, hi = lower, upper
+    scale = max(abs(default), 1.0)
+    if not math.isfinite(lo):
+        lo = default - 10.0 * scale
+    if not math.isfinite(hi):
+        hi = default + 10.0 * scale
+    log = lo > 0 and hi / lo > 1e3
+    return lo, hi, log
+
+
+def effect_free_parameters(cls: type[PhysicalEffect], names: Sequence[str] | None = None) -> list[FreeParameter]:
+    """The parameters of ``cls`` the workbench fits by default (or ``names``), with their ranges."""
+    ranges: Mapping[str, object] = {**getattr(cls, "extra_ranges", {}), **getattr(cls, "fit_ranges", {})}
+    own = {p.name: p for p in cls.own_parameters()}
+    default_names = list(getattr(cls, "fit_ranges", {}) or own)
+    chosen = list(names) if names is not None else default_names
+    out = []
+    for n in chosen:
+        par = own.get(n)
+        if par is None:
+            raise EffectError(f"effect '{cls.name}' has no parameter '{n}' (parameters: {', '.join(own)})")
+        rng = ranges.get(n)
+        if rng is not None:
+            lo, hi, log = float(rng.lower), float(rng.upper), bool(rng.log)  # type: ignore[attr-defined]
+        else:
+            lo, hi, log = _auto_range(par.default, par.lower, par.upper)
+        out.append(FreeParameter(n, par.unit, lo, hi, log, cls.name))
+    return out
+
+
+def core_free_parameter(model: PlantModel, spec: str) -> FreeParameter:
+    """A freed core (or any model) parameter from ``name`` or ``name:lower:upper`` (SI)."""
+    name, _, rest = spec.partition(":")
+    try:
+        idx = model.param_index(name)
+    except KeyError as exc:
+        raise EffectError(str(exc.args[0])) from None
+    unit = model.param_units[idx]
+    value = float(model.p_nominal[idx])
+    owner = "core" if name in CORE_PARAMETER_NAMES else next(
+        (c.name for c in model.effects if any(p.name == name for p in c.own_parameters())), "core")
+    if rest:
+        parts = rest.split(":")
+        try:
+            lo, hi = float(parts[0]), float(parts[1])
+            if len(parts) != 2:
+                raise ValueError
+        except (ValueError, IndexError):
+            raise EffectError(f"--free '{spec}': expected NAME or NAME:LOWER:UPPER (SI units, {unit})") from None
+        log = lo > 0 and hi / lo > 1e2
+        return FreeParameter(name, unit, lo, hi, log, owner)
+    if owner != "core":
+        cls = next(c for c in model.effects if c.name == owner)
+        fp = effect_free_parameters(cls, [name])[0]
+        return fp
+    if value > 0:
+        return FreeParameter(name, unit, value / 3.0, value * 3.0, True, owner)
+    if value < 0:
+        return FreeParameter(name, unit, value * 3.0, value / 3.0, False, owner)
+    return FreeParameter(name, unit, -1.0, 1.0, False, owner)
+
+
+def guess_values(cls: type[PhysicalEffect], data: Mapping | None, free: Sequence[FreeParameter]) -> dict[str, float]:
+    """The effect's ``guess(data)`` restricted to ``free`` and clipped into their ranges; robust to a user's
+    guess that raises or returns junk (falls back to the middle of the range)."""
+    try:
+        g = dict(cls.guess(data))
+    except Exception:
+        g = {}
+    out = {}
+    for fp in free:
+        v = g.get(fp.name)
+        try:
+            v = float(v) if v is not None else float("nan")
+        except (TypeError, ValueError):
+            v = float("nan")
+        if not math.isfinite(v):
+            v = float(fp.from_unit(0.5))
+        out[fp.name] = float(np.clip(v, fp.lower, fp.upper))
+    return out
