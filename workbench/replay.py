@@ -34,7 +34,11 @@ DEFAULT_HORIZON_S = 0.05
 
 
 class ReplayError(ValueError):
-    """The record cannot be replayed through this model (a channel the model lacks, a failed integration...)."""
+    """The record cannot be replayed through this model (a channel the model lacks, a terminal mismatch...)."""
+
+
+class SimulationFailed(RuntimeError):
+    """The model's integration failed on the record's inputs (diverged, step size collapsed...)."""
 
 
 @dataclass
@@ -89,9 +93,7 @@ class Replay:
 
     @property
     def model_label(self) -> str:
-        added = [e for e in self.model.effect_names if e not in ("laminate", "patch_rc", "bouc_wen",
-                                                                 "piezo_coupling")]
-        return f"{self.model.params.name}" + (f" + {', '.join(added)}" if added else "")
+        return model_label(self.model)
 
 
 @dataclass
@@ -108,9 +110,15 @@ class FrfReplay:
 
     @property
     def model_label(self) -> str:
-        added = [e for e in self.model.effect_names if e not in ("laminate", "patch_rc", "bouc_wen",
-                                                                 "piezo_coupling")]
-        return f"{self.model.params.name}" + (f" + {', '.join(added)}" if added else "")
+        return model_label(self.model)
+
+
+def model_label(model: PlantModel) -> str:
+    """``table2`` or ``table2 + creep, duffing``: the parameter set and the effects added to the nominal model."""
+    from plant import NOMINAL_EFFECTS
+
+    added = [c.name for c in model.effects if c.name not in NOMINAL_EFFECTS and c.role != "terminal"]
+    return f"{model.params.name}" + (f" + {', '.join(added)}" if added else "")
 
 
 def model_for(record: Record | FrfRecord, params: Any = "table2",
@@ -161,7 +169,8 @@ def replay(model: PlantModel, record: Record, *, params: np.ndarray | None = Non
     """Free-run simulation of ``record``'s inputs through ``model`` (+ a k-step prediction when it applies).
 
     ``params`` is a parameter vector (default the model's nominal one), ``x0`` an initial state (default rest).
-    Raises :class:`ReplayError` when a channel has no model counterpart or the integration fails.
+    Raises :class:`ReplayError` when a channel has no model counterpart, :class:`SimulationFailed` when the
+    integration fails.
     """
     if not isinstance(record, Record):
         raise ReplayError(f"{record.path}: replay() takes a time record; use replay_frf() for a frequency-response "
@@ -174,7 +183,7 @@ def replay(model: PlantModel, record: Record, *, params: np.ndarray | None = Non
     sim = model.simulate(inputs, t_out=record.t, params=params, x0=x0, rtol=rtol)
     wall["simulate_s"] = time.perf_counter() - t0
     if not sim.ok:
-        raise ReplayError(f"{record.path}: free-run simulation failed: {'; '.join(sim.failures())}")
+        raise SimulationFailed(f"{record.path}: free-run simulation failed: {'; '.join(sim.failures())}")
     channels = {
         n: ChannelReplay(n, mapping[n], record.channels[n].si_unit, record[n], sim[mapping[n]][0].copy(),
                          record.channels[n].noise_std)
@@ -204,7 +213,7 @@ def replay_frf(model: PlantModel, record: FrfRecord, *, params: np.ndarray | Non
         h = stepped_sine(model, record.frequency_Hz, sorted(set(mapping.values())), drive=record.drive,
                          amplitude=record.drive_amplitude, bias_v=record.bias_V, params=params)
     except FloatingPointError as exc:
-        raise ReplayError(f"{record.path}: {exc}") from None
+        raise SimulationFailed(f"{record.path}: {exc}") from None
     return FrfReplay(record, model, record.frequency_Hz, {n: ch.response for n, ch in record.responses.items()},
                      {n: h[mapping[n]] for n in record.responses}, {n: ch.unit_si for n, ch in
                                                                     record.responses.items()},

@@ -7,8 +7,8 @@ channel voltages (or base acceleration) and sensor readings with white Gaussian 
 the truth's ``z3_meas`` (the sensor's view). Tests:
 
 =========  ====================================================================================================
-mbit-a     MBIT.a (Sec. 4.2): 0.1 Hz sine, 600 V differential, 20 s (two cycles), +100 V common mode
-mbit-b     MBIT.b: 300 V step at 0.5 s, 5 s
+mbit-a     MBIT.a as the board runs it (``board_config`` ``mbit.toml``: 0.1 Hz, 600 V, 20 s, +100 V common mode)
+mbit-b     MBIT.b as the board runs it (``mbit.toml``: 300 V step at 0.5 s, 10 ms rise, 3 s)
 step       up-and-down voltage step (default 300 V, up at 0.5 s, down at mid-record), 8 s
 sine       sine drive (default 300 V at 2 Hz, 10 s) or, with ``drive="base"``, a base acceleration (0.1 g, 5.8 Hz)
 sweep      logarithmic chirp (default 0.5 → 50 Hz, 300 V or 0.05 g, 30 s)
@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from board_config import CORE_PARAMETER_NAMES, load_parameter_set
+from board_config import CORE_PARAMETER_NAMES, load_mbit, load_parameter_set
 from plant import G0, InputSignals, PhysicalEffect, PlantModel
 from plant.layout import N_INPUTS, U_V_CH1, U_V_CH2, U_Z0DD
 from workbench.frequency_response import stepped_sine
@@ -56,6 +56,8 @@ class TestSpec:
     t_step_s: float = 0.5
     rate_hz: float = 1000.0
     n_freqs: int = 30
+    rise_s: float = 1e-3  # step rise (amplifier slew / command ramp)
+    polarity: tuple[int, int] = (1, -1)  # channel signs following the differential drive
 
 
 def test_spec(kind: str, **overrides: Any) -> TestSpec:
@@ -69,9 +71,12 @@ def test_spec(kind: str, **overrides: Any) -> TestSpec:
     if kind in ("mbit-a", "mbit-b", "step") and drive != "voltage":
         raise ValueError(f"test '{kind}' drives the patches; drive='base' applies to sine, sweep and frf")
     base = drive == "base"
+    ma, mb = load_mbit("a"), load_mbit("b")
     defaults: dict[str, dict[str, Any]] = {
-        "mbit-a": {"amplitude": 600.0, "freq_hz": 0.1, "duration_s": 20.0},
-        "mbit-b": {"amplitude": 300.0, "duration_s": 5.0},
+        "mbit-a": {"amplitude": ma.amplitude, "freq_hz": ma.frequency, "duration_s": ma.duration,
+                   "bias_v": ma.common_mode, "polarity": ma.channel_polarity},
+        "mbit-b": {"amplitude": mb.amplitude, "duration_s": mb.duration, "t_step_s": mb.t_start,
+                   "rise_s": mb.rise_time, "bias_v": mb.common_mode, "polarity": mb.channel_polarity},
         "step": {"amplitude": 300.0, "duration_s": 8.0},
         "sine": {"amplitude": 0.1 * G0 if base else 300.0, "freq_hz": 5.8 if base else 2.0, "duration_s": 10.0},
         "sweep": {"amplitude": 0.05 * G0 if base else 300.0, "duration_s": 30.0},
@@ -130,7 +135,7 @@ def test_inputs(spec: TestSpec, settle_s: float = 1.0) -> tuple[np.ndarray, np.n
         if base:
             u[:, U_Z0DD] = s
     elif spec.kind in ("mbit-b", "step"):
-        rise = 1e-3  # amplifier slew: 300 V in 1 ms
+        rise = max(spec.rise_s, 1.0 / spec.rate_hz)
         ts = spec.t_step_s
         s = spec.amplitude * np.clip((t - ts) / rise, 0, 1)
         segs = [{"start_s": 0.0, "end_s": ts, "label": "before step"}] if ts > 0 else []
@@ -161,8 +166,8 @@ def test_inputs(spec: TestSpec, settle_s: float = 1.0) -> tuple[np.ndarray, np.n
     else:
         raise ValueError(f"test '{spec.kind}' has no time waveform (use synth_frf)")
     if not base:
-        u[:, U_V_CH1] = spec.bias_v + s
-        u[:, U_V_CH2] = spec.bias_v - s
+        u[:, U_V_CH1] = spec.bias_v + spec.polarity[0] * s
+        u[:, U_V_CH2] = spec.bias_v + spec.polarity[1] * s
     return t, u, segs
 
 

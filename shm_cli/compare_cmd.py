@@ -1,0 +1,113 @@
+"""``shm compare``: hold the model against measurement records and report where it fails."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from shm_cli.common import add_out_arg, add_params_arg, dump_json
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "compare", help="compare the model with measurement records: fit, residual tests, where it fails (HTML)",
+        description="Replay each record's inputs through the model (free run, and a labelled k-step-ahead "
+                    "prediction), then report fit % per channel, the paper's normalised error (Eq. 4-5), residual "
+                    "tests with bands and verdicts (bias, whiteness, input cross-correlation, the five Billings-Voon "
+                    "tests) and where the model fails (time windows by regime, error-carrying bands, residual vs "
+                    "drive amplitude and rate, rising vs falling branches). Writes PNGs, a self-contained "
+                    "report.html and compare.json into --out. Records: see docs/records.md.")
+    p.add_argument("records", nargs="+", metavar="RECORD", help="record files (.csv time record or FRF table, .tdms)")
+    add_params_arg(p)
+    p.add_argument("--add", action="append", default=[], metavar="EFFECT",
+                   help="add a physical effect to the model (registered name or pkg.mod:Class); repeatable")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", dest="set_values",
+                   help="value of a model parameter (core or an added effect's), SI; repeatable")
+    g = p.add_argument_group("analysis")
+    g.add_argument("--skip-s", type=float, default=0.0, help="transient skip at the start of each record (s)")
+    g.add_argument("--level", type=float, default=0.01, help="residual-test level α per test (default 0.01 = 99 %%)")
+    g.add_argument("--lags", type=int, default=25, help="lags per correlation test (default 25)")
+    g.add_argument("--decimate", type=int, default=1, help="residual tests on every k-th sample (default 1)")
+    g.add_argument("--threshold-sigma", type=float, default=3.0,
+                   help="flag windows whose rolling RMS residual exceeds this many noise σ (default 3)")
+    g.add_argument("--window-s", type=float, default=None, help="rolling window (s; default 1 %% of the record)")
+    g.add_argument("--no-predict", action="store_true", help="skip the k-step-ahead prediction")
+    g.add_argument("--horizon-s", type=float, default=0.05, help="prediction horizon (s, default 0.05)")
+    g.add_argument("--interval-s", type=float, default=0.01, help="observer correction interval (s, default 0.01)")
+    g.add_argument("--eq4", action="append", default=[], metavar="CH=E0,KERR",
+                   help="given Eq. 4 constants for a channel, SI (default for z3: the paper's 0.75e-3,0.075)")
+    p.add_argument("--json", action="store_true", help="also print the report's numbers as JSON on stdout")
+    add_out_arg(p)
+    p.set_defaults(func=cmd_compare)
+
+
+def _eq4(items: list[str]) -> dict[str, tuple[float, float]]:
+    out = {}
+    for item in items:
+        ch, sep, rest = item.partition("=")
+        parts = rest.split(",")
+        try:
+            if not sep or len(parts) != 2:
+                raise ValueError
+            e0, k = float(parts[0]), float(parts[1])
+        except ValueError:
+            raise ValueError(f"--eq4 expects CH=E0,KERR (SI), got '{item}'") from None
+        if e0 < 0 or k <= 0:
+            raise ValueError(f"--eq4 {ch}: need e0 >= 0 and kerr > 0, got {e0}, {k}")
+        out[ch.strip()] = (e0, k)
+    return out
+
+
+def cmd_compare(args: argparse.Namespace) -> int:
+    from tqdm import tqdm
+
+    from shm_cli.synth_cmd import _assignments
+    from workbench.compare import CompareOptions, compare
+    from workbench.records import load_record
+    from workbench.replay import SimulationFailed
+    from workbench.report import report_json, write_report
+
+    if args.lags < 1 or args.decimate < 1:
+        raise ValueError("--lags and --decimate must be at least 1")
+    if not 0 < args.level < 1:
+        raise ValueError(f"--level must be in (0, 1), got {args.level}")
+    if args.skip_s < 0 or args.threshold_sigma <= 0 or args.horizon_s <= 0 or args.interval_s <= 0:
+        raise ValueError("--skip-s must be >= 0; --threshold-sigma, --horizon-s and --interval-s must be > 0")
+    options = CompareOptions(skip_s=args.skip_s, level=args.level, max_lag=args.lags, decimate=args.decimate,
+                             threshold_sigma=args.threshold_sigma, window_s=args.window_s,
+                             predict=not args.no_predict, horizon_s=args.horizon_s, interval_s=args.interval_s,
+                             eq4_given=_eq4(args.eq4) or None)
+    values = _assignments("--set", args.set_values)
+    records = [load_record(Path(r)) for r in args.records]  # validate every file before any work
+    comparisons = []
+    failures = []
+    for rec in tqdm(records, desc="compare", unit="record", file=sys.stderr, disable=len(records) < 2):
+        model = _model(rec, args.params, args.add, values)
+        try:
+            comparisons.append(compare(model, rec, options))
+        except SimulationFailed as exc:
+            failures.append(str(exc))
+            print(f"shm compare: {exc}", file=sys.stderr)
+    if not comparisons:
+        return 1
+    paths = write_report(comparisons, args.out)
+    for c in comparisons:
+        verdicts = ", ".join(f"{ch} {v}" for ch, v in c.verdicts().items())
+        print(f"{c.record.name}: {verdicts}", file=sys.stderr)
+    print(f"report: {paths['html']}", file=sys.stderr)
+    if args.json:
+        print(dump_json({**report_json(comparisons), "failures": failures}))
+    return 1 if failures else 0
+
+
+def _model(record, params: str, add: list[str], values: dict[str, float]):
+    from board_config import CORE_PARAMETER_NAMES, load_parameter_set
+    from workbench.replay import model_for
+
+    pset = load_parameter_set(params)
+    core = {k: v for k, v in values.items() if k in CORE_PARAMETER_NAMES}
+    if core:
+        pset = pset.with_values(**core)
+    rest = {k: v for k, v in values.items() if k not in CORE_PARAMETER_NAMES}
+    return model_for(record, pset, effects=add, effect_params=rest)

@@ -1,0 +1,129 @@
+"""``shm synth``: write a synthetic measurement record from a truth plant (parameter set + injected effects)."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from shm_cli.common import add_params_arg, dump_json
+
+TESTS = ("mbit-a", "mbit-b", "step", "sine", "sweep", "frf")
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "synth", help="write a synthetic record (CSV/TDMS) from a truth plant with injected effects and noise",
+        description="Simulate a test on a truth plant — the parameter set with parameter deviations and injected "
+                    "physical effects (the hardware-in-the-loop stub's seam) — and write the record a rig would log, "
+                    "in the documented format (docs/records.md). Output .csv (time record or, for --test frf, a "
+                    "frequency-response table) or .tdms.")
+    p.add_argument("--test", required=True, choices=TESTS, help="test to simulate")
+    add_params_arg(p)
+    p.add_argument("--effect", action="append", default=[], metavar="NAME|pkg.mod:Class",
+                   help="inject a physical effect into the truth plant (registered name or dotted path); repeatable")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", dest="set_values",
+                   help="absolute value of a truth parameter (core or an injected effect's), SI; repeatable")
+    p.add_argument("--deviation", action="append", default=[], metavar="NAME=REL",
+                   help="relative deviation of a core parameter (k3=-0.3: k3 × 0.7); repeatable")
+    p.add_argument("--noise", action="append", default=[], metavar="CH=SIGMA|none",
+                   help="white sensor noise σ in SI (z3=2e-6 m, v_stored=5e-3 V; inputs v_ch1, v_ch2, z0dd too); "
+                        "'none' for a noiseless record. Default: z 2 µm, v_stored 5 mV. For --test frf: "
+                        "amp=REL and phase=DEG (default 0.01 and 0.5)")
+    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument("--channels", default=None, metavar="CH,CH",
+                   help="measured channels (default: z3 for a voltage drive; v_stored,z3 for a base drive)")
+    p.add_argument("--drive", choices=("voltage", "base"), default="voltage",
+                   help="voltage on the patches (actuation) or base acceleration (harvesting, open circuit)")
+    p.add_argument("--amplitude", type=float, default=None,
+                   help="drive amplitude: V (differential) for voltage, g for base (default per test)")
+    p.add_argument("--freq-hz", type=float, default=None, help="sine frequency (Hz)")
+    p.add_argument("--f0-hz", type=float, default=None, help="sweep / FRF start frequency (Hz)")
+    p.add_argument("--f1-hz", type=float, default=None, help="sweep / FRF end frequency (Hz)")
+    p.add_argument("--n-freqs", type=int, default=None, help="FRF: number of frequencies (log-spaced)")
+    p.add_argument("--duration-s", type=float, default=None, help="record length (s)")
+    p.add_argument("--rate-hz", type=float, default=None, help="logger sample rate (Hz, default 1000)")
+    p.add_argument("--bias-v", type=float, default=None, help="common-mode voltage on both channels (V)")
+    p.add_argument("--blind", action="store_true",
+                   help="leave the truth (effects, parameter values) out of the record's provenance")
+    p.add_argument("--json", action="store_true", help="print a summary of the written record as JSON")
+    p.add_argument("--out", required=True, metavar="FILE", help="output file (.csv or .tdms)")
+    p.set_defaults(func=cmd_synth)
+
+
+def _assignments(flag: str, items: list[str]) -> dict[str, float]:
+    out: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep or not name.strip():
+            raise ValueError(f"{flag} expects NAME=VALUE, got '{item}'")
+        try:
+            out[name.strip()] = float(value)
+        except ValueError:
+            raise ValueError(f"{flag} {name.strip()}: '{value}' is not a number") from None
+    return out
+
+
+def cmd_synth(args: argparse.Namespace) -> int:
+    from board_config import CORE_PARAMETER_NAMES, load_parameter_set
+    from plant import G0
+    from workbench.records import write_record
+    from workbench.synth import synth_frf, synth_record, test_spec, truth_model, write_frf_record
+
+    out = Path(args.out)
+    if out.suffix.lower() not in (".csv", ".tdms"):
+        raise ValueError(f"--out {out}: expected a .csv or .tdms file name")
+    if args.test == "frf" and out.suffix.lower() != ".csv":
+        raise ValueError("--test frf writes a frequency-response table: use a .csv file name")
+    pset = load_parameter_set(args.params)
+    values = _assignments("--set", args.set_values)
+    for name, rel in _assignments("--deviation", args.deviation).items():
+        if name not in CORE_PARAMETER_NAMES:
+            raise ValueError(f"--deviation {name}: not a core parameter ({', '.join(CORE_PARAMETER_NAMES)})")
+        if not rel > -1.0:
+            raise ValueError(f"--deviation {name}={rel}: a relative deviation must be above -1")
+        values[name] = values.get(name, pset.values[name]) * (1.0 + rel)
+    base = args.drive == "base"
+    amplitude = None if args.amplitude is None else args.amplitude * (G0 if base else 1.0)
+    spec = test_spec(args.test, drive=args.drive, amplitude=amplitude, freq_hz=args.freq_hz, f0_hz=args.f0_hz,
+                     f1_hz=args.f1_hz, duration_s=args.duration_s, rate_hz=args.rate_hz, bias_v=args.bias_v,
+                     n_freqs=args.n_freqs)
+    channels = (args.channels.split(",") if args.channels else (["v_stored", "z3"] if base else ["z3"]))
+    channels = [c.strip() for c in channels if c.strip()]
+    model = truth_model(pset, effects=args.effect, values=values, terminal="open_circuit" if base else "amplifier")
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if args.test == "frf":
+        nz = {"amp": 0.01, "phase": 0.5}
+        for item in args.noise:
+            if item == "none":
+                nz = {"amp": 0.0, "phase": 0.0}
+            else:
+                nz.update(_assignments("--noise", [item]))
+        unknown = set(nz) - {"amp", "phase"}
+        if unknown:
+            raise ValueError(f"--noise for --test frf takes amp=REL and phase=DEG, got {sorted(unknown)}")
+        rec = synth_frf(spec, model, channels, noise_rel=nz["amp"], noise_phase_deg=nz["phase"], seed=args.seed,
+                        effects=args.effect, values=values, blind=args.blind)
+        path = write_frf_record(rec, out)
+        summary = {"file": str(path), "test": "frf", "frequencies": int(rec.frequency_Hz.size),
+                   "channels": list(rec.responses), "drive": rec.drive}
+    else:
+        noise: dict[str, float] | None = None
+        if args.noise:
+            noise = {}
+            for item in args.noise:
+                if item != "none":
+                    noise.update(_assignments("--noise", [item]))
+        rec = synth_record(spec, model, channels, noise=noise, seed=args.seed, effects=args.effect, values=values,
+                           blind=args.blind)
+        path = write_record(rec, out)
+        summary = {"file": str(path), "test": rec.test, "samples": rec.n_samples, "duration_s": rec.duration_s,
+                   "sample_rate_Hz": rec.sample_rate_Hz, "inputs": list(rec.inputs), "outputs": list(rec.outputs)}
+    summary["truth"] = "hidden" if args.blind else {"params": pset.name, "effects": args.effect, "values": values}
+    if args.json:
+        print(dump_json(summary))
+    else:
+        print(f"wrote {path} ({args.test}, truth: {pset.name}"
+              + (f" + {', '.join(args.effect)}" if args.effect and not args.blind else "")
+              + (" [blind]" if args.blind else "") + ")", file=sys.stderr)
+    return 0
