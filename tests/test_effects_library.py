@@ -79,14 +79,16 @@ def test_guess_is_within_bounds_with_and_without_data(name, nominal_step, table2
 
 
 @pytest.mark.parametrize("name", LIBRARY)
-def test_compiles_and_is_neutral(name, models, nominal_step):
+def test_compiles_and_is_neutral(name, models, table2_model):
+    # tight tolerance on both sides: extra states change the step-size sequence, so compare converged solutions
     model = models[name]
     cls = registered_effects()[name]
-    res = _step(model, **cls.neutral)
-    ref = nominal_step["z3_meas"][0]
-    peak = np.max(np.abs(ref))
-    assert np.max(np.abs(res["z3_meas"][0] - ref)) < 1e-6 * peak
-    assert np.max(np.abs(res["v_patch1"][0] - nominal_step["v_patch1"][0])) < 1e-6 * 300.0
+    res = model.simulate(STEP, dt_out=1e-3, params=model.param_batch(**cls.neutral), rtol=1e-10)
+    ref = table2_model.simulate(STEP, dt_out=1e-3, rtol=1e-10)
+    assert res.ok
+    peak = np.max(np.abs(ref["z3_meas"][0]))
+    assert np.max(np.abs(res["z3_meas"][0] - ref["z3_meas"][0])) < 1e-7 * peak
+    assert np.max(np.abs(res["v_patch1"][0] - ref["v_patch1"][0])) < 1e-7 * 300.0
 
 
 def test_piezo_creep_keeps_drifting_in_the_step_direction(models, nominal_step):
@@ -150,14 +152,14 @@ def test_amplifier_current_limit_slows_the_step_but_not_the_end(models, nominal_
 
 def test_laser_sensor_offset_spot_and_lag(models, nominal_step):
     m = models["laser_sensor"]
-    z3, z2 = nominal_step["z3"][0], nominal_step["z2"][0]
-    off = _step(m, z_offset=2e-4)["z3_meas"][0]
-    assert np.allclose(off - z3, 2e-4, atol=1e-9)
-    spot = _step(m, spot_offset=0.25)["z3_meas"][0]
-    assert np.allclose(spot, 0.75 * z3 + 0.25 * z2, atol=1e-7)
+    z3 = nominal_step["z3"][0]
+    off = _step(m, z_offset=2e-4)
+    assert np.allclose(off["z3_meas"][0] - off["z3"][0], 2e-4, atol=1e-12)
+    spot = _step(m, spot_offset=0.25)
+    assert np.allclose(spot["z3_meas"][0], 0.75 * spot["z3"][0] + 0.25 * spot["z2"][0], atol=1e-12)
     lag = _step(m, tau_sensor=0.01)
     meas, phys = lag["z3_meas"][0], lag["z3"][0]
-    assert np.allclose(phys, z3, atol=1e-9)  # the physics is untouched
+    assert np.allclose(phys, z3, atol=1e-4 * np.max(np.abs(z3)))  # the physics is untouched (to integration accuracy)
     k = int(0.11 / 1e-3)
     assert meas[k] < 0.8 * z3[k]  # reading lags the rise
     assert meas[-1] == pytest.approx(z3[-1], rel=1e-3)

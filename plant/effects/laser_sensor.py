@@ -28,8 +28,8 @@ class LaserSensor(PhysicalEffect):
     * τ_s (s): first-order averaging lag of the sensor's internal filter, ṡ = (z_spot − s)/τ_s.
 
     Lags below 1 ms are blended, z3_meas = z_spot + (s − z_spot) τ_s/1 ms with s integrated at 1 ms (to first
-    order z_spot − τ_s ż_spot, the same as a true lag), which is continuous in τ_s and keeps the integration cheap. Only the measured channel ``z3_meas`` changes;
-    the physics does not.
+    order z_spot − τ_s ż_spot, the same as a true lag), which is continuous in τ_s and keeps the integration
+    cheap. Only the measured channel ``z3_meas`` changes; the physics does not.
     """
 
     name = "laser_sensor"
@@ -90,7 +90,7 @@ class LaserSensor(PhysicalEffect):
         z2 = series(data, "predicted", "z2")
         if z2 is not None and z2.size == pred.size:
             lam = regress(res - offset, z2 - pred)
-            out["spot_offset"] = cls.fit_ranges["spot_offset"].clip(max(lam, 0.02))
+            out["spot_offset"] = cls.extra_ranges["spot_offset"].clip(max(lam, 0.02))
         t = data.get("t_s") if data else None
         if t is not None and np.size(t) == pred.size and pred.size > 4:
             v = np.gradient(pred, np.asarray(t, dtype=float))
