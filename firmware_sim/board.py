@@ -233,7 +233,7 @@ class Board:
             events.append(BoardEvent("telemetry", k, now, {
                 "regime": regime.value, "v_battery_V": self._v_batt, "monitor_count": self.maintenance.monitor_count,
                 "charge_used_C": self.power.charge_used, "incidents_total": self.incidents}))
-        return TickResult(ActuatorCommand(k & 0xFFFFFFFF, v1, v2, pstat.current), events, regime)
+        return TickResult(ActuatorCommand(k & 0xFFFFFFFF, v1, v2, self.budget.current(regime)), events, regime)
 
     # --- helpers ------------------------------------------------------------------------------------
     def _incident(self, k: int, kind: str, detail: str) -> BoardEvent:

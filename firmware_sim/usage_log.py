@@ -14,8 +14,8 @@ Schema (version 1; every time in s of board time, every voltage in V — units a
          to_regime TEXT, trigger TEXT, causes TEXT, v_battery_V REAL)
     incidents(id INTEGER PRIMARY KEY, run_id INTEGER, tick INTEGER, time_s REAL, incident TEXT, regime TEXT,
          detail TEXT)
-    usage_summaries(id INTEGER PRIMARY KEY, run_id INTEGER, tick INTEGER, t_start_s REAL, t_end_s REAL,
-         duration_s REAL, samples INTEGER, peak_z3_m REAL, peak_z3_pos_m REAL, peak_z3_neg_m REAL,
+    usage_summaries(id INTEGER PRIMARY KEY, run_id INTEGER, tick INTEGER, time_s REAL, t_start_s REAL,
+         t_end_s REAL, duration_s REAL, samples INTEGER, peak_z3_m REAL, peak_z3_pos_m REAL, peak_z3_neg_m REAL,
          peak_z0dd_m_s2 REAL, n_reversals INTEGER, n_cycles REAL, max_range_m REAL, reason TEXT,
          rainflow_json TEXT, exceedance_json TEXT)
     mbit_results(id INTEGER PRIMARY KEY, run_id INTEGER, tick INTEGER, time_s REAL, mbit TEXT, label TEXT,
@@ -57,9 +57,9 @@ CREATE TABLE IF NOT EXISTS incidents(
     time_s REAL NOT NULL, incident TEXT NOT NULL, regime TEXT, detail TEXT);
 CREATE TABLE IF NOT EXISTS usage_summaries(
     id INTEGER PRIMARY KEY, run_id INTEGER NOT NULL REFERENCES runs(run_id), tick INTEGER NOT NULL,
-    t_start_s REAL NOT NULL, t_end_s REAL NOT NULL, duration_s REAL NOT NULL, samples INTEGER NOT NULL,
-    peak_z3_m REAL, peak_z3_pos_m REAL, peak_z3_neg_m REAL, peak_z0dd_m_s2 REAL, n_reversals INTEGER,
-    n_cycles REAL, max_range_m REAL, reason TEXT, rainflow_json TEXT, exceedance_json TEXT);
+    time_s REAL NOT NULL, t_start_s REAL NOT NULL, t_end_s REAL NOT NULL, duration_s REAL NOT NULL,
+    samples INTEGER NOT NULL, peak_z3_m REAL, peak_z3_pos_m REAL, peak_z3_neg_m REAL, peak_z0dd_m_s2 REAL,
+    n_reversals INTEGER, n_cycles REAL, max_range_m REAL, reason TEXT, rainflow_json TEXT, exceedance_json TEXT);
 CREATE TABLE IF NOT EXISTS mbit_results(
     id INTEGER PRIMARY KEY, run_id INTEGER NOT NULL REFERENCES runs(run_id), tick INTEGER NOT NULL,
     time_s REAL NOT NULL, mbit TEXT NOT NULL, label TEXT, verdict TEXT NOT NULL, fault_time_s REAL,
