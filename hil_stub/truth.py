@@ -30,5 +30,10 @@ def build_truth_rig(scenario: str | Scenario | None = None, *, seed: int | None 
     effects += [e for e in truth.effects if e not in effects]
     if hv_present is None and scen is None:
         hv_present = True
-    return SimulatedRig(scen, seed=seed, params=params, deviations=deviations, effects=effects, tick=tick,
-                        hv_present=hv_present)
+    rig = SimulatedRig(scen, seed=seed, params=params, deviations=deviations, effects=effects, tick=tick,
+                       hv_present=hv_present)
+    # Load the amplifier-terminal composition now: SimulatedRig builds it on first HV contact, and loading the
+    # compiled kernels (~0.4 s) there would stall a real-time rig for ~40 ticks in the middle of a maintenance visit
+    # (the board would see a frozen sample counter). Loading it early changes no result.
+    rig._model("amplifier")
+    return rig
