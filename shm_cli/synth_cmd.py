@@ -68,7 +68,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
     from board_config import CORE_PARAMETER_NAMES, load_parameter_set
     from plant import G0
     from workbench.records import write_record
-    from workbench.synth import synth_frf, synth_record, test_spec, truth_model, write_frf_record
+    from workbench.synth import synth_frf, synth_record, synth_test, truth_model, write_frf_record
 
     out = Path(args.out)
     if out.suffix.lower() not in (".csv", ".tdms"):
@@ -85,7 +85,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
         values[name] = values.get(name, pset.values[name]) * (1.0 + rel)
     base = args.drive == "base"
     amplitude = None if args.amplitude is None else args.amplitude * (G0 if base else 1.0)
-    spec = test_spec(args.test, drive=args.drive, amplitude=amplitude, freq_hz=args.freq_hz, f0_hz=args.f0_hz,
+    spec = synth_test(args.test, drive=args.drive, amplitude=amplitude, freq_hz=args.freq_hz, f0_hz=args.f0_hz,
                      f1_hz=args.f1_hz, duration_s=args.duration_s, rate_hz=args.rate_hz, bias_v=args.bias_v,
                      n_freqs=args.n_freqs)
     channels = (args.channels.split(",") if args.channels else (["v_stored", "z3"] if base else ["z3"]))

@@ -32,7 +32,8 @@ TRANSITION_LABELS = ("rest", "rising", "falling", "hold")
 
 @dataclass(frozen=True)
 class Window:
-    """A stretch where the rolling RMS residual exceeds the threshold."""
+    """A stretch where the rolling RMS residual exceeds the threshold; ``regime`` names the test regime(s) that
+    carry at least 20 % of the window's squared error (largest first)."""
 
     start_s: float
     end_s: float
@@ -200,9 +201,11 @@ def _windows(t: np.ndarray, e: np.ndarray, rr: np.ndarray, thr: float, labels: n
         if b - a < max(2, n_win // 2):
             continue
         seg = e[a:b]
-        labs, counts = np.unique(labels[a:b].astype(str), return_counts=True)
-        order = np.argsort(-counts)
-        regime = " / ".join(f"{labs[j]}" for j in order[:2] if counts[j] >= 0.2 * (b - a))
+        # name the window by the regimes carrying its error (not by the ones it merely spans)
+        labs, inv = np.unique(labels[a:b].astype(str), return_inverse=True)
+        sq = np.bincount(inv, weights=seg ** 2, minlength=labs.size)
+        order = np.argsort(-sq)
+        regime = " / ".join(labs[j] for j in order[:2] if sq[j] >= 0.2 * sq.sum()) or str(labs[order[0]])
         out.append(Window(float(t[a]), float(t[b - 1]), regime, float(np.max(np.abs(seg))),
                           float(np.sqrt(np.mean(seg ** 2))), float(np.sum(seg ** 2) / total_sq) if total_sq else 0.0))
     return out

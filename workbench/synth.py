@@ -42,7 +42,7 @@ _COLUMN_UNITS = {"z": "m", "delta": "m", "q": "C", "qh": "C", "v_patch": "V", "v
 
 
 @dataclass(frozen=True)
-class TestSpec:
+class SynthTest:
     """A test's waveform. Amplitudes in SI: V for a voltage drive (differential), m/s^2 for a base drive."""
 
     kind: str
@@ -60,7 +60,7 @@ class TestSpec:
     polarity: tuple[int, int] = (1, -1)  # channel signs following the differential drive
 
 
-def test_spec(kind: str, **overrides: Any) -> TestSpec:
+def synth_test(kind: str, **overrides: Any) -> SynthTest:
     """The default waveform of a test kind, with overrides (``None`` values are ignored)."""
     if kind not in TEST_KINDS:
         raise ValueError(f"unknown test '{kind}' (tests: {', '.join(TEST_KINDS)})")
@@ -82,7 +82,7 @@ def test_spec(kind: str, **overrides: Any) -> TestSpec:
         "sweep": {"amplitude": 0.05 * G0 if base else 300.0, "duration_s": 30.0},
         "frf": {"amplitude": 0.1 * G0 if base else 600.0, "duration_s": 0.0},
     }
-    spec = TestSpec(kind, **{**defaults[kind], **over})
+    spec = SynthTest(kind, **{**defaults[kind], **over})
     for name in ("amplitude", "freq_hz", "f0_hz", "f1_hz", "duration_s", "rate_hz"):
         v = getattr(spec, name)
         if not np.isfinite(v) or (v <= 0 and not (name == "duration_s" and kind == "frf")):
@@ -122,7 +122,7 @@ def settle_time_s(model: PlantModel) -> float:
     return float(np.clip(4.0 / slow, 0.1, 5.0))
 
 
-def test_inputs(spec: TestSpec, settle_s: float = 1.0) -> tuple[np.ndarray, np.ndarray, list[dict[str, Any]]]:
+def synth_inputs(spec: SynthTest, settle_s: float = 1.0) -> tuple[np.ndarray, np.ndarray, list[dict[str, Any]]]:
     """``(t, u, segments)``: times (s), inputs ``(samples, 3)`` [v_ch1 V, v_ch2 V, z0dd m/s^2], regimes."""
     dt = 1.0 / spec.rate_hz
     t = dt * np.arange(round(spec.duration_s * spec.rate_hz) + 1)
@@ -211,7 +211,7 @@ def _noise_for(channels: Sequence[str], noise: Mapping[str, float] | None) -> di
     return {k: float(v) for k, v in noise.items()}
 
 
-def synth_record(spec: TestSpec, model: PlantModel, channels: Sequence[str] = ("z3",), *,
+def synth_record(spec: SynthTest, model: PlantModel, channels: Sequence[str] = ("z3",), *,
                  noise: Mapping[str, float] | None = None, seed: int | None = 0,
                  effects: Sequence[Any] = (), values: Mapping[str, float] | None = None, blind: bool = False,
                  params: np.ndarray | None = None) -> Record:
@@ -228,7 +228,7 @@ def synth_record(spec: TestSpec, model: PlantModel, channels: Sequence[str] = ("
                              f"{', '.join(channels)}; inputs v_ch1, v_ch2, z0dd)")
         if not (np.isfinite(noise_map[k]) and noise_map[k] >= 0):
             raise ValueError(f"noise for '{k}' must be a non-negative number, got {noise_map[k]!r}")
-    t, u, segs = test_inputs(spec, settle_time_s(model) if spec.kind in ("mbit-b", "step") else 1.0)
+    t, u, segs = synth_inputs(spec, settle_time_s(model) if spec.kind in ("mbit-b", "step") else 1.0)
     sim = model.simulate(InputSignals(0.0, 1.0 / spec.rate_hz, u), t_out=t, params=params)
     if not sim.ok:
         raise FloatingPointError(f"truth simulation failed: {'; '.join(sim.failures())}")
@@ -262,7 +262,7 @@ def synth_record(spec: TestSpec, model: PlantModel, channels: Sequence[str] = ("
     return record_from_arrays(t, cols, meta, path=f"<synth {spec.kind}>")
 
 
-def synth_frf(spec: TestSpec, model: PlantModel, channels: Sequence[str] = ("z3",), *,
+def synth_frf(spec: SynthTest, model: PlantModel, channels: Sequence[str] = ("z3",), *,
               noise_rel: float = 0.01, noise_phase_deg: float = 0.5, seed: int | None = 0,
               effects: Sequence[Any] = (), values: Mapping[str, float] | None = None, blind: bool = False
               ) -> FrfRecord:
@@ -305,7 +305,7 @@ def _terminal_name(model: PlantModel) -> str:
     return next(c.name for c in model.effects if c.role == "terminal")
 
 
-def _describe(spec: TestSpec) -> str:
+def _describe(spec: SynthTest) -> str:
     amp = f"{spec.amplitude:g} V" if spec.drive == "voltage" else f"{spec.amplitude / G0:g} g"
     if spec.kind in ("mbit-a", "sine"):
         return f"{amp} at {spec.freq_hz:g} Hz, {spec.duration_s:g} s"
@@ -316,5 +316,5 @@ def _describe(spec: TestSpec) -> str:
     return f"{amp} stepped sine {spec.f0_hz:g}–{spec.f1_hz:g} Hz, {spec.n_freqs} points"
 
 
-def with_duration(spec: TestSpec, duration_s: float) -> TestSpec:
+def with_duration(spec: SynthTest, duration_s: float) -> SynthTest:
     return replace(spec, duration_s=float(duration_s))
