@@ -12,8 +12,6 @@ from pathlib import Path
 #: benchmark modules in order; adding one is one new module plus one line here
 BENCHMARKS: tuple[str, ...] = (
     "bench.bench_plant",
-    "bench.bench_campaign",
-    "bench.bench_harvest",
     "bench.bench_links",
 )
 
