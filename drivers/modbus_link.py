@@ -18,8 +18,9 @@ registers 0–7), FC 04 reads the sample block (input registers 0–21); the map
 A command refused with exception 03 (outside the rig's limits) still returns the sample, with
 ``FLAG_LIMIT_REFUSED`` set, as the in-process link does; every other exception reply, a timeout, a reply of
 the wrong kind or a lost connection is a ``LinkError``. A lost connection is reopened with a back-off counted
-in exchange calls (1, 2, 4 … 64). Incidents go to the ``drivers.modbus_link`` logger and
-:attr:`ModbusLink.stats`.
+in exchange calls (1, 2, 4 … 64). Incidents go to the ``drivers.modbus_link`` logger (the first three of a kind,
+then every 10th, 100th …) and are all counted in :attr:`ModbusLink.stats`. pymodbus' own per-request error messages
+are silenced unless the application has configured the ``pymodbus`` logger itself.
 
 On a slow RTU line (19200 baud needs ~22 ms for this poll) one exchange does not fit a 10 ms tick: use
 115200 baud or faster, or a Modbus TCP gateway.
@@ -36,6 +37,7 @@ from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException
 from pymodbus.framer import FramerType
 
+from drivers.incident_log import IncidentLog
 from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, LinkError, RigSample
 from drivers.modbus_registers import (
     COMMAND_START,
@@ -139,6 +141,9 @@ class ModbusLink:
     def __init__(self, url: str) -> None:
         self.url = url
         self.settings = parse_modbus_url(url)
+        pm = logging.getLogger("pymodbus")
+        if pm.level == logging.NOTSET:  # pymodbus logs every timeout itself; this link logs them rate-limited
+            pm.setLevel(logging.CRITICAL)
         self.unit = int(self.settings["unit"])  # type: ignore[arg-type]
         self.timeout = float(self.settings["timeout"])  # type: ignore[arg-type]
         self.reopen_after = int(self.settings["reopen"])  # type: ignore[arg-type]
@@ -148,6 +153,7 @@ class ModbusLink:
         self._calls_while_down = 0
         self._timeouts_in_row = 0
         self.stats: Counter[str] = Counter()
+        self._log = IncidentLog(log)
         self.last_exception_code: int | None = None
 
     # ------------------------------------------------------------------------------------------ lifecycle
@@ -207,7 +213,7 @@ class ModbusLink:
 
     def _link_down(self, why: str) -> LinkError:
         self.stats["link_down"] += 1
-        log.warning("%s: link down (%s); reconnecting with back-off", self.url, why)
+        self._log.warn("link_down", "%s: link down (%s); reconnecting with back-off", self.url, why)
         if self._client is not None:
             try:
                 self._client.close()
@@ -233,7 +239,7 @@ class ModbusLink:
             self.stats["reconnect_failed"] += 1
             raise
         self.stats["reconnected"] += 1
-        log.warning("%s: reconnected", self.url)
+        self._log.warn("reconnected", "%s: reconnected", self.url)
 
     # ------------------------------------------------------------------------------------------ exchange
     def _call(self, what: str, fn, *args, **kwargs):
@@ -244,7 +250,7 @@ class ModbusLink:
         except ModbusException as exc:  # ModbusIOException: no (valid) reply within the timeout
             self.stats["timeouts"] += 1
             self._timeouts_in_row += 1
-            log.warning("%s: %s: no valid reply within %.1f ms", self.url, what, 1e3 * self.timeout)
+            self._log.warn("timeout", "%s: %s: no valid reply within %.1f ms", self.url, what, 1e3 * self.timeout)
             if self._timeouts_in_row >= self.reopen_after:
                 raise self._link_down(f"{self._timeouts_in_row} timeouts in a row") from exc
             raise LinkError(f"{self.url}: {what}: no valid reply within {1e3 * self.timeout:.1f} ms") from exc
@@ -261,7 +267,7 @@ class ModbusLink:
             self.stats["exception_replies"] += 1
             code = getattr(rr, "exception_code", None)
             self.last_exception_code = code
-            log.warning("%s: sample read refused with exception %s", self.url, code)
+            self._log.warn("exception_reply", "%s: sample read refused with exception %s", self.url, code)
             raise LinkError(f"{self.url}: sample read refused with Modbus exception {code}")
         regs = getattr(rr, "registers", None)
         if rr.function_code != 0x04 or regs is None or len(regs) != INPUT_COUNT:
@@ -288,10 +294,10 @@ class ModbusLink:
             if code == ModbusExceptionCode.ILLEGAL_VALUE:
                 refused = True
                 self.stats["refused"] += 1
-                log.warning("%s: rig refused command seq %d (v_ch1=%g V, v_ch2=%g V): exception 03", self.url,
-                            command.seq, command.v_ch1, command.v_ch2)
+                self._log.warn("refused", "%s: rig refused command seq %d (v_ch1=%g V, v_ch2=%g V): exception 03",
+                               self.url, command.seq, command.v_ch1, command.v_ch2)
             else:
-                log.warning("%s: command write refused with exception %s", self.url, code)
+                self._log.warn("exception_reply", "%s: command write refused with exception %s", self.url, code)
                 raise LinkError(f"{self.url}: command write refused with Modbus exception {code}")
         elif rr.function_code != 0x10:
             self.stats["bad_reply"] += 1
@@ -305,6 +311,6 @@ class ModbusLink:
                                flags=sample.flags | FLAG_LIMIT_REFUSED)
         elif block.cmd_seq_applied != command.seq & 0xFFFFFFFF:
             self.stats["seq_mismatch"] += 1
-            log.warning("%s: rig reports command seq %d applied, sent %d (another master?)", self.url,
-                        block.cmd_seq_applied, command.seq)
+            self._log.warn("seq_mismatch", "%s: rig reports command seq %d applied, sent %d (another master?)",
+                           self.url, block.cmd_seq_applied, command.seq)
         return sample

@@ -44,6 +44,7 @@ from drivers.framing import (
     encode_command,
     encode_ping,
 )
+from drivers.incident_log import IncidentLog
 from drivers.link import ActuatorCommand, LinkError, RigSample
 
 log = logging.getLogger("drivers.serial_link")
@@ -102,6 +103,7 @@ class SerialLink:
         self._timeouts_in_row = 0
         self._ping_seq = 0
         self.stats: Counter[str] = Counter()
+        self._log = IncidentLog(log)
         self.rig_protocol_version: int | None = None
 
     # ------------------------------------------------------------------------------------------ lifecycle
@@ -157,7 +159,7 @@ class SerialLink:
 
     def _link_down(self, why: str) -> LinkError:
         self.stats["link_down"] += 1
-        log.warning("%s: link down (%s); reopening with back-off", self.url, why)
+        self._log.warn("link_down", "%s: link down (%s); reopening with back-off", self.url, why)
         self.close()
         self._calls_while_down = 0
         return LinkError(f"{self.url}: {why}")
@@ -178,7 +180,7 @@ class SerialLink:
             self.stats["reopen_failed"] += 1
             raise
         self.stats["reopened"] += 1
-        log.warning("%s: port reopened", self.url)
+        self._log.warn("reopened", "%s: port reopened", self.url)
         assert self._port is not None
         return self._port
 
@@ -237,7 +239,7 @@ class SerialLink:
                     if fr.type == MessageType.NAK and fr.seq == seq:
                         rejected, reason = decode_nak(fr) if len(fr.payload) == 2 else (fr.type, "?")
                         self.stats["nak"] += 1
-                        log.warning("%s: rig NAK for seq %d (type 0x%02X, reason %s)", self.url, seq,
+                        self._log.warn("nak", "%s: rig NAK for seq %d (type 0x%02X, reason %s)", self.url, seq,
                                     rejected, getattr(reason, "name", reason))
                         raise LinkError(f"{self.url}: rig refused request seq {seq}: "
                                         f"{getattr(reason, 'name', reason)}")
@@ -247,7 +249,7 @@ class SerialLink:
             if time.monotonic() >= deadline:
                 self.stats["timeouts"] += 1
                 self._timeouts_in_row += 1
-                log.warning("%s: no reply to seq %d within %.1f ms", self.url, seq, 1e3 * self.timeout)
+                self._log.warn("timeout", "%s: no reply to seq %d within %.1f ms", self.url, seq, 1e3 * self.timeout)
                 if self._timeouts_in_row >= self.reopen_after:
                     raise self._link_down(f"{self._timeouts_in_row} timeouts in a row")
                 raise LinkError(f"{self.url}: no reply to seq {seq} within {1e3 * self.timeout:.1f} ms")
@@ -259,4 +261,4 @@ class SerialLink:
             if delta:
                 self.stats[key] += delta
                 what = "byte(s) of garbage skipped" if key == "discarded_bytes" else f"frame(s) dropped ({key})"
-                log.warning("%s: %d %s", self.url, delta, what)
+                self._log.warn(key, "%s: %d %s", self.url, delta, what)
