@@ -91,7 +91,7 @@ def power_step(state: PowerState, v_battery: float, regime: Regime, tick: int, b
         brownout = True
         n_brownouts += 1
         events = (BoardEvent("incident", tick, now, {
-            "incident": "brownout", "detail": f"battery {v_battery:.3f} V below {budget.brownout:.3f} V for "
+            "incident": "brownout", "detail": f"battery {v_battery:.4f} V below {budget.brownout:.4f} V for "
                                               f"{below_run} ticks in {regime.value}"}),)
     elif brownout and v_battery > budget.brownout + budget.hysteresis:
         brownout = False

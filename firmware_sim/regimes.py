@@ -95,7 +95,8 @@ TRANSITIONS: tuple[Transition, ...] = (
     # leaving SAFE
     Transition(X, Trigger.LINK_RECOVERED, S, 10, "SAFE was caused by link loss only; [safe] link_recovery > 0",
                "supervisor re-arm (logged)"),
-    Transition(X, Trigger.REARM, S, 11, "link up, sample valid, no brown-out, no overrun (else 'rearm_refused')",
+    Transition(X, Trigger.REARM, S, 11, "link up, sample valid, no limit violation, no brown-out, no overrun "
+               "(else 'rearm_refused' logged)",
                "operator re-arm (logged)"),
 )
 
