@@ -118,3 +118,35 @@ def test_host_realtime_paces_at_100_hz_and_waits_for_the_first_command():
     s = host.pacing.summary()
     assert s["ticks"] >= 30 and host.snapshot.sample.t == pytest.approx(0.01 * host.snapshot.tick)
     assert len(host.pacing.lateness_samples) == s["ticks"]
+
+
+def test_truth_rig_takes_the_plan_deviations_on_top_of_the_scenario():
+    from board_config.scenario import load_scenario
+    from hil_stub.truth import build_truth_rig
+
+    scen = load_scenario("degraded")  # k3 -0.35, alpha_h +0.35, beta_h -0.35
+    rig = build_truth_rig(scen, seed=2, truth=TruthChanges(deviations={"k3": -0.1, "k1": 0.05}))
+    d = rig.describe()
+    assert d["deviations"] == {"k3": -0.1, "alpha_h": 0.35, "beta_h": -0.35, "k1": 0.05} and d["seed"] == 2
+    bench = build_truth_rig(None)
+    assert bench.hv_present and bench.describe()["scenario"] is None  # a bench rig: amplifier connected
+    with pytest.raises(ValueError, match="no such model parameter"):
+        build_truth_rig(None, truth=TruthChanges(deviations={"k99": 0.1}))
+
+
+def test_truth_rig_adds_the_plan_effects_after_the_scenario_ones(monkeypatch):
+    import hil_stub.truth as truth
+
+    seen = {}
+
+    class Recorder:
+        def __init__(self, scenario, **kw):
+            seen.update(kw, scenario=scenario)
+
+        def _model(self, terminal):
+            seen["preloaded"] = terminal
+
+    monkeypatch.setattr(truth, "SimulatedRig", Recorder)
+    truth.build_truth_rig(None, truth=TruthChanges(effects=("air_damping", "mypkg.effects:Creep")), params="table2")
+    assert seen["effects"] == ["air_damping", "mypkg.effects:Creep"] and seen["params"] == "table2"
+    assert seen["hv_present"] is True and seen["preloaded"] == "amplifier"

@@ -290,3 +290,23 @@ def test_sample_decoder_agrees_with_server_encoding(lockstep_pty):
         s = link.exchange(cmd(1))
     fr = FrameDecoder().feed(encode_sample(hil.host.snapshot.sample, 1))[0]
     assert decode_sample(fr) == s
+
+
+def test_reply_latency_within_and_beyond_the_timeout():
+    import time
+
+    plan = FaultPlan(link=LinkFaults(latency_s=0.03), seed=1)
+    with HilService(FakeRig(), mode="lockstep", plan=plan) as hil:
+        srv = hil.add_serial("pty")
+        with open_link(srv.board_url + "?timeout=0.5") as link:
+            t0 = time.perf_counter()
+            link.exchange(cmd(1))
+            assert time.perf_counter() - t0 >= 0.03
+        link = open_link(srv.board_url + "?timeout=0.01&handshake=0")
+        link.open()
+        try:
+            with pytest.raises(LinkError, match="no reply"):
+                link.exchange(cmd(2))
+        finally:
+            link.close()
+        assert srv.faulter.delayed >= 2
