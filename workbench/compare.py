@@ -202,16 +202,20 @@ def _findings(ch: str, m: ChannelMetrics, p: PredictionMetrics | None, rt: Resid
               ) -> list[str]:
     out = [f"{ch}: free-run fit {m.fit_pct:.2f} %" + (f", {p.label.split(' (')[0]} fit {p.fit_pct:.2f} %" if p else "")
            + "."]
-    if p is not None and m.rmse > 0:
-        ratio = p.rmse / m.rmse
-        sigma = loc.noise_std
-        if m.rmse > 2 * sigma and ratio < 0.5:
-            out.append(f"The observer's corrections remove {100 * (1 - ratio):.0f} % of the RMS error within "
-                       f"{p.label.split('(')[1].split(',')[0]}: the error is slow or static (offset, drift, static "
-                       "gain, low-frequency hysteresis) rather than in the fast dynamics.")
-        elif m.rmse > 2 * sigma and ratio >= 0.5:
-            out.append("The error survives the observer's corrections over the prediction horizon: it lives in the "
-                       "fast dynamics (modes, damping, RC pole) rather than in a slow drift.")
+    if p is not None and m.rmse > 0 and m.rmse > 2 * loc.noise_std:
+        removed = 1.0 - p.rmse / m.rmse
+        horizon = p.label.split("(")[1].split(",")[0]
+        if removed >= 0.8:
+            out.append(f"The observer's corrections remove {100 * removed:.0f} % of the RMS error ({horizon}): the "
+                       "error is slow or static (offset, drift, static gain, low-frequency hysteresis) rather than in "
+                       "the fast dynamics.")
+        elif removed >= 0.4:
+            out.append(f"The observer's corrections remove {100 * removed:.0f} % of the RMS error ({horizon}): part "
+                       "of it is slow or static, but the rest survives the corrections — the fast dynamics (modes, "
+                       "damping, RC pole) are also wrong.")
+        else:
+            out.append(f"The error survives the observer's corrections ({horizon}; only {100 * max(removed, 0):.0f} % "
+                       "removed): it lives in the fast dynamics (modes, damping, RC pole) rather than in a slow drift.")
     failed = rt.failed
     if not failed and rt.adequate:
         out.append(f"All residual tests pass at the {rt.level * 100:g} % level: the residual is indistinguishable "

@@ -262,7 +262,7 @@ def dominant_frequency(t: np.ndarray, u: np.ndarray) -> float | None:
     p = np.abs(np.fft.rfft(u * np.hanning(u.size))) ** 2
     f = np.fft.rfftfreq(u.size, float(np.median(np.diff(t))))
     k = int(np.argmax(p[1:])) + 1
-    if p[max(0, k - 2):k + 3].sum() < 0.8 * p[1:].sum():
+    if k < 3 or p[max(0, k - 2):k + 3].sum() < 0.8 * p[1:].sum():  # < 1.5 cycles, or not one line (a step)
         return None
     return float(f[k])
 
@@ -350,8 +350,8 @@ def amplitude_rate(t: np.ndarray, u: np.ndarray, e: np.ndarray, y: np.ndarray, d
 
     def corr(a: np.ndarray, b: np.ndarray) -> float:
         a, b = a - a.mean(), b - b.mean()
-        d = float(np.sqrt(np.dot(a, a) * np.dot(b, b)))
-        return float(np.dot(a, b) / d) if d > 0 else 0.0
+        d = float(np.sqrt(np.einsum("i,i->", a, a) * np.einsum("i,i->", b, b)))
+        return float(np.einsum("i,i->", a, b) / d) if d > 0 else 0.0
 
     return AmplitudeRate(
         drive=drive, unit=unit, u_centres=0.5 * (edges[1:] + edges[:-1]), e_rising=er, e_falling=ef, loop_area=area,
@@ -430,7 +430,7 @@ def localise(t: np.ndarray, measured: np.ndarray, simulated: np.ndarray, drive: 
         frac_flagged=float(np.mean(flagged)), spectrum_f=f, spectrum_resid=pe, spectrum_meas=py, noise_psd=npsd,
         bands=bands, branches=_branches(t, u, e, eps), amp_rate=ar, labels=labels, rolling_rms=rr,
     )
-    loc.findings = _findings(loc, e, sigma)
+    loc.findings = _findings(loc, t, e, sigma)
     return loc
 
 
@@ -440,7 +440,7 @@ def _fmt(x: float, unit: str) -> str:
     return f"{x:.3g} {unit}".strip()
 
 
-def _findings(loc: Localisation, e: np.ndarray, sigma: float) -> list[str]:
+def _findings(loc: Localisation, t: np.ndarray, e: np.ndarray, sigma: float) -> list[str]:
     out = []
     rms = float(np.sqrt(np.mean(e ** 2)))
     u = loc.unit
@@ -459,8 +459,31 @@ def _findings(loc: Localisation, e: np.ndarray, sigma: float) -> list[str]:
             f"{r.duration_s:.3g} s (RMS {_fmt(r.rms_error, u)})" for r in top) + ".")
     mean_e = float(np.mean(e))
     if mean_e ** 2 > 0.5 * rms ** 2:
-        out.append(f"The residual is mostly a constant offset: mean {_fmt(mean_e, u)} "
-                   f"({mean_e ** 2 / rms ** 2 * 100:.0f} % of the squared error).")
+        means = [r.mean_error for r in loc.regimes if r.duration_s > 0]
+        if all(abs(m - mean_e) <= 0.3 * abs(mean_e) for m in means):
+            out.append(f"The residual is mostly a constant offset: mean {_fmt(mean_e, u)} "
+                       f"({mean_e ** 2 / rms ** 2 * 100:.0f} % of the squared error), the same in every regime — "
+                       "a sensor zero/offset rather than a missing dynamic effect.")
+        else:
+            out.append(f"The residual is mostly static (its mean {_fmt(mean_e, u)} carries "
+                       f"{mean_e ** 2 / rms ** 2 * 100:.0f} % of the squared error) but differs between regimes ("
+                       + ", ".join(f"'{r.label}' {_fmt(r.mean_error, u)}" for r in loc.regimes[:4])
+                       + "): an error that follows the drive level (static gain, creep, hysteresis), not a sensor "
+                         "offset.")
+    if top:
+        # a slow trend inside the regime that carries most of the error: drift (creep, leakage, temperature)
+        k = loc.labels == top[0].label
+        if np.count_nonzero(k) > 10:
+            tk, ek = t[k], e[k]
+            a = np.polyfit(tk - tk[0], ek, 1)
+            fit = np.polyval(a, tk - tk[0])
+            ss = float(np.sum((ek - ek.mean()) ** 2))
+            r2 = 1.0 - float(np.sum((ek - fit) ** 2)) / ss if ss > 0 else 0.0
+            change = float(a[0] * (tk[-1] - tk[0]))
+            if r2 > 0.5 and abs(change) > 3.0 * sigma:
+                out.append(f"In '{top[0].label}' the error drifts by {_fmt(change, u)} over {tk[-1] - tk[0]:.3g} s "
+                           f"(a straight line explains {r2 * 100:.0f} % of its variation): slow dynamics the model "
+                           "lacks — piezo creep, dielectric leakage, thermal drift.")
     if len(top) > 1 and max(r.rms_error for r in reg) < 1.3 * min(r.rms_error for r in reg if r.duration_s > 0):
         out.append("The error is spread evenly over the regimes (not localised in time).")
     if loc.bands:
@@ -473,7 +496,7 @@ def _findings(loc: Localisation, e: np.ndarray, sigma: float) -> list[str]:
             out.append(f"Residual vs {ar.drive}: the rising and falling branches differ by {_fmt(ar.branch_gap_rms, u)}"
                        f" RMS at the same drive level (loop index {ar.loop_index:.2f}) — a hysteresis loop the model "
                        "does not reproduce.")
-        if abs(ar.amp_corr) >= 0.5:
+        if ar.amp_corr >= 0.5:
             out.append(f"|error| grows with |{ar.drive}| (correlation {ar.amp_corr:.2f}): amplitude-dependent error "
                        "(Eq. 4 behaviour; stiffening, damping or hysteresis width).")
         if abs(ar.rate_corr) >= 0.5:
