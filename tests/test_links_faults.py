@@ -150,3 +150,20 @@ def test_truth_rig_adds_the_plan_effects_after_the_scenario_ones(monkeypatch):
     truth.build_truth_rig(None, truth=TruthChanges(effects=("air_damping", "mypkg.effects:Creep")), params="table2")
     assert seen["effects"] == ["air_damping", "mypkg.effects:Creep"] and seen["params"] == "table2"
     assert seen["hv_present"] is True and seen["preloaded"] == "amplifier"
+
+
+def test_a_nan_from_the_plant_never_reaches_a_register_or_the_wire():
+    from drivers.link import FLAG_SENSOR_FAULT
+    from drivers.modbus_registers import decode_input_block, encode_input_block
+
+    class NanRig(FakeRig):
+        def sample(self):
+            s = super().sample()
+            return type(s)(s.seq, s.t, math.nan, math.inf, s.z0dd, s.v_battery, s.hv_present, s.flags)
+
+    host = RigHost(NanRig(), mode="lockstep")
+    host.submit(ActuatorCommand(1, 10.0, 0.0))
+    s = host.snapshot.sample
+    assert s.z3 == 0.0 and s.v_patch == 0.0 and s.flags & FLAG_SENSOR_FAULT
+    words = encode_input_block(s)
+    assert decode_input_block(words).sample.flags & FLAG_SENSOR_FAULT and words[6:10] == [0, 0, 0, 0]
