@@ -11,8 +11,9 @@
 
 One thread per server: read, decode (garbage, bad CRC, truncated and oversized frames are counted and
 skipped by the decoder), answer each request: COMMAND → the host's sample (SAMPLE, same sequence number),
-PING → PONG, a malformed or unknown request → NAK; replies from a confused peer are ignored. Wire faults
-(:class:`~hil_stub.faults.ReplyFaulter`) act on the replies. Nothing a client sends can stop the thread;
+PING → PONG, a malformed or unknown request → NAK; replies from a confused peer are ignored; while the rig's
+scenario schedules a link outage nothing is answered (lock-step: the rig still advances one tick per command).
+Wire faults (:class:`~hil_stub.faults.ReplyFaulter`) act on the replies. Nothing a client sends can stop the thread;
 a port that fails is closed and reopened after a pause.
 """
 
@@ -42,7 +43,7 @@ from drivers.framing import (
 )
 from hil_stub.faults import LinkFaults, ReplyFaulter
 from hil_stub.pty_port import PtyPort
-from hil_stub.rig_host import RigHost
+from hil_stub.rig_host import Delivery, RigHost
 
 log = logging.getLogger("hil_stub.frame_server")
 REOPEN_PAUSE_S = 0.2
@@ -282,10 +283,15 @@ class FrameServer:
                 bad_len = "payload" in str(exc)
                 return encode_nak(fr.seq, fr.type, NakReason.BAD_LENGTH if bad_len else NakReason.BAD_VALUE)
             self.stats["commands"] += 1
-            self.host.submit(cmd, source=self.where)
+            if self.host.submit(cmd, source=self.where) is Delivery.UNDELIVERED:
+                self.stats["replies_withheld_link_down"] += 1  # the rig's scenario says the link is down
+                return None
             return encode_sample(self.host.snapshot.sample, fr.seq)
         if fr.type == MessageType.PING:
             self.stats["pings"] += 1
+            if self.host.link_down():
+                self.stats["replies_withheld_link_down"] += 1
+                return None
             return encode_pong(fr.seq)
         if fr.type & 0x80:
             self.stats["ignored_replies"] += 1

@@ -7,13 +7,14 @@ import shutil
 import time
 from collections.abc import Callable
 
-from drivers.link import ActuatorCommand, RigSample
+from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, RigSample
 
 logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
 
 
 class FakeRig:
-    """A first-order lag from the differential demand to z3 (1e-5 m/V), in rig time; optional link outages."""
+    """A first-order lag from the differential demand to z3 (1e-5 m/V), in rig time; optional link outages;
+    refuses demands outside Table 1 like the simulated rig."""
 
     def __init__(self, outages: list[tuple[float, float]] | None = None) -> None:
         self.t = 0.0
@@ -22,8 +23,14 @@ class FakeRig:
         self.z3 = 0.0
         self.applied: list[ActuatorCommand] = []
         self.outages = outages or []
+        self.refused = False
 
     def apply(self, command: ActuatorCommand) -> None:
+        """Refuses a demand outside Table 1 (keeps the last output, flags the samples), as the real rig does."""
+        if not (-500.0 <= command.v_ch1 <= 1500.0 and -500.0 <= command.v_ch2 <= 1500.0):
+            self.refused = True
+            return
+        self.refused = False
         self.applied.append(command)
         self.v = (command.v_ch1, command.v_ch2)
 
@@ -34,7 +41,8 @@ class FakeRig:
         self.z3 += (target - self.z3) * min(1.0, dt / 0.05)
 
     def sample(self) -> RigSample:
-        return RigSample(self.seq, self.t, self.z3, (self.v[0] - self.v[1]) / 2, 0.0, 3.0, True, 0)
+        return RigSample(self.seq, self.t, self.z3, (self.v[0] - self.v[1]) / 2, 0.0, 3.0, True,
+                         FLAG_LIMIT_REFUSED if self.refused else 0)
 
     def link_down(self) -> bool:
         return any(a <= self.t < b for a, b in self.outages)
