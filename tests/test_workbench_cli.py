@@ -33,7 +33,8 @@ def test_synth_then_compare_with_a_missing_effect(tmp_path: Path, capsys: pytest
     assert r["localisation"]["z3"]["windows"] and r["prediction"]["z3"]["fit_pct"] is not None
     # the files: PNGs and one self-contained HTML (all images inline, nothing fetched)
     html = (out / "report.html").read_text()
-    assert html.count("data:image/png;base64,") >= 6
+    pngs = sorted(p.name for p in out.glob("*.png"))
+    assert len(pngs) == 5 and html.count("data:image/png;base64,") == len(pngs)  # every figure inline
     assert not re.search(r"""src=["'](?!data:)""", html) and "<link" not in html
     text = unescape(html)
     assert "where the model fails" in text and "φu²'ε²(τ)" in text and "k-step-ahead prediction" in text

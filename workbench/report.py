@@ -377,11 +377,12 @@ def bode_figure(cmp: FrfComparison, path: Path) -> Path:
                     ax.axvline(fr, color="tab:green", lw=0.8, alpha=0.6)
         a.set_ylabel(f"|{ch}| / {rep.record.drive} ({rep.units[ch]})")
         a.legend(fontsize=7)
-        a.set_title(f"{ch}: frequency response at {rep.record.drive_amplitude:g} (SI) drive; orange: out of "
-                    "tolerance", fontsize=9)
+        dunit = "m/s²" if rep.record.drive == "z0dd" else "V"
+        a.set_title(f"{ch}: stepped sine, {rep.record.drive} amplitude {rep.record.drive_amplitude:.4g} {dunit}; "
+                    "orange: out of tolerance", fontsize=9)
         p.set_ylabel("phase (deg)")
         p.set_xlabel("frequency (Hz)")
-    return _finish(fig, path)
+    return _finish(fig, path, left=0.13 / max(1, len(chans)) + 0.03, hspace=0.15)
 
 
 # ----------------------------------------------------------------------------------------------------------------
