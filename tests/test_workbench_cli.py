@@ -37,7 +37,7 @@ def test_synth_then_compare_with_a_missing_effect(tmp_path: Path, capsys: pytest
     assert len(pngs) == 5 and html.count("data:image/png;base64,") == len(pngs)  # every figure inline
     assert not re.search(r"""src=["'](?!data:)""", html) and "<link" not in html
     text = unescape(html)
-    assert "where the model fails" in text and "φu²'ε²(τ)" in text and "k-step-ahead prediction" in text
+    assert "where the model fails" in text and "φu²'e²(τ)" in text and "k-step-ahead prediction" in text
     assert json.loads((out / "compare.json").read_text())["records"][0]["verdicts"] == {"z3": "fails"}
     assert (out / "mbitb_z3_summary.png").stat().st_size > 10_000 and (out / "mbitb_prediction.png").exists()
     # adding the missing effect: the same record is now adequate

@@ -41,7 +41,7 @@ def test_missing_cubic_stiffening_mbit_a() -> None:
     # the error sits at the drive frequency and its low harmonics, not at the modes
     assert loc.bands[0].f_hi_Hz < 1.0
     text = " ".join(cmp.findings["z3"])
-    assert "grows with |va|" in text and "φu²'ε²(τ) fails" in text
+    assert "grows with |va|" in text and "φu²'e²(τ) fails" in text
 
 
 def test_missing_cubic_stiffening_mbit_b_is_localised_in_the_transient() -> None:

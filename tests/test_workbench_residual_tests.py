@@ -79,12 +79,12 @@ def test_each_test_catches_its_kind_of_error() -> None:
     assert "ee" in _fails(coloured, u)
     # a linear gain error: the residual carries the input
     assert "ue" in _fails(n + 0.3 * u, u)
-    # an even (quadratic) input term: φu²'ε fails, the linear test does not
+    # an even (quadratic) input term: φu²'e fails, the linear test does not
     f = _fails(n + 0.3 * (u ** 2 - 1.0), u)
     assert "u2e" in f and "ue" not in f
-    # error whose size grows with the drive: φu²'ε² fails
+    # error whose size grows with the drive: φu²'e² fails
     assert "u2e2" in _fails(n * (0.2 + np.abs(u)), u)
-    # bilinear residual × input interaction: φε(εu) fails
+    # bilinear residual × input interaction: φe(eu) fails
     e = n.copy()
     e[1:] += 0.6 * n[:-1] * u[:-1]
     assert "e_eu" in _fails(e, u)

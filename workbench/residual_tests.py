@@ -1,23 +1,25 @@
 """Residual tests with confidence bands and verdicts: bias, whiteness, input cross-correlation and the
 Billings–Voon nonlinear correlation tests — each tied in words to the kind of physical effect it points at.
 
-Billings & Voon (1986) showed that a model is adequate (its residual ε is unpredictable from past inputs and
-residuals) if and only if, for all lags τ,
+Billings & Voon (1986) showed that a model is adequate (its residual e is unpredictable from past inputs and
+residuals) if and only if, for all lags τ (we write the residual ``e``, not Billings & Voon's ε, to keep ε for the
+paper's normalised error of Eq. 5):
 
 ============  ==========================================  ================
 key           correlation                                 lags tested
 ============  ==========================================  ================
-``ee``        φεε(τ) = δ(τ)   (whiteness)                 τ = 1 … M
-``ue``        φuε(τ) = 0                                  τ = −M … M
-``u2e``       φu²'ε(τ) = 0                                τ = −M … M
-``u2e2``      φu²'ε²(τ) = 0                               τ = −M … M
-``e_eu``      φε(εu)(τ) = E[ε(t) ε(t−1−τ) u(t−1−τ)] = 0   τ = 0 … M−1
+``ee``        φee(τ) = δ(τ)   (whiteness)                 τ = 1 … M
+``ue``        φue(τ) = 0                                  τ = −M … M
+``u2e``       φu²'e(τ) = 0                                τ = −M … M
+``u2e2``      φu²'e²(τ) = 0                               τ = −M … M
+``e_eu``      φe(eu)(τ) = E[e(t) e(t−1−τ) u(t−1−τ)] = 0   τ = 0 … M−1
 ============  ==========================================  ================
 
 with ``φab(τ) = Σ a'(t) b'(t+τ) / √(Σa'² Σb'²)`` (primes: mean removed; the input is centred before squaring,
-so φu²'ε sees even-order behaviour only). Under the null hypothesis (the residual is white and independent of
+so φu²'e sees even-order behaviour only). Under the null hypothesis (the residual is white and independent of
 the input) each φ(τ) is approximately N(0, 1/N), and two lags are correlated like the *first* signal ``a`` at
-their lag difference (``b`` is white). A test *fails* when ``max_τ |φ(τ)|`` leaves the band
+their lag difference (``b`` is white); for φee and φe(eu) the first signal is itself built from the white
+residual, so their m lags are independent (m_eff = m). A test *fails* when ``max_τ |φ(τ)|`` leaves the band
 ``± z_{1−α/(2·m_eff)} / √N``: a Šidák/Bonferroni correction over the *effective* number of independent lags
 ``m_eff`` (Li & Ji 2005, from the eigenvalues of that lag-correlation matrix; ``m_eff = m`` for white ``a``,
 about 2 for a pure sine). So a correct model fails each test with probability close to ``α`` (default 1 %,
@@ -75,12 +77,12 @@ POINTS_AT: dict[str, str] = {
     ),
 }
 TITLES: dict[str, tuple[str, str]] = {
-    "bias": ("mean(ε)", "bias (mean residual)"),
-    "ee": ("φεε(τ)", "whiteness (autocorrelation)"),
-    "ue": ("φuε(τ)", "input–residual cross-correlation"),
-    "u2e": ("φu²'ε(τ)", "squared input vs residual"),
-    "u2e2": ("φu²'ε²(τ)", "squared input vs squared residual"),
-    "e_eu": ("φε(εu)(τ)", "residual vs residual×input"),
+    "bias": ("mean(e)", "bias (mean residual)"),
+    "ee": ("φee(τ)", "whiteness (autocorrelation)"),
+    "ue": ("φue(τ)", "input–residual cross-correlation"),
+    "u2e": ("φu²'e(τ)", "squared input vs residual"),
+    "u2e2": ("φu²'e²(τ)", "squared input vs squared residual"),
+    "e_eu": ("φe(eu)(τ)", "residual vs residual×input"),
 }
 
 
@@ -202,11 +204,14 @@ def effective_lags(a: np.ndarray, lags: np.ndarray) -> float:
     return float(max(1.0, min(m, np.sum((lam >= 1.0) + (lam - np.floor(lam))))))
 
 
-def _corr_test(key: str, a: np.ndarray, b: np.ndarray, lags: np.ndarray, level: float, note: str = "") -> TestResult:
+def _corr_test(key: str, a: np.ndarray, b: np.ndarray, lags: np.ndarray, level: float, note: str = "",
+               a_white_under_h0: bool = False) -> TestResult:
+    """``a_white_under_h0``: the first signal is built from the residual (φee, φe(eu)), so under the null
+    hypothesis its lags are independent and m_eff = m (estimating it from a failing residual would be wrong)."""
     n = a.size
     r = cross_correlation(a, b, lags)
     symbol, title = TITLES[key]
-    m_eff = effective_lags(a, lags)
+    m_eff = float(lags.size) if a_white_under_h0 else effective_lags(a, lags)
     band = band_for(n, m_eff, level)
     if not np.all(np.isfinite(r)):
         return TestResult(key, symbol, title, lags, r, band, level, float("nan"), 0, float("nan"), None,
@@ -237,7 +242,7 @@ def bias_test(e: np.ndarray, level: float = DEFAULT_LEVEL) -> TestResult:
 
 def residual_tests(residual: np.ndarray, u: np.ndarray, *, channel: str = "y", input_name: str = "u",
                    level: float = DEFAULT_LEVEL, max_lag: int = DEFAULT_LAGS, decimate: int = 1) -> ResidualTests:
-    """Run the bias test and the five Billings–Voon tests on a residual ``ε`` (measured − model) against an
+    """Run the bias test and the five Billings–Voon tests on a residual ``e`` (measured − model) against an
     input ``u`` sampled at the same instants. ``decimate`` keeps every k-th sample first (longer time scales
     per lag). Returns verdicts at family level ``level`` per test (see the module docstring).
     """
@@ -261,14 +266,14 @@ def residual_tests(residual: np.ndarray, u: np.ndarray, *, channel: str = "y", i
     uc = u - u.mean()
     u2 = uc ** 2 - np.mean(uc ** 2)
     e2 = ec ** 2 - np.mean(ec ** 2)
-    out.tests.append(_corr_test("ee", e, e, pos, level))
+    out.tests.append(_corr_test("ee", e, e, pos, level, a_white_under_h0=True))
     u_flat = np.ptp(u) == 0.0
     note = "not applicable: the input does not vary" if u_flat else ""
     out.tests.append(_corr_test("ue", uc, e, both, level, note))
     out.tests.append(_corr_test("u2e", u2, e, both, level, note))
     out.tests.append(_corr_test("u2e2", u2, e2, both, level, note))
-    # φε(εu)(τ) = corr(ε(t), w(t−1−τ)) with w = ε·u: a = w, b = ε at lag 1+τ
-    out.tests.append(_corr_test("e_eu", ec * uc, e, pos, level, note))
+    # φe(eu)(τ) = corr(e(t), w(t−1−τ)) with w = e·u: a = w, b = e at lag 1+τ
+    out.tests.append(_corr_test("e_eu", ec * uc, e, pos, level, note, a_white_under_h0=True))
     if u_flat:
         for t in out.tests[2:]:
             t.passed = None
