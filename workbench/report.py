@@ -447,7 +447,8 @@ def _time_section(cmp: Comparison, figs: dict[str, list[Path]]) -> str:
                              "a failure points at"],
                             [[html.escape(t.symbol), html.escape(t.title), f"{t.statistic:.4g}", f"{t.band:.4g}",
                               f"{t.p_value:.2g}" if not t.p_value < 1e-16 else "&lt; 1e-16",
-                              f"<span class='{'na' if t.passed is None else t.verdict}'>{t.verdict}</span>", html.escape(t.points_at + (f" [{t.note}]" if t.note else ""))]
+                              f"<span class='{'na' if t.passed is None else t.verdict}'>{t.verdict}</span>",
+                              html.escape(t.points_at + (f" [{t.note}]" if t.note else ""))]
                              for t in rt.tests], raw=True))
         loc = cmp.localisation[ch]
         u = loc.unit
