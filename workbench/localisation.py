@@ -262,7 +262,7 @@ def dominant_frequency(t: np.ndarray, u: np.ndarray) -> float | None:
     p = np.abs(np.fft.rfft(u * np.hanning(u.size))) ** 2
     f = np.fft.rfftfreq(u.size, float(np.median(np.diff(t))))
     k = int(np.argmax(p[1:])) + 1
-    if k < 3 or p[max(0, k - 2):k + 3].sum() < 0.8 * p[1:].sum():  # < 1.5 cycles, or not one line (a step)
+    if k < 2 or p[max(0, k - 2):k + 3].sum() < 0.8 * p[1:].sum():  # < 2 cycles, or not one line (a step)
         return None
     return float(f[k])
 
