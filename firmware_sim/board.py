@@ -39,11 +39,14 @@ from board_config.board import BoardConfig, load_board_config
 from drivers.link import FLAG_LIMIT_REFUSED, FLAG_RIG_FAULT, FLAG_SENSOR_FAULT, ActuatorCommand, RigSample
 from firmware_sim.events import BoardEvent
 from firmware_sim.maintenance import MaintenanceSequencer
-from firmware_sim.power_manager import PowerBudget, PowerState, power_step
+from firmware_sim.power_manager import PowerBudget, PowerLedger, PowerState, power_step
 from firmware_sim.regimes import Regime, RegimeState, RegimeTimers, TickInputs, Trigger
 from firmware_sim.regimes import step as regime_step
 from firmware_sim.usage import UsageEpisode
 from plant import PlantModel
+
+_QUIET_OK = TickInputs()
+_QUIET_LOW = TickInputs(energy_ok=False)
 
 
 class TickResult(NamedTuple):
@@ -101,12 +104,17 @@ class Board:
             model, cfg.ticks(cfg.maintenance_settle), self.period)
         self.state = RegimeState()
         self.power = PowerState()
+        self.ledger = PowerLedger(self.budget)
+        self._currents = {r: self.budget.current(r) for r in Regime}
+        self._wake_v = cfg.wake_patch_voltage
+        self._wake_acc = cfg.wake_base_acceleration
+        self._v_lo, self._v_hi = self.limits.voltage_min, self.limits.voltage_max
         self.episode: UsageEpisode | None = None
         self._episode_ticks = max(1, cfg.ticks(cfg.sensing_max_episode))
         self._telemetry_ticks = max(1, cfg.ticks(cfg.log_telemetry_period))
         self._rearm = False
         self._limit_pending = ""
-        self._prev_seq: int | None = None
+        self._prev_seq = -1
         self._stale = 0
         self._fault_reason = ""
         self._link_error = ""
@@ -134,7 +142,6 @@ class Board:
         """Process tick ``k``: the sample the link returned (``None``: the exchange failed, ``link_error`` says why),
         whether the previous tick overran its deadline; return the command for the next interval and the events."""
         cfg = self.cfg
-        now = k * self.period
         events: list[BoardEvent] = []
         self.ticks += 1
 
@@ -143,10 +150,10 @@ class Board:
         sensor_fault = False
         limit = bool(self._limit_pending)
         wake = hv = False
-        if ok:
-            assert sample is not None
+        v_meas = math.nan  # the battery voltage this tick, if trustworthy
+        if sample is not None:
             reason = check_sample(sample, cfg)
-            if self._prev_seq is not None and sample.seq == self._prev_seq:
+            if sample.seq == self._prev_seq:
                 self._stale += 1
                 if self._stale >= cfg.tick_stale_ticks and not reason:
                     reason = f"rig sample sequence frozen at {sample.seq} for {self._stale} ticks"
@@ -157,14 +164,14 @@ class Board:
                 sensor_fault = True
                 if reason != self._fault_reason:
                     events.append(self._incident(k, "sensor_fault", reason))
+            else:
+                v_meas = self._v_batt = sample.v_battery
+                wake = abs(sample.z0dd) >= self._wake_acc or abs(sample.v_patch) >= self._wake_v
             self._fault_reason = reason
             if sample.flags & FLAG_LIMIT_REFUSED:
                 limit = True
                 if not self._limit_pending:
                     self._limit_pending = "the rig refused a command (limit refused flag)"
-            if not sensor_fault:
-                wake = abs(sample.v_patch) >= cfg.wake_patch_voltage or abs(sample.z0dd) >= cfg.wake_base_acceleration
-                self._v_batt = sample.v_battery
             hv = sample.hv_present
             if self._link_error:
                 events.append(self._incident(k, "link_restored", f"link answered again after: {self._link_error}"))
@@ -179,61 +186,62 @@ class Board:
         self._limit_pending = ""
 
         # 2. power manager (the battery voltage of a faulty sample is not trusted)
-        self.power, pstat, pev = power_step(self.power, self._v_batt if (ok and not sensor_fault) else math.nan,
-                                            self.state.regime, k, self.budget)
+        old = self.state.regime
+        self.power, pstat, pev = power_step(self.power, v_meas, old, k, self.budget)
+        self.ledger.add(old, v_meas)
         if pev:
             events.extend(pev)
             self.incidents += len(pev)
 
         # 3. regimes
-        inputs = TickInputs(ok, sensor_fault, limit, overrun, wake, hv, pstat.energy_ok, pstat.brownout, self._rearm)
+        if ok and not (sensor_fault or limit or overrun or wake or hv or pstat.brownout or self._rearm):
+            inputs = _QUIET_OK if pstat.energy_ok else _QUIET_LOW  # the common case, without building a tuple
+        else:
+            inputs = TickInputs(ok, sensor_fault, limit, overrun, wake, hv, pstat.energy_ok, pstat.brownout,
+                                self._rearm)
         self._rearm = False
-        old = self.state.regime
         self.state, out, rev = regime_step(self.state, inputs, k, self.timers)
-        for ev in rev:
-            if ev.kind == "regime_change":
-                data = dict(ev.data)
-                data["v_battery_V"] = self._v_batt
-                ev = BoardEvent(ev.kind, ev.tick, ev.time, data)
-            else:
-                self.incidents += 1
-            events.append(ev)
+        if rev:
+            for ev in rev:
+                if ev.kind == "regime_change":
+                    data = dict(ev.data)
+                    data["v_battery_V"] = self._v_batt
+                    ev = BoardEvent(ev.kind, ev.tick, ev.time, data)
+                else:
+                    self.incidents += 1
+                events.append(ev)
+        regime = out.regime
         if out.changed:
-            events.extend(self._on_change(old, out.regime, out.trigger, k))
+            events.extend(self._on_change(old, regime, out.trigger, k))
 
         # 4. regime work
-        regime = out.regime
-        demand = (0.0, 0.0)
-        if regime is Regime.SENSING and ok and not sensor_fault:
-            ep = self.episode
-            if ep is None:  # pragma: no cover - opened on entry
-                ep = self.episode = self._new_episode(now)
-            assert sample is not None
-            ep.add(now, sample.z3, sample.z0dd)
-            if ep.samples >= self._episode_ticks:
-                events.append(self._summary(k, "max_episode"))
-                self.episode = self._new_episode(now)
+        v1 = v2 = 0.0
+        if regime is Regime.SENSING:
+            if sample is not None and not sensor_fault:
+                ep = self.episode
+                if ep is None:  # pragma: no cover - opened on entry
+                    ep = self.episode = self._new_episode(k * self.period)
+                ep.add(k * self.period, sample.z3, sample.z0dd)
+                if ep.samples >= self._episode_ticks:
+                    events.append(self._summary(k, "max_episode"))
+                    self.episode = self._new_episode(k * self.period)
         elif regime is Regime.MAINTENANCE and self.maintenance.active:
-            z3 = sample.z3 if (ok and not sensor_fault) else math.nan  # type: ignore[union-attr]
-            demand, mev = self.maintenance.step(k, z3)
+            z3 = sample.z3 if (sample is not None and not sensor_fault) else math.nan
+            (v1, v2), mev = self.maintenance.step(k, z3)
             events.extend(mev)
-
-        # 5. output guard: zero outside MAINTENANCE, Table 1 always
-        v1, v2 = demand
-        if not out.actuation_allowed:
-            v1 = v2 = 0.0
-        lo, hi = self.limits.voltage_min, self.limits.voltage_max
-        if not (lo <= v1 <= hi and lo <= v2 <= hi):
-            self._limit_pending = f"demand ({v1!r}, {v2!r}) V outside Table 1 [{lo:g}, {hi:g}] V: zero sent"
-            v1 = v2 = 0.0
+            # 5. output guard: Table 1 always (outside MAINTENANCE the demand is 0 V by construction)
+            if not (self._v_lo <= v1 <= self._v_hi and self._v_lo <= v2 <= self._v_hi):
+                self._limit_pending = (f"demand ({v1!r}, {v2!r}) V outside Table 1 [{self._v_lo:g}, "
+                                       f"{self._v_hi:g}] V: zero sent")
+                v1 = v2 = 0.0
         self.demand = (v1, v2)
 
         # 6. telemetry and command
         if k % self._telemetry_ticks == 0:
-            events.append(BoardEvent("telemetry", k, now, {
+            events.append(BoardEvent("telemetry", k, k * self.period, {
                 "regime": regime.value, "v_battery_V": self._v_batt, "monitor_count": self.maintenance.monitor_count,
-                "charge_used_C": self.power.charge_used, "incidents_total": self.incidents}))
-        return TickResult(ActuatorCommand(k & 0xFFFFFFFF, v1, v2, self.budget.current(regime)), events, regime)
+                "charge_used_C": self.ledger.charge_used, "incidents_total": self.incidents}))
+        return TickResult(ActuatorCommand(k & 0xFFFFFFFF, v1, v2, self._currents[regime]), events, regime)
 
     # --- helpers ------------------------------------------------------------------------------------
     def _incident(self, k: int, kind: str, detail: str) -> BoardEvent:

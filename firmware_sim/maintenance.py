@@ -25,7 +25,7 @@ from board_config import MbitDefinition, MfcLimits, MonitorSettings
 from firmware_sim.condition_monitor import ConditionMonitor
 from firmware_sim.events import BoardEvent
 from firmware_sim.mbit import MbitSequence, generate_mbit
-from plant import PlantModel, PlantStepper
+from plant import InputSignals, PlantModel
 
 
 @dataclass(frozen=True)
@@ -58,8 +58,8 @@ class MaintenanceSequencer:
         self.nominal = nominal
         self._i_z3 = nominal.output_names.index("z3")
         self.monitor = ConditionMonitor(monitor)
-        self._stepper: PlantStepper | None = None
-        self._u = np.zeros((2, 3))
+        self._ref: list[float] = []  # nominal z3 (m) after each step call of the visit
+        self._calls = 0
         self.active = False
         self.results: list[dict] = []
         self._i = 0  # index in plan
@@ -71,7 +71,8 @@ class MaintenanceSequencer:
     # --- lifecycle ----------------------------------------------------------------------------------
     def start(self, tick: int) -> list[BoardEvent]:
         """Begin a visit at ``tick``: nominal model at rest, first settle period, zero demand."""
-        self._stepper = PlantStepper(self.nominal)
+        self._ref = self._reference()
+        self._calls = 0
         self.monitor.reset()
         self.active = True
         self.results = []
@@ -115,12 +116,8 @@ class MaintenanceSequencer:
         if self.done:
             return self._send((0.0, 0.0))
         # 1. the nominal model follows the command just applied by the rig (slew from the previous one)
-        u = self._u
-        u[0, 0], u[0, 1] = self._prev
-        u[1, 0], u[1, 1] = self._cmd
-        assert self._stepper is not None
-        y = self._stepper.advance(u, self.period)
-        self._z3_md = z3_md = float(y[0, self._i_z3])
+        self._calls += 1
+        self._z3_md = z3_md = self._ref[self._calls]
         st = self.plan[self._i]
         # 2. monitor the response during an MBIT (sample j answers command j-1 of this plan step)
         if st.kind == "mbit" and self._j > 0:
@@ -170,12 +167,40 @@ class MaintenanceSequencer:
                                                       f"of {of:.2f} s"}))
             events.append(self._verdict(tick, complete=False, reason=reason))
         self.active = False
-        self._stepper = None
         return events
 
     def finish(self) -> None:
         self.active = False
-        self._stepper = None
+
+    def commands(self) -> np.ndarray:
+        """The visit's planned channel commands (V), one row (v_ch1, v_ch2) per step call, settles included."""
+        rows = []
+        for st in self.plan:
+            if st.kind == "settle":
+                rows.append(np.zeros((st.ticks, 2)))
+            else:
+                seq = self.sequences[st.key]
+                rows.append(np.column_stack([seq.v_ch1, seq.v_ch2]))
+        rows.append(np.zeros((1, 2)))  # the zero demand after the last MBIT
+        return np.vstack(rows)
+
+    def _reference(self) -> list[float]:
+        """The nominal model's z3 (m) after every step call of a visit, computed once at its start.
+
+        Call ``c`` feeds the response over the interval in which the rig slewed from command ``c-2`` to command
+        ``c-1`` (commands before the visit are 0 V); so the input is the command sequence delayed by two samples,
+        linearly interpolated between ticks — exactly what stepping the model in lock-step would integrate.
+        """
+        cmds = self.commands()
+        m = cmds.shape[0]
+        u = np.zeros((1, m + 2, 3))
+        u[0, 2:, 0:2] = cmds
+        t_out = self.period * np.arange(m + 2)
+        res = self.nominal.simulate(InputSignals(0.0, self.period, u), t_out=t_out, rtol=1e-6,
+                                    h_max=min(5e-3, self.period), threads=1)
+        if not res.ok:
+            raise FloatingPointError(f"nominal model failed on the MBIT sequence: {'; '.join(res.failures())}")
+        return res.y[0, :, self._i_z3].tolist()
 
     # --- records --------------------------------------------------------------------------------------
     def _result(self, tick: int, key: str) -> BoardEvent:

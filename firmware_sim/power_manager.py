@@ -11,9 +11,10 @@ current draw in every command. From those:
 * brown-out — the voltage below ``brownout_voltage`` for ``brownout_ticks`` consecutive ticks declares one (an
   ``incident`` event, ``brownout``); it clears above ``brownout_voltage + brownout_hysteresis`` (``brownout_cleared``).
   The regime machine then forces stand-by (from SENSING) or SAFE (from MAINTENANCE): see ``regimes.TRANSITIONS``.
-* accounting — charge (C) and energy (J, at the measured voltage) drawn per regime, and the lowest voltage seen.
+* accounting (:class:`PowerLedger`) — charge (C) and energy (J, at the measured voltage) drawn per regime, and the
+  first, last and lowest voltage seen.
 
-A tick without a valid voltage (link down, NaN) holds every decision.
+A tick without a valid voltage (link down, NaN) holds the brown-out decision and refuses waking.
 """
 
 from __future__ import annotations
@@ -27,19 +28,21 @@ from firmware_sim.regimes import Regime
 
 
 class PowerState(NamedTuple):
+    """What the brown-out detector remembers."""
+
     brownout: bool = False
-    below_run: int = 0  # consecutive ticks below the brown-out voltage
-    v_last: float = math.nan  # last valid measured battery voltage (V)
-    v_min: float = math.inf  # lowest valid measured voltage (V)
-    charge_used: float = 0.0  # C, drawn by the board (its declared current x tick)
-    energy_used: float = 0.0  # J, charge x measured voltage
+    below_run: int = 0  # consecutive ticks below the brown-out voltage (saturates at brownout_ticks)
     brownouts: int = 0  # brown-outs declared so far
 
 
 class PowerStatus(NamedTuple):
     energy_ok: bool  # may wake
     brownout: bool  # brown-out in force
-    current: float  # A, the board's draw this tick
+
+
+_OK = PowerStatus(True, False)
+_LOW = PowerStatus(False, False)
+_BROWN = PowerStatus(False, True)
 
 
 class PowerBudget(NamedTuple):
@@ -74,30 +77,66 @@ class PowerBudget(NamedTuple):
 
 def power_step(state: PowerState, v_battery: float, regime: Regime, tick: int, budget: PowerBudget
                ) -> tuple[PowerState, PowerStatus, tuple[BoardEvent, ...]]:
-    """One tick: measured terminal voltage ``v_battery`` (V; NaN if unknown) while in ``regime``."""
-    i = budget.current(regime)
-    dq = i * budget.period
-    valid = math.isfinite(v_battery) and v_battery > 0.0
-    if not valid:
-        st = state._replace(charge_used=state.charge_used + dq,
-                            energy_used=state.energy_used + dq * (state.v_last if math.isfinite(state.v_last) else 0.0))
-        return st, PowerStatus(not st.brownout and st.v_last >= budget.wake_min, st.brownout, i), ()
-    events: tuple[BoardEvent, ...] = ()
-    below_run = state.below_run + 1 if v_battery < budget.brownout else 0
-    brownout = state.brownout
-    n_brownouts = state.brownouts
-    now = tick * budget.period
-    if not brownout and below_run >= budget.brownout_ticks:
-        brownout = True
-        n_brownouts += 1
-        events = (BoardEvent("incident", tick, now, {
-            "incident": "brownout", "detail": f"battery {v_battery:.4f} V below {budget.brownout:.4f} V for "
-                                              f"{below_run} ticks in {regime.value}"}),)
-    elif brownout and v_battery > budget.brownout + budget.hysteresis:
-        brownout = False
-        events = (BoardEvent("incident", tick, now, {
-            "incident": "brownout_cleared",
-            "detail": f"battery {v_battery:.3f} V above {budget.brownout + budget.hysteresis:.3f} V"}),)
-    st = PowerState(brownout, below_run, v_battery, min(state.v_min, v_battery), state.charge_used + dq,
-                    state.energy_used + dq * v_battery, n_brownouts)
-    return st, PowerStatus(not brownout and v_battery >= budget.wake_min, brownout, i), events
+    """One tick: measured terminal voltage ``v_battery`` (V; NaN if unknown) while in ``regime``.
+
+    ``energy_ok`` uses this tick's voltage; with an unknown voltage the previous decision cannot be re-checked, so the
+    board may not wake (``energy_ok`` False) and a brown-out in force stays in force.
+    """
+    if not v_battery >= budget.brownout:  # below, or NaN
+        if v_battery != v_battery or v_battery <= 0.0:  # unknown: hold
+            return state, (_BROWN if state.brownout else _LOW), ()
+        below_run = min(state.below_run + 1, budget.brownout_ticks)
+        if not state.brownout and below_run >= budget.brownout_ticks:
+            ev = BoardEvent("incident", tick, tick * budget.period, {
+                "incident": "brownout", "detail": f"battery {v_battery:.4f} V below {budget.brownout:.4f} V for "
+                                                  f"{below_run} ticks in {regime.value}"})
+            return PowerState(True, below_run, state.brownouts + 1), _BROWN, (ev,)
+        st = state if below_run == state.below_run else state._replace(below_run=below_run)
+        return st, (_BROWN if st.brownout else _LOW), ()
+    if state.brownout:
+        if v_battery > budget.brownout + budget.hysteresis:
+            ev = BoardEvent("incident", tick, tick * budget.period, {
+                "incident": "brownout_cleared",
+                "detail": f"battery {v_battery:.4f} V above {budget.brownout + budget.hysteresis:.4f} V"})
+            return PowerState(False, 0, state.brownouts), (_OK if v_battery >= budget.wake_min else _LOW), (ev,)
+        st = state if state.below_run == 0 else state._replace(below_run=0)
+        return st, _BROWN, ()
+    st = state if state.below_run == 0 else state._replace(below_run=0)
+    return st, (_OK if v_battery >= budget.wake_min else _LOW), ()
+
+
+class PowerLedger:
+    """The board's accounting of its own consumption: ticks and charge per regime (from its declared currents),
+    energy at the measured voltage, first/last/lowest valid voltage. Plain counters, updated once per tick."""
+
+    __slots__ = ("budget", "energy_used", "ticks", "v_first", "v_last", "v_min")
+
+    def __init__(self, budget: PowerBudget) -> None:
+        self.budget = budget
+        self.ticks = {r: 0 for r in Regime}
+        self.energy_used = 0.0  # J
+        self.v_first = math.nan
+        self.v_last = math.nan
+        self.v_min = math.inf
+
+    def add(self, regime: Regime, v_battery: float) -> None:
+        self.ticks[regime] += 1
+        if v_battery > 0.0:  # valid (NaN compares False)
+            self.v_last = v_battery
+            if v_battery < self.v_min:
+                self.v_min = v_battery
+            if self.v_first != self.v_first:
+                self.v_first = v_battery
+        if self.v_last == self.v_last:
+            self.energy_used += self.budget.current(regime) * self.budget.period * self.v_last
+
+    @property
+    def charge_used(self) -> float:
+        """Charge drawn (C): declared current x time, summed over the regimes."""
+        return sum(self.budget.current(r) * n * self.budget.period for r, n in self.ticks.items())
+
+    def charge_by_regime(self) -> dict[str, float]:
+        return {r.value: self.budget.current(r) * n * self.budget.period for r, n in self.ticks.items()}
+
+    def time_by_regime(self) -> dict[str, float]:
+        return {r.value: n * self.budget.period for r, n in self.ticks.items()}

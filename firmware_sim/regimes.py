@@ -168,6 +168,9 @@ class RegimeTimers:
         )
 
 
+_FAULT_TRIGGERS = frozenset((Trigger.LINK_LOST, Trigger.SENSOR_FAULT, Trigger.LIMIT_VIOLATION, Trigger.OVERRUN))
+
+
 def _fault_causes(st: RegimeState, inp: TickInputs, tm: RegimeTimers) -> list[Trigger]:
     causes = []
     if st.link_fail >= tm.link_loss:
@@ -181,30 +184,52 @@ def _fault_causes(st: RegimeState, inp: TickInputs, tm: RegimeTimers) -> list[Tr
     return causes
 
 
+#: the percepts of an uneventful tick (a good sample, nothing above threshold, no request)
+_NOMINAL_INPUTS = (TickInputs(), TickInputs(energy_ok=False))
+_STANDBY_OUT = RegimeOutputs(Regime.STANDBY_HARVEST, False, False, None)
+
+
 def step(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeTimers
          ) -> tuple[RegimeState, RegimeOutputs, tuple[BoardEvent, ...]]:
-    """One tick of the regime machine. ``tick`` is the board's tick number; its time is ``tick * timers.period``."""
+    """One tick of the regime machine. ``tick`` is the board's tick number; its time is ``tick * timers.period``.
+
+    The counters saturate just above the value any trigger compares them with, so an uneventful stand-by tick
+    leaves the state unchanged; that case returns at once (same result as the full evaluation, which a test checks
+    against :func:`step_full`).
+    """
+    if (state.regime is Regime.STANDBY_HARVEST and inputs in _NOMINAL_INPUTS and state.link_fail == 0
+            and state.overruns == 0 and state.wake_run == 0 and state.hv_run == 0
+            and state.quiet_run >= timers.quiet and state.hv_off_run >= timers.hv_debounce
+            and state.link_ok >= max(timers.link_recovery, 1)):
+        return state, _STANDBY_OUT, ()
+    return step_full(state, inputs, tick, timers)
+
+
+def step_full(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeTimers
+              ) -> tuple[RegimeState, RegimeOutputs, tuple[BoardEvent, ...]]:
+    """:func:`step` without the stand-by shortcut (the reference the shortcut is tested against)."""
     now = tick * timers.period
     ok = inputs.sample_ok
-    link_fail = 0 if ok else state.link_fail + 1
-    link_ok = state.link_ok + 1 if ok else 0
-    overruns = state.overruns + 1 if inputs.overrun else 0
+    link_fail = 0 if ok else min(state.link_fail + 1, timers.link_loss)
+    link_ok = min(state.link_ok + 1, max(timers.link_recovery, 1)) if ok else 0
+    overruns = min(state.overruns + 1, timers.overrun) if inputs.overrun else 0
     wake = ok and inputs.wake_signal and not inputs.sensor_fault
-    wake_run = state.wake_run + 1 if wake else 0
-    quiet_run = state.quiet_run + 1 if (ok and not wake) else (0 if wake else state.quiet_run)
-    hv_run = state.hv_run + 1 if (ok and inputs.hv_present) else 0
-    hv_off_run = state.hv_off_run + 1 if (ok and not inputs.hv_present) else (0 if ok else state.hv_off_run)
+    wake_run = min(state.wake_run + 1, timers.wake_debounce + 1) if wake else 0
+    quiet_run = min(state.quiet_run + 1, timers.quiet) if (ok and not wake) else (0 if wake else state.quiet_run)
+    hv_run = min(state.hv_run + 1, timers.hv_debounce + 1) if (ok and inputs.hv_present) else 0
+    hv_off_run = (min(state.hv_off_run + 1, timers.hv_debounce) if (ok and not inputs.hv_present)
+                  else (0 if ok else state.hv_off_run))
     regime = state.regime
     st = RegimeState(regime, state.entered_tick, link_fail, link_ok, overruns, wake_run, quiet_run, hv_run,
                      hv_off_run, state.safe_causes)
 
     events: list[BoardEvent] = []
     fired: Transition | None = None
-    causes: list[Trigger] = []
+    causes: list[Trigger] | None = None
     for row in _ROWS[regime]:
         trig = row.trigger
-        if trig in (Trigger.LINK_LOST, Trigger.SENSOR_FAULT, Trigger.LIMIT_VIOLATION, Trigger.OVERRUN):
-            if not causes:
+        if trig in _FAULT_TRIGGERS:
+            if causes is None:
                 causes = _fault_causes(st, inputs, timers)
             hit = trig in causes
         elif trig is Trigger.BROWNOUT:
@@ -254,7 +279,8 @@ def step(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeTimers
 
     if regime is Regime.SAFE and fired is None:
         # stay in SAFE, accumulating any new cause
-        new = [c.value for c in (causes or _fault_causes(st, inputs, timers)) if c.value not in st.safe_causes]
+        new = [c.value for c in (causes if causes is not None else _fault_causes(st, inputs, timers))
+               if c.value not in st.safe_causes]
         if new:
             st = st._replace(safe_causes=st.safe_causes + tuple(new))
     if fired is None:
@@ -263,7 +289,8 @@ def step(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeTimers
     target = fired.target
     safe_causes: tuple[str, ...] = ()
     if target is Regime.SAFE:
-        safe_causes = (fired.trigger.value,) if fired.trigger is Trigger.BROWNOUT else tuple(c.value for c in causes)
+        safe_causes = ((fired.trigger.value,) if fired.trigger is Trigger.BROWNOUT
+                       else tuple(c.value for c in (causes or [fired.trigger])))
     st = RegimeState(target, tick, link_fail, link_ok, overruns, 0 if target is Regime.SENSING else wake_run,
                      0, hv_run, hv_off_run, safe_causes)
     events.append(BoardEvent("regime_change", tick, now, {

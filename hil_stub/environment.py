@@ -127,6 +127,13 @@ class Environment:
         """Extra current drawn from the board battery at ``t`` by a failing component (A)."""
         return sum(c for a, b, c in self._loads if a <= t < b)
 
+    def segment(self, t: float) -> tuple[bool, str | None, bool, float, float]:
+        """Everything scheduled at ``t``: (hv_present, sensor-fault mode, link down, extra load A, valid until s).
+
+        The tuple holds until the returned time (the next start or end of a scheduled interval), so a caller can
+        cache it instead of asking every tick."""
+        return (self.hv_present(t), self.sensor_fault(t), self.link_down(t), self.extra_load(t), self.next_change(t))
+
     def next_change(self, t: float) -> float:
         """The next time after ``t`` at which HV presence, a sensor fault, an outage or a load starts or stops."""
         edges = [x for a, b in self._hv for x in (a, b)]

@@ -25,7 +25,10 @@ Speed: while the demand, the terminal and the load stay the same (the board asle
 integrated ``lookahead_ticks`` ticks at a time with an output (and a saved state) at every tick; samples are then
 served from that block. Any change (a new demand, HV connected, a regime change of the board's current) restarts
 integration from the saved state of the current tick, so the result does not depend on the block length beyond the
-integrator's tolerance. ``advance(dt)`` with any other ``dt`` integrates exactly ``dt``.
+integrator's tolerance. ``advance(dt)`` with any other ``dt`` integrates exactly ``dt``. In flight the truth plant
+runs at ``flight_rtol`` (1e-5) and, while the harvesting bridge cannot conduct, as the equivalent open-circuit
+terminal with the cell discharged by the load in closed form (``reduce_idle_bridge``; with ``table2`` the patches make
+millivolts against a 2.9 V cell, so this is the whole flight). The MBITs run at ``rtol`` (1e-6), tick by tick.
 
 URL: ``open_link("sim")`` / ``"sim:maintenance"`` / ``"sim://?scenario=degraded&seed=3&params=table2"`` builds an
 in-process link to a rig made here (registered when this module is imported).
@@ -34,6 +37,7 @@ in-process link to a rig made here (registered when this module is imported).
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -46,7 +50,7 @@ from board_config.scenario import Scenario, load_scenario
 from drivers.link import FLAG_LIMIT_REFUSED, FLAG_SENSOR_FAULT, ActuatorCommand, RigSample
 from drivers.sim_link import InProcessLink, set_sim_rig_factory
 from hil_stub.environment import Environment
-from plant import PlantModel, registered_effects
+from plant import PlantModel
 from plant import layout as L
 
 COUPLING_TERMINALS = {"coupled": "harvest_coupled", "paper": "harvest_paper", "none": "open_circuit"}
@@ -62,6 +66,10 @@ class _Block:
     x: np.ndarray  # (n+1, n_states)
     n: int
     j: int = 0
+    z3: list[float] | None = None  # sensor columns at the tick boundaries, as Python floats (fast per-tick reads)
+    vt: list[float] | None = None
+    vb: list[float] | None = None
+    zdd: list[float] | None = None
 
 
 class _TruthModel:
@@ -97,14 +105,19 @@ class _TruthModel:
         self.has_battery = "bat_qd" in self.model.state_names
         self.s_qd = self.model.state_names.index("bat_qd") if self.has_battery else -1
         self.p_iboard = self.model.param_index("i_board") if "i_board" in self.model.param_names else -1
+        self.p_reverse = self.model.param_index("eq8_reverse") if "eq8_reverse" in self.model.param_names else -1
+        self.p_vdiode = self.model.param_index("V_diode") if "V_diode" in self.model.param_names else -1
+        self.p_rbint = self.model.param_index("R_bint") if "R_bint" in self.model.param_names else -1
         self._status = np.zeros(1, dtype=np.int64)
         self._nsteps = np.zeros(1, dtype=np.int64)
         self._bus = np.zeros((1, 1, 1))
         self.steps = 0
+        self.seconds = 0.0  # wall time spent integrating (s)
 
     def integrate(self, x0: np.ndarray, t0: float, u: np.ndarray, u_dt: float, t_out: np.ndarray,
                   h_max: float) -> tuple[np.ndarray, np.ndarray]:
         """Outputs and states at ``t_out`` (``t_out[0] == t0``) from state ``x0`` under inputs ``u`` (samples, 3)."""
+        t_start = time.perf_counter()
         n = t_out.size
         y = np.empty((1, n, self.model.n_outputs))
         xs = np.empty((1, n, self.model.n_states))
@@ -114,6 +127,7 @@ class _TruthModel:
         if self._status[0] != 0:
             raise FloatingPointError(f"truth plant integration failed at t={t0:.6g} s (status {int(self._status[0])})")
         self.steps += int(self._nsteps[0])
+        self.seconds += time.perf_counter() - t_start
         return y[0], xs[0]
 
 
@@ -133,6 +147,14 @@ class SimulatedRig:
         The board tick the lookahead blocks are aligned to (s).
     lookahead_ticks:
         Ticks integrated at once while nothing changes (1 = plain tick-by-tick stepping).
+    rtol, flight_rtol:
+        Relative tolerance of the truth plant with the amplifier connected (the MBITs: 1e-6) and in flight (the
+        harvesting or open-circuit terminal: 1e-5 — its error is orders of magnitude below the sensor noise).
+    reduce_idle_bridge:
+        While the harvesting bridge cannot conduct (the largest patch voltage of a block stays below half the
+        conduction threshold ``v_oc + 2 V_diode − R_bint i_board``), integrate the equivalent open-circuit terminal
+        and the cell's discharge by the load in closed form — the same equations without the bridge and audit
+        terms. ``False`` always integrates the full harvesting terminal.
     hv_present:
         Force the HV-equipment presence (``None``: follow the scenario). ``set_hv_present`` changes it later.
     """
@@ -141,8 +163,9 @@ class SimulatedRig:
                  params: str | ParameterSet | None = None, deviations: Mapping[str, float] | None = None,
                  effects: Sequence[str] | None = None, effect_params: Mapping[str, float] | None = None,
                  coupling: str | None = None, battery_initial_voltage: float | None = None,
-                 tick: float = 0.01, lookahead_ticks: int = 50, rtol: float = 1e-6,
-                 limits: MfcLimits | None = None, hv_present: bool | None = None) -> None:
+                 tick: float = 0.01, lookahead_ticks: int = 50, rtol: float = 1e-6, flight_rtol: float = 1e-5,
+                 reduce_idle_bridge: bool = True, limits: MfcLimits | None = None,
+                 hv_present: bool | None = None) -> None:
         spec = scenario.rig if scenario is not None else None
         where = scenario.source if scenario is not None else "<rig>"
         self.scenario = scenario
@@ -156,8 +179,6 @@ class SimulatedRig:
         if self.coupling not in COUPLING_TERMINALS:
             raise ValueError(f"rig coupling {self.coupling!r} unknown (allowed: {', '.join(COUPLING_TERMINALS)})")
         flight_terminal = COUPLING_TERMINALS[self.coupling]
-        if flight_terminal not in registered_effects():  # harvesting terminal not available in this build
-            flight_terminal = "open_circuit"
         self.limits = limits if limits is not None else load_mfc_limits()
         if not (tick > 0 and math.isfinite(tick)):
             raise ValueError(f"rig tick must be positive, got {tick!r}")
@@ -172,11 +193,24 @@ class SimulatedRig:
         self._env_per_tick = env_rate * self.tick
         self._aligned_env = abs(self._env_per_tick - round(self._env_per_tick)) < 1e-9
         self._hv_override = hv_present
+        self._seg_until = -math.inf  # the cached environment segment holds until this time (s)
+        self._seg: tuple[bool, str | None, bool, float, float] = (False, None, False, 0.0, -math.inf)
 
         # truth plant, one composition per terminal (the amplifier one is built on first use)
         self._models: dict[str, _TruthModel] = {}
-        self._args = (self.params, self.effects, self.effect_params, self.deviations, rtol, where)
+        self._parked: dict[int, np.ndarray] = {}
+        self._args = (self.params, self.effects, self.effect_params, self.deviations, where)
+        self._rtol = {"amplifier": float(rtol)}
+        self._flight_rtol = float(flight_rtol)
         self._flight = self._model(flight_terminal)
+        # exact reduction while the bridge cannot conduct: the harvesting terminal then *is* the open circuit
+        self._idle: _TruthModel | None = None
+        f = self._flight
+        if reduce_idle_bridge and f.has_battery and (f.p_reverse < 0 or f.p[0, f.p_reverse] < 0.5):
+            self._idle = self._model("open_circuit")
+        self.reduced_blocks = 0
+        # internal resistance of the cell (ohm), as the harvesting terminal has it (1 ohm without one)
+        self._r_int = float(f.p[0, f.p_rbint]) if f.p_rbint >= 0 else 1.0
         self._battery_spec = _load_cell()
         v0 = battery_initial_voltage if battery_initial_voltage is not None else (
             spec.battery_initial_voltage if spec else 3.0)
@@ -186,14 +220,19 @@ class SimulatedRig:
                               f"{v0:g} V is outside the cell's open-circuit-voltage table [{lo:g}, {hi:g}] V")
         self._qd = float(self._battery_spec.discharged_capacity(v0))  # discharged capacity when not in the plant, C
         # the cell curve tabulated finely for per-tick use (linear between 2049 points of the PCHIP curve)
-        self._ocv_q = np.linspace(-0.05, 1.05, 2049) * self._battery_spec.capacity
-        self._ocv_v = np.asarray(self._battery_spec.ocv(self._ocv_q), dtype=float)
+        ocv_q = np.linspace(-0.05, 1.05, 2049) * self._battery_spec.capacity
+        self._ocv_q0 = float(ocv_q[0])
+        self._ocv_h = float(ocv_q[1] - ocv_q[0])
+        self._ocv_list = np.asarray(self._battery_spec.ocv(ocv_q), dtype=float).tolist()
         self._active = self._flight
         self.t = 0.0
         self._x = self._flight.model.x0_nominal.copy()
         if self._flight.has_battery:
             self._x[self._flight.s_qd] = self._qd
         self._y = self._outputs_now()
+        f0 = self._flight
+        self._row = (float(self._y[f0.i_z3]), float(self._y[f0.i_vterm]),
+                     float(self._y[f0.i_vbat]) if f0.i_vbat >= 0 else math.nan, float(self._u_now()[2]))
 
         # amplifier and board load
         self._v = (0.0, 0.0)  # demand in force (V)
@@ -210,7 +249,7 @@ class SimulatedRig:
         self._offgrid = False  # advanced by a non-tick dt at some point
         self.seq = 0
         self._rng = np.random.default_rng([self.seed, 104729])
-        self._noise = np.empty((0, 3))
+        self._noise: list[list[float]] = []
         self._noise_i = 0
         self._block: _Block | None = None
         self.blocks = 0
@@ -246,7 +285,8 @@ class SimulatedRig:
 
     def _model(self, terminal: str) -> _TruthModel:
         if terminal not in self._models:
-            params, effects, effect_params, deviations, rtol, where = self._args
+            params, effects, effect_params, deviations, where = self._args
+            rtol = self._rtol.get(terminal, self._flight_rtol)
             self._models[terminal] = _TruthModel(params, effects, terminal, effect_params, deviations, rtol, where)
         return self._models[terminal]
 
@@ -273,21 +313,23 @@ class SimulatedRig:
             self._watchdog_open = True
             self.watchdog_trips += 1
             self._v = (0.0, 0.0)
-        hv = self.hv_present
-        terminal_model = self._model("amplifier") if hv else self._flight
-        if terminal_model is not self._active:
-            self._switch(terminal_model)
+        seg = self._segment()
+        hv = self._hv_override if self._hv_override is not None else seg[0]
+        want = self._model("amplifier") if hv else self._flight
+        aligned = abs(dt - self.tick) <= 1e-9 * self.tick and not self._offgrid
+        if want is not self._active and not (aligned and want is self._flight and self._active is self._idle):
+            self._switch(want)
         v = self._v if hv else (0.0, 0.0)
-        i_load = self._i_board + self.env.extra_load(self.t)
-        if abs(dt - self.tick) <= 1e-9 * self.tick and not self._offgrid:
-            self._advance_tick(v, i_load)
+        i_load = self._i_board + seg[3]
+        if aligned:
+            self._advance_tick(v, i_load, want)
         else:
             self._offgrid = True
             self._block = None
             self._integrate_direct(dt, v, i_load)
         self._v_prev = v
         self.ticks += 1
-        if self.env.sensor_fault(self.t) != "frozen_seq":
+        if self._segment()[1] != "frozen_seq":
             self.seq = (self.seq + 1) & 0xFFFFFFFF
             self._sample = self._make_sample()
 
@@ -296,11 +338,18 @@ class SimulatedRig:
         return self._sample
 
     # --- extras for operators, the HIL server and reports -------------------------------------------
+    def _segment(self) -> tuple[bool, str | None, bool, float, float]:
+        """The scheduled environment state now (cached until its next change)."""
+        if self.t >= self._seg_until:
+            self._seg = self.env.segment(self.t)
+            self._seg_until = self._seg[4]
+        return self._seg
+
     @property
     def hv_present(self) -> bool:
         if self._hv_override is not None:
             return self._hv_override
-        return self.env.hv_present(self.t)
+        return self._segment()[0]
 
     def set_hv_present(self, present: bool | None) -> None:
         """Force the HV-equipment presence (``None``: follow the scenario again)."""
@@ -308,7 +357,7 @@ class SimulatedRig:
 
     def link_down(self, t: float | None = None) -> bool:
         """Whether the scenario schedules a link outage at ``t`` (default: now); used by the in-process link."""
-        return self.env.link_down(self.t if t is None else t)
+        return self._segment()[2] if t is None else self.env.link_down(t)
 
     @property
     def battery_discharged(self) -> float:
@@ -330,6 +379,8 @@ class SimulatedRig:
             "v_ch1_V": self._v[0], "v_ch2_V": self._v[1], "board_current_A": self._i_board,
             "refused_commands": self.refused_commands, "watchdog_trips": self.watchdog_trips,
             "plant_steps": sum(m.steps for m in self._models.values()), "plant_blocks": self.blocks,
+            "plant_reduced_blocks": self.reduced_blocks,
+            "plant_seconds": sum(m.seconds for m in self._models.values()),
         }
 
     def describe(self) -> dict[str, Any]:
@@ -356,9 +407,11 @@ class SimulatedRig:
         """Change terminal: carry the core and shared extra states over by name; keep the battery state."""
         old = self._active
         x_old = self._state_now().copy()
+        self._parked[id(old)] = x_old  # its own extra states (e.g. the power-audit integrals) wait for its return
         if old.has_battery:
             self._qd = float(x_old[old.s_qd])
-        x_new = new.model.x0_nominal.copy()
+        parked = self._parked.get(id(new))
+        x_new = parked.copy() if parked is not None else new.model.x0_nominal.copy()
         x_new[: L.N_CORE_STATES] = x_old[: L.N_CORE_STATES]
         old_names = old.model.state_names
         for k, name in enumerate(new.model.state_names[L.N_CORE_STATES:], start=L.N_CORE_STATES):
@@ -396,28 +449,55 @@ class SimulatedRig:
         if model.p_iboard >= 0:
             model.p[0, model.p_iboard] = i_load
 
-    def _advance_tick(self, v: tuple[float, float], i_load: float) -> None:
-        key = (id(self._active), v, i_load)
+    def _advance_tick(self, v: tuple[float, float], i_load: float, want: _TruthModel) -> None:
         b = self._block
-        if b is not None and b.key == key and b.j < b.n and v == self._v_prev:
+        if b is not None and b.key == (id(self._active), v, i_load) and b.j < b.n and v == self._v_prev:
             b.j += 1
         else:
-            x0 = self._state_now().copy()
             ramp = v != self._v_prev
             n = 1 if ramp else self.lookahead_ticks
-            model = self._active
-            self._set_load(model, i_load)
             t0 = self._k * self.tick
             u, u_dt = self._inputs(t0, n, self._v_prev, v)
             t_out = t0 + self.tick * np.arange(n + 1)
-            y, xs = model.integrate(x0, t0, u, u_dt, t_out, min(5e-3, self.tick))
-            self._block = b = _Block(key, t0, y, xs, n, 1)
+            b = None
+            if want is self._flight and self._idle is not None:
+                # try the reduced model (bridge off); keep it only if the bridge stays far from conducting
+                if self._active is not self._idle:
+                    self._switch(self._idle)
+                x0 = self._state_now().copy()
+                y, xs = self._idle.integrate(x0, t0, u, u_dt, t_out, min(5e-3, self.tick))
+                if float(np.max(np.abs(y[:, self._idle.i_vterm]))) < 0.5 * self._bridge_threshold(i_load):
+                    b = self._new_block(self._idle, (id(self._idle), v, i_load), t0, y, xs, n, u)
+                    self.reduced_blocks += 1
+                else:
+                    self._switch(self._flight)
+            if b is None:
+                model = self._active
+                x0 = self._state_now().copy()
+                self._set_load(model, i_load)
+                y, xs = model.integrate(x0, t0, u, u_dt, t_out, min(5e-3, self.tick))
+                b = self._new_block(model, (id(model), v, i_load), t0, y, xs, n, u)
+            self._block = b
             self.blocks += 1
         self._k += 1
         self.t = self._k * self.tick
-        self._y = b.y[b.j]
+        j = b.j
+        self._y = b.y[j]
+        self._row = (b.z3[j], b.vt[j], b.vb[j] if b.vb is not None else math.nan, b.zdd[j])  # type: ignore[index]
         if not self._active.has_battery:
             self._qd += i_load * self.tick
+
+    def _new_block(self, model: _TruthModel, key: tuple, t0: float, y: np.ndarray, xs: np.ndarray, n: int,
+                   u: np.ndarray) -> _Block:
+        m = (u.shape[0] - 1) // n
+        return _Block(key, t0, y, xs, n, 1, y[:, model.i_z3].tolist(), y[:, model.i_vterm].tolist(),
+                      y[:, model.i_vbat].tolist() if model.i_vbat >= 0 else None, u[::m, 2].tolist())
+
+    def _bridge_threshold(self, i_load: float) -> float:
+        """|v_s| (V) above which the harvesting bridge would conduct (plant.effects.harvesting closed form)."""
+        f = self._flight
+        v_d = float(f.p[0, f.p_vdiode]) if f.p_vdiode >= 0 else 0.0
+        return self._ocv(self._qd) + 2.0 * v_d - self._r_int * i_load
 
     def _integrate_direct(self, dt: float, v: tuple[float, float], i_load: float) -> None:
         model = self._active
@@ -434,61 +514,48 @@ class SimulatedRig:
         self._x = xs[-1].copy()
         self._y = y[-1]
         self.t += dt
+        self._row = (float(y[-1, model.i_z3]), float(y[-1, model.i_vterm]),
+                     float(y[-1, model.i_vbat]) if model.i_vbat >= 0 else math.nan, float(u[-1, 2]))
         if not model.has_battery:
             self._qd += i_load * dt
 
-    def _battery_terminal(self) -> float:
-        if self._active.has_battery and self._active.i_vbat >= 0:
-            return float(self._y[self._active.i_vbat])
-        i_load = self._i_board + self.env.extra_load(self.t)
-        return self._ocv(self._qd) - self._battery_spec_r_int * i_load
-
     def _ocv(self, qd: float) -> float:
-        q, v = self._ocv_q, self._ocv_v
-        if qd <= q[0] or qd >= q[-1]:
+        """Open-circuit voltage (V) at discharged capacity ``qd`` (C): linear on a fine table of the cell curve."""
+        q0, h, v = self._ocv_q0, self._ocv_h, self._ocv_list
+        i = int((qd - q0) / h)
+        if i < 0 or i >= len(v) - 1:
             return float(self._battery_spec.ocv(qd))
-        h = q[1] - q[0]
-        i = int((qd - q[0]) / h)
-        f = (qd - q[i]) / h
-        return float(v[i] + (v[i + 1] - v[i]) * f)
+        f = (qd - q0) / h - i
+        return v[i] + (v[i + 1] - v[i]) * f
 
-    def _draw_noise(self) -> np.ndarray:
-        if self._noise_i >= self._noise.shape[0]:
-            self._noise = self._rng.standard_normal((1000, 3))
+    def _draw_noise(self) -> list[float]:
+        if self._noise_i >= len(self._noise):
+            self._noise = self._rng.standard_normal((1000, 3)).tolist()
             self._noise_i = 0
         row = self._noise[self._noise_i]
         self._noise_i += 1
         return row
 
     def _make_sample(self) -> RigSample:
-        y = self._y
+        z3, vp, vb, zdd = self._row
         nz = self._draw_noise()
-        z3 = float(y[self._active.i_z3]) + self.z3_noise * float(nz[0])
-        vp = float(y[self._active.i_vterm]) + self.v_patch_noise * float(nz[1])
-        if self._aligned_env and not self._offgrid:
-            i = round(self.t * self.env.rate)
-            zdd = float(self.env.z0dd[i]) if i < self.env.z0dd.size else 0.0
-        else:
-            zdd = float(self.env.base_acceleration(np.array([self.t]))[0])
-        zdd += self.accel_noise * float(nz[2])
+        seg = self._segment()
+        if vb != vb:  # the cell is not part of the active plant: integrated here
+            vb = self._ocv(self._qd) - self._r_int * (self._i_board + seg[3])
+        z3 += self.z3_noise * nz[0]
+        vp += self.v_patch_noise * nz[1]
+        zdd += self.accel_noise * nz[2]
         flags = FLAG_LIMIT_REFUSED if self._refused_flag else 0
-        fault = self.env.sensor_fault(self.t)
-        if fault == "nan":
-            z3 = math.nan
-        elif fault == "flag":
-            flags |= FLAG_SENSOR_FAULT
-        elif fault == "out_of_range":
-            z3 = 1.0
-        return RigSample(seq=self.seq, t=self.t, z3=z3, v_patch=vp, z0dd=zdd, v_battery=self._battery_terminal(),
-                         hv_present=self.hv_present, flags=flags)
-
-    @property
-    def _battery_spec_r_int(self) -> float:
-        """Internal resistance of the cell (ohm), as the harvesting terminal uses it (default 1 ohm)."""
-        m = self._flight
-        if "R_bint" in m.model.param_names:
-            return float(m.p[0, m.model.param_index("R_bint")])
-        return 1.0
+        fault = seg[1]
+        if fault is not None:
+            if fault == "nan":
+                z3 = math.nan
+            elif fault == "flag":
+                flags |= FLAG_SENSOR_FAULT
+            elif fault == "out_of_range":
+                z3 = 1.0
+        hv = self._hv_override if self._hv_override is not None else seg[0]
+        return RigSample(self.seq, self.t, z3, vp, zdd, vb, hv, flags)
 
 
 def _load_cell():

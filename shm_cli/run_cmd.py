@@ -49,6 +49,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--timeline-every-s", type=float, default=60.0,
                    help="print a telemetry line this often (s of board time; 0 = never); every record is logged")
     p.add_argument("--append", action="store_true", help="append to an existing usage.db instead of a fresh one")
+    p.add_argument("--log-sync", choices=("normal", "full"), default="normal",
+                   help="SQLite synchronous mode of the usage log: normal (every committed record survives a killed "
+                        "process; default) or full (also an OS crash or power cut; one fsync per record)")
     p.add_argument("--json", action="store_true", help="print the run summary as JSON at the end")
     p.add_argument("--quiet", action="store_true", help="no timeline on stdout and no progress bar")
     add_out_arg(p, default="out/run")
@@ -173,7 +176,7 @@ def cmd_run(args: argparse.Namespace) -> int:
 
     status = "failed"
     try:
-        with UsageLog(db_path) as log:
+        with UsageLog(db_path, synchronous=args.log_sync.upper()) as log:
             run_id = log.start_run(scenario=scenario.name, seed=seed, link_url=args.link, params=params,
                                    board_config=cfg.as_dict(), rig=rig.describe() if rig is not None else {})
             runner = BoardRunner(board, link, sink=log, scheduler=scheduler,
@@ -238,14 +241,7 @@ def build_summary(args, scenario, seed, params, cfg, board, result, rig, setup_s
     incidents = [dict(e.data, time_s=e.time) for e in ev if e.kind == "incident"]
     expected = scenario.expect_verdict
     final_verdict = verdicts[-1]["verdict"] if verdicts else "NONE"
-    tr = result.trace.columns() if result.trace is not None else {}
-    time_in: dict[str, float] = {}
-    if tr:
-        from firmware_sim.regimes import REGIME_CODES
-
-        for regime, code in REGIME_CODES.items():
-            time_in[regime.value] = float(np.sum(tr["regime_code"] == code)) * cfg.tick_period * (
-                result.trace.every if result.trace is not None else 1)
+    time_in = board.ledger.time_by_regime()
     summary = {
         "scenario": scenario.name, "scenario_file": scenario.source, "seed": seed, "params": params,
         "link": args.link, "paced": paced, "run_id": run_id, "database": str(db_path),
@@ -256,11 +252,10 @@ def build_summary(args, scenario, seed, params, cfg, board, result, rig, setup_s
         "incidents_list": incidents, "incidents": len(incidents),
         "expected_verdict": expected,
         "verdict_as_expected": None if expected is None else (final_verdict == expected),
-        "battery_first_V": float(tr["v_battery_V"][np.isfinite(tr["v_battery_V"])][0]) if tr and np.isfinite(
-            tr["v_battery_V"]).any() else float("nan"),
-        "battery_last_V": board.power.v_last, "battery_min_V": board.power.v_min,
-        "charge_used_C": board.power.charge_used, "energy_used_J": board.power.energy_used,
-        "brownouts": board.power.brownouts,
+        "battery_first_V": board.ledger.v_first,
+        "battery_last_V": board.ledger.v_last, "battery_min_V": board.ledger.v_min,
+        "charge_used_C": board.ledger.charge_used, "energy_used_J": board.ledger.energy_used,
+        "charge_by_regime_C": board.ledger.charge_by_regime(), "brownouts": board.power.brownouts,
         "board_config": cfg.as_dict(),
     }
     if rig is not None:

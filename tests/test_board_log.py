@@ -55,7 +55,7 @@ WRITER = textwrap.dedent("""
     import sys
     from firmware_sim.events import BoardEvent
     from firmware_sim.usage_log import UsageLog
-    log = UsageLog(sys.argv[1])
+    log = UsageLog(sys.argv[1], synchronous=sys.argv[2])
     log.start_run(scenario="kill-test")
     k = 0
     while True:
@@ -68,12 +68,13 @@ WRITER = textwrap.dedent("""
 
 
 @pytest.mark.integration
-def test_sigkill_mid_run_loses_no_committed_record(tmp_path):
+@pytest.mark.parametrize("sync", ["NORMAL", "FULL"])
+def test_sigkill_mid_run_loses_no_committed_record(tmp_path, sync):
     db = tmp_path / "kill.db"
     script = tmp_path / "writer.py"
     script.write_text(WRITER)
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    proc = subprocess.Popen([sys.executable, str(script), str(db)], stdout=subprocess.PIPE, text=True, env=env,
+    proc = subprocess.Popen([sys.executable, str(script), str(db), sync], stdout=subprocess.PIPE, text=True, env=env,
                             cwd=ROOT)
     acked: list[int] = []
     deadline = time.monotonic() + 60

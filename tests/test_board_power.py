@@ -9,7 +9,7 @@ import pytest
 from board_config.board import load_board_config
 from drivers.link import RigSample
 from firmware_sim.board import Board
-from firmware_sim.power_manager import PowerBudget, PowerState, power_step
+from firmware_sim.power_manager import PowerBudget, PowerLedger, PowerState, power_step
 from firmware_sim.regimes import Regime
 
 CFG = load_board_config()
@@ -38,9 +38,17 @@ def test_currents_per_regime_come_from_the_config():
     assert B.current(Regime.SENSING) == CFG.power_current_sensing
     assert B.current(Regime.MAINTENANCE) == CFG.power_current_maintenance
     assert B.current(Regime.SAFE) == CFG.power_current_safe
-    st, _, _ = feed([3.0] * 100, Regime.SENSING)
-    assert st.charge_used == pytest.approx(100 * CFG.tick_period * CFG.power_current_sensing)
-    assert st.energy_used == pytest.approx(st.charge_used * 3.0)
+    ledger = PowerLedger(B)
+    for _ in range(100):
+        ledger.add(Regime.SENSING, 3.0)
+    ledger.add(Regime.STANDBY_HARVEST, math.nan)  # unknown voltage: counted at the last known one
+    ledger.add(Regime.STANDBY_HARVEST, 2.5)
+    assert ledger.charge_used == pytest.approx(CFG.tick_period * (100 * CFG.power_current_sensing
+                                                                  + 2 * CFG.power_current_standby))
+    assert ledger.energy_used == pytest.approx(CFG.tick_period * (300 * CFG.power_current_sensing
+                                                                  + 5.5 * CFG.power_current_standby))
+    assert (ledger.v_first, ledger.v_last, ledger.v_min) == (3.0, 2.5, 2.5)
+    assert ledger.time_by_regime()["SENSING"] == pytest.approx(1.0)
 
 
 def test_energy_to_wake_threshold():
@@ -65,10 +73,12 @@ def test_brownout_needs_consecutive_ticks_and_clears_with_hysteresis():
     assert st.brownouts == 1
 
 
-def test_unknown_voltage_holds_the_decision():
+def test_unknown_voltage_holds_the_brownout_and_refuses_waking():
     st, s, _ = feed([B.brownout - 0.1] * B.brownout_ticks)
     st, s, ev = feed([math.nan] * 20, state=st)
     assert all(x.brownout for x in s) and not ev
+    _, s, ev = feed([math.nan, -1.0])
+    assert not any(x.energy_ok or x.brownout for x in s) and not ev
 
 
 def _sample(k, v_batt, z0dd=0.0, hv=False):
