@@ -14,6 +14,7 @@ BENCHMARKS: tuple[str, ...] = (
     "bench.bench_plant",
     "bench.bench_campaign",
     "bench.bench_links",
+    "bench.bench_board",
     "bench.bench_compare",
 )
 
