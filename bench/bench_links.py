@@ -9,7 +9,8 @@ deadline, p50 / p99 / max) and deadline misses (a tick ending after the next dea
 
 Baseline, measured in the same run: the in-process link (``drivers.sim_link.InProcessLink``) to the same kind of
 rig, unpaced — what an exchange costs with no transport at all; each link's median round trip is quoted as a
-ratio to it.
+ratio to it. The machine's load average is recorded with the result: on a shared machine other processes' CPU
+use shows up directly in the p99 figures and deadline misses.
 """
 
 from __future__ import annotations
@@ -118,6 +119,7 @@ def _in_process_baseline(n: int) -> dict:
 
 
 def run(out_dir: Path, quick: bool) -> dict:
+    load_before = os.getloadavg()
     seconds = 5.0 if quick else 60.0
     seconds_rtu = 3.0 if quick else 20.0
     baseline = _in_process_baseline(300 if quick else 2000)
@@ -146,7 +148,9 @@ def run(out_dir: Path, quick: bool) -> dict:
                       "p99_rtt_below_5_ms": (links[name]["rtt_p99_ms"] or math.inf) < 5.0}
                for name in ("modbus_tcp", "serial_pty")}
     result = {
-        "quick": quick, "seconds_per_link": seconds, "in_process_baseline": baseline, "links": links,
+        "quick": quick, "seconds_per_link": seconds, "cpus": os.cpu_count(),
+        "load_average_1min_before_after": [load_before[0], os.getloadavg()[0]],
+        "in_process_baseline": baseline, "links": links,
         "stub_pacing": stub.get("pacing"), "stub_commands": stub.get("commands"), "targets": targets,
         "targets_met": all(all(t.values()) for t in targets.values()),
     }
