@@ -23,7 +23,6 @@ import asyncio
 import contextlib
 import logging
 import threading
-import time
 from collections import Counter
 from concurrent.futures import Future
 from typing import Any
@@ -328,13 +327,3 @@ class ModbusRigServer:
     def disconnect(self, seconds: float) -> None:
         """Take the server down now for ``seconds`` (wall clock), then bring it back (does not wait)."""
         self.loop.submit(self._outage(seconds, "disconnect requested"))
-
-
-def wait_until(predicate, timeout: float, interval: float = 0.005) -> bool:
-    """Poll ``predicate`` until true or ``timeout`` seconds pass (bounded helper for callers and tests)."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if predicate():
-            return True
-        time.sleep(interval)
-    return bool(predicate())

@@ -207,12 +207,6 @@ class RigHost:
                 self._step_locked()
         return Delivery.REFUSED if why is not None else Delivery.ACCEPTED
 
-    def note_refused(self, why: str) -> None:
-        """A command refused before it became one (e.g. a Modbus write outside the limits): flag and count it."""
-        self.refused_count += 1
-        self._refused_flag = True
-        self.incident(f"refused command: {why}")
-
     # ------------------------------------------------------------------------------------------ ticking
     def _step_locked(self, deliver: bool = True) -> None:
         with self._mail_lock:
