@@ -152,6 +152,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
                       monitor=args.monitor_config)
     out = out_dir(args.out)
     total = len(spec.ranges) * spec.n_runs
+    tqdm.monitor_interval = 0  # no tqdm monitor thread: lets the process pool fork (see campaign.runner)
     bar = tqdm(total=total, unit="run", desc=f"campaign {'+'.join(m.label for m in spec.mbits)}", file=sys.stderr,
                disable=True if args.no_progress else None, dynamic_ncols=True)
     try:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import multiprocessing as mp
 import os
+import threading
 import time
 from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
@@ -23,7 +24,7 @@ from typing import Any
 from firmware_sim.campaign.results import CampaignResult
 from firmware_sim.campaign.spec import BatchSpec, CampaignSpec
 from firmware_sim.campaign.store import ResultStore
-from firmware_sim.campaign.worker import BatchResult, mbit_sequence, model_from_toml, run_batch
+from firmware_sim.campaign.worker import BatchResult, mbit_sequence, model_from_toml, nominal_prediction, run_batch
 
 ProgressFn = Callable[[int], None]
 BatchFn = Callable[..., BatchResult]
@@ -81,14 +82,22 @@ def _describe_exception(exc: BaseException) -> str:
     return f"{name}: {exc}"
 
 
-def _process_executor(workers: int) -> ProcessPoolExecutor:
+def _process_executor(workers: int) -> tuple[ProcessPoolExecutor, str]:
+    """A local process pool. ``fork`` when this process runs a single thread (the workers then inherit the loaded
+    model kernels and nominal predictions: no start-up cost); otherwise ``forkserver`` (fork with live threads can
+    deadlock), else ``spawn``."""
     methods = mp.get_all_start_methods()
-    if "forkserver" in methods:
+    if "fork" in methods and threading.active_count() == 1:
+        method = "fork"
+        ctx = mp.get_context("fork")
+    elif "forkserver" in methods:
+        method = "forkserver"
         ctx = mp.get_context("forkserver")
         ctx.set_forkserver_preload(["firmware_sim.campaign.worker"])
     else:
+        method = "spawn"
         ctx = mp.get_context("spawn")
-    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx)
+    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx), method
 
 
 def connect_dask(address: str, timeout_s: float = 10.0) -> Any:
@@ -135,6 +144,8 @@ def run_campaign(
     out_dir = Path(out_dir)
     # fail fast on the model and the MBIT sequences in this process (clear errors, clamp reports)
     model = model_from_toml(spec.params_toml)
+    for m in spec.mbits:
+        nominal_prediction(spec, m)  # fails fast here, and forked workers inherit it
     clamp = {m.key: mbit_sequence(m).clamp.describe() for m in spec.mbits}
     notes = [mbit_sequence(m).clamp.message(m.label) for m in spec.mbits if mbit_sequence(m).clamp.clamped]
     store = ResultStore(out_dir, spec, fresh=fresh)
@@ -168,8 +179,8 @@ def run_campaign(
         desc = "in-process"
     else:
         n_proc = min(workers or os.cpu_count() or 1, len(todo))
-        executor = _process_executor(n_proc)
-        desc = f"process pool ({n_proc} workers)"
+        executor, method = _process_executor(n_proc)
+        desc = f"process pool ({n_proc} workers, {method})"
 
     try:
         if todo and executor is None:
