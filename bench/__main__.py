@@ -13,6 +13,7 @@ from pathlib import Path
 BENCHMARKS: tuple[str, ...] = (
     "bench.bench_plant",
     "bench.bench_campaign",
+    "bench.bench_harvest",
     "bench.bench_links",
     "bench.bench_board",
     "bench.bench_compare",
