@@ -167,6 +167,10 @@ def cmd_campaign(args: argparse.Namespace) -> int:
               file=sys.stderr)
     if not outcome.complete:
         print(f"shm campaign: {outcome.failure_message()}", file=sys.stderr)
+        if args.json:
+            print(dump_json({"complete": False, "fingerprint": spec.fingerprint(), "batches": {
+                "total": outcome.n_batches, "reused": outcome.n_reused, "computed": outcome.n_computed,
+                "failed": [{"key": f.key, "message": f.message} for f in outcome.failures]}}))
         return 1
     result = outcome.result
     assert result is not None
@@ -180,6 +184,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     files.update({k: str(v) for k, v in _write_roc(tables, out, (spec.monitor.eps_th, spec.monitor.count_max),
                                                    figure=not args.no_figures).items()})
     summary = {
+        "complete": True,
         "spec": spec.describe(),
         "fingerprint": spec.fingerprint(),
         "summary": [s.row() for s in result.summary()],

@@ -236,3 +236,28 @@ def test_cli_runs_writes_the_fig11_files_and_roc(tmp_path, capsys):
     assert (tmp_path / "roc" / "roc.png").exists() and (tmp_path / "roc" / "roc.csv").exists()
     assert main(["campaign-roc", "--from", str(tmp_path / "nothing")]) == 2
     assert "no stored campaign traces" in capsys.readouterr().err
+
+
+def test_cli_reports_unfinished_batches_with_exit_1_and_resumes(tmp_path, capsys, monkeypatch):
+    import firmware_sim.campaign as campaign_pkg
+
+    real = campaign_pkg.run_campaign
+    spec = build_spec(**{**SMALL, "mbits": "b", "n_runs": 2})
+    bad_key = spec.batches()[1].key
+
+    def failing(spec_, out_, **kw):
+        return real(spec_, out_, **{**kw, "batch_fn": functools.partial(raise_on, key=bad_key)})
+
+    args = ["campaign", "--mbit", "b", "--ranges", "0:30:10", "--n", "2", "--seed", "11", "--workers", "1",
+            "--no-progress", "--no-figures", "--json", "--out", str(tmp_path)]
+    monkeypatch.setattr(campaign_pkg, "run_campaign", failing)
+    assert main(args) == 1
+    captured = capsys.readouterr()
+    assert f"1 of 3 batches did not finish (2 finished and stored in {tmp_path / 'batches'})" in captured.err
+    assert bad_key in captured.err and "rerun the same command" in captured.err
+    status = json.loads(captured.out)
+    assert status["complete"] is False and [f["key"] for f in status["batches"]["failed"]] == [bad_key]
+    monkeypatch.setattr(campaign_pkg, "run_campaign", real)
+    assert main(args) == 0
+    captured = capsys.readouterr()
+    assert "resumed: 2 of 3 batches" in captured.err and json.loads(captured.out)["complete"] is True
