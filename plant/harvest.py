@@ -337,10 +337,14 @@ class Projection:
     stall_voltage_V: float | None
     method: str
     curve: ChargeRateCurve
+    t_path: np.ndarray = field(default_factory=lambda: np.zeros(0))  # s, projected charge curve (from t_now)
+    v_path: np.ndarray = field(default_factory=lambda: np.zeros(0))  # V, open-circuit voltage along it
 
     def as_dict(self) -> dict[str, Any]:
+        k = max(1, self.t_path.size // 200)
         return {"t_full_s": self.t_full_s, "remaining_s": self.remaining_s, "stall_voltage_V": self.stall_voltage_V,
-                "method": self.method, "is_projection": True, "curve": self.curve.as_dict()}
+                "method": self.method, "is_projection": True, "curve": self.curve.as_dict(),
+                "path_t_s": self.t_path[::k], "path_v_oc_V": self.v_path[::k]}
 
 
 def project_time_to_full(setup: HarvestSetup, q_d_now: float, t_now: float, model: PlantModel | None = None,
@@ -371,13 +375,15 @@ def project_time_to_full(setup: HarvestSetup, q_d_now: float, t_now: float, mode
             f = i[k - 1] / (i[k - 1] - i[k])
             v_stall = float(battery.ocv(q_pts[k - 1] + f * (q_pts[k] - q_pts[k - 1])))
         return Projection(math.inf, math.inf, v_stall, method, curve)
-    # integrate dq / i(q) with i linear in q between the measured points
+    # integrate dq / i(q), i(q) a monotone cubic through the measured points
+    from scipy.integrate import cumulative_trapezoid
     from scipy.interpolate import PchipInterpolator
 
     q_fine = np.linspace(q_now, q_full, 4001)
     i_fine = PchipInterpolator(-q_pts, i)(-q_fine)
-    remaining = float(np.trapezoid(1.0 / i_fine, -q_fine))
-    return Projection(t_now + remaining, remaining, None, method, curve)
+    t_path = t_now + cumulative_trapezoid(1.0 / i_fine, -q_fine, initial=0.0)
+    remaining = float(t_path[-1] - t_now)
+    return Projection(t_now + remaining, remaining, None, method, curve, t_path, battery.ocv(q_fine))
 
 
 # ------------------------------------------------------------------------------------------------------------------

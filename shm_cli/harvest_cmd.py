@@ -13,6 +13,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir, pyplot, write_csv
 
 #: the paper's claim, full recharge from 2 V within 10 minutes (= plant.harvest.PAPER_CLAIM_S; kept here so that
@@ -142,8 +144,14 @@ def plot_charge_curve(run: Any, path: Path) -> Path:
     fig, axes = plt.subplots(1, 3 if has_proj else 2, figsize=(14 if has_proj else 10, 4.2))
     s = run.setup
     ax = axes[0]
-    ax.plot(run.t / 60.0, run.v_bat, label="open-circuit v_b")
-    ax.plot(run.t / 60.0, run.v_bat_term, lw=0.6, alpha=0.6, label="terminal voltage")
+    ax.plot(run.t / 60.0, run.v_bat_term, lw=0.4, alpha=0.25, color="tab:orange", zorder=1,
+            label="terminal voltage (pulses with the charging current)")
+    ax.plot(run.t / 60.0, run.v_bat, lw=2.0, color="tab:blue", zorder=3, label="open-circuit v_b")
+    proj = run.projection
+    if proj is not None and proj.t_path.size and math.isfinite(proj.t_full_s) and proj.t_full_s < 20 * run.t_end:
+        ax.plot(proj.t_path / 60.0, proj.v_path, "--", color="tab:blue", zorder=3, label="projected (quasi-steady)")
+    lo = min(float(np.nanmin(run.v_bat)), run.battery["cutoff_voltage_V"]) - 0.1
+    ax.set_ylim(lo, run.battery["full_voltage_V"] + 0.25)
     ax.axvline(PAPER_CLAIM_S / 60.0, color="k", ls=":", lw=1, label="paper: full within 10 min")
     ax.axhline(run.battery["full_voltage_V"], color="g", ls="--", lw=0.8, label="full")
     ax.set_xlabel("time (min)")
@@ -179,7 +187,9 @@ def cmd_harvest(args: argparse.Namespace) -> int:
     try:
         from tqdm import tqdm
 
-        bar = tqdm(total=float(setup.duration), unit="s", unit_scale=False, file=sys.stderr, disable=None,
+        tty = sys.stderr.isatty()
+        bar = tqdm(total=float(setup.duration), unit="s", unit_scale=False, file=sys.stderr,
+                   disable=not (tty or setup.duration >= 60.0), mininterval=0.2 if tty else 5.0,
                    desc=f"harvest {setup.coupling}", bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} s sim "
                                                              "[{elapsed}<{remaining}] {postfix}")
         last = [0.0]
