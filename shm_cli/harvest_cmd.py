@@ -180,32 +180,38 @@ def plot_charge_curve(run: Any, path: Path) -> Path:
 
 
 def cmd_harvest(args: argparse.Namespace) -> int:
+    from board_config import load_parameter_set
     from plant.harvest import run_harvest
 
     setup = _setup_from_args(args)
+    load_parameter_set(args.params)  # a bad set fails here, before any output
     out = out_dir(args.out)
+    from tqdm import tqdm
+
+    tty = sys.stderr.isatty()
+    show = tty or setup.duration >= 60.0
+    bars: list[Any] = []  # created at the first report, once the model is built
+    last = [0.0]
+
+    def progress(t_done: float, t_total: float, soc: float) -> None:
+        if not show:
+            return
+        if not bars:
+            bars.append(tqdm(total=float(setup.duration), unit="s", file=sys.stderr, mininterval=0.2 if tty else 5.0,
+                             desc=f"harvest {setup.coupling}",
+                             bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} s sim [{elapsed}<{remaining}] {postfix}"))
+        bars[0].update(t_done - last[0])
+        last[0] = t_done
+        bars[0].set_postfix_str(f"SoC {soc:.4f}", refresh=False)
+
     try:
-        from tqdm import tqdm
-
-        tty = sys.stderr.isatty()
-        bar = tqdm(total=float(setup.duration), unit="s", unit_scale=False, file=sys.stderr,
-                   disable=not (tty or setup.duration >= 60.0), mininterval=0.2 if tty else 5.0,
-                   desc=f"harvest {setup.coupling}", bar_format="{l_bar}{bar}| {n:.0f}/{total:.0f} s sim "
-                                                             "[{elapsed}<{remaining}] {postfix}")
-        last = [0.0]
-
-        def progress(t_done: float, t_total: float, soc: float) -> None:
-            bar.update(t_done - last[0])
-            last[0] = t_done
-            bar.set_postfix_str(f"SoC {soc:.4f}")
-
-        try:
-            run = run_harvest(setup, progress=progress, project=not args.no_projection)
-        finally:
-            bar.close()
+        run = run_harvest(setup, progress=progress, project=not args.no_projection)
     except FloatingPointError as exc:
         print(f"shm: harvest failed: {exc}", file=sys.stderr)
         return 1
+    finally:
+        for bar in bars:
+            bar.close()
     files = write_outputs(run, out)
     summary = run.summary()
     summary["verdict"] = verdict(run)
