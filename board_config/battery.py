@@ -7,7 +7,8 @@ table gives the Thevenin model of the seed paper's Eq. 6::
     C_b(v_b) = -dq_d/dv_b     (F)
 
 with ``q_d`` the discharged capacity (C = A*s; 0 when full, ``capacity`` at the cut-off voltage). The curve between
-the table's points is a monotone cubic (PCHIP) of ``v_b(q_d)``, so ``C_b`` is finite and positive everywhere.
+the table's points is a monotone cubic (PCHIP, :class:`MonotoneCubic`) of ``v_b(q_d)``, so ``C_b`` is finite and
+positive everywhere.
 """
 
 from __future__ import annotations
@@ -20,7 +21,6 @@ from types import MappingProxyType
 from typing import Any
 
 import numpy as np
-from scipy.interpolate import PchipInterpolator
 
 from board_config.errors import ConfigError
 from board_config.quantities import QuantitySpec, parse_quantities, read_toml
@@ -43,6 +43,63 @@ _V_COLUMN = "open_circuit_voltage_V"
 _END_TOLERANCE = 5e-3
 
 
+class MonotoneCubic:
+    """Monotone piecewise-cubic Hermite interpolant (PCHIP, Fritsch-Butland slopes as in scipy), numpy only.
+
+    Kept here (rather than scipy's) so that loading a cell does not import scipy; the compiled harvesting terminals
+    use the same slope rule (``plant.effects.harvesting``). Values outside ``[x[0], x[-1]]`` use the end cubic.
+    """
+
+    def __init__(self, x: np.ndarray, y: np.ndarray) -> None:
+        self.x = np.asarray(x, dtype=float)
+        self.y = np.asarray(y, dtype=float)
+        h = np.diff(self.x)
+        m = np.diff(self.y) / h
+        d = np.zeros_like(self.x)
+        for k in range(1, self.x.size - 1):
+            if m[k - 1] * m[k] > 0:
+                w1, w2 = 2 * h[k] + h[k - 1], h[k] + 2 * h[k - 1]
+                d[k] = (w1 + w2) / (w1 / m[k - 1] + w2 / m[k])
+        d[0] = self._edge(h[0], h[1], m[0], m[1])
+        d[-1] = self._edge(h[-1], h[-2], m[-1], m[-2])
+        self.h, self.d = h, d
+
+    @staticmethod
+    def _edge(h0: float, h1: float, m0: float, m1: float) -> float:
+        d = ((2 * h0 + h1) * m0 - h0 * m1) / (h0 + h1)
+        if d * m0 <= 0:
+            return 0.0
+        if m0 * m1 <= 0 and abs(d) > 3 * abs(m0):
+            return 3.0 * m0
+        return float(d)
+
+    def __call__(self, xq: float | np.ndarray, order: int = 0) -> np.ndarray:
+        """Value (order 0) or derivative (order 1, 2) at ``xq``."""
+        xq = np.asarray(xq, dtype=float)
+        k = np.clip(np.searchsorted(self.x, xq, side="right") - 1, 0, self.x.size - 2)
+        h = self.h[k]
+        s = (xq - self.x[k]) / h
+        y0, y1 = self.y[k], self.y[k + 1]
+        m0, m1 = self.d[k] * h, self.d[k + 1] * h
+        if order == 0:
+            return ((2 * s**3 - 3 * s**2 + 1) * y0 + (s**3 - 2 * s**2 + s) * m0 + (-2 * s**3 + 3 * s**2) * y1
+                    + (s**3 - s**2) * m1)
+        if order == 1:
+            return ((6 * s**2 - 6 * s) * y0 + (3 * s**2 - 4 * s + 1) * m0 + (-6 * s**2 + 6 * s) * y1
+                    + (3 * s**2 - 2 * s) * m1) / h
+        if order == 2:
+            return ((12 * s - 6) * y0 + (6 * s - 4) * m0 + (-12 * s + 6) * y1 + (6 * s - 2) * m1) / h**2
+        raise ValueError(f"order must be 0, 1 or 2, got {order!r}")
+
+    def integral(self, a: float, b: float) -> float:
+        """Integral from ``a`` to ``b`` (exact: Simpson's rule on each cubic piece)."""
+        lo, hi, sign = (a, b, 1.0) if a <= b else (b, a, -1.0)
+        cuts = np.unique(np.concatenate([[lo], self.x[(self.x > lo) & (self.x < hi)], [hi]]))
+        l, r = cuts[:-1], cuts[1:]
+        total = np.sum((r - l) / 6.0 * (self(l) + 4.0 * self(0.5 * (l + r)) + self(r)))
+        return sign * float(total)
+
+
 @dataclass(frozen=True)
 class BatterySpec:
     """A rechargeable cell: ratings (SI) and its open-circuit-voltage curve ``v_oc(q_d)``.
@@ -63,10 +120,10 @@ class BatterySpec:
     provenance: str
 
     def __post_init__(self) -> None:
-        interp = PchipInterpolator(self.q_d, self.v_oc, extrapolate=True)
+        interp = MonotoneCubic(self.q_d, self.v_oc)
         object.__setattr__(self, "_v_of_q", interp)
-        object.__setattr__(self, "_dv_dq", interp.derivative(1))
-        object.__setattr__(self, "_d2v_dq2", interp.derivative(2))
+        object.__setattr__(self, "_dv_dq", lambda q: interp(q, 1))
+        object.__setattr__(self, "_d2v_dq2", lambda q: interp(q, 2))
 
     # --- range checks --------------------------------------------------------------------------------
     @property
@@ -131,9 +188,9 @@ class BatterySpec:
     def stored_energy(self, q_d: float | np.ndarray) -> np.ndarray:
         """Chemical energy (J) the cell can still deliver down to the cut-off: ``integral of v_oc dq`` from
         ``q_d`` to ``capacity``."""
-        antider = self._v_of_q.antiderivative()  # type: ignore[attr-defined]
         q = np.clip(np.asarray(q_d, dtype=float), 0.0, self.capacity)
-        return np.asarray(antider(self.capacity) - antider(q))
+        integ = self._v_of_q.integral  # type: ignore[attr-defined]
+        return np.vectorize(lambda qq: integ(float(qq), self.capacity))(q)
 
     def state_of_charge(self, q_d: float | np.ndarray) -> np.ndarray:
         """1 when full, 0 at the cut-off (may leave [0, 1] when a model overshoots the table)."""

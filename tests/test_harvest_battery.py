@@ -150,3 +150,19 @@ def test_ratings_that_disagree_with_the_table_are_refused(tmp_path):
         load_battery("X", toml)
     toml.write_text(toml.read_text().replace('{ value = 216.0, unit = "mAh" }', '{ value = 216.0, unit = "C" }'))
     assert load_battery("X", toml).capacity == pytest.approx(216.0)
+
+
+def test_monotone_cubic_equals_scipy_pchip(spec):
+    """board_config keeps its own PCHIP (no scipy import on load); it must be scipy's, value, slope and integral."""
+    from scipy.interpolate import PchipInterpolator
+
+    from board_config.battery import MonotoneCubic
+
+    rng = np.random.default_rng(7)
+    for x, y in ((spec.q_d, spec.v_oc), (np.cumsum(rng.uniform(0.1, 2.0, 12)), rng.normal(size=12))):
+        mine, ref = MonotoneCubic(x, y), PchipInterpolator(x, y)
+        xq = np.linspace(x[0], x[-1], 3001)
+        for order in (0, 1, 2):
+            assert np.allclose(mine(xq[1:-1], order), ref.derivative(order)(xq[1:-1]) if order else ref(xq[1:-1]),
+                               rtol=1e-10, atol=1e-10)
+        assert mine.integral(x[1], x[-2]) == pytest.approx(ref.integrate(x[1], x[-2]), rel=1e-12)
