@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import select
 import socket
 import threading
@@ -184,6 +185,8 @@ class FrameServer:
         self._down_until: float | None = None
         self._disconnect_done = False
         self._force_down: float | None = None
+        self._down = threading.Event()  # set while the port is closed by the server
+        self._up = threading.Event()  # set once the port is (re)opened
 
     # ------------------------------------------------------------------------------------------ endpoints
     @property
@@ -219,17 +222,32 @@ class FrameServer:
         self._channel.close()
 
     def disconnect(self, seconds: float) -> None:
-        """Make the port vanish now for ``seconds`` (wall clock), then come back."""
+        """Make the port vanish now for ``seconds`` (wall clock), then come back (does not wait)."""
         self._force_down = float(seconds)
+
+    def go_down(self, timeout: float = 2.0) -> None:
+        """Make the port vanish now and stay away until :meth:`come_back` (returns once it is closed)."""
+        self._up.clear()
+        self._force_down = math.inf
+        if not self._down.wait(timeout):
+            raise TimeoutError(f"{self.describe()}: the server thread did not close the port")
+
+    def come_back(self, timeout: float = 2.0) -> None:
+        """Reopen the port after :meth:`go_down` (returns once it is open again, under the same name)."""
+        self._down_until = 0.0
+        if not self._up.wait(timeout):
+            raise TimeoutError(f"{self.describe()}: the server thread did not reopen the port")
 
     # ------------------------------------------------------------------------------------------ loop
     def _go_down(self, seconds: float, why: str) -> None:
         self.stats["disconnects"] += 1
-        log.warning("%s: %s; port closed for %.2f s", self.describe(), why, seconds)
-        self.host.incident(f"{self.describe()}: {why}; closed for {seconds:.2f} s")
+        how_long = "until told to come back" if math.isinf(seconds) else f"for {seconds:.2f} s"
+        log.warning("%s: %s; port closed %s", self.describe(), why, how_long)
+        self.host.incident(f"{self.describe()}: {why}; port closed {how_long}")
         self._channel.close()
         self._decoder.reset()
         self._down_until = time.monotonic() + seconds
+        self._down.set()
 
     def _run(self) -> None:
         lf = self.faulter.faults
@@ -248,6 +266,8 @@ class FrameServer:
                 try:
                     self._channel.open()
                     self._down_until = None
+                    self._down.clear()
+                    self._up.set()
                     self.stats["reopened"] += 1
                     log.warning("%s: port back", self.describe())
                 except (OSError, serial.SerialException) as exc:

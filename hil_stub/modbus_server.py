@@ -324,6 +324,16 @@ class ModbusRigServer:
         self.stats["restarts"] += 1
         self.loop.run(self._start())
 
+    def go_down(self) -> None:
+        """Shut the server down now (connections dropped, port/device closed) until :meth:`come_back`."""
+        self.stats["disconnects"] += 1
+        self.host.incident(f"{self.describe()}: server taken down")
+        self.loop.run(self._stop_server())
+
+    def come_back(self) -> None:
+        """Start the server again after :meth:`go_down` (same port / path); returns once it listens."""
+        self.loop.run(self._start())
+
     def disconnect(self, seconds: float) -> None:
         """Take the server down now for ``seconds`` (wall clock), then bring it back (does not wait)."""
         self.loop.submit(self._outage(seconds, "disconnect requested"))
