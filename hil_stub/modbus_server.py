@@ -10,8 +10,10 @@ every valid request and never blocks it:
   refused write changes nothing; an accepted write of the command block is posted to the host (in lockstep
   mode the plant step runs in a worker thread, awaited, so the loop stays free).
 
-Behaviour the spec wants and pymodbus does not do by itself, added here: a request for another unit id is
-ignored (silence, on RTU and TCP; TCP also answers unit 255 "not significant"); while the rig schedules a
+Behaviour the spec wants and pymodbus does not do by itself, added here: an unknown function code is answered
+with exception 01 and a bad quantity / byte count with 03, echoing the function code (pymodbus answers both with
+01 on function 0x80); a request for another unit id is ignored (silence, on RTU and TCP; TCP also answers unit 255
+"not significant"); while the rig schedules a
 link outage, or a wire fault drops the reply, nothing is sent. Wire faults act on the reply bytes
 (``trace_packet``): a corrupted RTU reply fails its CRC; on TCP, which has no checksum of its own, the
 corruption is put in the MBAP transaction id, so the master rejects the reply instead of using wrong data.
@@ -22,6 +24,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import logging
+import struct
 import threading
 from collections import Counter
 from concurrent.futures import Future
@@ -29,7 +32,9 @@ from typing import Any
 
 from pymodbus.constants import ExcCodes
 from pymodbus.framer import FramerType
+from pymodbus.framer.rtu import FramerRTU
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
+from pymodbus.server.requesthandler import ServerRequestHandler
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from drivers.modbus_registers import (
@@ -92,6 +97,66 @@ class LoopThread:
 
 def _bits(*values: bool) -> int:
     return sum(1 << i for i, v in enumerate(values) if v)
+
+
+#: function codes pymodbus decodes itself (its own checks and answers apply); anything else is ILLEGAL FUNCTION
+_PYMODBUS_FUNCTIONS = frozenset({1, 2, 3, 4, 5, 6, 7, 8, 11, 12, 15, 16, 17, 20, 21, 22, 23, 24, 43})
+
+
+def check_request_pdu(pdu: bytes) -> int | None:
+    """The Modbus exception a request PDU (function code + data) deserves before it reaches the datastore, or None.
+
+    pymodbus 3.16 answers an unknown function code and a bad quantity alike with exception 01 on function 0x80;
+    the spec wants 01 (ILLEGAL FUNCTION) echoing the function code, and 03 (ILLEGAL DATA VALUE) for a quantity or
+    byte count out of range. Pure.
+    """
+    if not pdu:
+        return None
+    fc = pdu[0]
+    if fc not in _PYMODBUS_FUNCTIONS:
+        return 0x01
+    if fc in (1, 2, 3, 4, 5, 6):
+        if len(pdu) != 5:
+            return 0x03
+        (_addr, value) = struct.unpack(">HH", pdu[1:5])
+        if fc in (1, 2) and not 1 <= value <= 2000:
+            return 0x03
+        if fc in (3, 4) and not 1 <= value <= 125:
+            return 0x03
+        if fc == 5 and value not in (0x0000, 0xFF00):
+            return 0x03
+        return None
+    if fc in (15, 16):
+        if len(pdu) < 6:
+            return 0x03
+        (_addr, qty, nbytes) = struct.unpack(">HHB", pdu[1:6])
+        want = (qty + 7) // 8 if fc == 15 else 2 * qty
+        limit = 1968 if fc == 15 else 123
+        if not 1 <= qty <= limit or nbytes != want or len(pdu) != 6 + nbytes:
+            return 0x03
+    return None
+
+
+class _CheckingHandler(ServerRequestHandler):
+    """pymodbus' per-connection request handler, with :func:`check_request_pdu` in front (TCP MBAP or RTU)."""
+
+    def callback_data(self, data: bytes, addr: tuple | None = None) -> int:
+        rig: ModbusRigServer | None = getattr(self.server, "rig", None)
+        if rig is not None:
+            used = rig.precheck(self, data)
+            if used:
+                return used
+        return super().callback_data(data, addr)
+
+
+class _TcpServer(ModbusTcpServer):
+    def callback_new_connection(self):
+        return _CheckingHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
+
+
+class _SerialServer(ModbusSerialServer):
+    def callback_new_connection(self):
+        return _CheckingHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
 
 
 class ModbusRigServer:
@@ -257,20 +322,53 @@ class ModbusRigServer:
         self.stats["replies"] += 1
         return data
 
+    def precheck(self, handler: ServerRequestHandler, data: bytes) -> int:
+        """Answer a malformed request (see :func:`check_request_pdu`) before pymodbus does; return the bytes used
+        (0: not handled here). Requests for other unit ids are left to the unit filter (silence)."""
+        if self.kind == "tcp":
+            if len(data) < 8:
+                return 0
+            tid, pid, length, unit = struct.unpack(">HHHB", data[:7])
+            end = 6 + length
+            if pid != 0 or length < 2 or len(data) < end:
+                return 0
+            code = check_request_pdu(data[7:end])
+            if code is None:
+                return 0
+            if unit == self.unit or unit == 255:
+                handler.send(struct.pack(">HHHBBB", tid, 0, 3, unit, (data[7] | 0x80) & 0xFF, code))
+        else:
+            if len(data) < 4 or FramerRTU.compute_CRC(data[:-2]) != int.from_bytes(data[-2:], "big"):
+                return 0  # not one complete frame with a good CRC: pymodbus hunts / waits as usual
+            end = len(data)
+            unit = data[0]
+            code = check_request_pdu(data[1:-2])
+            if code is None:
+                return 0
+            if unit == self.unit:
+                frame = bytes([unit, (data[1] | 0x80) & 0xFF, code])
+                handler.send(frame + FramerRTU.compute_CRC(frame).to_bytes(2, "big"))
+        self.stats[f"exception_{code:02d}"] += 1
+        self.host.incident(f"{self.describe()}: malformed request (function {data[7 if self.kind == 'tcp' else 1]}) "
+                           f"answered with exception {code:02d}")
+        return end
+
     # ------------------------------------------------------------------------------------------ lifecycle
     async def _start(self) -> None:
         device = self._device()
         if self.kind == "tcp":
-            self._server = ModbusTcpServer(device, address=(self._tcp_host, self.port), trace_pdu=self._trace_pdu,
-                                           trace_packet=self._trace_packet)
+            self._server = _TcpServer(device, address=(self._tcp_host, self.port), trace_pdu=self._trace_pdu,
+                                      trace_packet=self._trace_packet)
+            self._server.rig = self  # type: ignore[attr-defined]
             await self._server.serve_forever(background=True)
             sock = self._server.transport.sockets[0]  # type: ignore[union-attr]
             self.port = sock.getsockname()[1]  # keep the same port across restarts
         else:
             path = self._pair.path_a if self._pair is not None else self.serial_path
-            self._server = ModbusSerialServer(device, framer=FramerType.RTU, port=path, baudrate=self.baudrate,
-                                              parity=self.parity, trace_pdu=self._trace_pdu,
-                                              trace_packet=self._trace_packet, reconnect_delay=0.2)
+            self._server = _SerialServer(device, framer=FramerType.RTU, port=path, baudrate=self.baudrate,
+                                         parity=self.parity, trace_pdu=self._trace_pdu,
+                                         trace_packet=self._trace_packet, reconnect_delay=0.2)
+            self._server.rig = self  # type: ignore[attr-defined]
             await self._server.serve_forever(background=True)
         if self._watch_task is None:
             self._watch_task = asyncio.get_running_loop().create_task(self._watch())

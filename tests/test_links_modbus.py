@@ -252,3 +252,49 @@ def test_injected_disconnect_at_a_rig_time_then_back():
             link.close()
     assert False in outcomes and outcomes[-1] is True and outcomes.index(False) >= 9
     assert srv.stats["disconnects"] == 1
+
+
+def _mbap(tid: int, unit: int, pdu: bytes) -> bytes:
+    import struct
+
+    return struct.pack(">HHHB", tid, 0, len(pdu) + 1, unit) + pdu
+
+
+@pytest.mark.parametrize(("pdu", "reply"), [
+    (bytes([0x04, 0, 0, 0, 200]), bytes([0x84, 0x03])),  # quantity above 125
+    (bytes([0x03, 0, 0, 0, 0]), bytes([0x83, 0x03])),  # quantity 0
+    (bytes([0x10, 0, 0, 0, 2, 3, 1, 2, 3]), bytes([0x90, 0x03])),  # byte count does not match the quantity
+    (bytes([0x41, 0, 0]), bytes([0xC1, 0x01])),  # unknown function code
+])
+def test_malformed_requests_get_the_matching_exception_over_tcp(tcp_lockstep, pdu, reply):
+    import socket
+
+    _, srv, rig = tcp_lockstep
+    with socket.create_connection(("127.0.0.1", srv.port), timeout=1.0) as s:
+        s.sendall(_mbap(7, 1, pdu))
+        assert s.recv(64) == _mbap(7, 1, reply)[:6] + bytes([1]) + reply
+        s.sendall(_mbap(8, 1, bytes([0x04, 0, 0, 0, 2])))  # the connection still serves good requests
+        assert s.recv(64)[7:9] == bytes([0x04, 4])
+    assert rig.applied == []
+
+
+def test_malformed_requests_get_the_matching_exception_over_rtu():
+    import serial as pyserial
+    from pymodbus.framer.rtu import FramerRTU
+
+    def frame(b: bytes) -> bytes:
+        return b + FramerRTU.compute_CRC(b).to_bytes(2, "big")
+
+    with HilService(FakeRig(), mode="lockstep") as hil:
+        srv = hil.add_modbus_rtu("pty")
+        port = pyserial.serial_for_url(srv.board_path, baudrate=115200, timeout=0.5)
+        try:
+            for req, want in [(bytes([1, 0x04, 0, 0, 0, 200]), bytes([1, 0x84, 0x03])),
+                              (bytes([1, 0x41, 0, 0]), bytes([1, 0xC1, 0x01]))]:
+                port.reset_input_buffer()
+                port.write(frame(req))
+                assert port.read(5) == frame(want)
+            port.write(frame(bytes([9, 0x41, 0, 0])))  # another unit: silence
+            assert port.read(5) == b""
+        finally:
+            port.close()
