@@ -94,6 +94,18 @@ def _timed(fn, timers, key):
     return wrapper
 
 
+def _python_calibration() -> float:
+    """Seconds for a fixed pure-Python loop (best of 3): how busy the shared machine was during the run."""
+    best = float("inf")
+    for _ in range(3):
+        t0 = time.perf_counter()
+        x = 0
+        for i in range(300_000):
+            x += i * i % 7
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
 def run(out_dir: Path, quick: bool) -> dict:
     from board_config.scenario import load_scenario
     from hil_stub.rig import SimulatedRig
@@ -102,11 +114,13 @@ def run(out_dir: Path, quick: bool) -> dict:
     out_dir.mkdir(parents=True, exist_ok=True)
     scenario = load_scenario("default")
     duration = 240.0 if quick else scenario.duration
-    SimulatedRig(scenario)._model("amplifier").model.kernels()  # compile/load every kernel before timing
+    SimulatedRig(scenario)  # compile/load every kernel before timing
+    calib_before = _python_calibration()
     board = _run(scenario, duration, out_dir, "board", {}, instrument=False)
     baseline = _run(scenario, duration, out_dir, "baseline",
                     {"lookahead_ticks": 1, "flight_rtol": 1e-6, "reduce_idle_bridge": False}, instrument=False)
     breakdown = _run(scenario, duration, out_dir, "instrumented", {}, instrument=True)["breakdown_us_per_tick"]
+    calib_after = _python_calibration()
     same = board["regime_changes"] == baseline["regime_changes"] and board["mbit_verdicts"] == baseline[
         "mbit_verdicts"]
     rt = board["realtime_factor_wall"]
@@ -119,6 +133,9 @@ def run(out_dir: Path, quick: bool) -> dict:
         "speedup_vs_tick_by_tick_baseline": baseline["wall_s"] / board["wall_s"],
         "same_regime_changes_and_verdicts_as_baseline": same,
         "us_per_tick": board["us_per_tick_wall"], "breakdown_us_per_tick": breakdown,
+        "python_calibration_s": {"before": calib_before, "after": calib_after,
+                                 "meaning": "best of 3 of a fixed 300k-iteration Python loop: grows when other jobs "
+                                            "share the CPU; compare bench runs by it"},
         "board": {k: v for k, v in board.items() if k not in ("regime_changes",)},
         "baseline": {k: v for k, v in baseline.items() if k not in ("regime_changes",)},
         "note": ("Wall-clock factors depend on other jobs on the machine; the CPU-time factor is the process's own "

@@ -10,7 +10,8 @@ Per tick ``k`` (board time ``k / rate``), given the rig sample the link returned
 3. **Regimes** (``regimes.step``): the transition table decides the regime.
 4. **Regime work**: entering SENSING opens a usage episode (``usage.UsageEpisode``), fed every SENSING tick and
    summarised on exit or every ``[sensing] max_episode``; MAINTENANCE runs the MBIT sequence
-   (``maintenance.MaintenanceSequencer``: condition monitor + nominal model in lock-step); leaving either closes it.
+   (``maintenance.MaintenanceSequencer``: condition monitor + nominal model over the planned sequence); leaving
+   either closes it.
 5. **Output guard**: a non-zero demand only in MAINTENANCE; every channel voltage checked against Table 1
    (``board_config.load_mfc_limits()``) — never leaves the range whatever the sequencer, config or link say; a
    demand that had to be clamped is an incident and a limit violation (→ SAFE next tick).
@@ -99,6 +100,7 @@ class Board:
         self.budget = PowerBudget.from_config(cfg)
         self.period = cfg.tick_period
         model = nominal_model if nominal_model is not None else PlantModel(nominal, terminal="amplifier")
+        model.kernels()  # compiled (or loaded from the cache) now, not at the first maintenance visit
         self.maintenance = MaintenanceSequencer(
             cfg.maintenance_sequence, mbits if mbits is not None else load_mbit_definitions(), self.limits, monitor,
             model, cfg.ticks(cfg.maintenance_settle), self.period)

@@ -5,8 +5,9 @@ Sequence (``[maintenance] sequence`` of ``board.toml``, default MBIT.a then MBIT
 clamped to Table 1, a clamp is logged as an incident), a settle, the next MBIT, ..., then the maintenance verdict.
 
 Model-based monitoring (seed paper Sec. 4): the board carries the *nominal* plant (parameter set of the board, the
-amplifier terminal, no deviations) and steps it in lock-step with the rig through the whole visit — same commands,
-same linear slew between consecutive commands as the rig's amplifier — so the prediction ``z3_md`` has the same
+amplifier terminal, no deviations). A visit's command sequence is fixed, so at its start the board integrates the
+nominal model once over the whole plan — same commands, same linear slew between consecutive commands as the rig's
+amplifier, delayed as the link delivers them — which is the trajectory lock-step stepping would give, with the same
 history (hysteresis included) as the hardware. Each sample returned during an MBIT (the response to command ``j``)
 goes to the condition monitor (``firmware_sim.condition_monitor``, Eq. 11 + fault counter) with ``z3_md``. The
 monitor is reset before each MBIT; the verdict of an MBIT is FAULT if the counter latched, else PASS; the visit's

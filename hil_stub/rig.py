@@ -196,13 +196,14 @@ class SimulatedRig:
         self._seg_until = -math.inf  # the cached environment segment holds until this time (s)
         self._seg: tuple[bool, str | None, bool, float, float] = (False, None, False, 0.0, -math.inf)
 
-        # truth plant, one composition per terminal (the amplifier one is built on first use)
+        # truth plant, one composition per terminal
         self._models: dict[str, _TruthModel] = {}
         self._parked: dict[int, np.ndarray] = {}
         self._args = (self.params, self.effects, self.effect_params, self.deviations, where)
         self._rtol = {"amplifier": float(rtol)}
         self._flight_rtol = float(flight_rtol)
         self._flight = self._model(flight_terminal)
+        self._amp = self._model("amplifier")  # built (compiled or loaded) now, not at the first HV connection
         # exact reduction while the bridge cannot conduct: the harvesting terminal then *is* the open circuit
         self._idle: _TruthModel | None = None
         f = self._flight
@@ -315,7 +316,7 @@ class SimulatedRig:
             self._v = (0.0, 0.0)
         seg = self._segment()
         hv = self._hv_override if self._hv_override is not None else seg[0]
-        want = self._model("amplifier") if hv else self._flight
+        want = self._amp if hv else self._flight
         aligned = abs(dt - self.tick) <= 1e-9 * self.tick and not self._offgrid
         if want is not self._active and not (aligned and want is self._flight and self._active is self._idle):
             self._switch(want)

@@ -85,7 +85,7 @@ def format_event(ev: Any, incidents: int = 0) -> str | None:
     if ev.kind == "mbit_start":
         return f"{t}  {d['label']} started"
     if ev.kind == "mbit_result":
-        ft = f", fault latched at {d['fault_time_s']:.2f} s" if d.get("fault_time_s") is not None else ""
+        ft = f", fault latched at t = {d['fault_time_s']:.2f} s" if d.get("fault_time_s") is not None else ""
         return (f"{t}  {d['label']} {d['verdict']}: fault counter max {d['max_count']}, max eps {d['max_eps']:.3f}, "
                 f"{d['n_exceed']}/{d['n_samples']} samples above eps_th{ft}")
     if ev.kind == "maintenance_verdict":

@@ -167,7 +167,7 @@ runs = st.lists(st.tuples(percept | st.just(TickInputs()), st.integers(1, 80) | 
                 min_size=1, max_size=25)
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=100, deadline=None)
 @given(runs)
 def test_random_sequences_obey_the_table(seq):
     state = RegimeState()
@@ -199,7 +199,7 @@ def test_random_sequences_obey_the_table(seq):
             tick += 1
 
 
-@settings(max_examples=50, deadline=None)
+@settings(max_examples=30, deadline=None)
 @given(runs)
 def test_replay_is_deterministic(seq):
     flat = [inp for inp, reps in seq for _ in range(reps)]
@@ -208,7 +208,7 @@ def test_replay_is_deterministic(seq):
     assert a[0] == b[0] and a[1] == b[1] and a[2] == b[2]
 
 
-@settings(max_examples=100, deadline=None)
+@settings(max_examples=60, deadline=None)
 @given(runs)
 def test_standby_shortcut_equals_the_full_evaluation(seq):
     from firmware_sim.regimes import step_full
