@@ -194,6 +194,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
         "executor": outcome.executor,
         "wall_s": outcome.wall_s,
         "task_time_s": outcome.compute_s,
+        "task_cpu_s": outcome.cpu_s,
         "batches": {"total": outcome.n_batches, "reused": outcome.n_reused, "computed": outcome.n_computed},
         "files": files,
     }

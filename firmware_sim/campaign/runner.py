@@ -55,7 +55,8 @@ class CampaignOutcome:
     wall_s: float = 0.0
     executor: str = ""
     clamp: dict[str, Any] = field(default_factory=dict)
-    compute_s: float = 0.0  # summed task time over all workers (s)
+    compute_s: float = 0.0  # summed task wall time over all workers (s)
+    cpu_s: float = 0.0  # summed task CPU time over all workers (s): what the work costs, whatever the load
 
     @property
     def complete(self) -> bool:
@@ -158,12 +159,14 @@ def run_campaign(
     failures: list[BatchFailure] = []
     computed: dict[str, dict] = {}
     compute_s = 0.0
+    cpu_s = 0.0
 
     def accept(batch: BatchSpec, res: BatchResult) -> None:
-        nonlocal compute_s
+        nonlocal compute_s, cpu_s
         store.save(res)
         computed[batch.key] = res.arrays
         compute_s += res.elapsed_s
+        cpu_s += res.cpu_s
         if progress is not None:
             progress(batch.n)
 
@@ -215,4 +218,5 @@ def run_campaign(
     failures.sort(key=lambda f: f.key)
     return CampaignOutcome(spec=spec, out_dir=out_dir, result=result, n_batches=len(batches),
                            n_reused=len(stored), n_computed=len(computed), failures=failures, notes=notes,
-                           wall_s=time.perf_counter() - t_start, executor=desc, clamp=clamp, compute_s=compute_s)
+                           wall_s=time.perf_counter() - t_start, executor=desc, clamp=clamp, compute_s=compute_s,
+                           cpu_s=cpu_s)

@@ -41,8 +41,9 @@ class BatchResult:
 
     key: str
     arrays: dict[str, np.ndarray]
-    elapsed_s: float
+    elapsed_s: float  # wall time of the task (s)
     worker: str
+    cpu_s: float = 0.0  # CPU time of the task's process (s; all its threads)
 
 
 def model_from_toml(text: str) -> PlantModel:
@@ -96,6 +97,7 @@ def run_batch(batch: BatchSpec, threads: int | None = 1) -> BatchResult:
     ``<m>fault_time_s`` (n, NaN if none), ``<m>max_count`` (n), ``<m>max_eps`` (n), ``<m>status`` (n; 0 = ok).
     """
     t0 = time.perf_counter()
+    c0 = time.process_time()
     spec = batch.campaign
     model = model_from_toml(spec.params_toml)
     runs = np.arange(batch.run_start, batch.run_stop, dtype=np.int64)
@@ -123,4 +125,5 @@ def run_batch(batch: BatchSpec, threads: int | None = 1) -> BatchResult:
             p + "max_eps": np.max(np.where(np.isfinite(eps), eps, 0.0), axis=1, initial=0.0),
             p + "status": res.status.astype(np.int64),
         })
-    return BatchResult(batch.key, arrays, time.perf_counter() - t0, f"{socket.gethostname()}:{os.getpid()}")
+    return BatchResult(batch.key, arrays, time.perf_counter() - t0, f"{socket.gethostname()}:{os.getpid()}",
+                       time.process_time() - c0)
