@@ -406,13 +406,18 @@ class ModbusRigServer:
         log.warning("%s: back up", self.describe())
 
     def start(self) -> None:
+        """Start serving; ``OSError`` naming the endpoint if the port cannot be bound / the device opened."""
         if self._pair is not None and not self._pair.a.is_open:
             _, self.board_path = self._pair.open()
-        self.loop.run(self._start())
+        try:
+            self.loop.run(self._start())
+        except (RuntimeError, OSError) as exc:  # pymodbus: "Could not start listen, please check address."
+            raise OSError(f"{self.describe()}: cannot serve ({exc})") from exc
 
     def stop(self) -> None:
-        with contextlib.suppress(Exception):
-            self.loop.run(self._stop())
+        if not self.loop.loop.is_closed():
+            with contextlib.suppress(Exception):
+                self.loop.run(self._stop())
         if self._pair is not None:
             self._pair.close()
 

@@ -275,3 +275,18 @@ def test_shm_hil_serve_rejects_bad_input():
     assert main(["hil", "serve"]) == 2
     assert main(["hil", "serve", "--modbus-tcp", "127.0.0.1:0", "--drop", "1.5", "--duration", "1"]) == 2
     assert main(["hil", "serve", "--serial", "pty", "--stuck", "temperature@1", "--duration", "1"]) == 2
+
+
+def test_shm_hil_serve_names_an_endpoint_it_cannot_open(tmp_path, capsys):
+    import socket
+
+    from shm_cli.main import main
+
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        assert main(["hil", "serve", "--modbus-tcp", f"127.0.0.1:{port}", "--duration", "1"]) == 2
+    assert main(["hil", "serve", "--serial", str(tmp_path / "no-such-tty"), "--duration", "1"]) == 2
+    err = capsys.readouterr().err
+    assert f"Modbus TCP on 127.0.0.1:{port}" in err and "no-such-tty" in err
