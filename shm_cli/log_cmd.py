@@ -1,6 +1,6 @@
 """``shm log show|export``: read the board's SQLite usage/event log.
 
-    shm log show   --db FILE [--run N] [--table NAME] [--limit N]
+    shm log show   --db FILE [--run N] [--table NAME] [--limit N] [--telemetry]
     shm log export --db FILE [--run N] [--table NAME] [--csv] [--out PATH]
 
 ``show`` prints the runs, then every record of the run (default: the last) in time order as a readable timeline.
@@ -27,6 +27,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     ps = lsub.add_parser("show", help="print the runs and a run's records as a timeline")
     _common(ps)
     ps.add_argument("--limit", type=int, default=0, help="print at most this many records (0 = all)")
+    ps.add_argument("--telemetry", action="store_true",
+                    help="include the periodic telemetry records (hidden by default: they are housekeeping)")
     ps.set_defaults(func=cmd_show)
     pe = lsub.add_parser("export", help="export tables as JSON (default) or CSV")
     _common(pe)
@@ -81,12 +83,18 @@ def cmd_show(args: argparse.Namespace) -> int:
             if args.limit and n >= args.limit:
                 break
         return 0
+    hidden = 0
     for t, table, d in iter_records(db, run):
+        if table == "telemetry" and not args.telemetry:
+            hidden += 1
+            continue
         shown = {k: d[k] for k in TABLE_COLUMNS[table] if d.get(k) is not None and not k.endswith("_json")}
         print(f"  {t:10.2f} s  {table:<20} " + ", ".join(f"{k}={_cell(v)}" for k, v in shown.items()))
         n += 1
         if args.limit and n >= args.limit:
             break
+    if hidden:
+        print(f"  ({hidden} telemetry records not shown; --telemetry shows them, --table telemetry lists them)")
     return 0
 
 
