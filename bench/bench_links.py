@@ -9,8 +9,9 @@ deadline, p50 / p99 / max) and deadline misses (a tick ending after the next dea
 
 Baseline, measured in the same run: the in-process link (``drivers.sim_link.InProcessLink``) to the same kind of
 rig, unpaced — what an exchange costs with no transport at all; each link's median round trip is quoted as a
-ratio to it. The machine's load average is recorded with the result: on a shared machine other processes' CPU
-use shows up directly in the p99 figures and deadline misses.
+ratio to it. Control, also in the same run: the same paced 100 Hz loop on the in-process link — the deadline misses
+and jitter the machine causes with no link at all. The machine's load average is recorded with the result: on a
+shared machine other processes' CPU use shows up directly in the p99 figures and deadline misses.
 """
 
 from __future__ import annotations
@@ -61,11 +62,12 @@ def _start_stub(summary: Path) -> tuple[subprocess.Popen, dict[str, str]]:
     return proc, urls
 
 
-def _paced_run(url: str, seconds: float) -> dict:
+def _paced_run(url: str, seconds: float, link=None) -> dict:
     from firmware_sim.scheduler import Scheduler, WallClock
 
-    timeout = "timeout=0.009"  # a reply later than most of a tick is a failure anyway
-    link = open_link(url + ("&" if "?" in url else "?") + timeout)
+    if link is None:
+        timeout = "timeout=0.009"  # a reply later than most of a tick is a failure anyway
+        link = open_link(url + ("&" if "?" in url else "?") + timeout)
     link.open()
     n = round(seconds / TICK_S)
     rtt = np.full(n, np.nan)
@@ -123,6 +125,12 @@ def run(out_dir: Path, quick: bool) -> dict:
     seconds = 5.0 if quick else 60.0
     seconds_rtu = 3.0 if quick else 20.0
     baseline = _in_process_baseline(300 if quick else 2000)
+    # control: the same paced loop on the in-process link (no transport, no second process): the deadline misses
+    # and jitter the machine itself causes
+    from drivers.sim_link import InProcessLink
+    from hil_stub.truth import build_truth_rig
+
+    control = _paced_run("sim (in-process, paced)", seconds, InProcessLink(build_truth_rig(None, hv_present=True)))
     summary_path = Path(tempfile.mkstemp(prefix="shm-hil-bench-", suffix=".json")[1])
     proc, urls = _start_stub(summary_path)
     try:
@@ -150,10 +158,11 @@ def run(out_dir: Path, quick: bool) -> dict:
     result = {
         "quick": quick, "seconds_per_link": seconds, "cpus": os.cpu_count(),
         "load_average_1min_before_after": [load_before[0], os.getloadavg()[0]],
-        "in_process_baseline": baseline, "links": links,
+        "in_process_baseline": baseline, "in_process_paced_control": control, "links": links,
         "stub_pacing": stub.get("pacing"), "stub_commands": stub.get("commands"), "targets": targets,
         "targets_met": all(all(t.values()) for t in targets.values()),
     }
+    result["control_deadline_misses"] = control["deadline_misses"]
     for name, res in links.items():  # flat keys for the bench runner's printout
         result[f"{name}_rtt_p99_ms"] = res["rtt_p99_ms"]
         result[f"{name}_deadline_misses"] = res["deadline_misses"]
