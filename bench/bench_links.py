@@ -16,6 +16,7 @@ shared machine other processes' CPU use shows up directly in the p99 figures and
 
 from __future__ import annotations
 
+import gc
 import json
 import math
 import os
@@ -130,7 +131,10 @@ def run(out_dir: Path, quick: bool) -> dict:
     from drivers.sim_link import InProcessLink
     from hil_stub.truth import build_truth_rig
 
-    control = _paced_run("sim (in-process, paced)", seconds, InProcessLink(build_truth_rig(None, hv_present=True)))
+    control_link = InProcessLink(build_truth_rig(None, hv_present=True))
+    gc.collect()
+    gc.freeze()  # as the stub does: no full collection of the long-lived heap (~0.1 s pause) during paced runs
+    control = _paced_run("sim (in-process, paced)", seconds, control_link)
     summary_path = Path(tempfile.mkstemp(prefix="shm-hil-bench-", suffix=".json")[1])
     proc, urls = _start_stub(summary_path)
     try:

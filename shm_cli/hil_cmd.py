@@ -13,6 +13,7 @@ purpose (all seeded by ``--seed``). Stop with Ctrl-C (or ``--duration``); a summ
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import logging
 import signal
@@ -118,7 +119,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
     seed = args.seed if args.seed is not None else (scenario.seed if scenario else 0)
     plan = fault_plan(args, seed)
     hv = {"scenario": None, "present": True, "absent": False}[args.hv]
-    rig = build_truth_rig(scenario, seed=seed, params=args.params, truth=plan.truth, hv_present=hv)
+    # real time: integrate tick by tick (an idle rig would otherwise integrate 50 ticks in one go, a ~0.1 s step)
+    rig = build_truth_rig(scenario, seed=seed, params=args.params, truth=plan.truth, hv_present=hv,
+                          lookahead_ticks=1 if args.clock == "realtime" else None)
     service = HilService(rig, mode=args.clock, plan=plan, start=args.start)
     for where in args.serial:
         service.add_serial(where, baudrate=args.baud)
@@ -138,6 +141,10 @@ def cmd_serve(args: argparse.Namespace) -> int:
             service.start()
         except OSError as exc:
             raise CliError(f"cannot open an endpoint: {exc}") from exc
+        # everything loaded so far (numba, numpy, pymodbus ...) is long-lived: keep it out of the garbage collector's
+        # full collections, which would otherwise stall every thread for ~0.1 s now and then
+        gc.collect()
+        gc.freeze()
         desc = rig.describe()
         print(f"shm hil: rig {desc['params']}"
               + (f", scenario {desc['scenario']}" if desc["scenario"] else ", no scenario (bench rig)")
