@@ -2,14 +2,15 @@
 
 URLs (registered in :mod:`drivers.hardware_links`)::
 
-    modbus-tcp://HOST:PORT?unit=1&timeout=0.004
-    modbus-rtu:/dev/ttyUSB0?baud=115200&parity=N&unit=1&timeout=0.02
+    modbus-tcp://HOST:PORT?unit=1&timeout=0.008
+    modbus-rtu:/dev/ttyUSB0?baud=115200&parity=N&unit=1&timeout=0.03
 
 Options (URL query):
 
     unit      Modbus unit (slave) id, 1..247 (default 1)
-    timeout   per-request reply timeout in seconds (default 0.004 for TCP; for RTU 0.004 s plus twice the wire
-              time of the longest frame at the given baud rate, 8.6 ms at 115200 baud)
+    timeout   reply budget of one exchange (both transactions) in seconds: the write may use all of it, the read
+              what the write left (default 0.008 for TCP, which fits a 10 ms tick; for RTU 0.008 s plus twice the
+              exchange's 90 bytes of line time at the given baud rate, 23.6 ms at 115200 8N1)
     baud, parity, stopbits   RTU line settings (default 115200, N, 1)
     reopen    consecutive timeouts after which the connection is closed and reopened (default 25)
 
@@ -30,6 +31,7 @@ from __future__ import annotations
 
 import logging
 import select
+import time
 from collections import Counter
 from urllib.parse import parse_qsl, urlsplit
 
@@ -52,8 +54,9 @@ log = logging.getLogger("drivers.modbus_link")
 MAX_BACKOFF_CALLS = 64
 _KNOWN = {"tcp": {"unit", "timeout", "reopen"},
           "rtu": {"unit", "timeout", "reopen", "baud", "parity", "stopbits"}}
-# longest RTU frame of an exchange: FC04 reply with 22 registers = 1+1+1+44+2 bytes
-_RTU_LONGEST_FRAME = 49
+# RTU bytes on the line per exchange: FC16 request 1+1+2+2+1+16+2 = 25, its reply 8, FC04 request 8, its reply 49
+_RTU_EXCHANGE_BYTES = 90
+_MIN_READ_S = 5e-4  # the read gets at least this much even if the write used up the budget
 
 
 class _RtuClient(ModbusSerialClient):
@@ -127,11 +130,11 @@ def parse_modbus_url(url: str) -> dict[str, object]:
         if parity not in ("N", "E", "O"):
             raise ValueError(f"link URL '{url}': parity={parity!r}, allowed N, E, O")
         stopbits = int(_num(opts, "stopbits", 1, url, 1, 2))
-        wire = _RTU_LONGEST_FRAME * (1 + 8 + stopbits + (parity != "N")) / baud
+        wire = _RTU_EXCHANGE_BYTES * (1 + 8 + stopbits + (parity != "N")) / baud
         settings.update(baud=baud, parity=parity, stopbits=stopbits,
-                        timeout=_num(opts, "timeout", 0.004 + 2 * wire, url, 1e-4, 60.0))
+                        timeout=_num(opts, "timeout", 0.008 + 2 * wire, url, 1e-4, 60.0))
     else:
-        settings["timeout"] = _num(opts, "timeout", 0.004, url, 1e-4, 60.0)
+        settings["timeout"] = _num(opts, "timeout", 0.008, url, 1e-4, 60.0)
     return settings
 
 
@@ -242,7 +245,14 @@ class ModbusLink:
         self._log.warn("reconnected", "%s: reconnected", self.url)
 
     # ------------------------------------------------------------------------------------------ exchange
-    def _call(self, what: str, fn, *args, **kwargs):
+    def _set_timeout(self, seconds: float) -> None:
+        # pymodbus 3.16 reads the reply timeout from two copies of its settings (client and transaction manager)
+        c = self._client
+        c.comm_params.timeout_connect = seconds
+        c.transaction.comm_params.timeout_connect = seconds
+
+    def _call(self, what: str, fn, *args, budget: float | None = None, **kwargs):
+        self._set_timeout(self.timeout if budget is None else budget)
         try:
             rr = fn(*args, device_id=self.unit, **kwargs)
         except ConnectionException as exc:
@@ -250,10 +260,11 @@ class ModbusLink:
         except ModbusException as exc:  # ModbusIOException: no (valid) reply within the timeout
             self.stats["timeouts"] += 1
             self._timeouts_in_row += 1
-            self._log.warn("timeout", "%s: %s: no valid reply within %.1f ms", self.url, what, 1e3 * self.timeout)
+            limit = 1e3 * (self.timeout if budget is None else budget)
+            self._log.warn("timeout", "%s: %s: no valid reply within %.1f ms", self.url, what, limit)
             if self._timeouts_in_row >= self.reopen_after:
                 raise self._link_down(f"{self._timeouts_in_row} timeouts in a row") from exc
-            raise LinkError(f"{self.url}: {what}: no valid reply within {1e3 * self.timeout:.1f} ms") from exc
+            raise LinkError(f"{self.url}: {what}: no valid reply within {limit:.1f} ms") from exc
         except (OSError, ValueError) as exc:  # serial port vanished under pyserial, etc.
             raise self._link_down(f"{what}: {exc}") from exc
         if rr is None:
@@ -261,8 +272,9 @@ class ModbusLink:
         self._timeouts_in_row = 0
         return rr
 
-    def _read_inputs(self):
-        rr = self._call("read sample (FC04)", self._client.read_input_registers, INPUT_START, count=INPUT_COUNT)
+    def _read_inputs(self, budget: float | None = None):
+        rr = self._call("read sample (FC04)", self._client.read_input_registers, INPUT_START, count=INPUT_COUNT,
+                        budget=budget)
         if rr.isError():
             self.stats["exception_replies"] += 1
             code = getattr(rr, "exception_code", None)
@@ -285,6 +297,7 @@ class ModbusLink:
             self.stats["bad_command"] += 1
             raise LinkError(f"{self.url}: command not sendable: {exc}") from exc
         self.stats["requests"] += 1
+        deadline = time.monotonic() + self.timeout  # one budget for both transactions
         rr = self._call("write command (FC16)", self._client.write_registers, COMMAND_START, words)
         refused = False
         if rr.isError():
@@ -302,7 +315,7 @@ class ModbusLink:
         elif rr.function_code != 0x10:
             self.stats["bad_reply"] += 1
             raise LinkError(f"{self.url}: unexpected reply to the command write (function {rr.function_code})")
-        block = self._read_inputs()
+        block = self._read_inputs(budget=max(deadline - time.monotonic(), _MIN_READ_S))
         self.stats["replies"] += 1
         sample = block.sample
         if refused:

@@ -36,7 +36,8 @@ def test_url_parsing_and_errors():
     assert (s["kind"], s["host"], s["port"], s["unit"], s["timeout"]) == ("tcp", "127.0.0.1", 5020, 3, 0.1)
     s = parse_modbus_url("modbus-rtu:/dev/ttyUSB1?baud=19200&parity=E")
     assert (s["port"], s["baud"], s["parity"]) == ("/dev/ttyUSB1", 19200, "E")
-    assert s["timeout"] == pytest.approx(0.004 + 2 * 49 * 11 / 19200)  # twice the longest reply on the wire, 8E1
+    assert s["timeout"] == pytest.approx(0.008 + 2 * 90 * 11 / 19200)  # twice the exchange's line time, 8E1
+    assert parse_modbus_url("modbus-tcp://h:1")["timeout"] == 0.008  # one exchange fits a 10 ms tick
     assert isinstance(open_link("modbus-tcp://127.0.0.1:1"), ModbusLink)
     assert isinstance(open_link("modbus-rtu:/dev/null"), ModbusLink)
     for bad, msg in [("modbus-tcp://:502", "HOST:PORT"), ("modbus-tcp://h:5?unit=300", "unit=300"),
@@ -298,3 +299,23 @@ def test_malformed_requests_get_the_matching_exception_over_rtu():
             assert port.read(5) == b""
         finally:
             port.close()
+
+
+def test_one_budget_covers_both_transactions():
+    """A slow write leaves the read only what is left of the exchange's budget."""
+    plan = FaultPlan(link=LinkFaults(latency_s=0.03), seed=1)
+    with HilService(FakeRig(), mode="lockstep", plan=plan) as hil:
+        srv = hil.add_modbus_tcp("127.0.0.1:0")
+        ok = ModbusLink(srv.board_url + "&timeout=0.5")
+        ok.open()
+        try:
+            assert ok.exchange(cmd(1)).seq == 1  # 2 x 30 ms within 500 ms
+        finally:
+            ok.close()
+        tight = ModbusLink(srv.board_url + "&timeout=0.045")
+        tight._connect()
+        try:
+            with pytest.raises(LinkError, match="read sample"):  # the write took 30 ms: 15 ms left for the read
+                tight.exchange(cmd(2))
+        finally:
+            tight.close()
