@@ -33,7 +33,7 @@ HOOK_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], typ
 OUT_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], types.float64[::1],
                      types.float64[::1], types.int64, types.int64, types.int64)
 PHASES = ("pre", "rates", "post")
-_GENERATOR_VERSION = "5"
+_GENERATOR_VERSION = "7"
 
 _LOADED: dict[str, ModuleType] = {}
 _LOCK = threading.Lock()
@@ -77,7 +77,6 @@ def generate_source(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int,
         "import importlib",
         "import numba",
         "import numpy as np",
-        "from plant.compose import HOOK_SIG, OUT_SIG",
         f"from plant.integrate import {', '.join(TABLEAU_NAMES)}",
         f"CACHE = {cache}",
         f"N_STATES = {n_states}",
@@ -91,9 +90,8 @@ def generate_source(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int,
                 lines.append(f"_EFF{k} = _EFF{k}.{part}")
         for hook in (*PHASES, "output"):
             if getattr(cls, hook) is not None:
-                sig = "OUT_SIG" if hook == "output" else "HOOK_SIG"
-                lines.append(f"e{k}_{hook} = numba.njit({sig}, cache=CACHE, nogil=True, error_model='numpy')"
-                             f"(_EFF{k}.{hook})")
+                lines.append(f"e{k}_{hook} = numba.njit(cache=CACHE, nogil=True, error_model='numpy', "
+                             f"inline='always')(_EFF{k}.{hook})")
     lines += [
         "",
         "",
