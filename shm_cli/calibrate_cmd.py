@@ -1,0 +1,95 @@
+"""``shm calibrate``: identify a parameter set against the paper's stated numbers (resonances, RC pole, harvesting
+gains), keeping the quasi-static actuation gain of the starting set."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir, pyplot
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser("calibrate", help="fit a parameter set to the paper's stated numbers (paper_claims.toml)",
+                       description=__doc__)
+    add_params_arg(p)
+    p.add_argument("--claims", default=None, metavar="FILE",
+                   help="claims TOML (default: the shipped copy of the paper's stated numbers)")
+    p.add_argument("--free", nargs="+", default=None, metavar="PARAM",
+                   help="core parameters to fit (default: the MEM-identified ones: k1 k2 k3 c1 c2 c3 d_ep)")
+    p.add_argument("--min-damping", type=float, default=0.01,
+                   help="soft floor on every bending mode's damping ratio (default 0.01)")
+    p.add_argument("--no-keep-actuation", action="store_true",
+                   help="do not hold the quasi-static tip gain z3/v_a at the starting set's value")
+    p.add_argument("--name", default="calibrated", help="name written into the saved set")
+    p.add_argument("--save", default=None, metavar="FILE.toml", help="write the calibrated parameter set here")
+    p.add_argument("--json", action="store_true", help="print the result table as JSON")
+    add_out_arg(p)
+    p.set_defaults(func=cmd_calibrate)
+
+
+def cmd_calibrate(args: argparse.Namespace) -> int:
+    from board_config import load_parameter_set
+    from plant import PlantModel
+    from plant.linear import static_tip_gain_closed_form
+    from workbench.calibrate import CLAIMS_FILE, DEFAULT_FREE, calibrate, load_claim_targets
+
+    if not 0.0 <= args.min_damping < 1.0:
+        raise ValueError(f"--min-damping must be in [0, 1), got {args.min_damping}")
+    base = load_parameter_set(args.params)
+    claims = Path(args.claims) if args.claims else CLAIMS_FILE
+    if not claims.exists():
+        raise ValueError(f"--claims file not found: {claims}")
+    keep = None if args.no_keep_actuation else static_tip_gain_closed_form(PlantModel(base))
+    targets = load_claim_targets(claims, static_gain_m_per_v=keep)
+    out = out_dir(args.out)
+
+    def progress(i: int, cost: float) -> None:
+        if not args.json:
+            print(f"\r  evaluation {i:4d}   weighted cost {cost:12.6g}", end="", file=sys.stderr, flush=True)
+
+    res = calibrate(base, targets, free=tuple(args.free) if args.free else DEFAULT_FREE, name=args.name,
+                    min_damping_ratio=args.min_damping, on_iteration=progress)
+    if not args.json:
+        print(file=sys.stderr)
+    rows = res.table()
+    summary = {"parameter_set": base.name, "claims": str(claims), "free": list(res.free), "success": res.success,
+               "message": res.message, "evaluations": len(res.history), "claims_table": rows,
+               "damping_ratios_calibrated": list(res.final.damping_ratios),
+               "parameters": {f: res.params.values[f] for f in res.free},
+               "parameters_start": {f: base.values[f] for f in res.free}}
+    if args.save:
+        Path(args.save).write_text(res.params.to_toml())
+        summary["saved"] = args.save
+    plt = pyplot()
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
+    a1.semilogy(res.history)
+    a1.set_xlabel("model evaluation")
+    a1.set_ylabel("weighted cost")
+    a1.set_title("calibration: the error falling")
+    a1.grid(True, alpha=0.3)
+    names = [r["claim"] for r in rows]
+    a2.barh(names, [100 * r["rel_error_start"] for r in rows], alpha=0.5, label=base.name)
+    a2.barh(names, [100 * r["rel_error_calibrated"] for r in rows], alpha=0.8, label=args.name)
+    a2.set_xscale("symlog", linthresh=1.0)
+    a2.set_xlabel("relative error against the paper (%)")
+    a2.legend()
+    fig.tight_layout()
+    fig.savefig(out / "calibration.png", dpi=110)
+    plt.close(fig)
+    (out / "calibration.json").write_text(dump_json(summary))
+    if args.json:
+        print(dump_json(summary))
+        return 0 if res.success else 1
+    print(f"{'claim':32s} {'paper':>12s} {base.name:>12s} {args.name:>12s} {'error':>8s}")
+    for r in rows:
+        print(f"{r['claim']:32s} {r['paper']:12.5g} {r['start']:12.5g} {r['calibrated']:12.5g} "
+              f"{100 * r['rel_error_calibrated']:7.1f}%")
+    print("damping ratios: " + ", ".join(f"{100 * z:.2f} %" for z in res.final.damping_ratios))
+    for f in res.free:
+        print(f"  {f:8s} {base.values[f]:12.5g} -> {res.params.values[f]:12.5g}")
+    if args.save:
+        print(f"saved {args.save}")
+    print(f"wrote {out}/calibration.png and calibration.json")
+    return 0 if res.success else 1
