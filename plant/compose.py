@@ -19,13 +19,12 @@ import sys
 import threading
 from pathlib import Path
 from types import ModuleType
-from typing import Any
 
 import numba
 from numba import types
 
 from plant import layout as L
-from plant.effect import EffectError, PhysicalEffect
+from plant.effect import EffectError, PhysicalEffect, importable_by_path
 from plant.integrate import INTEGRATOR_SOURCE, TABLEAU_NAMES
 
 HOOK_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], types.float64[::1],
@@ -46,18 +45,6 @@ def kernel_dir() -> Path:
         return Path(env)
     base = os.environ.get("NUMBA_CACHE_DIR") or os.path.join(os.path.expanduser("~"), ".cache", "mfc-shm")
     return Path(base) / "kernels"
-
-
-def _importable(cls: type) -> bool:
-    if cls.__module__ == "__main__" or "<locals>" in cls.__qualname__:
-        return False
-    try:
-        obj: Any = importlib.import_module(cls.__module__)
-        for part in cls.__qualname__.split("."):
-            obj = getattr(obj, part)
-    except Exception:
-        return False
-    return obj is cls
 
 
 def _source_fingerprint(cls: type) -> str:
@@ -152,7 +139,7 @@ def _diagnose_hooks(classes: tuple[type[PhysicalEffect], ...]) -> None:
 def compose(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int, ...], p_off: tuple[int, ...],
             y_off: tuple[int, ...], n_states: int) -> ModuleType:
     """The compiled kernel module of a composition (``rhs``, ``out``, ``run_chunk``), built or loaded."""
-    cacheable = all(_importable(c) for c in classes)
+    cacheable = all(importable_by_path(c) for c in classes)
     source = generate_source(classes, s_off, p_off, y_off, n_states, cacheable)
     fingerprint = "|".join([_GENERATOR_VERSION, numba.__version__, source,
                             *(_source_fingerprint(c) for c in classes)])

@@ -140,6 +140,19 @@ class PhysicalEffect:
                 raise EffectError(f"{label}: states must be StateSpec objects with a positive scale, got {st!r}")
 
 
+def importable_by_path(cls: type) -> bool:
+    """True when ``cls`` can be found again as ``package.module:QualName`` (not in ``__main__`` or a function)."""
+    if cls.__module__ == "__main__" or "<locals>" in cls.__qualname__:
+        return False
+    try:
+        obj: Any = importlib.import_module(cls.__module__)
+        for part in cls.__qualname__.split("."):
+            obj = getattr(obj, part)
+    except Exception:  # any import-time failure means: not importable
+        return False
+    return obj is cls
+
+
 _REGISTRY: dict[str, type[PhysicalEffect]] = {}
 
 
