@@ -17,6 +17,8 @@ BENCHMARKS: tuple[str, ...] = (
     "bench.bench_links",
     "bench.bench_board",
     "bench.bench_compare",
+    "bench.bench_diagnose",
+    "bench.bench_hidden_effect",
 )
 
 

@@ -90,8 +90,12 @@ def cmd_fit(args: argparse.Namespace) -> int:
     plot.draw(held_after=o.held_rms_sigma)
     overlay = overlay_figure(rep.targets, rep.baseline_sim, o.sim, out / "fit_overlay.png",
                              label_after=f"+ {', '.join(rep.added) or 'refit'}")
+    try:
+        pset = rep.parameter_set
+    except FitError as exc:
+        raise CliError(str(exc)) from None
     tmp = save.with_suffix(".toml.tmp")
-    tmp.write_text(rep.parameter_set.to_toml(), encoding="utf-8")
+    tmp.write_text(pset.to_toml(), encoding="utf-8")
     tmp.replace(save)
     # check that the file loads as it will in `shm run` / the monitor
     from plant import PlantModel
@@ -119,7 +123,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
             print(f"  note: {a} and {b} are strongly correlated ({c:+.3f}): the data barely separate them")
     for n in rep.notes:
         print(f"  note: {n}")
-    print(f"saved parameter set '{rep.parameter_set.name}' to {save} (load it with --params {save})")
+    print(f"saved parameter set '{pset.name}' to {save} (load it with --params {save})")
     summary = rep.summary() | {"saved": str(save), "figures": [str(plot.path), str(overlay)]}
     (out / "fit.json").write_text(dump_json(summary), encoding="utf-8")
     verdict = (f"Added {', '.join(rep.added) or 'nothing'}; training error {rep.before_train_rms_sigma:.4g} σ → "

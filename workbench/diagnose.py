@@ -83,6 +83,8 @@ class CandidateResult:
     channels: list[ChannelScore] = field(default_factory=list)
     wall_s: float = 0.0
     n_sims: int = 0
+    load_s: float = 0.0  # composing / loading the compiled kernels
+    sim_s: float = 0.0  # inside the batched integrator
 
     @property
     def held_rms_sigma(self) -> float:
@@ -110,6 +112,7 @@ class CandidateResult:
             "correlation": o.correlation.tolist() if o else [],
             "channels": [s.__dict__ | {"rms_sigma": s.rms_sigma} for s in self.channels],
             "signature": self.signature, "origin": self.origin, "wall_s": self.wall_s, "simulations": self.n_sims,
+            "load_s": self.load_s, "integrator_s": self.sim_s,
             "optimiser": o.message if o else "",
         }
 
@@ -202,7 +205,7 @@ def _score(cand: CandidateResult, rss0_held: float, min_reduction: float) -> Non
 
 def fit_candidate(cls: type[PhysicalEffect], params: ParameterSet, targets: Sequence[Target], data: dict[str, Any],
                   rss0_held: float, *, min_reduction: float = MIN_REDUCTION, threads: int | None = None,
-                  max_nfev: int = 30, seed: int = 0,
+                  max_nfev: int = 30, seed: int = 0, batched_jacobian: bool = True,
                   on_iteration: Callable[[Any], None] | None = None) -> CandidateResult:
     """Fit one candidate on the training part and score it on the held-out part."""
     t0 = time.perf_counter()
@@ -211,12 +214,19 @@ def fit_candidate(cls: type[PhysicalEffect], params: ParameterSet, targets: Sequ
     build = model_factory(params, [cls])
     try:
         models = [build(tg.record) for tg in targets]
+        for m in models:
+            m.kernels()
     except EffectError as exc:
         raise FitError(str(exc)) from None
+    cand.load_s = time.perf_counter() - t0
     check_effect_runs(models[0], cls, targets[0])
     obj = Objective(targets, models, free, threads=threads)
-    guess = guess_values(cls, data, free)
-    outcome = optimise(obj, guess, max_nfev=max_nfev, seed=seed, on_iteration=on_iteration)
+    try:
+        guess = guess_values(cls, data, free)
+    except EffectError as exc:
+        raise FitError(str(exc)) from None
+    outcome = optimise(obj, guess, max_nfev=max_nfev, seed=seed, on_iteration=on_iteration,
+                       batched_jacobian=batched_jacobian)
     cand.outcome = outcome
     cand.rejection = _stability(outcome, targets)
     cand.stable = not cand.rejection
@@ -225,6 +235,7 @@ def fit_candidate(cls: type[PhysicalEffect], params: ParameterSet, targets: Sequ
     _score(cand, rss0_held, min_reduction)
     cand.wall_s = time.perf_counter() - t0
     cand.n_sims = outcome.n_sims
+    cand.sim_s = obj.sim_wall_s
     return cand
 
 
@@ -269,11 +280,13 @@ def diagnose(records: Sequence[Record], params: ParameterSet | str = "table2",
              candidates: Sequence[str | type[PhysicalEffect]] | None = None, *, holdout: str = "blocks",
              n_blocks: int = DEFAULT_BLOCKS, max_rate_Hz: float = DEFAULT_MAX_RATE_HZ,
              min_reduction: float = MIN_REDUCTION, workers: int = 1, max_nfev: int = 30, seed: int = 0,
-             progress: Callable[[str, CandidateResult | None], None] | None = None) -> Diagnosis:
+             progress: Callable[[str, CandidateResult | None], None] | None = None,
+             batched_jacobian: bool = True) -> Diagnosis:
     """Rank ``candidates`` (default: the library) by how much of the held-out residual each explains.
 
     ``workers`` > 1 fits candidates concurrently in threads (each simulation single-threaded; the compiled
-    integrator releases the GIL). ``progress(name, result)`` is called when a candidate starts (result None)
+    integrator releases the GIL). ``batched_jacobian=False`` integrates the Jacobian's columns one at a time
+    (the benchmark's baseline). ``progress(name, result)`` is called when a candidate starts (result None)
     and when it is done.
     """
     t_start = time.perf_counter()
@@ -305,7 +318,7 @@ def diagnose(records: Sequence[Record], params: ParameterSet | str = "table2",
         if progress:
             progress(cls.name, None)
         res = fit_candidate(cls, base, targets, data, rss0_held, min_reduction=min_reduction, threads=threads,
-                            max_nfev=max_nfev, seed=seed)
+                            max_nfev=max_nfev, seed=seed, batched_jacobian=batched_jacobian)
         if progress:
             progress(cls.name, res)
         return res
@@ -324,9 +337,11 @@ def diagnose(records: Sequence[Record], params: ParameterSet | str = "table2",
     ranking = sorted(results, key=lambda c: (not c.accepted, -c.delta_bic_held if c.stable else math.inf))
     winner = ranking[0] if ranking and ranking[0].accepted else None
     base_train, base_held = rms(r0_train), rms(r0_held)
+    t1 = time.perf_counter()
     tests_before = run_residual_tests(targets, base_sim)
     tests_after = run_residual_tests(targets, winner.outcome.sim) if winner and winner.outcome else []
     where = where_it_fails(targets, base_sim)
+    timings["residual_tests_and_localisation_s"] = time.perf_counter() - t1
     notes = [f"skipped {', '.join(skipped)}: already in the parameter set"] if skipped else []
     if any("estimated" in s for tg in targets for s in tg.sigma_source):
         notes.append("the noise level was estimated from the data (no noise_std in the record metadata): "

@@ -28,10 +28,11 @@ LIBRARY: tuple[str, ...] = (
 
 @dataclass(frozen=True)
 class FreeParameter:
-    """A parameter the fit varies: SI name and unit, search interval, log or linear scaling, its owner.
+    """A parameter the fit varies: SI name and unit, search interval, scaling, its owner.
 
-    The optimiser works in the unit box: ``u = 0`` at ``lower``, ``u = 1`` at ``upper`` (log10-linear when
-    ``log``)."""
+    The optimiser works in the unit box: ``u = 0`` at ``lower``, ``u = 1`` at ``upper``; linear in the value, in
+    log10 of the value (``log``), or in asinh(value/linthresh) (``linthresh``: symmetric-log, for parameters whose
+    neutral value is 0 and whose magnitudes span decades)."""
 
     name: str
     unit: str
@@ -39,6 +40,7 @@ class FreeParameter:
     upper: float
     log: bool = False
     owner: str = "core"
+    linthresh: float | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.lower) and math.isfinite(self.upper) and self.lower < self.upper):
@@ -46,28 +48,48 @@ class FreeParameter:
                              f"[{self.lower:g}, {self.upper:g}] {self.unit}")
         if self.log and self.lower <= 0:
             raise ValueError(f"parameter '{self.name}': a logarithmic fit range needs lower > 0, got {self.lower:g}")
+        if self.linthresh is not None and not self.linthresh > 0:
+            raise ValueError(f"parameter '{self.name}': linthresh must be > 0, got {self.linthresh}")
+
+    def _ends(self) -> tuple[float, float]:
+        if self.log:
+            return math.log10(self.lower), math.log10(self.upper)
+        if self.linthresh is not None:
+            return math.asinh(self.lower / self.linthresh), math.asinh(self.upper / self.linthresh)
+        return self.lower, self.upper
 
     def to_unit(self, value: float | np.ndarray) -> np.ndarray:
         v = np.clip(np.asarray(value, float), self.lower, self.upper)
+        a, b = self._ends()
         if self.log:
-            return (np.log10(v) - math.log10(self.lower)) / (math.log10(self.upper) - math.log10(self.lower))
-        return (v - self.lower) / (self.upper - self.lower)
+            s = np.log10(v)
+        elif self.linthresh is not None:
+            s = np.arcsinh(v / self.linthresh)
+        else:
+            s = v
+        return (s - a) / (b - a)
 
     def from_unit(self, u: float | np.ndarray) -> np.ndarray:
-        u = np.clip(np.asarray(u, float), 0.0, 1.0)
+        a, b = self._ends()
+        s = a + np.clip(np.asarray(u, float), 0.0, 1.0) * (b - a)
         if self.log:
-            lo, hi = math.log10(self.lower), math.log10(self.upper)
-            return 10.0 ** (lo + u * (hi - lo))
-        return self.lower + u * (self.upper - self.lower)
+            return np.clip(10.0 ** s, self.lower, self.upper)
+        if self.linthresh is not None:
+            return np.clip(self.linthresh * np.sinh(s), self.lower, self.upper)
+        return s
 
     def dvalue_du(self, value: float) -> float:
         """d(value)/du at ``value`` (for turning Jacobians in the unit box into SI)."""
+        a, b = self._ends()
         if self.log:
-            return float(value) * math.log(10.0) * (math.log10(self.upper) - math.log10(self.lower))
-        return self.upper - self.lower
+            return float(value) * math.log(10.0) * (b - a)
+        if self.linthresh is not None:
+            return self.linthresh * math.cosh(math.asinh(float(value) / self.linthresh)) * (b - a)
+        return b - a
 
     def describe(self) -> str:
-        return f"{self.name} in [{self.lower:g}, {self.upper:g}] {self.unit}{' (log)' if self.log else ''}"
+        scale = " (log)" if self.log else (f" (symlog, linear within ±{self.linthresh:g})" if self.linthresh else "")
+        return f"{self.name} in [{self.lower:g}, {self.upper:g}] {self.unit}{scale}"
 
 
 def resolve_candidates(specs: Sequence[str | type[PhysicalEffect]]) -> list[type[PhysicalEffect]]:
@@ -108,11 +130,13 @@ def effect_free_parameters(cls: type[PhysicalEffect], names: Sequence[str] | Non
         if par is None:
             raise EffectError(f"effect '{cls.name}' has no parameter '{n}' (parameters: {', '.join(own)})")
         rng = ranges.get(n)
+        linthresh = None
         if rng is not None:
             lo, hi, log = float(rng.lower), float(rng.upper), bool(rng.log)  # type: ignore[attr-defined]
+            linthresh = getattr(rng, "linthresh", None)
         else:
             lo, hi, log = _auto_range(par.default, par.lower, par.upper)
-        out.append(FreeParameter(n, par.unit, lo, hi, log, cls.name))
+        out.append(FreeParameter(n, par.unit, lo, hi, log, cls.name, linthresh))
     return out
 
 
@@ -149,20 +173,35 @@ def core_free_parameter(model: PlantModel, spec: str) -> FreeParameter:
 
 
 def guess_values(cls: type[PhysicalEffect], data: Mapping | None, free: Sequence[FreeParameter]) -> dict[str, float]:
-    """The effect's ``guess(data)`` restricted to ``free`` and clipped into their ranges; robust to a user's
-    guess that raises or returns junk (falls back to the middle of the range)."""
+    """The effect's ``guess(data)`` restricted to ``free`` and clipped into their ranges (a parameter the guess
+    leaves out starts mid-range). A guess that raises, returns something other than a mapping, or gives a
+    parameter a value that is not one finite number is an :class:`EffectError` naming the effect and the key."""
     try:
-        g = dict(cls.guess(data))
-    except Exception:
-        g = {}
+        raw = cls.guess(data)
+    except Exception as exc:
+        raise EffectError(f"effect '{cls.name}': guess() raised {type(exc).__name__}: {exc}") from exc
+    if not isinstance(raw, Mapping):
+        raise EffectError(f"effect '{cls.name}': guess() must return a mapping parameter name -> value, got "
+                          f"{type(raw).__name__}")
+    own = {p.name for p in cls.own_parameters()}
+    unknown = sorted(set(raw) - own)
+    if unknown:
+        raise EffectError(f"effect '{cls.name}': guess() returned '{unknown[0]}', which is not one of its parameters "
+                          f"({', '.join(sorted(own))})")
     out = {}
     for fp in free:
-        v = g.get(fp.name)
+        if fp.name not in raw:
+            out[fp.name] = float(fp.from_unit(0.5))
+            continue
+        v = raw[fp.name]
+        if np.ndim(v) != 0:
+            raise EffectError(f"effect '{cls.name}': guess() gave '{fp.name}' a value of shape {np.shape(v)}; "
+                              "expected one number")
         try:
-            v = float(v) if v is not None else float("nan")
+            v = float(v)
         except (TypeError, ValueError):
-            v = float("nan")
+            raise EffectError(f"effect '{cls.name}': guess() gave '{fp.name}' = {v!r}; expected a number") from None
         if not math.isfinite(v):
-            v = float(fp.from_unit(0.5))
+            raise EffectError(f"effect '{cls.name}': guess() gave '{fp.name}' = {v!r}; expected a finite number")
         out[fp.name] = float(np.clip(v, fp.lower, fp.upper))
     return out

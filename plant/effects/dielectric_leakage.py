@@ -34,7 +34,7 @@ class DielectricLeakage(PhysicalEffect):
         Parameter("G_leak", "S", 0.0, 0.0, 1.0e-2, "Leakage conductance in parallel with each patch couple"),
     )
     neutral: ClassVar[Mapping[str, float]] = {"G_leak": 0.0}
-    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"G_leak": FitRange(0.0, 2.0e-3)}
+    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"G_leak": FitRange(0.0, 2.0e-3, linthresh=1e-7)}
 
     @staticmethod
     def rates(t, x, p, bus, dx, so, po):

@@ -34,7 +34,7 @@ class GeometricStiffening(PhysicalEffect):
         Parameter("kappa_nl", "m^-2", 0.0, -1.0e4, 5.0e5, "Relative cubic stiffness: k_i(δ) = k_i (1 + κ δ_i²)"),
     )
     neutral: ClassVar[Mapping[str, float]] = {"kappa_nl": 0.0}
-    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"kappa_nl": FitRange(-1.0e4, 2.0e5)}
+    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"kappa_nl": FitRange(-1.0e4, 2.0e5, linthresh=100.0)}
 
     @staticmethod
     def rates(t, x, p, bus, dx, so, po):

@@ -52,8 +52,8 @@ class LaserSensor(PhysicalEffect):
     #: the spot position is not fitted by default: in quasi-static tests it is indistinguishable from a gain
     #: error (z2/z3 is constant there); free it explicitly (``shm fit --free spot_offset``) with resonant data
     fit_ranges: ClassVar[Mapping[str, FitRange]] = {
-        "z_offset": FitRange(-2.0e-3, 2.0e-3),
-        "tau_sensor": FitRange(0.0, 0.02),
+        "z_offset": FitRange(-2.0e-3, 2.0e-3, linthresh=1e-7),
+        "tau_sensor": FitRange(0.0, 0.02, linthresh=1e-4),
     }
     extra_ranges: ClassVar[Mapping[str, FitRange]] = {"spot_offset": FitRange(0.0, 0.5)}
 

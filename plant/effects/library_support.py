@@ -31,18 +31,26 @@ import numpy as np
 
 @dataclass(frozen=True)
 class FitRange:
-    """Where the workbench searches a parameter: ``[lower, upper]`` in SI units, ``log`` for scale parameters
-    that span decades (fitted as log10 of the value; the interval must then be positive)."""
+    """Where the workbench searches a parameter: ``[lower, upper]`` in SI units.
+
+    Scaling of the search: linear by default; ``log`` for scale parameters that span decades (fitted as log10 of
+    the value; the interval must then be positive); ``linthresh`` for a *symmetric-log* search of a parameter
+    whose neutral value is 0 and whose plausible magnitudes span decades (fitted as asinh(value/linthresh):
+    linear within ±linthresh, logarithmic beyond, either sign).
+    """
 
     lower: float
     upper: float
     log: bool = False
+    linthresh: float | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.lower) and math.isfinite(self.upper) and self.lower < self.upper):
             raise ValueError(f"FitRange needs finite lower < upper, got [{self.lower}, {self.upper}]")
         if self.log and self.lower <= 0:
             raise ValueError(f"a logarithmic FitRange needs a positive lower bound, got {self.lower}")
+        if self.linthresh is not None and (self.log or not self.linthresh > 0):
+            raise ValueError(f"a symmetric-log FitRange needs linthresh > 0 and log=False, got {self.linthresh}")
 
     def clip(self, value: float) -> float:
         return float(min(max(value, self.lower), self.upper))

@@ -48,7 +48,7 @@ class PiezoCreep(PhysicalEffect):
     states = tuple(StateSpec(f"w_creep{i + 1}{k + 1}", "C", 1e-3) for i in range(3) for k in range(2))
     neutral: ClassVar[Mapping[str, float]] = {"gamma_creep": 0.0}
     fit_ranges: ClassVar[Mapping[str, FitRange]] = {
-        "gamma_creep": FitRange(0.0, 0.5),
+        "gamma_creep": FitRange(0.0, 0.5, linthresh=1e-3),
         "tau_creep": FitRange(0.03, 100.0, log=True),
     }
 

@@ -40,7 +40,7 @@ class PiezoThermalDrift(PhysicalEffect):
         Parameter("kappa_T", "1/K", 2.5e-3, -0.02, 0.02, "Relative temperature coefficient of d_ep"),
     )
     neutral: ClassVar[Mapping[str, float]] = {"dT_dt": 0.0}
-    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"dT_dt": FitRange(-2.0, 2.0)}
+    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"dT_dt": FitRange(-2.0, 2.0, linthresh=1e-3)}
 
     @staticmethod
     def rates(t, x, p, bus, dx, so, po):
