@@ -17,8 +17,9 @@ For each candidate effect (default: the whole library, :data:`workbench.effect_l
 4. accept it when it is stable, ΔBIC_held > 0 and it removes at least ``min_reduction`` (2 %) of the held-out
    residual energy.
 
-The accepted candidates are ranked by ΔBIC_held. No accepted candidate: "nothing missing" when the nominal
-model is already at the noise floor (held-out RMS ≤ 1.25 σ), else "not explained by the library", with
+The accepted candidates are ranked by ΔBIC_held; the best is "the missing effect" when it brings the held-out error
+to within 2 σ, else "partly explained" (with where the rest lives). No accepted candidate: "nothing missing" when
+the nominal model is already at the noise floor (held-out RMS ≤ 1.25 σ), else "not explained by the library", with
 where the residual lives (test regimes, frequency bands) and the residual tests that fail.
 """
 
@@ -60,6 +61,8 @@ from workbench.residual_tests import ResidualTests, residual_tests
 
 MIN_REDUCTION = 0.02
 AT_NOISE_FLOOR = 1.25
+#: a winner whose fitted model stays further than this (held-out RMS, σ) from the data explains only part of it
+PARTIAL_ABOVE = 2.0
 
 
 @dataclass
@@ -121,7 +124,7 @@ class CandidateResult:
 class Diagnosis:
     """The ranked candidates and the verdict in words."""
 
-    verdict: str  # "missing" | "nothing_missing" | "unexplained"
+    verdict: str  # "missing" | "partial" | "nothing_missing" | "unexplained"
     message: str
     winner: CandidateResult | None
     ranking: list[CandidateResult]
@@ -385,7 +388,9 @@ def _verdict(winner: CandidateResult | None, ranking: Sequence[CandidateResult],
             msg += f". Failed residual tests: {', '.join(failed_before)}"
         return "unexplained", msg + "."
     runner = next((c for c in ranking if c is not winner and c.accepted), None)
-    msg = (f"Missing effect: {winner.effect} — {winner.description}. Adding it cuts the held-out residual from "
+    partial = winner.held_rms_sigma > PARTIAL_ABOVE
+    head = "Partly explained by" if partial else "Missing effect:"
+    msg = (f"{head} {winner.effect} — {winner.description}. Adding it cuts the held-out residual from "
            f"{base_held:.3g} σ to {winner.held_rms_sigma:.3g} σ RMS ({100 * winner.held_reduction:.3g} % of the "
            f"residual energy; ΔBIC {winner.delta_bic_held:.4g} against the nominal model)")
     if runner is not None:
@@ -400,7 +405,9 @@ def _verdict(winner: CandidateResult | None, ranking: Sequence[CandidateResult],
         if after:
             msg += f", still failing: {', '.join(after)}"
         msg += "."
-    if winner.held_rms_sigma > 1.5:
-        msg += (f" The fitted model is still {winner.held_rms_sigma:.3g} σ from the held-out data: part of the "
-                "residual remains — try combining effects (shm fit --add A --add B) or an effect of your own.")
+    if partial:
+        msg += (f" The fitted model is still {winner.held_rms_sigma:.3g} σ from the held-out data, so this is at best "
+                "part of the story: try combining effects (shm fit --add A --add B) or an effect of your own. "
+                "Where the nominal model fails: " + " | ".join(where))
+        return "partial", msg
     return "missing", msg
