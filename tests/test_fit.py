@@ -204,3 +204,25 @@ def test_fit_bad_input(tmp_path, capsys):
     assert "unknown effect 'no_such_effect'" in capsys.readouterr().err
     assert main(["fit", str(path), "--add", "piezo_creep", "--save", str(tmp_path / "x.txt")]) == 2
     assert not (tmp_path / "x.toml").exists()
+
+
+def test_fitted_set_removes_a_monitor_false_alarm(tmp_path):
+    """The point of `shm fit --save`: a healthy rig whose amplifier is current-limited (3 mA) fails MBIT.a against
+    the nominal model (a false alarm); fitted on a separate step test, the saved set passes the board's monitor."""
+    from firmware_sim.condition_monitor import evaluate_z3
+
+    truth = truth_model("table2", ["amplifier_current_limit"], {"I_max": 0.003})
+    train = synth_record(synth_test("step"), truth, noise={"z3": NOISE}, seed=4)
+    rep = fit_records([train], "table2", add=["amplifier_current_limit"], save_name="limited_amp")
+    assert rep.outcome.values["I_max"] == pytest.approx(0.003, rel=0.05)
+    path = tmp_path / "limited_amp.toml"
+    path.write_text(rep.parameter_set.to_toml())
+    mbit = synth_record(synth_test("mbit-a"), truth, noise={"z3": NOISE}, seed=5)
+    t = mbit.t[::10]  # the monitor's 100 Hz
+    verdicts = {}
+    for name in ("table2", str(path)):
+        z_model = PlantModel(name).simulate(mbit.input_signals(), t_out=t)["z3_meas"][0]
+        trace = evaluate_z3(z_model, mbit["z3"][::10], t=t - t[0] + 0.01)
+        verdicts[name] = (bool(trace.fault[-1]), float(np.max(trace.eps)))
+    assert verdicts["table2"][0] is True  # false alarm with the nominal model
+    assert verdicts[str(path)][0] is False and verdicts[str(path)][1] < 0.05
