@@ -19,8 +19,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "where the model fails. Writes diagnosis.json, ranking.png, overlay.png and diagnosis.html.")
     p.add_argument("records", nargs="+", metavar="RECORD", help="time records (.csv or .tdms; docs/records.md)")
     add_params_arg(p)
-    p.add_argument("--candidates", nargs="+", default=None, metavar="EFFECT",
-                   help="candidate effects (library names or pkg.mod:Class); default: the whole library")
+    p.add_argument("--candidates", action="append", default=None, metavar="EFFECT[,EFFECT...]",
+                   help="candidate effects, comma-separated or repeated (library names or pkg.mod:Class); "
+                        "default: the whole library")
     p.add_argument("--holdout", choices=("blocks", "records"), default="blocks",
                    help="held-out data: alternate blocks of every record (default) or every second record")
     p.add_argument("--blocks", type=int, default=10, help="blocks per record for --holdout blocks (even, default 10)")
@@ -46,6 +47,11 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
 
     if args.workers < 1 or args.max_rate_hz <= 0 or not 0 <= args.min_reduction < 1:
         raise CliError("--workers must be >= 1, --max-rate-hz > 0 and --min-reduction in [0, 1)")
+    candidates = None
+    if args.candidates:
+        candidates = [c.strip() for item in args.candidates for c in item.split(",") if c.strip()]
+        if not candidates:
+            raise CliError("--candidates is empty")
     out = out_dir(args.out)
     records = [load_record(p) for p in args.records]
     bar = tqdm(total=None, desc="candidates", unit="effect", file=sys.stderr, disable=None)
@@ -57,7 +63,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
             bar.update(1)
 
     try:
-        d = diagnose(records, args.params, args.candidates, holdout=args.holdout, n_blocks=args.blocks,
+        d = diagnose(records, args.params, candidates, holdout=args.holdout, n_blocks=args.blocks,
                      max_rate_Hz=args.max_rate_hz, min_reduction=args.min_reduction, workers=args.workers,
                      seed=args.seed, progress=progress)
     except FitError as exc:

@@ -105,8 +105,8 @@ def test_cli_diagnose_report_and_bad_input(tmp_path, capsys):
     rec = _record(["geometric_stiffening"], {"kappa_nl": 2e4}, duration_s=2.0)
     path = write_record(rec, tmp_path / "stiff.csv")
     out = tmp_path / "diag"
-    code = main(["diagnose", str(path), "--params", "table2", "--candidates", "geometric_stiffening",
-                 "dielectric_leakage", "laser_sensor", "--json", "--out", str(out)])
+    code = main(["diagnose", "--candidates", "geometric_stiffening,dielectric_leakage", "--candidates",
+                 "laser_sensor", str(path), "--params", "table2", "--json", "--out", str(out)])
     assert code == 0
     text = capsys.readouterr().out
     result = json.loads(text[text.index("{\n"):])
