@@ -65,3 +65,25 @@ def missing_tools(*names: str) -> str | None:
         return (f"{', '.join(missing)} not installed (make setup installs them: apt-get install -y mbpoll socat); "
                 "this third-party-client test cannot run")
     return None
+
+
+def exchange_through_outage(link, make_command: Callable[[int], ActuatorCommand], budget_s: float = 10.0,
+                            max_exchanges: int = 5000, pause_s: float = 0.002) -> list[bool]:
+    """Exchange on ``link`` until a failed exchange has been followed by a good one (or the budget runs out).
+
+    Returns one outcome per exchange (True = reply received). Bounded in count and time.
+    """
+    from drivers.link import LinkError
+
+    outcomes: list[bool] = []
+    end = time.monotonic() + budget_s
+    for k in range(1, max_exchanges):
+        try:
+            link.exchange(make_command(k))
+            outcomes.append(True)
+        except LinkError:
+            outcomes.append(False)
+        if (False in outcomes and outcomes[-1]) or time.monotonic() > end:
+            break
+        time.sleep(pause_s)
+    return outcomes
