@@ -226,3 +226,16 @@ def test_fitted_set_removes_a_monitor_false_alarm(tmp_path):
         verdicts[name] = (bool(trace.fault[-1]), float(np.max(trace.eps)))
     assert verdicts["table2"][0] is True  # false alarm with the nominal model
     assert verdicts[str(path)][0] is False and verdicts[str(path)][1] < 0.05
+
+
+def test_free_core_parameter_is_refitted_and_saved(tmp_path):
+    rec = _record(values={"k3": 21.28 * 0.8})
+    rep = fit_records([rec], "table2", free=["k3:10:40"], save_name="k3_refit")
+    (est,) = rep.outcome.estimates
+    assert est.name == "k3" and est.owner == "core"
+    assert est.value == pytest.approx(21.28 * 0.8, abs=max(5 * est.stderr, 0.01))
+    assert rep.outcome.held_rms_sigma < 1.5 < rep.before_held_rms_sigma
+    path = tmp_path / "k3_refit.toml"
+    path.write_text(rep.parameter_set.to_toml())
+    loaded = load_parameter_set(path)
+    assert loaded["k3"] == pytest.approx(est.value) and loaded.effects == ()
