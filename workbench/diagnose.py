@@ -375,6 +375,10 @@ def _verdict(winner: CandidateResult | None, ranking: Sequence[CandidateResult],
                    f"({base_held:.3g} σ RMS), and no candidate reduces the held-out error by the required margin")
             if best is not None:
                 msg += f" (best: {best.effect}, {100 * best.held_reduction:+.2g} % of the held-out residual energy)"
+                if best.delta_bic_held > 10 and best.held_reduction > 0:
+                    msg += (f". Note: {best.effect} is significant on the held-out data "
+                            f"(ΔBIC {best.delta_bic_held:.3g}) but too small to matter here; a longer record or less "
+                            "noise would tell")
             if failed_before:
                 msg += f". Residual tests that still fail: {', '.join(failed_before)}"
             return "nothing_missing", msg + "."
