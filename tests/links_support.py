@@ -48,6 +48,11 @@ class FakeRig:
         return any(a <= self.t < b for a, b in self.outages)
 
 
+def cmd(k: int, v1: float = 100.0, v2: float = -100.0) -> ActuatorCommand:
+    """A board command for tick ``k`` (±100 V differential, 2 mA board current)."""
+    return ActuatorCommand(seq=k, v_ch1=v1, v_ch2=v2, board_current=0.002)
+
+
 def wait_for(predicate: Callable[[], bool], timeout: float = 5.0, interval: float = 0.005) -> bool:
     """Poll until ``predicate()`` or ``timeout`` seconds (bounded)."""
     end = time.monotonic() + timeout

@@ -4,12 +4,12 @@ exception replies, unit-id silence, refused set-points, faults, a restarting ser
 from __future__ import annotations
 
 import pytest
-from links_support import FakeRig, exchange_through_outage
+from links_support import FakeRig, cmd, exchange_through_outage
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ModbusIOException
 from pymodbus.framer import FramerType
 
-from drivers import ActuatorCommand, LinkError, open_link
+from drivers import LinkError, open_link
 from drivers.link import FLAG_LIMIT_REFUSED
 from drivers.modbus_link import ModbusLink, parse_modbus_url
 from drivers.modbus_registers import BY_NAME as R
@@ -25,10 +25,6 @@ from hil_stub.faults import FaultPlan, LinkFaults
 from hil_stub.service import HilService
 
 pytestmark = pytest.mark.integration
-
-
-def cmd(k: int, v1: float = 100.0, v2: float = -100.0) -> ActuatorCommand:
-    return ActuatorCommand(seq=k, v_ch1=v1, v_ch2=v2, board_current=0.002)
 
 
 def test_url_parsing_and_errors():

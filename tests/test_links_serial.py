@@ -8,9 +8,9 @@ import threading
 
 import pytest
 import serial
-from links_support import FakeRig, exchange_through_outage, wait_for
+from links_support import FakeRig, cmd, exchange_through_outage, wait_for
 
-from drivers import ActuatorCommand, LinkError, open_link
+from drivers import LinkError, open_link
 from drivers.framing import (
     MAX_PAYLOAD,
     SYNC,
@@ -31,10 +31,6 @@ from hil_stub.pty_port import PtyPort
 from hil_stub.service import HilService
 
 pytestmark = pytest.mark.integration
-
-
-def cmd(k: int, v1: float = 100.0, v2: float = -100.0) -> ActuatorCommand:
-    return ActuatorCommand(seq=k, v_ch1=v1, v_ch2=v2, board_current=0.002)
 
 
 # ------------------------------------------------------------------------------------------------ URLs
