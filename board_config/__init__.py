@@ -3,7 +3,7 @@
 This package imports nothing else of ours.
 """
 
-from board_config.errors import ConfigError
+from board_config.errors import ConfigError, InputError
 from board_config.mbit import MbitDefinition, load_mbit, load_mbit_definitions
 from board_config.parameter_sets import (
     CORE_PARAMETER_NAMES,
@@ -21,6 +21,7 @@ __all__ = [
     "CORE_SCHEMA",
     "ConfigError",
     "EffectEntry",
+    "InputError",
     "MbitDefinition",
     "MfcLimits",
     "MonitorSettings",

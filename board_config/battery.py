@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from board_config.errors import ConfigError
+from board_config.errors import ConfigError, InputError
 from board_config.quantities import QuantitySpec, parse_quantities, read_toml
 
 CONFIG_DIR = Path(__file__).resolve().parent
@@ -136,14 +136,14 @@ class BatterySpec:
         lo, hi = self.voltage_range
         v = float(v)
         if not np.isfinite(v) or v < lo - 1e-12 or v > hi + 1e-12:
-            raise ValueError(f"{what} {v!r} V is outside the {self.name} open-circuit-voltage table "
+            raise InputError(f"{what} {v!r} V is outside the {self.name} open-circuit-voltage table "
                              f"[{lo:g}, {hi:g}] V ({self.table_file})")
         return min(max(v, lo), hi)
 
     def check_discharged(self, q_d: float, what: str = "discharged capacity") -> float:
         q_d = float(q_d)
         if not np.isfinite(q_d) or q_d < 0.0 or q_d > self.capacity * (1 + 1e-12):
-            raise ValueError(f"{what} {q_d!r} C is outside [0, {self.capacity:g}] C (0 = full, "
+            raise InputError(f"{what} {q_d!r} C is outside [0, {self.capacity:g}] C (0 = full, "
                              f"{self.capacity:g} C = cut-off) for {self.name}")
         return min(q_d, self.capacity)
 

@@ -1,9 +1,22 @@
-"""The one error type of the configuration layer."""
+"""The error types of the configuration layer, and the one base class of every error a user can fix.
+
+:class:`InputError` is what the ``shm`` command line turns into ``shm: error: <message>`` with exit code 2 ("bad
+usage or bad input"). Every layer raises a subclass of it (records, effects, fits, campaigns, links ...) when the
+cause is a file, option or value the user gave; any other exception reaching the command line is a bug in mfc-shm
+(exit 1). It lives here because this package is the bottom layer that every other one may import.
+"""
 
 from __future__ import annotations
 
 
-class ConfigError(ValueError):
+class InputError(ValueError):
+    """Input the user can fix: a file, option or value. The message names it and says why it is wrong.
+
+    A ``ValueError`` subclass so that code catching ``ValueError`` around validation keeps working.
+    """
+
+
+class ConfigError(InputError):
     """A configuration file or value is wrong.
 
     The message always names the file, the key (dotted, e.g. ``parameters.k3.value``) and the reason,

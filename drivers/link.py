@@ -15,6 +15,8 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
+from board_config.errors import InputError
+
 
 class LinkError(IOError):
     """The link could not complete an exchange (timeout, lost port, corrupt reply, refused command)."""
@@ -109,4 +111,4 @@ def open_link(url: str) -> Link:
     for scheme in sorted(_SCHEMES, key=len, reverse=True):
         if url.startswith(scheme):
             return _SCHEMES[scheme](url)
-    raise ValueError(f"unknown link URL '{url}' (known schemes: {', '.join(registered_schemes()) or 'none'})")
+    raise InputError(f"unknown link URL '{url}' (known schemes: {', '.join(registered_schemes()) or 'none'})")

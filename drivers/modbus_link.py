@@ -39,6 +39,7 @@ from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException
 from pymodbus.framer import FramerType
 
+from board_config.errors import InputError
 from drivers.incident_log import IncidentLog
 from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, LinkError, RigSample
 from drivers.modbus_registers import (
@@ -89,9 +90,9 @@ def _num(opts: dict[str, str], key: str, default: float, url: str, lo: float, hi
     try:
         v = float(opts[key])
     except ValueError:
-        raise ValueError(f"link URL '{url}': option {key}={opts[key]!r} is not a number") from None
+        raise InputError(f"link URL '{url}': option {key}={opts[key]!r} is not a number") from None
     if not lo <= v <= hi:
-        raise ValueError(f"link URL '{url}': option {key}={v:g} outside the allowed range [{lo:g}, {hi:g}]")
+        raise InputError(f"link URL '{url}': option {key}={v:g} outside the allowed range [{lo:g}, {hi:g}]")
     return v
 
 
@@ -101,25 +102,25 @@ def parse_modbus_url(url: str) -> dict[str, object]:
         kind = "tcp"
         parts = urlsplit(url.replace("modbus-tcp://", "tcp://", 1))
         if not parts.hostname:
-            raise ValueError(f"link URL '{url}': expected modbus-tcp://HOST:PORT")
+            raise InputError(f"link URL '{url}': expected modbus-tcp://HOST:PORT")
         try:
             port = parts.port or 502
         except ValueError:
-            raise ValueError(f"link URL '{url}': bad port") from None
+            raise InputError(f"link URL '{url}': bad port") from None
         target: dict[str, object] = {"host": parts.hostname, "port": port}
         query = parts.query
     elif url.startswith("modbus-rtu:"):
         kind = "rtu"
         path, _, query = url.removeprefix("modbus-rtu:").partition("?")
         if not path:
-            raise ValueError(f"link URL '{url}': expected modbus-rtu:PATH (a serial device or pty)")
+            raise InputError(f"link URL '{url}': expected modbus-rtu:PATH (a serial device or pty)")
         target = {"port": path}
     else:
-        raise ValueError(f"link URL '{url}': not a modbus-tcp:// or modbus-rtu: URL")
+        raise InputError(f"link URL '{url}': not a modbus-tcp:// or modbus-rtu: URL")
     opts = dict(parse_qsl(query, keep_blank_values=True))
     unknown = set(opts) - _KNOWN[kind]
     if unknown:
-        raise ValueError(f"link URL '{url}': unknown option(s) {', '.join(sorted(unknown))} "
+        raise InputError(f"link URL '{url}': unknown option(s) {', '.join(sorted(unknown))} "
                          f"(known: {', '.join(sorted(_KNOWN[kind]))})")
     settings: dict[str, object] = {"kind": kind, **target,
                                    "unit": int(_num(opts, "unit", 1, url, 1, 247)),
@@ -128,7 +129,7 @@ def parse_modbus_url(url: str) -> dict[str, object]:
         baud = int(_num(opts, "baud", 115200, url, 300, 4_000_000))
         parity = opts.get("parity", "N").upper()
         if parity not in ("N", "E", "O"):
-            raise ValueError(f"link URL '{url}': parity={parity!r}, allowed N, E, O")
+            raise InputError(f"link URL '{url}': parity={parity!r}, allowed N, E, O")
         stopbits = int(_num(opts, "stopbits", 1, url, 1, 2))
         wire = _RTU_EXCHANGE_BYTES * (1 + 8 + stopbits + (parity != "N")) / baud
         settings.update(baud=baud, parity=parity, stopbits=stopbits,

@@ -33,6 +33,7 @@ from urllib.parse import parse_qsl, urlencode
 
 import serial
 
+from board_config.errors import InputError
 from drivers.framing import (
     PROTOCOL_VERSION,
     FrameDecoder,
@@ -72,9 +73,9 @@ def _option(opts: dict[str, str], key: str, default: float, url: str, lo: float,
     try:
         value = float(raw)
     except ValueError:
-        raise ValueError(f"link URL '{url}': option {key}={raw!r} is not a number") from None
+        raise InputError(f"link URL '{url}': option {key}={raw!r} is not a number") from None
     if not lo <= value <= hi:
-        raise ValueError(f"link URL '{url}': option {key}={value:g} outside the allowed range [{lo:g}, {hi:g}]")
+        raise InputError(f"link URL '{url}': option {key}={value:g} outside the allowed range [{lo:g}, {hi:g}]")
     return value
 
 
@@ -87,11 +88,11 @@ class SerialLink:
         target = url.removeprefix("serial:") if url.startswith("serial:") else url
         self.port_url, opts = split_link_options(target)
         if not self.port_url:
-            raise ValueError(f"link URL '{url}': no port given (e.g. serial:/dev/ttyUSB0 or socket://HOST:PORT)")
+            raise InputError(f"link URL '{url}': no port given (e.g. serial:/dev/ttyUSB0 or socket://HOST:PORT)")
         self.baudrate = int(baudrate or _option(opts, "baud", 115200, url, 50, 20_000_000))
         parity = opts.get("parity", "N").upper()
         if parity not in ("N", "E", "O"):
-            raise ValueError(f"link URL '{url}': parity={parity!r}, allowed N, E, O")
+            raise InputError(f"link URL '{url}': parity={parity!r}, allowed N, E, O")
         self.parity = parity
         self.timeout = float(timeout if timeout is not None else _option(opts, "timeout", 0.008, url, 1e-4, 60.0))
         self.handshake = bool(handshake if handshake is not None else _option(opts, "handshake", 1, url, 0, 1))

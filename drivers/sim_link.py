@@ -17,6 +17,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 
+from board_config.errors import InputError
 from drivers.link import ActuatorCommand, LinkError, RigEndpoint, RigSample, register_link_scheme
 
 _RIG_FACTORY: Callable[[str], RigEndpoint] | None = None
@@ -81,7 +82,7 @@ class InProcessLink:
 
 def _open_sim(url: str) -> InProcessLink:
     if _RIG_FACTORY is None:
-        raise ValueError(f"link URL {url!r}: no simulated rig available (import hil_stub.rig, which registers it)")
+        raise InputError(f"link URL {url!r}: no simulated rig available (import hil_stub.rig, which registers it)")
     return InProcessLink(_RIG_FACTORY(url), url=url)
 
 

@@ -37,6 +37,7 @@ from board_config import (
     load_monitor_settings,
 )
 from board_config.board import BoardConfig, load_board_config
+from board_config.errors import InputError
 from drivers.link import FLAG_LIMIT_REFUSED, FLAG_RIG_FAULT, FLAG_SENSOR_FAULT, ActuatorCommand, RigSample
 from firmware_sim.events import BoardEvent
 from firmware_sim.maintenance import MaintenanceSequencer
@@ -94,7 +95,7 @@ class Board:
         self.limits = limits if limits is not None else load_mfc_limits()
         monitor = monitor if monitor is not None else load_monitor_settings()
         if abs(monitor.f_mon - cfg.tick_rate) > 1e-9:
-            raise ValueError(f"the condition monitor runs at f_mon = {monitor.f_mon:g} Hz (monitor.toml) but the "
+            raise InputError(f"the condition monitor runs at f_mon = {monitor.f_mon:g} Hz (monitor.toml) but the "
                              f"board ticks at {cfg.tick_rate:g} Hz (board.toml [tick] rate): they must agree")
         self.timers = RegimeTimers.from_config(cfg)
         self.budget = PowerBudget.from_config(cfg)

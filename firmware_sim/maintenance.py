@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from board_config import MbitDefinition, MfcLimits, MonitorSettings
+from board_config.errors import InputError
 from firmware_sim.condition_monitor import ConditionMonitor
 from firmware_sim.events import BoardEvent
 from firmware_sim.mbit import MbitSequence, generate_mbit
@@ -43,14 +44,14 @@ class MaintenanceSequencer:
                  monitor: MonitorSettings, nominal: PlantModel, settle_ticks: int, period: float) -> None:
         missing = [k for k in sequence if k not in definitions]
         if missing:
-            raise ValueError(f"maintenance sequence names MBIT {missing[0]!r}, which is not defined "
+            raise InputError(f"maintenance sequence names MBIT {missing[0]!r}, which is not defined "
                              f"(defined: {', '.join(sorted(definitions))})")
         self.period = float(period)
         self.sequences: dict[str, MbitSequence] = {}
         for key in sequence:
             defn = definitions[key]
             if abs(defn.sample_rate * period - 1.0) > 1e-9:
-                raise ValueError(f"{defn.source}: mbit.{key}.sample_rate is {defn.sample_rate:g} Hz; the board plays "
+                raise InputError(f"{defn.source}: mbit.{key}.sample_rate is {defn.sample_rate:g} Hz; the board plays "
                                  f"one command per tick ({1.0 / period:g} Hz)")
             self.sequences[key] = generate_mbit(defn, limits, on_clamp="report")
         self.plan: tuple[_Step, ...] = tuple(

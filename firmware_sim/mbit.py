@@ -21,6 +21,7 @@ from typing import Any, Literal
 import numpy as np
 
 from board_config import MbitDefinition, MfcLimits, load_mfc_limits
+from board_config.errors import InputError
 from plant import InputSignals
 
 ClampPolicy = Literal["warn", "raise", "report"]
@@ -30,7 +31,7 @@ class VoltageClampWarning(UserWarning):
     """An MBIT sequence had to be clamped to the MFC voltage limits."""
 
 
-class MbitClampError(ValueError):
+class MbitClampError(InputError):
     """An MBIT sequence exceeds the MFC voltage limits and clamping was refused (``on_clamp="raise"``)."""
 
 
@@ -87,7 +88,7 @@ def clamp_channel(t: np.ndarray, volts: np.ndarray, limits: MfcLimits, channel: 
     """Clamp one channel's samples (V) to Table 1's range and describe what changed."""
     volts = np.asarray(volts, dtype=float)
     if not np.all(np.isfinite(volts)):
-        raise ValueError(f"{channel}: non-finite voltage demand at sample {int(np.argmax(~np.isfinite(volts)))}")
+        raise InputError(f"{channel}: non-finite voltage demand at sample {int(np.argmax(~np.isfinite(volts)))}")
     clamped = np.clip(volts, limits.voltage_min, limits.voltage_max)
     changed = clamped != volts
     excess = np.maximum(volts - limits.voltage_max, limits.voltage_min - volts)
@@ -112,7 +113,7 @@ def differential_waveform(defn: MbitDefinition, t: np.ndarray) -> np.ndarray:
     if defn.waveform == "step":
         rise = defn.rise_time if defn.rise_time is not None else defn.dt
         return defn.amplitude * np.clip((t - defn.t_start) / rise, 0.0, 1.0)
-    raise ValueError(f"{defn.source}: MBIT {defn.key}: unknown waveform {defn.waveform!r}")
+    raise InputError(f"{defn.source}: MBIT {defn.key}: unknown waveform {defn.waveform!r}")
 
 
 @dataclass(frozen=True)
@@ -167,7 +168,7 @@ def generate_mbit(defn: MbitDefinition, limits: MfcLimits | None = None, on_clam
         raise ValueError(f"on_clamp must be 'warn', 'raise' or 'report', got {on_clamp!r}")
     limits = limits if limits is not None else load_mfc_limits()
     if defn.frequency is not None and defn.frequency > limits.frequency_max:
-        raise ValueError(f"{defn.source}: mbit.{defn.key}.frequency: {defn.frequency:g} Hz is above the MFC "
+        raise InputError(f"{defn.source}: mbit.{defn.key}.frequency: {defn.frequency:g} Hz is above the MFC "
                          f"operational range (DC..{limits.frequency_max:g} Hz, Table 1)")
     t = np.arange(defn.n_samples) / defn.sample_rate
     va = differential_waveform(defn, t)

@@ -41,6 +41,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from board_config.errors import InputError
 from firmware_sim.events import BoardEvent
 
 SCHEMA_VERSION = 1
@@ -200,16 +201,16 @@ def open_log_readonly(path: str | Path) -> sqlite3.Connection:
         db = sqlite3.connect(f"file:{p}?mode=ro", uri=True)
         row = db.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
     except sqlite3.DatabaseError as exc:
-        raise ValueError(f"{p}: not a usage log database ({exc})") from None
+        raise InputError(f"{p}: not a usage log database ({exc})") from None
     if row is None:
-        raise ValueError(f"{p}: not a usage log database (no schema_version)")
+        raise InputError(f"{p}: not a usage log database (no schema_version)")
     return db
 
 
 def read_table(db: sqlite3.Connection, table: str, run_id: int | None = None) -> tuple[list[str], list[tuple]]:
     """Columns and rows of one log table (optionally one run), in insertion order."""
     if table not in LOG_TABLES:
-        raise ValueError(f"unknown log table {table!r} (tables: {', '.join(LOG_TABLES)})")
+        raise InputError(f"unknown log table {table!r} (tables: {', '.join(LOG_TABLES)})")
     where = " WHERE run_id=?" if run_id is not None else ""
     order = "run_id" if table == "runs" else "id"
     cur = db.execute(f"SELECT * FROM {table}{where} ORDER BY {order}", (() if run_id is None else (run_id,)))

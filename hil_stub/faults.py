@@ -23,6 +23,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from board_config.errors import InputError
 from drivers.link import ActuatorCommand, RigEndpoint, RigSample
 
 SENSOR_CHANNELS = ("z3", "v_patch", "z0dd", "v_battery")
@@ -45,15 +46,15 @@ class LinkFaults:
         for name in ("drop", "corrupt"):
             v = getattr(self, name)
             if not 0.0 <= v <= 1.0:
-                raise ValueError(f"--{name} {v!r}: a fraction of replies, allowed [0, 1]")
+                raise InputError(f"--{name} {v!r}: a fraction of replies, allowed [0, 1]")
         if self.drop + self.corrupt > 1.0:
-            raise ValueError(f"--drop {self.drop} + --corrupt {self.corrupt} exceeds 1")
+            raise InputError(f"--drop {self.drop} + --corrupt {self.corrupt} exceeds 1")
         for name in ("latency_s", "jitter_s", "disconnect_for_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and 0.0 <= v <= 60.0):
-                raise ValueError(f"{name}={v!r} s outside [0, 60] s")
+                raise InputError(f"{name}={v!r} s outside [0, 60] s")
         if self.disconnect_at_s is not None and not (math.isfinite(self.disconnect_at_s) and self.disconnect_at_s >= 0):
-            raise ValueError(f"disconnect_at_s={self.disconnect_at_s!r} must be a rig time >= 0 s")
+            raise InputError(f"disconnect_at_s={self.disconnect_at_s!r} must be a rig time >= 0 s")
 
     @property
     def active(self) -> bool:
@@ -123,14 +124,14 @@ class SensorFaults:
     def __post_init__(self) -> None:
         for k, v in self.noise.items():
             if k not in SENSOR_CHANNELS:
-                raise ValueError(f"--noise {k}=...: unknown channel (allowed: {', '.join(SENSOR_CHANNELS)})")
+                raise InputError(f"--noise {k}=...: unknown channel (allowed: {', '.join(SENSOR_CHANNELS)})")
             if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"--noise {k}={v!r}: sigma must be >= 0 {NOISE_UNITS[k]}")
+                raise InputError(f"--noise {k}={v!r}: sigma must be >= 0 {NOISE_UNITS[k]}")
         for k, v in self.stuck.items():
             if k not in STUCK_CHANNELS:
-                raise ValueError(f"--stuck {k}@...: unknown channel (allowed: {', '.join(STUCK_CHANNELS)})")
+                raise InputError(f"--stuck {k}@...: unknown channel (allowed: {', '.join(STUCK_CHANNELS)})")
             if not (math.isfinite(v) and v >= 0):
-                raise ValueError(f"--stuck {k}@{v!r}: the rig time must be >= 0 s")
+                raise InputError(f"--stuck {k}@{v!r}: the rig time must be >= 0 s")
 
     @property
     def active(self) -> bool:
@@ -179,7 +180,7 @@ class TruthChanges:
     def __post_init__(self) -> None:
         for k, v in self.deviations.items():
             if not (math.isfinite(v) and v > -1.0):
-                raise ValueError(f"--deviation {k}={v!r}: relative deviation must be > -1 (truth = nominal × (1 + d))")
+                raise InputError(f"--deviation {k}={v!r}: relative deviation must be > -1 (truth = nominal × (1 + d))")
 
     @property
     def active(self) -> bool:
@@ -220,7 +221,7 @@ def _number(flag: str, text: str, raw: str) -> float:
     try:
         return float(raw)
     except ValueError:
-        raise ValueError(f"{flag} {text!r}: {raw!r} is not a number") from None
+        raise InputError(f"{flag} {text!r}: {raw!r} is not a number") from None
 
 
 def parse_assignments(flag: str, specs: list[str] | None) -> dict[str, float]:
@@ -230,7 +231,7 @@ def parse_assignments(flag: str, specs: list[str] | None) -> dict[str, float]:
         for part in filter(None, (p.strip() for p in spec.split(","))):
             name, sep, value = part.partition("=")
             if not sep or not name.strip():
-                raise ValueError(f"{flag} {part!r}: expected NAME=VALUE")
+                raise InputError(f"{flag} {part!r}: expected NAME=VALUE")
             out[name.strip()] = _number(flag, part, value.strip())
     return out
 

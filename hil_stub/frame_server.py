@@ -31,6 +31,7 @@ from pathlib import Path
 
 import serial
 
+from board_config.errors import InputError
 from drivers.framing import (
     Frame,
     FrameDecoder,
@@ -176,7 +177,7 @@ class FrameServer:
             hostport = where.removeprefix("socket://").split("?", 1)[0]
             h, _, p = hostport.rpartition(":")
             if not h or not p.isdigit():
-                raise ValueError(f"--serial {where!r}: expected socket://HOST:PORT to listen on")
+                raise InputError(f"--serial {where!r}: expected socket://HOST:PORT to listen on")
             self._channel = _TcpListenChannel(h, int(p))
         else:
             self._channel = _SerialChannel(where.removeprefix("serial:"), baudrate)

@@ -37,6 +37,7 @@ from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.server.requesthandler import ServerRequestHandler
 from pymodbus.simulator import DataType, SimData, SimDevice
 
+from board_config.errors import InputError
 from drivers.modbus_registers import (
     BY_NAME,
     COMMAND_END,
@@ -170,7 +171,7 @@ class ModbusRigServer:
         if kind not in ("tcp", "rtu"):
             raise ValueError(f"Modbus server kind {kind!r}: allowed tcp, rtu")
         if not 1 <= unit <= 247:
-            raise ValueError(f"Modbus unit id {unit} outside 1..247")
+            raise InputError(f"Modbus unit id {unit} outside 1..247")
         self.host = host
         self.kind = kind
         self.where = where
@@ -194,7 +195,7 @@ class ModbusRigServer:
         if kind == "tcp":
             h, _, p = where.rpartition(":")
             if not h or not p.isdigit():
-                raise ValueError(f"--modbus-tcp {where!r}: expected HOST:PORT (PORT 0 picks a free port)")
+                raise InputError(f"--modbus-tcp {where!r}: expected HOST:PORT (PORT 0 picks a free port)")
             self._tcp_host, self.port = h, int(p)
         elif where == "pty":
             self._pair = PtyPair(names=("modbus-rtu-rig", "modbus-rtu-board"))

@@ -46,6 +46,7 @@ from urllib.parse import parse_qs, urlparse
 import numpy as np
 
 from board_config import CORE_SCHEMA, ConfigError, MfcLimits, ParameterSet, load_mfc_limits, load_parameter_set
+from board_config.errors import InputError
 from board_config.scenario import Scenario, load_scenario
 from drivers.link import FLAG_LIMIT_REFUSED, FLAG_SENSOR_FAULT, ActuatorCommand, RigSample
 from drivers.sim_link import InProcessLink, set_sim_rig_factory
@@ -177,7 +178,7 @@ class SimulatedRig:
         self.effect_params = dict(effect_params if effect_params is not None else (spec.effect_params if spec else {}))
         self.coupling = coupling if coupling is not None else (spec.coupling if spec else "coupled")
         if self.coupling not in COUPLING_TERMINALS:
-            raise ValueError(f"rig coupling {self.coupling!r} unknown (allowed: {', '.join(COUPLING_TERMINALS)})")
+            raise InputError(f"rig coupling {self.coupling!r} unknown (allowed: {', '.join(COUPLING_TERMINALS)})")
         flight_terminal = COUPLING_TERMINALS[self.coupling]
         self.limits = limits if limits is not None else load_mfc_limits()
         if not (tick > 0 and math.isfinite(tick)):
@@ -272,7 +273,7 @@ class SimulatedRig:
             query[key] = values[-1]
         unknown = set(query) - {"scenario", "seed", "params", "coupling"}
         if unknown:
-            raise ValueError(f"sim link URL {url!r}: unknown option {sorted(unknown)[0]!r} "
+            raise InputError(f"sim link URL {url!r}: unknown option {sorted(unknown)[0]!r} "
                              "(known: scenario, seed, params, coupling)")
         scen_name = query.get("scenario", name)
         scenario = load_scenario(scen_name) if scen_name else None
@@ -281,7 +282,7 @@ class SimulatedRig:
             try:
                 seed = int(query["seed"])
             except ValueError:
-                raise ValueError(f"sim link URL {url!r}: seed must be an integer, got {query['seed']!r}") from None
+                raise InputError(f"sim link URL {url!r}: seed must be an integer, got {query['seed']!r}") from None
         return cls(scenario, seed=seed, params=query.get("params"), coupling=query.get("coupling"))
 
     def _model(self, terminal: str) -> _TruthModel:

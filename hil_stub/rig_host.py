@@ -37,6 +37,7 @@ from dataclasses import dataclass, field, replace
 from enum import Enum
 
 from board_config import MfcLimits, load_mfc_limits
+from board_config.errors import InputError
 from drivers.framing import sanitize_sample
 from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, RigEndpoint, RigSample
 
@@ -115,9 +116,9 @@ class RigHost:
                  clock: Callable[[], float] = time.perf_counter, keep_lateness: bool = False,
                  on_tick: Callable[[Snapshot], None] | None = None) -> None:
         if mode not in ("realtime", "lockstep"):
-            raise ValueError(f"rig clock mode {mode!r}: allowed realtime, lockstep")
+            raise InputError(f"rig clock mode {mode!r}: allowed realtime, lockstep")
         if start not in ("first-command", "now"):
-            raise ValueError(f"rig start {start!r}: allowed first-command, now")
+            raise InputError(f"rig start {start!r}: allowed first-command, now")
         if not (dt > 0 and math.isfinite(dt)):
             raise ValueError(f"rig tick dt={dt!r} s must be positive")
         self.endpoint = endpoint

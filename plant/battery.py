@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from board_config.battery import BatterySpec, load_battery
+from board_config.errors import InputError
 from plant.effects.harvesting import K_I_BOARD, K_Q_MAX, N_OCV_NODES, ocv_and_slope, ocv_nodes
 
 #: charge (as a fraction of capacity) over which the charge controller tapers the current to zero at full
@@ -44,10 +45,10 @@ class TheveninBattery:
         self.spec = load_battery(spec) if isinstance(spec, str) else spec
         r = float(r_int)
         if not np.isfinite(r) or r <= 0.0 or r > 1e6:
-            raise ValueError(f"internal resistance R_bint = {r_int!r} ohm outside the allowed range (0, {1e6:g}] ohm")
+            raise InputError(f"internal resistance R_bint = {r_int!r} ohm outside the allowed range (0, {1e6:g}] ohm")
         tf = float(taper_fraction)
         if not 0.0 < tf < 0.5:
-            raise ValueError(f"taper_fraction {taper_fraction!r} outside (0, 0.5)")
+            raise InputError(f"taper_fraction {taper_fraction!r} outside (0, 0.5)")
         self.r_int = r
         self.capacity = float(self.spec.capacity)  # C
         self.taper = tf * self.capacity  # C
@@ -88,7 +89,7 @@ class TheveninBattery:
         lo, hi = float(self.v_nodes[-1]), float(self.v_nodes[0])
         v = float(v)
         if not np.isfinite(v) or v < lo - 1e-12 or v > hi + 1e-12:
-            raise ValueError(f"{what} {v!r} V outside the {self.name} open-circuit-voltage table [{lo:g}, {hi:g}] V")
+            raise InputError(f"{what} {v!r} V outside the {self.name} open-circuit-voltage table [{lo:g}, {hi:g}] V")
         a, b = 0.0, self.capacity
         for _ in range(80):
             mid = 0.5 * (a + b)
@@ -183,7 +184,7 @@ def _harvest_offsets(model: Any) -> tuple[int, int]:
         so = model.state_names.index("bat_qd")
         po = model.param_names.index("R_bint")
     except ValueError:
-        raise ValueError(f"the model has no harvesting terminal (effects: {', '.join(model.effect_names)}); build "
+        raise InputError(f"the model has no harvesting terminal (effects: {', '.join(model.effect_names)}); build "
                          "it with terminal='harvest_coupled' or 'harvest_paper'") from None
     return so, po
 
@@ -214,7 +215,7 @@ def set_board_current(stepper: Any, amps: float | np.ndarray) -> None:
     par = next(pp for pp in stepper.model.own_parameters if pp.name == "i_board")
     bad = ~np.isfinite(a) | (a < par.lower) | (a > par.upper)
     if np.any(bad):
-        raise ValueError(f"board load current {float(a[np.argmax(bad)])!r} A outside the allowed range "
+        raise InputError(f"board load current {float(a[np.argmax(bad)])!r} A outside the allowed range "
                          f"[{par.lower:g}, {par.upper:g}] A")
     stepper.p[:, po + K_I_BOARD] = a
 

@@ -38,8 +38,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
+from board_config.errors import InputError
 
-class EffectError(ValueError):
+
+class EffectError(InputError):
     """An effect is unknown, cannot be imported, or is ill-formed."""
 
 

@@ -27,6 +27,7 @@ import numpy as np
 
 from board_config import ParameterSet
 from board_config.battery import BatterySpec
+from board_config.errors import InputError
 from plant.battery import TheveninBattery, initial_state
 from plant.effects import NOMINAL_EFFECTS
 from plant.effects.harvesting import N_OCV_NODES
@@ -66,11 +67,11 @@ def _check_range(what: str, value: Any, lo: float, hi: float, unit: str, lo_open
     try:
         v = float(value)
     except (TypeError, ValueError):
-        raise ValueError(f"{what} must be a number, got {value!r}") from None
+        raise InputError(f"{what} must be a number, got {value!r}") from None
     bad_lo = v <= lo if lo_open else v < lo
     if not math.isfinite(v) or bad_lo or v > hi:
         bracket = "(" if lo_open else "["
-        raise ValueError(f"{what} = {value!r} {unit} outside the allowed range {bracket}{lo:g}, {hi:g}] {unit}")
+        raise InputError(f"{what} = {value!r} {unit} outside the allowed range {bracket}{lo:g}, {hi:g}] {unit}")
     return v
 
 
@@ -94,7 +95,7 @@ class HarvestSetup:
     def validate(self) -> TheveninBattery:
         """Check every field; return the cell. Errors name the value and its allowed range."""
         if self.coupling not in COUPLINGS:
-            raise ValueError(f"coupling {self.coupling!r} unknown (allowed: {', '.join(COUPLINGS)})")
+            raise InputError(f"coupling {self.coupling!r} unknown (allowed: {', '.join(COUPLINGS)})")
         _check_range("base acceleration amplitude", self.accel / G0, *ACCEL_RANGE_G, "g")
         _check_range("excitation frequency", self.freq, *FREQ_RANGE_HZ, "Hz")
         _check_range("internal resistance R_bint", self.r_int, *R_INT_RANGE_OHM, "ohm")
@@ -102,7 +103,7 @@ class HarvestSetup:
         _check_range("board load current", self.i_board, *I_BOARD_RANGE_A, "A", lo_open=False)
         _check_range("duration", self.duration, *DURATION_RANGE_S, "s")
         if self.eq8_reverse and self.coupling != "paper":
-            raise ValueError("eq8_reverse applies to the paper coupling only")
+            raise InputError("eq8_reverse applies to the paper coupling only")
         battery = TheveninBattery(self.battery, r_int=self.r_int)
         battery.discharged_capacity(self.v_start, "start voltage")
         return battery

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from board_config.errors import InputError
 from plant.effects.harvesting import bridge_charging_current
 
 #: largest diode drop accepted (V); silicon ~0.6-0.7 V, Schottky ~0.2-0.4 V
@@ -32,7 +33,7 @@ class FullBridge:
     def __post_init__(self) -> None:
         v = float(self.v_diode)
         if not np.isfinite(v) or v < 0.0 or v > MAX_DIODE_DROP_V:
-            raise ValueError(f"diode forward drop {self.v_diode!r} V outside the allowed range "
+            raise InputError(f"diode forward drop {self.v_diode!r} V outside the allowed range "
                              f"[0, {MAX_DIODE_DROP_V:g}] V")
 
     @property
@@ -47,7 +48,7 @@ class FullBridge:
                          i_board: float = 0.0) -> np.ndarray:
         """Bridge output current (A) into a cell + board load (see the module docstring); ``r_src + r_int > 0``."""
         if not (r_src >= 0.0 and r_int > 0.0):
-            raise ValueError(f"resistances must be R_src >= 0 and R_int > 0 ohm, got R_src={r_src!r}, "
+            raise InputError(f"resistances must be R_src >= 0 and R_int > 0 ohm, got R_src={r_src!r}, "
                              f"R_int={r_int!r}")
         vs, vo = np.broadcast_arrays(np.asarray(v_src, dtype=float), np.asarray(v_oc, dtype=float))
         out = np.empty(vs.shape)

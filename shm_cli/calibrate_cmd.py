@@ -7,6 +7,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from board_config.errors import InputError
 from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir, pyplot
 
 
@@ -36,11 +37,11 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from workbench.calibrate import CLAIMS_FILE, DEFAULT_FREE, calibrate, load_claim_targets
 
     if not 0.0 <= args.min_damping < 1.0:
-        raise ValueError(f"--min-damping must be in [0, 1), got {args.min_damping}")
+        raise InputError(f"--min-damping must be in [0, 1), got {args.min_damping}")
     base = load_parameter_set(args.params)
     claims = Path(args.claims) if args.claims else CLAIMS_FILE
     if not claims.exists():
-        raise ValueError(f"--claims file not found: {claims}")
+        raise InputError(f"--claims file not found: {claims}")
     keep = None if args.no_keep_actuation else static_tip_gain_closed_form(PlantModel(base))
     targets = load_claim_targets(claims, static_gain_m_per_v=keep)
     out = out_dir(args.out)

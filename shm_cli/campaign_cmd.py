@@ -19,7 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
-from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir
+from board_config.errors import InputError
+from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir
 
 DEFAULT_EPS_GRID = "0.025:0.6:0.025"
 DEFAULT_COUNT_GRID = "25,50,100,200,300,400"
@@ -93,21 +94,21 @@ def parse_grid(text: str, what: str, integer: bool = False) -> np.ndarray:
         if ":" in text:
             a, b, s = (float(v) for v in text.split(":"))
             if s <= 0 or b < a:
-                raise ValueError
+                raise InputError
             values = a + s * np.arange(int(np.floor((b - a) / s + 1e-9)) + 1)
         else:
             values = np.array([float(v) for v in text.split(",") if v.strip()])
     except ValueError:
-        raise ValueError(f"{what} {text!r}: expected START:STOP:STEP with STEP > 0 and STOP >= START, "
+        raise InputError(f"{what} {text!r}: expected START:STOP:STEP with STEP > 0 and STOP >= START, "
                          "or a comma list of numbers") from None
     if values.size == 0 or not np.all(np.isfinite(values)):
-        raise ValueError(f"{what} {text!r}: no valid values")
+        raise InputError(f"{what} {text!r}: no valid values")
     if integer:
         if np.any(values != np.round(values)) or np.any(values < 1):
-            raise ValueError(f"{what} {text!r}: expected integers >= 1")
+            raise InputError(f"{what} {text!r}: expected integers >= 1")
         return np.unique(values.astype(np.int64))
     if np.any(values <= 0):
-        raise ValueError(f"{what} {text!r}: thresholds must be positive")
+        raise InputError(f"{what} {text!r}: thresholds must be positive")
     return np.unique(np.round(values, 12))
 
 
@@ -151,6 +152,8 @@ def cmd_campaign(args: argparse.Namespace) -> int:
                       noise_std=args.noise_um * 1e-6, batch_size=args.batch_size, mbit_config=args.mbit_config,
                       monitor=args.monitor_config)
     out = out_dir(args.out)
+    # campaign.json marks a finished campaign: an earlier one must not survive a run that fails
+    (out / "campaign.json").unlink(missing_ok=True)
     total = len(spec.ranges) * spec.n_runs
     tqdm.monitor_interval = 0  # no tqdm monitor thread: lets the process pool fork (see campaign.runner)
     bar = tqdm(total=total, unit="run", desc=f"campaign {'+'.join(m.label for m in spec.mbits)}", file=sys.stderr,
@@ -174,15 +177,14 @@ def cmd_campaign(args: argparse.Namespace) -> int:
         return 1
     result = outcome.result
     assert result is not None
+    # results first (tables, runs, traces, ROC table, campaign.json), then the figures: a plotting failure must never
+    # lose the numbers, and campaign.json says which figures exist
     files = {k: str(v) for k, v in result.save(out).items()}
-    if not args.no_figures:
-        files["fig11"] = str(campaign_figures.fig11(result, out / "fig11")[0])
-        files["error_traces"] = str(campaign_figures.error_traces(result, out / "error_traces")[0])
     traces = load_traces(out)
     tables = _roc_tables(traces, parse_grid(DEFAULT_EPS_GRID, "--eps-th"),
                          parse_grid(DEFAULT_COUNT_GRID, "--count-max", integer=True), 0.10, 0.10)
-    files.update({k: str(v) for k, v in _write_roc(tables, out, (spec.monitor.eps_th, spec.monitor.count_max),
-                                                   figure=not args.no_figures).items()})
+    mark = (spec.monitor.eps_th, spec.monitor.count_max)
+    files.update({k: str(v) for k, v in _write_roc(tables, out, mark, figure=False).items()})
     summary = {
         "complete": True,
         "spec": spec.describe(),
@@ -197,8 +199,22 @@ def cmd_campaign(args: argparse.Namespace) -> int:
         "task_cpu_s": outcome.cpu_s,
         "batches": {"total": outcome.n_batches, "reused": outcome.n_reused, "computed": outcome.n_computed},
         "files": files,
+        "figures": "skipped (--no-figures)" if args.no_figures else "not written yet",
     }
     save_json(out / "campaign.json", jsonable(summary))
+    deco = Decorations("campaign", args)
+    if not args.no_figures:
+        for key, name, make in (
+            ("fig11", "fig11.png", lambda: campaign_figures.fig11(result, out / "fig11")[0]),
+            ("error_traces", "error_traces.png",
+             lambda: campaign_figures.error_traces(result, out / "error_traces")[0]),
+            ("roc_png", "roc.png", lambda: campaign_figures.roc(tables, out / "roc", mark=mark)[0]),
+        ):
+            path = deco.attempt(name, make)
+            if path is not None:
+                files[key] = str(path)
+        summary["figures"] = "written" if deco.ok else {"failed": deco.failed}
+        save_json(out / "campaign.json", jsonable(summary))
     if args.json:
         print(dump_json(summary))
     else:
@@ -208,8 +224,7 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     if result.n_failed:
         print(f"shm campaign: {result.n_failed} degraded-unit simulations failed to integrate (excluded from the "
               "probabilities; see status_* in runs.csv)", file=sys.stderr)
-        return 1
-    return 0
+    return 1 if result.n_failed or not deco.ok else 0
 
 
 def cmd_roc(args: argparse.Namespace) -> int:
@@ -219,7 +234,7 @@ def cmd_roc(args: argparse.Namespace) -> int:
     eps_grid = parse_grid(args.eps_th, "--eps-th")
     count_grid = parse_grid(args.count_max, "--count-max", integer=True)
     if not 0 <= args.healthy_max_pct <= args.faulty_min_pct:
-        raise ValueError(f"need 0 <= --healthy-max-pct <= --faulty-min-pct, got {args.healthy_max_pct:g} and "
+        raise InputError(f"need 0 <= --healthy-max-pct <= --faulty-min-pct, got {args.healthy_max_pct:g} and "
                          f"{args.faulty_min_pct:g}")
     tables = _roc_tables(traces, eps_grid, count_grid, args.healthy_max_pct / 100, args.faulty_min_pct / 100)
     for t in tables:

@@ -45,7 +45,9 @@ def fig11(result: CampaignResult, path: Path) -> list[Path]:
         lo = np.array([s.interval[0] for s in rows])
         hi = np.array([s.interval[1] for s in rows])
         ax.bar(x, 100 * p, color="tab:blue", alpha=0.8, label=f"model ({result.spec.params_name})")
-        ax.errorbar(x, 100 * p, yerr=[100 * (p - lo), 100 * (hi - p)], fmt="none", ecolor="k", capsize=3,
+        # bar lengths clipped at 0: the interval contains p, but a rounding hair must never fail the figure
+        yerr = np.clip(np.nan_to_num(100 * np.array([p - lo, hi - p]), nan=0.0), 0.0, None)
+        ax.errorbar(x, 100 * np.nan_to_num(p, nan=0.0), yerr=yerr, fmt="none", ecolor="k", capsize=3,
                     label="95 % Wilson interval")
         first = True
         for c_lo, c_hi, pp in PAPER_FAULT_PROBABILITY.get(key, ()):

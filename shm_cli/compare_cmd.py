@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from board_config.errors import InputError
 from shm_cli.common import add_out_arg, add_params_arg, dump_json
 
 
@@ -49,12 +50,12 @@ def _eq4(items: list[str]) -> dict[str, tuple[float, float]]:
         parts = rest.split(",")
         try:
             if not sep or len(parts) != 2:
-                raise ValueError
+                raise InputError
             e0, k = float(parts[0]), float(parts[1])
         except ValueError:
-            raise ValueError(f"--eq4 expects CH=E0,KERR (SI), got '{item}'") from None
+            raise InputError(f"--eq4 expects CH=E0,KERR (SI), got '{item}'") from None
         if e0 < 0 or k <= 0:
-            raise ValueError(f"--eq4 {ch}: need e0 >= 0 and kerr > 0, got {e0}, {k}")
+            raise InputError(f"--eq4 {ch}: need e0 >= 0 and kerr > 0, got {e0}, {k}")
         out[ch.strip()] = (e0, k)
     return out
 
@@ -69,11 +70,11 @@ def cmd_compare(args: argparse.Namespace) -> int:
     from workbench.report import report_json, write_report
 
     if args.lags < 1 or args.decimate < 1:
-        raise ValueError("--lags and --decimate must be at least 1")
+        raise InputError("--lags and --decimate must be at least 1")
     if not 0 < args.level < 1:
-        raise ValueError(f"--level must be in (0, 1), got {args.level}")
+        raise InputError(f"--level must be in (0, 1), got {args.level}")
     if args.skip_s < 0 or args.threshold_sigma <= 0 or args.horizon_s <= 0 or args.interval_s <= 0:
-        raise ValueError("--skip-s must be >= 0; --threshold-sigma, --horizon-s and --interval-s must be > 0")
+        raise InputError("--skip-s must be >= 0; --threshold-sigma, --horizon-s and --interval-s must be > 0")
     options = CompareOptions(skip_s=args.skip_s, level=args.level, max_lag=args.lags, decimate=args.decimate,
                              threshold_sigma=args.threshold_sigma, window_s=args.window_s,
                              predict=not args.no_predict, horizon_s=args.horizon_s, interval_s=args.interval_s,

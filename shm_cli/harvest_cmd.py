@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 
+from board_config.errors import InputError
 from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir, pyplot, write_csv
 
 #: the paper's claim, full recharge from 2 V within 10 minutes (= plant.harvest.PAPER_CLAIM_S; kept here so that
@@ -64,12 +65,12 @@ def _setup_from_args(args: argparse.Namespace):
     from plant.harvest import HarvestSetup
 
     if args.eq8_literal and args.coupling != "paper":
-        raise ValueError("--eq8-literal applies to --coupling paper only")
+        raise InputError("--eq8-literal applies to --coupling paper only")
     for flag, value in (("--accel-g", args.accel_g), ("--freq-hz", args.freq_hz), ("--r-int-ohm", args.r_int_ohm),
                         ("--from-v", args.from_v), ("--duration-s", args.duration_s),
                         ("--diode-drop-v", args.diode_drop_v), ("--board-current-ma", args.board_current_ma)):
         if not math.isfinite(value):
-            raise ValueError(f"{flag} must be a finite number, got {value!r}")
+            raise InputError(f"{flag} must be a finite number, got {value!r}")
     setup = HarvestSetup(
         params=args.params, coupling=args.coupling, accel=args.accel_g * G0, freq=args.freq_hz,
         r_int=args.r_int_ohm, v_start=args.from_v, v_diode=args.diode_drop_v,

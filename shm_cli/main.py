@@ -1,16 +1,34 @@
 """``shm`` entry point. Each command group is one module exposing ``register(subparsers)``; adding a
 command is one new module plus one line in :data:`COMMAND_MODULES`.
 
-Exit codes: 0 success, 1 the job ran but reports a failure (e.g. a fault verdict where none was expected
-is *not* an error; an integration failure is), 2 bad usage or bad input (with a message naming it).
+Exit codes — the policy, in one place (:func:`main`):
+
+* **0** the command did its job (a FAULT verdict found by a run is a result, not an error).
+* **2** bad usage or bad input the user can fix: argparse errors, and every :class:`board_config.InputError`
+  (``ConfigError``, ``RecordError``, ``EffectError``, ``FitError``, ``CampaignError``, :class:`CliError` ...). The
+  message (``shm: error: ...``) names the file, option or value and why. Code that validates user input raises a
+  subclass of ``InputError``, never a bare ``ValueError``.
+* **1** the job ran but failed: a command that reports its own failure (an integration that diverged, a campaign
+  with unfinished batches, an artefact that could not be written — the command says which), an operating-system
+  error (``OSError``: a full disk, a permission), or an unexpected exception, which is a bug in mfc-shm: one line
+  saying so, with the command, the exception type and message, and how to see the traceback (``shm --debug ...``
+  or ``SHM_DEBUG=1``).
+* **130** interrupted (Ctrl-C).
+
+``--debug`` is a top-level flag (``shm --debug campaign ...``; also accepted anywhere before a ``--``); with it, or
+with the environment variable ``SHM_DEBUG=1``, an unexpected exception prints its full traceback.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
+import traceback
 from collections.abc import Sequence
+
+from board_config.errors import InputError
 
 #: command modules, each with ``register(subparsers)``; the handler is set with ``set_defaults(func=...)``
 COMMAND_MODULES: tuple[str, ...] = (
@@ -30,9 +48,13 @@ COMMAND_MODULES: tuple[str, ...] = (
 EXIT_OK = 0
 EXIT_FAILURE = 1
 EXIT_USAGE = 2
+EXIT_INTERRUPTED = 130
+
+#: environment variable that turns on tracebacks for unexpected errors (any value but "", "0")
+DEBUG_ENV = "SHM_DEBUG"
 
 
-class CliError(Exception):
+class CliError(InputError):
     """A user-facing error: printed as ``shm: error: <message>`` with exit code 2."""
 
 
@@ -41,7 +63,10 @@ def build_parser() -> argparse.ArgumentParser:
         prog="shm",
         description="mfc-shm: self-powered SHM board with MFC piezo patches — physics, firmware mock, "
                     "hardware links, model workbench.",
+        epilog="exit codes: 0 done, 1 the job failed (or a bug in mfc-shm), 2 bad usage or bad input.",
     )
+    parser.add_argument("--debug", action="store_true",
+                        help=f"print the full traceback of an unexpected error (also: {DEBUG_ENV}=1)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     sub.required = True
     for name in COMMAND_MODULES:
@@ -49,22 +74,67 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    from board_config import ConfigError
+def command_words(args: argparse.Namespace) -> str:
+    """``"shm model frf"``: the command being run, for messages."""
+    words = ["shm", str(getattr(args, "command", "") or "")]
+    for key, value in sorted(vars(args).items()):
+        if key.endswith("_command") and value:
+            words.append(str(value))
+    return " ".join(w for w in words if w)
 
+
+def _split_debug(argv: list[str]) -> tuple[list[str], bool]:
+    """Remove ``--debug`` from anywhere before a ``--`` separator."""
+    end = argv.index("--") if "--" in argv else len(argv)
+    kept = [a for a in argv[:end] if a != "--debug"] + argv[end:]
+    return kept, len(kept) != len(argv)
+
+
+def _one_line(text: str) -> str:
+    return " ".join(str(text).split())
+
+
+def debug_enabled(flag: bool = False) -> bool:
+    return flag or os.environ.get(DEBUG_ENV, "") not in ("", "0")
+
+
+def report_bug(what: str, exc: BaseException, debug: bool) -> None:
+    """The one line for an unexpected exception (plus the traceback when debugging)."""
+    if debug:
+        traceback.print_exception(exc, file=sys.stderr)
+    how = "traceback above" if debug else f"rerun with 'shm --debug ...' or {DEBUG_ENV}=1 for the traceback"
+    print(f"shm: internal error, a bug in mfc-shm: '{what}' failed with {type(exc).__name__}: "
+          f"{_one_line(exc) or '(no message)'} — please report it ({how})", file=sys.stderr)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    argv, debug_flag = _split_debug(list(sys.argv[1:] if argv is None else argv))
     parser = build_parser()
     args = parser.parse_args(argv)
+    debug = debug_enabled(debug_flag or args.debug)
+    what = command_words(args)
     try:
         return int(args.func(args) or 0)
-    except (CliError, ConfigError) as exc:
-        print(f"shm: error: {exc}", file=sys.stderr)
-        return EXIT_USAGE
-    except ValueError as exc:  # EffectError and input validation errors are ValueErrors with messages
-        print(f"shm: error: {exc}", file=sys.stderr)
+    except InputError as exc:
+        print(f"shm: error: {_one_line(exc)}", file=sys.stderr)
         return EXIT_USAGE
     except KeyboardInterrupt:
         print("shm: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
+    except BrokenPipeError:  # `shm ... | head`: the reader went away; nothing left to say
+        try:
+            sys.stdout = open(os.devnull, "w")  # keeps the final flush quiet
+        except OSError:
+            pass
+        return EXIT_FAILURE
+    except OSError as exc:  # the file system or the network refused: the job failed, not the user's input
+        if debug:
+            traceback.print_exception(exc, file=sys.stderr)
+        print(f"shm: error: '{what}' failed: {_one_line(exc)}", file=sys.stderr)
+        return EXIT_FAILURE
+    except Exception as exc:  # anything else is a bug in mfc-shm
+        report_bug(what, exc, debug)
+        return EXIT_FAILURE
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from board_config.errors import InputError
 from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir, pyplot, write_csv
 
 
@@ -116,9 +117,9 @@ def cmd_frf(args: argparse.Namespace) -> int:
     from plant.linear import linearise
 
     if not (0 < args.f_min_hz < args.f_max_hz):
-        raise ValueError(f"need 0 < --f-min-hz < --f-max-hz, got {args.f_min_hz} and {args.f_max_hz}")
+        raise InputError(f"need 0 < --f-min-hz < --f-max-hz, got {args.f_min_hz} and {args.f_max_hz}")
     if args.points < 2:
-        raise ValueError(f"--points must be at least 2, got {args.points}")
+        raise InputError(f"--points must be at least 2, got {args.points}")
     out = out_dir(args.out)
     model = PlantModel(args.params)
     lin = linearise(model)
@@ -174,7 +175,7 @@ def cmd_step(args: argparse.Namespace) -> int:
     from plant.responses import step_response
 
     if args.duration_s <= 0.1:
-        raise ValueError(f"--duration-s must be above 0.1 s (the step is applied at 0.1 s), got {args.duration_s}")
+        raise InputError(f"--duration-s must be above 0.1 s (the step is applied at 0.1 s), got {args.duration_s}")
     out = out_dir(args.out)
     model = PlantModel(args.params)
     resp = step_response(model, args.amplitude_v, args.duration_s)
@@ -189,7 +190,7 @@ def cmd_loop(args: argparse.Namespace) -> int:
     from plant.responses import hysteresis_loop
 
     if args.freq_hz <= 0 or args.cycles <= 0:
-        raise ValueError(f"--freq-hz and --cycles must be positive, got {args.freq_hz} and {args.cycles}")
+        raise InputError(f"--freq-hz and --cycles must be positive, got {args.freq_hz} and {args.cycles}")
     out = out_dir(args.out)
     model = PlantModel(args.params)
     resp = hysteresis_loop(model, args.amplitude_v, args.freq_hz, args.cycles)

@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from board_config.errors import InputError
 from shm_cli.common import add_params_arg, dump_json
 
 TESTS = ("mbit-a", "mbit-b", "step", "sine", "sweep", "frf")
@@ -56,11 +57,11 @@ def _assignments(flag: str, items: list[str]) -> dict[str, float]:
     for item in items:
         name, sep, value = item.partition("=")
         if not sep or not name.strip():
-            raise ValueError(f"{flag} expects NAME=VALUE, got '{item}'")
+            raise InputError(f"{flag} expects NAME=VALUE, got '{item}'")
         try:
             out[name.strip()] = float(value)
         except ValueError:
-            raise ValueError(f"{flag} {name.strip()}: '{value}' is not a number") from None
+            raise InputError(f"{flag} {name.strip()}: '{value}' is not a number") from None
     return out
 
 
@@ -72,16 +73,16 @@ def cmd_synth(args: argparse.Namespace) -> int:
 
     out = Path(args.out)
     if out.suffix.lower() not in (".csv", ".tdms"):
-        raise ValueError(f"--out {out}: expected a .csv or .tdms file name")
+        raise InputError(f"--out {out}: expected a .csv or .tdms file name")
     if args.test == "frf" and out.suffix.lower() != ".csv":
-        raise ValueError("--test frf writes a frequency-response table: use a .csv file name")
+        raise InputError("--test frf writes a frequency-response table: use a .csv file name")
     pset = load_parameter_set(args.params)
     values = _assignments("--set", args.set_values)
     for name, rel in _assignments("--deviation", args.deviation).items():
         if name not in CORE_PARAMETER_NAMES:
-            raise ValueError(f"--deviation {name}: not a core parameter ({', '.join(CORE_PARAMETER_NAMES)})")
+            raise InputError(f"--deviation {name}: not a core parameter ({', '.join(CORE_PARAMETER_NAMES)})")
         if not rel > -1.0:
-            raise ValueError(f"--deviation {name}={rel}: a relative deviation must be above -1")
+            raise InputError(f"--deviation {name}={rel}: a relative deviation must be above -1")
         values[name] = values.get(name, pset.values[name]) * (1.0 + rel)
     base = args.drive == "base"
     amplitude = None if args.amplitude is None else args.amplitude * (G0 if base else 1.0)
@@ -101,7 +102,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
                 nz.update(_assignments("--noise", [item]))
         unknown = set(nz) - {"amp", "phase"}
         if unknown:
-            raise ValueError(f"--noise for --test frf takes amp=REL and phase=DEG, got {sorted(unknown)}")
+            raise InputError(f"--noise for --test frf takes amp=REL and phase=DEG, got {sorted(unknown)}")
         rec = synth_frf(spec, model, channels, noise_rel=nz["amp"], noise_phase_deg=nz["phase"], seed=args.seed,
                         effects=args.effect, values=values, blind=args.blind)
         path = write_frf_record(rec, out)

@@ -23,6 +23,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from board_config import ParameterSet
+from board_config.errors import InputError
 from plant import G0, PlantModel
 from plant.linear import linearise, modal_summary, static_tip_gain
 
@@ -112,7 +113,7 @@ def model_figures(act: PlantModel, oc: PlantModel, p: np.ndarray) -> ModelFigure
     lin = linearise(act, params=p)
     modal = modal_summary(lin)
     if len(modal.modes) < 2 or not modal.real_poles:
-        raise ValueError(f"the model has {len(modal.modes)} oscillating modes and {len(modal.real_poles)} real poles;"
+        raise InputError(f"the model has {len(modal.modes)} oscillating modes and {len(modal.real_poles)} real poles;"
                          " calibration needs two modes and the RC pole")
     f1, f2 = modal.modes[0]["frequency_Hz"], modal.modes[1]["frequency_Hz"]
     lin_oc = linearise(oc, params=p)
@@ -138,9 +139,9 @@ def calibrate(base: ParameterSet, targets: Sequence[ClaimTarget], free: Sequence
     oc = PlantModel(base, terminal="open_circuit")
     for f in free:
         if f not in act.param_names:
-            raise ValueError(f"free parameter '{f}' is not a parameter of the model ({', '.join(act.param_names)})")
+            raise InputError(f"free parameter '{f}' is not a parameter of the model ({', '.join(act.param_names)})")
         if not act.param_value(f) > 0:
-            raise ValueError(f"free parameter '{f}' must be positive to be fitted in log space "
+            raise InputError(f"free parameter '{f}' must be positive to be fitted in log space "
                              f"(is {act.param_value(f)})")
     idx = [act.param_index(f) for f in free]
     p0 = act.p_nominal.copy()

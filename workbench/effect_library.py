@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from board_config import CORE_PARAMETER_NAMES
+from board_config.errors import InputError
 from plant import PhysicalEffect, PlantModel, resolve_effect
 from plant.effect import EffectError
 
@@ -44,12 +45,12 @@ class FreeParameter:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.lower) and math.isfinite(self.upper) and self.lower < self.upper):
-            raise ValueError(f"parameter '{self.name}': fit range needs finite lower < upper, got "
+            raise InputError(f"parameter '{self.name}': fit range needs finite lower < upper, got "
                              f"[{self.lower:g}, {self.upper:g}] {self.unit}")
         if self.log and self.lower <= 0:
-            raise ValueError(f"parameter '{self.name}': a logarithmic fit range needs lower > 0, got {self.lower:g}")
+            raise InputError(f"parameter '{self.name}': a logarithmic fit range needs lower > 0, got {self.lower:g}")
         if self.linthresh is not None and not self.linthresh > 0:
-            raise ValueError(f"parameter '{self.name}': linthresh must be > 0, got {self.linthresh}")
+            raise InputError(f"parameter '{self.name}': linthresh must be > 0, got {self.linthresh}")
 
     def _ends(self) -> tuple[float, float]:
         if self.log:

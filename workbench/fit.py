@@ -35,6 +35,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from board_config import CORE_PARAMETER_NAMES, EffectEntry, ParameterSet, load_parameter_set
+from board_config.errors import InputError
 from plant import InputSignals, PhysicalEffect, PlantModel
 from plant.effect import EffectError, importable_by_path, resolve_effect
 from workbench.effect_library import (
@@ -56,7 +57,7 @@ MIN_BLOCK_SAMPLES = 25
 FD_STEP = 2e-3
 
 
-class FitError(ValueError):
+class FitError(InputError):
     """Fitting cannot start or cannot proceed (bad records, bad effect, a user effect producing NaN, ...)."""
 
 

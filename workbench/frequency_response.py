@@ -11,6 +11,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from board_config.errors import InputError
 from plant import InputSignals, PlantModel
 from plant.layout import N_INPUTS, U_V_CH1, U_V_CH2, U_Z0DD
 
@@ -21,7 +22,7 @@ def sine_inputs(drive: str, amplitude: float, freq_hz: float, t_end: float, dt: 
                 t0: float = 0.0) -> InputSignals:
     """A sine on one drive: ``va`` (channel 1 at bias+a, channel 2 at bias−a), one channel, or ``z0dd``."""
     if drive not in DRIVES:
-        raise ValueError(f"unknown drive '{drive}' (drives: {', '.join(DRIVES)})")
+        raise InputError(f"unknown drive '{drive}' (drives: {', '.join(DRIVES)})")
     t = t0 + dt * np.arange(round((t_end - t0) / dt) + 1)
     s = amplitude * np.sin(2 * np.pi * freq_hz * (t - t0))
     u = np.zeros((t.size, N_INPUTS))
@@ -63,7 +64,7 @@ def stepped_sine(model: PlantModel, frequencies_hz: Sequence[float], outputs: Se
     for f in frequencies_hz:
         f = float(f)
         if not f > 0:
-            raise ValueError(f"frequency must be positive, got {f}")
+            raise InputError(f"frequency must be positive, got {f}")
         settle = max(settle_cycles / f, min_settle_s)
         settle = np.ceil(settle * f) / f  # whole cycles, so the fit window starts at phase 0
         t_end = settle + measure_cycles / f

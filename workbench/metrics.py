@@ -18,6 +18,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.optimize import nnls
 
+from board_config.errors import InputError
+
 
 def fit_percent(measured: np.ndarray, model: np.ndarray) -> float:
     """MATLAB-style fit: ``100·(1 − ‖y − ŷ‖ / ‖y − mean(y)‖)`` (%). 100 is perfect; it can be negative."""
@@ -128,7 +130,7 @@ def channel_metrics(channel: str, unit: str, t: np.ndarray, measured: np.ndarray
     """All metrics of one channel over ``t >= t[0] + skip_s`` (transient skip, as nonlinearbenchmark.org)."""
     k = np.asarray(t) >= t[0] + skip_s
     if np.count_nonzero(k) < 2:
-        raise ValueError(f"channel '{channel}': transient skip {skip_s} s leaves fewer than 2 samples")
+        raise InputError(f"channel '{channel}': transient skip {skip_s} s leaves fewer than 2 samples")
     y, yh = np.asarray(measured, float)[k], np.asarray(model, float)[k]
     e = y - yh
     fit4 = fit_eq4(y, yh)

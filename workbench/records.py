@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from board_config.errors import InputError
 from plant.layout import INPUT_NAMES, N_INPUTS, U_V_CH1, U_V_CH2, U_Z0DD
 from plant.signals import InputSignals
 from workbench.units import Unit, known_units, split_column, unit_from_string
@@ -72,7 +73,7 @@ _META_KEYS = {
 _CHANNEL_KEYS = {"model_output", "sensor", "position_m", "noise_std", "description"}
 
 
-class RecordError(ValueError):
+class RecordError(InputError):
     """A record file is wrong. The message names the file, where (line/sample, column or key) and why."""
 
     def __init__(self, file: str | Path, reason: str, *, line: int | None = None, column: str | None = None,

@@ -23,6 +23,7 @@ from typing import Any
 import numpy as np
 from scipy import linalg
 
+from board_config.errors import InputError
 from plant import InputSignals, PhysicalEffect, PlantModel
 from workbench.frequency_response import stepped_sine
 from workbench.records import FrfRecord, Record
@@ -33,7 +34,7 @@ DEFAULT_INTERVAL_S = 0.01
 DEFAULT_HORIZON_S = 0.05
 
 
-class ReplayError(ValueError):
+class ReplayError(InputError):
     """The record cannot be replayed through this model (a channel the model lacks, a terminal mismatch...)."""
 
 

@@ -41,6 +41,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.special import ndtri
 
+from board_config.errors import InputError
+
 DEFAULT_LEVEL = 0.01
 DEFAULT_LAGS = 25
 
@@ -253,11 +255,11 @@ def residual_tests(residual: np.ndarray, u: np.ndarray, *, channel: str = "y", i
     if not np.all(np.isfinite(e)) or not np.all(np.isfinite(u)):
         raise ValueError("residual and input must be finite")
     if not 0.0 < level < 1.0:
-        raise ValueError(f"level must be in (0, 1), got {level}")
+        raise InputError(f"level must be in (0, 1), got {level}")
     n = e.size
     m = int(max_lag)
     if m < 1 or n < 4 * m + 10:
-        raise ValueError(f"need at least {4 * m + 10} samples for {m} lags, got {n}")
+        raise InputError(f"need at least {4 * m + 10} samples for {m} lags, got {n}")
     out = ResidualTests(channel, input_name, n, level, m, max(1, int(decimate)))
     out.tests.append(bias_test(e, level))
     pos = np.arange(1, m + 1)

@@ -29,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from board_config import CORE_PARAMETER_NAMES, load_mbit, load_parameter_set
+from board_config.errors import InputError
 from plant import G0, InputSignals, PhysicalEffect, PlantModel
 from plant.layout import N_INPUTS, U_V_CH1, U_V_CH2, U_Z0DD
 from workbench.frequency_response import stepped_sine
@@ -63,13 +64,13 @@ class SynthTest:
 def synth_test(kind: str, **overrides: Any) -> SynthTest:
     """The default waveform of a test kind, with overrides (``None`` values are ignored)."""
     if kind not in TEST_KINDS:
-        raise ValueError(f"unknown test '{kind}' (tests: {', '.join(TEST_KINDS)})")
+        raise InputError(f"unknown test '{kind}' (tests: {', '.join(TEST_KINDS)})")
     over = {k: v for k, v in overrides.items() if v is not None}
     drive = over.get("drive", "voltage")
     if drive not in ("voltage", "base"):
-        raise ValueError(f"drive must be 'voltage' or 'base', got {drive!r}")
+        raise InputError(f"drive must be 'voltage' or 'base', got {drive!r}")
     if kind in ("mbit-a", "mbit-b", "step") and drive != "voltage":
-        raise ValueError(f"test '{kind}' drives the patches; drive='base' applies to sine, sweep and frf")
+        raise InputError(f"test '{kind}' drives the patches; drive='base' applies to sine, sweep and frf")
     base = drive == "base"
     ma, mb = load_mbit("a"), load_mbit("b")
     defaults: dict[str, dict[str, Any]] = {
@@ -86,15 +87,15 @@ def synth_test(kind: str, **overrides: Any) -> SynthTest:
     for name in ("amplitude", "freq_hz", "f0_hz", "f1_hz", "duration_s", "rate_hz"):
         v = getattr(spec, name)
         if not np.isfinite(v) or (v <= 0 and not (name == "duration_s" and kind == "frf")):
-            raise ValueError(f"{name} must be positive and finite, got {v!r}")
+            raise InputError(f"{name} must be positive and finite, got {v!r}")
     if spec.f1_hz <= spec.f0_hz:
-        raise ValueError(f"sweep end f1_hz ({spec.f1_hz}) must be above f0_hz ({spec.f0_hz})")
+        raise InputError(f"sweep end f1_hz ({spec.f1_hz}) must be above f0_hz ({spec.f0_hz})")
     if spec.n_freqs < 2:
-        raise ValueError(f"n_freqs must be at least 2, got {spec.n_freqs}")
+        raise InputError(f"n_freqs must be at least 2, got {spec.n_freqs}")
     if kind in ("mbit-b", "step") and not 0 <= spec.t_step_s < spec.duration_s:
-        raise ValueError(f"t_step_s ({spec.t_step_s}) must lie inside the record (0 .. {spec.duration_s} s)")
+        raise InputError(f"t_step_s ({spec.t_step_s}) must lie inside the record (0 .. {spec.duration_s} s)")
     if kind == "sweep" and spec.rate_hz < 10 * spec.f1_hz:
-        raise ValueError(f"rate_hz ({spec.rate_hz}) must be at least 10 × the sweep's end frequency ({spec.f1_hz})")
+        raise InputError(f"rate_hz ({spec.rate_hz}) must be at least 10 × the sweep's end frequency ({spec.f1_hz})")
     return spec
 
 
@@ -164,7 +165,7 @@ def synth_inputs(spec: SynthTest, settle_s: float = 1.0) -> tuple[np.ndarray, np
         if base:
             u[:, U_Z0DD] = s
     else:
-        raise ValueError(f"test '{spec.kind}' has no time waveform (use synth_frf)")
+        raise InputError(f"test '{spec.kind}' has no time waveform (use synth_frf)")
     if not base:
         u[:, U_V_CH1] = spec.bias_v + spec.polarity[0] * s
         u[:, U_V_CH2] = spec.bias_v + spec.polarity[1] * s
@@ -187,7 +188,7 @@ def _column(name: str) -> str:
     for prefix, unit in sorted(_COLUMN_UNITS.items(), key=lambda kv: -len(kv[0])):
         if name.startswith(prefix):
             return f"{name}_{unit}"
-    raise ValueError(f"synth cannot write channel '{name}' (channels: z1..z3, delta1..3, q1..3, qh1..3, "
+    raise InputError(f"synth cannot write channel '{name}' (channels: z1..z3, delta1..3, q1..3, qh1..3, "
                      "v_patch1..3, v_stored)")
 
 
@@ -224,10 +225,10 @@ def synth_record(spec: SynthTest, model: PlantModel, channels: Sequence[str] = (
     noise_map = _noise_for(channels, noise)
     for k in noise_map:
         if k not in channels and k not in ("v_ch1", "v_ch2", "z0dd"):
-            raise ValueError(f"noise given for '{k}', which the record does not contain (channels: "
+            raise InputError(f"noise given for '{k}', which the record does not contain (channels: "
                              f"{', '.join(channels)}; inputs v_ch1, v_ch2, z0dd)")
         if not (np.isfinite(noise_map[k]) and noise_map[k] >= 0):
-            raise ValueError(f"noise for '{k}' must be a non-negative number, got {noise_map[k]!r}")
+            raise InputError(f"noise for '{k}' must be a non-negative number, got {noise_map[k]!r}")
     t, u, segs = synth_inputs(spec, settle_time_s(model) if spec.kind in ("mbit-b", "step") else 1.0)
     sim = model.simulate(InputSignals(0.0, 1.0 / spec.rate_hz, u), t_out=t, params=params)
     if not sim.ok:
@@ -244,7 +245,7 @@ def synth_record(spec: SynthTest, model: PlantModel, channels: Sequence[str] = (
     for c in channels:
         out = "z3_meas" if c == "z3" else c
         if out not in model.output_names:
-            raise ValueError(f"the truth model has no output '{out}' (outputs: {', '.join(model.output_names)})")
+            raise InputError(f"the truth model has no output '{out}' (outputs: {', '.join(model.output_names)})")
         col = _column(c)
         sd = noise_map.get(c, 0.0)
         cols[col] = sim[out][0] + (rng.normal(0, sd, t.size) if sd else 0.0)

@@ -7,6 +7,7 @@ import math
 from pathlib import Path
 
 from board_config import MbitDefinition, MonitorSettings, load_mbit_definitions, load_monitor_settings
+from board_config.errors import InputError
 from firmware_sim.campaign.spec import (
     DEFAULT_BATCH_SIZE,
     DEFAULT_DEVIATED,
@@ -29,13 +30,13 @@ def select_mbits(selection: str, definitions: dict[str, MbitDefinition]) -> tupl
     else:
         keys = [k.strip() for k in text.split(",") if k.strip()]
     if not keys:
-        raise ValueError(f"--mbit {selection!r}: no MBIT named (choose a, b or both)")
+        raise InputError(f"--mbit {selection!r}: no MBIT named (choose a, b or both)")
     unknown = [k for k in keys if k not in definitions]
     if unknown:
-        raise ValueError(f"--mbit {selection!r}: unknown MBIT {unknown[0]!r} (defined: {', '.join(definitions)}; "
+        raise InputError(f"--mbit {selection!r}: unknown MBIT {unknown[0]!r} (defined: {', '.join(definitions)}; "
                          "or both / all)")
     if len(set(keys)) != len(keys):
-        raise ValueError(f"--mbit {selection!r}: an MBIT is listed twice")
+        raise InputError(f"--mbit {selection!r}: an MBIT is listed twice")
     return tuple(definitions[k] for k in keys)
 
 
@@ -56,9 +57,9 @@ def build_spec(
 ) -> CampaignSpec:
     """A validated campaign specification (see :mod:`firmware_sim.campaign.spec` for the meaning of each field)."""
     if isinstance(n_runs, bool) or not isinstance(n_runs, int) or n_runs <= 0:
-        raise ValueError(f"--n must be a positive integer (runs per range), got {n_runs!r}")
+        raise InputError(f"--n must be a positive integer (runs per range), got {n_runs!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:
-        raise ValueError(f"--seed must be an integer >= 0, got {seed!r}")
+        raise InputError(f"--seed must be an integer >= 0, got {seed!r}")
     rngs = parse_ranges(ranges) if isinstance(ranges, str) else tuple(ranges)
     defs = load_mbit_definitions(mbit_config)
     chosen = select_mbits(mbits, defs)
@@ -66,20 +67,20 @@ def build_spec(
     model = PlantModel(params)
     deviated = tuple(deviated)
     if not deviated:
-        raise ValueError("--deviate: name at least one parameter")
+        raise InputError("--deviate: name at least one parameter")
     for name in deviated:
         if name not in model.param_names:
-            raise ValueError(f"--deviate: unknown parameter {name!r} (model parameters: "
+            raise InputError(f"--deviate: unknown parameter {name!r} (model parameters: "
                              f"{', '.join(model.param_names)})")
     if len(set(deviated)) != len(deviated):
-        raise ValueError("--deviate: a parameter is listed twice")
+        raise InputError("--deviate: a parameter is listed twice")
     nominal = tuple(model.param_value(n) for n in deviated)
     bounds = core_bounds()
     for par in model.own_parameters:
         bounds[par.name] = (float(par.lower), float(par.upper))
     check_deviation_bounds(deviated, nominal, bounds, rngs, sign)
     if not (math.isfinite(noise_std) and noise_std >= 0):
-        raise ValueError(f"noise standard deviation must be >= 0, got {noise_std!r}")
+        raise InputError(f"noise standard deviation must be >= 0, got {noise_std!r}")
     return CampaignSpec(params_toml=model.params.to_toml(), params_name=model.params.name, mbits=chosen,
                         ranges=rngs, n_runs=n_runs, seed=seed, monitor=settings, deviated=deviated,
                         nominal_values=nominal, sign=sign, noise_std=float(noise_std), batch_size=batch_size,

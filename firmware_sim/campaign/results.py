@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from board_config import MonitorSettings
+from board_config.errors import InputError
 from firmware_sim.campaign.paper import PAPER_FAULT_PROBABILITY
 from firmware_sim.campaign.spec import CampaignSpec
 from firmware_sim.campaign.statistics import DetectionStat, wilson_interval
@@ -246,7 +247,7 @@ def load_traces(path: Path) -> StoredTraces:
     if path.is_dir():
         path = path / "traces.npz"
     if not path.exists():
-        raise ValueError(f"{path}: no stored campaign traces (run `shm campaign ... --out DIR` first)")
+        raise InputError(f"{path}: no stored campaign traces (run `shm campaign ... --out DIR` first)")
     try:
         with np.load(path, allow_pickle=False) as z:
             keys = [str(k) for k in z["mbit_keys"]]
@@ -260,7 +261,7 @@ def load_traces(path: Path) -> StoredTraces:
                                         counter_up=int(mon[3]), counter_down=int(mon[4]), e0z=float(mon[5]),
                                         kerr_z=float(mon[6])))
     except (OSError, KeyError, ValueError) as exc:
-        raise ValueError(f"{path}: not a readable campaign traces file ({exc})") from None
+        raise InputError(f"{path}: not a readable campaign traces file ({exc})") from None
 
 
 def save_json(path: Path, obj: Any) -> None:

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from board_config import MonitorSettings
+from board_config.errors import InputError
 from firmware_sim.campaign.statistics import wilson_interval
 from firmware_sim.condition_monitor import counter_trajectory
 
@@ -82,11 +83,11 @@ def roc_sweep(eps: np.ndarray, range_lo: np.ndarray, range_hi: np.ndarray, ok: n
     eps_grid = np.asarray(eps_grid, dtype=float)
     count_grid = np.asarray(count_grid, dtype=np.int64)
     if eps_grid.ndim != 1 or eps_grid.size == 0 or np.any(eps_grid <= 0):
-        raise ValueError("eps_th grid must be a non-empty list of positive thresholds")
+        raise InputError("eps_th grid must be a non-empty list of positive thresholds")
     if count_grid.ndim != 1 or count_grid.size == 0 or np.any(count_grid < 1):
-        raise ValueError("count_max grid must be a non-empty list of integers >= 1")
+        raise InputError("count_max grid must be a non-empty list of integers >= 1")
     if not 0 <= healthy_max <= faulty_min:
-        raise ValueError(f"need 0 <= healthy_max <= faulty_min, got {healthy_max!r}, {faulty_min!r}")
+        raise InputError(f"need 0 <= healthy_max <= faulty_min, got {healthy_max!r}, {faulty_min!r}")
     ok = np.asarray(ok, dtype=bool)
     healthy = ok & (np.asarray(range_hi) <= healthy_max + _TOL)
     degraded = ok & (np.asarray(range_lo) >= faulty_min - _TOL)

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from board_config.errors import InputError
 from firmware_sim.campaign.results import CampaignResult
 from firmware_sim.campaign.spec import BatchSpec, CampaignSpec
 from firmware_sim.campaign.store import ResultStore
@@ -30,7 +31,7 @@ ProgressFn = Callable[[int], None]
 BatchFn = Callable[..., BatchResult]
 
 
-class CampaignError(ValueError):
+class CampaignError(InputError):
     """The campaign cannot start (e.g. the Dask scheduler is unreachable)."""
 
 
@@ -139,9 +140,9 @@ def run_campaign(
     """
     t_start = time.perf_counter()
     if workers is not None and workers < 1:
-        raise ValueError(f"--workers must be >= 1, got {workers}")
+        raise InputError(f"--workers must be >= 1, got {workers}")
     if dask_scheduler is not None and workers is not None:
-        raise ValueError("--workers and --dask-scheduler are exclusive (the cluster decides its workers)")
+        raise InputError("--workers and --dask-scheduler are exclusive (the cluster decides its workers)")
     out_dir = Path(out_dir)
     # fail fast on the model and the MBIT sequences in this process (clear errors, clamp reports)
     model = model_from_toml(spec.params_toml)

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from board_config import CORE_SCHEMA, MbitDefinition, MonitorSettings
+from board_config.errors import InputError
 
 SIGN_CONVENTIONS = ("both", "minus", "plus")
 DEFAULT_DEVIATED: tuple[str, ...] = ("k3", "alpha_h", "beta_h")
@@ -50,7 +51,7 @@ class DeviationRange:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.lo) and math.isfinite(self.hi) and 0.0 <= self.lo < self.hi):
-            raise ValueError(f"deviation range must satisfy 0 <= lo < hi, got lo={self.lo!r}, hi={self.hi!r}")
+            raise InputError(f"deviation range must satisfy 0 <= lo < hi, got lo={self.lo!r}, hi={self.hi!r}")
 
     @property
     def key(self) -> tuple[int, int]:
@@ -66,9 +67,9 @@ def _pct(text: str, what: str, spec: str) -> float:
     try:
         value = float(text)
     except ValueError:
-        raise ValueError(f"--ranges {spec!r}: {what} {text!r} is not a number (percent)") from None
+        raise InputError(f"--ranges {spec!r}: {what} {text!r} is not a number (percent)") from None
     if not math.isfinite(value) or value < 0:
-        raise ValueError(f"--ranges {spec!r}: {what} {text!r} must be a finite percentage >= 0")
+        raise InputError(f"--ranges {spec!r}: {what} {text!r} must be a finite percentage >= 0")
     return value
 
 
@@ -77,36 +78,36 @@ def parse_ranges(spec: str) -> tuple[DeviationRange, ...]:
     or a comma list ``LO-HI,LO-HI`` (``10-20,40-50``)."""
     text = spec.strip()
     if not text:
-        raise ValueError("--ranges is empty (expected START:STOP:STEP in percent, e.g. 0:50:10)")
+        raise InputError("--ranges is empty (expected START:STOP:STEP in percent, e.g. 0:50:10)")
     ranges: list[DeviationRange] = []
     if ":" in text:
         parts = text.split(":")
         if len(parts) not in (2, 3):
-            raise ValueError(f"--ranges {spec!r}: expected START:STOP:STEP or LO:HI (percent)")
+            raise InputError(f"--ranges {spec!r}: expected START:STOP:STEP or LO:HI (percent)")
         start = _pct(parts[0], "START", spec)
         stop = _pct(parts[1], "STOP", spec)
         step = _pct(parts[2], "STEP", spec) if len(parts) == 3 else stop - start
         if stop <= start:
-            raise ValueError(f"--ranges {spec!r}: STOP ({stop:g}) must be above START ({start:g})")
+            raise InputError(f"--ranges {spec!r}: STOP ({stop:g}) must be above START ({start:g})")
         if step <= 0:
-            raise ValueError(f"--ranges {spec!r}: STEP must be positive, got {step:g}")
+            raise InputError(f"--ranges {spec!r}: STEP must be positive, got {step:g}")
         n = (stop - start) / step
         if abs(n - round(n)) > 1e-9:
-            raise ValueError(f"--ranges {spec!r}: STEP {step:g} does not divide STOP-START = {stop - start:g}")
+            raise InputError(f"--ranges {spec!r}: STEP {step:g} does not divide STOP-START = {stop - start:g}")
         for k in range(round(n)):
             ranges.append(DeviationRange(round(start + k * step, 6) / 100, round(start + (k + 1) * step, 6) / 100))
     else:
         for item in text.split(","):
             bounds = item.strip().split("-")
             if len(bounds) != 2:
-                raise ValueError(f"--ranges {spec!r}: item {item.strip()!r} is not LO-HI (percent)")
+                raise InputError(f"--ranges {spec!r}: item {item.strip()!r} is not LO-HI (percent)")
             lo, hi = _pct(bounds[0], "LO", spec), _pct(bounds[1], "HI", spec)
             if hi <= lo:
-                raise ValueError(f"--ranges {spec!r}: item {item.strip()!r} needs HI > LO")
+                raise InputError(f"--ranges {spec!r}: item {item.strip()!r} needs HI > LO")
             ranges.append(DeviationRange(lo / 100, hi / 100))
     keys = [r.key for r in ranges]
     if len(set(keys)) != len(keys):
-        raise ValueError(f"--ranges {spec!r}: a range is listed twice")
+        raise InputError(f"--ranges {spec!r}: a range is listed twice")
     return tuple(ranges)
 
 
@@ -114,7 +115,7 @@ def draw_deviations(seed: int, rng_range: DeviationRange, run_indices: np.ndarra
                     sign: str = "both") -> np.ndarray:
     """Relative deviations ``s*u`` of shape (runs, n_params) for the given run indices (see module doc)."""
     if sign not in SIGN_CONVENTIONS:
-        raise ValueError(f"sign convention must be one of {', '.join(SIGN_CONVENTIONS)}, got {sign!r}")
+        raise InputError(f"sign convention must be one of {', '.join(SIGN_CONVENTIONS)}, got {sign!r}")
     lo_bp, hi_bp = rng_range.key
     out = np.empty((len(run_indices), n_params))
     for row, i in enumerate(run_indices):
@@ -153,23 +154,23 @@ class CampaignSpec:
 
     def __post_init__(self) -> None:
         if not isinstance(self.n_runs, int) or isinstance(self.n_runs, bool) or self.n_runs <= 0:
-            raise ValueError(f"--n must be a positive integer (runs per range), got {self.n_runs!r}")
+            raise InputError(f"--n must be a positive integer (runs per range), got {self.n_runs!r}")
         if not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0:
-            raise ValueError(f"--seed must be an integer >= 0, got {self.seed!r}")
+            raise InputError(f"--seed must be an integer >= 0, got {self.seed!r}")
         if not isinstance(self.batch_size, int) or self.batch_size <= 0:
-            raise ValueError(f"batch size must be a positive integer, got {self.batch_size!r}")
+            raise InputError(f"batch size must be a positive integer, got {self.batch_size!r}")
         if not self.mbits:
-            raise ValueError("a campaign needs at least one MBIT")
+            raise InputError("a campaign needs at least one MBIT")
         if not self.ranges:
-            raise ValueError("a campaign needs at least one deviation range")
+            raise InputError("a campaign needs at least one deviation range")
         if self.sign not in SIGN_CONVENTIONS:
-            raise ValueError(f"--sign must be one of {', '.join(SIGN_CONVENTIONS)}, got {self.sign!r}")
+            raise InputError(f"--sign must be one of {', '.join(SIGN_CONVENTIONS)}, got {self.sign!r}")
         if not (math.isfinite(self.noise_std) and self.noise_std >= 0):
-            raise ValueError(f"noise standard deviation must be >= 0 m, got {self.noise_std!r}")
+            raise InputError(f"noise standard deviation must be >= 0 m, got {self.noise_std!r}")
         if not self.rtol > 0:
-            raise ValueError(f"rtol must be positive, got {self.rtol!r}")
+            raise InputError(f"rtol must be positive, got {self.rtol!r}")
         if len({m.key for m in self.mbits}) != len(self.mbits):
-            raise ValueError("an MBIT is listed twice")
+            raise InputError("an MBIT is listed twice")
 
     @property
     def mbit_keys(self) -> tuple[str, ...]:
@@ -248,7 +249,7 @@ def check_deviation_bounds(names: tuple[str, ...], nominal: tuple[float, ...],
         for f in factors:
             v = nom * f
             if not (lo <= v <= hi) or (f <= 0 and lo >= 0):
-                raise ValueError(f"--ranges up to {top * 100:g}% (sign {sign}) would put {name} at {v:g} "
+                raise InputError(f"--ranges up to {top * 100:g}% (sign {sign}) would put {name} at {v:g} "
                                  f"(nominal {nom:g}), outside its allowed range [{lo:g}, {hi:g}]")
 
 

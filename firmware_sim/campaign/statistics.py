@@ -9,7 +9,7 @@ from typing import Any
 
 
 def wilson_interval(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:
-    """Wilson score interval for a binomial proportion ``k/n`` (NaNs if ``n == 0``).
+    """Wilson score interval for a binomial proportion ``k/n`` (NaNs if ``n == 0``); always ``lo <= k/n <= hi``.
 
     ``centre = (p + z²/2n) / (1 + z²/n)``, ``half = z/(1 + z²/n) · sqrt(p(1−p)/n + z²/4n²)``; unlike the
     normal (Wald) interval it stays inside [0, 1] and is not degenerate at 0 or ``n`` detections.
@@ -25,7 +25,9 @@ def wilson_interval(k: int, n: int, confidence: float = 0.95) -> tuple[float, fl
     denom = 1.0 + z * z / n
     centre = (p + z * z / (2.0 * n)) / denom
     half = z / denom * math.sqrt(p * (1.0 - p) / n + z * z / (4.0 * n * n))
-    return max(0.0, centre - half), min(1.0, centre + half)
+    # In exact arithmetic 0 <= lo <= p <= hi <= 1 (lo = 0 at k = 0, hi = 1 at k = n); in floating point the edges
+    # come out a hair on the wrong side of p (hi = 1 - 1e-16 < p = 1 for some n), which made error bars negative.
+    return min(max(0.0, centre - half), p), max(min(1.0, centre + half), p)
 
 
 @dataclass(frozen=True)

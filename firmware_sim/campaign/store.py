@@ -21,11 +21,12 @@ from typing import Any
 
 import numpy as np
 
+from board_config.errors import InputError
 from firmware_sim.campaign.spec import CampaignSpec
 from firmware_sim.campaign.worker import BatchResult
 
 
-class CampaignStoreError(ValueError):
+class CampaignStoreError(InputError):
     """The output directory holds a different campaign (or an unreadable manifest)."""
 
 

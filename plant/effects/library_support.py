@@ -28,6 +28,8 @@ from typing import Any
 
 import numpy as np
 
+from board_config.errors import InputError
+
 
 @dataclass(frozen=True)
 class FitRange:
@@ -46,11 +48,11 @@ class FitRange:
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.lower) and math.isfinite(self.upper) and self.lower < self.upper):
-            raise ValueError(f"FitRange needs finite lower < upper, got [{self.lower}, {self.upper}]")
+            raise InputError(f"FitRange needs finite lower < upper, got [{self.lower}, {self.upper}]")
         if self.log and self.lower <= 0:
-            raise ValueError(f"a logarithmic FitRange needs a positive lower bound, got {self.lower}")
+            raise InputError(f"a logarithmic FitRange needs a positive lower bound, got {self.lower}")
         if self.linthresh is not None and (self.log or not self.linthresh > 0):
-            raise ValueError(f"a symmetric-log FitRange needs linthresh > 0 and log=False, got {self.linthresh}")
+            raise InputError(f"a symmetric-log FitRange needs linthresh > 0 and log=False, got {self.linthresh}")
 
     def clip(self, value: float) -> float:
         return float(min(max(value, self.lower), self.upper))
