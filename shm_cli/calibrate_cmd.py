@@ -8,7 +8,7 @@ import sys
 from pathlib import Path
 
 from board_config.errors import InputError
-from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir, pyplot
+from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir, pyplot
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -63,26 +63,35 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if args.save:
         Path(args.save).write_text(res.params.to_toml())
         summary["saved"] = args.save
-    plt = pyplot()
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
-    a1.semilogy(res.history)
-    a1.set_xlabel("model evaluation")
-    a1.set_ylabel("weighted cost")
-    a1.set_title("calibration: the error falling")
-    a1.grid(True, alpha=0.3)
-    names = [r["claim"] for r in rows]
-    a2.barh(names, [100 * r["rel_error_start"] for r in rows], alpha=0.5, label=base.name)
-    a2.barh(names, [100 * r["rel_error_calibrated"] for r in rows], alpha=0.8, label=args.name)
-    a2.set_xscale("symlog", linthresh=1.0)
-    a2.set_xlabel("relative error against the paper (%)")
-    a2.legend()
-    fig.tight_layout()
-    fig.savefig(out / "calibration.png", dpi=110)
-    plt.close(fig)
+    # the numbers first (the saved set, calibration.json), then the figure: a plotting failure never loses them
     (out / "calibration.json").write_text(dump_json(summary))
+
+    def figure() -> Path:
+        plt = pyplot()
+        fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
+        a1.semilogy(res.history)
+        a1.set_xlabel("model evaluation")
+        a1.set_ylabel("weighted cost")
+        a1.set_title("calibration: the error falling")
+        a1.grid(True, alpha=0.3)
+        names = [r["claim"] for r in rows]
+        a2.barh(names, [100 * r["rel_error_start"] for r in rows], alpha=0.5, label=base.name)
+        a2.barh(names, [100 * r["rel_error_calibrated"] for r in rows], alpha=0.8, label=args.name)
+        a2.set_xscale("symlog", linthresh=1.0)
+        a2.set_xlabel("relative error against the paper (%)")
+        a2.legend()
+        fig.tight_layout()
+        fig.savefig(out / "calibration.png", dpi=110)
+        plt.close(fig)
+        return out / "calibration.png"
+
+    deco = Decorations("calibrate", args)
+    if deco.attempt("calibration.png", figure) is None:
+        summary["failed"] = deco.failed
+        (out / "calibration.json").write_text(dump_json(summary))
     if args.json:
         print(dump_json(summary))
-        return 0 if res.success else 1
+        return 0 if res.success and deco.ok else 1
     print(f"{'claim':32s} {'paper':>12s} {base.name:>12s} {args.name:>12s} {'error':>8s}")
     for r in rows:
         print(f"{r['claim']:32s} {r['paper']:12.5g} {r['start']:12.5g} {r['calibrated']:12.5g} "
@@ -93,4 +102,4 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     if args.save:
         print(f"saved {args.save}")
     print(f"wrote {out}/calibration.png and calibration.json")
-    return 0 if res.success else 1
+    return 0 if res.success and deco.ok else 1

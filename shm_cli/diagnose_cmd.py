@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 
-from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir
+from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -77,25 +78,32 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
                      f"{c.delta_bic_held:.4g}", f"{c.bic_train:.6g}", status, c.estimates_text()])
     header = ["rank", "effect", "held-out RMS (σ)", "reduction %", "ΔBIC held", "BIC train", "status",
               "estimates (± std. error)"]
-    print(f"nominal model ({d.params_name}): training {d.baseline_train_rms_sigma:.4g} σ, held-out "
-          f"{d.baseline_held_rms_sigma:.4g} σ")
+    # --json: stdout carries the JSON document only; the table and notes go to stderr
+    say = functools.partial(print, file=sys.stderr) if args.json else print
+    say(f"nominal model ({d.params_name}): training {d.baseline_train_rms_sigma:.4g} σ, held-out "
+        f"{d.baseline_held_rms_sigma:.4g} σ")
     widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header) - 1)]
     for r in [header, *rows]:
-        print("  " + "  ".join(str(x).ljust(w) for x, w in zip(r[:-1], widths)) + "  " + str(r[-1]))
-    print()
-    print(d.message)
+        say("  " + "  ".join(str(x).ljust(w) for x, w in zip(r[:-1], widths)) + "  " + str(r[-1]))
+    say()
+    say(d.message)
     for n in d.notes:
-        print(f"note: {n}")
-    rank_png = ranking_figure(d, out / "ranking.png")
-    after = d.winner.outcome.sim if d.winner and d.winner.outcome else None
-    ov_png = overlay_figure(d.targets, d.baseline_sim, after, out / "overlay.png",
-                            label_after=f"+ {d.winner.effect}" if d.winner else "")
-    result = d.to_dict() | {"figures": [str(rank_png), str(ov_png)]}
+        say(f"note: {n}")
+    # the numbers first (diagnosis.json), then the figures and the report: a plotting failure never loses them
+    result = d.to_dict() | {"figures": []}
     (out / "diagnosis.json").write_text(dump_json(result), encoding="utf-8")
-    write_html(out / "diagnosis.html", f"shm diagnose: {d.params_name}", d.message,
-               [("Candidates", header, rows)], [rank_png, ov_png],
-               [*d.notes, *("Where the nominal model fails: " + w for w in d.where_it_fails)])
+    deco = Decorations("diagnose", args)
+    rank_png = deco.attempt("ranking.png", lambda: ranking_figure(d, out / "ranking.png"))
+    after = d.winner.outcome.sim if d.winner and d.winner.outcome else None
+    ov_png = deco.attempt("overlay.png", lambda: overlay_figure(
+        d.targets, d.baseline_sim, after, out / "overlay.png", label_after=f"+ {d.winner.effect}" if d.winner else ""))
+    figures = [f for f in (rank_png, ov_png) if f is not None]
+    deco.attempt("diagnosis.html", lambda: write_html(
+        out / "diagnosis.html", f"shm diagnose: {d.params_name}", d.message, [("Candidates", header, rows)], figures,
+        [*d.notes, *("Where the nominal model fails: " + w for w in d.where_it_fails)]))
+    result = d.to_dict() | {"figures": [str(f) for f in figures]} | ({"failed": deco.failed} if deco.failed else {})
+    (out / "diagnosis.json").write_text(dump_json(result), encoding="utf-8")
     print(f"report: {out / 'diagnosis.html'}", file=sys.stderr)
     if args.json:
         print(dump_json(result))
-    return 0
+    return 0 if deco.ok else 1

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 from pathlib import Path
 
-from shm_cli.common import add_params_arg, dump_json, out_dir
+from shm_cli.common import Decorations, add_params_arg, dump_json, out_dir
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -63,6 +64,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     records = _load_records(args.records)
     base = load_parameter_set(args.params)
     progress: list[ProgressPlot] = []
+    deco = Decorations("fit", args)
 
     def on_baseline(train: float, held: float) -> None:
         print(f"before: training error {train:.4g} σ, held-out {held:.4g} σ (σ: noise level of each channel)",
@@ -73,8 +75,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
     def on_iteration(pt) -> None:
         vals = "  ".join(f"{k}={v:.4g}" for k, v in pt.values.items())
         print(f"{pt.iteration:5d} {pt.n_sims:6d} {pt.train_rms_sigma:16.4g}  {vals}", file=sys.stderr, flush=True)
-        if progress:
-            progress[0].add(pt)
+        if progress and "fit_progress.png" not in deco.failed:  # a live figure that fails must not stop the fit
+            deco.attempt("fit_progress.png", lambda: progress[0].add(pt))
 
     print(f"fitting {', '.join(args.add) or '-'}" + (f" + free {', '.join(args.free)}" if args.free else "")
           + f" on {len(records)} record(s), parameter set {base.name}", file=sys.stderr)
@@ -85,15 +87,14 @@ def cmd_fit(args: argparse.Namespace) -> int:
     except FitError as exc:
         raise CliError(str(exc)) from None
     o = rep.outcome
-    plot = progress[0] if progress else ProgressPlot(out / "fit_progress.png", rep.before_train_rms_sigma,
-                                                         rep.before_held_rms_sigma)
-    plot.draw(held_after=o.held_rms_sigma)
-    overlay = overlay_figure(rep.targets, rep.baseline_sim, o.sim, out / "fit_overlay.png",
-                             label_after=f"+ {', '.join(rep.added) or 'refit'}")
+    # --json: stdout carries the JSON document only; the tables and notes go to stderr
+    say = functools.partial(print, file=sys.stderr) if args.json else print
     try:
         pset = rep.parameter_set
     except FitError as exc:
         raise CliError(str(exc)) from None
+    # the results first (the saved set, fit.json), then the figures and the report: a plotting failure never
+    # loses them
     tmp = save.with_suffix(".toml.tmp")
     tmp.write_text(pset.to_toml(), encoding="utf-8")
     tmp.replace(save)
@@ -106,33 +107,49 @@ def cmd_fit(args: argparse.Namespace) -> int:
         rows.append([b.record, b.channel, b.part, f"{b.rms:.4g} {b.unit}", f"{b.rms_sigma:.3g}",
                      f"{a.rms:.4g} {a.unit}", f"{a.rms_sigma:.3g}", f"{b.fit_pct:.2f} → {a.fit_pct:.2f}"])
     header = ["record", "channel", "part", "RMS before", "before (σ)", "RMS after", "after (σ)", "fit %"]
-    print("\nbefore / after (residual RMS; σ = noise level of the channel):")
+    say("\nbefore / after (residual RMS; σ = noise level of the channel):")
     widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
     for r in [header, *rows]:
-        print("  " + "  ".join(str(x).ljust(w) for x, w in zip(r, widths)))
-    print(f"\ntraining: {rep.before_train_rms_sigma:.4g} σ → {o.train_rms_sigma:.4g} σ;  held-out: "
-          f"{rep.before_held_rms_sigma:.4g} σ → {o.held_rms_sigma:.4g} σ")
-    print("estimates (± standard error from the Jacobian):")
+        say("  " + "  ".join(str(x).ljust(w) for x, w in zip(r, widths)))
+    say(f"\ntraining: {rep.before_train_rms_sigma:.4g} σ → {o.train_rms_sigma:.4g} σ;  held-out: "
+        f"{rep.before_held_rms_sigma:.4g} σ → {o.held_rms_sigma:.4g} σ")
+    say("estimates (± standard error from the Jacobian):")
     for e in o.estimates:
-        print(f"  {e.describe()}")
+        say(f"  {e.describe()}")
     if len(o.estimates) > 1:
         names = [e.name for e in o.estimates]
         strong = [(names[i], names[j], o.correlation[i, j]) for i in range(len(names)) for j in range(i)
                   if abs(o.correlation[i, j]) > 0.9]
         for a, b, c in strong:
-            print(f"  note: {a} and {b} are strongly correlated ({c:+.3f}): the data barely separate them")
+            say(f"  note: {a} and {b} are strongly correlated ({c:+.3f}): the data barely separate them")
     for n in rep.notes:
-        print(f"  note: {n}")
-    print(f"saved parameter set '{pset.name}' to {save} (load it with --params {save})")
-    summary = rep.summary() | {"saved": str(save), "figures": [str(plot.path), str(overlay)]}
+        say(f"  note: {n}")
+    say(f"saved parameter set '{pset.name}' to {save} (load it with --params {save})")
+    summary = rep.summary() | {"saved": str(save), "figures": []}
     (out / "fit.json").write_text(dump_json(summary), encoding="utf-8")
+
+    def progress_figure():
+        plot = progress[0] if progress else ProgressPlot(out / "fit_progress.png", rep.before_train_rms_sigma,
+                                                             rep.before_held_rms_sigma)
+        plot.draw(held_after=o.held_rms_sigma)
+        return plot.path
+
+    figures = [f for f in (
+        None if "fit_progress.png" in deco.failed else deco.attempt("fit_progress.png", progress_figure),
+        deco.attempt("fit_overlay.png", lambda: overlay_figure(
+            rep.targets, rep.baseline_sim, o.sim, out / "fit_overlay.png",
+            label_after=f"+ {', '.join(rep.added) or 'refit'}")),
+    ) if f is not None]
     verdict = (f"Added {', '.join(rep.added) or 'nothing'}; training error {rep.before_train_rms_sigma:.4g} σ → "
                f"{o.train_rms_sigma:.4g} σ, held-out {rep.before_held_rms_sigma:.4g} σ → {o.held_rms_sigma:.4g} σ.")
-    write_html(out / "fit.html", f"shm fit: {base.name} + {', '.join(rep.added) or 'refit'}", verdict,
-               [("Before / after", header, rows),
-                ("Estimates", ["parameter", "value", "std. error", "unit", "effect"],
-                 [[e.name, f"{e.value:.5g}", f"{e.stderr:.3g}", e.unit, e.owner] for e in o.estimates])],
-               [plot.path, overlay], rep.notes)
+    deco.attempt("fit.html", lambda: write_html(
+        out / "fit.html", f"shm fit: {base.name} + {', '.join(rep.added) or 'refit'}", verdict,
+        [("Before / after", header, rows),
+         ("Estimates", ["parameter", "value", "std. error", "unit", "effect"],
+          [[e.name, f"{e.value:.5g}", f"{e.stderr:.3g}", e.unit, e.owner] for e in o.estimates])],
+        figures, rep.notes))
+    summary = summary | {"figures": [str(f) for f in figures]} | ({"failed": deco.failed} if deco.failed else {})
+    (out / "fit.json").write_text(dump_json(summary), encoding="utf-8")
     if args.json:
         print(dump_json(summary))
-    return 0
+    return 0 if deco.ok else 1

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from board_config.errors import InputError
-from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir, pyplot, write_csv
+from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir, pyplot, write_csv
 
 #: the paper's claim, full recharge from 2 V within 10 minutes (= plant.harvest.PAPER_CLAIM_S; kept here so that
 #: building the parser does not import the plant)
@@ -111,7 +111,8 @@ def verdict(run: Any) -> str:
 
 
 def write_outputs(run: Any, out: Path) -> dict[str, str]:
-    """CSV, JSON and the Fig. 9-style plot; returns the written files by role."""
+    """The numeric results as CSV (charge curve, chunks, audit, charge rate); returns the written files by role.
+    The Fig. 9-style plot is separate (:func:`plot_charge_curve`), written after them."""
     files: dict[str, str] = {}
     write_csv(out / "charge_curve.csv", {
         "time_s": run.t, "v_bat_V": run.v_bat, "v_bat_term_V": run.v_bat_term, "soc_1": run.soc,
@@ -134,7 +135,6 @@ def write_outputs(run: Any, out: Path) -> dict[str, str]:
         write_csv(out / "charge_rate.csv", {"q_d_C": c.q_d, "v_oc_V": c.v_oc, "i_mean_A": c.i_mean,
                                             "p_base_in_W": c.p_in_mean, "p_cell_W": c.p_cell_mean})
         files["charge_rate"] = str(out / "charge_rate.csv")
-    files["plot"] = str(plot_charge_curve(run, out / "charge_curve.png"))
     return files
 
 
@@ -213,10 +213,18 @@ def cmd_harvest(args: argparse.Namespace) -> int:
     finally:
         for bar in bars:
             bar.close()
+    # the numbers first (CSV, harvest_summary.json), then the figure: a plotting failure never loses them
     files = write_outputs(run, out)
     summary = run.summary()
     summary["verdict"] = verdict(run)
     summary["files"] = files
+    (out / "harvest_summary.json").write_text(dump_json(summary))
+    deco = Decorations("harvest", args)
+    plot = deco.attempt("charge_curve.png", lambda: plot_charge_curve(run, out / "charge_curve.png"))
+    if plot is not None:
+        files["plot"] = str(plot)
+    else:
+        summary["failed"] = deco.failed
     (out / "harvest_summary.json").write_text(dump_json(summary))
     closes = run.audit.closes()
     if args.json:
@@ -255,7 +263,7 @@ def cmd_harvest(args: argparse.Namespace) -> int:
         print(f"shm: the coupled energy books do not close: residual {run.audit.relative_residual:+.3%} of sources",
               file=sys.stderr)
         return 1
-    return 0
+    return 0 if deco.ok else 1
 
 
 __all__ = ["cmd_harvest", "plot_charge_curve", "register", "verdict", "write_outputs"]

@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from shm_cli.common import add_out_arg, dump_json, out_dir, write_csv
+from shm_cli.common import Decorations, add_out_arg, dump_json, out_dir, write_csv
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -167,7 +167,9 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         bar = tqdm(total=round(duration * cfg.tick_rate), unit="tick", desc=f"shm run {scenario.name}",
                    file=sys.stderr, mininterval=0.5, leave=False)
-        printer = TimelinePrinter(True, args.timeline_every_s, write=lambda s: bar.write(s, file=sys.stdout))
+        # --json: stdout carries the JSON document only; the timeline goes to stderr
+        timeline_to = sys.stderr if args.json else sys.stdout
+        printer = TimelinePrinter(True, args.timeline_every_s, write=lambda s: bar.write(s, file=timeline_to))
     else:
         printer = TimelinePrinter(False, args.timeline_every_s)
     printer.add_line(f"shm run: scenario '{scenario.name}' ({scenario.source}), seed {seed}, link {args.link}, "
@@ -208,16 +210,24 @@ def cmd_run(args: argparse.Namespace) -> int:
     printer.add_line(_closing_line(summary))
     (out / "timeline.txt").write_text("\n".join(printer.lines) + "\n")
     _write_traces(out, result.trace)
+    # the numbers first (usage.db is written; summary.json, traces), then the figures and report.html: a plotting
+    # failure never loses them, and summary.json says which figures exist
+    summary["figures"] = []
+    (out / "summary.json").write_text(dump_json(summary))
     from shm_cli.run_report import write_plots_and_report
 
-    figures = write_plots_and_report(out, summary, result, printer.lines)
+    deco = Decorations("run", args)
+    figures = deco.attempt("the figures and report.html",
+                           lambda: write_plots_and_report(out, summary, result, printer.lines)) or []
     summary["figures"] = figures
+    if deco.failed:
+        summary["failed"] = deco.failed
     (out / "summary.json").write_text(dump_json(summary))
     if args.json:
         print(dump_json(summary))
     elif not args.quiet:
         print(f"results in {out}/ (usage.db, timeline.txt, report.html, {', '.join(figures)})")
-    return 0 if status == "finished" else 1
+    return 0 if status == "finished" and deco.ok else 1
 
 
 def _closing_line(s: dict[str, Any]) -> str:

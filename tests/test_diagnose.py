@@ -108,10 +108,10 @@ def test_cli_diagnose_report_and_bad_input(tmp_path, capsys):
     code = main(["diagnose", "--candidates", "geometric_stiffening,dielectric_leakage", "--candidates",
                  "laser_sensor", str(path), "--params", "table2", "--json", "--out", str(out)])
     assert code == 0
-    text = capsys.readouterr().out
-    result = json.loads(text[text.index("{\n"):])
+    cap = capsys.readouterr()
+    result = json.loads(cap.out)  # --json: stdout is exactly one JSON document; the table goes to stderr
     assert result["verdict"] == "missing" and result["winner"] == "geometric_stiffening"
-    assert "Missing effect: geometric_stiffening" in text
+    assert "Missing effect: geometric_stiffening" in cap.err
     for f in ("diagnosis.json", "diagnosis.html", "ranking.png", "overlay.png"):
         assert (out / f).stat().st_size > 500
     html = (out / "diagnosis.html").read_text()

@@ -135,7 +135,7 @@ class TipCable(PhysicalEffect):
                  "--out", str(tmp_path / "fit"), "--json"])
     assert code == 0
     out, err = capsys.readouterr()
-    summary = json.loads(out[out.index("{"):])
+    summary = json.loads(out)  # --json: stdout is exactly one JSON document; tables go to stderr
     assert summary["held_rms_sigma"]["after"] < 1.5 < summary["held_rms_sigma"]["before"]
     assert "train error (σ)" in err and "before:" in err  # the live per-iteration display
     assert (tmp_path / "fit" / "fit_progress.png").stat().st_size > 1000
