@@ -188,6 +188,63 @@ class RigSpec:
     watchdog: float = 0.1  # s without a board command -> the rig zeroes the HV demand
 
 
+LIFE_LAW_KINDS = ("constant", "linear", "exponential", "power", "step")
+#: per law kind: its quantities (besides ``parameter`` and ``kind``); relative deviations are in "1"
+_LIFE_LAW_SCHEMA: dict[str, dict[str, QuantitySpec]] = {
+    "constant": {"value": QuantitySpec("1", lower=-0.95, upper=5.0)},
+    "linear": {"rate": QuantitySpec("1/h", lower=-1.0, upper=1.0), "start": _opt("h", **_NONNEG)},
+    "exponential": {"amplitude": QuantitySpec("1", lower=-5.0, upper=5.0),
+                    "time_constant": QuantitySpec("h", **_POS), "start": _opt("h", **_NONNEG)},
+    "power": {"amplitude": QuantitySpec("1", lower=-5.0, upper=5.0), "exponent": QuantitySpec("1", **_POS, upper=10.0),
+              "reference": QuantitySpec("h", **_POS), "start": _opt("h", **_NONNEG)},
+    "step": {"size": QuantitySpec("1", lower=-0.95, upper=5.0), "at": QuantitySpec("h", **_NONNEG)},
+}
+_LIFE_SCHEMA = {
+    "visits": QuantitySpec("1", integer=True, lower=1, upper=1000),
+    "visit_interval": QuantitySpec("h", **_POS),
+    "first_visit": _opt("h", **_NONNEG),
+    "flights_between_visits": _opt("1", integer=True, lower=0, upper=100_000),
+}
+
+
+@dataclass(frozen=True)
+class LifeLaw:
+    """One term of a parameter's degradation law: a relative deviation d(h) against operating time h (hours).
+
+    ``constant``: d = value. ``linear``: d = rate·(h − start)⁺. ``exponential``: d = amplitude·(exp((h − start)⁺ /
+    time_constant) − 1). ``power``: d = amplitude·((h − start)⁺ / reference)^exponent (crack-growth-like).
+    ``step``: d = size for h ≥ at (sudden damage). Terms of the same parameter add up.
+    """
+
+    parameter: str
+    kind: str
+    value: float = 0.0
+    rate: float = 0.0
+    amplitude: float = 0.0
+    time_constant: float = 1.0
+    exponent: float = 1.0
+    reference: float = 1.0
+    size: float = 0.0
+    at: float = 0.0
+    start: float = 0.0
+
+
+@dataclass(frozen=True)
+class LifeSpec:
+    """Many maintenance visits over an operating life (``[life]``): the scenario's phases are one visit, played
+    at operating hours ``first_visit + i·visit_interval`` (i = 0 … visits−1) on a truth plant whose deviations
+    follow ``laws``; the ``flights_between_visits`` are summarised (logged), not ticked."""
+
+    visits: int
+    visit_interval: float  # h of operating time between visits
+    first_visit: float = 0.0  # h
+    flights_between_visits: int = 0
+    laws: tuple[LifeLaw, ...] = ()
+
+    def visit_hours(self) -> list[float]:
+        return [self.first_visit + i * self.visit_interval for i in range(self.visits)]
+
+
 @dataclass(frozen=True)
 class Scenario:
     name: str
@@ -199,6 +256,7 @@ class Scenario:
     board_overrides: Mapping[str, Any] = field(default_factory=dict)
     expect_verdict: str | None = None
     source: str = "<memory>"
+    life: LifeSpec | None = None  # [life]: many visits over an operating life (docs/scenarios.md)
 
     @property
     def duration(self) -> float:
@@ -296,9 +354,10 @@ def _parse_rig(file: str, table: Any) -> RigSpec:
 
 def parse_scenario(data: Mapping[str, Any], file: str, default_name: str = "scenario") -> Scenario:
     """Validate a parsed scenario mapping; errors name the file, the dotted key and the reason."""
-    unknown = set(data) - {"scenario", "rig", "board", "phase", "event"}
+    unknown = set(data) - {"scenario", "rig", "board", "phase", "event", "life"}
     if unknown:
-        raise ConfigError(file, sorted(unknown)[0], "unknown section (expected scenario, rig, board, phase, event)")
+        raise ConfigError(file, sorted(unknown)[0],
+                          "unknown section (expected scenario, rig, board, phase, event, life)")
     head = data.get("scenario", {})
     if not isinstance(head, Mapping):
         raise ConfigError(file, "scenario", "expected a table")
@@ -364,7 +423,36 @@ def parse_scenario(data: Mapping[str, Any], file: str, default_name: str = "scen
         raise ConfigError(file, "board", "expected a table of board.toml sections")
     return Scenario(name=name, description=description, seed=int(seed), phases=tuple(phases),
                     events=tuple(events), rig=_parse_rig(file, data.get("rig")),
-                    board_overrides=MappingProxyType(dict(board)), expect_verdict=expect, source=file)
+                    board_overrides=MappingProxyType(dict(board)), expect_verdict=expect, source=file,
+                    life=_parse_life(file, data["life"]) if "life" in data else None)
+
+
+def _parse_life(file: str, table: Any) -> LifeSpec:
+    """``[life]`` with ``[[life.law]]`` terms (see :class:`LifeSpec`, :class:`LifeLaw`, docs/scenarios.md)."""
+    if not isinstance(table, Mapping):
+        raise ConfigError(file, "life", "expected a table")
+    quant = {k: v for k, v in table.items() if k != "law"}
+    unknown = set(quant) - set(_LIFE_SCHEMA)
+    if unknown:
+        raise ConfigError(file, f"life.{sorted(unknown)[0]}",
+                          f"unknown key (known: {', '.join(sorted([*_LIFE_SCHEMA, 'law']))})")
+    vals, _ = parse_quantities(file, "life", quant, _LIFE_SCHEMA)
+    raw = table.get("law", [])
+    if not isinstance(raw, list):
+        raise ConfigError(file, "life.law", "expected an array of tables [[life.law]]")
+    laws = []
+    for i, entry in enumerate(raw):
+        where = f"life.law[{i}]"
+        if not isinstance(entry, Mapping):
+            raise ConfigError(file, where, "expected a table")
+        param = _plain_str(file, f"{where}.parameter", entry.get("parameter"))
+        kind = _plain_str(file, f"{where}.kind", entry.get("kind"), LIFE_LAW_KINDS)
+        q = {k: v for k, v in entry.items() if k not in ("parameter", "kind")}
+        lv, _ = parse_quantities(file, where, q, _LIFE_LAW_SCHEMA[kind])
+        laws.append(LifeLaw(parameter=param, kind=kind, **{k: float(v) for k, v in lv.items()}))
+    return LifeSpec(visits=int(vals["visits"]), visit_interval=float(vals["visit_interval"]),
+                    first_visit=float(vals.get("first_visit", 0.0)),
+                    flights_between_visits=int(vals.get("flights_between_visits", 0)), laws=tuple(laws))
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:

@@ -69,6 +69,8 @@ class MaintenanceSequencer:
         self._cmd = (0.0, 0.0)  # last command sent (V)
         self._prev = (0.0, 0.0)  # the one before (V)
         self._z3_md = 0.0
+        self._rows: list[tuple[float, float, float, float]] = []  # (t s, v_ch1 V, v_ch2 V, z3 m) of this visit
+        self._mark = 0  # first row of the current MBIT's record (its preceding settle included)
 
     # --- lifecycle ----------------------------------------------------------------------------------
     def start(self, tick: int) -> list[BoardEvent]:
@@ -81,6 +83,8 @@ class MaintenanceSequencer:
         self._i = 0
         self._j = 0
         self._cmd = self._prev = (0.0, 0.0)
+        self._rows = []
+        self._mark = 0
         events = []
         for _key, seq in self.sequences.items():
             if seq.clamp.clamped:
@@ -117,6 +121,8 @@ class MaintenanceSequencer:
             return (0.0, 0.0), events
         if self.done:
             return self._send((0.0, 0.0))
+        # the visit's full-rate record: the command applied over the interval that ends now, and its response
+        self._rows.append((now, self._cmd[0], self._cmd[1], z3_meas))
         # 1. the nominal model follows the command just applied by the rig (slew from the previous one)
         self._calls += 1
         self._z3_md = z3_md = self._ref[self._calls]
@@ -125,6 +131,8 @@ class MaintenanceSequencer:
         if st.kind == "mbit" and self._j > 0:
             self.monitor.update(now, z3_md, z3_meas)
             if self._j == st.ticks:
+                events.append(self._record(tick, st.key))
+                self._mark = len(self._rows)
                 events.append(self._result(tick, st.key))
                 self._i += 1
                 self._j = 0
@@ -205,6 +213,16 @@ class MaintenanceSequencer:
         return res.y[0, :, self._i_z3].tolist()
 
     # --- records --------------------------------------------------------------------------------------
+    def _record(self, tick: int, key: str) -> BoardEvent:
+        """The completed MBIT's full-rate drive and response (its preceding settle included) as an
+        ``mbit_record`` event: ``rows`` of (board time s, v_ch1 V, v_ch2 V, z3 m) — the commands, reached at the
+        end of each tick by the amplifier's linear slew, and the laser's response. Not stored in the usage log
+        itself; a record writer (``studies.health.visit_records``) turns it into a measurement record file."""
+        seq = self.sequences[key]
+        return BoardEvent("mbit_record", tick, tick * self.period, {
+            "mbit": key, "label": seq.definition.label, "test": f"mbit-{key}", "rate_Hz": 1.0 / self.period,
+            "rows": tuple(self._rows[self._mark:])})
+
     def _result(self, tick: int, key: str) -> BoardEvent:
         st = self.monitor.state
         seq = self.sequences[key]

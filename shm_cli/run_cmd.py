@@ -135,6 +135,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     from shm_cli.main import CliError
 
     scenario = load_scenario(args.scenario)
+    if scenario.life is not None:  # many visits over an operating life (issue 17): studies.health.life
+        from shm_cli.health_cmd import run_life_command
+
+        return run_life_command(args, scenario)
     seed = args.seed if args.seed is not None else scenario.seed
     if seed < 0:
         raise CliError(f"--seed must be >= 0, got {seed}")

@@ -63,6 +63,7 @@ _META_KEYS = {
     "terminal": f"what the patch terminals were connected to ({', '.join(TERMINALS)})",
     "params": "parameter set the test was planned with (informational)",
     "start_time": "ISO 8601 start time",
+    "operating_hours": "operating time of the structure when the record was taken (h, >= 0; shm health trends on it)",
     "channels": "per-column tables: model_output, sensor, position_m, noise_std, description",
     "segments": "array of tables: start_s, end_s, label (test regimes)",
     "frf": "frequency-response table: drive, amplitude, amplitude_unit, bias_V",
@@ -316,6 +317,10 @@ def _check_meta(file: Path, meta: Mapping[str, Any]) -> None:
     if "terminal" in meta and meta["terminal"] not in TERMINALS:
         raise RecordError(file, f"unknown terminal {meta['terminal']!r} (allowed: {', '.join(TERMINALS)})",
                           key="terminal")
+    if "operating_hours" in meta:
+        oh = meta["operating_hours"]
+        if isinstance(oh, bool) or not isinstance(oh, (int, float)) or not math.isfinite(oh) or oh < 0:
+            raise RecordError(file, f"expected a number of hours >= 0, got {oh!r}", key="operating_hours")
     if "sample_rate_Hz" in meta:
         fs = meta["sample_rate_Hz"]
         if isinstance(fs, bool) or not isinstance(fs, (int, float)) or not math.isfinite(fs) or fs <= 0:

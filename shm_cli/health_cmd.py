@@ -1,0 +1,110 @@
+"""``shm health``: from the board's visit records to severity, location and remaining life (issue 17).
+
+    shm health SOURCE... --params P [--as-of HOURS] [--free NAME ...] [--workers N] [--json] --out DIR
+
+A SOURCE is a run directory of ``shm run`` (its ``records/`` and ``usage.db``), its ``usage.db``, or record files
+carrying ``operating_hours``. Also home of the life runner behind ``shm run --scenario aging`` (a scenario with a
+``[life]`` section). Exit 0 when the assessment was made, 2 for bad input, 1 when the job failed.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from typing import Any
+
+from shm_cli.common import add_out_arg, dump_json, out_dir
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    p = sub.add_parser(
+        "health", help="health over time: per-visit re-estimation, trends, forecast of the board's first FAULT",
+        description="Re-estimate the health parameters at every maintenance visit from the board's records, trend "
+                    "them against operating time, and forecast when the board's own monitor will first say FAULT "
+                    "(trip time with a 90 %% interval, remaining useful life). Prints the four levels (detected? "
+                    "where? how much? how long?); plots and report.html go to --out. docs/health.md.")
+    p.add_argument("sources", nargs="+", metavar="SOURCE",
+                   help="a run directory of 'shm run', its usage.db, or record files (CSV/TDMS) with operating_hours")
+    p.add_argument("--params", default="table2", metavar="NAME|FILE",
+                   help="the nominal parameter set (the board's; default table2)")
+    p.add_argument("--as-of", type=float, default=None, metavar="HOURS",
+                   help="use only the visits up to this operating time (h): a forecast to check against what came "
+                        "after")
+    p.add_argument("--free", action="append", default=None, metavar="NAME",
+                   help="health parameters to re-estimate (repeatable; default: k3, alpha_h, beta_h — those the "
+                        "monitor watches)")
+    p.add_argument("--workers", type=int, default=None, help="fit processes (default: CPU count)")
+    p.add_argument("--seed", type=int, default=1, help="seed of the forecast's Monte Carlo (default 1)")
+    p.add_argument("--json", action="store_true", help="print one JSON document (also written to DIR/health.json)")
+    add_out_arg(p, default="out/health")
+    p.set_defaults(func=cmd_health)
+
+
+def cmd_health(args: argparse.Namespace) -> int:
+    from studies.health.assess import assess_health
+    from studies.health.report import four_levels_text, write_health_outputs
+
+    from shm_cli.main import CliError
+
+    if args.as_of is not None and not args.as_of >= 0:
+        raise CliError(f"--as-of must be a number of hours >= 0, got {args.as_of!r}")
+    if args.workers is not None and args.workers < 1:
+        raise CliError(f"--workers must be >= 1, got {args.workers}")
+    out = out_dir(args.out)
+    log = (lambda s: print(s, file=sys.stderr, flush=True)) if args.json else (lambda s: print(s, flush=True))
+    t0 = time.perf_counter()
+    result = assess_health(args.sources, params=args.params, as_of=args.as_of, free=args.free or None,
+                           workers=args.workers, seed=args.seed, progress=log)
+    result["wall_s"] = time.perf_counter() - t0
+    text = four_levels_text(result)
+    failed = write_health_outputs(result, out, text, args)
+    if args.json:
+        print(dump_json(result))
+        print(text, file=sys.stderr)
+    else:
+        print(text)
+        print(f"results in {out}/ (health.json, report.html, figures)")
+    return 1 if failed else 0
+
+
+def run_life_command(args: argparse.Namespace, scenario: Any) -> int:
+    """``shm run`` on a scenario with ``[life]``: every visit in parallel, one usage.db, the visit records."""
+    from board_config.board import load_board_config
+    from shm_cli.main import CliError
+    from studies.health.life import run_life, visit_line, write_life_log
+
+    if args.link != "sim":
+        raise CliError("a [life] scenario runs on the simulated rig only (--link sim): each visit is a fresh rig with "
+                       "that visit's degradation")
+    seed = args.seed if args.seed is not None else scenario.seed
+    if seed < 0:
+        raise CliError(f"--seed must be >= 0, got {seed}")
+    params = args.params or scenario.rig.params
+    cfg = load_board_config(args.board_config, overrides=scenario.board_overrides, overrides_source=scenario.source)
+    out = out_dir(args.out)
+    lines: list[str] = []
+    to = sys.stderr if args.json else sys.stdout
+    life = scenario.life
+
+    def say(s: str) -> None:
+        lines.append(s)
+        if not args.quiet:
+            print(s, file=to, flush=True)
+
+    say(f"shm run: life scenario '{scenario.name}' ({scenario.source}), seed {seed}, params {params}: "
+        f"{life.visits} visits every {life.visit_interval:g} h ({life.flights_between_visits} flights between "
+        "visits, summarised)")
+    result = run_life(scenario, seed=seed, params=params, board_config=args.board_config,
+                      on_visit=lambda v: say(visit_line(v)))
+    summary = write_life_log(result, scenario, out, seed=seed, params=params, board_config=cfg.as_dict())
+    first = summary["first_fault_visit"]
+    say(f"end: {len(result.visits)} visits in {result.wall_s:.1f} s wall ({result.workers} workers); first FAULT "
+        + (f"at visit {first} ({summary['first_fault_operating_hours']:g} h)" if first else "never"))
+    (out / "timeline.txt").write_text("\n".join(lines) + "\n")
+    (out / "summary.json").write_text(dump_json(summary))
+    if args.json:
+        print(dump_json(summary))
+    elif not args.quiet:
+        print(f"results in {out}/ (usage.db, records/, life.json, timeline.txt)")
+    return 0

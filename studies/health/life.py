@@ -1,0 +1,193 @@
+"""A life in one run: a scenario's visit played at every maintenance visit of an operating life, in parallel.
+
+``[life]`` (:class:`board_config.scenario.LifeSpec`) says when the visits are (operating hours) and how the truth
+plant degrades (:mod:`.laws`). Each visit is a full board run of the scenario's phases — the 100 Hz firmware, the
+simulated rig with that visit's deviations, the link, the MBITs and the condition monitor — on a fresh board and rig
+(the flights between visits are summarised: their count and hours are logged, not ticked). Visits are independent,
+so they run on a local process pool (or in this process with ``workers=1``); visit ``i`` draws its rig seed from
+``SeedSequence([seed, i])``, so a life is reproducible whatever the number of workers.
+
+The parent process writes one usage log (``usage.db``: one run, board time = operating hours × 3600 s + the time
+inside the visit), the visit records (:mod:`.visit_records`), ``life.json`` and ``timeline.txt``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Callable
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from board_config.scenario import Scenario, load_scenario
+from firmware_sim.events import BoardEvent
+from studies.health.laws import deviations_at
+
+SECONDS_PER_HOUR = 3600.0
+
+
+def visit_seed(seed: int, visit: int) -> int:
+    """The rig seed of visit ``visit`` (independent of workers and of the other visits)."""
+    return int(np.random.SeedSequence([int(seed), int(visit)]).generate_state(1)[0])
+
+
+@dataclass
+class VisitRun:
+    visit: int
+    operating_hours: float
+    deviations: dict[str, float]
+    seed: int
+    events: list[BoardEvent]
+    wall_s: float
+    verdict: str = "NONE"
+    mbits: list[dict[str, Any]] = field(default_factory=list)
+
+
+_PROCESS_CACHE: dict[str, Any] = {}
+
+
+def run_visit(source: str, visit: int, hours: float, deviations: dict[str, float], seed: int, params: str,
+              board_config: str | None = None) -> VisitRun:
+    """One visit: the scenario's phases on a fresh board and rig with these truth deviations (picklable)."""
+    from board_config.board import load_board_config
+    from drivers.sim_link import InProcessLink
+    from firmware_sim.board import Board
+    from firmware_sim.runner import BoardRunner
+    from hil_stub.rig import SimulatedRig
+    from plant import PlantModel
+
+    t0 = time.perf_counter()
+    sc = load_scenario(source)
+    sc = sc.with_rig(deviations=dict(deviations))
+    cfg = load_board_config(board_config, overrides=sc.board_overrides, overrides_source=sc.source)
+    key = f"nominal:{params}"
+    if key not in _PROCESS_CACHE:
+        _PROCESS_CACHE[key] = PlantModel(params, terminal="amplifier")
+    rig = SimulatedRig(sc, seed=seed, params=params, tick=cfg.tick_period)
+    link = InProcessLink(rig, tick=cfg.tick_period)
+    board = Board(cfg, nominal=params, nominal_model=_PROCESS_CACHE[key])
+    runner = BoardRunner(board, link, rearm_times=[e.at for e in sc.events_of("rearm")], trace_every=None)
+    link.open()
+    try:
+        res = runner.run(sc.duration)
+    finally:
+        link.close()
+    verdicts = [e.data["verdict"] for e in res.events if e.kind == "maintenance_verdict"]
+    mbits = [dict(e.data) for e in res.events if e.kind == "mbit_result"]
+    return VisitRun(visit, hours, dict(deviations), seed, list(res.events), time.perf_counter() - t0,
+                    verdicts[-1] if verdicts else "NONE", mbits)
+
+
+@dataclass
+class LifeResult:
+    visits: list[VisitRun]
+    wall_s: float
+    workers: int
+
+    @property
+    def first_fault_visit(self) -> int | None:
+        return next((v.visit for v in self.visits if v.verdict == "FAULT"), None)
+
+    def first_fault_hours(self) -> float | None:
+        return next((v.operating_hours for v in self.visits if v.verdict == "FAULT"), None)
+
+
+def plan_life(scenario: Scenario) -> list[tuple[int, float, dict[str, float]]]:
+    """(visit number from 1, operating hours, truth deviations) of every visit."""
+    life = scenario.life
+    if life is None:
+        raise ValueError(f"{scenario.source}: no [life] section")
+    base = dict(scenario.rig.deviations)
+    return [(i + 1, h, deviations_at(life.laws, h, base)) for i, h in enumerate(life.visit_hours())]
+
+
+def run_life(scenario: Scenario, *, seed: int, params: str, workers: int | None = None,
+             board_config: str | None = None, on_visit: Callable[[VisitRun], None] | None = None) -> LifeResult:
+    """Every visit of the scenario's life (process pool of ``workers``, default min(CPU count, 2... visits))."""
+    plan = plan_life(scenario)
+    n_workers = workers if workers is not None else min(len(plan), os.cpu_count() or 1)
+    t0 = time.perf_counter()
+    args = [(scenario.source, v, h, d, visit_seed(seed, v), params, board_config) for v, h, d in plan]
+    results: list[VisitRun] = []
+    if n_workers <= 1:
+        for a in args:
+            r = run_visit(*a)
+            results.append(r)
+            if on_visit:
+                on_visit(r)
+    else:
+        with ProcessPoolExecutor(max_workers=n_workers) as pool:
+            futs = [pool.submit(run_visit, *a) for a in args]
+            for f in futs:  # in visit order: deterministic output whatever finishes first
+                r = f.result()
+                results.append(r)
+                if on_visit:
+                    on_visit(r)
+    return LifeResult(results, time.perf_counter() - t0, n_workers)
+
+
+def write_life_log(result: LifeResult, scenario: Scenario, out: Path, *, seed: int, params: str,
+                   link_url: str = "sim", board_config: dict | None = None) -> dict[str, Any]:
+    """usage.db (one run), the visit records and their links, life.json. Returns the life summary."""
+    from firmware_sim.usage_log import UsageLog
+    from studies.health.visit_records import VisitRecordWriter
+
+    db_path = out / "usage.db"
+    for suffix in ("", "-wal", "-shm"):
+        Path(str(db_path) + suffix).unlink(missing_ok=True)
+    life = scenario.life
+    assert life is not None
+    rate = 100.0
+    with UsageLog(db_path) as log:
+        run_id = log.start_run(scenario=scenario.name, seed=seed, link_url=link_url, params=params,
+                               board_config=board_config or {},
+                               rig={"life": True, "visits": life.visits, "visit_interval_h": life.visit_interval})
+        writer = VisitRecordWriter(out, db_path, params=params, z3_noise_m=scenario.rig.z3_noise,
+                                   scenario=scenario.name, run_id=run_id)
+        try:
+            for v in result.visits:
+                offset = v.operating_hours * SECONDS_PER_HOUR
+                writer.set_visit(v.visit, v.operating_hours, offset)
+                off_ticks = round(offset * rate)
+                for ev in v.events:
+                    shifted = BoardEvent(ev.kind, ev.tick + off_ticks, ev.time + offset, ev.data)
+                    log.write(shifted)
+                    writer(ev)
+                writer.db.execute(
+                    "INSERT INTO life_visits(run_id, visit, operating_hours, board_time_s, flights_before, verdict, "
+                    "truth_json, seed) VALUES (?, ?, ?, ?, ?, ?, ?, ?)",
+                    (run_id, v.visit, v.operating_hours, offset, life.flights_between_visits * (v.visit - 1),
+                     v.verdict, json.dumps(v.deviations), v.seed))
+        finally:
+            writer.close()
+    first = result.first_fault_visit
+    summary = {
+        "scenario": scenario.name, "scenario_file": scenario.source, "seed": seed, "params": params,
+        "run_id": run_id, "database": str(db_path), "life": True, "workers": result.workers,
+        "wall_s": result.wall_s, "visits": [
+            {"visit": v.visit, "operating_hours": v.operating_hours, "verdict": v.verdict, "seed": v.seed,
+             "truth_deviations": v.deviations, "wall_s": v.wall_s,
+             "mbits": [{k: m.get(k) for k in ("label", "verdict", "max_count", "max_eps", "fault_time_s")}
+                       for m in v.mbits],
+             "records": [f"records/visit-{v.visit:03d}_mbit-{m['mbit']}.csv" for m in v.mbits]}
+            for v in result.visits],
+        "first_fault_visit": first,
+        "first_fault_operating_hours": result.first_fault_hours(),
+        "flights_between_visits": life.flights_between_visits,
+        "visit_interval_h": life.visit_interval,
+    }
+    (out / "life.json").write_text(json.dumps(summary, indent=2, default=float))
+    return summary
+
+
+def visit_line(v: VisitRun) -> str:
+    """One timeline line per visit."""
+    mb = ", ".join(f"{m['label']} {m['verdict']} (max eps {m['max_eps']:.3f}, counter {m['max_count']})"
+                   for m in v.mbits)
+    devs = ", ".join(f"{k} {100 * d:+.1f} %" for k, d in sorted(v.deviations.items()))
+    return f"visit {v.visit:3d} at {v.operating_hours:8.1f} h  [{devs}]  {mb}  -> {v.verdict}  ({v.wall_s:.1f} s)"
