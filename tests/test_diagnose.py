@@ -30,13 +30,16 @@ def _record(effects=(), values=None, kind="mbit-b", seed=0, **spec):
 @pytest.fixture(scope="module")
 def creep_diagnosis():
     rec = _record(["piezo_creep"], {"gamma_creep": 0.03, "tau_creep": 0.4})
-    return diagnose([rec], "table2")
+    return diagnose([rec], "table2", fit_top=None)
 
 
 def test_hidden_creep_is_named_with_signature_and_estimates(creep_diagnosis):
     d = creep_diagnosis
     assert d.verdict == "missing" and d.winner is not None and d.winner.effect == "piezo_creep"
-    assert d.ranked_names[0] == "piezo_creep" and len(d.ranking) == 8
+    assert d.ranked_names[0] == "piezo_creep" and d.found == ("piezo_creep",)
+    # every library effect and every parameter candidate is ranked (fit_top=None: all fitted in full)
+    assert {"geometric_stiffening", "m3", "stiffness", "electrical"} <= set(d.ranked_names)
+    assert all(c.outcome is not None for c in d.ranking)
     w = d.winner
     assert w.held_rms_sigma < 1.5 < d.baseline_held_rms_sigma
     assert w.held_reduction > 0.9 and w.delta_bic_held > 0
@@ -44,8 +47,10 @@ def test_hidden_creep_is_named_with_signature_and_estimates(creep_diagnosis):
     assert est["gamma_creep"].value == pytest.approx(0.03, rel=0.1)
     assert 0 < est["gamma_creep"].stderr < 0.01
     # the verdict explains itself: the effect, the error reduction, the estimates and the signature in words
-    for text in ("piezo_creep", "σ", "gamma_creep", "Slow drift", "Residual tests failed by the nominal model"):
+    for text in ("piezo_creep", "σ", "gamma_creep", "Slow drift", "Residual tests failed by the nominal model",
+                 "shm fit '<synth mbit-b>' --params table2 --add piezo_creep"):
         assert text in d.message
+    assert d.fit_command.startswith("shm fit") and not d.next_command
     # accepted candidates are ranked by their held-out ΔBIC
     acc = [c for c in d.ranking if c.accepted]
     assert all(a.delta_bic_held >= b.delta_bic_held for a, b in itertools.pairwise(acc))
@@ -65,6 +70,7 @@ def test_effect_outside_the_candidates_is_not_explained_and_localised():
     d = diagnose([rec], "table2", ["thermal_drift", "root_compliance"])
     assert d.verdict == "unexplained" and d.winner is None
     assert "Not explained by the library" in d.message and "Where it fails" in d.message
+    assert d.next_command.startswith("shm discover") and "--emit my_effect.py" in d.message
     assert d.where_it_fails and "residual RMS" in d.where_it_fails[0]
 
 

@@ -1,29 +1,36 @@
-"""The hidden-effect challenge: hide one library effect in a synthetic record, then diagnose and fit it.
+"""The hidden-effect challenge: hide what the model lacks in a synthetic record, then diagnose it.
 
-A *case* is (effect or none, strength, noise level, test kind, seed). The truth plant is the parameter set plus the
-hidden effect at that strength (:mod:`workbench.synth`, the hardware-in-the-loop stub's seam); the record is what
-the rig would log (tip laser with white noise). :func:`run_case` then
+A *case* (:class:`HiddenCase`) is a truth plant — the parameter set with hidden effects and/or wrong core
+parameters — and what ``shm diagnose`` should blame (``expected``). Cases come in *kinds*, each a factory in the
+registry :data:`CASE_KINDS` (:func:`register_case_kind`; part B of issue 11 adds effects outside the library
+from its own module):
 
-1. measures the effect's *size*: the RMS difference between the noise-free truth with and without the effect,
-   in units of the noise σ (a case "counts" for the ranking target when the size exceeds 1 σ);
-2. runs :func:`workbench.diagnose.diagnose` against the nominal model with every library candidate;
-3. reports whether the true effect was ranked first, the verdict, and the held-out error after fitting (of the
-   winner and of the true effect), in σ.
+* ``library``   — one library effect at three strengths (:data:`STRENGTHS`);
+* ``parameter`` — one wrong core parameter at two deviations (:data:`PARAMETER_CASES`): the truth differs from the
+  parameter set, nothing is missing;
+* ``pair``      — two library effects at once (:data:`PAIRS`), two strengths;
+* ``none``      — nothing hidden (the null cases are seeds, see ``bench/bench_hidden_effect.py``).
 
-:func:`confusion_matrix` tabulates truth against diagnosis. ``bench/bench_hidden_effect.py`` runs the full sweep
-(every library effect × strengths × noise levels × MBIT.a / MBIT.b / sweep, and effect-free seeds); the test suite
-runs a small subset.
+Each case is run on records of the test kinds :data:`KINDS` (MBIT.a, MBIT.b, a 15 s sweep) and noise levels
+:data:`NOISE_LEVELS_M`. :func:`run_case` measures the case's *size* (RMS of the noise-free tip reading of the truth
+minus the nominal model, in noise σ), diagnoses the record against the nominal model with every candidate and
+scores: named first (the first thing diagnose blames is ``expected[0]``; a wrong parameter may also be found
+inside the group that holds it), all found (every expected name among those blamed), the held-out error after the
+fit. A case *counts* for the targets when its size exceeds :data:`COUNTS_ABOVE` of its kind (1 σ; 3 σ for wrong
+parameters, the issue's threshold).
 """
 
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
+from board_config import load_parameter_set
+from workbench.candidates import PARAMETER_CANDIDATES
 from workbench.diagnose import diagnose
 from workbench.effect_library import LIBRARY
 from workbench.synth import synth_inputs, synth_record, synth_test, truth_model
@@ -42,6 +49,23 @@ STRENGTHS: dict[str, tuple[dict[str, float], ...]] = {
     "thermal_drift": ({"dT_dt": 0.05}, {"dT_dt": 0.2}, {"dT_dt": 1.0}),
 }
 STRENGTH_NAMES = ("weak", "medium", "strong")
+#: wrong core parameters: (name, relative factors of the truth against the parameter set, weaker first)
+PARAMETER_CASES: tuple[tuple[str, tuple[float, ...]], ...] = (
+    ("m3", (1.2, 1.5)),
+    ("k2", (0.9, 0.8)),
+    ("c1", (1.7, 3.0)),
+    ("d_ep", (0.93, 0.85)),
+    ("alpha_h", (0.85, 0.7)),
+    ("C_ep", (1.15, 1.3)),
+    ("k3", (1.1, 1.25)),
+)
+#: pairs of library effects hidden together, each at the given strength indices into STRENGTHS
+PAIRS: tuple[tuple[str, str], ...] = (
+    ("piezo_creep", "laser_sensor"),
+    ("geometric_stiffening", "dielectric_leakage"),
+    ("root_compliance", "thermal_drift"),
+)
+PAIR_LEVELS = (1, 2)
 #: test kinds of the challenge and their overrides (the sweep is shortened to keep the suite affordable)
 KINDS: dict[str, dict[str, Any]] = {
     "mbit-a": {},
@@ -49,125 +73,268 @@ KINDS: dict[str, dict[str, Any]] = {
     "sweep": {"duration_s": 15.0},
 }
 NOISE_LEVELS_M = (2e-6, 1e-5)
+#: a case counts for its kind's target when its size (σ) exceeds this
+COUNTS_ABOVE: dict[str, float] = {"library": 1.0, "parameter": 3.0, "pair": 1.0, "none": 0.0}
+
+
+@dataclass(frozen=True)
+class HiddenCase:
+    """What the truth hides and what diagnose should blame (names of effects or core parameters)."""
+
+    kind: str
+    label: str
+    effects: tuple[Any, ...]
+    values: Mapping[str, float]
+    expected: tuple[str, ...]
+    strength: str = "-"
+
+
+def _library_cases() -> list[HiddenCase]:
+    return [HiddenCase("library", e, (e,), dict(v), (e,), STRENGTH_NAMES[i])
+            for e, vs in STRENGTHS.items() for i, v in enumerate(vs)]
+
+
+def _parameter_cases() -> list[HiddenCase]:
+    base = load_parameter_set("table2")
+    out = []
+    for name, factors in PARAMETER_CASES:
+        for i, f in enumerate(factors):
+            value = float(base.values[name]) * f
+            out.append(HiddenCase("parameter", f"{name}{100 * (f - 1):+.0f}%", (), {name: value}, (name,),
+                                  ("weaker", "stronger")[i]))
+    return out
+
+
+def _pair_cases() -> list[HiddenCase]:
+    out = []
+    for a, b in PAIRS:
+        for i in PAIR_LEVELS:
+            out.append(HiddenCase("pair", f"{a}+{b}", (a, b), STRENGTHS[a][i] | STRENGTHS[b][i], (a, b),
+                                  STRENGTH_NAMES[i]))
+    return out
+
+
+#: case kinds: name -> factory of its cases (extend with :func:`register_case_kind`)
+CASE_KINDS: dict[str, Callable[[], list[HiddenCase]]] = {
+    "library": _library_cases,
+    "parameter": _parameter_cases,
+    "pair": _pair_cases,
+}
+
+
+def register_case_kind(name: str, factory: Callable[[], list[HiddenCase]], counts_above: float = 1.0) -> None:
+    """Add a kind of hidden case (e.g. effects outside the library) to the challenge."""
+    CASE_KINDS[name] = factory
+    COUNTS_ABOVE.setdefault(name, counts_above)
+
+
+def cases_of(kind: str) -> list[HiddenCase]:
+    return CASE_KINDS[kind]()
+
+
+def null_case() -> HiddenCase:
+    return HiddenCase("none", "none", (), {}, ())
 
 
 @dataclass
 class CaseResult:
-    """One hidden-effect case and what diagnose made of it."""
+    """One hidden case and what diagnose made of it."""
 
-    effect: str  # "none" for an effect-free record
+    effect: str  # the case label ("none" for an effect-free record)
     strength: str
     values: dict[str, float]
-    kind: str
+    kind: str  # test kind
     noise_m: float
     seed: int
-    size_sigma: float  # RMS(truth with effect − truth without) / σ, noise-free
-    counts: bool  # size above the noise (the ranking target applies)
+    size_sigma: float  # RMS(truth − nominal model) / σ, noise-free
+    counts: bool  # size above its kind's threshold (the targets apply)
     verdict: str
-    diagnosed: str  # winner's name, or "nothing missing" / "unexplained"
+    diagnosed: str  # what diagnose blames ("a + b"), or "nothing missing" / "unexplained"
     ranked_first: bool
-    true_rank: int  # 1-based rank of the true effect among all candidates (0 for none)
+    true_rank: int  # 1-based rank of the first expected name among the candidates (0: not ranked / none)
     held_after_winner_sigma: float
     held_after_true_sigma: float
     held_before_sigma: float
     wall_s: float
     ranking: list[str] = field(default_factory=list)
+    case_kind: str = "library"
+    expected: list[str] = field(default_factory=list)
+    found: list[str] = field(default_factory=list)
+    all_found: bool = False
 
     def to_dict(self) -> dict[str, Any]:
         return asdict(self)
 
 
-def effect_size_sigma(kind: str, effect: str, values: Mapping[str, float], noise: float,
-                      params: str = "table2") -> float:
-    """RMS difference of the noise-free tip readings with and without the effect, in noise σ."""
-    spec = synth_test(kind, **KINDS.get(kind, {}))
+def _inputs(kind: str):
     from plant import InputSignals
 
+    spec = synth_test(kind, **KINDS.get(kind, {}))
     t, u, _ = synth_inputs(spec)
-    inp = InputSignals(0.0, 1.0 / spec.rate_hz, u)
-    with_eff = truth_model(params, [effect], values).simulate(inp, t_out=t)
+    return t, InputSignals(0.0, 1.0 / spec.rate_hz, u)
+
+
+def case_size_sigma(kind: str, case: HiddenCase, noise: float, params: str = "table2") -> float:
+    """RMS difference of the noise-free tip readings of the truth and the nominal model, in noise σ."""
+    t, inp = _inputs(kind)
+    with_it = truth_model(params, list(case.effects), dict(case.values)).simulate(inp, t_out=t)
     without = truth_model(params).simulate(inp, t_out=t)
-    d = with_eff["z3_meas"][0] - without["z3_meas"][0]
+    d = with_it["z3_meas"][0] - without["z3_meas"][0]
     return float(np.sqrt(np.mean(d ** 2)) / noise)
 
 
-def run_case(effect: str | None, values: Mapping[str, float] | None, kind: str, noise: float, seed: int, *,
-             strength: str = "", params: str = "table2", candidates: Sequence[str] = LIBRARY,
-             size_sigma: float | None = None, workers: int = 1) -> CaseResult:
-    """Hide ``effect`` (None: nothing) in a synthetic ``kind`` record and diagnose it (see the module docstring)."""
+def effect_size_sigma(kind: str, effect: str, values: Mapping[str, float], noise: float,
+                      params: str = "table2") -> float:
+    """RMS difference of the noise-free tip readings with and without the effect, in noise σ."""
+    return case_size_sigma(kind, HiddenCase("library", effect, (effect,), dict(values), (effect,)), noise, params)
+
+
+def _named_first(found: Sequence[str], expected: Sequence[str]) -> bool:
+    if not found or not expected:
+        return False
+    if found[0] == expected[0]:
+        return True
+    group = next((p for p in PARAMETER_CANDIDATES if p.name == found[0]), None)
+    return group is not None and len(group.members) > 1 and expected[0] in group.members and len(expected) == 1
+
+
+def run_hidden_case(case: HiddenCase, kind: str, noise: float, seed: int, *, params: str = "table2",
+                    candidates: Sequence[str] | None = None, size_sigma: float | None = None,
+                    workers: int = 1) -> CaseResult:
+    """Hide ``case`` in a synthetic ``kind`` record and diagnose it (see the module docstring)."""
     t0 = time.perf_counter()
-    values = dict(values or {})
-    effects = [effect] if effect else []
+    effects = list(case.effects)
     spec = synth_test(kind, **KINDS.get(kind, {}))
+    values = dict(case.values)
     rec = synth_record(spec, truth_model(params, effects, values), noise={"z3": noise}, seed=seed,
                        effects=effects, values=values)
     if size_sigma is None:
-        size_sigma = effect_size_sigma(kind, effect, values, noise, params) if effect else 0.0
+        size_sigma = case_size_sigma(kind, case, noise, params) if case.expected else 0.0
     d = diagnose([rec], params, candidates, workers=workers, seed=seed)
     names = d.ranked_names
-    winner = d.winner.effect if d.winner else ("nothing missing" if d.verdict == "nothing_missing" else
-                                               "unexplained")
-    true = next((c for c in d.ranking if c.effect == effect), None)
+    found = list(d.found)
+    diagnosed = " + ".join(found) if found else ("nothing missing" if d.verdict == "nothing_missing" else
+                                                 "unexplained")
+    exp = list(case.expected)
+    true = next((c for c in d.ranking if exp and c.effect == exp[0] and c.outcome is not None), None)
+    rank = next((i + 1 for i, c in enumerate(d.ranking) if exp and exp[0] in c.members), 0)
     return CaseResult(
-        effect=effect or "none", strength=strength or ("-" if effect is None else "custom"), values=values,
-        kind=kind, noise_m=noise, seed=seed, size_sigma=size_sigma, counts=bool(effect) and size_sigma > 1.0,
-        verdict=d.verdict, diagnosed=winner, ranked_first=bool(effect) and winner == effect,
-        true_rank=(names.index(effect) + 1) if effect in names else 0,
+        effect=case.label, strength=case.strength, values=values, kind=kind, noise_m=noise, seed=seed,
+        size_sigma=size_sigma, counts=bool(exp) and size_sigma > COUNTS_ABOVE.get(case.kind, 1.0),
+        verdict=d.verdict, diagnosed=diagnosed, ranked_first=_named_first(found, exp), true_rank=rank,
         held_after_winner_sigma=d.winner.held_rms_sigma if d.winner else d.baseline_held_rms_sigma,
-        held_after_true_sigma=true.held_rms_sigma if true else d.baseline_held_rms_sigma,
-        held_before_sigma=d.baseline_held_rms_sigma, wall_s=time.perf_counter() - t0, ranking=names)
+        held_after_true_sigma=true.held_rms_sigma if true else float("nan"),
+        held_before_sigma=d.baseline_held_rms_sigma, wall_s=time.perf_counter() - t0, ranking=names,
+        case_kind=case.kind, expected=exp, found=found, all_found=bool(exp) and set(exp) <= set(found))
+
+
+def run_case(effect: str | None, values: Mapping[str, float] | None, kind: str, noise: float, seed: int, *,
+             strength: str = "", params: str = "table2", candidates: Sequence[str] | None = None,
+             size_sigma: float | None = None, workers: int = 1) -> CaseResult:
+    """One library effect (None: nothing) hidden in a ``kind`` record and diagnosed (the part-2 interface)."""
+    case = (HiddenCase("library", effect, (effect,), dict(values or {}), (effect,), strength or "custom")
+            if effect else null_case())
+    return run_hidden_case(case, kind, noise, seed, params=params, candidates=candidates, size_sigma=size_sigma,
+                           workers=workers)
+
+
+def _label(r: CaseResult) -> str:
+    if r.case_kind == "library" or r.case_kind == "none":
+        return r.effect
+    if r.case_kind == "parameter":
+        return r.expected[0] + " wrong"
+    return r.case_kind + ": " + r.effect
+
+
+def _diag_label(r: CaseResult, known: set[str]) -> str:
+    if not r.found:
+        return r.diagnosed
+    if len(r.found) > 1:
+        return "combination"
+    f = r.found[0]
+    if f in LIBRARY:
+        return f
+    return f + " wrong" if f + " wrong" in known else "other parameter"
 
 
 def confusion_matrix(results: Sequence[CaseResult]) -> tuple[list[str], list[str], np.ndarray]:
     """(truth labels, diagnosis labels, counts[truth, diagnosis]) over ``results``."""
-    truths = [e for e in (*LIBRARY, "none") if any(r.effect == e for r in results)]
-    diags = [*LIBRARY, "nothing missing", "unexplained"]
+    truths = list(dict.fromkeys(_label(r) for r in results))
+    known = set(truths)
+    diags = list(dict.fromkeys([*[t for t in truths if t != "none" and not t.startswith("pair")],
+                                *(_diag_label(r, known) for r in results), "nothing missing"]))
     m = np.zeros((len(truths), len(diags)), dtype=int)
     for r in results:
-        m[truths.index(r.effect), diags.index(r.diagnosed)] += 1
+        m[truths.index(_label(r)), diags.index(_diag_label(r, known))] += 1
     used = [j for j in range(len(diags)) if m[:, j].any() or diags[j] in truths or diags[j] == "nothing missing"]
     return truths, [diags[j] for j in used], m[:, used]
 
 
+_SHORT = {"amplifier_current_limit": "amp_limit", "geometric_stiffening": "stiffening",
+          "dielectric_leakage": "leakage", "nothing missing": "nothing", "root_compliance": "root_compl",
+          "thermal_drift": "thermal", "piezo_creep": "creep", "laser_sensor": "laser", "air_damping": "air_damp",
+          "combination": "combo", "other parameter": "other_par", "unexplained": "unexpl"}
+
+
+def _short(name: str) -> str:
+    for k, v in _SHORT.items():
+        name = name.replace(k, v)
+    return name.replace(" wrong", "✗").replace("pair: ", "")
+
+
 def format_confusion(results: Sequence[CaseResult]) -> str:
-    """The confusion matrix as text (rows: hidden truth; columns: diagnosis)."""
+    """The confusion matrix as text (rows: hidden truth; columns: diagnosis; "x✗": parameter x wrong)."""
     truths, diags, m = confusion_matrix(results)
-    short = {n: n.replace("amplifier_current_limit", "amp_limit").replace("geometric_stiffening", "stiffening")
-             .replace("dielectric_leakage", "leakage").replace("nothing missing", "nothing").replace(
-                 "root_compliance", "root_compl") for n in [*truths, *diags]}
-    w = max(len(short[t]) for t in truths) + 2
-    cw = max(max(len(short[d]) for d in diags), 4) + 1
-    lines = ["truth \\ diagnosis".ljust(w) + "".join(short[d].rjust(cw) for d in diags)]
+    w = max(len(_short(t)) for t in truths) + 2
+    cw = max(max(len(_short(d)) for d in diags), 4) + 1
+    lines = ["truth \\ diagnosis".ljust(w) + "".join(_short(d).rjust(cw) for d in diags)]
     for i, t in enumerate(truths):
-        lines.append(short[t].ljust(w) + "".join(str(x).rjust(cw) for x in m[i]))
+        lines.append(_short(t).ljust(w) + "".join(str(x).rjust(cw) for x in m[i]))
     return "\n".join(lines)
 
 
+def _rate(num: int, den: int) -> float:
+    return num / den if den else float("nan")
+
+
 def summarise(results: Sequence[CaseResult]) -> dict[str, Any]:
-    """The challenge's targets: ranked first (cases above the noise), held-out after fit, null verdicts."""
+    """The challenge's targets per case kind: named first / all found (cases above the size threshold), held-out
+    after the fit, null verdicts."""
     counting = [r for r in results if r.counts]
-    nulls = [r for r in results if r.effect == "none"]
+    nulls = [r for r in results if r.case_kind == "none"]
+    lib = [r for r in counting if r.case_kind == "library"]
+    par = [r for r in counting if r.case_kind == "parameter"]
+    pairs = [r for r in counting if r.case_kind == "pair"]
     first = [r for r in counting if r.ranked_first]
-    fit_ok = [r for r in counting if r.held_after_true_sigma <= 1.5]
+    lib_fit = [r for r in lib if np.isfinite(r.held_after_true_sigma) and r.held_after_true_sigma <= 1.5]
     out: dict[str, Any] = {
         "cases": len(results),
         "cases_above_noise": len(counting),
-        "ranked_first_rate": len(first) / len(counting) if counting else float("nan"),
-        "held_after_true_fit_within_1p5_sigma_rate": len(fit_ok) / len(counting) if counting else float("nan"),
-        "held_after_winner_fit_within_1p5_sigma_rate": (
-            sum(r.held_after_winner_sigma <= 1.5 for r in first) / len(first) if first else float("nan")),
+        "ranked_first_rate": _rate(len(first), len(counting)),
+        "library_top1_rate": _rate(sum(r.ranked_first for r in lib), len(lib)),
+        "library_cases_counted": len(lib),
+        "parameter_named_first_rate": _rate(sum(r.ranked_first for r in par), len(par)),
+        "parameter_cases_counted": len(par),
+        "pair_both_found_rate": _rate(sum(r.all_found for r in pairs), len(pairs)),
+        "pair_cases_counted": len(pairs),
+        "held_after_true_fit_within_1p5_sigma_rate": _rate(len(lib_fit), len(lib)),
+        "held_after_winner_fit_within_1p5_sigma_rate": _rate(
+            sum(r.held_after_winner_sigma <= 1.5 for r in first), len(first)),
         "null_cases": len(nulls),
-        "null_nothing_missing_rate": (sum(r.verdict == "nothing_missing" for r in nulls) / len(nulls)
-                                      if nulls else float("nan")),
-        "misses": [f"{r.effect}/{r.strength}/{r.kind}/noise {r.noise_m:g} m/seed {r.seed}: diagnosed {r.diagnosed} "
-                   f"(size {r.size_sigma:.3g} σ, true effect rank {r.true_rank})" for r in counting
-                   if not r.ranked_first],
+        "null_nothing_missing_rate": _rate(sum(r.verdict == "nothing_missing" for r in nulls), len(nulls)),
+        "misses": [f"{r.case_kind} {r.effect}/{r.strength}/{r.kind}/noise {r.noise_m:g} m/seed {r.seed}: diagnosed "
+                   f"{r.diagnosed} (size {r.size_sigma:.3g} σ, first expected ranked {r.true_rank})"
+                   for r in counting if not (r.all_found if r.case_kind == "pair" else r.ranked_first)],
         "false_alarms": [f"{r.kind}/noise {r.noise_m:g} m/seed {r.seed}: {r.diagnosed}" for r in nulls
                          if r.verdict != "nothing_missing"],
     }
-    per_kind = {}
+    per_kind: dict[str, Any] = {}
     for kind in dict.fromkeys(r.kind for r in results):
-        c = [r for r in counting if r.kind == kind]
-        per_kind[kind] = {"above_noise": len(c), "ranked_first": sum(r.ranked_first for r in c)}
+        per_kind[kind] = {}
+        for ck in dict.fromkeys(r.case_kind for r in results):
+            c = [r for r in counting if r.kind == kind and r.case_kind == ck]
+            if c:
+                ok = sum((r.all_found if ck == "pair" else r.ranked_first) for r in c)
+                per_kind[kind][ck] = f"{ok}/{len(c)}"
     out["per_kind"] = per_kind
     return out
