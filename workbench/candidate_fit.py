@@ -95,6 +95,7 @@ class CandidateResult:
     status: str = "fitted"  # "fitted" | "screened out" | "at bound, unreliable"
     widened: list[str] = field(default_factory=list)
     screen_train_rms_sigma: float = float("nan")
+    screen_start: dict[str, float] = field(default_factory=dict)  # best screening point (screened-out candidates)
 
     @property
     def kind(self) -> str:
@@ -300,7 +301,7 @@ def fit_candidate(cls: type[PhysicalEffect], params: ParameterSet, targets: Sequ
 def screened_out(s: ScreenResult) -> CandidateResult:
     description, origin, signature = _describe_spec(s.spec)
     c = CandidateResult(s.spec.label, description, origin, signature, [], None, spec=s.spec, status="screened out",
-                        screen_train_rms_sigma=s.train_rms_sigma, n_sims=s.n_sims)
+                        screen_train_rms_sigma=s.train_rms_sigma, n_sims=s.n_sims, screen_start=dict(s.start))
     c.stable = math.isfinite(s.train_rms_sigma)
     c.rejection = f"screened out (training {s.train_rms_sigma:.3g} σ at its best screening point)"
     return c

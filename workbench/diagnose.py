@@ -127,7 +127,7 @@ class Diagnosis:
             return ()
         out: list[str] = []
         for step in [*self.steps, self.winner]:
-            out += [m for m in step.members if m not in out]
+            out += [m for m in step.members if m not in out and m in self.winner.members]
         return tuple(out)
 
     def to_dict(self) -> dict[str, Any]:

@@ -196,7 +196,7 @@ def verdict_for(d: Any, base: ParameterSet, params_label: str) -> None:
         if spec is not None and spec.effects:
             parts.append(_effect_words(winner))
         head = (f"{'Two' if len(winner.members) == 2 else 'Several'} things at once: {'; and '.join(parts)}. "
-                f"Together they {cut}; found step by step ({', '.join(words)})")
+                f"Together they {cut.replace('cuts', 'cut', 1)}; found step by step ({', '.join(words)})")
         verdict = "combination"
     msg = head
     if runner is not None and kind != "combination":
