@@ -39,7 +39,7 @@ class QuadraticAirDamping(PhysicalEffect):
         Parameter("c_air", "kg/m", 0.0, 0.0, 1.0, "Drag coefficient of the plate, ½ ρ C_d A"),
     )
     neutral: ClassVar[Mapping[str, float]] = {"c_air": 0.0}
-    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"c_air": FitRange(0.0, 0.5, linthresh=1e-3)}
+    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"c_air": FitRange(0.0, 1.0, linthresh=1e-3)}
 
     @staticmethod
     def rates(t, x, p, bus, dx, so, po):
