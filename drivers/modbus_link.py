@@ -29,8 +29,10 @@ On a slow RTU line (19200 baud needs ~22 ms for this poll) one exchange does not
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import select
+import socket
 import time
 from collections import Counter
 from urllib.parse import parse_qsl, urlsplit
@@ -43,21 +45,25 @@ from board_config.errors import InputError
 from drivers.incident_log import IncidentLog
 from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, LinkError, RigSample
 from drivers.modbus_registers import (
+    BY_NAME,
     COMMAND_START,
     INPUT_COUNT,
     INPUT_START,
+    MAP_VERSION,
     ModbusExceptionCode,
     decode_input_block,
+    decode_value,
     encode_command_block,
 )
 
 log = logging.getLogger("drivers.modbus_link")
 MAX_BACKOFF_CALLS = 64
-_KNOWN = {"tcp": {"unit", "timeout", "reopen"},
-          "rtu": {"unit", "timeout", "reopen", "baud", "parity", "stopbits"}}
+_KNOWN = {"tcp": {"unit", "timeout", "reopen", "handshake"},
+          "rtu": {"unit", "timeout", "reopen", "baud", "parity", "stopbits", "handshake"}}
 # RTU bytes on the line per exchange: FC16 request 1+1+2+2+1+16+2 = 25, its reply 8, FC04 request 8, its reply 49
 _RTU_EXCHANGE_BYTES = 90
-_MIN_READ_S = 5e-4  # the read gets at least this much even if the write used up the budget
+_RTU_MAX_TIMEOUT_S = 0.0095  # default RTU exchange budget never exceeds this (a 10 ms tick minus the board's work)
+_MIN_READ_S = 5e-4  # a read is not started with less than this left of the exchange budget
 
 
 class _RtuClient(ModbusSerialClient):
@@ -124,7 +130,8 @@ def parse_modbus_url(url: str) -> dict[str, object]:
                          f"(known: {', '.join(sorted(_KNOWN[kind]))})")
     settings: dict[str, object] = {"kind": kind, **target,
                                    "unit": int(_num(opts, "unit", 1, url, 1, 247)),
-                                   "reopen": int(_num(opts, "reopen", 25, url, 1, 1e9))}
+                                   "reopen": int(_num(opts, "reopen", 25, url, 1, 1e9)),
+                                   "handshake": bool(_num(opts, "handshake", 1, url, 0, 1))}
     if kind == "rtu":
         baud = int(_num(opts, "baud", 115200, url, 300, 4_000_000))
         parity = opts.get("parity", "N").upper()
@@ -132,11 +139,53 @@ def parse_modbus_url(url: str) -> dict[str, object]:
             raise InputError(f"link URL '{url}': parity={parity!r}, allowed N, E, O")
         stopbits = int(_num(opts, "stopbits", 1, url, 1, 2))
         wire = _RTU_EXCHANGE_BYTES * (1 + 8 + stopbits + (parity != "N")) / baud
-        settings.update(baud=baud, parity=parity, stopbits=stopbits,
-                        timeout=_num(opts, "timeout", 0.008 + 2 * wire, url, 1e-4, 60.0))
+        # the exchange must fit one 10 ms tick: 8 ms, or the line time + 4 ms for the rig, at most 9.5 ms; a line
+        # too slow for the tick at all (< ~115200 baud) keeps 8 ms plus twice its line time and is reported at open
+        fits = wire + 0.001 <= _RTU_MAX_TIMEOUT_S
+        default = max(0.008, min(wire + 0.004, _RTU_MAX_TIMEOUT_S)) if fits else 0.008 + 2 * wire
+        settings.update(baud=baud, parity=parity, stopbits=stopbits, line_time=wire,
+                        timeout=_num(opts, "timeout", default, url, 1e-4, 60.0))
     else:
         settings["timeout"] = _num(opts, "timeout", 0.008, url, 1e-4, 60.0)
+        settings["line_time"] = 0.0
     return settings
+
+
+class RigMismatchError(LinkError):
+    """The peer answers but is not a rig this board can drive (another map version, word order, limits or tick)."""
+
+
+_ID_START = 8  # holding map_version .. v_limit_max
+_ID_COUNT = 6
+_OPEN_BUDGET_S = 0.5  # reply budget of the start-up reads (the tick deadline does not apply yet)
+
+
+def rig_identity_problem(words: list[int], tick: float = 0.01) -> str:
+    """Why the rig whose holding registers 8–13 are ``words`` cannot be driven ('' if it can). Pure.
+
+    Checks the map version, the rig's tick and the Table 1 limits, and tells a wrong float word order (CDAB) by
+    the limits decoding correctly only with the words swapped.
+    """
+    from board_config import load_mfc_limits
+
+    limits = load_mfc_limits()
+    version = words[0]
+    if version != MAP_VERSION:
+        return f"map_version is {version}, this board speaks register map version {MAP_VERSION}"
+    lo = decode_value(BY_NAME["v_limit_min"], words[2:4])
+    hi = decode_value(BY_NAME["v_limit_max"], words[4:6])
+    if (lo, hi) != (limits.voltage_min, limits.voltage_max):
+        swapped = (decode_value(BY_NAME["v_limit_min"], [words[3], words[2]]),
+                   decode_value(BY_NAME["v_limit_max"], [words[5], words[4]]))
+        if swapped == (limits.voltage_min, limits.voltage_max):
+            return ("float word order is low word first (CDAB); the map needs the high word first (ABCD): "
+                    f"v_limit_min reads {lo:g} V instead of {limits.voltage_min:g} V")
+        return (f"its channel limits are [{lo:g}, {hi:g}] V, the board's Table 1 limits are "
+                f"[{limits.voltage_min:g}, {limits.voltage_max:g}] V")
+    rig_tick = decode_value(BY_NAME["rig_tick"], words[1:2])
+    if abs(rig_tick - tick) > 0.5e-4:
+        return f"rig_tick is {1e3 * rig_tick:g} ms, the board ticks every {1e3 * tick:g} ms"
+    return ""
 
 
 class ModbusLink:
@@ -151,6 +200,10 @@ class ModbusLink:
         self.unit = int(self.settings["unit"])  # type: ignore[arg-type]
         self.timeout = float(self.settings["timeout"])  # type: ignore[arg-type]
         self.reopen_after = int(self.settings["reopen"])  # type: ignore[arg-type]
+        #: request-to-reply time one transaction may take (s): half the exchange budget (two transactions per tick)
+        self.processing_budget = self.timeout / 2
+        self.line_time = float(self.settings["line_time"])  # type: ignore[arg-type]
+        self.last_transaction_s = 0.0
         self._client = None
         self._down = True
         self._backoff = 1
@@ -171,13 +224,40 @@ class ModbusLink:
                                   bytesize=8, timeout=self.timeout, retries=0, name="shm-board")
 
     def open(self) -> None:
-        """Connect and read the sample block once (the rig must answer). Raises ``LinkError``."""
+        """Connect, check the rig (unless ``handshake=0``: map version, tick, Table 1 limits, float word order) and
+        read the sample block once. Raises ``LinkError`` (:class:`RigMismatchError` for a rig serving another map)."""
         self._connect()
         try:
-            self._read_inputs()
+            if self.settings["handshake"]:
+                self.check_rig()
+            self._read_inputs(budget=max(self.timeout, _OPEN_BUDGET_S))
         except LinkError:
             self.close()
             raise
+
+    def check_rig(self) -> None:
+        """Read the rig's identity block (holding 8–13) and refuse a rig this board cannot drive."""
+        budget = max(self.timeout, _OPEN_BUDGET_S)
+        last: LinkError | None = None
+        for _ in range(3):  # a slow peer at start-up gets three chances
+            try:
+                rr = self._call("read the rig's identity (FC03, holding 8-13)", self._client.read_holding_registers,
+                                _ID_START, count=_ID_COUNT, budget=budget)
+                break
+            except LinkError as exc:
+                last = exc
+                if self._down:
+                    raise
+        else:
+            assert last is not None
+            raise LinkError(f"{self.url}: the rig does not answer at start-up ({last})")
+        if rr.isError() or getattr(rr, "registers", None) is None or len(rr.registers) != _ID_COUNT:
+            raise RigMismatchError(f"{self.url}: the rig refused to read holding registers 8-13 (map_version, "
+                                   f"rig_tick, v_limit_min, v_limit_max; docs/registers.md): "
+                                   f"{getattr(rr, 'exception_code', rr)}")
+        problem = rig_identity_problem(list(rr.registers))
+        if problem:
+            raise RigMismatchError(f"{self.url}: rig refused: {problem} (docs/registers.md)")
 
     def close(self) -> None:
         client, self._client = self._client, None
@@ -210,6 +290,12 @@ class ModbusLink:
         if not ok:
             self._client.close()
             raise LinkError(f"{self.url}: cannot connect")
+        sock = getattr(self._client, "socket", None)
+        if isinstance(sock, socket.socket):
+            # no Nagle: after a lost reply the next request would otherwise wait for the server's delayed ACK
+            # (up to 40 ms), turning one lost reply into five failed exchanges
+            with contextlib.suppress(OSError):
+                sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._down = False
         self._backoff = 1
         self._calls_while_down = 0
@@ -252,8 +338,10 @@ class ModbusLink:
         c.comm_params.timeout_connect = seconds
         c.transaction.comm_params.timeout_connect = seconds
 
-    def _call(self, what: str, fn, *args, budget: float | None = None, **kwargs):
-        self._set_timeout(self.timeout if budget is None else budget)
+    def _call(self, what: str, fn, *args, budget: float | None = None, context: str = "", **kwargs):
+        budget = self.timeout if budget is None else budget
+        self._set_timeout(budget)
+        t0 = time.monotonic()
         try:
             rr = fn(*args, device_id=self.unit, **kwargs)
         except ConnectionException as exc:
@@ -261,21 +349,28 @@ class ModbusLink:
         except ModbusException as exc:  # ModbusIOException: no (valid) reply within the timeout
             self.stats["timeouts"] += 1
             self._timeouts_in_row += 1
-            limit = 1e3 * (self.timeout if budget is None else budget)
-            self._log.warn("timeout", "%s: %s: no valid reply within %.1f ms", self.url, what, limit)
+            why = f"{what}: no valid reply within {1e3 * budget:.1f} ms{context}"
+            self._log.warn("timeout", "%s: %s", self.url, why)
             if self._timeouts_in_row >= self.reopen_after:
                 raise self._link_down(f"{self._timeouts_in_row} timeouts in a row") from exc
-            raise LinkError(f"{self.url}: {what}: no valid reply within {limit:.1f} ms") from exc
+            raise LinkError(f"{self.url}: {why}") from exc
         except (OSError, ValueError) as exc:  # serial port vanished under pyserial, etc.
             raise self._link_down(f"{what}: {exc}") from exc
         if rr is None:
             raise LinkError(f"{self.url}: {what}: no reply")
         self._timeouts_in_row = 0
+        took = time.monotonic() - t0
+        self.last_transaction_s = took
+        if took > self.processing_budget:
+            self.stats["slow_replies"] += 1
+            self._log.warn("slow_reply", "%s: %s answered in %.1f ms, over the rig's processing budget of %.1f ms "
+                           "per transaction (docs/real-rig.md): the rig is too slow for this tick", self.url, what,
+                           1e3 * took, 1e3 * self.processing_budget)
         return rr
 
-    def _read_inputs(self, budget: float | None = None):
+    def _read_inputs(self, budget: float | None = None, context: str = ""):
         rr = self._call("read sample (FC04)", self._client.read_input_registers, INPUT_START, count=INPUT_COUNT,
-                        budget=budget)
+                        budget=budget, context=context)
         if rr.isError():
             self.stats["exception_replies"] += 1
             code = getattr(rr, "exception_code", None)
@@ -316,7 +411,15 @@ class ModbusLink:
         elif rr.function_code != 0x10:
             self.stats["bad_reply"] += 1
             raise LinkError(f"{self.url}: unexpected reply to the command write (function {rr.function_code})")
-        block = self._read_inputs(budget=max(deadline - time.monotonic(), _MIN_READ_S))
+        left = deadline - time.monotonic()
+        spent = self.timeout - left
+        context = f" (the command write took {1e3 * spent:.1f} ms of the {1e3 * self.timeout:.1f} ms exchange budget)"
+        if left < _MIN_READ_S:  # never stretch the exchange past its budget: the tick must not collapse
+            self.stats["timeouts"] += 1
+            self._log.warn("no_time_for_read", "%s: no time left to read the sample%s", self.url, context)
+            raise LinkError(f"{self.url}: no time left to read the sample{context}; the rig answers slower than "
+                            f"its processing budget of {1e3 * self.processing_budget:.1f} ms per transaction")
+        block = self._read_inputs(budget=left, context=context)
         self.stats["replies"] += 1
         sample = block.sample
         if refused:

@@ -52,6 +52,8 @@ log = logging.getLogger("drivers.serial_link")
 
 _OUR_KEYS = ("baud", "parity", "timeout", "handshake", "reopen")
 MAX_BACKOFF_CALLS = 64
+_EXCHANGE_BITS = 62 * 10  # COMMAND (22 bytes) + SAMPLE (40 bytes), 8N1
+_OPEN_BUDGET_S = 0.5  # reply budget of the PING at open (no tick deadline yet)
 
 
 def split_link_options(target: str) -> tuple[str, dict[str, str]]:
@@ -97,6 +99,11 @@ class SerialLink:
         self.timeout = float(timeout if timeout is not None else _option(opts, "timeout", 0.008, url, 1e-4, 60.0))
         self.handshake = bool(handshake if handshake is not None else _option(opts, "handshake", 1, url, 0, 1))
         self.reopen_after = int(_option(opts, "reopen", 25, url, 1, 1e9))
+        #: line time of one exchange (s): 62 bytes of 10 bits; 0 for ptys and sockets, which have no baud rate
+        self.line_time = 0.0 if self.port_url.startswith(("socket://", "loop://")) else _EXCHANGE_BITS / self.baudrate
+        #: rig processing budget per exchange (s): what the timeout leaves after the line time, less 1 ms of slack
+        self.processing_budget = max(self.timeout - self.line_time - 0.001, 0.0)
+        self.last_round_trip_s = 0.0
         self._port: serial.SerialBase | None = None
         self._decoder = FrameDecoder()
         self._backoff = 1
@@ -113,7 +120,7 @@ class SerialLink:
         self._open_port()
         if self.handshake:
             try:
-                self.rig_protocol_version = self.ping(attempts=5)
+                self.rig_protocol_version = self.ping(attempts=5, timeout=max(self.timeout, _OPEN_BUDGET_S))
             except LinkError:
                 self.close()
                 raise
@@ -182,6 +189,17 @@ class SerialLink:
             raise
         self.stats["reopened"] += 1
         self._log.warn("reopened", "%s: port reopened", self.url)
+        if self.handshake:  # the device behind a reopened port may have changed: PING it again
+            try:
+                version = self.ping(attempts=1)
+            except LinkError as exc:
+                self.close()
+                self._backoff = min(2 * self._backoff, MAX_BACKOFF_CALLS)
+                raise LinkError(f"{self.url}: reopened, but no PONG: {exc}") from exc
+            if version != PROTOCOL_VERSION:
+                self.close()
+                raise LinkError(f"{self.url}: reopened port answers protocol version {version}, "
+                                f"this board speaks {PROTOCOL_VERSION}")
         assert self._port is not None
         return self._port
 
@@ -200,13 +218,14 @@ class SerialLink:
             self.stats["bad_reply"] += 1
             raise LinkError(f"{self.url}: bad reply: {exc}") from exc
 
-    def ping(self, attempts: int = 1) -> int:
-        """Round trip a PING; return the rig's protocol version."""
+    def ping(self, attempts: int = 1, timeout: float | None = None) -> int:
+        """Round trip a PING (reply budget ``timeout``, default the link's); return the rig's protocol version."""
         last: LinkError | None = None
         for _ in range(max(1, attempts)):
             self._ping_seq = (self._ping_seq + 1) & 0xFFFFFFFF
             try:
-                return decode_pong(self._transact(encode_ping(self._ping_seq), MessageType.PING, self._ping_seq))
+                return decode_pong(self._transact(encode_ping(self._ping_seq), MessageType.PING, self._ping_seq,
+                                                  timeout))
             except FramingError as exc:
                 last = LinkError(f"{self.url}: bad PONG: {exc}")
             except LinkError as exc:
@@ -214,15 +233,17 @@ class SerialLink:
         assert last is not None
         raise last
 
-    def _transact(self, frame: bytes, request: MessageType, seq: int):
+    def _transact(self, frame: bytes, request: MessageType, seq: int, timeout: float | None = None):
         port = self._ensure_open()
+        budget = self.timeout if timeout is None else timeout
         want = MessageType.SAMPLE if request == MessageType.COMMAND else MessageType.PONG
         self.stats["requests"] += 1
         try:
             port.write(frame)
         except (OSError, serial.SerialException) as exc:
             raise self._link_down(f"write failed: {exc}") from exc
-        deadline = time.monotonic() + self.timeout  # timeouts are the link's only use of a clock
+        t0 = time.monotonic()
+        deadline = t0 + budget  # timeouts are the link's only use of a clock
         while True:
             try:
                 data = port.read(max(1, port.in_waiting))
@@ -236,6 +257,14 @@ class SerialLink:
                     if fr.type == want and fr.seq == seq:
                         self._timeouts_in_row = 0
                         self.stats["replies"] += 1
+                        took = time.monotonic() - t0
+                        self.last_round_trip_s = took
+                        if took > self.processing_budget + self.line_time:
+                            self.stats["slow_replies"] += 1
+                            self._log.warn("slow_reply", "%s: reply to seq %d after %.1f ms, over the rig's budget of "
+                                           "%.1f ms (line time %.1f ms + processing %.1f ms, docs/real-rig.md)",
+                                           self.url, seq, 1e3 * took, 1e3 * (self.processing_budget + self.line_time),
+                                           1e3 * self.line_time, 1e3 * self.processing_budget)
                         return fr
                     if fr.type == MessageType.NAK and fr.seq == seq:
                         rejected, reason = decode_nak(fr) if len(fr.payload) == 2 else (fr.type, "?")
@@ -250,10 +279,10 @@ class SerialLink:
             if time.monotonic() >= deadline:
                 self.stats["timeouts"] += 1
                 self._timeouts_in_row += 1
-                self._log.warn("timeout", "%s: no reply to seq %d within %.1f ms", self.url, seq, 1e3 * self.timeout)
+                self._log.warn("timeout", "%s: no reply to seq %d within %.1f ms", self.url, seq, 1e3 * budget)
                 if self._timeouts_in_row >= self.reopen_after:
                     raise self._link_down(f"{self._timeouts_in_row} timeouts in a row")
-                raise LinkError(f"{self.url}: no reply to seq {seq} within {1e3 * self.timeout:.1f} ms")
+                raise LinkError(f"{self.url}: no reply to seq {seq} within {1e3 * budget:.1f} ms")
 
     def _count_decoder(self, before: dict[str, int]) -> None:
         after = self._decoder.stats.as_dict()

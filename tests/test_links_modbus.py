@@ -32,7 +32,9 @@ def test_url_parsing_and_errors():
     assert (s["kind"], s["host"], s["port"], s["unit"], s["timeout"]) == ("tcp", "127.0.0.1", 5020, 3, 0.1)
     s = parse_modbus_url("modbus-rtu:/dev/ttyUSB1?baud=19200&parity=E")
     assert (s["port"], s["baud"], s["parity"]) == ("/dev/ttyUSB1", 19200, "E")
-    assert s["timeout"] == pytest.approx(0.008 + 2 * 90 * 11 / 19200)  # twice the exchange's line time, 8E1
+    assert s["timeout"] == pytest.approx(0.008 + 2 * 90 * 11 / 19200)  # a line too slow for the tick: 8 ms + 2x line
+    assert parse_modbus_url("modbus-rtu:/dev/x?baud=115200")["timeout"] == pytest.approx(0.0095)  # fits one tick
+    assert parse_modbus_url("modbus-rtu:/dev/x?baud=230400")["timeout"] == pytest.approx(0.008)
     assert parse_modbus_url("modbus-tcp://h:1")["timeout"] == 0.008  # one exchange fits a 10 ms tick
     assert isinstance(open_link("modbus-tcp://127.0.0.1:1"), ModbusLink)
     assert isinstance(open_link("modbus-rtu:/dev/null"), ModbusLink)
