@@ -42,10 +42,9 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_health(args: argparse.Namespace) -> int:
-    from studies.health.assess import assess_health
-    from studies.health.report import four_levels_text, write_health_outputs
-
     from shm_cli.main import CliError
+    from studies.health.assess import assess_health
+    from studies.health.report import four_levels_text, health_json, write_health_outputs
 
     if args.as_of is not None and not args.as_of >= 0:
         raise CliError(f"--as-of must be a number of hours >= 0, got {args.as_of!r}")
@@ -56,11 +55,13 @@ def cmd_health(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     result = assess_health(args.sources, params=args.params, as_of=args.as_of, free=args.free or None,
                            workers=args.workers, seed=args.seed, progress=log)
-    result["wall_s"] = time.perf_counter() - t0
+    result.doc["wall_s"] = time.perf_counter() - t0
     text = four_levels_text(result)
-    failed = write_health_outputs(result, out, text, args)
+    failed = write_health_outputs(result, out, text)
+    for artefact, why in failed.items():
+        print(f"shm health: could not write {artefact} ({why})", file=sys.stderr)
     if args.json:
-        print(dump_json(result))
+        print(health_json(result))
         print(text, file=sys.stderr)
     else:
         print(text)

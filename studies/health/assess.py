@@ -1,0 +1,196 @@
+"""The whole assessment behind ``shm health``: visits → estimates → trends → forecast → the four levels.
+
+Returns one JSON-ready document (see docs/health.md for every key) plus the objects the report plots.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from board_config.errors import InputError
+from studies.health.estimate import DEFAULT_FREE, Visit, estimate_visits
+from studies.health.forecast import Forecast, forecast_trip, visit_of
+from studies.health.sources import load_visits
+from studies.health.trend import Trend, fit_trend
+from studies.health.trip import HEALTH_PARAMS, trip_boundary
+
+#: where a health parameter lives on the laminate (the lumped model's own map; docs/model.md)
+LOCATION = {
+    "k3": "the tip section (section 3) bending stiffness",
+    "alpha_h": "the MFC patches' hysteresis (Bouc-Wen linearity factor α_h)",
+    "beta_h": "the MFC patches' hysteresis (Bouc-Wen shape factor β_h)",
+}
+
+
+@dataclass
+class Assessment:
+    doc: dict[str, Any]
+    visits: list[Visit]
+    estimates: list[dict[str, Any]]
+    trends: dict[str, Trend]
+    forecast: Forecast
+    boundary: Any
+
+
+def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: float | None = None,
+                  free: Sequence[str] | None = None, workers: int | None = None, seed: int = 1,
+                  progress: Callable[[str], None] | None = None) -> Assessment:
+    say = progress or (lambda s: None)
+    free = tuple(free) if free else DEFAULT_FREE
+    unknown = [f for f in free if f not in HEALTH_PARAMS]
+    if unknown:
+        raise InputError(f"--free {unknown[0]!r}: shm health re-estimates the monitor's health parameters "
+                         f"({', '.join(HEALTH_PARAMS)})")
+    all_visits = load_visits(sources)
+    visits = [v for v in all_visits if as_of is None or v.operating_hours <= as_of + 1e-9]
+    if len(visits) < 2:
+        raise InputError(f"{len(visits)} visit(s) up to --as-of {as_of:g} h: a trend needs at least two visits "
+                         f"(the sources hold {len(all_visits)} visits at "
+                         + ", ".join(f"{v.operating_hours:g}" for v in all_visits[:12]) + " h)"
+                         if as_of is not None else "the sources hold fewer than two visits: a trend needs two")
+    say(f"shm health: {len(visits)} visits ({visits[0].operating_hours:g} … {visits[-1].operating_hours:g} h"
+        + (f", as of {as_of:g} h; {len(all_visits) - len(visits)} later visits not used" if as_of is not None else "")
+        + f"), re-estimating {', '.join(free)} with params {params}")
+    ests = estimate_visits(visits, params, free, workers=workers, progress=say)
+    hours = [v.operating_hours for v in visits]
+    trends: dict[str, Trend] = {}
+    for name in free:
+        y, s = [], []
+        for e in ests:
+            est = next(x for x in e["estimates"] if x["name"] == name)
+            y.append(est["value"] / est["nominal"] - 1.0)
+            s.append(est["stderr"] / abs(est["nominal"]) if est["stderr"] is not None else None)
+        trends[name] = fit_trend(name, hours, y, s)
+    say("trip boundary of the board's monitor (campaign machinery; computed once per parameter set, then cached)")
+    boundary = trip_boundary(params)
+    interval = float(np.median(np.diff(hours))) if len(hours) > 1 else 100.0
+    current = {n: trends[n].best.predict(np.array([hours[-1]]))[0] for n in free}
+    fc = forecast_trip(trends, boundary, hours[-1], interval, current=current, seed=seed)
+    doc = _document(visits, all_visits, ests, trends, fc, hours, interval, as_of, params, free)
+    return Assessment(doc, visits, ests, trends, fc, boundary)
+
+
+def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, as_of, params, free) -> dict[str, Any]:
+    vis = []
+    for v, e in zip(visits, ests):
+        vis.append({
+            "visit": v.visit, "operating_hours": v.operating_hours, "board_verdict": v.verdict,
+            "mbit_verdicts": v.mbit_verdicts, "records": [str(r.path) for r in v.records],
+            "held_rms_sigma": e["held_rms_sigma"],
+            "estimates": [{"name": x["name"], "value": x["value"], "stderr": x["stderr"], "unit": x["unit"],
+                           "nominal": x["nominal"], "relative": x["value"] / x["nominal"] - 1.0,
+                           "verdict": _est_verdict(x)} for x in e["estimates"]],
+        })
+    trend_doc = {}
+    for n, t in trends.items():
+        trend_doc[n] = {"model": t.model, "best_fit_model": t.best.name, "significant": t.significant,
+                        "p_value": t.p_value, "rate": t.rate_per_100h(hours[-1]) / 100.0,
+                        "rate_unit": "relative deviation per hour", "rate_per_100h_pct": 100 * t.rate_per_100h(
+                            hours[-1]), "aicc": {k: (f.aicc if math.isfinite(f.aicc) else None)
+                                                 for k, f in t.fits.items()},
+                        "model_weights": t.weights,
+                        "change_point_hours": t.best.tau if t.best.name == "change_point" and t.significant
+                        else None,
+                        "current_relative": float(t.best.predict(np.array([hours[-1]]))[0])}
+    f = fc.as_dict()
+    start = hours[0]
+    f["visit_interval_hours"] = interval
+    if fc.trip_interval_90 is not None:
+        lo, hi = fc.trip_interval_90
+        f["trip_visits_90"] = [_visit_number(visits, lo, start, interval), _visit_number(visits, hi, start, interval)]
+        f["trip_visit"] = _visit_number(visits, fc.trip_operating_hours, start, interval)
+    later = [v for v in all_visits if v.operating_hours > hours[-1]]
+    first_fault = next((v for v in all_visits if v.verdict == "FAULT"), None)
+    doc = {
+        "params": params, "free": list(free), "as_of_hours": as_of, "visits_used": len(visits),
+        "visits_later_not_used": len(later), "visits": vis, "trend": trend_doc, "forecast": f,
+        "board_first_fault": None if first_fault is None else {"visit": first_fault.visit,
+                                                               "operating_hours": first_fault.operating_hours},
+    }
+    doc["levels"] = levels(doc, trends, fc)
+    return doc
+
+
+def _visit_number(visits: list[Visit], hours: float | None, start: float, interval: float) -> int | None:
+    k = visit_of(hours, start, interval)
+    if k is None:
+        return None
+    first_no = visits[0].visit if visits[0].visit is not None else 1
+    return first_no + k
+
+
+def _est_verdict(x: dict[str, Any]) -> str:
+    rel = x["value"] / x["nominal"] - 1.0
+    se = (x["stderr"] or 0.0) / abs(x["nominal"])
+    if abs(rel) > max(3 * se, 0.02):
+        return "changed"
+    return "as nominal"
+
+
+def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[str, str]:
+    """Rytter's four levels in words: detected? where? how much? how long?"""
+    last = doc["visits"][-1]
+    changed = [e for e in last["estimates"] if e["verdict"] == "changed"]
+    sig = [n for n, t in trends.items() if t.significant]
+    bv = last["board_verdict"]
+    board = f"; the board's monitor said {bv} at this visit" if bv else ""
+    if changed or sig:
+        names = sorted({e["name"] for e in changed} | set(sig))
+        detected = (f"yes — {', '.join(names)} changed since entry into service"
+                    + (f" (significant trend: {', '.join(sig)})" if sig else "") + board)
+        where = "; ".join(f"{n}: {LOCATION.get(n, n)}" for n in names) + \
+            " (from which model parameter moved; the records of one MBIT pair cannot split a stiffness loss " \
+            "between sections further)"
+    else:
+        detected = "no — every health parameter is within 3 standard errors (or 2 %) of nominal, no trend" + board
+        where = "nothing to place"
+    parts = []
+    for e in last["estimates"]:
+        t = trends.get(e["name"])
+        se = 100 * (e["stderr"] or 0.0) / abs(e["nominal"])
+        rate = ""
+        if t is not None and t.significant:
+            acc = {"exponential": ", accelerating", "power": _power_word(t),
+                   "change_point": f", after a sudden change at about {t.best.tau or 0:g} h"}.get(t.best.name, "")
+            rate = f", {100 * t.rate_per_100h(last['operating_hours']):+.2f} % per 100 h ({t.best.name}{acc})"
+        parts.append(f"{e['name']} {100 * e['relative']:+.2f} % (± {se:.2f} %){rate}")
+    how_much = f"at {last['operating_hours']:g} h: " + "; ".join(parts)
+    f = doc["forecast"]
+    if fc.already_faulty:
+        how_long = ("now: the estimated parameters are already beyond the monitor's trip limit (the built-in test "
+                    "flags this laminate)")
+    elif fc.significant and fc.trip_operating_hours is not None:
+        lo, hi = f["trip_interval_90"]
+        hi_s = f"{hi:.0f}" if hi is not None else "beyond the horizon"
+        vis = f.get("trip_visits_90") or [None, None]
+        in_visits = ""
+        if vis[0] is not None and "visits_used" in doc:
+            last_no = last["visit"] or doc["visits_used"]
+            a = vis[0] - last_no
+            b = (vis[1] - last_no) if vis[1] is not None else None
+            in_visits = f", i.e. in {a} to {b if b is not None else '?'} visits (visit {vis[0]}–{vis[1]})"
+        how_long = (f"the built-in test will flag this laminate at about {fc.trip_operating_hours:.0f} h "
+                    f"(90 %: {lo:.0f}–{hi_s} h){in_visits}; remaining useful life {fc.rul_hours:.0f} h from the "
+                    f"last visit; P(FAULT at the next visit, {fc.next_visit_hours:g} h) = "
+                    f"{100 * fc.p_fault_next_visit:.0f} %")
+    elif fc.significant:
+        how_long = (f"a trend, but no FAULT of the monitor expected before {fc.horizon_hours:.0f} h (the forecast "
+                    "horizon)")
+    else:
+        lb = fc.lower_bound_hours
+        how_long = (f"no significant trend: no date. No FAULT of the monitor expected before {lb:.0f} h "
+                    f"(lower bound: remaining life ≥ {lb - fc.last_hours:.0f} h)")
+    return {"detected": detected, "where": where, "how_much": how_much, "how_long": how_long}
+
+
+def _power_word(t: Trend) -> str:
+    if t.best.name != "power":
+        return ""
+    m = float(t.best.theta[2])
+    return f", accelerating (exponent {m:.2f})" if m > 1.05 else (f", decelerating (exponent {m:.2f})" if m < 0.95
+                                                                  else "")

@@ -1,0 +1,95 @@
+"""Visits from what the user has: a run directory of ``shm run``, its ``usage.db``, or record files.
+
+Records are grouped into visits by their ``operating_hours`` header key (a run's records all carry it when the run
+was a ``[life]`` scenario; ``shm synth --operating-hours H`` stamps synthetic ones). The usage log, when at hand,
+gives the board's verdict of each visit and MBIT (tables ``mbit_records`` and ``life_visits``).
+"""
+
+from __future__ import annotations
+
+import sqlite3
+from collections.abc import Sequence
+from pathlib import Path
+
+from board_config.errors import InputError
+from studies.health.estimate import Visit
+from workbench.records import Record, load_record
+
+
+def _records_of_run(run_dir: Path) -> list[Path]:
+    rec_dir = run_dir / "records"
+    files = sorted(rec_dir.glob("*.csv")) + sorted(rec_dir.glob("*.tdms"))
+    if not files:
+        raise InputError(f"{run_dir}: no visit records (expected {rec_dir}/visit-NNN_mbit-X.csv, written by shm run "
+                         "for every completed MBIT)")
+    return files
+
+
+def _verdicts(db_path: Path) -> tuple[dict[float, str], dict[tuple[float, str], str]]:
+    visit_v: dict[float, str] = {}
+    mbit_v: dict[tuple[float, str], str] = {}
+    if not db_path.exists():
+        return visit_v, mbit_v
+    try:
+        db = sqlite3.connect(f"file:{db_path}?mode=ro", uri=True)
+        names = {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+        if "life_visits" in names:
+            for h, v in db.execute("SELECT operating_hours, verdict FROM life_visits"):
+                visit_v[float(h)] = v
+        if "mbit_records" in names:
+            for h, m, v in db.execute("SELECT operating_hours, mbit, verdict FROM mbit_records"):
+                if h is not None:
+                    mbit_v[(float(h), m)] = v
+        db.close()
+    except sqlite3.DatabaseError as exc:
+        raise InputError(f"{db_path}: not a usage log ({exc})") from None
+    return visit_v, mbit_v
+
+
+def load_visits(sources: Sequence[str | Path]) -> list[Visit]:
+    """Visits (sorted by operating hours) from run directories, usage.db files or record files."""
+    files: list[Path] = []
+    dbs: list[Path] = []
+    for s in sources:
+        p = Path(s)
+        if not p.exists():
+            raise InputError(f"{p}: no such file or directory (a SOURCE is a run directory, its usage.db, or "
+                             "record files)")
+        if p.is_dir():
+            files += _records_of_run(p)
+            dbs.append(p / "usage.db")
+        elif p.suffix == ".db":
+            files += _records_of_run(p.parent)
+            dbs.append(p)
+        else:
+            files.append(p)
+    groups: dict[float, list[Record]] = {}
+    for f in files:
+        rec = load_record(f)
+        if not isinstance(rec, Record):
+            raise InputError(f"{f}: a frequency-response table cannot be used for per-visit re-estimation")
+        h = rec.meta.get("operating_hours")
+        if h is None:
+            raise InputError(f"{f}: the record has no 'operating_hours' header key (when in the structure's life it "
+                             "was taken; shm synth --operating-hours H stamps it)")
+        groups.setdefault(float(h), []).append(rec)
+    visit_v: dict[float, str] = {}
+    mbit_v: dict[tuple[float, str], str] = {}
+    for db in dbs:
+        a, b = _verdicts(db)
+        visit_v.update(a)
+        mbit_v.update(b)
+    visits = []
+    for i, h in enumerate(sorted(groups)):
+        recs = groups[h]
+        mv = {}
+        for r in recs:
+            m = str(r.meta.get("provenance", {}).get("mbit", ""))
+            if (h, m) in mbit_v:
+                mv[f"MBIT.{m}"] = mbit_v[(h, m)]
+        verdict = visit_v.get(h)
+        if verdict is None and mv:
+            verdict = "FAULT" if "FAULT" in mv.values() else "PASS"
+        vis = recs[0].meta.get("provenance", {}).get("visit")
+        visits.append(Visit(h, recs, int(vis) if vis is not None else i + 1, verdict, mv))
+    return visits
