@@ -7,6 +7,10 @@ and checks every acknowledged record is there). ``synchronous=NORMAL`` (default)
 survives an operating-system crash or a power cut, at the price of one fsync per record (~5 ms on this project's
 virtual machines, which would dominate a virtual-time run). Several runs can share one database (``runs`` table).
 
+The file is marked as ours (``PRAGMA application_id`` = 0x4D464353 "MFCS", ``PRAGMA user_version`` = the schema
+version); opening an existing file that is not a usage log of this schema raises :class:`ForeignLogError` before
+anything is written to it.
+
 Schema (version 1; every time in s of board time, every voltage in V — units are in the column names)::
 
     meta(key TEXT PRIMARY KEY, value TEXT)                         -- schema_version, created_utc, software
@@ -45,6 +49,9 @@ from board_config.errors import InputError
 from firmware_sim.events import BoardEvent
 
 SCHEMA_VERSION = 1
+#: SQLite ``PRAGMA application_id`` of a usage log ("MFCS"); ``PRAGMA user_version`` holds SCHEMA_VERSION
+APPLICATION_ID = 0x4D464353
+_SQLITE_MAGIC = b"SQLite format 3\x00"
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS meta(key TEXT PRIMARY KEY, value TEXT NOT NULL);
@@ -100,6 +107,55 @@ class LogError(RuntimeError):
     """The usage log cannot be opened or written (names the file and the reason)."""
 
 
+class ForeignLogError(InputError):
+    """The file given as a usage log is not one of ours (another application's database, not SQLite at all, or a
+    newer schema): it is refused before anything is written to it."""
+
+
+def check_is_usage_log(path: str | Path) -> None:
+    """Refuse (:class:`ForeignLogError`) an existing, non-empty file that is not an mfc-shm usage log, without
+    writing to it: it must be SQLite with our ``application_id`` (or, for logs written before it was set, a
+    ``meta`` table with our ``schema_version`` and nothing but our tables) and a supported schema version."""
+    p = Path(path)
+    if not p.exists() or p.stat().st_size == 0:
+        return
+    if p.is_dir():
+        raise ForeignLogError(f"{p}: is a directory, not a usage log")
+    try:
+        with p.open("rb") as fh:
+            head = fh.read(len(_SQLITE_MAGIC))
+    except OSError as exc:
+        raise LogError(f"{p}: cannot read: {exc}") from None
+    if head != _SQLITE_MAGIC:
+        raise ForeignLogError(f"{p}: not an SQLite database, so not a usage log of mfc-shm; refusing to append "
+                              "to it (move it away or choose another --out)")
+    try:
+        db = sqlite3.connect(f"file:{p}?mode=ro", uri=True)
+        try:
+            app_id = int(db.execute("PRAGMA application_id").fetchone()[0])
+            tables = {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+            version = None
+            if "meta" in tables:
+                row = db.execute("SELECT value FROM meta WHERE key='schema_version'").fetchone()
+                version = None if row is None else row[0]
+        finally:
+            db.close()
+    except sqlite3.DatabaseError as exc:
+        raise ForeignLogError(f"{p}: not a readable SQLite database ({exc}); refusing to append to it") from None
+    ours = set(LOG_TABLES) | {"meta"}
+    if app_id != APPLICATION_ID and not (app_id == 0 and version is not None and tables <= ours):
+        other = f"application_id {app_id:#x}" if app_id else f"tables {', '.join(sorted(tables - ours)) or 'none'}"
+        raise ForeignLogError(f"{p}: an SQLite database of another application ({other}), not an mfc-shm usage "
+                              "log; refusing to append to it (move it away or choose another --out)")
+    try:
+        v = int(version) if version is not None else None
+    except ValueError:
+        v = -1
+    if v != SCHEMA_VERSION:
+        raise ForeignLogError(f"{p}: usage-log schema version {version!r} is not the supported {SCHEMA_VERSION}; "
+                              "refusing to append to it")
+
+
 def _now_utc() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
 
@@ -123,6 +179,7 @@ class UsageLog:
         self.path = Path(path)
         if synchronous not in ("FULL", "NORMAL"):
             raise ValueError(f"synchronous must be FULL or NORMAL, got {synchronous!r}")
+        check_is_usage_log(self.path)
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._db = sqlite3.connect(str(self.path), isolation_level=None, check_same_thread=False)
@@ -138,6 +195,8 @@ class UsageLog:
                                  "('software', 'mfc-shm firmware_sim')", (str(SCHEMA_VERSION), _now_utc()))
             elif int(row[0]) != SCHEMA_VERSION:
                 raise LogError(f"{self.path}: schema version {row[0]} is not the supported {SCHEMA_VERSION}")
+            self._db.execute(f"PRAGMA application_id={APPLICATION_ID}")
+            self._db.execute(f"PRAGMA user_version={SCHEMA_VERSION}")
         except sqlite3.DatabaseError as exc:
             raise LogError(f"{self.path}: cannot open the usage log: {exc}") from None
         self.run_id: int | None = None

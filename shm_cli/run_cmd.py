@@ -5,22 +5,54 @@
 
 Writes to ``--out``: ``usage.db`` (the board's SQLite usage/event log), ``timeline.txt`` (what was printed),
 ``trace.csv`` (10 Hz) and ``trace.npz`` (every tick), ``overview.png``, ``maintenance.png``, ``usage.png``,
-``summary.json`` and ``report.html`` (self-contained). Exit code 0 when the run completed (whatever the verdict),
-1 when it could not (the rig's integration failed, the log could not be written), 2 for bad input.
+``summary.json`` and ``report.html`` (self-contained).
+
+Nothing a user made is lost: ``--out`` is locked while a run uses it (a second run on it refuses, naming the running
+one: pid, start time, command); a directory holding an earlier run is refused unless ``--force`` (replace it) or
+``--append`` (add this run to its ``usage.db``; the other files then describe this run); ``--append`` refuses a
+database that is not an mfc-shm usage log. SIGTERM and Ctrl-C end the run cleanly after the current tick: the board
+closes, the run's status is recorded as ``interrupted``, the timeline, traces, summary and report are written (of
+the part that ran), and the exit code is 130 (Ctrl-C) or 143 (SIGTERM); a second signal aborts at once.
+
+Exit code 0 when the run completed with the expected verdict (or the scenario expects none), 1 when the verdict is
+not the expected one or the run could not complete (the rig's integration failed, the log could not be written),
+2 for bad input, 130/143 when interrupted.
 """
 
 from __future__ import annotations
 
 import argparse
 import json
+import shutil
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from shm_cli.common import Decorations, add_out_arg, dump_json, out_dir, write_csv
+from shm_cli.common import (
+    Decorations,
+    add_out_arg,
+    check_memory,
+    dump_json,
+    nonnegative_float,
+    out_dir,
+    positive_float,
+    seed_int,
+    write_csv,
+)
+
+EXIT_SIGINT = 130
+EXIT_SIGTERM = 143
+#: files a run writes into --out (removed by --force before a new run, so that two runs' files never mix)
+RUN_OUTPUTS: tuple[str, ...] = ("usage.db", "usage.db-wal", "usage.db-shm", "timeline.txt", "trace.csv",
+                                "trace.npz", "summary.json", "report.html", "overview.png", "maintenance.png",
+                                "usage.png")
+#: bytes of memory per board tick kept for the whole run (the per-tick trace, the wall-clock tick statistics)
+BYTES_PER_TICK = 8 * 16
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -38,17 +70,24 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--params", default=None, metavar="NAME",
                    help="parameter set of the board's nominal model and of the simulated rig's truth "
                         "(default: the scenario's [rig] params)")
-    p.add_argument("--seed", type=int, default=None, help="seed of the simulated rig (default: the scenario's)")
+    p.add_argument("--seed", type=seed_int, default=None,
+                   help="seed of the simulated rig, 0 .. 2^32-1 (default: the scenario's)")
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--realtime", action="store_true",
                       help="pace the 100 Hz tick on the wall clock (default for hardware links)")
     pace.add_argument("--virtual", action="store_true",
                       help="virtual time, as fast as possible (default for --link sim)")
-    p.add_argument("--duration-s", type=float, default=None, help="stop after this much board time (s)")
+    p.add_argument("--duration-s", type=positive_float, default=None, help="stop after this much board time (s)")
     p.add_argument("--board-config", default=None, metavar="FILE", help="board configuration (default: shipped)")
-    p.add_argument("--timeline-every-s", type=float, default=60.0,
+    p.add_argument("--timeline-every-s", type=nonnegative_float, default=60.0,
                    help="print a telemetry line this often (s of board time; 0 = never); every record is logged")
-    p.add_argument("--append", action="store_true", help="append to an existing usage.db instead of a fresh one")
+    keep = p.add_mutually_exclusive_group()
+    keep.add_argument("--append", action="store_true",
+                      help="add this run to the usage.db already in --out (must be an mfc-shm usage log); the "
+                           "other files are rewritten for this run")
+    keep.add_argument("--force", action="store_true",
+                      help="replace an earlier run's files in --out (without it a directory holding a run is "
+                           "refused)")
     p.add_argument("--log-sync", choices=("normal", "full"), default="normal",
                    help="SQLite synchronous mode of the usage log: normal (every committed record survives a killed "
                         "process; default) or full (also an OS crash or power cut; one fsync per record)")
@@ -121,6 +160,118 @@ class TimelinePrinter:
             self.add_line(line)
 
 
+# --- output directory: locked, never overwritten by accident ----------------------------------------------
+def _previous_run(out: Path) -> str | None:
+    """What an earlier run left in ``out`` (None: nothing of a run)."""
+    present = [n for n in RUN_OUTPUTS if (out / n).exists()]
+    if not present:
+        return None
+    what = ""
+    summary = out / "summary.json"
+    if summary.exists():
+        try:
+            d = json.loads(summary.read_text())
+            what = f"scenario '{d.get('scenario')}', {d.get('ticks')} ticks, status {d.get('status', 'finished')}"
+        except (OSError, ValueError):
+            what = ""
+    if not what and (out / "usage.db").exists():
+        import sqlite3
+
+        try:
+            db = sqlite3.connect(f"file:{out / 'usage.db'}?mode=ro", uri=True)
+            try:
+                row = db.execute("SELECT count(*), max(started_utc), "
+                                 "(SELECT status FROM runs ORDER BY run_id DESC LIMIT 1) FROM runs").fetchone()
+            finally:
+                db.close()
+            what = f"{row[0]} run(s) in usage.db, the last started {row[1]}, status {row[2]}"
+        except sqlite3.DatabaseError:
+            what = "usage.db"
+    return what or ", ".join(present)
+
+
+def _prepare_out(args: argparse.Namespace, out: Path) -> None:
+    """Refuse to overwrite an earlier run (unless --force / --append); with --force remove its files."""
+    from firmware_sim.usage_log import check_is_usage_log
+    from shm_cli.main import CliError
+
+    if args.append:
+        check_is_usage_log(out / "usage.db")
+        return
+    previous = _previous_run(out)
+    if previous is None:
+        return
+    if not args.force:
+        raise CliError(f"--out {out} holds an earlier run ({previous}); not overwriting it: use --force to replace "
+                       "it, --append to add this run to its usage.db, or choose another --out")
+    for name in RUN_OUTPUTS:
+        target = out / name
+        if target.is_dir() and not target.is_symlink():
+            shutil.rmtree(target)
+        else:
+            target.unlink(missing_ok=True)
+
+
+# --- clean interruption ----------------------------------------------------------------------------------
+class StopOnSignal:
+    """SIGINT (Ctrl-C) and SIGTERM request a clean stop after the current tick (a second signal aborts at once
+    with KeyboardInterrupt). Installed only in the main thread; restores the previous handlers on exit."""
+
+    def __init__(self) -> None:
+        self.signal: int | None = None
+        self._old: dict[int, Any] = {}
+
+    def _handler(self, signum: int, frame: Any) -> None:
+        if self.signal is not None:
+            raise KeyboardInterrupt
+        self.signal = signum
+
+    @property
+    def requested(self) -> bool:
+        return self.signal is not None
+
+    @property
+    def exit_code(self) -> int:
+        return EXIT_SIGTERM if self.signal == signal.SIGTERM else EXIT_SIGINT
+
+    @property
+    def name(self) -> str:
+        return "SIGTERM" if self.signal == signal.SIGTERM else "SIGINT (Ctrl-C)"
+
+    def __enter__(self) -> StopOnSignal:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                self._old[sig] = signal.signal(sig, self._handler)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for sig, old in self._old.items():
+            signal.signal(sig, old)
+        self._old.clear()
+
+
+class StoppableScheduler:
+    """A scheduler whose run ends after the tick in which ``stop.requested`` became true."""
+
+    def __init__(self, inner: Any, stop: StopOnSignal) -> None:
+        self._inner = inner
+        self._stop = stop
+        self.rate = inner.rate
+        self.period = inner.period
+        self.paced = inner.paced
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self._inner, name)
+
+    def run(self, n_ticks: int, step: Any, first_tick: int = 0, progress: Any = None) -> Any:
+        stop = self._stop
+
+        def guarded(k: int, overran: bool) -> bool:
+            return bool(step(k, overran)) or stop.requested
+
+        return self._inner.run(n_ticks, guarded, first_tick=first_tick, progress=progress)
+
+
 # --- the command --------------------------------------------------------------------------------------
 def cmd_run(args: argparse.Namespace) -> int:
     from board_config.board import load_board_config
@@ -133,6 +284,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     from firmware_sim.usage_log import LogError, UsageLog
     from hil_stub.rig import SimulatedRig
     from shm_cli.main import CliError
+    from shm_cli.run_lock import OutputLock
 
     scenario = load_scenario(args.scenario)
     if scenario.life is not None:  # many visits over an operating life (issue 17): studies.health.life
@@ -145,14 +297,30 @@ def cmd_run(args: argparse.Namespace) -> int:
     params = args.params or scenario.rig.params
     cfg = load_board_config(args.board_config, overrides=scenario.board_overrides, overrides_source=scenario.source)
     duration = scenario.duration if args.duration_s is None else float(args.duration_s)
-    if not duration > 0:
+    if not duration > 0 or duration != duration:
         raise CliError(f"--duration-s must be positive, got {duration!r}")
+    n_ticks = duration * cfg.tick_rate
+    src = f"--duration-s {args.duration_s:g}" if args.duration_s is not None else \
+        f"the scenario's duration ({scenario.source}: {duration:g} s)"
+    check_memory(f"{src} = {n_ticks:.3g} board ticks", n_ticks * BYTES_PER_TICK,
+                 hint="run a shorter stretch (--duration-s) or split the scenario")
     out = out_dir(args.out)
-    db_path = out / "usage.db"
-    if not args.append:
-        for suffix in ("", "-wal", "-shm"):
-            Path(str(db_path) + suffix).unlink(missing_ok=True)
+    lock = OutputLock(out, command=f"shm run --scenario {args.scenario} --out {args.out}")
+    lock.acquire()
+    try:
+        _prepare_out(args, out)
+        # from here to the last file written, SIGINT/SIGTERM ask for a clean stop (see StopOnSignal)
+        with StopOnSignal() as stopper:
+            return _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board, BoardRunner,
+                               InProcessLink, LogError, Scheduler, SimulatedRig, UsageLog, VirtualClock, WallClock,
+                               open_link)
+    finally:
+        lock.release()
 
+
+def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board, BoardRunner, InProcessLink,
+                LogError, Scheduler, SimulatedRig, UsageLog, VirtualClock, WallClock, open_link) -> int:
+    db_path = out / "usage.db"
     t_setup = time.perf_counter()
     rig = None
     if args.link == "sim":
@@ -162,7 +330,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         link = open_link(args.link)
     board = Board(cfg, nominal=params)
     paced = args.realtime or (args.link != "sim" and not args.virtual)
-    scheduler = Scheduler(cfg.tick_rate, WallClock() if paced else VirtualClock())
+    scheduler = StoppableScheduler(Scheduler(cfg.tick_rate, WallClock() if paced else VirtualClock()), stopper)
     setup_s = time.perf_counter() - t_setup
 
     bar = None
@@ -181,36 +349,50 @@ def cmd_run(args: argparse.Namespace) -> int:
     printer.add_line(f"{'time':>11}  event")
 
     status = "failed"
+    log = None
     try:
-        with UsageLog(db_path, synchronous=args.log_sync.upper()) as log:
-            run_id = log.start_run(scenario=scenario.name, seed=seed, link_url=args.link, params=params,
-                                   board_config=cfg.as_dict(), rig=rig.describe() if rig is not None else {})
-            runner = BoardRunner(board, link, sink=log, scheduler=scheduler,
-                                 rearm_times=[e.at for e in scenario.events_of("rearm")], on_event=printer)
-            last = [0]
+        log = UsageLog(db_path, synchronous=args.log_sync.upper())
+        run_id = log.start_run(scenario=scenario.name, seed=seed, link_url=args.link, params=params,
+                               board_config=cfg.as_dict(), rig=rig.describe() if rig is not None else {})
+        runner = BoardRunner(board, link, sink=log, scheduler=scheduler,
+                             rearm_times=[e.at for e in scenario.events_of("rearm")], on_event=printer)
+        last = [0]
 
-            def progress(i: int) -> None:
-                if bar is not None:
-                    bar.update(i - last[0])
-                    last[0] = i
+        def progress(i: int) -> None:
+            if bar is not None:
+                bar.update(i - last[0])
+                last[0] = i
 
-            link.open()
-            try:
-                result = runner.run(duration, progress=progress)
-            finally:
-                link.close()
-            status = "finished"
+        link.open()
+        try:
+            result = runner.run(duration, progress=progress)
+        finally:
+            link.close()
+        status = "interrupted" if stopper.requested else "finished"
     except FloatingPointError as exc:
         print(f"shm run: the rig's plant integration failed: {exc}", file=sys.stderr)
         return 1
     except LogError as exc:
         print(f"shm run: {exc}", file=sys.stderr)
         return 1
+    except KeyboardInterrupt:
+        status = "interrupted"
+        raise
     finally:
+        if log is not None:
+            try:
+                log.close(status)
+            except Exception:  # the log already failed; its error is what the user sees
+                pass
         if bar is not None:
             bar.close()
 
     summary = build_summary(args, scenario, seed, params, cfg, board, result, rig, setup_s, paced, db_path, run_id)
+    summary["status"] = status
+    if status == "interrupted":
+        summary["interrupted_by"] = stopper.name
+        printer.add_line(f"{result.duration_s:9.2f} s    interrupted by {stopper.name}: the board closed, the log "
+                         "and this report cover the part that ran")
     printer.add_line(_closing_line(summary))
     (out / "timeline.txt").write_text("\n".join(printer.lines) + "\n")
     _write_traces(out, result.trace)
@@ -231,6 +413,18 @@ def cmd_run(args: argparse.Namespace) -> int:
         print(dump_json(summary))
     elif not args.quiet:
         print(f"results in {out}/ (usage.db, timeline.txt, report.html, {', '.join(figures)})")
+    if stopper.requested:
+        if status == "interrupted":
+            print(f"shm run: interrupted by {stopper.name} at {result.duration_s:.2f} s of board time; status "
+                  f"'interrupted' recorded in {db_path}, partial results in {out}/", file=sys.stderr)
+        else:
+            print(f"shm run: {stopper.name} received after the run finished; its results are complete in {out}/",
+                  file=sys.stderr)
+        return stopper.exit_code
+    if summary["verdict_as_expected"] is False:
+        print(f"shm run: the final maintenance verdict is not the one scenario '{scenario.name}' expects "
+              f"(expected {summary['expected_verdict']}): exit 1", file=sys.stderr)
+        return 1
     return 0 if status == "finished" and deco.ok else 1
 
 
@@ -238,7 +432,7 @@ def _closing_line(s: dict[str, Any]) -> str:
     v = s["maintenance_verdicts"]
     verdict = v[-1]["verdict"] if v else "no maintenance verdict"
     exp = s["expected_verdict"]
-    as_expected = "as expected" if s["verdict_as_expected"] else "NOT AS EXPECTED"
+    as_expected = "as expected" if s["verdict_as_expected"] else "NOT AS EXPECTED: exit 1"
     check = "" if exp is None else f" (expected {exp}: {as_expected})"
     return (f"end: {s['ticks']} ticks = {s['board_time_s']:.1f} s board time in {s['wall_s']:.2f} s wall "
             f"({s['realtime_factor']:.1f}x real time); final regime {s['final_regime']}; verdict {verdict}{check}; "
@@ -253,7 +447,10 @@ def build_summary(args, scenario, seed, params, cfg, board, result, rig, setup_s
     changes = [dict(e.data, time_s=e.time) for e in ev if e.kind == "regime_change"]
     usage = [dict(e.data, time_s=e.time) for e in ev if e.kind == "usage_summary"]
     incidents = [dict(e.data, time_s=e.time) for e in ev if e.kind == "incident"]
-    expected = scenario.expect_verdict
+    # the scenario's expected verdict is checked only when the run covered the whole scenario (not a shorter
+    # --duration-s, not an interrupted run)
+    whole = result.duration_s >= scenario.duration - 0.5 / cfg.tick_rate
+    expected = scenario.expect_verdict if whole else None
     final_verdict = verdicts[-1]["verdict"] if verdicts else "NONE"
     time_in = board.ledger.time_by_regime()
     summary = {
