@@ -48,6 +48,7 @@ from firmware_sim.usage import UsageEpisode
 from plant import PlantModel
 
 _QUIET_OK = TickInputs()
+_CLOCK_WINDOW = 2.0  # s of board time between two checks of the rig's clock against the board's
 _QUIET_LOW = TickInputs(energy_ok=False)
 
 
@@ -120,7 +121,15 @@ class Board:
         self._prev_seq = -1
         self._stale = 0
         self._fault_reason = ""
-        self._link_error = ""
+        self._fault_key = ""  # the persisting sensor condition ('' = none)
+        self._fault_since = 0
+        self._fault_ticks = 0
+        self._link_error = ""  # the first error of the current run of failed exchanges ('' = link healthy)
+        self._link_failures = 0
+        self._link_since = 0
+        self._clock_ref: tuple[int, float] | None = None  # (tick, rig time s) the clock check measures from
+        self.clock_mismatch = ""  # why the rig's clock and the board's disagree ('' = they agree)
+        self.visit_verdict = ""  # verdict of the last finished visit while HV stays present ('' = none)
         self.incidents = 0
         self.last_sample: RigSample | None = None
         self.demand = (0.0, 0.0)
@@ -159,15 +168,23 @@ class Board:
             if sample.seq == self._prev_seq:
                 self._stale += 1
                 if self._stale >= cfg.tick_stale_ticks and not reason:
-                    reason = f"rig sample sequence frozen at {sample.seq} for {self._stale} ticks"
+                    reason = (f"rig_seq frozen at {sample.seq} for {cfg.tick_stale_ticks} ticks or more "
+                              f"(stale sensor path)")
             else:
                 self._stale = 0
             self._prev_seq = sample.seq
+            # a persisting condition is one incident when it starts (and one when it ends, with its count), not
+            # one per tick: the reason's first two words name the condition, the rest carries this tick's values
+            key = " ".join(reason.split()[:2])
             if reason:
                 sensor_fault = True
-                if reason != self._fault_reason:
+                if key != self._fault_key:
+                    self._close_fault(k, events)
                     events.append(self._incident(k, "sensor_fault", reason))
+                    self._fault_key, self._fault_since, self._fault_ticks = key, k, 0
+                self._fault_ticks += 1
             else:
+                self._close_fault(k, events)
                 v_meas = self._v_batt = sample.v_battery
                 wake = abs(sample.z0dd) >= self._wake_acc or abs(sample.v_patch) >= self._wake_v
             self._fault_reason = reason
@@ -177,13 +194,20 @@ class Board:
                     self._limit_pending = "the rig refused a command (limit refused flag)"
             hv = sample.hv_present
             if self._link_error:
-                events.append(self._incident(k, "link_restored", f"link answered again after: {self._link_error}"))
+                events.append(self._incident(
+                    k, "link_restored", f"link answered again after {self._link_failures} failed exchange(s) "
+                                        f"({(k - self._link_since) * self.period:.2f} s); first error: "
+                                        f"{self._link_error}"))
                 self._link_error = ""
+            self._check_clock(k, sample.t, events)
             self.last_sample = sample
-        elif link_error != self._link_error:
+        else:
             if not self._link_error:
                 events.append(self._incident(k, "link_error", link_error or "exchange failed"))
-            self._link_error = link_error or "exchange failed"
+                self._link_error = link_error or "exchange failed"
+                self._link_failures = 0
+                self._link_since = k
+            self._link_failures += 1
         if limit and self._limit_pending:
             events.append(self._incident(k, "limit_violation", self._limit_pending))
         self._limit_pending = ""
@@ -204,6 +228,8 @@ class Board:
                                 self._rearm)
         self._rearm = False
         self.state, out, rev = regime_step(self.state, inputs, k, self.timers)
+        if self.visit_verdict and self.state.hv_off_run >= self.timers.hv_debounce:
+            self.visit_verdict = ""  # HV removed: the next application of HV starts a new visit
         if rev:
             for ev in rev:
                 if ev.kind == "regime_change":
@@ -232,6 +258,9 @@ class Board:
             z3 = sample.z3 if (sample is not None and not sensor_fault) else math.nan
             (v1, v2), mev = self.maintenance.step(k, z3)
             events.extend(mev)
+            for ev in mev:
+                if ev.kind == "maintenance_verdict":
+                    self.visit_verdict = str(ev.data["verdict"])
             # 5. output guard: Table 1 always (outside MAINTENANCE the demand is 0 V by construction)
             if not (self._v_lo <= v1 <= self._v_hi and self._v_lo <= v2 <= self._v_hi):
                 self._limit_pending = (f"demand ({v1!r}, {v2!r}) V outside Table 1 [{self._v_lo:g}, "
@@ -247,6 +276,35 @@ class Board:
         return TickResult(ActuatorCommand(k & 0xFFFFFFFF, v1, v2, self._currents[regime]), events, regime)
 
     # --- helpers ------------------------------------------------------------------------------------
+    def _close_fault(self, k: int, events: list[BoardEvent]) -> None:
+        """The persisting sensor condition (if any) has ended: one record with how long it lasted."""
+        if self._fault_key:
+            events.append(self._incident(k, "sensor_fault_cleared", (
+                f"{self._fault_reason or self._fault_key} — ended after {self._fault_ticks} tick(s) "
+                f"({(k - self._fault_since) * self.period:.2f} s)")))
+            self._fault_key = ""
+            self._fault_ticks = 0
+
+    def _check_clock(self, k: int, t_rig: float, events: list[BoardEvent]) -> None:
+        """Compare the rig's clock (sample time) with the board's (tick count) every ``_CLOCK_WINDOW`` s: a
+        virtual-time board against a real-time rig (or the reverse) sees them drift apart; said once per run."""
+        ref = self._clock_ref
+        if ref is None or not math.isfinite(t_rig) or t_rig < ref[1]:  # first sample, or the rig restarted
+            self._clock_ref = (k, t_rig)
+            return
+        board_dt = (k - ref[0]) * self.period
+        if board_dt < _CLOCK_WINDOW:
+            return
+        rig_dt = t_rig - ref[1]
+        self._clock_ref = (k, t_rig)
+        if not (0.5 * board_dt <= rig_dt <= 2.0 * board_dt) and not self.clock_mismatch:
+            self.clock_mismatch = (
+                f"the rig's clock advanced {rig_dt:.2f} s while the board ticked {board_dt:.2f} s: "
+                + ("the board runs in virtual time against a real-time rig (run the board with --realtime, or the "
+                   "rig with --clock lockstep)" if rig_dt < board_dt else
+                   "the rig runs faster than the board (is the board paced slower than its tick?)"))
+            events.append(self._incident(k, "clock_mismatch", self.clock_mismatch))
+
     def _incident(self, k: int, kind: str, detail: str) -> BoardEvent:
         self.incidents += 1
         return BoardEvent("incident", k, k * self.period,
@@ -274,7 +332,12 @@ class Board:
         if new is Regime.SENSING:
             self.episode = self._new_episode(k * self.period)
         elif new is Regime.MAINTENANCE:
-            events.extend(self.maintenance.start(k))
+            if self.visit_verdict:  # back after a SAFE while HV stayed present: the finished visit stands
+                events.append(self._incident(k, "visit_kept", (
+                    f"MAINTENANCE re-entered with HV still present after a finished visit: its verdict "
+                    f"{self.visit_verdict} stands; the MBITs run again only when HV is removed and applied anew")))
+            else:
+                events.extend(self.maintenance.start(k))
         self.incidents += sum(1 for e in events if e.kind == "incident")
         return events
 

@@ -5,7 +5,9 @@ Per tick ``k`` (``k = 0 .. n-1``): send the command decided at the previous tick
 ``board.tick(sample, k + 1)`` (board time ``(k + 1) / rate`` — the end of the interval the command covered), write
 its events to the sink (each committed before the next one; a ``on_event`` callback, e.g. the timeline printer,
 sees an event only after it is stored) and keep the next command. Operator re-arms scheduled by time are handed to
-the board at the first tick at or after their time. Nothing escapes the loop except a bug in the board itself.
+the board at the first tick at or after their time. Nothing escapes the loop except a bug in the board itself
+or an interrupt (``KeyboardInterrupt``/``SystemExit``, e.g. SIGTERM turned into one by the CLI); whatever ends
+the run, a zero demand is sent through the link before ``run`` returns or re-raises (:meth:`BoardRunner.command_zero`).
 """
 
 from __future__ import annotations
@@ -74,6 +76,7 @@ class BoardRunner:
         self.trace_every = trace_every
         self.events: list[BoardEvent] = []
         self.command = ActuatorCommand(0, 0.0, 0.0, board.budget.current(board.regime))
+        self.zero_sent = False  #: the run ended with a zero demand answered by the rig
 
     def _emit(self, ev: BoardEvent) -> None:
         if self.sink is not None:
@@ -132,8 +135,30 @@ class BoardRunner:
                 trace.n += 1  # type: ignore[union-attr]
 
         t0 = time.perf_counter()
-        stats = self.scheduler.run(n, step, progress=progress)
+        try:
+            stats = self.scheduler.run(n, step, progress=progress)
+        finally:  # every exit — the end, an exception, Ctrl-C / SIGTERM mid-tick — leaves the amplifier at 0 V
+            self.zero_sent = self.command_zero()
         wall = time.perf_counter() - t0
         for ev in board.close(stats.ticks):
             emit(ev)
         return RunResult(stats.ticks, stats.ticks * period, wall, stats, self.events, trace)
+
+    def command_zero(self, attempts: int = 3) -> bool:
+        """Send a zero demand (both channels 0 V) through the link; True once the rig has answered it.
+
+        Called when the run ends for any reason, before the caller closes the link; never raises (a link that is
+        down, or a second Ctrl-C, leaves the rig's own watchdog to zero the amplifier after 0.1 s)."""
+        board = self.board
+        seq = (self.command.seq + 1) & 0xFFFFFFFF
+        zero = ActuatorCommand(seq, 0.0, 0.0, board.budget.current(board.regime))
+        for _ in range(max(1, attempts)):
+            try:
+                self.link.exchange(zero)
+                self.command = zero
+                return True
+            except LinkError:
+                continue
+            except BaseException:  # a second interrupt while shutting down: the rig watchdog remains
+                return False
+        return False
