@@ -18,6 +18,8 @@ import json
 import sys
 from pathlib import Path
 
+from shm_cli.common import nonnegative_int, out_dir, output_file_arg, positive_int
+
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("log", help="show or export the board's SQLite usage/event log",
@@ -26,7 +28,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     lsub.required = True
     ps = lsub.add_parser("show", help="print the runs and a run's records as a timeline")
     _common(ps)
-    ps.add_argument("--limit", type=int, default=0, help="print at most this many records (0 = all)")
+    ps.add_argument("--limit", type=nonnegative_int, default=0, help="print at most this many records (0 = all)")
     ps.add_argument("--telemetry", action="store_true",
                     help="include the periodic telemetry records (hidden by default: they are housekeeping)")
     ps.set_defaults(func=cmd_show)
@@ -39,7 +41,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--db", required=True, metavar="FILE", help="usage log database (e.g. out/run/usage.db)")
-    p.add_argument("--run", type=int, default=None, metavar="N", help="run id (default: the last run)")
+    p.add_argument("--run", type=positive_int, default=None, metavar="N", help="run id (default: the last run)")
     p.add_argument("--table", default=None, metavar="NAME", help="only this table")
 
 
@@ -125,7 +127,7 @@ def cmd_export(args: argparse.Namespace) -> int:
         d = Path(args.out)
         if d.exists() and not d.is_dir():
             raise CliError(f"--out {d}: exists and is not a directory (CSV export writes one file per table)")
-        d.mkdir(parents=True, exist_ok=True)
+        d = out_dir(d)
         for t, (tcols, rows) in data.items():
             with (d / f"{t}.csv").open("w", newline="") as fh:
                 _write_csv(fh, tcols, rows)
@@ -136,7 +138,11 @@ def cmd_export(args: argparse.Namespace) -> int:
     if args.out is None:
         print(text)
     else:
-        Path(args.out).parent.mkdir(parents=True, exist_ok=True)
+        try:
+            output_file_arg(args.out)
+        except argparse.ArgumentTypeError as exc:
+            raise CliError(f"--out {exc} (JSON export writes one file)") from None
+        out_dir(Path(args.out).parent, option="--out (its directory)")
         Path(args.out).write_text(text + "\n")
     return 0
 

@@ -7,7 +7,19 @@ import sys
 from pathlib import Path
 
 from board_config.errors import InputError
-from shm_cli.common import add_params_arg, dump_json
+from shm_cli.common import (
+    add_params_arg,
+    check_memory,
+    dump_json,
+    finite_float,
+    number_in_range,
+    output_file_arg,
+    positive_float,
+    seed_int,
+)
+
+#: memory per record sample kept while simulating (the plant's states and outputs, the written columns), bytes
+BYTES_PER_SAMPLE = 400
 
 TESTS = ("mbit-a", "mbit-b", "step", "sine", "sweep", "frf")
 
@@ -31,24 +43,25 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="white sensor noise σ in SI (z3=2e-6 m, v_stored=5e-3 V; inputs v_ch1, v_ch2, z0dd too); "
                         "'none' for a noiseless record. Default: z 2 µm, v_stored 5 mV. For --test frf: "
                         "amp=REL and phase=DEG (default 0.01 and 0.5)")
-    p.add_argument("--seed", type=int, default=0, help="noise seed (default 0)")
+    p.add_argument("--seed", type=seed_int, default=0, help="noise seed, 0 .. 2^32-1 (default 0)")
     p.add_argument("--channels", default=None, metavar="CH,CH",
                    help="measured channels (default: z3 for a voltage drive; v_stored,z3 for a base drive)")
     p.add_argument("--drive", choices=("voltage", "base"), default="voltage",
                    help="voltage on the patches (actuation) or base acceleration (harvesting, open circuit)")
-    p.add_argument("--amplitude", type=float, default=None,
+    p.add_argument("--amplitude", type=positive_float, default=None,
                    help="drive amplitude: V (differential) for voltage, g for base (default per test)")
-    p.add_argument("--freq-hz", type=float, default=None, help="sine frequency (Hz)")
-    p.add_argument("--f0-hz", type=float, default=None, help="sweep / FRF start frequency (Hz)")
-    p.add_argument("--f1-hz", type=float, default=None, help="sweep / FRF end frequency (Hz)")
-    p.add_argument("--n-freqs", type=int, default=None, help="FRF: number of frequencies (log-spaced)")
-    p.add_argument("--duration-s", type=float, default=None, help="record length (s)")
-    p.add_argument("--rate-hz", type=float, default=None, help="logger sample rate (Hz, default 1000)")
-    p.add_argument("--bias-v", type=float, default=None, help="common-mode voltage on both channels (V)")
+    p.add_argument("--freq-hz", type=positive_float, default=None, help="sine frequency (Hz)")
+    p.add_argument("--f0-hz", type=positive_float, default=None, help="sweep / FRF start frequency (Hz)")
+    p.add_argument("--f1-hz", type=positive_float, default=None, help="sweep / FRF end frequency (Hz)")
+    p.add_argument("--n-freqs", type=number_in_range(2, 100_000, integer=True), default=None,
+                   help="FRF: number of frequencies (log-spaced)")
+    p.add_argument("--duration-s", type=positive_float, default=None, help="record length (s)")
+    p.add_argument("--rate-hz", type=positive_float, default=None, help="logger sample rate (Hz, default 1000)")
+    p.add_argument("--bias-v", type=finite_float, default=None, help="common-mode voltage on both channels (V)")
     p.add_argument("--blind", action="store_true",
                    help="leave the truth (effects, parameter values) out of the record's provenance")
     p.add_argument("--json", action="store_true", help="print a summary of the written record as JSON")
-    p.add_argument("--out", required=True, metavar="FILE", help="output file (.csv or .tdms)")
+    p.add_argument("--out", required=True, metavar="FILE", type=output_file_arg, help="output file (.csv or .tdms)")
     p.set_defaults(func=cmd_synth)
 
 
@@ -63,6 +76,29 @@ def _assignments(flag: str, items: list[str]) -> dict[str, float]:
         except ValueError:
             raise InputError(f"{flag} {name.strip()}: '{value}' is not a number") from None
     return out
+
+
+#: largest base-acceleration amplitude synth accepts (g): far beyond any flight or test load of the laminate
+MAX_BASE_G = 100.0
+
+
+def _check_drive_limits(args: argparse.Namespace, spec, base: bool) -> None:
+    """A voltage drive must keep both channels inside the MFC's demand range (paper Table 1: −500 … 1500 V):
+    each channel swings bias ± amplitude. A base drive is limited to MAX_BASE_G."""
+    from board_config import load_mfc_limits
+    from plant import G0
+
+    if base:
+        if spec.amplitude > MAX_BASE_G * G0:
+            raise InputError(f"--amplitude {args.amplitude:g} g: a base acceleration above {MAX_BASE_G:g} g is "
+                             "outside what the model is meant for")
+        return
+    lim = load_mfc_limits()
+    lo, hi = spec.bias_v - abs(spec.amplitude), spec.bias_v + abs(spec.amplitude)
+    if lo < lim.voltage_min - 1e-9 or hi > lim.voltage_max + 1e-9:
+        raise InputError(f"--amplitude {spec.amplitude:g} V with common mode (--bias-v) {spec.bias_v:g} V drives the "
+                         f"channels over {lo:g} … {hi:g} V, outside the MFC demand range {lim.voltage_min:g} … "
+                         f"{lim.voltage_max:g} V (paper Table 1): each channel swings bias ± amplitude")
 
 
 def cmd_synth(args: argparse.Namespace) -> int:
@@ -89,6 +125,11 @@ def cmd_synth(args: argparse.Namespace) -> int:
     spec = synth_test(args.test, drive=args.drive, amplitude=amplitude, freq_hz=args.freq_hz, f0_hz=args.f0_hz,
                      f1_hz=args.f1_hz, duration_s=args.duration_s, rate_hz=args.rate_hz, bias_v=args.bias_v,
                      n_freqs=args.n_freqs)
+    _check_drive_limits(args, spec, base)
+    if args.test != "frf":
+        n = spec.duration_s * spec.rate_hz
+        check_memory(f"a {spec.duration_s:g} s record at {spec.rate_hz:g} Hz ({n:.3g} samples)",
+                     n * BYTES_PER_SAMPLE, hint="shorten --duration-s or lower --rate-hz")
     channels = (args.channels.split(",") if args.channels else (["v_stored", "z3"] if base else ["z3"]))
     channels = [c.strip() for c in channels if c.strip()]
     model = truth_model(pset, effects=args.effect, values=values, terminal="open_circuit" if base else "amplifier")
