@@ -274,3 +274,47 @@ def test_frf_table_roundtrip_and_errors(tmp_path: Path) -> None:
                    "frequency_Hz,z3_amp_m_per_V,z3_phase_deg\n2,1e-5,0\n1,1e-5,0\n")
     with pytest.raises(RecordError, match=r"line 7, column .frequency_Hz.*strictly increasing"):
         load_record(bad)
+
+
+# --- what spreadsheets and cut-off loggers do to a CSV (issue 12, point 6) ---------------------------------------
+def test_byte_order_mark_is_read_past(tmp_path: Path) -> None:
+    p = tmp_path / "bom.csv"
+    p.write_bytes(b"\xef\xbb\xbf" + (HEADER + _rows()).encode())
+    rec = load_record(p)
+    assert rec.test == "mbit-b" and rec.n_samples == 5  # the header was seen as a header
+    np.testing.assert_allclose(rec["z3"], 1e-4 * np.arange(5))
+
+
+@pytest.mark.parametrize("sep", [";", "\t"])
+def test_semicolon_or_tab_separators_with_decimal_commas_read_as_the_same_numbers(tmp_path: Path, sep: str) -> None:
+    ref = load_record(_csv(tmp_path, _rows(), name="ref.csv"))
+    euro = _rows().replace(",", sep)
+    euro = "\n".join([euro.splitlines()[0]] + [ln.replace(".", ",") for ln in euro.splitlines()[1:]]) + "\n"
+    assert "," in euro.splitlines()[3]  # a decimal comma is really there
+    rec = load_record(_csv(tmp_path, euro, name="euro.csv"))
+    np.testing.assert_array_equal(rec.t, ref.t)
+    for name in ("v_ch1", "v_ch2", "z3"):
+        np.testing.assert_array_equal(rec[name], ref[name])
+
+
+def test_decimal_commas_with_comma_separators_are_named_with_the_line(tmp_path: Path) -> None:
+    body = "time_s,v_ch1_V,v_ch2_V,z3_mm\n0,100,100,0\n0,01,110,90,0,1\n"
+    with pytest.raises(RecordError, match=r"line 11.*6 fields but the header has 4 columns.*decimal commas"):
+        load_record(_csv(tmp_path, body))
+
+
+@pytest.mark.parametrize("cut", [1, 3, 6])
+def test_a_file_cut_in_its_last_row_is_refused_naming_the_line(tmp_path: Path, cut: int) -> None:
+    """A logger killed mid-write leaves the last number incomplete ('0.4' cut to '0.'); that row must not be read
+    as data (it used to flip a verdict)."""
+    text = _rows()
+    p = _csv(tmp_path, text[:-cut])
+    last_line = len((HEADER + text).splitlines())
+    with pytest.raises(RecordError, match=rf"line {last_line}\b.*cut off"):
+        load_record(p)
+
+
+def test_crlf_line_ends_are_read(tmp_path: Path) -> None:
+    p = tmp_path / "crlf.csv"
+    p.write_bytes((HEADER + _rows()).replace("\n", "\r\n").encode())
+    assert load_record(p).n_samples == 5

@@ -494,9 +494,11 @@ def _build_record(file: Path, columns: Sequence[str], data: np.ndarray, meta: di
 def _read_csv_table(path: Path) -> tuple[dict[str, Any], list[str], np.ndarray, int, list[str]]:
     """Header metadata, column names, data (as written), the file line number of the first data row."""
     try:
-        text = path.read_text(encoding="utf-8")
+        text = path.read_text(encoding="utf-8-sig")  # a byte-order mark (Excel, Windows tools) is read past
     except FileNotFoundError:
         raise RecordError(path, "file not found") from None
+    except IsADirectoryError:
+        raise RecordError(path, "is a directory, not a record file") from None
     except UnicodeDecodeError as exc:
         raise RecordError(path, f"not a UTF-8 text file ({exc.reason} at byte {exc.start})") from None
     except OSError as exc:
@@ -510,35 +512,62 @@ def _read_csv_table(path: Path) -> tuple[dict[str, Any], list[str], np.ndarray, 
     if n_head >= len(lines) or not lines[n_head].strip():
         raise RecordError(path, "no column header line (e.g. 'time_s,v_ch1_V,v_ch2_V,z3_m') after the metadata",
                           line=n_head + 1)
-    columns = [c.strip() for c in lines[n_head].split(",")]
+    sep = _separator(lines[n_head])
+    columns = [c.strip() for c in lines[n_head].split(sep)]
     body = lines[n_head + 1:]
+    cut = not text.endswith(("\n", "\r"))
     while body and not body[-1].strip():
         body.pop()
     first_line = n_head + 2
     if not body:
         raise RecordError(path, "no data rows after the column header", line=first_line)
+    if cut:
+        raise RecordError(path, "the last data row has no end-of-line: the file looks cut off in the middle of a row "
+                                "(a logger stopped mid-write?), so its last number may be incomplete; delete the "
+                                "partial row, or end the line with a newline if it is complete",
+                          line=first_line + len(body) - 1)
+    if sep != ",":  # ';' or tab separators: a comma inside a field is a decimal comma
+        body = [row.replace(",", ".") for row in body]
     ncol = len(columns)
     try:
-        data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=",", ndmin=2, dtype=float)
+        data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=sep, ndmin=2, dtype=float, comments=None)
         if data.shape[1] != ncol:
             raise ValueError("column count")
     except ValueError:
-        _diagnose_rows(path, columns, body, first_line)
+        _diagnose_rows(path, columns, body, first_line, sep)
         raise RecordError(path, "cannot parse the data rows", line=first_line) from None
     return meta, columns, data, first_line, lines[:n_head]
 
 
-def _diagnose_rows(path: Path, columns: list[str], body: list[str], first_line: int) -> None:
+def _separator(column_line: str) -> str:
+    """The field separator, from the column line: ',' (the format), or ';' / tab as European spreadsheet exports
+    write (their data then may use decimal commas, which are read as decimal points)."""
+    if "," in column_line:
+        return ","
+    for sep in (";", "\t"):
+        if sep in column_line:
+            return sep
+    return ","
+
+
+def _diagnose_rows(path: Path, columns: list[str], body: list[str], first_line: int, sep: str = ",") -> None:
     """Find the first bad row and raise a precise error (the fast parser only says 'something failed')."""
     ncol = len(columns)
+    name = {",": "','", ";": "';'", "\t": "tab"}.get(sep, repr(sep))
     for i, row in enumerate(body):
         line = first_line + i
-        fields = row.split(",")
+        fields = row.split(sep)
         if not row.strip():
             raise RecordError(path, "empty line inside the data", line=line)
         if len(fields) != ncol:
+            hint = ""
+            if sep == "," and len(fields) > ncol:
+                hint = ("; decimal commas? write numbers with a '.' decimal point, or separate the fields with ';' "
+                        "(then a decimal comma is read as a point)")
+            elif sep == "," and ";" in row:
+                hint = "; the row is separated by ';' but the column line by ','"
             raise RecordError(path, f"has {len(fields)} fields but the header has {ncol} columns "
-                                    f"({', '.join(columns)})", line=line,
+                                    f"({', '.join(columns)}; separator {name}){hint}", line=line,
                               column=columns[min(len(fields), ncol) - 1] if len(fields) < ncol else None)
         for j, f in enumerate(fields):
             try:
