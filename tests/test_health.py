@@ -1,0 +1,98 @@
+"""Health over time (issue 17): [life] scenarios, degradation laws, visit records, trends, the done-when chain."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from board_config.errors import ConfigError
+from board_config.scenario import load_scenario, parse_scenario
+from studies.health.laws import deviations_at
+from studies.health.trend import fit_trend
+
+
+def _life_toml(laws: list[dict]) -> dict:
+    return {"scenario": {"name": "t"}, "life": {"visits": {"value": 5, "unit": "1"},
+                                                "visit_interval": {"value": 50, "unit": "h"}, "law": laws},
+            "phase": [{"kind": "maintenance", "duration": {"value": 30, "unit": "s"}}]}
+
+
+def test_life_laws_combine_and_are_validated():
+    sc = parse_scenario(_life_toml([
+        {"parameter": "k3", "kind": "linear", "rate": {"value": -1e-3, "unit": "1/h"}},
+        {"parameter": "k3", "kind": "step", "size": {"value": -0.1, "unit": "1"}, "at": {"value": 120, "unit": "h"}},
+        {"parameter": "alpha_h", "kind": "power", "amplitude": {"value": 0.1, "unit": "1"},
+         "reference": {"value": 100, "unit": "h"}, "exponent": {"value": 2, "unit": "1"}},
+        {"parameter": "beta_h", "kind": "exponential", "amplitude": {"value": 0.01, "unit": "1"},
+         "time_constant": {"value": 100, "unit": "h"}},
+    ]), "t.toml")
+    assert sc.life is not None and sc.life.visit_hours() == [0, 50, 100, 150, 200]
+    d = deviations_at(sc.life.laws, 150.0)
+    assert d["k3"] == pytest.approx(-0.15 - 0.1)
+    assert d["alpha_h"] == pytest.approx(0.1 * 1.5 ** 2)
+    assert d["beta_h"] == pytest.approx(0.01 * np.expm1(1.5))
+    assert deviations_at(sc.life.laws, 100.0)["k3"] == pytest.approx(-0.1)  # the step is not there yet
+    with pytest.raises(ConfigError, match=r"life.law\[0\].rate.unit"):
+        parse_scenario(_life_toml([{"parameter": "k3", "kind": "linear", "rate": {"value": 1e-3, "unit": "1/s"}}]),
+                       "t.toml")
+    with pytest.raises(ConfigError, match="allowed"):
+        parse_scenario(_life_toml([{"parameter": "k3", "kind": "wobble"}]), "t.toml")
+
+
+def test_shipped_aging_scenario_describes_a_life():
+    sc = load_scenario("aging")
+    assert sc.life is not None and sc.life.visits == 24
+    assert {law.parameter for law in sc.life.laws} == {"k3", "alpha_h", "beta_h"}
+
+
+def test_trend_choice_on_known_histories():
+    rng = np.random.default_rng(3)
+    h = np.arange(0, 1000, 100.0)
+    se = np.full(h.size, 0.002)
+    flat = fit_trend("k3", h, rng.normal(0, 0.002, h.size), se)
+    assert not flat.significant and flat.model == "none"
+    lin = fit_trend("k3", h, -2e-4 * h + rng.normal(0, 0.002, h.size), se)
+    assert lin.significant and lin.model in ("linear", "power", "exponential")
+    assert lin.rate_per_100h(500) == pytest.approx(-0.02, abs=0.005)
+    pw = fit_trend("alpha_h", h, 0.15 * (h / 1200) ** 2.5 + rng.normal(0, 0.001, h.size), np.full(h.size, 0.001))
+    assert pw.significant and pw.model in ("power", "exponential")
+    step = fit_trend("k3", h, np.where(h >= 450, -0.08, 0.0) + rng.normal(0, 0.002, h.size), se)
+    assert step.significant and step.model == "change_point" and 400 < step.best.tau < 500
+
+
+@pytest.mark.slow
+def test_done_when_aging_run_then_health_forecast_holds_the_first_fault(tmp_path):
+    """shm run --scenario aging, then shm health --as-of a few visits before the board's first FAULT: the four
+    levels are printed and the 90 % trip interval holds the visit at which the same run's board first said FAULT."""
+    run = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "shm_cli.main", "run", "--scenario", "aging", "--quiet", "--out",
+                        str(run)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    life = json.loads((run / "life.json").read_text())
+    first = life["first_fault_visit"]
+    assert first is not None and 8 <= first <= 15
+    hours = {v["visit"]: v["operating_hours"] for v in life["visits"]}
+    # every completed MBIT left a record that the workbench reads, stamped with its operating time
+    from workbench.records import load_record
+
+    rec = load_record(run / "records" / "visit-002_mbit-a.csv")
+    assert rec.meta["operating_hours"] == hours[2] and rec.meta["test"] == "mbit-a"
+    as_of = hours[first - 3]
+    h = tmp_path / "health"
+    r = subprocess.run([sys.executable, "-m", "shm_cli.main", "health", str(run), "--params", "table2", "--as-of",
+                        str(as_of), "--json", "--out", str(h)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    for level in ("DETECTED?", "WHERE?", "HOW MUCH?", "HOW LONG?"):
+        assert level in r.stderr
+    assert doc == json.loads((h / "health.json").read_text())
+    assert all(v["operating_hours"] <= as_of for v in doc["visits"])
+    assert {e["name"] for e in doc["visits"][0]["estimates"]} == {"k3", "alpha_h", "beta_h"}
+    f = doc["forecast"]
+    lo_v, hi_v = f["trip_visits_90"]
+    assert lo_v <= first <= hi_v, (f, first)
+    assert f["rul_hours"] > 0 and doc["trend"]["alpha_h"]["significant"]
