@@ -280,11 +280,12 @@ def diagnose(records: Sequence[Record], params: ParameterSet | str = "table2",
         starts.update({r.spec.label: r.start for r in scr[:fit_top]})
         screen_rms.update({r.spec.label: r.train_rms_sigma for r in scr})
     if param_specs:
-        scr = screen_parameters(targets, pcands, base_values, r0_train, threads=None)
+        scr = screen_parameters(targets, pcands, base_values, threads=None)
         scr.sort(key=lambda r: r.train_rms_sigma)
-        top = len(scr) if fit_top is None else fit_top + 1
+        top = len(scr) if fit_top is None else fit_top
         # a screen that does not beat the nominal model at all says "not this parameter"
-        keep = [r for r in scr[:top] if r.train_rms_sigma < base_train * (1 - 1e-3)] or scr[:1]
+        keep = (scr if fit_top is None else
+                [r for r in scr[:top] if r.train_rms_sigma < r.nominal_train_rms_sigma * (1 - 1e-3)] or scr[:1])
         param_specs = [r.spec for r in keep]
         screened += [r for r in scr if r not in keep]
         starts.update({r.spec.label: r.start for r in keep})
@@ -298,7 +299,7 @@ def diagnose(records: Sequence[Record], params: ParameterSet | str = "table2",
         start = starts.get(spec.label) if spec.params else None
         res = fit_spec(spec, base, targets, data, rss0_held, start=start, min_reduction=min_reduction,
                        threads=threads, max_nfev=max_nfev, seed=seed, batched_jacobian=batched_jacobian,
-                       n_screen=6 if spec.params and start else None, rss0_train=float(np.dot(r0_train, r0_train)))
+                       n_screen=2 if spec.params and start else None, rss0_train=float(np.dot(r0_train, r0_train)))
         res.screen_train_rms_sigma = screen_rms.get(spec.label, float("nan"))
         if progress:
             progress(spec.label, res)

@@ -29,10 +29,13 @@ PRUNE_WITHIN = 1.02
 
 
 def _touches(c: CandidateResult) -> set[str]:
+    """What a candidate changes: its effects, its independent parameters, its tied groups (a single parameter may
+    join the group that holds it — the group then scales the others — and the backward step can drop the group)."""
     spec = c.spec
     if spec is None:
         return {c.effect}
-    return {e.name for e in spec.effects} | {n for p in spec.params for n in p.members}
+    return ({e.name for e in spec.effects} | {n for p in spec.params if not p.tied for n in p.members}
+            | {p.name for p in spec.params if p.tied})
 
 
 def forward_select(winner: CandidateResult, others: Sequence[CandidateResult], base: ParameterSet,
