@@ -84,6 +84,57 @@ def _describe_exception(exc: BaseException) -> str:
     return f"{name}: {exc}"
 
 
+#: how often a pool worker checks that the campaign process is still alive (s)
+PARENT_CHECK_S = 0.5
+_PR_SET_PDEATHSIG = 1
+
+
+def _parent_alive(pid: int) -> bool:
+    """True while process ``pid`` exists and is not a zombie (a killed parent not yet reaped counts as dead)."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as fh:
+            state = fh.read().rsplit(b")", 1)[1].split()[0]
+        return state not in (b"Z", b"X")
+    except FileNotFoundError:
+        return False
+    except (OSError, IndexError):  # no /proc (not Linux): ask the kernel
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return False
+        except OSError:
+            return True
+        return True
+
+
+def _watch_parent(pid: int, ppid: int) -> None:
+    while True:
+        time.sleep(PARENT_CHECK_S)
+        if os.getppid() != ppid or not _parent_alive(pid):
+            os._exit(1)  # the campaign is gone: nobody will read this worker's results
+
+
+def die_with_parent(parent_pid: int) -> None:
+    """Pool-worker initializer: the worker ends when the campaign process ends, however it ends (SIGKILL included).
+
+    Two guards: ``prctl(PR_SET_PDEATHSIG, SIGKILL)`` (Linux: the kernel kills the worker the moment its parent
+    process — the campaign, or the forkserver, which itself exits with the campaign — dies), and a daemon thread
+    that checks every :data:`PARENT_CHECK_S` that the campaign process ``parent_pid`` is alive (other systems, and
+    the start methods where the worker's parent is not the campaign)."""
+    import ctypes
+    import signal
+
+    ppid = os.getppid()
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGKILL), 0, 0, 0)
+    except (OSError, AttributeError):
+        pass
+    if not _parent_alive(ppid) or not _parent_alive(parent_pid):  # died before the guard was in place
+        os._exit(1)
+    threading.Thread(target=_watch_parent, args=(parent_pid, ppid), name="die-with-parent", daemon=True).start()
+
+
 def _process_executor(workers: int) -> tuple[ProcessPoolExecutor, str]:
     """A local process pool. ``fork`` when this process runs a single thread (the workers then inherit the loaded
     model kernels and nominal predictions: no start-up cost); otherwise ``forkserver`` (fork with live threads can
@@ -99,7 +150,8 @@ def _process_executor(workers: int) -> tuple[ProcessPoolExecutor, str]:
     else:
         method = "spawn"
         ctx = mp.get_context("spawn")
-    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx), method
+    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=die_with_parent,
+                               initargs=(os.getpid(),)), method
 
 
 def connect_dask(address: str, timeout_s: float = 10.0) -> Any:
