@@ -221,7 +221,7 @@ class MaintenanceSequencer:
         seq = self.sequences[key]
         return BoardEvent("mbit_record", tick, tick * self.period, {
             "mbit": key, "label": seq.definition.label, "test": f"mbit-{key}", "rate_Hz": 1.0 / self.period,
-            "rows": tuple(self._rows[self._mark:])})
+            "mbit_ticks": len(seq), "rows": tuple(self._rows[self._mark:])})
 
     def _result(self, tick: int, key: str) -> BoardEvent:
         st = self.monitor.state

@@ -354,8 +354,17 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
         log = UsageLog(db_path, synchronous=args.log_sync.upper())
         run_id = log.start_run(scenario=scenario.name, seed=seed, link_url=args.link, params=params,
                                board_config=cfg.as_dict(), rig=rig.describe() if rig is not None else {})
+        from studies.health.visit_records import VisitRecordWriter  # every completed MBIT -> records/ (issue 17)
+
+        recorder = VisitRecordWriter(out, db_path, params=params, z3_noise_m=scenario.rig.z3_noise,
+                                     scenario=scenario.name, run_id=run_id)
+
+        def on_event(ev) -> None:
+            printer(ev)
+            recorder(ev)
+
         runner = BoardRunner(board, link, sink=log, scheduler=scheduler,
-                             rearm_times=[e.at for e in scenario.events_of("rearm")], on_event=printer)
+                             rearm_times=[e.at for e in scenario.events_of("rearm")], on_event=on_event)
         last = [0]
 
         def progress(i: int) -> None:

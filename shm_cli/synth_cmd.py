@@ -58,6 +58,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--duration-s", type=positive_float, default=None, help="record length (s)")
     p.add_argument("--rate-hz", type=positive_float, default=None, help="logger sample rate (Hz, default 1000)")
     p.add_argument("--bias-v", type=finite_float, default=None, help="common-mode voltage on both channels (V)")
+    p.add_argument("--operating-hours", type=float, default=None, metavar="H",
+                   help="stamp the record with the structure's operating time (h, header key operating_hours; "
+                        "shm health trends on it)")
     p.add_argument("--blind", action="store_true",
                    help="leave the truth (effects, parameter values) out of the record's provenance")
     p.add_argument("--json", action="store_true", help="print a summary of the written record as JSON")
@@ -146,6 +149,8 @@ def cmd_synth(args: argparse.Namespace) -> int:
             raise InputError(f"--noise for --test frf takes amp=REL and phase=DEG, got {sorted(unknown)}")
         rec = synth_frf(spec, model, channels, noise_rel=nz["amp"], noise_phase_deg=nz["phase"], seed=args.seed,
                         effects=args.effect, values=values, blind=args.blind)
+        if args.operating_hours is not None:
+            rec = _stamp_hours(rec, args.operating_hours)
         path = write_frf_record(rec, out)
         summary = {"file": str(path), "test": "frf", "frequencies": int(rec.frequency_Hz.size),
                    "channels": list(rec.responses), "drive": rec.drive}
@@ -158,9 +163,13 @@ def cmd_synth(args: argparse.Namespace) -> int:
                     noise.update(_assignments("--noise", [item]))
         rec = synth_record(spec, model, channels, noise=noise, seed=args.seed, effects=args.effect, values=values,
                            blind=args.blind)
+        if args.operating_hours is not None:
+            rec = _stamp_hours(rec, args.operating_hours)
         path = write_record(rec, out)
         summary = {"file": str(path), "test": rec.test, "samples": rec.n_samples, "duration_s": rec.duration_s,
                    "sample_rate_Hz": rec.sample_rate_Hz, "inputs": list(rec.inputs), "outputs": list(rec.outputs)}
+    if args.operating_hours is not None:
+        summary["operating_hours"] = float(args.operating_hours)
     summary["truth"] = "hidden" if args.blind else {"params": pset.name, "effects": args.effect, "values": values}
     if args.json:
         print(dump_json(summary))
@@ -169,3 +178,13 @@ def cmd_synth(args: argparse.Namespace) -> int:
               + (f" + {', '.join(args.effect)}" if args.effect and not args.blind else "")
               + (" [blind]" if args.blind else "") + ")", file=sys.stderr)
     return 0
+
+
+def _stamp_hours(rec, hours: float):
+    """The record with the ``operating_hours`` header key (h >= 0; docs/records.md)."""
+    import dataclasses
+    import math
+
+    if not (math.isfinite(hours) and hours >= 0):
+        raise InputError(f"--operating-hours must be a number of hours >= 0, got {hours!r}")
+    return dataclasses.replace(rec, meta={**rec.meta, "operating_hours": float(hours)})

@@ -49,7 +49,6 @@ def mbit_record(event: BoardEvent, *, visit: int, operating_hours: float | None,
     d = event.data
     rows = np.asarray(d["rows"], dtype=float).reshape(-1, 4)
     t = rows[:, 0] - rows[0, 0]
-    settle_end = float(t[-1]) - (len(rows) - 1) / d["rate_Hz"] + 0.0
     meta: dict[str, Any] = {
         "test": d["test"], "description": f"{d['label']} as the board ran it (visit {visit})",
         "sample_rate_Hz": float(d["rate_Hz"]), "terminal": "amplifier", "inputs": ["v_ch1_V", "v_ch2_V"],
@@ -61,8 +60,8 @@ def mbit_record(event: BoardEvent, *, visit: int, operating_hours: float | None,
         meta["provenance"]["run_id"] = int(run_id)
     if operating_hours is not None:
         meta["operating_hours"] = float(operating_hours)
-    nz = np.flatnonzero((rows[:, 1] != 0.0) | (rows[:, 2] != 0.0))
-    settle_end = float(t[max(0, nz[0] - 1)]) if nz.size else 0.0
+    n_mbit = int(d.get("mbit_ticks", len(rows) - 1))
+    settle_end = float(t[max(0, len(rows) - n_mbit - 1)])  # the slew to the MBIT's first command starts here
     if settle_end > 0:
         meta["segments"] = [{"start_s": 0.0, "end_s": settle_end, "label": "settle"},
                             {"start_s": settle_end, "end_s": float(t[-1]), "label": d["label"]}]
