@@ -200,6 +200,9 @@ class SerialLink:
                 self.close()
                 raise LinkError(f"{self.url}: reopened port answers protocol version {version}, "
                                 f"this board speaks {PROTOCOL_VERSION}")
+            # the PING was this tick's round trip: the command goes out at the next tick (one tick, not two)
+            raise LinkError(f"{self.url}: port reopened, the rig answered PING (protocol {version}); "
+                            "commands resume at the next tick")
         assert self._port is not None
         return self._port
 
@@ -244,6 +247,7 @@ class SerialLink:
             raise self._link_down(f"write failed: {exc}") from exc
         t0 = time.monotonic()
         deadline = t0 + budget  # timeouts are the link's only use of a clock
+        late = False  # a reply to an earlier request arrived while waiting: the rig is slower than the budget
         while True:
             try:
                 data = port.read(max(1, port.in_waiting))
@@ -274,15 +278,22 @@ class SerialLink:
                         raise LinkError(f"{self.url}: rig refused request seq {seq}: "
                                         f"{getattr(reason, 'name', reason)}")
                     self.stats["stale_or_unexpected"] += 1
+                    if fr.type == want:
+                        late = True
                     log.debug("%s: skipped frame type 0x%02X seq %d while waiting for seq %d", self.url,
                               fr.type, fr.seq, seq)
             if time.monotonic() >= deadline:
                 self.stats["timeouts"] += 1
                 self._timeouts_in_row += 1
-                self._log.warn("timeout", "%s: no reply to seq %d within %.1f ms", self.url, seq, 1e3 * budget)
-                if self._timeouts_in_row >= self.reopen_after:
+                why = f"no reply to seq {seq} within {1e3 * budget:.1f} ms" + (
+                    "; a reply to an earlier request arrived late: the rig answers slower than its budget of "
+                    f"{1e3 * (self.processing_budget + self.line_time):.1f} ms (docs/real-rig.md)" if late else "")
+                self._log.warn("timeout", "%s: %s", self.url, why)
+                if late:
+                    self.stats["late_replies"] += 1
+                elif self._timeouts_in_row >= self.reopen_after:  # silence, not slowness: reopen the port
                     raise self._link_down(f"{self._timeouts_in_row} timeouts in a row")
-                raise LinkError(f"{self.url}: no reply to seq {seq} within {1e3 * budget:.1f} ms")
+                raise LinkError(f"{self.url}: {why}")
 
     def _count_decoder(self, before: dict[str, int]) -> None:
         after = self._decoder.stats.as_dict()

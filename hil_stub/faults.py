@@ -37,8 +37,9 @@ class LinkFaults:
 
     drop: float = 0.0  #: fraction of replies not sent, [0, 1]
     corrupt: float = 0.0  #: fraction of replies sent with one bit flipped, [0, 1]
-    latency_s: float = 0.0  #: added to every reply (s)
+    latency_s: float = 0.0  #: added to the sample reply of every exchange (s)
     jitter_s: float = 0.0  #: uniform extra latency in [0, jitter_s] (s)
+    processing_s: float = 0.0  #: the rig's processing time for every request (each Modbus transaction) (s)
     disconnect_at_s: float | None = None  #: rig time at which every endpoint goes away (s)
     disconnect_for_s: float = 1.0  #: how long it stays away (wall-clock s)
 
@@ -49,7 +50,7 @@ class LinkFaults:
                 raise InputError(f"--{name} {v!r}: a fraction of replies, allowed [0, 1]")
         if self.drop + self.corrupt > 1.0:
             raise InputError(f"--drop {self.drop} + --corrupt {self.corrupt} exceeds 1")
-        for name in ("latency_s", "jitter_s", "disconnect_for_s"):
+        for name in ("latency_s", "jitter_s", "processing_s", "disconnect_for_s"):
             v = getattr(self, name)
             if not (math.isfinite(v) and 0.0 <= v <= 60.0):
                 raise InputError(f"{name}={v!r} s outside [0, 60] s")
@@ -58,7 +59,8 @@ class LinkFaults:
 
     @property
     def active(self) -> bool:
-        return bool(self.drop or self.corrupt or self.latency_s or self.jitter_s or self.disconnect_at_s is not None)
+        return bool(self.drop or self.corrupt or self.latency_s or self.jitter_s or self.processing_s
+                    or self.disconnect_at_s is not None)
 
 
 class ReplyFaulter:
@@ -205,6 +207,8 @@ class FaultPlan:
             out.append(f"corrupt {100 * lf.corrupt:g} % of replies (one bit)")
         if lf.latency_s or lf.jitter_s:
             out.append(f"reply latency {1e3 * lf.latency_s:g} ms + U(0, {1e3 * lf.jitter_s:g}) ms")
+        if lf.processing_s:
+            out.append(f"rig processing {1e3 * lf.processing_s:g} ms per request")
         if lf.disconnect_at_s is not None:
             out.append(f"disconnect at rig t = {lf.disconnect_at_s:g} s for {lf.disconnect_for_s:g} s")
         out += [f"noise on {k}: sigma {v:g} {NOISE_UNITS[k]}" for k, v in self.sensors.noise.items()]

@@ -322,6 +322,7 @@ class FrameServer:
 
     def _send(self, reply: bytes) -> None:
         action, delay = self.faulter.decide()
+        delay += self.faulter.faults.processing_s
         if delay > 0:
             time.sleep(delay)
         if action == "drop":

@@ -287,7 +287,9 @@ class ModbusRigServer:
                     return ExcCodes.ILLEGAL_VALUE
         if host.mode == "realtime" and host.link_down():
             silence = True
-        delay = self.faulter.draw_delay()
+        # --latency-ms delays the sample of each exchange (the FC04 reply), as on the serial link: the rig's
+        # response time per board tick; acknowledgements of the command write are not delayed
+        delay = self.faulter.faults.processing_s + (self.faulter.draw_delay() if function_code == 0x04 else 0.0)
         if delay > 0:
             await asyncio.sleep(delay)
         # from here to the reply's trace_packet nothing awaits: the flag belongs to this reply

@@ -70,7 +70,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     f.add_argument("--drop", type=float, default=0.0, metavar="FRAC", help="fraction of replies dropped")
     f.add_argument("--corrupt", type=float, default=0.0, metavar="FRAC",
                    help="fraction of replies with one bit flipped")
-    f.add_argument("--latency-ms", type=float, default=0.0, help="added to every reply (ms)")
+    f.add_argument("--latency-ms", type=float, default=0.0,
+                   help="added to the sample reply of every exchange (serial: the SAMPLE; Modbus: the FC04 read; "
+                        "command acknowledgements are not delayed) (ms)")
+    f.add_argument("--processing-ms", type=float, default=0.0,
+                   help="the rig's processing time for every request, each Modbus transaction included (ms): a "
+                        "slow rig (docs/real-rig.md states the budget per link)")
     f.add_argument("--jitter-ms", type=float, default=0.0, help="uniform extra reply latency 0..J ms")
     f.add_argument("--disconnect-at", type=float, default=None, metavar="S",
                    help="every endpoint disappears at this rig time (s)")
@@ -91,7 +96,8 @@ def fault_plan(args: argparse.Namespace, seed: int):
     from hil_stub.faults import FaultPlan, LinkFaults, SensorFaults, TruthChanges, parse_assignments, parse_stuck
 
     link = LinkFaults(drop=args.drop, corrupt=args.corrupt, latency_s=args.latency_ms / 1e3,
-                      jitter_s=args.jitter_ms / 1e3, disconnect_at_s=args.disconnect_at,
+                      jitter_s=args.jitter_ms / 1e3, processing_s=args.processing_ms / 1e3,
+                      disconnect_at_s=args.disconnect_at,
                       disconnect_for_s=args.disconnect_for)
     sensors = SensorFaults(noise=parse_assignments("--noise", args.noise), stuck=parse_stuck(args.stuck))
     truth = TruthChanges(deviations=parse_assignments("--deviation", args.deviation), effects=tuple(args.effect))

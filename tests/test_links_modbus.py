@@ -289,7 +289,7 @@ def test_malformed_requests_get_the_matching_exception_over_rtu():
 
 def test_one_budget_covers_both_transactions():
     """A slow write leaves the read only what is left of the exchange's budget."""
-    plan = FaultPlan(link=LinkFaults(latency_s=0.03), seed=1)
+    plan = FaultPlan(link=LinkFaults(processing_s=0.03), seed=1)  # every transaction takes 30 ms
     with HilService(FakeRig(), mode="lockstep", plan=plan) as hil:
         srv = hil.add_modbus_tcp("127.0.0.1:0")
         ok = ModbusLink(srv.board_url + "&timeout=0.5")
@@ -301,7 +301,9 @@ def test_one_budget_covers_both_transactions():
         tight = ModbusLink(srv.board_url + "&timeout=0.045")
         tight._connect()
         try:
-            with pytest.raises(LinkError, match="read sample"):  # the write took 30 ms: 15 ms left for the read
+            with pytest.raises(LinkError, match="read sample") as err:  # the write took 30 ms: 15 ms left
                 tight.exchange(cmd(2))
+            # the message quotes the read's real budget and what the write used, not a bare leftover
+            assert "of the 45.0 ms exchange budget" in str(err.value) and "the command write took 3" in str(err.value)
         finally:
             tight.close()
