@@ -58,27 +58,27 @@ def _first_trip(grid: np.ndarray, faults: np.ndarray) -> np.ndarray:
 
 
 def forecast_trip(trends: Mapping[str, Trend], boundary: TripBoundary, last_hours: float, visit_interval: float,
-                  *, current: Mapping[str, float] | None = None, seed: int = 1, horizon_factor: float = 4.0
-                  ) -> Forecast:
+                  *, current: Mapping[str, float] | None = None, seed: int = 1, horizon_factor: float = 4.0,
+                  n_paths: int = N_PATHS, n_grid: int = N_GRID) -> Forecast:
     """The forecast from per-parameter trends (relative deviations) through the monitor's trip boundary."""
     rng = np.random.default_rng(seed)
     horizon = last_hours + max(horizon_factor * max(last_hours, visit_interval), 20 * visit_interval)
-    grid = np.linspace(last_hours, horizon, N_GRID)
+    grid = np.linspace(last_hours, horizon, n_grid)
     significant = any(t.significant for t in trends.values())
-    devs = np.zeros((N_PATHS, grid.size, 3))
+    devs = np.zeros((n_paths, grid.size, 3))
     for j, name in enumerate(HEALTH_PARAMS):
         t = trends.get(name)
         if t is None:
             continue
         if significant and t.significant:
-            devs[:, :, j] = t.sample_paths(grid, N_PATHS, rng)
+            devs[:, :, j] = t.sample_paths(grid, n_paths, rng)
         else:
             f = t.fits.get("linear") if not significant else t.fits.get("none")
             f = f if f is not None else t.fits["none"]
-            devs[:, :, j] = _paths_of(f, grid, N_PATHS, rng)
+            devs[:, :, j] = _paths_of(f, grid, n_paths, rng)
     # the trip limit itself is known to about BOUNDARY_SIGMA in alpha_h (noise-dependent counter near the limit,
     # the board's visit history against the campaign's MBITs from rest): each path gets its own limit offset
-    shift = rng.normal(0.0, BOUNDARY_SIGMA, N_PATHS)
+    shift = rng.normal(0.0, BOUNDARY_SIGMA, n_paths)
     devs[:, :, 1] -= shift[:, None]
     faults = boundary.fault(devs)
     trips = _first_trip(grid, faults)
@@ -89,10 +89,13 @@ def forecast_trip(trends: Mapping[str, Trend], boundary: TripBoundary, last_hour
     p_fault = np.mean(trips[:, None] <= grid[None, :], axis=0)
     next_visit = last_hours + visit_interval
     if not significant:
-        lb = float(np.quantile(trips, 0.05)) if np.isfinite(np.quantile(trips, 0.05)) else horizon
+        with np.errstate(invalid="ignore"):
+            q = float(np.quantile(trips, 0.05))
+        lb = q if math.isfinite(q) else horizon
         return Forecast(None, None, None, None, lb, last_hours, next_visit, horizon, already, grid, p_fault,
                         trips, False)
-    q05, q50, q95 = np.quantile(trips, [0.05, 0.5, 0.95])
+    with np.errstate(invalid="ignore"):
+        q05, q50, q95 = np.quantile(trips, [0.05, 0.5, 0.95])
     p_next = float(np.mean(trips <= next_visit + 1e-9))
     trip = float(q50) if math.isfinite(q50) else None
     return Forecast(trip, [float(q05), float(q95) if math.isfinite(q95) else None], (trip - last_hours) if trip

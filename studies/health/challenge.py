@@ -1,0 +1,409 @@
+"""The prognosis challenge: simulated lives whose truth we know, scored with ProgPy's metrics, beside a
+feature-only baseline.
+
+A life (:class:`ChallengeLife`): degradation laws (:class:`board_config.scenario.LifeLaw`, the ``[life]`` terms),
+a visit interval, a number of visits and a laser noise level. Each visit is simulated *directly* — no board ticking,
+for speed: the visit's command sequence as the board plays it (settle, MBIT.a, settle, MBIT.b at 100 Hz) drives the
+truth plant (one batched integration per life), white laser noise is added, and the joined visit record goes to the
+same re-estimation as ``shm health`` (:func:`.estimate.estimate_visit`, the workbench fit). The truth's first FAULT
+visit comes from the board monitor through the campaign machinery (:func:`.trip.fault_batch`).
+
+Prognosis is sequential: from the 4th visit on, at every visit before the first FAULT, the trends and the forecast are
+rebuilt from the visits so far (:mod:`.trend`, :mod:`.forecast`). Scores (:mod:`.metrics`):
+
+* coverage — the true first FAULT visit inside the 90 % interval (in visits), over the predictions made once the
+  trend is significant with at least four visits;
+* α-λ (α = 20 %, λ = 0.5, β = 0.5) and the prognostic horizon, per life, on the trip time seen at visits;
+* stable lives — "no significant trend" at the last visit;
+* sudden damage — the change-point model chosen with its step between the two visits that bracket the truth's step.
+
+The **baseline** is the classic feature-only practice: the first natural frequency f1 of each visit (a damped sine
+fitted to MBIT.b's step response), trended with the same model choice and extrapolated to an alarm threshold
+calibrated on the reference life (the f1 change at which the shipped ``aging`` life first FAULTs).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections.abc import Callable, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from board_config.scenario import LifeLaw
+from studies.health.forecast import forecast_trip, visit_of
+from studies.health.laws import deviations_at
+from studies.health.metrics import alpha_lambda, interval_covers, prognostic_horizon
+from studies.health.trend import fit_trend
+from studies.health.trip import HEALTH_PARAMS, fault_batch, trip_boundary
+
+RATE_HZ = 100.0
+SETTLE_S = 2.0
+MIN_VISITS = 4
+
+
+@dataclass(frozen=True)
+class ChallengeLife:
+    name: str
+    laws: tuple[LifeLaw, ...]
+    visits: int = 16
+    interval: float = 100.0  # h
+    noise_m: float = 2e-6  # laser noise, 1 sigma
+    kind: str = "trend"  # trend | stable | sudden
+    step_hours: float | None = None  # sudden damage: when (h)
+    step_parameter: str | None = None
+    seed: int = 0
+
+    def hours(self) -> np.ndarray:
+        return self.interval * np.arange(self.visits)
+
+
+def _lin(p: str, rate: float) -> LifeLaw:
+    return LifeLaw(p, "linear", rate=rate)
+
+
+def _pow(p: str, amp: float, ref: float, m: float) -> LifeLaw:
+    return LifeLaw(p, "power", amplitude=amp, reference=ref, exponent=m)
+
+
+def _exp(p: str, amp: float, tau: float) -> LifeLaw:
+    return LifeLaw(p, "exponential", amplitude=amp, time_constant=tau)
+
+
+def _step(p: str, size: float, at: float) -> LifeLaw:
+    return LifeLaw(p, "step", size=size, at=at)
+
+
+def _const(p: str, v: float) -> LifeLaw:
+    return LifeLaw(p, "constant", value=v)
+
+
+def reference_life() -> ChallengeLife:
+    """The shipped ``aging`` scenario's laws (the baseline's alarm threshold is calibrated on it)."""
+    return ChallengeLife("aging", (_lin("k3", -2e-4), _pow("alpha_h", 0.15, 1200, 1.5), _lin("beta_h", -1e-4)),
+                         visits=16, interval=100.0, seed=1)
+
+
+def challenge_lives(full: bool = True) -> list[ChallengeLife]:
+    """The challenge's lives: ``full=False`` is the fast subset of ``make test``."""
+    fast = [
+        ChallengeLife("linear-alpha-fast", (_lin("alpha_h", 2.5e-4), _lin("k3", -1e-4)), visits=8, interval=100.0,
+                      seed=11),
+        ChallengeLife("stable-fast", (_const("k3", -0.03),), visits=5, kind="stable", seed=12),
+        ChallengeLife("sudden-k3-fast", (_step("k3", -0.15, 230.0),), visits=6, kind="sudden", step_hours=230.0,
+                      step_parameter="k3", seed=13),
+    ]
+    if not full:
+        return fast
+    lives = [reference_life()]
+    i = 100
+    for m, ref in ((1.2, 1000.0), (2.0, 1400.0), (1.5, 900.0)):
+        for noise in (2e-6, 5e-6):
+            i += 1
+            lives.append(ChallengeLife(f"power-m{m:g}-ref{ref:g}-n{noise * 1e6:g}um",
+                                       (_pow("alpha_h", 0.15, ref, m), _lin("k3", -1.5e-4)), visits=16,
+                                       interval=100.0, noise_m=noise, seed=i))
+    for rate, interval in ((1.2e-4, 100.0), (2.5e-4, 50.0), (0.6e-4, 200.0)):
+        i += 1
+        lives.append(ChallengeLife(f"linear-{rate * 100:g}per100h-every{interval:g}h",
+                                   (_lin("alpha_h", rate), _lin("beta_h", -1e-4)), visits=18, interval=interval,
+                                   noise_m=5e-6, seed=i))
+    for tau in (500.0, 800.0):
+        i += 1
+        lives.append(ChallengeLife(f"exponential-tau{tau:g}", (_exp("alpha_h", 0.02, tau), _lin("k3", -1e-4)),
+                                   visits=18, interval=100.0, noise_m=2e-6, seed=i))
+    i += 1
+    lives.append(ChallengeLife("decreasing-alpha", (_lin("alpha_h", -1.0e-4), _lin("k3", -2e-4)), visits=16,
+                               interval=100.0, noise_m=2e-6, seed=i))
+    for noise in (2e-6, 5e-6, 10e-6):
+        for c in (-0.03, 0.0, 0.02):
+            i += 1
+            lives.append(ChallengeLife(f"stable-k3{c:+g}-n{noise * 1e6:g}um", (_const("k3", c), _const("beta_h", -c)),
+                                       visits=10, interval=100.0, noise_m=noise, kind="stable", seed=i))
+    for p, size, at in (("k3", -0.15, 450.0), ("k3", -0.10, 730.0), ("alpha_h", 0.05, 520.0),
+                        ("beta_h", -0.2, 360.0), ("alpha_h", -0.04, 610.0)):
+        i += 1
+        lives.append(ChallengeLife(f"sudden-{p}{size:+g}-at{at:g}h", (_step(p, size, at),), visits=10,
+                                   interval=100.0, noise_m=2e-6, kind="sudden", step_hours=at, step_parameter=p,
+                                   seed=i))
+    return lives
+
+
+# --- simulation of a life's visits ---------------------------------------------------------------------------
+def visit_commands() -> np.ndarray:
+    """(n, 2) channel commands (V) of one visit as the board plays it: settle, MBIT.a, settle, MBIT.b, 0."""
+    from board_config import load_mbit_definitions
+    from firmware_sim.mbit import generate_mbit
+
+    defs = load_mbit_definitions()
+    rows = []
+    for key in ("a", "b"):
+        seq = generate_mbit(defs[key], on_clamp="report")
+        rows.append(np.zeros((round(SETTLE_S * RATE_HZ), 2)))
+        rows.append(np.column_stack([seq.v_ch1, seq.v_ch2]))
+    rows.append(np.zeros((1, 2)))
+    return np.vstack([np.zeros((1, 2)), *rows])
+
+
+def simulate_visit_records(life: ChallengeLife, params: str, devs: list[dict[str, float]]):
+    """One joined visit record per visit (truth deviations ``devs``), with the life's laser noise."""
+    from plant import InputSignals, PlantModel
+    from workbench.records import record_from_arrays
+
+    model = PlantModel(params, terminal="amplifier")
+    cmds = visit_commands()
+    n = cmds.shape[0]
+    t = np.arange(n) / RATE_HZ
+    u = np.zeros((1, n, 3))
+    u[0, :, 0:2] = cmds
+    nominal = {p: model.param_value(p) for p in HEALTH_PARAMS}
+    cols = {p: np.array([nominal[p] * (1 + d.get(p, 0.0)) for d in devs]) for p in HEALTH_PARAMS}
+    res = model.simulate(InputSignals(0.0, 1.0 / RATE_HZ, u), t_out=t, params=model.param_batch(n=len(devs), **cols),
+                         rtol=1e-6, h_max=5e-3, threads=1)
+    if not res.ok:
+        raise FloatingPointError(f"{life.name}: truth simulation failed: {'; '.join(res.failures())}")
+    rng = np.random.default_rng(np.random.SeedSequence([life.seed, 17]))
+    recs = []
+    for i, h in enumerate(life.hours()):
+        z3 = np.asarray(res["z3_meas"][i], float) + rng.normal(0.0, life.noise_m, n)
+        meta = {"test": "visit", "sample_rate_Hz": RATE_HZ, "terminal": "amplifier",
+                "inputs": ["v_ch1_V", "v_ch2_V"], "params": params, "operating_hours": float(h),
+                "channels": {"z3_m": {"noise_std": life.noise_m}},
+                "provenance": {"generator": "health challenge", "life": life.name, "visit": i + 1}}
+        recs.append(record_from_arrays(t, {"v_ch1_V": cmds[:, 0], "v_ch2_V": cmds[:, 1], "z3_m": z3}, meta,
+                                       path=f"<{life.name} visit {i + 1}>"))
+    return recs
+
+
+def first_natural_frequency(record: Any) -> float:
+    """f1 (Hz) from MBIT.b's step response in a joined visit record: a damped sine fitted to the first 0.6 s after
+    the step (the feature-only baseline's feature)."""
+    from scipy.optimize import curve_fit
+
+    v = record["v_ch1"] - record["v_ch2"]
+    z = record["z3"]
+    t = record.t
+    steps = np.flatnonzero(np.diff(v) > 100.0)
+    k = int(steps[-1]) + 2 if steps.size else len(t) // 2
+    win = slice(k, min(len(t), k + int(0.6 * RATE_HZ)))
+    tt, zz = t[win] - t[k], z[win]
+    zz = zz - np.mean(zz[-10:])
+    spec = np.abs(np.fft.rfft(zz * np.hanning(zz.size), 4096))
+    freqs = np.fft.rfftfreq(4096, 1 / RATE_HZ)
+    f0 = float(freqs[1 + np.argmax(spec[1:])])
+
+    def damped(x, a, zeta, f, ph, c):
+        w = 2 * np.pi * f
+        return a * np.exp(-zeta * w * x) * np.cos(w * np.sqrt(max(1 - zeta ** 2, 1e-6)) * x + ph) + c
+
+    try:
+        p, _ = curve_fit(damped, tt, zz, p0=[np.max(np.abs(zz)), 0.05, f0, 0.0, 0.0], maxfev=4000)
+        return float(abs(p[2]))
+    except (RuntimeError, ValueError):
+        return f0
+
+
+# --- one life -------------------------------------------------------------------------------------------------
+def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold: float | None = None,
+                       n_paths: int = 400, n_grid: int = 500) -> dict[str, Any]:
+    """Simulate, estimate, predict sequentially and score one life (a plain dict; picklable)."""
+    from studies.health.estimate import estimate_visit
+
+    t0 = time.perf_counter()
+    hours = life.hours()
+    devs = [deviations_at(life.laws, float(h)) for h in hours]
+    truth = np.array([[d.get(p, 0.0) for p in HEALTH_PARAMS] for d in devs])
+    faults = fault_batch(params, truth)
+    k_true = int(np.argmax(faults)) if faults.any() else None
+    recs = simulate_visit_records(life, params, devs)
+    ests = [estimate_visit([r], params) for r in recs]
+    f1 = np.array([first_natural_frequency(r) for r in recs])
+    rel = {p: [next(e for e in x["estimates"] if e["name"] == p) for x in ests] for p in HEALTH_PARAMS}
+    y = {p: np.array([e["value"] / e["nominal"] - 1 for e in rel[p]]) for p in HEALTH_PARAMS}
+    s = {p: np.array([(e["stderr"] or 0.0) / abs(e["nominal"]) for e in rel[p]]) for p in HEALTH_PARAMS}
+    boundary = trip_boundary(params)
+    preds = []
+    base_preds = []
+    last = life.visits if k_true is None else k_true  # predictions only before the first FAULT
+    for j in range(MIN_VISITS - 1, last):
+        hh = hours[: j + 1]
+        trends = {p: fit_trend(p, hh, y[p][: j + 1], s[p][: j + 1]) for p in HEALTH_PARAMS}
+        fc = forecast_trip(trends, boundary, float(hh[-1]), life.interval, seed=life.seed + j, n_paths=n_paths,
+                           n_grid=n_grid)
+        seen = _seen_at_visits(fc.trip_samples, hours[0], life.interval)
+        preds.append({"as_of_visit": j, "hours": float(hh[-1]), "significant": fc.significant,
+                      "interval_visits": _interval_visits(fc.trip_samples, hours[0], life.interval),
+                      "samples_seen": seen})
+        if f1_threshold is not None:
+            base_preds.append(_baseline_prediction(hh, f1[: j + 1] / f1[0] - 1, f1_threshold, life, j))
+    out: dict[str, Any] = {"life": life.name, "kind": life.kind, "visits": life.visits, "interval_h": life.interval,
+                           "noise_um": life.noise_m * 1e6, "true_first_fault_visit": k_true,
+                           "true_first_fault_hours": None if k_true is None else float(hours[k_true]),
+                           "f1_Hz": f1.tolist(), "wall_s": 0.0}
+    out["physics"] = _score(preds, life, k_true, hours)
+    out["baseline"] = _score(base_preds, life, k_true, hours) if f1_threshold is not None else None
+    # final-visit verdicts: stable and sudden lives
+    final = {p: fit_trend(p, hours, y[p], s[p]) for p in HEALTH_PARAMS}
+    out["final_significant"] = {p: t.significant for p, t in final.items()}
+    out["final_models"] = {p: t.model for p, t in final.items()}
+    if life.kind == "sudden" and life.step_parameter is not None:
+        t = final[life.step_parameter]
+        ok = t.model == "change_point" and t.best.tau is not None and \
+            _bracket(hours, life.step_hours) == _bracket(hours, t.best.tau)
+        out["step_placed"] = bool(ok)
+        out["step_tau_h"] = t.best.tau
+    out["wall_s"] = time.perf_counter() - t0
+    return out
+
+
+def _bracket(hours: np.ndarray, t: float | None) -> int | None:
+    if t is None:
+        return None
+    return int(np.searchsorted(hours, t, side="right"))
+
+
+def _seen_at_visits(samples: np.ndarray, start: float, interval: float) -> np.ndarray:
+    """Trip samples moved to the visit at which the board would see them (h; inf beyond the horizon)."""
+    s = np.asarray(samples, float)
+    out = np.full(s.shape, np.inf)
+    fin = np.isfinite(s)
+    out[fin] = start + interval * np.ceil((s[fin] - start) / interval - 1e-9)
+    return out
+
+
+def _interval_visits(samples: np.ndarray, start: float, interval: float) -> list[int | None]:
+    with np.errstate(invalid="ignore"):
+        q05, q95 = np.quantile(samples, [0.05, 0.95])
+    return [visit_of(float(q05), start, interval), visit_of(float(q95), start, interval)]
+
+
+def _baseline_prediction(hh: np.ndarray, f1_rel: np.ndarray, thr: float, life: ChallengeLife, j: int
+                         ) -> dict[str, Any]:
+    tr = fit_trend("f1", hh, f1_rel, np.full(hh.size, 1e-3))
+    rng = np.random.default_rng(life.seed + 1000 + j)
+    grid = np.linspace(hh[-1], hh[-1] + 20 * life.interval + 4 * hh[-1], 500)
+    if tr.significant:
+        paths = tr.sample_paths(grid, 400, rng)
+    else:
+        from studies.health.trend import _paths_of
+
+        paths = _paths_of(tr.fits.get("linear") or tr.fits["none"], grid, 400, rng)
+    cross = (paths <= thr) if thr < 0 else (paths >= thr)
+    hit = cross.any(axis=1)
+    trips = np.where(hit, grid[np.argmax(cross, axis=1)], np.inf)
+    return {"as_of_visit": j, "hours": float(hh[-1]), "significant": tr.significant,
+            "interval_visits": _interval_visits(trips, 0.0, life.interval),
+            "samples_seen": _seen_at_visits(trips, 0.0, life.interval)}
+
+
+def _score(preds: list[dict[str, Any]], life: ChallengeLife, k_true: int | None, hours: np.ndarray
+           ) -> dict[str, Any]:
+    if k_true is None:
+        return {"predictions": len(preds), "covered": None, "alpha_lambda": None, "prognostic_horizon_h": None}
+    sig = [p for p in preds if p["significant"]]
+    covered = [interval_covers(p["interval_visits"], k_true) for p in sig]
+    t_eol = float(hours[k_true])
+    times = [p["hours"] for p in sig]
+    samples = [p["samples_seen"] for p in sig]
+    return {"predictions": len(sig), "covered": int(sum(covered)), "coverage": (sum(covered) / len(covered))
+            if covered else None,
+            "alpha_lambda": alpha_lambda(times, samples, t_eol), "prognostic_horizon_h": prognostic_horizon(
+                times, samples, t_eol),
+            "intervals": [p["interval_visits"] for p in sig]}
+
+
+# --- the whole challenge --------------------------------------------------------------------------------------
+def f1_alarm_threshold(params: str = "table2") -> float:
+    """The baseline's alarm: relative f1 change of the reference life at its first FAULT (truth, noise-free)."""
+    life = reference_life()
+    hours = life.hours()
+    devs = [deviations_at(life.laws, float(h)) for h in hours]
+    truth = np.array([[d.get(p, 0.0) for p in HEALTH_PARAMS] for d in devs])
+    k = int(np.argmax(fault_batch(params, truth)))
+    recs = simulate_visit_records(ChallengeLife("ref", life.laws, life.visits, life.interval, 0.0, seed=0), params,
+                                  devs)
+    return first_natural_frequency(recs[k]) / first_natural_frequency(recs[0]) - 1.0
+
+
+@dataclass
+class ChallengeResult:
+    lives: list[dict[str, Any]]
+    summary: dict[str, Any]
+    wall_s: float
+    f1_threshold: float
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+def summarise(lives: Sequence[dict[str, Any]]) -> dict[str, Any]:
+    def agg(key: str) -> dict[str, Any]:
+        tr = [x[key] for x in lives if x["kind"] == "trend" and x[key] is not None and
+              x[key].get("coverage") is not None]
+        n_pred = sum(t["predictions"] for t in tr)
+        n_cov = sum(t["covered"] for t in tr)
+        al = [t["alpha_lambda"] for t in tr if t["alpha_lambda"] is not None]
+        ph = [t["prognostic_horizon_h"] for t in tr]
+        return {"lives_scored": len(tr), "predictions": n_pred,
+                "coverage": n_cov / n_pred if n_pred else None,
+                "alpha_lambda": (sum(al) / len(al)) if al else None, "alpha_lambda_lives": len(al),
+                "prognostic_horizon_h_median": float(np.median([p for p in ph if p is not None]))
+                if any(p is not None for p in ph) else None,
+                "lives_with_a_horizon": sum(p is not None for p in ph)}
+
+    stable = [x for x in lives if x["kind"] == "stable"]
+    sudden = [x for x in lives if x["kind"] == "sudden"]
+    return {
+        "physics": agg("physics"), "baseline": agg("baseline") if all(x["baseline"] is not None for x in lives)
+        else None,
+        "stable_no_trend": (sum(not any(x["final_significant"].values()) for x in stable) / len(stable))
+        if stable else None, "stable_lives": len(stable),
+        "sudden_placed": (sum(bool(x.get("step_placed")) for x in sudden) / len(sudden)) if sudden else None,
+        "sudden_lives": len(sudden),
+        "trend_lives_without_fault": [x["life"] for x in lives if x["kind"] == "trend" and
+                                      x["true_first_fault_visit"] is None],
+    }
+
+
+def run_challenge(lives: Sequence[ChallengeLife], params: str = "table2", workers: int | None = None,
+                  progress: Callable[[str], None] | None = None) -> ChallengeResult:
+    """Every life (process pool of ``workers``) and the summary scores."""
+    t0 = time.perf_counter()
+    trip_boundary(params)  # computed (or loaded) once before the workers start
+    thr = f1_alarm_threshold(params)
+    n = workers if workers is not None else min(len(lives), os.cpu_count() or 1)
+    out: list[dict[str, Any]] = []
+    if n <= 1:
+        for life in lives:
+            out.append(run_life_challenge(life, params, thr))
+            if progress:
+                progress(_life_line(out[-1]))
+    else:
+        with ProcessPoolExecutor(max_workers=n) as pool:
+            futs = [pool.submit(run_life_challenge, life, params, thr) for life in lives]
+            for f in futs:
+                out.append(f.result())
+                if progress:
+                    progress(_life_line(out[-1]))
+    return ChallengeResult(out, summarise(out), time.perf_counter() - t0, thr)
+
+
+def _life_line(x: dict[str, Any]) -> str:
+    ph = x["physics"]
+    cov = "" if ph.get("coverage") is None else f"coverage {ph['covered']}/{ph['predictions']}"
+    al = "" if ph.get("alpha_lambda") is None else f", alpha-lambda {'ok' if ph['alpha_lambda'] else 'missed'}"
+    extra = ""
+    if x["kind"] == "stable":
+        extra = "no significant trend" if not any(x["final_significant"].values()) else \
+            f"FALSE TREND {x['final_models']}"
+    if x["kind"] == "sudden":
+        extra = f"step placed: {x.get('step_placed')} (tau {x.get('step_tau_h')})"
+    fault = x["true_first_fault_visit"]
+    return (f"  {x['life']:<34} first FAULT visit {fault if fault is not None else '-':>4}  {cov}{al} {extra}"
+            f"  ({x['wall_s']:.1f} s)")
+
+
+def fmt_pct(v: float | None) -> str:
+    return "n/a" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{100 * v:.0f} %"

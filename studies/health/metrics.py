@@ -1,0 +1,61 @@
+"""Prognostic metrics as NASA ProgPy (``progpy.metrics``) and the PHM literature (Saxena et al. 2010) define them.
+
+A *prediction* at time t (h) is a sample of time-of-event (ToE, here the operating hours at which the board's
+monitor first says FAULT). The ground truth t_EOL is the hours of the first FAULT visit.
+
+* :func:`alpha_lambda` — ProgPy ``alpha_lambda``: at the prediction made at t_λ = t_P + λ·(t_EOL − t_P) (t_P the first
+  prediction), is the share of the ToE sample inside t_EOL ± α·(t_EOL − t_λ) at least β (ProgPy's default β = 0.5)?
+* :func:`prognostic_horizon` — ProgPy ``prognostic_horizon``: t_EOL minus the first prediction time from which every
+  later prediction meets the α criterion (None if the last one does not).
+* :func:`interval_covers` — does the 90 % interval (5–95 % quantiles) of a prediction hold the truth?
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+
+def within_alpha(samples: np.ndarray, t: float, t_eol: float, alpha: float, beta: float = 0.5) -> bool:
+    """The ProgPy α criterion of one prediction made at ``t``: share of ToE samples within t_EOL ± α(t_EOL − t)
+    ≥ β."""
+    s = np.asarray(samples, float)
+    if s.size == 0:
+        return False
+    half = alpha * max(t_eol - t, 0.0)
+    inside = (s >= t_eol - half - 1e-9) & (s <= t_eol + half + 1e-9)
+    return float(np.mean(inside)) >= beta
+
+
+def alpha_lambda(times: Sequence[float], samples: Sequence[np.ndarray], t_eol: float, *, lam: float = 0.5,
+                 alpha: float = 0.2, beta: float = 0.5) -> bool | None:
+    """ProgPy's α-λ accuracy for one life (None without a prediction before t_λ)."""
+    if not times:
+        return None
+    t_p = times[0]
+    t_lam = t_p + lam * (t_eol - t_p)
+    idx = [i for i, t in enumerate(times) if t <= t_lam + 1e-9]
+    if not idx:
+        return None
+    i = idx[-1]
+    return within_alpha(samples[i], times[i], t_eol, alpha, beta)
+
+
+def prognostic_horizon(times: Sequence[float], samples: Sequence[np.ndarray], t_eol: float, *, alpha: float = 0.2,
+                       beta: float = 0.5) -> float | None:
+    """ProgPy's prognostic horizon (h): t_EOL − the first time from which every prediction meets the α criterion."""
+    ok = [within_alpha(s, t, t_eol, alpha, beta) for t, s in zip(times, samples)]
+    first = None
+    for i in range(len(ok) - 1, -1, -1):
+        if not ok[i]:
+            break
+        first = i
+    return None if first is None else t_eol - times[first]
+
+
+def interval_covers(interval: Sequence[float | None] | None, truth: float) -> bool:
+    if interval is None or interval[0] is None:
+        return False
+    lo, hi = interval[0], interval[1] if interval[1] is not None else np.inf
+    return lo <= truth <= hi
