@@ -40,8 +40,6 @@ from shm_cli.common import (
     dump_json,
     nonnegative_float,
     out_dir,
-    positive_float,
-    seed_int,
     write_csv,
 )
 
@@ -70,14 +68,14 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--params", default=None, metavar="NAME",
                    help="parameter set of the board's nominal model and of the simulated rig's truth "
                         "(default: the scenario's [rig] params)")
-    p.add_argument("--seed", type=seed_int, default=None,
+    p.add_argument("--seed", type=int, default=None,
                    help="seed of the simulated rig, 0 .. 2^32-1 (default: the scenario's)")
     pace = p.add_mutually_exclusive_group()
     pace.add_argument("--realtime", action="store_true",
                       help="pace the 100 Hz tick on the wall clock (default for hardware links)")
     pace.add_argument("--virtual", action="store_true",
                       help="virtual time, as fast as possible (default for --link sim)")
-    p.add_argument("--duration-s", type=positive_float, default=None, help="stop after this much board time (s)")
+    p.add_argument("--duration-s", type=float, default=None, help="stop after this much board time (s)")
     p.add_argument("--board-config", default=None, metavar="FILE", help="board configuration (default: shipped)")
     p.add_argument("--timeline-every-s", type=nonnegative_float, default=60.0,
                    help="print a telemetry line this often (s of board time; 0 = never); every record is logged")
@@ -292,8 +290,8 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         return run_life_command(args, scenario)
     seed = args.seed if args.seed is not None else scenario.seed
-    if seed < 0:
-        raise CliError(f"--seed must be >= 0, got {seed}")
+    if not 0 <= seed < 2**32:
+        raise CliError(f"--seed must be in [0, 2^32-1], got {seed}")
     params = args.params or scenario.rig.params
     cfg = load_board_config(args.board_config, overrides=scenario.board_overrides, overrides_source=scenario.source)
     duration = scenario.duration if args.duration_s is None else float(args.duration_s)

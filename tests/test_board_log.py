@@ -15,7 +15,14 @@ from pathlib import Path
 import pytest
 
 from firmware_sim.events import BoardEvent
-from firmware_sim.usage_log import LOG_TABLES, LogError, UsageLog, open_log_readonly, read_table
+from firmware_sim.usage_log import (
+    APPLICATION_ID,
+    LOG_TABLES,
+    ForeignLogError,
+    UsageLog,
+    open_log_readonly,
+    read_table,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -47,8 +54,52 @@ def test_foreign_or_missing_database_is_a_clear_error(tmp_path):
     bad.write_bytes(b"this is not sqlite" * 100)
     with pytest.raises(ValueError, match="not a usage log"):
         open_log_readonly(bad)
-    with pytest.raises(LogError, match=r"bad\.db"):
+    with pytest.raises(ForeignLogError, match=r"bad\.db: not an SQLite database"):
         UsageLog(bad)
+    assert bad.read_bytes() == b"this is not sqlite" * 100  # untouched
+
+
+def test_a_log_is_marked_as_ours_and_a_foreign_database_is_never_touched(tmp_path):
+    db = tmp_path / "log.db"
+    UsageLog(db).close()
+    con = sqlite3.connect(db)
+    assert con.execute("PRAGMA application_id").fetchone()[0] == APPLICATION_ID
+    assert con.execute("PRAGMA user_version").fetchone()[0] == 1
+    con.close()
+    UsageLog(db).close()  # ours: reopened for appending
+    other = tmp_path / "other.db"
+    con = sqlite3.connect(other)
+    con.execute("CREATE TABLE invoices(id INTEGER PRIMARY KEY, amount REAL)")
+    con.execute("INSERT INTO invoices(amount) VALUES (12.5)")
+    con.commit()
+    con.close()
+    before = other.read_bytes()
+    with pytest.raises(ForeignLogError, match=r"other\.db: an SQLite database of another application.*invoices"):
+        UsageLog(other)
+    assert other.read_bytes() == before
+    assert not Path(str(other) + "-wal").exists()
+    # another application's id, even with tables named like ours
+    con = sqlite3.connect(tmp_path / "app.db")
+    con.execute("PRAGMA application_id=1234")
+    con.execute("CREATE TABLE meta(key TEXT PRIMARY KEY, value TEXT)")
+    con.execute("INSERT INTO meta VALUES ('schema_version', '1')")
+    con.commit()
+    con.close()
+    with pytest.raises(ForeignLogError, match="application_id 0x4d2"):
+        UsageLog(tmp_path / "app.db")
+
+
+def test_a_log_written_before_the_application_id_is_still_ours(tmp_path):
+    db = tmp_path / "old.db"
+    UsageLog(db).close()
+    con = sqlite3.connect(db)
+    con.execute("PRAGMA application_id=0")
+    con.execute("PRAGMA user_version=0")
+    con.commit()
+    con.close()
+    with UsageLog(db) as log:
+        log.start_run(scenario="appended")
+    assert len(read_table(open_log_readonly(db), "runs")[1]) == 1
 
 
 WRITER = textwrap.dedent("""
