@@ -160,7 +160,9 @@ def calibrate(base: ParameterSet, targets: Sequence[ClaimTarget], free: Sequence
             return np.full(len(targets) + 3, 1e3)
         r = [tg.weight * math.log(max(figs.value(tg.name), 1e-300) / tg.value) for tg in targets]
         zetas = ([*list(figs.damping_ratios), 1.0, 1.0, 1.0])[:3]
-        r += [100.0 * max(0.0, math.log(min_damping_ratio / max(z, 1e-12))) for z in zetas]
+        # the soft damping floor (none at min_damping_ratio = 0, a documented value: log(0) is undefined)
+        r += [100.0 * max(0.0, math.log(min_damping_ratio / max(z, 1e-12))) if min_damping_ratio > 0 else 0.0
+              for z in zetas]
         r = np.array(r)
         cost = float(0.5 * r @ r)
         history.append(cost)

@@ -1,0 +1,105 @@
+"""Property-based end-to-end tests of ``shm campaign`` and ``shm campaign-roc`` (issue 15): valid combinations of
+MBITs, ranges, run counts, seeds, signs, deviated parameters, noise and batch sizes run in-process; the campaign
+must exit 0, write every promised file readable, print one JSON document with --json, and produce its figures with
+no numpy/matplotlib warning. ``shm campaign`` works for every n from 1 to 500 (drawn here; exhaustively in
+``make fuzz``). Profiles and helpers: ``tests/cli_properties_support.py``."""
+
+from __future__ import annotations
+
+import itertools
+import json
+import tempfile
+from pathlib import Path
+
+import pytest
+from cli_properties_support import FUZZ, assert_ok, assert_readable, examples, floats, seeds, shm
+from hypothesis import example, given
+from hypothesis import strategies as st
+
+#: files `shm campaign` promises (docstring of shm_cli.campaign_cmd)
+NUMBERS = ("fig11_table.csv", "fig11_table.md", "paper_comparison.csv", "runs.csv", "traces.npz", "roc.csv",
+           "campaign.json", "manifest.json")
+FIGURES = ("fig11.png", "fig11.svg", "error_traces.png", "roc.png")
+
+
+@st.composite
+def range_specs(draw) -> str:
+    """--ranges in the three documented forms (percent, 0 <= lo < hi; deviations of at most 90 %)."""
+    form = draw(st.sampled_from(["grid", "single", "list"]))
+    if form == "grid":
+        step = draw(st.sampled_from([5, 10, 15, 20, 25]))
+        start = step * draw(st.integers(0, min(3, 90 // step - 1)))
+        count = draw(st.integers(1, min(4, (90 - start) // step)))
+        return f"{start}:{start + count * step}:{step}"
+    if form == "single":
+        lo = draw(st.integers(0, 80))
+        return f"{lo}:{draw(st.integers(lo + 1, 90))}"
+    edges = sorted(draw(st.lists(st.integers(0, 90), min_size=2, max_size=5, unique=True)))
+    pairs = [f"{a}-{b}" for a, b in itertools.pairwise(edges)]
+    return ",".join(draw(st.lists(st.sampled_from(pairs), min_size=1, max_size=len(pairs), unique=True)))
+
+
+def _check_campaign(out: Path, run, figures: bool) -> dict:
+    summary = assert_ok(run, json_out=True)
+    assert summary["complete"] is True and summary["integration_failures"] == 0
+    for name in NUMBERS + (FIGURES if figures else ()):
+        assert_readable(out / name)
+    stored = json.loads((out / "campaign.json").read_text())
+    assert stored["summary"] == summary["summary"]
+    assert stored["figures"] == ("written" if figures else "skipped (--no-figures)")
+    for row in summary["summary"]:
+        assert 0 <= row["n_detected"] <= row["n_runs"]
+        if row["probability"] is not None:
+            assert row["ci95_low"] <= row["probability"] <= row["ci95_high"], row
+    return summary
+
+
+@examples(fast=3, fuzz_factor=0.5)
+@given(mbit=st.sampled_from(["a", "b", "both"]), ranges=range_specs(), n=st.integers(1, 60), seed=seeds,
+       sign=st.sampled_from(["both", "minus", "plus"]),
+       deviate=st.lists(st.sampled_from(["k3", "alpha_h", "beta_h", "k1", "c3"]), min_size=1, max_size=3,
+                        unique=True),
+       noise_um=st.one_of(st.just(0.0), floats(0.1, 5.0)), batch=st.integers(1, 40), figures=st.booleans(),
+       params=st.sampled_from(["table2", "calibrated"]))
+def test_campaign_any_valid_options(mbit, ranges, n, seed, sign, deviate, noise_um, batch, figures, params):
+    with tempfile.TemporaryDirectory(prefix="shm-prop-campaign-") as tmp:
+        out = Path(tmp) / "c"
+        argv = ["campaign", "--mbit", mbit, "--ranges", ranges, "--n", n, "--seed", seed, "--sign", sign,
+                "--deviate", ",".join(deviate), "--noise-um", noise_um, "--batch-size", max(batch, n // 10),
+                "--params", params, "--workers", "1", "--no-progress", "--json", "--out", out]
+        if not figures:
+            argv.append("--no-figures")
+        run = shm(*argv)
+        summary = _check_campaign(out, run, figures)
+        keys = {"a": ["a"], "b": ["b"], "both": ["a", "b"]}[mbit]
+        assert {r["mbit"] for r in summary["summary"]} >= set(keys)
+        # the ROC view over the stored traces, with grids of the documented forms
+        roc = shm("campaign-roc", "--from", out, "--eps-th", "0.05:0.5:0.05", "--count-max", "25,100,300",
+                  "--json", "--out", Path(tmp) / "roc")
+        doc = assert_ok(roc, json_out=True)
+        assert doc["roc"] and Path(doc["files"]["roc_csv"]).exists()
+        assert_readable(Path(tmp) / "roc" / "roc.png")
+
+
+@examples(fast=1, fuzz_factor=0.5)
+@given(n=st.integers(1, 500), seed=seeds)
+@example(n=60, seed=1)  # issue 15: --n 60 --seed 1 ended "'yerr' must not contain negative values"
+@example(n=40, seed=1)
+def test_campaign_works_for_every_n_up_to_500(n, seed):
+    """Both edges of the interval arithmetic (a range where nothing is detected and one where everything is),
+    with the Fig. 11 figure drawn."""
+    with tempfile.TemporaryDirectory(prefix="shm-prop-campaign-n-") as tmp:
+        out = Path(tmp) / "c"
+        run = shm("campaign", "--mbit", "a", "--ranges", "0-10,40-50", "--n", n, "--seed", seed, "--workers", "1",
+                  "--batch-size", max(25, n // 4), "--no-progress", "--json", "--out", out)
+        _check_campaign(out, run, figures=True)
+
+
+if FUZZ:  # exhaustive n = 1..500 only in `make fuzz` (SHM_CLI_FUZZ=1): about 1 s per n
+    @pytest.mark.parametrize("n", range(1, 501))
+    def test_campaign_every_n_exhaustively(n):
+        with tempfile.TemporaryDirectory(prefix="shm-prop-campaign-every-n-") as tmp:
+            out = Path(tmp) / "c"
+            run = shm("campaign", "--mbit", "a", "--ranges", "0-10,40-50", "--n", n, "--seed", 1, "--workers", "1",
+                      "--batch-size", max(25, n // 4), "--no-progress", "--json", "--out", out)
+            _check_campaign(out, run, figures=True)
