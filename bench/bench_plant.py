@@ -1,18 +1,38 @@
-"""Plant benchmark: one 20 s MBIT.a-like run and a batch of 1000 runs with deviated (k3, alpha_h, beta_h),
-against the baseline a user would write — scipy ``solve_ivp(LSODA)`` on a plain-Python right-hand side, in a loop,
-one trajectory at a time — measured in the same run. Accuracy is checked against solve_ivp at rtol 1e-9."""
+"""Plant benchmark: one 20 s MBIT.a-like run and a batch of 1000 runs with deviated (k3, alpha_h, beta_h).
+
+Every figure is a ratio against a baseline timed in the same run, on the same inputs and tolerances:
+
+* the integrator as it was before issue 14 (:mod:`bench.integrator_before`: elementary step-size control),
+  compiled from its source beside the current one — before/after batch time, steps and rejection rates;
+* numbalsoda (LSODA in Fortran, called from a numba ``prange`` loop on the same compiled right-hand side; the
+  optional extra ``mfc-shm[bench]``, which needs gfortran) — skipped with the reason when it is not installed;
+* the floor: a bare Dormand–Prince step of this 12-state model (a minimal numba loop calling the same compiled
+  right-hand side, fixed step, no error control, no output), against our cost per attempted step;
+* the baseline a user would write: scipy ``solve_ivp(LSODA)`` on a plain-Python right-hand side, one trajectory
+  at a time.
+
+The machine may be shared: the load average is recorded before and after, and each timing is the best of a few
+repetitions (interleaved between the integrators compared). Accuracy is checked against solve_ivp at rtol 1e-9.
+"""
 
 from __future__ import annotations
 
+import os
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.integrate import solve_ivp
 
+import plant.integrate as tableau
+from bench.integrator_before import INTEGRATOR_SOURCE_BEFORE
 from board_config import load_parameter_set
 from plant import PlantModel, sine_drive
 from plant.reference import make_solve_ivp_rhs
+
+RTOL = 1e-6
 
 
 def _baseline_run(prm: dict, inp, t_out: np.ndarray, rtol: float) -> tuple[np.ndarray, float]:
@@ -26,15 +46,174 @@ def _baseline_run(prm: dict, inp, t_out: np.ndarray, rtol: float) -> tuple[np.nd
     return r.y[0] + r.y[1] + r.y[2], wall
 
 
+def _best_of(fns: dict[str, Callable[[], Any]], repeats: int) -> tuple[dict[str, float], dict[str, Any]]:
+    """Best wall time of each function over ``repeats`` interleaved rounds, and its last result."""
+    best = {k: float("inf") for k in fns}
+    last: dict[str, Any] = {}
+    for _ in range(repeats):
+        for k, fn in fns.items():
+            t0 = time.perf_counter()
+            last[k] = fn()
+            best[k] = min(best[k], time.perf_counter() - t0)
+    return best, last
+
+
+def _bare_step_kernel():
+    """A minimal fixed-step Dormand–Prince loop (6 right-hand sides per step, FSAL) around a compiled ``rhs``."""
+    import numba
+
+    a21, a31, a32 = tableau._A21, tableau._A31, tableau._A32
+    a41, a42, a43 = tableau._A41, tableau._A42, tableau._A43
+    a51, a52, a53, a54 = tableau._A51, tableau._A52, tableau._A53, tableau._A54
+    a61, a62, a63, a64, a65 = tableau._A61, tableau._A62, tableau._A63, tableau._A64, tableau._A65
+    b1, b3, b4, b5, b6 = tableau._B1, tableau._B3, tableau._B4, tableau._B5, tableau._B6
+    c2, c3, c4, c5 = tableau._C2, tableau._C3, tableau._C4, tableau._C5
+
+    @numba.njit(nogil=True, error_model="numpy")
+    def bare(rhs, x0, p, u, n_bus, h, n_steps):  # pragma: no cover - compiled
+        n = x0.shape[0]
+        x = x0.copy()
+        bus = np.zeros(n_bus)
+        k1 = np.zeros(n)
+        k2 = np.zeros(n)
+        k3 = np.zeros(n)
+        k4 = np.zeros(n)
+        k5 = np.zeros(n)
+        k6 = np.zeros(n)
+        xt = np.zeros(n)
+        t = 0.0
+        rhs(t, x, p, u, bus, k1)
+        for _ in range(n_steps):
+            for k in range(n):
+                xt[k] = x[k] + h * a21 * k1[k]
+            rhs(t + c2 * h, xt, p, u, bus, k2)
+            for k in range(n):
+                xt[k] = x[k] + h * (a31 * k1[k] + a32 * k2[k])
+            rhs(t + c3 * h, xt, p, u, bus, k3)
+            for k in range(n):
+                xt[k] = x[k] + h * (a41 * k1[k] + a42 * k2[k] + a43 * k3[k])
+            rhs(t + c4 * h, xt, p, u, bus, k4)
+            for k in range(n):
+                xt[k] = x[k] + h * (a51 * k1[k] + a52 * k2[k] + a53 * k3[k] + a54 * k4[k])
+            rhs(t + c5 * h, xt, p, u, bus, k5)
+            for k in range(n):
+                xt[k] = x[k] + h * (a61 * k1[k] + a62 * k2[k] + a63 * k3[k] + a64 * k4[k] + a65 * k5[k])
+            rhs(t + h, xt, p, u, bus, k6)
+            for k in range(n):
+                x[k] = x[k] + h * (b1 * k1[k] + b3 * k3[k] + b4 * k4[k] + b5 * k5[k] + b6 * k6[k])
+            t += h
+            rhs(t, x, p, u, bus, k1)
+        return x
+
+    return bare
+
+
+def _bare_step_cost_s(model: PlantModel, repeats: int, n_steps: int) -> float:
+    """Seconds per bare Dormand–Prince step of the model (one thread, best of ``repeats``)."""
+    from plant import layout as L
+
+    bare = _bare_step_kernel()
+    rhs = model.kernels().rhs
+    x0 = np.zeros(model.n_states)
+    x0[0] = 1e-4
+    u = np.array([300.0, -300.0, 0.0])
+    p = np.ascontiguousarray(model.p_nominal)
+    bare(rhs, x0, p, u, L.N_BUS, 4e-3, 10)  # compile
+    best = float("inf")
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        bare(rhs, x0, p, u, L.N_BUS, 4e-3, n_steps)
+        best = min(best, time.perf_counter() - t0)
+    return best / n_steps
+
+
+def _numbalsoda_batch(model: PlantModel) -> Callable[[np.ndarray, Any, np.ndarray, float], np.ndarray]:
+    """A batch runner on numbalsoda: LSODA (Fortran) per member in a numba ``prange`` loop, calling the same
+    compiled right-hand side through a C callback. LSODA takes one scalar absolute tolerance, so it integrates
+    the state divided by the model's state scales (same per-state tolerances as ours). Raises ImportError."""
+    import numba
+    from numbalsoda import lsoda, lsoda_sig
+
+    from plant import layout as L
+
+    rhs = model.kernels().rhs
+    n = model.n_states
+    n_p = len(model.param_names)
+    n_bus = L.N_BUS
+    # data row: [u_t0, u_dt, n_samples, params (n_p), scales (n), x (n), dx (n), bus (n_bus), uvec (3), u (m*3)]
+    o_p = 3
+    o_s = o_p + n_p
+    o_x = o_s + n
+    o_dx = o_x + n
+    o_bus = o_dx + n
+    o_u = o_bus + n_bus
+    o_samples = o_u + 3
+
+    @numba.cfunc(lsoda_sig)
+    def f(t, xs_ptr, dxs_ptr, data_ptr):  # pragma: no cover - compiled
+        xs = numba.carray(xs_ptr, (n,))
+        dxs = numba.carray(dxs_ptr, (n,))
+        d = numba.carray(data_ptr, (o_samples,))
+        m = int(d[2])
+        samples = numba.carray(data_ptr, (o_samples + 3 * m,))
+        x = d[o_x:o_dx]
+        dx = d[o_dx:o_bus]
+        uvec = d[o_u:o_samples]
+        for k in range(n):
+            x[k] = xs[k] * d[o_s + k]
+        s = (t - d[0]) / d[1]
+        if s <= 0.0:
+            i = 0
+            fr = 0.0
+        elif s >= m - 1:
+            i = m - 2
+            fr = 1.0
+        else:
+            i = int(s)
+            fr = s - i
+        for k in range(3):
+            uvec[k] = samples[o_samples + 3 * i + k] * (1.0 - fr) + samples[o_samples + 3 * (i + 1) + k] * fr
+        rhs(t, x, d[o_p:o_s], uvec, d[o_bus:o_u], dx)
+        for k in range(n):
+            dxs[k] = dx[k] / d[o_s + k]
+
+    fptr = f.address
+
+    @numba.njit(parallel=True)
+    def run_all(x0s, t_out, data, rtol, atol, z3):  # pragma: no cover - compiled
+        for b in numba.prange(data.shape[0]):
+            usol, ok = lsoda(fptr, x0s, t_out, data=data[b], rtol=rtol, atol=atol, mxstep=1_000_000)
+            for j in range(t_out.shape[0]):
+                z3[b, j] = (usol[j, 0] * data[b, o_s] + usol[j, 1] * data[b, o_s + 1] + usol[j, 2] * data[b, o_s + 2]
+                            if ok else np.nan)
+
+    def run_batch(pb: np.ndarray, inp, t_out: np.ndarray, rtol: float) -> np.ndarray:
+        m = inp.values.shape[1]
+        data = np.zeros((pb.shape[0], o_samples + 3 * m))
+        data[:, 0], data[:, 1], data[:, 2] = inp.t0, inp.dt, m
+        data[:, o_p:o_s] = pb
+        data[:, o_s:o_x] = model.state_scales
+        data[:, o_samples:] = inp.values[0].reshape(-1)
+        z3 = np.empty((pb.shape[0], t_out.size))
+        run_all(np.zeros(n), np.ascontiguousarray(t_out), data, rtol, rtol, z3)
+        return z3
+
+    return run_batch
+
+
 def run(out_dir: Path, quick: bool) -> dict:
     n_batch = 100 if quick else 1000
     n_baseline = 2 if quick else 5
+    repeats = 2 if quick else 3
+    load_before = os.getloadavg()
     params = load_parameter_set("table2")
     model = PlantModel(params)
+    before = model.with_integrator_source(INTEGRATOR_SOURCE_BEFORE)
     inp = sine_drive(600.0, 0.1, 20.0, dt=1e-3)
     t0 = time.perf_counter()
     model.simulate(sine_drive(1.0, 1.0, 0.05), dt_out=0.01)  # load/compile the kernels
     load_s = time.perf_counter() - t0
+    before.simulate(sine_drive(1.0, 1.0, 0.05), dt_out=0.01)
 
     t0 = time.perf_counter()
     single = model.simulate(inp, dt_out=0.01, threads=1)
@@ -47,52 +226,115 @@ def run(out_dir: Path, quick: bool) -> dict:
     alpha = np.clip(params["alpha_h"] * (1 + dev[:, 1]), 0.0, 1.0)
     beta = params["beta_h"] * (1 + dev[:, 2])
     pb = model.param_batch(k3=k3, alpha_h=alpha, beta_h=beta)
-    t0 = time.perf_counter()
-    batch = model.simulate(inp, dt_out=0.01, params=pb)
-    batch_s = time.perf_counter() - t0
+
+    # the batch: before (previous integrator) and after (current), same inputs, tolerances and threads
+    runners: dict[str, Callable[[], Any]] = {
+        "before": lambda: before.simulate(inp, dt_out=0.01, params=pb, rtol=RTOL),
+        "after": lambda: model.simulate(inp, dt_out=0.01, params=pb, rtol=RTOL),
+    }
+    numbalsoda_skip = ""
+    try:
+        nbl = _numbalsoda_batch(model)
+        nbl(pb[:2], inp, t_out, RTOL)  # compile
+        runners["numbalsoda"] = lambda: nbl(pb, inp, t_out, RTOL)
+    except ImportError as exc:
+        numbalsoda_skip = (f"numbalsoda not installed ({exc}); install the bench extra: pip install -e '.[bench]' "
+                           f"(needs gfortran and cmake)")
+    except Exception as exc:  # a peer failing to build must not stop the benchmark
+        numbalsoda_skip = f"numbalsoda failed: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+    best, last = _best_of(runners, repeats)
+    res_before, res_after = last["before"], last["after"]
+    batch_s = best["after"]
+
+    # per attempted step, one thread, against the bare-step floor (same compiled right-hand side)
+    n_small = 10 if quick else 20
+    per_attempt: dict[str, float] = {}
+    best1, last1 = _best_of({
+        "before": lambda: before.simulate(inp, dt_out=0.01, params=pb[:n_small], threads=1),
+        "after": lambda: model.simulate(inp, dt_out=0.01, params=pb[:n_small], threads=1),
+    }, repeats)
+    for k in best1:
+        per_attempt[k] = best1[k] / float(last1[k].n_steps.sum())
+    bare_s = _bare_step_cost_s(model, repeats, 20_000 if quick else 100_000)
 
     # the user's baseline: LSODA, plain Python rhs, one trajectory at a time (same tolerance as ours: 1e-6)
     base_walls = []
     for i in range(n_baseline):
         prm = dict(params.values, k3=k3[i], alpha_h=alpha[i], beta_h=beta[i])
-        _, w = _baseline_run(prm, inp, t_out, 1e-6)
+        _, w = _baseline_run(prm, inp, t_out, RTOL)
         base_walls.append(w)
     base_per_run = float(np.median(base_walls))
 
     # accuracy: a few batch members against solve_ivp at rtol 1e-9
-    errs = []
+    errs, errs_nbl = [], []
     for i in range(3):
         prm = dict(params.values, k3=k3[i], alpha_h=alpha[i], beta_h=beta[i])
         z_ref, _ = _baseline_run(prm, inp, t_out, 1e-9)
-        errs.append(float(np.max(np.abs(batch["z3"][i] - z_ref)) / np.max(np.abs(z_ref))))
+        errs.append(float(np.max(np.abs(res_after["z3"][i] - z_ref)) / np.max(np.abs(z_ref))))
+        if "numbalsoda" in last:
+            errs_nbl.append(float(np.max(np.abs(last["numbalsoda"][i] - z_ref)) / np.max(np.abs(z_ref))))
 
+    def steps(r) -> tuple[float, float, float]:
+        att = float(r.n_steps.sum())
+        rej = float(r.n_rejected.sum())
+        return att / n_batch, (att - rej) / n_batch, rej / att
+
+    att_b, acc_b, rej_b = steps(res_before)
+    att_a, acc_a, rej_a = steps(res_after)
     throughput = n_batch / batch_s
-    res = {
+    res: dict[str, Any] = {
+        "load_average_before": list(load_before),
+        "timing": f"best of {repeats} interleaved repetitions on a possibly shared machine",
         "kernel_load_s": load_s,
         "single_mbit_a_20s_wall_s": single_s,
         "single_ratio_vs_lsoda": base_per_run / single_s,
         "batch_size": n_batch,
+        "batch_wall_s_before": best["before"],
         "batch_wall_s": batch_s,
+        "batch_speedup_vs_before": best["before"] / batch_s,
+        "attempted_steps_per_run_before": att_b,
+        "attempted_steps_per_run": att_a,
+        "accepted_steps_per_run_before": acc_b,
+        "accepted_steps_per_run": acc_a,
+        "rejection_rate_before": rej_b,
+        "rejection_rate": rej_a,
+        "us_per_attempt_before_1thread": per_attempt["before"] * 1e6,
+        "us_per_attempt_1thread": per_attempt["after"] * 1e6,
+        "us_bare_dopri_step_1thread": bare_s * 1e6,
+        "per_attempt_over_bare_step": per_attempt["after"] / bare_s,
         "batch_throughput_runs_per_s": throughput,
         "baseline_lsoda_per_run_s": base_per_run,
         "baseline_runs_timed": n_baseline,
         "baseline_throughput_runs_per_s": 1.0 / base_per_run,
         "batch_throughput_ratio_vs_lsoda": throughput * base_per_run,
         "accuracy_worst_rel_err_z3_vs_rtol1e-9": max(errs),
-        "batch_all_ok": bool(batch.ok),
-        "mean_steps_per_run": float(np.mean(batch.n_steps)),
+        "batch_all_ok": bool(res_after.ok),
+        "mean_steps_per_run": float(np.mean(res_after.n_steps)),
     }
+    if "numbalsoda" in best:
+        res["numbalsoda_batch_wall_s"] = best["numbalsoda"]
+        res["numbalsoda_over_ours"] = best["numbalsoda"] / batch_s
+        res["numbalsoda_accuracy_worst_rel_err_z3_vs_rtol1e-9"] = max(errs_nbl)
+    else:
+        res["numbalsoda_skipped"] = numbalsoda_skip
+    res["load_average_after"] = list(os.getloadavg())
     try:
         import matplotlib
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
 
-        fig, ax = plt.subplots(figsize=(6, 3.5))
-        ax.bar(["solve_ivp LSODA\n(one at a time)", "mfc-shm batch"], [1.0 / base_per_run, throughput])
+        labels = ["solve_ivp LSODA\n(one at a time)", "before\n(issue 14)", "mfc-shm batch"]
+        values = [1.0 / base_per_run, n_batch / best["before"], throughput]
+        if "numbalsoda" in best:
+            labels.insert(1, "numbalsoda\n(prange)")
+            values.insert(1, n_batch / best["numbalsoda"])
+        fig, ax = plt.subplots(figsize=(7, 3.5))
+        ax.bar(labels, values)
         ax.set_yscale("log")
         ax.set_ylabel("20 s MBIT.a runs per second")
-        ax.set_title(f"Plant throughput: {res['batch_throughput_ratio_vs_lsoda']:.0f}x baseline")
+        ax.set_title(f"Plant throughput: {res['batch_throughput_ratio_vs_lsoda']:.0f}x solve_ivp, "
+                     f"{res['batch_speedup_vs_before']:.2f}x before")
         fig.tight_layout()
         fig.savefig(out_dir / "plant_throughput.png", dpi=110)
         plt.close(fig)

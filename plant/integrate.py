@@ -52,6 +52,20 @@ class IntegrationStatus(IntEnum):
         }[int(self)]
 
 
+# Step-size control: Gustafsson's PI controller as in Hairer's DOPRI5 (Hairer, Nørsett & Wanner, Solving ODE I,
+# Sec. II.4 and IV.2): h_new = h · clip(SAFE · err^(-PI_ALPHA) · err_prev^(PI_BETA), GROW_MIN, GROW_MAX) with
+# PI_ALPHA = 1/5 − 0.75 PI_BETA. The β term damps the step-size oscillation an elementary controller
+# (β = 0) shows at the stability limit of an explicit method (here the 102 Hz mode): fewer rejected steps
+# at the same tolerance. No growth right after a rejection; a rejected step shrinks by SAFE · err^(-PI_ALPHA)
+# (at least GROW_MIN).
+_SAFE = 0.9
+_PI_BETA = 0.08
+_PI_ALPHA = 0.2 - 0.75 * _PI_BETA
+_GROW_MAX = 5.0
+_GROW_MIN = 0.2
+_LOG_ERR_FLOOR = -9.210340371976182  # log(1e-4): the previous error enters the controller at least as 1e-4
+
+
 INTEGRATOR_SOURCE = r'''
 @numba.njit(cache=CACHE, nogil=True, error_model="numpy")
 def input_at(u, bu, t, u_t0, u_dt, uvec):
@@ -75,6 +89,7 @@ def input_at(u, bu, t, u_t0, u_dt, uvec):
     for k in range(u.shape[2]):
         uvec[k] = u[bu, i, k] * (1.0 - f) + u[bu, i + 1, k] * f
 
+
 @numba.njit(cache=CACHE, nogil=True, error_model="numpy")
 def emit(b, j, t, xo, pb, u, bu, u_t0, u_dt, uvec, bus, dx, yv, y, xs, bs, record_x, record_bus):
     input_at(u, bu, t, u_t0, u_dt, uvec)
@@ -91,27 +106,27 @@ def emit(b, j, t, xo, pb, u, bu, u_t0, u_dt, uvec, bus, dx, yv, y, xs, bs, recor
 
 @numba.njit(cache=CACHE, nogil=True, error_model="numpy")
 def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
-        y, xs, bs, record_x, record_bus, status, nsteps):
+        y, xs, bs, record_x, record_bus, status, nsteps, nrej, w, bus, uvec, yv):
+    # w: (12, N_STATES) work rows, allocated once per chunk (no allocation per member or per step)
     n = N_STATES
     bu = np.int64(0)
     if u.shape[0] > 1:
         bu = np.int64(b)
-    x = x0[b].copy()
+    x = w[0]
+    k1 = w[1]
+    k2 = w[2]
+    k3 = w[3]
+    k4 = w[4]
+    k5 = w[5]
+    k6 = w[6]
+    k7 = w[7]
+    xt = w[8]
+    xn = w[9]
+    xo = w[10]
+    dx = w[11]
+    for k in range(n):
+        x[k] = x0[b, k]
     pb = p[b]
-    bus = np.zeros(N_BUS)
-    dx = np.zeros(n)
-    uvec = np.zeros(u.shape[2])
-    k1 = np.zeros(n)
-    k2 = np.zeros(n)
-    k3 = np.zeros(n)
-    k4 = np.zeros(n)
-    k5 = np.zeros(n)
-    k6 = np.zeros(n)
-    k7 = np.zeros(n)
-    xt = np.zeros(n)
-    xn = np.zeros(n)
-    xo = np.zeros(n)
-    yv = np.zeros(y.shape[2])
     nout = t_out.shape[0]
     t = t_out[0]
     t_end = t_out[nout - 1]
@@ -119,7 +134,10 @@ def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
     input_at(u, bu, t, u_t0, u_dt, uvec)
     rhs(t, x, pb, uvec, bus, k1)
     h = min(h_max, 1e-4)
+    log_err_prev = _LOG_ERR_FLOOR
+    after_reject = False
     steps = 0
+    rejected = 0
     code = 0
     j = 1
     while j < nout:
@@ -155,24 +173,26 @@ def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
         for k in range(n):
             xn[k] = x[k] + h_use * (_B1 * k1[k] + _B3 * k3[k] + _B4 * k4[k] + _B5 * k5[k] + _B6 * k6[k])
         rhs(t_new, xn, pb, uvec, bus, k7)
-        err = 0.0
-        finite = True
+        err2 = 0.0
+        total = 0.0
         for k in range(n):
             e = h_use * (_E1 * k1[k] + _E3 * k3[k] + _E4 * k4[k] + _E5 * k5[k] + _E6 * k6[k] + _E7 * k7[k])
-            sc = atol[k] + rtol * max(abs(x[k]), abs(xn[k]))
-            r = e / sc
-            err += r * r
-            if not np.isfinite(xn[k]):
-                finite = False
-        err = np.sqrt(err / n)
+            r = e / (atol[k] + rtol * max(abs(x[k]), abs(xn[k])))
+            err2 += r * r
+            total += xn[k]
+        err2 = err2 / n
         steps += 1
-        if not finite or not np.isfinite(err):
+        if not (np.isfinite(total) and np.isfinite(err2)):
+            # a non-finite state anywhere makes the sum non-finite (one test instead of one per state)
+            rejected += 1
             if h_use <= h_min:
                 code = 1
                 break
-            h = h_use * 0.2
+            h = h_use * _GROW_MIN
+            after_reject = True
             continue
-        if err <= 1.0:
+        log_err = 0.5 * np.log(max(err2, 1e-300))
+        if err2 <= 1.0:
             # dense output (4th order, Dormand-Prince) for every output time inside (t, t_new]
             while j < nout and t_out[j] <= t_new + 1e-12 * abs(t_new):
                 th = (t_out[j] - t) / h_use
@@ -199,14 +219,22 @@ def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
             for k in range(n):
                 x[k] = xn[k]
                 k1[k] = k7[k]
-            fac = 5.0 if err == 0.0 else min(5.0, max(0.2, 0.9 * err ** -0.2))
+            # PI controller (Gustafsson; Hairer's DOPRI5)
+            fac = _SAFE * np.exp(_PI_BETA * log_err_prev - _PI_ALPHA * log_err)
+            fac = min(_GROW_MAX, max(_GROW_MIN, fac))
+            if after_reject and fac > 1.0:
+                fac = 1.0
+            after_reject = False
+            log_err_prev = max(log_err, _LOG_ERR_FLOOR)
             if last:
                 h = max(h, h_use * fac)
             else:
                 h = h_use * fac
             h = min(h, h_max)
         else:
-            h = h_use * max(0.2, 0.9 * err ** -0.25)
+            rejected += 1
+            after_reject = True
+            h = h_use * max(_GROW_MIN, _SAFE * np.exp(-_PI_ALPHA * log_err))
             if h < h_min:
                 code = 2
                 break
@@ -227,18 +255,34 @@ def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
                 xs[b, nout - 1, k] = x[k]
     status[b] = code
     nsteps[b] = steps
+    nrej[b] = rejected
+
+
+@numba.njit(cache=CACHE, nogil=True, error_model="numpy")
+def run_chunk_stats(lo, hi, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
+                    y, xs, bs, record_x, record_bus, status, nsteps, nrej):
+    # nsteps[b]: attempted steps of member b; nrej[b]: of which rejected
+    w = np.empty((12, N_STATES))
+    bus = np.zeros(N_BUS)
+    uvec = np.zeros(u.shape[2])
+    yv = np.zeros(y.shape[2])
+    for b in range(lo, hi):
+        one(np.int64(b), x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
+            y, xs, bs, record_x, record_bus, status, nsteps, nrej, w, bus, uvec, yv)
 
 
 @numba.njit(cache=CACHE, nogil=True, error_model="numpy")
 def run_chunk(lo, hi, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
               y, xs, bs, record_x, record_bus, status, nsteps):
-    for b in range(lo, hi):
-        one(np.int64(b), x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
-            y, xs, bs, record_x, record_bus, status, nsteps)
+    nrej = np.empty(max(hi, 1), dtype=np.int64)
+    run_chunk_stats(lo, hi, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
+                    y, xs, bs, record_x, record_bus, status, nsteps, nrej)
 
 '''
 
 
-#: names of the tableau constants the generated integrator module imports from here
-TABLEAU_NAMES: tuple[str, ...] = tuple(n for n in list(globals()) if n.startswith(("_A", "_B", "_C", "_E", "_P"))
-                                       and n[2:].isdigit())
+#: names of the constants (tableau and step-size controller) the generated integrator module imports from here
+TABLEAU_NAMES: tuple[str, ...] = (
+    *(n for n in list(globals()) if n.startswith(("_A", "_B", "_C", "_E", "_P")) and n[2:].isdigit()),
+    "_SAFE", "_PI_BETA", "_PI_ALPHA", "_GROW_MAX", "_GROW_MIN", "_LOG_ERR_FLOOR",
+)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import os
 from collections.abc import Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
@@ -44,11 +45,12 @@ class SimulationResult:
     output_names: tuple[str, ...]
     output_units: tuple[str, ...]
     status: np.ndarray
-    n_steps: np.ndarray
+    n_steps: np.ndarray  # attempted integration steps per batch member (accepted + rejected)
     states: np.ndarray | None = None
     state_names: tuple[str, ...] = ()
     bus: np.ndarray | None = None
     meta: dict[str, Any] = field(default_factory=dict)
+    n_rejected: np.ndarray | None = None  # of the attempted steps, how many the error control rejected
 
     def __getitem__(self, name: str) -> np.ndarray:
         """Output (or, if recorded, state) ``name`` as an array of shape (batch, time)."""
@@ -177,14 +179,28 @@ class PlantModel:
         self.n_states = len(self.state_names)
         self.n_outputs = len(self.output_names)
         self._kernel_module: ModuleType | None = None
+        self._integrator_source: str | None = None
 
     # --- composition ------------------------------------------------------------------------------
     def kernels(self) -> ModuleType:
         """The compiled kernel module (``rhs``, ``out``, ``run_chunk``); built or loaded on first use."""
         if self._kernel_module is None:
             s_off, p_off, y_off = self._offsets
-            self._kernel_module = compose(self.effects, s_off, p_off, y_off, self.n_states)
+            if self._integrator_source is None:
+                self._kernel_module = compose(self.effects, s_off, p_off, y_off, self.n_states)
+            else:
+                self._kernel_module = compose(self.effects, s_off, p_off, y_off, self.n_states,
+                                              integrator_source=self._integrator_source)
         return self._kernel_module
+
+    def with_integrator_source(self, source: str) -> PlantModel:
+        """The same model with another batch-integrator source (same ``run_chunk``/``run_chunk_stats``
+        signatures as :data:`plant.integrate.INTEGRATOR_SOURCE`); the benchmark uses it to time the previous
+        integrator against the current one in the same run."""
+        other = copy.copy(self)
+        other._integrator_source = source
+        other._kernel_module = None
+        return other
 
     @property
     def effect_names(self) -> tuple[str, ...]:
@@ -289,15 +305,16 @@ class PlantModel:
                           np.broadcast_to(np.asarray(atol, float), (self.n_states,)), dtype=float, order="C")
         if h_max is None:
             h_max = DEFAULT_H_MAX
-        run_chunk = self.kernels().run_chunk
+        run_chunk = self.kernels().run_chunk_stats
         y = np.empty((batch, t_out.size, self.n_outputs))
         xs = np.empty((batch, t_out.size, self.n_states)) if record_states else np.empty((1, 1, 1))
         bs = np.empty((batch, t_out.size, L.N_BUS)) if record_bus else np.empty((1, 1, 1))
         status = np.zeros(batch, dtype=np.int64)
         nsteps = np.zeros(batch, dtype=np.int64)
+        nrej = np.zeros(batch, dtype=np.int64)
         u = np.array(inputs.values, dtype=float, order="C")
         args = (xs0, p, u, float(inputs.t0), float(inputs.dt), t_out, float(rtol), atol_v, float(h_max), 1e-14,
-                int(max_steps), y, xs, bs, bool(record_states), bool(record_bus), status, nsteps)
+                int(max_steps), y, xs, bs, bool(record_states), bool(record_bus), status, nsteps, nrej)
         n_threads = min(threads or default_threads(), batch)
         if n_threads <= 1:
             run_chunk(0, batch, *args)
@@ -309,6 +326,7 @@ class PlantModel:
             t=t_out, y=y, output_names=self.output_names, output_units=self.output_units, status=status,
             n_steps=nsteps, states=xs if record_states else None, state_names=self.state_names,
             bus=bs if record_bus else None, meta={"effects": self.effect_names, "params": self.params.name},
+            n_rejected=nrej,
         )
 
     def describe(self) -> dict[str, Any]:

@@ -1,0 +1,124 @@
+"""The batch integrator (Dormand–Prince 5(4) with a PI step-size controller): properties of the algorithm, not
+timings — rejection rate and step size at the stability limit of the 102 Hz mode, tolerance proportionality,
+accuracy against solve_ivp, the direct ``run_chunk`` entry point (rig, stepper, observer) equal to ``simulate``,
+and a changed controller constant reaching the compiled-kernel cache key."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+import plant.integrate as integrate
+from plant import PlantModel, sine_drive, step_drive
+from plant.compose import generate_source
+from plant.linear import linearise
+from plant.reference import make_solve_ivp_rhs
+
+
+def _dopri5_stability(z: complex) -> float:
+    """|R(z)| of the 5th-order Dormand–Prince solution: Σ_{k≤5} z^k/k! + z^6/600."""
+    return abs(sum(z**k / math.factorial(k) for k in range(6)) + z**6 / 600.0)
+
+
+def _stable_step_limit(model: PlantModel, p: np.ndarray) -> float:
+    """Largest h with |R(hλ)| ≤ 1 for the fastest eigenvalue λ of the linearisation at rest (s)."""
+    lam = max(np.linalg.eigvals(linearise(model, params=p).A), key=abs)
+    lo, hi = 0.0, 10.0 / abs(lam)
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if _dopri5_stability(mid * lam) <= 1.0 else (lo, mid)
+    return lo
+
+
+@pytest.fixture(scope="module")
+def mbit_batch(table2_model):
+    rng = np.random.default_rng(11)
+    dev = rng.uniform(-0.4, 0.4, size=(4, 3))
+    p = table2_model.param_batch(k3=21.28 * (1 + dev[:, 0]), alpha_h=0.605 * (1 + dev[:, 1]),
+                                 beta_h=8.307 * (1 + dev[:, 2]))
+    inp = sine_drive(600.0, 0.1, 10.0, dt=1e-3)
+    return p, inp, table2_model.simulate(inp, dt_out=0.01, params=p, threads=1)
+
+
+def test_few_rejections_and_steps_at_the_stability_limit(table2_model, mbit_batch):
+    """At the stability limit of the 102 Hz mode the PI controller neither oscillates (few rejected attempts)
+    nor hides below the limit (mean accepted step close to the largest stable Dormand–Prince step)."""
+    p, inp, res = mbit_batch
+    assert res.ok
+    assert np.all(res.n_rejected <= res.n_steps)
+    rate = res.n_rejected.sum() / res.n_steps.sum()
+    assert rate < 0.08  # the elementary controller (before issue 14) rejected ~28 % here
+    for b in range(p.shape[0]):
+        accepted = res.n_steps[b] - res.n_rejected[b]
+        mean_step = (inp.t[-1] - inp.t[0]) / accepted
+        limit = _stable_step_limit(table2_model, p[b])
+        assert 0.85 * limit < mean_step < 1.02 * limit
+
+
+def test_error_falls_with_the_tolerance(table2_model, table2_params):
+    """Error control works: on the 300 V step (accuracy-limited ringing, not stability-limited), tightening
+    rtol by 100x lowers the error against a tight reference by > 10x."""
+    inp = step_drive(300.0, 0.6, t_step=0.1)
+    f = make_solve_ivp_rhs(dict(table2_params.values), inp.t, inp.values[0])
+    t_eval = np.arange(61) * 0.01
+    ref = solve_ivp(f, (0.0, 0.6), np.zeros(12), method="LSODA", rtol=1e-11, atol=1e-15, t_eval=t_eval,
+                    max_step=5e-4)
+    z_ref = ref.y[0] + ref.y[1] + ref.y[2]
+    errs = []
+    for rtol in (1e-4, 1e-6):
+        res = table2_model.simulate(inp, dt_out=0.01, rtol=rtol)
+        errs.append(np.max(np.abs(res["z3"][0] - z_ref)) / np.max(np.abs(z_ref)))
+    assert errs[1] < errs[0] / 10
+
+
+def test_deviated_member_matches_solve_ivp_rtol_1e9(table2_model, table2_params, mbit_batch):
+    p, inp, res = mbit_batch
+    names = table2_model.param_names
+    prm = dict(table2_params.values, **{n: p[0, names.index(n)] for n in ("k3", "alpha_h", "beta_h")})
+    f = make_solve_ivp_rhs(prm, inp.t, inp.values[0])
+    ref = solve_ivp(f, (0.0, 10.0), np.zeros(12), method="LSODA", rtol=1e-9, atol=1e-13, t_eval=res.t,
+                    max_step=2e-3)
+    z_ref = ref.y[0] + ref.y[1] + ref.y[2]
+    assert np.max(np.abs(res["z3"][0] - z_ref)) / np.max(np.abs(z_ref)) < 1e-4
+
+
+def test_run_chunk_entry_point_equals_simulate(table2_model):
+    """The rig, stepper and observer call ``run_chunk`` directly (no rejection counts): same numbers."""
+    inp = sine_drive(300.0, 2.0, 1.0, dt=1e-3)
+    ref = table2_model.simulate(inp, dt_out=0.01, record_states=True)
+    k = table2_model.kernels()
+    n_out = ref.t.size
+    y = np.empty((1, n_out, table2_model.n_outputs))
+    xs = np.empty((1, n_out, table2_model.n_states))
+    status = np.zeros(1, dtype=np.int64)
+    nsteps = np.zeros(1, dtype=np.int64)
+    atol = np.ascontiguousarray(table2_model.state_scales * 1e-6)
+    k.run_chunk(0, 1, np.zeros((1, 12)), table2_model.p_nominal[None].copy(), inp.values, inp.t0, inp.dt, ref.t,
+                1e-6, atol, 0.01, 1e-14, 10_000_000, y, xs, np.zeros((1, 1, 1)), True, False, status, nsteps)
+    assert status[0] == 0 and nsteps[0] == ref.n_steps[0]
+    np.testing.assert_array_equal(y, ref.y)
+    np.testing.assert_array_equal(xs, ref.states)
+
+
+def test_dense_output_does_not_steer_the_steps(table2_model):
+    """Output times come from dense output: a 10x denser output grid leaves the steps and the values unchanged
+    (to the dense output's accuracy)."""
+    inp = sine_drive(600.0, 0.5, 2.0, dt=1e-3)
+    coarse = table2_model.simulate(inp, dt_out=0.01)
+    fine = table2_model.simulate(inp, dt_out=0.001)
+    assert coarse.n_steps[0] == fine.n_steps[0]
+    z_fine = fine["z3"][0, ::10]
+    assert np.max(np.abs(z_fine - coarse["z3"][0])) < 1e-6 * np.max(np.abs(coarse["z3"][0]))
+
+
+def test_controller_constants_reach_the_kernel_cache_key(table2_model, monkeypatch):
+    """Numba's disk cache keys on the generated file: the integrator's constants must be in its text, so that
+    changing one recompiles instead of loading stale machine code."""
+    args = (table2_model.effects, *table2_model._offsets, table2_model.n_states, True)
+    before = generate_source(*args)
+    assert f"_PI_BETA = {integrate._PI_BETA!r}" in before
+    monkeypatch.setattr(integrate, "_PI_BETA", integrate._PI_BETA / 2)
+    assert generate_source(*args) != before
