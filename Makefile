@@ -10,7 +10,7 @@ export NUMBA_CACHE_DIR ?= $(HOME)/.cache/mfc-shm/numba
 export MPLBACKEND := Agg
 export PYTHONHASHSEED := 0
 
-.PHONY: setup system-packages run test lint bench clean
+.PHONY: setup system-packages run test lint bench bench-extra clean
 
 setup: $(STAMP) system-packages
 
@@ -42,7 +42,21 @@ lint: setup
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
 
-bench: setup
+# The bench extra (numbalsoda, a peer timed by bench_plant) needs gfortran and cmake. Never fatal: without it the
+# peer is skipped with the reason printed.
+bench-extra:
+	@if ! $(BIN)/python -c "import numbalsoda" >/dev/null 2>&1; then \
+	  if ! command -v gfortran >/dev/null 2>&1 || ! command -v cmake >/dev/null 2>&1; then \
+	    if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
+	      (apt-get update -qq >/dev/null 2>&1; DEBIAN_FRONTEND=noninteractive apt-get install -y -qq gfortran cmake >/dev/null 2>&1) \
+	        || echo "note: could not install gfortran/cmake; bench_plant will skip numbalsoda"; \
+	    fi; \
+	  fi; \
+	  $(BIN)/pip install --quiet -e '.[bench]' >/dev/null 2>&1 \
+	    || echo "note: could not install the bench extra (numbalsoda); bench_plant will skip it"; \
+	fi
+
+bench: setup bench-extra
 	$(BIN)/python -m bench --out $(OUT)/bench
 
 clean:
