@@ -19,6 +19,7 @@ BENCHMARKS: tuple[str, ...] = (
     "bench.bench_compare",
     "bench.bench_diagnose",
     "bench.bench_hidden_effect",
+    "bench.bench_health",
 )
 
 

@@ -15,6 +15,8 @@ kind                   data keys (SI units in the names)
 ``maintenance_verdict`` verdict (PASS / FAULT / INCOMPLETE), mbits, detail
 ``telemetry``          regime, v_battery_V, monitor_count, charge_used_C, incidents_total
 ``mbit_start``         mbit, label (not stored: timeline only)
+``mbit_record``        mbit, label, test, rate_Hz, mbit_ticks, rows of (t s, v_ch1 V, v_ch2 V, z3 m): the completed
+                       MBIT's full-rate record (not stored in the log; ``studies.health.visit_records`` writes it)
 =====================  =====================================================================================
 """
 

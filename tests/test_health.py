@@ -96,3 +96,34 @@ def test_done_when_aging_run_then_health_forecast_holds_the_first_fault(tmp_path
     lo_v, hi_v = f["trip_visits_90"]
     assert lo_v <= first <= hi_v, (f, first)
     assert f["rul_hours"] > 0 and doc["trend"]["alpha_h"]["significant"]
+
+
+def test_prognosis_challenge_fast_subset():
+    """The challenge's fast subset (a linear life that trips, a stable life, a sudden damage): the physics-based
+    forecast holds the true first FAULT visit, the stable laminate shows no trend, the step is placed between the
+    right visits, and the feature-only baseline is scored on the same lives."""
+    from studies.health.challenge import challenge_lives, run_challenge
+
+    res = run_challenge(challenge_lives(full=False), workers=2)
+    s = res.summary
+    assert s["physics"]["lives_scored"] == 1 and s["physics"]["predictions"] >= 2
+    assert s["physics"]["coverage"] >= 0.85
+    assert s["stable_no_trend"] == 1.0 and s["sudden_placed"] == 1.0
+    assert s["baseline"] is not None and s["baseline"]["predictions"] >= 1
+    assert s["physics"]["coverage"] >= s["baseline"]["coverage"]
+
+
+def test_metrics_follow_progpy_definitions():
+    from studies.health.metrics import alpha_lambda, interval_covers, prognostic_horizon
+
+    t_eol = 1000.0
+    times = [400.0, 600.0, 800.0]
+    good = [np.full(100, 1000.0)] * 3
+    far = [np.full(100, 1500.0), np.full(100, 1050.0), np.full(100, 1000.0)]
+    assert alpha_lambda(times, good, t_eol) is True
+    # lambda = 0.5: t_lambda = 700 h -> the prediction at 600 h (1050 h is inside 1000 +- 0.2*400 = +-80 h)
+    assert alpha_lambda(times, far, t_eol) is True
+    assert alpha_lambda(times, [np.full(100, 1200.0)] * 3, t_eol) is False
+    assert prognostic_horizon(times, far, t_eol) == pytest.approx(400.0)
+    assert prognostic_horizon(times, [np.full(100, 2000.0)] * 3, t_eol) is None
+    assert interval_covers([900, 1100], 1000) and not interval_covers([1100, 1200], 1000)
