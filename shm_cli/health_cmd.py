@@ -35,6 +35,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="health parameters to re-estimate (repeatable; default: k3, alpha_h, beta_h — those the "
                         "monitor watches)")
     p.add_argument("--workers", type=int, default=None, help="fit processes (default: CPU count)")
+    p.add_argument("--dask-scheduler", default=None, metavar="ADDRESS",
+                   help="fit the visits on this Dask cluster (as shm campaign; extra mfc-shm[cluster]; the workers "
+                        "must see the record files)")
     p.add_argument("--seed", type=int, default=1, help="seed of the forecast's Monte Carlo (default 1)")
     p.add_argument("--json", action="store_true", help="print one JSON document (also written to DIR/health.json)")
     add_out_arg(p, default="out/health")
@@ -48,13 +51,15 @@ def cmd_health(args: argparse.Namespace) -> int:
 
     if args.as_of is not None and not args.as_of >= 0:
         raise CliError(f"--as-of must be a number of hours >= 0, got {args.as_of!r}")
+    if args.seed < 0:
+        raise CliError(f"--seed must be >= 0, got {args.seed}")
     if args.workers is not None and args.workers < 1:
         raise CliError(f"--workers must be >= 1, got {args.workers}")
     out = out_dir(args.out)
     log = (lambda s: print(s, file=sys.stderr, flush=True)) if args.json else (lambda s: print(s, flush=True))
     t0 = time.perf_counter()
     result = assess_health(args.sources, params=args.params, as_of=args.as_of, free=args.free or None,
-                           workers=args.workers, seed=args.seed, progress=log)
+                           workers=args.workers, seed=args.seed, progress=log, dask_scheduler=args.dask_scheduler)
     result.doc["wall_s"] = time.perf_counter() - t0
     text = four_levels_text(result)
     failed = write_health_outputs(result, out, text)

@@ -39,7 +39,7 @@ class Assessment:
 
 def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: float | None = None,
                   free: Sequence[str] | None = None, workers: int | None = None, seed: int = 1,
-                  progress: Callable[[str], None] | None = None) -> Assessment:
+                  progress: Callable[[str], None] | None = None, dask_scheduler: str | None = None) -> Assessment:
     say = progress or (lambda s: None)
     free = tuple(free) if free else DEFAULT_FREE
     unknown = [f for f in free if f not in HEALTH_PARAMS]
@@ -56,7 +56,7 @@ def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: floa
     say(f"shm health: {len(visits)} visits ({visits[0].operating_hours:g} … {visits[-1].operating_hours:g} h"
         + (f", as of {as_of:g} h; {len(all_visits) - len(visits)} later visits not used" if as_of is not None else "")
         + f"), re-estimating {', '.join(free)} with params {params}")
-    ests = estimate_visits(visits, params, free, workers=workers, progress=say)
+    ests = estimate_visits(visits, params, free, workers=workers, progress=say, dask_scheduler=dask_scheduler)
     hours = [v.operating_hours for v in visits]
     trends: dict[str, Trend] = {}
     for name in free:

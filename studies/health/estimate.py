@@ -104,13 +104,29 @@ def _estimate_job(paths: list[str], params: str, free: tuple[str, ...]) -> dict[
 
 
 def estimate_visits(visits: Sequence[Visit], params: str, free: Sequence[str] = DEFAULT_FREE,
-                    workers: int | None = None, progress: Callable[[str], None] | None = None
-                    ) -> list[dict[str, Any]]:
-    """Every visit's estimates, in visit order (process pool of ``workers``; 1 = in this process)."""
+                    workers: int | None = None, progress: Callable[[str], None] | None = None,
+                    dask_scheduler: str | None = None) -> list[dict[str, Any]]:
+    """Every visit's estimates, in visit order (process pool of ``workers``; 1 = in this process; or the Dask
+    cluster at ``dask_scheduler``, as ``shm campaign --dask-scheduler``: the records are read by the workers, so
+    they need the same file system)."""
     n = workers if workers is not None else min(len(visits), os.cpu_count() or 1)
     free = tuple(free)
     paths = [[str(r.path) for r in v.records] for v in visits]
     results: list[dict[str, Any]] = []
+    if dask_scheduler:
+        from firmware_sim.campaign import connect_dask
+
+        client = connect_dask(dask_scheduler)
+        try:
+            with client.get_executor() as pool:
+                futs = [pool.submit(_estimate_job, p, params, free) for p in paths]
+                for v, f in zip(visits, futs):
+                    results.append(f.result())
+                    if progress:
+                        progress(_line(v, results[-1]))
+        finally:
+            client.close()
+        return results
     if n <= 1 or len(visits) <= 1:
         for v in visits:
             results.append(estimate_visit(v.records, params, free))
