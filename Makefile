@@ -10,7 +10,7 @@ export NUMBA_CACHE_DIR ?= $(HOME)/.cache/mfc-shm/numba
 export MPLBACKEND := Agg
 export PYTHONHASHSEED := 0
 
-.PHONY: setup system-packages run test lint bench bench-extra clean
+.PHONY: setup system-packages run test lint bench bench-extra clean fuzz
 
 setup: $(STAMP) system-packages
 
@@ -37,6 +37,15 @@ test: setup
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
 	$(BIN)/pytest -n 2 --timeout=600
+
+# Long property-based run over the command line (issue 15): many more valid inputs than `make test` draws, and
+# `shm campaign` for every n = 1..500. Hypothesis keeps its example database in .cache/hypothesis (git-ignored),
+# so a failure found once is replayed first next time. FUZZ_EXAMPLES sets the examples per property.
+FUZZ_EXAMPLES ?= 80
+fuzz: setup
+	SHM_CLI_FUZZ=1 SHM_CLI_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(BIN)/pytest -n 2 --timeout=0 -q \
+	  tests/test_cli_properties.py tests/test_cli_properties_campaign.py tests/test_cli_properties_json.py \
+	  tests/test_campaign_intervals.py
 
 lint: setup
 	$(BIN)/ruff check .
