@@ -20,6 +20,7 @@ from cli_properties_support import (
     effect_with_values,
     examples,
     floats,
+    library_effects,
     parameter_sets,
     seeds,
     shm,
@@ -114,8 +115,6 @@ def test_synth_compare_diagnose_fit(synth, fmt, data):
         if cmp is not None and not cmp.get("failures"):
             assert_readable(tmp / "cmp" / "report.html")
             assert_readable(tmp / "cmp" / "compare.json")
-        from cli_properties_support import library_effects
-
         lib = sorted(library_effects())
         cands = data.draw(st.lists(st.sampled_from(lib), min_size=1, max_size=2, unique=True), label="candidates")
         diag = assert_ok(shm("diagnose", rec, "--params", params, "--candidates", ",".join(cands),
@@ -266,3 +265,59 @@ def test_calibrate_any_valid_free_set(free, min_damping, keep, params):
         for path in (save, tmp / "out" / "calibration.json", tmp / "out" / "calibration.png"):
             assert_readable(path)
         assert_ok(shm("model", "info", "--params", save, "--json"), json_out=True)
+
+
+# --- shm hil serve (in-process: endpoints on loopback and ptys, stopped by --duration) ---------------------------
+_NOISE = {"z3": (1e-7, 1e-4), "v_patch": (1e-4, 0.1), "z0dd": (1e-3, 1.0), "v_battery": (1e-4, 0.05)}
+
+
+@st.composite
+def hil_args(draw, where: Path) -> list:
+    endpoints = draw(st.lists(st.sampled_from(["tcp", "serial-pty", "rtu-pty"]), min_size=1, max_size=3,
+                              unique=True))
+    argv: list = []
+    for e in endpoints:
+        argv += {"tcp": ["--modbus-tcp", "127.0.0.1:0"], "serial-pty": ["--serial", "pty"],
+                 "rtu-pty": ["--modbus-rtu", "pty"]}[e]
+    argv += ["--clock", draw(st.sampled_from(["realtime", "lockstep"])),
+             "--start", draw(st.sampled_from(["first-command", "now"])), "--seed", draw(seeds),
+             "--hv", draw(st.sampled_from(["scenario", "present", "absent"])), "--status-every", 0,
+             "--duration", draw(floats(0.1, 0.5)), "--summary", where / "hil.json"]
+    if draw(st.booleans()):
+        argv += ["--scenario", draw(st.sampled_from(["maintenance", "degraded", "faults"]))]
+    else:
+        argv += ["--params", draw(st.sampled_from(["table2", "calibrated"]))]
+    drop = draw(st.one_of(st.just(0.0), floats(0.0, 0.5)))
+    argv += ["--drop", drop, "--corrupt", draw(floats(0.0, 1.0 - drop)) if draw(st.booleans()) else 0.0,
+             "--latency-ms", draw(floats(0.0, 20.0)), "--jitter-ms", draw(floats(0.0, 5.0))]
+    if draw(st.booleans()):
+        argv += ["--disconnect-at", draw(floats(0.0, 5.0)), "--disconnect-for", draw(floats(0.1, 2.0))]
+    for ch in draw(st.lists(st.sampled_from(sorted(_NOISE)), max_size=2, unique=True)):
+        argv += ["--noise", f"{ch}={draw(floats(*_NOISE[ch], log=True))}"]
+    for ch in draw(st.lists(st.sampled_from(["z3", "v_patch", "z0dd", "v_battery", "seq"]), max_size=2,
+                            unique=True)):
+        argv += ["--stuck", f"{ch}@{draw(floats(0.0, 10.0))}" if draw(st.booleans()) else ch]
+    for name in draw(st.lists(st.sampled_from(["k3", "alpha_h", "beta_h", "c3"]), max_size=2, unique=True)):
+        argv += ["--deviation", f"{name}={draw(floats(-0.5, 0.5))}"]
+    if FUZZ and draw(st.booleans()):  # a new effect composition compiles for ~10 s: the long profile only
+        argv += ["--effect", draw(st.sampled_from(sorted(library_effects())))]
+    return argv
+
+
+@examples(fast=1, fuzz_factor=0.3)
+@given(data=st.data())
+def test_hil_serve_any_valid_endpoints_and_faults(data):
+    import sys
+
+    interval = sys.getswitchinterval()
+    try:
+        with _tmp("hil") as tmp:
+            tmp = Path(tmp)
+            argv = data.draw(hil_args(tmp), label="hil serve")
+            run = shm("hil", "serve", *argv)
+            assert_ok(run)
+            assert "board: --link" in run.out, run.why()
+            summary = json.loads((tmp / "hil.json").read_text())
+            assert summary["mode"] == argv[argv.index("--clock") + 1]
+    finally:
+        sys.setswitchinterval(interval)  # the stub tunes the interpreter for its threads
