@@ -158,7 +158,7 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
             acc = {"exponential": ", accelerating", "power": _power_word(t),
                    "change_point": f", after a sudden change at about {t.best.tau or 0:g} h"}.get(t.best.name, "")
             rate = f", {100 * t.rate_per_100h(last['operating_hours']):+.2f} % per 100 h ({t.best.name}{acc})"
-        parts.append(f"{e['name']} {100 * e['relative']:+.2f} % (± {se:.2f} %){rate}")
+        parts.append(f"{e['name']} {100 * e['relative']:+.2f} % (± {se:.2g} %){rate}")
     how_much = f"at {last['operating_hours']:g} h: " + "; ".join(parts)
     f = doc["forecast"]
     if fc.already_faulty:

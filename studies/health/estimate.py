@@ -85,8 +85,11 @@ def estimate_visit(records: Sequence[Record], params: str, free: Sequence[str] =
     from plant import PlantModel
     from workbench.fit import fit_records
 
-    joined = join_visit_records(records)
-    rep = fit_records([joined], params, free=list(free), max_nfev=30)
+    board = all(r.meta.get("provenance", {}).get("generator") == "board" for r in records)
+    # the board's records of a visit are consecutive ticks: joined, they start at rest; other records (shm synth,
+    # a rig's logs) each start at rest and are fitted as they are
+    recs = [join_visit_records(records)] if board else list(records)
+    rep = fit_records(recs, params, free=list(free), max_nfev=30)
     model = PlantModel(params, terminal="amplifier")
     out = []
     for e in rep.outcome.estimates:
@@ -147,6 +150,6 @@ def _line(v: Visit, res: dict[str, Any]) -> str:
     for e in res["estimates"]:
         rel = 100 * (e["value"] / e["nominal"] - 1)
         se = 100 * e["stderr"] / abs(e["nominal"]) if e["stderr"] is not None else float("nan")
-        parts.append(f"{e['name']} {rel:+.2f} % (± {se:.2f})")
+        parts.append(f"{e['name']} {rel:+.2f} % (± {se:.2g} %)")
     return (f"  visit at {v.operating_hours:8.1f} h: " + ", ".join(parts)
             + f"; held-out rms {res['held_rms_sigma']:.2f} σ ({res['fit_wall_s']:.1f} s)")
