@@ -7,8 +7,11 @@ threshold sweep over a finished campaign's stored error traces.
 ``error_traces.png``, ``roc.png``/``roc.csv`` (default grids), ``campaign.json`` and the resumable store
 (``manifest.json``, ``batches/``). Rerunning the same command into the same --out reuses finished batches.
 
-Exit codes: 0 done; 1 some batches did not finish (worker crash; finished ones are kept — rerun to resume) or some
-degraded units failed to integrate; 2 bad input (ranges, --n, MBIT, parameter set, unreachable scheduler ...).
+The numbers (tables, runs, traces, ROC table, ``campaign.json``) are written before the figures; ``campaign.json``
+exists only for a finished campaign and says which figures were written (``"figures": "written"`` or the ones that
+failed). Exit codes: 0 done; 1 some batches did not finish (worker crash; finished ones are kept — rerun to
+resume), some degraded units failed to integrate, or a figure could not be drawn (named; the numbers are written);
+2 bad input (ranges, --n, MBIT, parameter set, unreachable scheduler ...).
 """
 
 from __future__ import annotations

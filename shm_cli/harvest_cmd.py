@@ -2,7 +2,9 @@
 
 Writes to ``--out``: ``harvest_summary.json``, ``charge_curve.csv`` (Fig. 9 data), ``chunks.csv`` (per-interval
 means), ``audit.csv``, ``charge_curve.png`` (and ``charge_rate.csv`` when the time to full is a projection).
-Exit codes: 0 ok; 1 the run failed or, in coupled mode, the energy books did not close within 1 %; 2 bad input.
+The numbers (CSV, ``harvest_summary.json``) are written before the figure. Exit codes: 0 ok; 1 the run failed, in
+coupled mode the energy books did not close within 1 %, or the figure could not be drawn (named in the message and
+in the summary's ``failed``); 2 bad input.
 """
 
 from __future__ import annotations
