@@ -22,7 +22,24 @@ import threading
 import time
 from pathlib import Path
 
-from shm_cli.common import to_jsonable
+from shm_cli.common import (
+    float_in_range,
+    int_in_range,
+    nonnegative_float,
+    output_file_arg,
+    positive_float,
+    positive_int,
+    seed_int,
+    to_jsonable,
+)
+
+
+def tcp_endpoint_arg(text: str) -> str:
+    """argparse ``type=`` of ``HOST:PORT``: a port outside 0 .. 65535 is refused at parse time."""
+    _, _, port = text.rpartition(":")
+    if port.isdigit() and int(port) > 65535:
+        raise argparse.ArgumentTypeError(f"'{text}': port {port} is out of range 0 .. 65535")
+    return text
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -43,10 +60,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                "  --modbus-rtu pty|PATH     Modbus RTU slave on a built-in pty pair or a serial device\n")
     g = s.add_argument_group("endpoints")
     g.add_argument("--serial", action="append", default=[], metavar="pty|URL", help="framed serial protocol endpoint")
-    g.add_argument("--modbus-tcp", action="append", default=[], metavar="HOST:PORT", help="Modbus TCP endpoint")
+    g.add_argument("--modbus-tcp", action="append", default=[], metavar="HOST:PORT", type=tcp_endpoint_arg,
+                   help="Modbus TCP endpoint")
     g.add_argument("--modbus-rtu", action="append", default=[], metavar="pty|PATH", help="Modbus RTU endpoint")
-    g.add_argument("--unit", type=int, default=1, help="Modbus unit id (default 1)")
-    g.add_argument("--baud", type=int, default=115200, help="serial line speed, RTU and device paths (default 115200)")
+    g.add_argument("--unit", type=int_in_range(1, 247), default=1, help="Modbus unit id (default 1)")
+    g.add_argument("--baud", type=positive_int, default=115200,
+                   help="serial line speed, RTU and device paths (default 115200)")
     g.add_argument("--parity", choices=("N", "E", "O"), default="N", help="RTU parity (default N)")
     r = s.add_argument_group("rig")
     r.add_argument("--params", default=None, metavar="NAME",
@@ -54,7 +73,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--scenario", default=None, metavar="NAME|FILE",
                    help="the rig's environment: vibration, HV presence, scheduled incidents (default: a quiet bench "
                         "rig with the amplifier connected)")
-    r.add_argument("--seed", type=int, default=None, help="seeds the environment, sensor noise and faults")
+    r.add_argument("--seed", type=seed_int, default=None, help="seeds the environment, sensor noise and faults")
     r.add_argument("--hv", choices=("scenario", "present", "absent"), default="scenario",
                    help="HV equipment presence: follow the scenario (default), or force it")
     r.add_argument("--clock", choices=("realtime", "lockstep"), default="realtime",
@@ -62,24 +81,27 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "board command (run the board in virtual time)")
     r.add_argument("--start", choices=("first-command", "now"), default="first-command",
                    help="when rig time starts (default: at the board's first command)")
-    r.add_argument("--duration", type=float, default=None, metavar="S", help="stop after S seconds (wall clock)")
-    r.add_argument("--summary", default=None, metavar="FILE", help="write the end-of-run summary as JSON")
-    r.add_argument("--status-every", type=float, default=10.0, metavar="S",
+    r.add_argument("--duration", type=positive_float, default=None, metavar="S",
+                   help="stop after S seconds (wall clock)")
+    r.add_argument("--summary", default=None, metavar="FILE", type=output_file_arg,
+                   help="write the end-of-run summary as JSON")
+    r.add_argument("--status-every", type=nonnegative_float, default=10.0, metavar="S",
                    help="print a status line every S seconds (0: never)")
     f = s.add_argument_group("fault injection (seeded by --seed)")
-    f.add_argument("--drop", type=float, default=0.0, metavar="FRAC", help="fraction of replies dropped")
-    f.add_argument("--corrupt", type=float, default=0.0, metavar="FRAC",
+    f.add_argument("--drop", type=float_in_range(0.0, 1.0), default=0.0, metavar="FRAC",
+                   help="fraction of replies dropped")
+    f.add_argument("--corrupt", type=float_in_range(0.0, 1.0), default=0.0, metavar="FRAC",
                    help="fraction of replies with one bit flipped")
-    f.add_argument("--latency-ms", type=float, default=0.0,
+    f.add_argument("--latency-ms", type=nonnegative_float, default=0.0,
                    help="added to the sample reply of every exchange (serial: the SAMPLE; Modbus: the FC04 read; "
                         "command acknowledgements are not delayed) (ms)")
-    f.add_argument("--processing-ms", type=float, default=0.0,
+    f.add_argument("--processing-ms", type=nonnegative_float, default=0.0,
                    help="the rig's processing time for every request, each Modbus transaction included (ms): a "
                         "slow rig (docs/real-rig.md states the budget per link)")
-    f.add_argument("--jitter-ms", type=float, default=0.0, help="uniform extra reply latency 0..J ms")
-    f.add_argument("--disconnect-at", type=float, default=None, metavar="S",
+    f.add_argument("--jitter-ms", type=nonnegative_float, default=0.0, help="uniform extra reply latency 0..J ms")
+    f.add_argument("--disconnect-at", type=nonnegative_float, default=None, metavar="S",
                    help="every endpoint disappears at this rig time (s)")
-    f.add_argument("--disconnect-for", type=float, default=1.0, metavar="S", help="... for this long (s)")
+    f.add_argument("--disconnect-for", type=nonnegative_float, default=1.0, metavar="S", help="... for this long (s)")
     f.add_argument("--noise", action="append", default=[], metavar="CH=SIGMA",
                    help="sensor noise, SI units (z3 m, v_patch V, z0dd m/s^2, v_battery V); repeatable")
     f.add_argument("--stuck", action="append", default=[], metavar="CH[@T]",

@@ -9,7 +9,25 @@ from pathlib import Path
 import numpy as np
 
 from board_config.errors import InputError
-from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir, pyplot, write_csv
+from shm_cli.common import (
+    add_out_arg,
+    add_params_arg,
+    check_memory,
+    dump_json,
+    number_in_range,
+    out_dir,
+    positive_float,
+    pyplot,
+    write_csv,
+)
+
+#: largest differential amplitude the patches can be driven at within Table 1's -500 ... 1500 V per channel (the
+#: channels at common mode 500 V +- 1000 V); the model commands drive v_ch1 = +A, v_ch2 = -A
+MAX_DIFFERENTIAL_V = 1000.0
+DIFFERENTIAL_AMPLITUDE = number_in_range(-MAX_DIFFERENTIAL_V, MAX_DIFFERENTIAL_V, unit="V (Table 1: -500 ... 1500 V "
+                                         "per channel, so at most 1000 V differential)")
+#: memory per simulated sample kept by the model commands (states, outputs), bytes
+BYTES_PER_SAMPLE = 400
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -25,24 +43,26 @@ def register(sub: argparse._SubParsersAction) -> None:
 
     pf = msub.add_parser("frf", help="frequency responses: z3/v_a (Fig. 6a) and stored voltage/z0dd (Fig. 6b)")
     add_params_arg(pf)
-    pf.add_argument("--f-min-hz", type=float, default=0.1)
-    pf.add_argument("--f-max-hz", type=float, default=200.0)
-    pf.add_argument("--points", type=int, default=2000)
+    pf.add_argument("--f-min-hz", type=positive_float, default=0.1)
+    pf.add_argument("--f-max-hz", type=positive_float, default=200.0)
+    pf.add_argument("--points", type=number_in_range(2, 10_000_000, integer=True), default=2000)
     add_out_arg(pf)
     pf.set_defaults(func=cmd_frf)
 
     ps = msub.add_parser("step", help="nonlinear step response (Fig. 7b)")
     add_params_arg(ps)
-    ps.add_argument("--amplitude-v", type=float, default=300.0, help="differential step amplitude (V)")
-    ps.add_argument("--duration-s", type=float, default=2.0)
+    ps.add_argument("--amplitude-v", type=DIFFERENTIAL_AMPLITUDE, default=300.0,
+                    help=f"differential step amplitude (V, |A| <= {MAX_DIFFERENTIAL_V:g})")
+    ps.add_argument("--duration-s", type=positive_float, default=2.0)
     add_out_arg(ps)
     ps.set_defaults(func=cmd_step)
 
     pl = msub.add_parser("loop", help="quasi-static hysteresis loop (Fig. 7a)")
     add_params_arg(pl)
-    pl.add_argument("--amplitude-v", type=float, default=600.0, help="differential sine amplitude (V)")
-    pl.add_argument("--freq-hz", type=float, default=0.01)
-    pl.add_argument("--cycles", type=float, default=1.25)
+    pl.add_argument("--amplitude-v", type=DIFFERENTIAL_AMPLITUDE, default=600.0,
+                    help=f"differential sine amplitude (V, |A| <= {MAX_DIFFERENTIAL_V:g})")
+    pl.add_argument("--freq-hz", type=positive_float, default=0.01)
+    pl.add_argument("--cycles", type=positive_float, default=1.25)
     add_out_arg(pl)
     pl.set_defaults(func=cmd_loop)
 
@@ -120,6 +140,7 @@ def cmd_frf(args: argparse.Namespace) -> int:
         raise InputError(f"need 0 < --f-min-hz < --f-max-hz, got {args.f_min_hz} and {args.f_max_hz}")
     if args.points < 2:
         raise InputError(f"--points must be at least 2, got {args.points}")
+    check_memory(f"--points {args.points}", args.points * 128.0, hint="use fewer --points")
     out = out_dir(args.out)
     model = PlantModel(args.params)
     lin = linearise(model)
@@ -176,6 +197,8 @@ def cmd_step(args: argparse.Namespace) -> int:
 
     if args.duration_s <= 0.1:
         raise InputError(f"--duration-s must be above 0.1 s (the step is applied at 0.1 s), got {args.duration_s}")
+    check_memory(f"--duration-s {args.duration_s:g} ({args.duration_s / 1e-3:.3g} output samples)",
+                 args.duration_s / 1e-3 * BYTES_PER_SAMPLE, hint="use a shorter --duration-s")
     out = out_dir(args.out)
     model = PlantModel(args.params)
     resp = step_response(model, args.amplitude_v, args.duration_s)
@@ -191,6 +214,9 @@ def cmd_loop(args: argparse.Namespace) -> int:
 
     if args.freq_hz <= 0 or args.cycles <= 0:
         raise InputError(f"--freq-hz and --cycles must be positive, got {args.freq_hz} and {args.cycles}")
+    n = args.cycles / args.freq_hz / min(1e-2, 1.0 / (args.freq_hz * 2000))
+    check_memory(f"--cycles {args.cycles:g} at --freq-hz {args.freq_hz:g} ({n:.3g} input samples)",
+                 n * BYTES_PER_SAMPLE, hint="use fewer --cycles")
     out = out_dir(args.out)
     model = PlantModel(args.params)
     resp = hysteresis_loop(model, args.amplitude_v, args.freq_hz, args.cycles)
