@@ -368,9 +368,49 @@ class ModbusLink:
                            1e3 * took, 1e3 * self.processing_budget)
         return rr
 
-    def _read_inputs(self, budget: float | None = None, context: str = ""):
+    def _flush_input(self) -> None:
+        """Discard whatever is waiting on the line or socket (the late or broken remains of an earlier reply)."""
+        sock = getattr(self._client, "socket", None)
+        try:
+            if isinstance(sock, socket.socket):
+                sock.setblocking(False)
+                while sock.recv(4096):
+                    self.stats["flushed_reads"] += 1
+            elif sock is not None and hasattr(sock, "reset_input_buffer"):
+                if sock.in_waiting:
+                    self.stats["flushed_reads"] += 1
+                sock.reset_input_buffer()
+        except (BlockingIOError, InterruptedError):
+            pass
+        except (OSError, ValueError):  # a vanished port: the next transaction reports it
+            pass
+
+    def _skip_stale(self, rr, function_code: int, deadline: float):
+        """A reply that arrived after its timeout can be taken for the next request's (RTU has no transaction id;
+        pymodbus' TCP client does not always check it). Skip
+        such a stale reply (the other function code of the exchange) and wait for the real one while the exchange
+        budget lasts, so a late reply costs one exchange, not a cascade."""
+        if rr.isError() or rr.function_code == function_code:
+            return rr
+        transaction = self._client.transaction
+        tid = getattr(transaction, "request_transaction_id", 0) or 0
+        while rr.function_code != function_code and not rr.isError():
+            self.stats["stale_skipped"] += 1
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return rr
+            self._set_timeout(left)
+            try:
+                rr = transaction.sync_get_response(self.unit, tid)
+            except Exception:  # asyncio.TimeoutError: nothing more within the budget
+                return rr
+        return rr
+
+    def _read_inputs(self, budget: float | None = None, context: str = "", deadline: float | None = None):
         rr = self._call("read sample (FC04)", self._client.read_input_registers, INPUT_START, count=INPUT_COUNT,
                         budget=budget, context=context)
+        if deadline is not None:
+            rr = self._skip_stale(rr, 0x04, deadline)
         if rr.isError():
             self.stats["exception_replies"] += 1
             code = getattr(rr, "exception_code", None)
@@ -393,8 +433,11 @@ class ModbusLink:
             self.stats["bad_command"] += 1
             raise LinkError(f"{self.url}: command not sendable: {exc}") from exc
         self.stats["requests"] += 1
+        if self._timeouts_in_row:  # the reply that timed out may still arrive: drop its bytes, not the next reply
+            self._flush_input()
         deadline = time.monotonic() + self.timeout  # one budget for both transactions
         rr = self._call("write command (FC16)", self._client.write_registers, COMMAND_START, words)
+        rr = self._skip_stale(rr, 0x10, deadline)
         refused = False
         if rr.isError():
             code = getattr(rr, "exception_code", None)
@@ -419,7 +462,7 @@ class ModbusLink:
             self._log.warn("no_time_for_read", "%s: no time left to read the sample%s", self.url, context)
             raise LinkError(f"{self.url}: no time left to read the sample{context}; the rig answers slower than "
                             f"its processing budget of {1e3 * self.processing_budget:.1f} ms per transaction")
-        block = self._read_inputs(budget=left, context=context)
+        block = self._read_inputs(budget=left, context=context, deadline=deadline)
         self.stats["replies"] += 1
         sample = block.sample
         if refused:
