@@ -78,7 +78,6 @@ def run_life_command(args: argparse.Namespace, scenario: Any) -> int:
     """``shm run`` on a scenario with ``[life]``: every visit in parallel, one usage.db, the visit records."""
     from board_config.board import load_board_config
     from shm_cli.main import CliError
-    from studies.health.life import run_life, visit_line, write_life_log
 
     if args.link != "sim":
         raise CliError("a [life] scenario runs on the simulated rig only (--link sim): each visit is a fresh rig with "
@@ -88,7 +87,24 @@ def run_life_command(args: argparse.Namespace, scenario: Any) -> int:
         raise CliError(f"--seed must be >= 0, got {seed}")
     params = args.params or scenario.rig.params
     cfg = load_board_config(args.board_config, overrides=scenario.board_overrides, overrides_source=scenario.source)
+    if getattr(args, "append", False):
+        raise CliError("--append does not apply to a [life] scenario (a life is one run in its own usage.db)")
     out = out_dir(args.out)
+    from shm_cli.run_cmd import _prepare_out
+    from shm_cli.run_lock import OutputLock
+
+    lock = OutputLock(out, command=f"shm run --scenario {args.scenario} --out {args.out}")
+    lock.acquire()
+    try:
+        _prepare_out(args, out)
+        return _run_life_locked(args, scenario, seed, params, cfg, out)
+    finally:
+        lock.release()
+
+
+def _run_life_locked(args: argparse.Namespace, scenario: Any, seed: int, params: str, cfg: Any, out: Any) -> int:
+    from studies.health.life import run_life, visit_line, write_life_log
+
     lines: list[str] = []
     to = sys.stderr if args.json else sys.stdout
     life = scenario.life
