@@ -169,7 +169,7 @@ def write_life_log(result: LifeResult, scenario: Scenario, out: Path, *, seed: i
     summary = {
         "scenario": scenario.name, "scenario_file": scenario.source, "seed": seed, "params": params,
         "run_id": run_id, "database": str(db_path), "life": True, "workers": result.workers, "status": "finished",
-        "ticks": sum(sum(1 for e in v.events if e.kind == "telemetry") for v in result.visits) or None,
+        "ticks": round(len(result.visits) * scenario.duration * rate),  # board ticks over all visits
         "wall_s": result.wall_s, "visits": [
             {"visit": v.visit, "operating_hours": v.operating_hours, "verdict": v.verdict, "seed": v.seed,
              "truth_deviations": v.deviations, "wall_s": v.wall_s,
