@@ -7,6 +7,10 @@ later opens a new one, the board's reconnect finds it again under the same name.
 :class:`PtyPair` — two ptys whose masters are joined by a relay thread (what ``socat pty pty`` does): two
 openable device paths, one for a server that insists on opening a path itself (pymodbus' RTU server), one for
 the board.
+
+A stub killed with SIGKILL cannot remove its links: each stub directory holds ``owner.pid``, and
+:func:`clean_stale_links` (run when the first pty of a process is created) removes the directories of stubs that
+are no longer running — their links would otherwise point at pty numbers the kernel hands to someone else.
 """
 
 from __future__ import annotations
@@ -19,6 +23,71 @@ import tempfile
 import threading
 import tty
 from pathlib import Path
+
+PREFIX = "shm-hil-"
+OWNER_FILE = "owner.pid"
+_cleaned = False
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's live process
+        return True
+    return True
+
+
+def clean_stale_links(tmpdir: str | Path | None = None) -> list[Path]:
+    """Remove ``shm-hil-*`` directories left by stubs that are no longer running; returns what was removed.
+
+    A directory is stale when its ``owner.pid`` names a dead process, or (older stubs, no pid file) when it holds
+    nothing but symlinks whose pty is gone. Anything else is left alone."""
+    base = Path(tmpdir) if tmpdir is not None else Path(tempfile.gettempdir())
+    removed: list[Path] = []
+    for d in base.glob(PREFIX + "*"):
+        try:
+            if not d.is_dir() or d.is_symlink():
+                continue
+            entries = list(d.iterdir())
+            owner = d / OWNER_FILE
+            if owner.exists():
+                try:
+                    pid = int(owner.read_text().strip() or "0")
+                except ValueError:
+                    continue
+                if pid <= 0 or _alive(pid):
+                    continue
+            elif not all(e.is_symlink() and not e.exists() for e in entries):
+                continue
+            for e in entries:
+                if e.is_symlink() or e.name == OWNER_FILE or e.name.endswith(".tmp"):
+                    e.unlink()
+            d.rmdir()
+            removed.append(d)
+        except OSError:  # raced with another process, or not ours to remove
+            continue
+    return removed
+
+
+def _claim(directory: Path) -> None:
+    """Mark ``directory`` as this process's (for :func:`clean_stale_links` in a later stub)."""
+    with contextlib.suppress(OSError):
+        (directory / OWNER_FILE).write_text(f"{os.getpid()}\n")
+
+
+def _clean_once() -> None:
+    global _cleaned
+    if not _cleaned:
+        _cleaned = True
+        removed = clean_stale_links()
+        if removed:
+            import logging
+
+            logging.getLogger("hil_stub.pty").warning(
+                "removed %d stale pty link director%s of stubs no longer running: %s", len(removed),
+                "y" if len(removed) == 1 else "ies", ", ".join(map(str, removed)))
 
 
 def _make_link(target: str, link: Path) -> None:
@@ -35,7 +104,8 @@ class PtyPort:
     def __init__(self, link: str | Path | None = None) -> None:
         self._own_dir = link is None
         if link is None:
-            link = Path(tempfile.mkdtemp(prefix="shm-hil-")) / "serial"
+            _clean_once()
+            link = Path(tempfile.mkdtemp(prefix=PREFIX)) / "serial"
         self.link = Path(link)
         self.master: int | None = None
         self._slave: int | None = None
@@ -45,6 +115,8 @@ class PtyPort:
     def open(self) -> str:
         """Create the pty (raw mode both sides) and point the symlink at it. Returns the symlink path."""
         self.link.parent.mkdir(parents=True, exist_ok=True)
+        if self._own_dir:
+            _claim(self.link.parent)
         master, slave = os.openpty()
         tty.setraw(master)
         tty.setraw(slave)
@@ -60,6 +132,7 @@ class PtyPort:
             self.link.unlink()
         if self._own_dir:
             with contextlib.suppress(OSError):
+                (self.link.parent / OWNER_FILE).unlink()
                 self.link.parent.rmdir()  # only if empty; open() recreates it
         for fd in (self.master, self._slave):
             if fd is not None:
@@ -99,7 +172,9 @@ class PtyPair:
 
     def __init__(self, directory: str | Path | None = None, names: tuple[str, str] = ("rig", "board")) -> None:
         self._own_dir = directory is None
-        d = Path(directory) if directory is not None else Path(tempfile.mkdtemp(prefix="shm-hil-"))
+        if directory is None:
+            _clean_once()
+        d = Path(directory) if directory is not None else Path(tempfile.mkdtemp(prefix=PREFIX))
         self.dir = d
         self.a = PtyPort(d / names[0])
         self.b = PtyPort(d / names[1])
@@ -115,6 +190,9 @@ class PtyPair:
         return str(self.b.link)
 
     def open(self) -> tuple[str, str]:
+        if self._own_dir:
+            self.dir.mkdir(parents=True, exist_ok=True)
+            _claim(self.dir)
         self.a.open()
         self.b.open()
         self._stop.clear()
@@ -131,6 +209,7 @@ class PtyPair:
         self.b.close()
         if self._own_dir:
             with contextlib.suppress(OSError):
+                (self.dir / OWNER_FILE).unlink()
                 self.dir.rmdir()
 
     def _relay(self) -> None:
