@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import tomllib
 from pathlib import Path
 
 from board_config.errors import InputError
@@ -40,10 +41,17 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise InputError(f"--min-damping must be in [0, 1), got {args.min_damping}")
     base = load_parameter_set(args.params)
     claims = Path(args.claims) if args.claims else CLAIMS_FILE
-    if not claims.exists():
-        raise InputError(f"--claims file not found: {claims}")
+    if not claims.is_file():
+        raise InputError(f"--claims {claims}: file not found" + (" (a directory)" if claims.is_dir() else ""))
     keep = None if args.no_keep_actuation else static_tip_gain_closed_form(PlantModel(base))
-    targets = load_claim_targets(claims, static_gain_m_per_v=keep)
+    try:
+        targets = load_claim_targets(claims, static_gain_m_per_v=keep)
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as exc:
+        raise InputError(f"--claims {claims}: not valid TOML: {exc}") from None
+    except KeyError as exc:
+        raise InputError(f"--claims {claims}: missing key {exc} (layout: the shipped paper_claims.toml)") from None
+    except (TypeError, ValueError) as exc:
+        raise InputError(f"--claims {claims}: a claim is not a number: {exc}") from None
     out = out_dir(args.out)
 
     def progress(i: int, cost: float) -> None:

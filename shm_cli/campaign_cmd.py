@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from board_config.errors import InputError
-from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir
+from shm_cli.common import Decorations, add_out_arg, add_params_arg, check_memory, dump_json, out_dir
 
 DEFAULT_EPS_GRID = "0.025:0.6:0.025"
 DEFAULT_COUNT_GRID = "25,50,100,200,300,400"
@@ -154,6 +154,10 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     spec = build_spec(args.params, args.mbit, args.ranges, args.n, args.seed, deviated=deviated, sign=args.sign,
                       noise_std=args.noise_um * 1e-6, batch_size=args.batch_size, mbit_config=args.mbit_config,
                       monitor=args.monitor_config)
+    runs = len(spec.ranges) * spec.n_runs
+    per_run = sum(16.0 * m.n_samples + 256.0 for m in spec.mbits)  # z3 and eps traces, scalars (bytes)
+    check_memory(f"--n {args.n} x {len(spec.ranges)} ranges = {runs:.3g} units", 2.0 * runs * per_run,
+                 hint="use a smaller --n or fewer --ranges")
     out = out_dir(args.out)
     # campaign.json marks a finished campaign: an earlier one must not survive a run that fails
     (out / "campaign.json").unlink(missing_ok=True)
@@ -233,12 +237,12 @@ def cmd_campaign(args: argparse.Namespace) -> int:
 def cmd_roc(args: argparse.Namespace) -> int:
     from firmware_sim.campaign import load_traces
 
-    traces = load_traces(Path(args.source))
     eps_grid = parse_grid(args.eps_th, "--eps-th")
     count_grid = parse_grid(args.count_max, "--count-max", integer=True)
-    if not 0 <= args.healthy_max_pct <= args.faulty_min_pct:
-        raise InputError(f"need 0 <= --healthy-max-pct <= --faulty-min-pct, got {args.healthy_max_pct:g} and "
-                         f"{args.faulty_min_pct:g}")
+    if not 0 <= args.healthy_max_pct <= args.faulty_min_pct <= 100:
+        raise InputError(f"need 0 <= --healthy-max-pct <= --faulty-min-pct <= 100, got {args.healthy_max_pct:g} "
+                         f"and {args.faulty_min_pct:g}")
+    traces = load_traces(Path(args.source))
     tables = _roc_tables(traces, eps_grid, count_grid, args.healthy_max_pct / 100, args.faulty_min_pct / 100)
     for t in tables:
         if t.n_healthy == 0 or t.n_degraded == 0:

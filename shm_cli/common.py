@@ -75,12 +75,37 @@ def finite_float(text: str) -> float:
     return float(_number(text, float))
 
 
+def refuse_nonfinite_floats(parser: argparse.ArgumentParser) -> None:
+    """Make every plain ``type=float`` option of ``parser`` and of its sub-commands refuse NaN and ±inf
+    (:func:`finite_float`): no command has a use for them, and they slip through every range check."""
+    for action in parser._actions:
+        if action.type is float:
+            action.type = finite_float
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in {id(p): p for p in action.choices.values()}.values():
+                refuse_nonfinite_floats(sub)
+
+
 #: ready-made argparse types
 positive_float = number_in_range(0.0, lo_open=True)
 nonnegative_float = number_in_range(0.0)
 positive_int = number_in_range(1, integer=True)
 nonnegative_int = number_in_range(0, integer=True)
 seed_int = number_in_range(0, 2**32 - 1, integer=True)
+
+
+def even_int(lo: int = 2) -> Callable[[str], Any]:
+    """argparse ``type=``: an even integer >= ``lo``."""
+    base = number_in_range(lo, integer=True)
+
+    def parse(text: str) -> int:
+        value = base(text)
+        if value % 2:
+            raise argparse.ArgumentTypeError(f"{text} must be an even integer >= {lo}")
+        return value
+
+    parse.__name__ = "int"
+    return parse
 
 
 def int_in_range(lo: int | None = None, hi: int | None = None) -> Callable[[str], Any]:

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from board_config.errors import InputError
-from shm_cli.common import add_out_arg, add_params_arg, dump_json
+from shm_cli.common import add_out_arg, add_params_arg, dump_json, positive_float
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,7 +32,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--decimate", type=int, default=1, help="residual tests on every k-th sample (default 1)")
     g.add_argument("--threshold-sigma", type=float, default=3.0,
                    help="flag windows whose rolling RMS residual exceeds this many noise σ (default 3)")
-    g.add_argument("--window-s", type=float, default=None, help="rolling window (s; default 1 %% of the record)")
+    g.add_argument("--window-s", type=positive_float, default=None,
+                   help="rolling window (s; default 1 %% of the record)")
     g.add_argument("--no-predict", action="store_true", help="skip the k-step-ahead prediction")
     g.add_argument("--horizon-s", type=float, default=0.05, help="prediction horizon (s, default 0.05)")
     g.add_argument("--interval-s", type=float, default=0.01, help="observer correction interval (s, default 0.01)")

@@ -6,7 +6,7 @@ import argparse
 import functools
 import sys
 
-from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir
+from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, even_int, out_dir
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -35,7 +35,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-combine", action="store_true", help="do not look for combinations (forward selection)")
     p.add_argument("--holdout", choices=("blocks", "records"), default="blocks",
                    help="held-out data: alternate blocks of every record (default) or every second record")
-    p.add_argument("--blocks", type=int, default=10, help="blocks per record for --holdout blocks (even, default 10)")
+    p.add_argument("--blocks", type=even_int(2), default=10,
+                   help="blocks per record for --holdout blocks (even, default 10)")
     p.add_argument("--max-rate-hz", type=float, default=250.0,
                    help="sub-sample records to at most this rate for fitting (default 250 Hz)")
     p.add_argument("--min-reduction", type=float, default=0.02,

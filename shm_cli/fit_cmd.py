@@ -7,7 +7,7 @@ import functools
 import sys
 from pathlib import Path
 
-from shm_cli.common import Decorations, add_params_arg, dump_json, out_dir
+from shm_cli.common import Decorations, add_params_arg, dump_json, even_int, out_dir
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -30,7 +30,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="write the fitted parameter set here (its name is the file's stem)")
     p.add_argument("--holdout", choices=("blocks", "records"), default="blocks",
                    help="held-out data: alternate blocks of every record (default) or every second record")
-    p.add_argument("--blocks", type=int, default=10, help="blocks per record for --holdout blocks (even, default 10)")
+    p.add_argument("--blocks", type=even_int(2), default=10,
+                   help="blocks per record for --holdout blocks (even, default 10)")
     p.add_argument("--max-rate-hz", type=float, default=250.0,
                    help="sub-sample records to at most this rate for fitting (default 250 Hz)")
     p.add_argument("--max-nfev", type=int, default=40, help="optimiser evaluations per start (default 40)")
@@ -60,7 +61,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
         raise CliError("nothing to fit: give --add EFFECT and/or --free PARAM")
     if args.max_rate_hz <= 0 or args.max_nfev < 1:
         raise CliError("--max-rate-hz must be > 0 and --max-nfev >= 1")
-    out = out_dir(args.out) if args.out else out_dir(save.parent if str(save.parent) else ".")
+    out = out_dir(args.out) if args.out else out_dir(save.parent if str(save.parent) else ".",
+                                                     option="--save (its directory)")
     records = _load_records(args.records)
     base = load_parameter_set(args.params)
     progress: list[ProgressPlot] = []

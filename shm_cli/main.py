@@ -72,6 +72,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub.required = True
     for name in COMMAND_MODULES:
         importlib.import_module(name).register(sub)
+    from shm_cli.common import refuse_nonfinite_floats
+
+    refuse_nonfinite_floats(parser)  # NaN / inf refused by every float option (exit 2, naming it)
     return parser
 
 
