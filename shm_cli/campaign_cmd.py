@@ -23,7 +23,15 @@ from pathlib import Path
 import numpy as np
 
 from board_config.errors import InputError
-from shm_cli.common import Decorations, add_out_arg, add_params_arg, check_memory, dump_json, out_dir
+from shm_cli.common import (
+    Decorations,
+    add_out_arg,
+    add_params_arg,
+    check_memory,
+    dump_json,
+    out_dir,
+    positive_float,
+)
 
 DEFAULT_EPS_GRID = "0.025:0.6:0.025"
 DEFAULT_COUNT_GRID = "25,50,100,200,300,400"
@@ -49,7 +57,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                     help="local worker processes (default: CPU count; 1 = in this process)")
     ex.add_argument("--dask-scheduler", default=None, metavar="ADDRESS",
                     help="run the same tasks on a Dask cluster (e.g. tcp://10.0.0.5:8786)")
-    p.add_argument("--dask-timeout-s", type=float, default=10.0, help="time to wait for the scheduler (s)")
+    p.add_argument("--dask-timeout-s", type=positive_float, default=10.0, help="time to wait for the scheduler (s)")
     p.add_argument("--sign", choices=("both", "minus", "plus"), default="both",
                    help="sign of the deviations: both (default, +/- with equal probability per parameter), "
                         "minus (parameters only decrease), plus")

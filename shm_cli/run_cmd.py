@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from board_config.errors import InputError
 from shm_cli.common import (
     Decorations,
     add_out_arg,
@@ -210,6 +211,23 @@ def _prepare_out(args: argparse.Namespace, out: Path) -> None:
             target.unlink(missing_ok=True)
 
 
+def _check_link_url(url: str) -> None:
+    """A ``scheme://HOST:PORT`` link whose port is not a number in 1 .. 65535 is bad input (exit 2), refused before
+    the link layer tries to open it."""
+    from shm_cli.main import CliError
+
+    if "://" not in url:
+        return
+    hostport = url.split("://", 1)[1].split("?", 1)[0].split("/", 1)[0]
+    host, sep, port = hostport.rpartition(":")
+    if not sep:
+        return
+    if not port.isdigit() or not 1 <= int(port) <= 65535:
+        raise CliError(f"--link {url!r}: port {port!r} is not a TCP port number (1 .. 65535)")
+    if not host:
+        raise CliError(f"--link {url!r}: no host before ':{port}'")
+
+
 # --- clean interruption ----------------------------------------------------------------------------------
 class StopOnSignal:
     """SIGINT (Ctrl-C) and SIGTERM request a clean stop after the current tick (a second signal aborts at once
@@ -321,12 +339,22 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
     db_path = out / "usage.db"
     t_setup = time.perf_counter()
     rig = None
-    if args.link == "sim":
-        rig = SimulatedRig(scenario, seed=seed, params=params, tick=cfg.tick_period)
+    try:
+        if args.link == "sim":
+            rig = SimulatedRig(scenario, seed=seed, params=params, tick=cfg.tick_period)
+        board = Board(cfg, nominal=params)
+    except InputError as exc:  # the scenario's [rig] (params, effects, deviations): say which file it came from
+        if scenario.source in str(exc) or (args.params is not None and args.params in str(exc)):
+            raise
+        raise InputError(f"{scenario.source}: [rig]: {exc}") from None
+    if rig is not None:
         link = InProcessLink(rig, tick=cfg.tick_period)
     else:
-        link = open_link(args.link)
-    board = Board(cfg, nominal=params)
+        _check_link_url(args.link)
+        try:
+            link = open_link(args.link)
+        except InputError as exc:
+            raise InputError(f"--link {args.link!r}: {exc}") from None
     paced = args.realtime or (args.link != "sim" and not args.virtual)
     scheduler = StoppableScheduler(Scheduler(cfg.tick_rate, WallClock() if paced else VirtualClock()), stopper)
     setup_s = time.perf_counter() - t_setup
