@@ -292,6 +292,8 @@ def run(out_dir: Path, quick: bool) -> dict:
         "batch_wall_s_before": best["before"],
         "batch_wall_s": batch_s,
         "batch_speedup_vs_before": best["before"] / batch_s,
+        # load-independent part of the speed-up: attempted steps before / after (same inputs and tolerances)
+        "attempt_ratio_before_over_after": att_b / att_a,
         "attempted_steps_per_run_before": att_b,
         "attempted_steps_per_run": att_a,
         "accepted_steps_per_run_before": acc_b,

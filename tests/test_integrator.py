@@ -79,10 +79,11 @@ def test_deviated_member_matches_solve_ivp_rtol_1e9(table2_model, table2_params,
     names = table2_model.param_names
     prm = dict(table2_params.values, **{n: p[0, names.index(n)] for n in ("k3", "alpha_h", "beta_h")})
     f = make_solve_ivp_rhs(prm, inp.t, inp.values[0])
-    ref = solve_ivp(f, (0.0, 10.0), np.zeros(12), method="LSODA", rtol=1e-9, atol=1e-13, t_eval=res.t,
+    n = 501  # the first 5 s (the reference is plain Python: keep the test short)
+    ref = solve_ivp(f, (0.0, res.t[n - 1]), np.zeros(12), method="LSODA", rtol=1e-9, atol=1e-13, t_eval=res.t[:n],
                     max_step=2e-3)
     z_ref = ref.y[0] + ref.y[1] + ref.y[2]
-    assert np.max(np.abs(res["z3"][0] - z_ref)) / np.max(np.abs(z_ref)) < 1e-4
+    assert np.max(np.abs(res["z3"][0, :n] - z_ref)) / np.max(np.abs(z_ref)) < 1e-4
 
 
 def test_run_chunk_entry_point_equals_simulate(table2_model):
