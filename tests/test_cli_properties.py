@@ -111,6 +111,18 @@ def test_synth_compare_diagnose_fit(synth, fmt, data):
         cmp_argv = ["compare", rec, "--params", params, "--json", "--out", tmp / "cmp"]
         if data.draw(st.booleans(), label="no-predict"):
             cmp_argv.append("--no-predict")
+        if data.draw(st.booleans(), label="analysis options"):
+            # the residual tests need at least 4 x lags + 10 samples after the skip and the decimation
+            duration = made["duration_s"]
+            skip = data.draw(floats(0.0, duration / 4), label="skip")
+            decimate = data.draw(st.integers(1, 4), label="decimate")
+            usable = int((duration - skip) * made["sample_rate_Hz"] / decimate)
+            lags = data.draw(st.integers(1, max(1, min(50, (usable - 10) // 4))), label="lags")
+            cmp_argv += ["--skip-s", skip, "--decimate", decimate, "--lags", lags,
+                         "--level", data.draw(floats(0.001, 0.1)), "--threshold-sigma", data.draw(floats(1.0, 6.0)),
+                         "--horizon-s", data.draw(floats(0.01, 0.2)), "--interval-s", data.draw(floats(0.005, 0.05))]
+            if data.draw(st.booleans()):
+                cmp_argv += ["--window-s", data.draw(floats(0.05, duration / 4))]
         cmp = assert_ok(shm(*cmp_argv), json_out=True, allowed=(0, 1))
         if cmp is not None and not cmp.get("failures"):
             assert_readable(tmp / "cmp" / "report.html")
@@ -118,13 +130,19 @@ def test_synth_compare_diagnose_fit(synth, fmt, data):
         lib = sorted(library_effects())
         cands = data.draw(st.lists(st.sampled_from(lib), min_size=1, max_size=2, unique=True), label="candidates")
         diag = assert_ok(shm("diagnose", rec, "--params", params, "--candidates", ",".join(cands),
-                             "--max-rate-hz", 200, "--json", "--out", tmp / "diag"), json_out=True)
+                             "--max-rate-hz", 200, "--blocks", 2 * data.draw(st.integers(2, 6), label="blocks/2"),
+                             "--min-reduction", data.draw(floats(0.0, 0.2), label="min-reduction"),
+                             "--seed", data.draw(seeds, label="diagnose seed"), "--json", "--out", tmp / "diag"),
+                         json_out=True)
         assert diag["verdict"]
         for name in ("diagnosis.json", "diagnosis.html", "ranking.png", "overlay.png"):
             assert_readable(tmp / "diag" / name)
         add = data.draw(st.sampled_from(lib), label="fit --add")
         save = tmp / "fit" / "mine.toml"
-        fit = assert_ok(shm("fit", rec, "--params", params, "--add", add, "--max-nfev", 3, "--max-rate-hz", 200,
+        free = data.draw(st.sampled_from([[], ["--free", "k3"], ["--free", "c3"], ["--free", "alpha_h"]]),
+                         label="fit --free")
+        fit = assert_ok(shm("fit", rec, "--params", params, "--add", add, *free, "--max-nfev", 3,
+                            "--max-rate-hz", 200, "--seed", data.draw(seeds, label="fit seed"),
                             "--save", save, "--json"), json_out=True)
         assert Path(fit["saved"]) == save
         for name in ("mine.toml", "fit.json", "fit.html", "fit_progress.png", "fit_overlay.png"):
