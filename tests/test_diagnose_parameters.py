@@ -110,3 +110,15 @@ def test_acceptance_scales_with_the_noise_floor_not_a_hard_two_sigma():
     assert not explained(2.05, 3.0, 2000)  # most of a small excess left: partial
     assert not explained(5.0, 1e4, 2000)  # far from the floor whatever the baseline
     assert explained(1.25, 10.0, 50) and not explained(1.25, 1.3, 5000)
+
+
+@pytest.mark.slow
+def test_wrong_mass_plus_missing_creep_is_a_combination():
+    # the mass group explains most of a wrong m3 alone; with creep added, the backward step swaps the group for m3
+    rec = _record(["piezo_creep"], {"gamma_creep": 0.05, "tau_creep": 1.0, "m3": 1.3 * M3}, seed=2)
+    d = diagnose([rec], "table2")
+    assert d.verdict == "combination", d.message
+    assert set(d.found) == {"m3", "piezo_creep"}
+    assert d.winner.outcome.values["m3"] == pytest.approx(1.3 * M3, rel=0.02)
+    assert d.winner.held_rms_sigma < 1.3
+    assert "--add piezo_creep --free m3" in d.fit_command

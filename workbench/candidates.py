@@ -245,19 +245,23 @@ class ScreenResult:
 #: 60 s bench sweep 1e-4 is twice as fast and within 9 µm of the 1e-6 run — enough to rank candidates
 SCREEN_RTOL = 1e-4
 #: probe points of the parameter screen, in ln(value / current); the dense line search of the most promising
-_PROBES = (-0.35, 0.35)
-_DENSE = (-0.9, -0.6, -0.45, -0.35, -0.25, -0.15, -0.08, -0.03, 0.03, 0.08, 0.15, 0.25, 0.35, 0.45, 0.6, 0.9)
+_PROBES = (-0.5, -0.25, -0.1, 0.1, 0.25, 0.5)
+_DENSE = (-0.9, -0.7, -0.4, -0.32, -0.18, -0.05, 0.05, 0.18, 0.32, 0.4, 0.7, 0.9)
 _ZOOM = (-0.06, -0.04, -0.02, 0.02, 0.04, 0.06)
 _FD_LN = 0.02
 
 
 def screen_parameters(targets: Sequence[Target], candidates: Sequence[ParameterCandidate],
-                      base_values: Mapping[str, float], refine_top: int = 6,
-                      threads: int | None = None) -> list[ScreenResult]:
-    """Screen re-estimation candidates from two batched simulations (see the module docstring); each candidate
-    is moved along one direction (a tied group: all members by the same factor; an independent pair: both)."""
-    models = [tg.model for tg in targets]
-    ro = RowsObjective(targets, models, threads=threads, rtol=SCREEN_RTOL)
+                      base_values: Mapping[str, float], refine_top: int = 6, threads: int | None = None,
+                      models: Sequence[PlantModel] | None = None,
+                      overrides: Mapping[str, float] | None = None) -> list[ScreenResult]:
+    """Screen re-estimation candidates from batched simulations (see the module docstring); each candidate
+    is moved along one direction (a tied group: all members by the same factor; an independent pair: both).
+    ``models``/``overrides``: screen on top of another model (forward selection: the current set, fitted)."""
+    models = list(models) if models is not None else [tg.model for tg in targets]
+    overrides = dict(overrides or {})
+    base_values = {**base_values, **{k: v for k, v in overrides.items() if k in base_values}}
+    ro = RowsObjective(targets, models, threads=threads, rtol=SCREEN_RTOL, base_values=overrides)
     cands = list(candidates)
     # the nominal model's residual at the screening tolerance (differences are taken at one tolerance)
     r0_train = ro.residuals(ro.run([ro.nominal(i)[None] for i in range(len(models))]), "train")[0]
@@ -357,14 +361,15 @@ def _moved(name: str, value: float, s: float) -> float:
 def screen_effects(targets: Sequence[Target], effect_models: Mapping[str, Sequence[PlantModel]],
                    specs: Sequence[CandidateSpec], guesses: Mapping[str, Mapping[str, float]],
                    base_values: Mapping[str, float], n_design: int = 7, seed: int = 0,
-                   threads: int | None = None) -> list[ScreenResult]:
-    """Screen effect candidates: the effect's guess and a Latin hypercube of ``n_design`` points, one batch each."""
+                   threads: int | None = None, overrides: Mapping[str, float] | None = None) -> list[ScreenResult]:
+    """Screen effect candidates: the effect's guess and a Latin hypercube of ``n_design`` points, one batch each
+    (``overrides``: values of other parameters of the models, e.g. the current set's in forward selection)."""
     rng = np.random.default_rng(seed)
     out = []
     for spec in specs:
         models = effect_models[spec.label]
         free, ties = spec.free_parameters(base_values)
-        obj = TiedObjective(targets, models, free, ties, threads=threads, rtol=SCREEN_RTOL)
+        obj = TiedObjective(targets, models, free, ties, threads=threads, rtol=SCREEN_RTOL, base_values=overrides)
         k = len(free)
         g = guesses.get(spec.label, {})
         u_guess = np.array([float(fp.to_unit(g.get(fp.name, fp.from_unit(0.5)))) for fp in free])

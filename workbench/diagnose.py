@@ -335,7 +335,7 @@ def diagnose(records: Sequence[Record], params: ParameterSet | str = "table2",
     t0 = time.perf_counter()
     if winner is not None and combine and winner.held_rms_sigma > FORWARD_ABOVE and not explained(
             winner.held_rms_sigma, base_held, winner.n_eff_held):
-        winner, steps = forward_select(winner, [c for c in results if c is not winner], base, targets, data,
+        winner, steps = forward_select(winner, [c for c in ranking if c is not winner], base, targets, data,
                                        rss0_held, min_reduction=min_reduction, threads=threads,
                                        max_nfev=max_nfev, seed=seed, base_held=base_held)
     timings["forward_selection_s"] = time.perf_counter() - t0
