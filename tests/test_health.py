@@ -127,3 +127,35 @@ def test_metrics_follow_progpy_definitions():
     assert prognostic_horizon(times, far, t_eol) == pytest.approx(400.0)
     assert prognostic_horizon(times, [np.full(100, 2000.0)] * 3, t_eol) is None
     assert interval_covers([900, 1100], 1000) and not interval_covers([1100, 1200], 1000)
+
+
+def test_every_completed_mbit_leaves_a_record_linked_in_the_log(tmp_path):
+    """A plain maintenance run: MBIT.a and MBIT.b each write a full-rate record the workbench loads, and the log's
+    mbit_records table links each MBIT result (and verdict) to its file."""
+    import sqlite3
+
+    from workbench.records import load_record
+
+    out = tmp_path / "run"
+    r = subprocess.run([sys.executable, "-m", "shm_cli.main", "run", "--scenario", "maintenance", "--quiet",
+                        "--out", str(out)], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    db = sqlite3.connect(out / "usage.db")
+    links = db.execute("SELECT mbit, verdict, path, mbit_result_id, n_samples FROM mbit_records ORDER BY id").fetchall()
+    results = db.execute("SELECT id, mbit, verdict FROM mbit_results ORDER BY id").fetchall()
+    assert [(m, v) for m, v, *_ in links] == [(m, v) for _, m, v in results] == [("a", "PASS"), ("b", "PASS")]
+    assert [x[3] for x in links] == [x[0] for x in results]
+    a = load_record(out / links[0][2])
+    b = load_record(out / links[1][2])
+    assert a.meta["test"] == "mbit-a" and b.meta["test"] == "mbit-b"
+    assert a.sample_rate_Hz == pytest.approx(100.0)
+    assert a.n_samples == links[0][4] and b.n_samples == links[1][4]
+    # the drive is MBIT.a's: 600 V differential sine on a +100 V common mode, after a 2 s settle at 0 V
+    va = (a["v_ch1"] - a["v_ch2"]) / 2
+    assert np.max(va) == pytest.approx(600.0, rel=1e-3) and np.all(a["v_ch1"][a.t < 1.9] == 0.0)
+    # the response is the laminate's: millimetres of tip motion, not noise
+    assert 1e-3 < np.max(np.abs(a["z3"])) < 2e-2
+    # a visit's records are consecutive ticks (b starts where a ended)
+    ta = a.meta["provenance"]["board_time_s"]
+    tb = b.meta["provenance"]["board_time_s"]
+    assert tb == pytest.approx(ta + a.t[-1] + 0.01, abs=1e-6)

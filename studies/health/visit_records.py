@@ -48,7 +48,7 @@ def mbit_record(event: BoardEvent, *, visit: int, operating_hours: float | None,
     """The :class:`workbench.records.Record` of an ``mbit_record`` event (time from 0 at the settle's start)."""
     d = event.data
     rows = np.asarray(d["rows"], dtype=float).reshape(-1, 4)
-    t = rows[:, 0] - rows[0, 0]
+    t = np.round(rows[:, 0] - rows[0, 0], 9)  # board time differences, without their float residue
     meta: dict[str, Any] = {
         "test": d["test"], "description": f"{d['label']} as the board ran it (visit {visit})",
         "sample_rate_Hz": float(d["rate_Hz"]), "terminal": "amplifier", "inputs": ["v_ch1_V", "v_ch2_V"],
