@@ -23,6 +23,7 @@ Every problem is a :class:`RecordError` naming the file, the line (or sample) an
 from __future__ import annotations
 
 import io
+import logging
 import math
 import tomllib
 from collections.abc import Callable, Mapping, Sequence
@@ -602,12 +603,21 @@ def load_tdms_record(path: str | Path) -> Record:
     from nptdms import TdmsFile
 
     path = Path(path)
+    # a corrupt file is our RecordError, not a stream of npTDMS reader warnings (its loggers set their own levels)
+    quiet = {name: lg for name, lg in logging.root.manager.loggerDict.items()
+             if name.startswith("nptdms") and isinstance(lg, logging.Logger)}
+    levels = {name: lg.level for name, lg in quiet.items()}
+    for lg in quiet.values():
+        lg.setLevel(logging.ERROR)
     try:
         tf = TdmsFile.read(str(path))
     except FileNotFoundError:
         raise RecordError(path, "file not found") from None
     except Exception as exc:  # npTDMS raises several types for corrupt files
         raise RecordError(path, f"not a readable TDMS file: {type(exc).__name__}: {exc}") from None
+    finally:
+        for name, lg in quiet.items():
+            lg.setLevel(levels[name])
     side = _read_sidecar(path)
     tdms_meta = side.get("tdms", {})
     if not isinstance(tdms_meta, dict):
