@@ -111,3 +111,28 @@ def test_a_foreign_database_is_left_untouched_by_run_append(corpus: Path, tmp_pa
     assert "another application" in capsys.readouterr().err
     assert (out / "usage.db").read_bytes() == before
     assert sorted(p.name for p in out.iterdir()) == [".shm-run.lock", "usage.db"]
+
+
+@pytest.mark.parametrize("argv", [
+    ["model", "frf", "--out", "{ro}/sub"],
+    ["harvest", "--out", "{ro}"],
+    ["run", "--quiet", "--out", "{ro}/run"],
+    ["synth", "--test", "step", "--out", "{ro}/x.csv"],
+    ["compare", "{good}", "--out", "{ro}"],
+    ["log", "export", "--db", "{db}", "--csv", "--out", "{ro}/csv"],
+])
+def test_a_read_only_out_is_one_line_exit_2(argv, corpus: Path, tmp_path: Path, capsys, monkeypatch) -> None:
+    """A directory the user may not write into (as root every directory is writable, so permission is simulated
+    where the checks ask the system for it)."""
+    ro = tmp_path / "read_only"
+    ro.mkdir()
+    db = tmp_path / "usage.db"
+    from firmware_sim.usage_log import UsageLog
+
+    UsageLog(db).close()
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, *a, **k: False if Path(p) == ro else real_access(p, mode))
+    code = run_shm([a.format(ro=ro, good=corpus / "good.csv", db=db) for a in argv])
+    err = capsys.readouterr().err
+    assert code == 2 and "Traceback" not in err
+    assert "read_only" in err and "not writable" in err, err
