@@ -112,18 +112,20 @@ def challenge_lives(full: bool = True) -> list[ChallengeLife]:
         lives.append(ChallengeLife(f"linear-{rate * 100:g}per100h-every{interval:g}h",
                                    (_lin("alpha_h", rate), _lin("beta_h", -1e-4)), visits=18, interval=interval,
                                    noise_m=5e-6, seed=i))
-    for tau in (500.0, 800.0):
+    for tau in (500.0, 700.0):
         i += 1
         lives.append(ChallengeLife(f"exponential-tau{tau:g}", (_exp("alpha_h", 0.02, tau), _lin("k3", -1e-4)),
                                    visits=18, interval=100.0, noise_m=2e-6, seed=i))
     i += 1
     lives.append(ChallengeLife("decreasing-alpha", (_lin("alpha_h", -1.0e-4), _lin("k3", -2e-4)), visits=16,
                                interval=100.0, noise_m=2e-6, seed=i))
-    for noise in (2e-6, 5e-6, 10e-6):
-        for c in (-0.03, 0.0, 0.02):
-            i += 1
-            lives.append(ChallengeLife(f"stable-k3{c:+g}-n{noise * 1e6:g}um", (_const("k3", c), _const("beta_h", -c)),
-                                       visits=10, interval=100.0, noise_m=noise, kind="stable", seed=i))
+    for rep in (1, 2):
+        for noise in (2e-6, 5e-6, 10e-6):
+            for c in (-0.03, 0.0, 0.02):
+                i += 1
+                lives.append(ChallengeLife(f"stable-k3{c:+g}-n{noise * 1e6:g}um-{rep}",
+                                           (_const("k3", c), _const("beta_h", -c)), visits=10, interval=100.0,
+                                           noise_m=noise, kind="stable", seed=i))
     for p, size, at in (("k3", -0.15, 450.0), ("k3", -0.10, 730.0), ("alpha_h", 0.05, 520.0),
                         ("beta_h", -0.2, 360.0), ("alpha_h", -0.04, 610.0)):
         i += 1

@@ -13,7 +13,8 @@ change point   y = a + b·h + Δ·[h ≥ τ]           k=4 (τ: midway between t
 
 Weighted least squares with weights 1/(s_i² + σ_f²) (σ_f = 0.05 %: the repeatability floor a fit's formal error
 does not show), the residual scale estimated from the data. The model with the lowest AICc wins; a trend is
-*significant* when the F-test of the chosen model against ``none`` gives p < 0.01 (else "no significant trend").
+*significant* when the F-test of the chosen model against ``none`` gives p < 0.002 (0.5 % Bonferroni-split over the
+three monitor parameters; else "no significant trend").
 Forecasts draw coefficient vectors from each candidate's N(θ̂, cov) in proportion to the Akaike weights of the trend
 models (model averaging: the interval carries the doubt about which law holds).
 """
@@ -29,7 +30,7 @@ from scipy import stats
 from scipy.optimize import least_squares
 
 SIGMA_FLOOR = 5e-4
-P_SIGNIFICANT = 0.01
+P_SIGNIFICANT = 0.002  # ~0.5 % per parameter, Bonferroni over the three monitor parameters
 MODELS = ("none", "linear", "exponential", "power", "change_point")
 
 
