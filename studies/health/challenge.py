@@ -402,8 +402,8 @@ def _life_line(x: dict[str, Any]) -> str:
             f"FALSE TREND {x['final_models']}"
     if x["kind"] == "sudden":
         extra = f"step placed: {x.get('step_placed')} (tau {x.get('step_tau_h')})"
-    fault = x["true_first_fault_visit"]
-    return (f"  {x['life']:<34} first FAULT visit {fault if fault is not None else '-':>4}  {cov}{al} {extra}"
+    fault = x["true_first_fault_visit"]  # 0-based index; printed as the visit number (1 = entry into service)
+    return (f"  {x['life']:<34} first FAULT visit {fault + 1 if fault is not None else '-':>4}  {cov}{al} {extra}"
             f"  ({x['wall_s']:.1f} s)")
 
 
