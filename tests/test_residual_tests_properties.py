@@ -1,0 +1,164 @@
+"""The residual tests' arithmetic against independent references (direct correlation sums, SciPy's normal
+quantiles) and their verdicts on residuals built to fail exactly one test; input checks at their limits."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.stats import norm
+
+from board_config.errors import InputError
+from workbench import residual_tests as rt_module
+from workbench.residual_tests import (
+    POINTS_AT,
+    ResidualTests,
+    band_for,
+    bias_test,
+    cross_correlation,
+    effective_lags,
+    residual_tests,
+)
+
+RNG = np.random.default_rng(20)
+N = 2000
+U = RNG.standard_normal(N)
+NOISE = RNG.standard_normal(N)
+
+
+def reference_phi(a, b, tau):
+    a = a - a.mean()
+    b = b - b.mean()
+    s = np.sum(a[: a.size - tau] * b[tau:]) if tau >= 0 else np.sum(a[-tau:] * b[: b.size + tau])
+    return s / math.sqrt(np.sum(a * a) * np.sum(b * b))
+
+
+@pytest.mark.parametrize("nlags", [5, 300])  # direct sums and the FFT path
+def test_cross_correlation_equals_the_definition(nlags):
+    a, b = RNG.standard_normal(400) + 3.0, RNG.standard_normal(400) - 1.0
+    lags = np.arange(-nlags // 2, nlags - nlags // 2)
+    got = cross_correlation(a, b, lags)
+    want = [reference_phi(a, b, int(t)) for t in lags]
+    assert got == pytest.approx(want, abs=1e-12)
+    assert np.isnan(cross_correlation(np.ones(50), b[:50], np.arange(3))).all()
+    assert np.isnan(cross_correlation(a[:50], np.full(50, 2.0), np.arange(3))).all()
+
+
+def test_band_is_the_sidak_bonferroni_normal_quantile():
+    for n, m, level in ((100, 1.0, 0.05), (2000, 25.0, 0.01), (500, 7.5, 0.2)):
+        assert band_for(n, m, level) == pytest.approx(norm.ppf(1 - level / (2 * m)) / math.sqrt(n), rel=1e-12)
+
+
+def test_effective_lags_between_one_and_m():
+    lags = np.arange(1, 26)
+    white = effective_lags(NOISE, lags)
+    assert 20.0 < white <= 25.0
+    sine = effective_lags(np.sin(np.arange(N) * 0.05), lags)
+    assert 1.0 <= sine < 4.0
+    assert effective_lags(NOISE, np.array([3])) == 1.0
+    assert effective_lags(np.ones(100), lags) == 25.0  # flat: no estimate, all lags counted
+
+
+def test_bias_test_by_hand():
+    e = np.array([1.0, 2.0, 3.0, 4.0])
+    t = 2.5 / (np.std(e, ddof=1) / 2.0)
+    r = bias_test(e, level=0.01)
+    assert r.statistic == pytest.approx(t) and r.band == pytest.approx(norm.ppf(0.995))
+    assert r.passed is False and r.verdict == "FAIL" and r.p_value == pytest.approx(2 * norm.sf(t))
+    assert r.r.tolist() == [2.5] and r.ratio == pytest.approx(t / norm.ppf(0.995))
+    assert "t = 3.87" in r.note and r.points_at == POINTS_AT["bias"]
+    assert bias_test(e, level=1e-5).passed is True  # a looser band: z_{1-0.5e-5} = 4.42 > 3.87
+    for flat in (np.full(5, 2.0), np.array([7.0])):
+        c = bias_test(flat)
+        assert c.passed is None and c.verdict == "n/a" and math.isnan(c.ratio) and "constant" in c.note
+    assert bias_test(np.array([1.0, -1.0, 1.0, -1.0])).passed is True
+
+
+def _battery(e, u=U, **kw):
+    return residual_tests(e, u, **kw)
+
+
+def test_white_residual_passes_and_each_built_fault_fails_its_test():
+    ok = _battery(0.1 * NOISE)
+    assert ok.adequate is True and ok.failed == [] and [t.key for t in ok.tests] == list(POINTS_AT)
+    delayed = 0.1 * NOISE + 0.05 * np.roll(U, 3)  # error follows the drive 3 samples late
+    b = _battery(delayed)
+    failed = [t.key for t in b.failed]
+    assert "ue" in failed and "bias" not in failed and "ee" not in failed
+    assert b["ue"].worst_lag == 3 and b.adequate is False
+    squared = 0.1 * NOISE + 0.05 * (U ** 2 - 1.0)
+    b = _battery(squared)
+    assert "u2e" in [t.key for t in b.failed] and b["u2e"].worst_lag == 0
+    offset = 0.1 * NOISE + 0.02
+    b = _battery(offset)
+    assert [t.key for t in b.failed] == ["bias"]
+    coloured = np.convolve(NOISE, np.ones(5) / 5, mode="same")
+    b = _battery(coloured)
+    assert "ee" in [t.key for t in b.failed] and b["ee"].worst_lag == 1
+    with pytest.raises(KeyError):
+        b["nope"]
+
+
+def test_statistic_band_and_p_value_are_consistent():
+    b = _battery(0.1 * NOISE + 0.05 * np.roll(U, 3), max_lag=10)
+    ee = b["ee"]
+    assert ee.band == pytest.approx(band_for(N, 10.0, 0.01)) and "10 lags, 10.0 effectively independent" in ee.note
+    assert ee.lags.tolist() == list(range(1, 11))
+    assert b["ue"].lags.tolist() == list(range(-10, 11)) and b["e_eu"].lags.tolist() == list(range(1, 11))
+    for t in b.tests[1:]:
+        assert t.statistic == pytest.approx(float(np.max(np.abs(t.r))))
+        assert t.passed is (t.statistic <= t.band)
+        assert t.ratio == pytest.approx(t.statistic / t.band)
+        assert t.worst_lag == int(t.lags[np.argmax(np.abs(t.r))])
+    ue = b["ue"]
+    m_eff = float(ue.note.split(", ")[1].split(" ")[0])
+    assert ue.p_value == pytest.approx(min(1.0, m_eff * 2 * norm.sf(ue.statistic * math.sqrt(N))), rel=1e-2)
+    assert ee.p_value == pytest.approx(min(1.0, 10 * 2 * norm.sf(ee.statistic * math.sqrt(N))))
+    d = b.to_dict()
+    assert (d["channel"], d["input"], d["n"], d["level"], d["max_lag"], d["decimate"], d["adequate"]) == \
+        ("y", "u", N, 0.01, 10, 1, False)
+    assert d["tests"][2]["verdict"] == "FAIL" and d["tests"][2]["key"] == "ue"
+
+
+def test_a_flat_input_makes_the_cross_tests_not_applicable():
+    b = _battery(0.1 * NOISE, np.full(N, 3.0))
+    assert [t.passed for t in b.tests[2:]] == [None] * 4
+    assert all(t.note == "not applicable: the input does not vary" for t in b.tests[2:])
+    assert b["ee"].passed is True and b.adequate is True
+    both_flat = _battery(np.full(N, 0.5), np.full(N, 3.0))
+    assert both_flat.adequate is None and both_flat.failed == []
+
+
+def test_inputs_checked_at_their_limits():
+    m = 25
+    _battery(NOISE[: 4 * m + 10], U[: 4 * m + 10])  # exactly enough samples
+    with pytest.raises(InputError, match=f"need at least {4 * m + 10} samples for {m} lags, got {4 * m + 9}"):
+        _battery(NOISE[: 4 * m + 9], U[: 4 * m + 9])
+    with pytest.raises(InputError, match="need at least 14 samples for 1 lags"):
+        _battery(NOISE[:13], U[:13], max_lag=1)
+    with pytest.raises(InputError, match="0 lags"):
+        _battery(NOISE, max_lag=0)
+    for level in (0.0, 1.0):
+        with pytest.raises(InputError, match="level must be in"):
+            _battery(NOISE, level=level)
+    with pytest.raises(ValueError, match="same length, got 2000 and 1999"):
+        _battery(NOISE, U[:-1])
+    bad = NOISE.copy()
+    bad[7] = np.nan
+    with pytest.raises(ValueError, match="must be finite"):
+        _battery(bad)
+    with pytest.raises(ValueError, match="must be finite"):
+        _battery(NOISE, np.where(np.arange(N) == 3, np.inf, U))
+    b = _battery(NOISE, decimate=4, channel="z3", input_name="v")
+    assert (b.n, b.decimate, b.channel, b.input_name) == (N // 4, 4, "z3", "v")
+    assert _battery(NOISE, decimate=0).n == N
+
+
+def test_test_result_ratio_and_dict():
+    r = rt_module.TestResult("ue", "s", "t", np.arange(3), np.zeros(3), 0.0, 0.01, 0.5, 0, 0.5, True, "x")
+    assert math.isnan(r.ratio) and r.verdict == "pass"
+    d = r.to_dict()
+    assert d["lags"] == [0, 1, 2] and d["verdict"] == "pass" and d["key"] == "ue"
+    rt = ResidualTests("y", "u", 10, 0.01, 2, 1)
+    assert rt.adequate is None
