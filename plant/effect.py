@@ -25,13 +25,19 @@ extra states, parameters and outputs. Core states, core parameters and bus slots
 all ``post``. Kernels must be numba-compilable (scalars, numpy arrays, math); a kernel that does not
 compile is reported with the effect's name.
 
-A user's own effect is loaded by dotted path, ``package.module:ClassName``, through the same registry
-as the built-ins (:func:`resolve_effect`).
+A user's own effect is loaded by dotted path, ``package.module:ClassName``, or from a file, ``path/to/file.py``
+(the one effect class it defines) or ``path/to/file.py:ClassName``, through the same registry as the built-ins
+(:func:`resolve_effect`). A file is imported under a module name derived from its absolute path
+(:func:`load_effect_file`), so the composed kernel's cache key follows the file's content.
 """
 
 from __future__ import annotations
 
+import hashlib
 import importlib
+import importlib.util
+import os
+import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
@@ -173,8 +179,84 @@ def registered_effects() -> dict[str, type[PhysicalEffect]]:
     return dict(_REGISTRY)
 
 
+#: module attribute set on a module loaded from a file: the file's absolute path (how a parameter set refers to it)
+SOURCE_FILE_ATTR = "__mfc_shm_effect_file__"
+
+
+def is_file_spec(spec: str) -> bool:
+    """True when ``spec`` names a Python file (``x.py``, ``dir/x.py:Class``) rather than a registered name or a
+    dotted path."""
+    path = spec.rsplit(":", 1)[0] if spec.count(":") and not spec.endswith(".py") else spec
+    return path.endswith(".py") or os.sep in path or "/" in path
+
+
+def load_effect_file(path: str | os.PathLike) -> Any:
+    """Import the Python file ``path`` as a module (once per path and content; errors as :class:`EffectError`).
+
+    The module name is ``_mfc_shm_effect_file_<stem>_<hash of the absolute path>`` and it is kept in
+    ``sys.modules``, so effects defined there are importable by module path (the kernel generator imports them
+    that way); a file whose content changed since it was loaded is imported afresh."""
+    p = os.path.abspath(os.fspath(path))
+    if not os.path.isfile(p):
+        raise EffectError(f"effect file '{path}' does not exist (or is not a file)")
+    try:
+        with open(p, "rb") as fh:
+            content = fh.read()
+    except OSError as exc:
+        raise EffectError(f"effect file '{path}' cannot be read: {exc}") from exc
+    stem = "".join(c if c.isalnum() else "_" for c in os.path.splitext(os.path.basename(p))[0])
+    name = f"_mfc_shm_effect_file_{stem}_{hashlib.sha256(p.encode()).hexdigest()[:10]}"
+    digest = hashlib.sha256(content).hexdigest()
+    old = sys.modules.get(name)
+    if old is not None and getattr(old, "__mfc_shm_digest__", None) == digest:
+        return old
+    spec = importlib.util.spec_from_file_location(name, p)
+    if spec is None or spec.loader is None:
+        raise EffectError(f"effect file '{path}' cannot be imported as a Python module")
+    module = importlib.util.module_from_spec(spec)
+    setattr(module, SOURCE_FILE_ATTR, p)
+    module.__mfc_shm_digest__ = digest  # type: ignore[attr-defined]
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:
+        sys.modules.pop(name, None)
+        raise EffectError(f"cannot import effect file '{path}': {type(exc).__name__}: {exc}") from exc
+    return module
+
+
+def effect_source_file(cls: type) -> str | None:
+    """The absolute path of the file ``cls`` was loaded from by :func:`load_effect_file`, else None."""
+    mod = sys.modules.get(getattr(cls, "__module__", ""))
+    return getattr(mod, SOURCE_FILE_ATTR, None) if mod is not None else None
+
+
+def _resolve_file(spec: str) -> type[PhysicalEffect]:
+    path, attr = spec, ""
+    if not spec.endswith(".py") and ":" in spec:
+        path, _, attr = spec.rpartition(":")
+    module = load_effect_file(path)
+    if attr:
+        obj = getattr(module, attr, None)
+        if obj is None:
+            raise EffectError(f"effect file '{path}' defines no '{attr}'")
+        if not isinstance(obj, type) or not issubclass(obj, PhysicalEffect):
+            raise EffectError(f"'{spec}' is not a PhysicalEffect subclass (got {obj!r})")
+        obj.validate_class()
+        return obj
+    found = [o for o in vars(module).values() if isinstance(o, type) and issubclass(o, PhysicalEffect)
+             and o.__module__ == module.__name__]
+    if len(found) != 1:
+        names = ", ".join(o.__name__ for o in found) or "none"
+        raise EffectError(f"effect file '{path}' must define exactly one PhysicalEffect class to be named by its "
+                          f"path alone (found: {names}); name one as '{path}:ClassName'")
+    found[0].validate_class()
+    return found[0]
+
+
 def resolve_effect(spec: str | type[PhysicalEffect]) -> type[PhysicalEffect]:
-    """An effect class from a registered name or a dotted path ``package.module:ClassName``."""
+    """An effect class from a registered name, a dotted path ``package.module:ClassName``, or a file
+    ``path/to/file.py`` / ``path/to/file.py:ClassName``."""
     if isinstance(spec, type):
         if not issubclass(spec, PhysicalEffect):
             raise EffectError(f"{spec!r} is not a PhysicalEffect subclass")
@@ -182,13 +264,15 @@ def resolve_effect(spec: str | type[PhysicalEffect]) -> type[PhysicalEffect]:
         return spec
     if not isinstance(spec, str) or not spec:
         raise EffectError(f"effect must be a name or 'package.module:ClassName', got {spec!r}")
+    if is_file_spec(spec):
+        return _resolve_file(spec)
     if ":" not in spec:
         try:
             return _REGISTRY[spec]
         except KeyError:
             known = ", ".join(sorted(_REGISTRY))
             raise EffectError(f"unknown effect '{spec}' (registered: {known}; or give a dotted path "
-                              "'package.module:ClassName')") from None
+                              "'package.module:ClassName' or a file 'path/to/effect.py')") from None
     module_name, _, attr = spec.partition(":")
     try:
         module = importlib.import_module(module_name)

@@ -37,7 +37,7 @@ from scipy.optimize import least_squares
 from board_config import CORE_PARAMETER_NAMES, EffectEntry, ParameterSet, load_parameter_set
 from board_config.errors import InputError
 from plant import InputSignals, PhysicalEffect, PlantModel
-from plant.effect import EffectError, importable_by_path, resolve_effect
+from plant.effect import EffectError, effect_source_file, importable_by_path, resolve_effect
 from workbench.effect_library import (
     FreeParameter,
     core_free_parameter,
@@ -615,6 +615,9 @@ def effect_entry_name(cls: type[PhysicalEffect]) -> str:
             return cls.name
     except EffectError:
         pass
+    source_file = effect_source_file(cls)
+    if source_file is not None:  # loaded from a file: refer to it by its absolute path
+        return f"{source_file}:{cls.__qualname__}"
     if not importable_by_path(cls):
         raise FitError(f"effect '{cls.name}' ({cls.__module__}.{cls.__qualname__}) is defined in a script or inside "
                        "a function, so a parameter set cannot refer to it; put it in an importable module and add "

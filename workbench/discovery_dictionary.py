@@ -1,0 +1,351 @@
+"""The dictionary of candidate correction terms that ``shm discover`` searches, and the code each term becomes.
+
+A *term* is one physical correction, built from one of the model's own signals along the records and placed where
+the physics allows it to act:
+
+==================  ============================================================  ===============
+placement           what the term adds                                             coefficient unit
+==================  ============================================================  ===============
+``force_mass``      a force on mass j (``bus[B_FM + j]``, N)                       N / signal^n
+``force_section``   an internal force in section i (``bus[B_S + i]``, N)           N / signal^n
+``current``         a current into every patch charge (``dx[X_Q + i]``, A)         A / signal^n
+``drive``           a change of the voltage the patches see (``bus[B_VA]``, V)     V / signal^n
+``measurement``     a change of what the tip laser reports (``y[Y_Z3_MEAS]``, m)   m / signal^n
+==================  ============================================================  ===============
+
+Each term is ``coefficient × form(signal)`` with one of the forms of :data:`FORMS` — linear, sign (dry friction,
+smoothed by a width well below the signal's scale), |x|·x, x², x³, one-sided above/below a threshold, dead zone,
+clipped (a clearance), saturating, time-weighted (a drifting gain) and delayed (a first-order Padé delay, one extra
+state). Thresholds, widths and delays (the term's *shape*) are set from the signal's scale along the records, at a
+few fractions each; the refit frees them.
+
+:func:`build_dictionary` lists the terms for a model and records; :func:`effect_source` writes the Python source of
+a :class:`~plant.PhysicalEffect` holding a given set of terms (the whole dictionary for the sensitivity batch, or
+the few chosen terms for the refit and the emitted file). :func:`form_values` evaluates a form on arrays (NumPy) for
+scaling.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+#: placements and the unit of what they add
+PLACEMENT_UNIT = {"force_mass": "N", "force_section": "N", "current": "A", "drive": "V", "measurement": "m"}
+
+
+@dataclass(frozen=True)
+class Form:
+    """A shape of a term: ``code`` is a numba expression in ``S`` (the signal) and ``G`` (the shape constant);
+    ``power`` is the exponent of the signal's unit in the term; ``shape`` names what ``G`` is (or "" if unused)."""
+
+    name: str
+    code: str
+    power: int
+    shape: str = ""
+    per_second: bool = False
+
+
+FORMS: dict[str, Form] = {
+    "lin": Form("lin", "S", 1),
+    "sign": Form("sign", "math.tanh(S / G)", 0, "smoothing width"),
+    "absx": Form("absx", "abs(S) * S", 2),
+    "square": Form("square", "S * S", 2),
+    "cube": Form("cube", "S * S * S", 3),
+    "pos": Form("pos", "max(S - G, 0.0)", 1, "threshold"),
+    "neg": Form("neg", "min(S + G, 0.0)", 1, "threshold"),
+    "dead": Form("dead", "S - min(max(S, -G), G)", 1, "half-width"),
+    "clip": Form("clip", "min(max(S, -G), G)", 1, "half-width"),
+    "sat": Form("sat", "G * math.tanh(S / G) - S", 1, "saturation level"),
+    "time": Form("time", "t * S", 1, "", per_second=True),
+    "delay": Form("delay", "2.0 * (W - S)", 1, "delay"),
+}
+
+
+@dataclass(frozen=True)
+class Signal:
+    """A model signal: numba code reading it inside a hook, SI unit, words."""
+
+    name: str
+    code: str
+    unit: str
+    words: str
+
+
+def _signals() -> dict[str, Signal]:
+    out = {}
+    for j in range(3):
+        out[f"z{j + 1}"] = Signal(f"z{j + 1}", f"bus[B_Z + {j}]", "m", f"displacement of mass {j + 1}")
+        out[f"zd{j + 1}"] = Signal(f"zd{j + 1}", f"bus[B_ZD + {j}]", "m/s", f"velocity of mass {j + 1}")
+        out[f"delta{j + 1}"] = Signal(f"delta{j + 1}", f"x[X_DELTA + {j}]", "m", f"deformation of section {j + 1}")
+        out[f"ddelta{j + 1}"] = Signal(f"ddelta{j + 1}", f"x[X_DDELTA + {j}]", "m/s",
+                                       f"deformation rate of section {j + 1}")
+    out["vc"] = Signal("vc", "bus[B_VC + i]", "V", "patch voltage")
+    out["va"] = Signal("va", "bus[B_VA_DEMAND]", "V", "drive voltage")
+    out["one"] = Signal("one", "1.0", "1", "constant")
+    return out
+
+
+SIGNALS = _signals()
+
+
+@dataclass(frozen=True)
+class Term:
+    """One candidate correction: ``coefficient × form(signal)`` added at ``placement`` (mass/section ``index``,
+    0-based; -1 when it does not apply). ``shape`` is the form's constant (SI, the signal's unit; for a delay, s)."""
+
+    placement: str
+    index: int
+    signal: str
+    form: str
+    shape: float = 0.0
+
+    @property
+    def key(self) -> str:
+        where = {"force_mass": f"m{self.index + 1}", "force_section": f"s{self.index + 1}", "current": "q",
+                 "drive": "va", "measurement": "z3m"}[self.placement]
+        return f"{where}_{self.form}_{self.signal}"
+
+    @property
+    def unit(self) -> str:
+        """Unit of the coefficient."""
+        sig = SIGNALS[self.signal].unit
+        f = FORMS[self.form]
+        base = PLACEMENT_UNIT[self.placement]
+        if sig == "1" or f.power == 0:
+            den = ""
+        elif f.power == 1:
+            den = sig
+        else:
+            den = f"({sig})^{f.power}"
+        if f.per_second:
+            den = f"{den}*s" if den else "s"
+        if not den:
+            return base
+        return "1" if den == base else f"{base}/{den}"
+
+    def with_shape(self, shape: float) -> Term:
+        return replace(self, shape=float(shape))
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# the dictionary for a model and records
+
+
+def form_values(form: str, s: np.ndarray, g: float, t: np.ndarray, dt: float) -> np.ndarray:
+    """The form evaluated on the signal ``s`` (NumPy; for the delay, the first-order Padé delay's correction
+    2·(lag(s) − s) ≈ −g·ds/dt)."""
+    s = np.asarray(s, float)
+    if form == "lin":
+        return s
+    if form == "sign":
+        return np.tanh(s / g)
+    if form == "absx":
+        return np.abs(s) * s
+    if form == "square":
+        return s * s
+    if form == "cube":
+        return s ** 3
+    if form == "pos":
+        return np.maximum(s - g, 0.0)
+    if form == "neg":
+        return np.minimum(s + g, 0.0)
+    if form == "dead":
+        return s - np.clip(s, -g, g)
+    if form == "clip":
+        return np.clip(s, -g, g)
+    if form == "sat":
+        return g * np.tanh(s / g) - s
+    if form == "time":
+        return t * s
+    if form == "delay":
+        return -g * np.gradient(s, dt) if s.size > 2 else np.zeros_like(s)
+    raise KeyError(form)
+
+
+#: fractions of a signal's scale (99th percentile of |signal| along the records) used as thresholds/widths
+THRESHOLDS = (0.3, 0.6)
+DEAD_ZONES = (0.15, 0.4)
+SAT_LEVEL = 0.6
+SIGN_WIDTH = 1e-3
+DELAYS_S = (0.002, 0.008)
+
+
+def build_dictionary(scales: Mapping[str, float], *, driven: bool = True) -> list[Term]:
+    """The candidate terms for signals of the given scales (99th percentile of |signal|, SI). ``driven``: the
+    patches are driven by the amplifier (drive terms apply); an open-circuit record has no drive to correct."""
+    terms: list[Term] = []
+
+    def ok(sig: str) -> bool:
+        return scales.get(sig, 0.0) > 0.0
+
+    for j in range(3):
+        z, zd = f"z{j + 1}", f"zd{j + 1}"
+        if ok(zd):
+            terms += [Term("force_mass", j, zd, "lin"), Term("force_mass", j, zd, "absx"),
+                      Term("force_mass", j, zd, "sign", SIGN_WIDTH * scales[zd])]
+        if ok(z):
+            terms += [Term("force_mass", j, z, "lin"), Term("force_mass", j, z, "cube"),
+                      Term("force_mass", j, z, "square")]
+            for f in THRESHOLDS:
+                terms += [Term("force_mass", j, z, "pos", f * scales[z]),
+                          Term("force_mass", j, z, "neg", f * scales[z])]
+    for i in range(3):
+        d, dd = f"delta{i + 1}", f"ddelta{i + 1}"
+        if ok(d):
+            for f in DEAD_ZONES:
+                terms += [Term("force_section", i, d, "dead", f * scales[d]),
+                          Term("force_section", i, d, "clip", f * scales[d])]
+        if ok(dd):
+            terms.append(Term("force_section", i, dd, "sign", SIGN_WIDTH * scales[dd]))
+    if ok("vc"):
+        terms += [Term("current", -1, "vc", "lin"), Term("current", -1, "vc", "absx"),
+                  Term("current", -1, "vc", "cube")]
+    if driven and ok("va"):
+        terms += [Term("drive", -1, "va", "delay", tau) for tau in DELAYS_S]
+        terms += [Term("drive", -1, "va", "square"), Term("drive", -1, "va", "cube"),
+                  Term("drive", -1, "va", "sat", SAT_LEVEL * scales["va"]), Term("drive", -1, "va", "time")]
+    if ok("z3"):
+        terms += [Term("measurement", -1, "z3", f) for f in ("lin", "square", "cube", "time")]
+        terms.append(Term("measurement", -1, "z3", "sat", SAT_LEVEL * scales["z3"]))
+    if ok("zd3"):
+        terms.append(Term("measurement", -1, "zd3", "lin"))
+    terms += [Term("measurement", -1, "one", "lin"), Term("measurement", -1, "one", "time")]
+    return terms
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# code generation
+
+
+@dataclass(frozen=True)
+class TermSlot:
+    """Where a term's numbers live in the generated effect: its coefficient at ``p[po + coef]``, its shape either
+    a literal or ``p[po + shape_param]``, its delay state (if any) at ``x[so + state]``."""
+
+    term: Term
+    coef: int
+    shape_param: int | None = None
+    state: int | None = None
+
+
+def _lit(v: float) -> str:
+    return repr(float(v))
+
+
+def _value_code(slot: TermSlot) -> str:
+    term = slot.term
+    form = FORMS[term.form]
+    g = f"p[po + {slot.shape_param}]" if slot.shape_param is not None else _lit(term.shape)
+    s = SIGNALS[term.signal].code
+    expr = form.code.replace("G", g).replace("W", f"x[so + {slot.state}]" if slot.state is not None else "0.0")
+    expr = expr.replace("S", f"({s})")
+    return f"p[po + {slot.coef}] * ({expr})"
+
+
+def hook_bodies(slots: Sequence[TermSlot], guard: bool = False) -> dict[str, list[str]]:
+    """Body lines (8-space indented) of the ``pre``, ``rates`` and ``output`` hooks for ``slots`` (``guard``: skip a
+    term whose coefficient is 0; a delay state still follows its signal)."""
+    bodies: dict[str, list[str]] = {"pre": [], "rates": [], "output": []}
+    for slot in slots:
+        term = slot.term
+        value = _value_code(slot)
+        if slot.state is not None:  # the Padé delay's state: dw/dt = (s − w)/(τ/2)
+            g = f"p[po + {slot.shape_param}]" if slot.shape_param is not None else _lit(term.shape)
+            s = SIGNALS[term.signal].code
+            bodies["rates"].append(f"        dx[so + {slot.state}] += (({s}) - x[so + {slot.state}]) / "
+                                   f"(0.5 * max({g}, 1e-4))")
+        if term.placement == "force_mass":
+            hook, lines = "rates", [f"bus[B_FM + {term.index}] += {value}"]
+        elif term.placement == "force_section":
+            hook, lines = "rates", [f"bus[B_S + {term.index}] += {value}"]
+        elif term.placement == "current":
+            hook, lines = "rates", ["for i in range(3):", f"    dx[X_Q + i] += {value}"]
+        elif term.placement == "drive":
+            hook, lines = "pre", [f"bus[B_VA] += {value}"]
+        elif term.placement == "measurement":
+            hook, lines = "output", [f"y[Y_Z3_MEAS] += {value}"]
+        else:
+            raise KeyError(term.placement)
+        if guard:
+            bodies[hook].append(f"        if p[po + {slot.coef}] != 0.0:")
+            bodies[hook].extend("            " + ln for ln in lines)
+        else:
+            bodies[hook].extend("        " + ln for ln in lines)
+    return bodies
+
+
+HEADER_IMPORTS = (
+    "import math\n\n"
+    "from plant.effect import Parameter, PhysicalEffect, StateSpec\n"
+    "from plant.layout import (\n"
+    "    B_FM, B_S, B_VA, B_VA_DEMAND, B_VC, B_Z, B_ZD, X_DDELTA, X_DELTA, X_Q, Y_Z3_MEAS,\n"
+    ")\n"
+)
+
+
+def hooks_source(slots: Sequence[TermSlot], guard: bool = False) -> str:
+    """The hook methods (class-body indentation) for ``slots``."""
+    bodies = hook_bodies(slots, guard)
+    parts = []
+    for name, lines in bodies.items():
+        if not lines:
+            continue
+        sig = "t, x, p, bus, y, so, po, yo" if name == "output" else "t, x, p, bus, dx, so, po"
+        parts.append(f"    @staticmethod\n    def {name}({sig}):\n" + "\n".join(lines) + "\n")
+    return "\n".join(parts)
+
+
+def dictionary_parameter_names(terms: Sequence[Term]) -> list[tuple[str, str | None]]:
+    """(coefficient name, shape name or None) of every term in the dictionary effect, in order."""
+    return [(f"a_{k:02d}", f"g_{k:02d}" if FORMS[t.form].shape else None) for k, t in enumerate(terms)]
+
+
+def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDictionary",
+                      effect_name: str = "discovery_dictionary") -> str:
+    """Source of one effect holding every term: a coefficient per term (default 0 = neutral) and, for a shaped form,
+    its shape as a parameter (placeholder default 1; the workbench sets it per record). The source depends only on
+    the terms' structure (placement, index, signal, form), so the compiled kernel is cached across records and
+    runs; a term whose coefficient is 0 is skipped at run time."""
+    slots, params = [], []
+    n_states = 0
+    for term, (cname, gname) in zip(terms, dictionary_parameter_names(terms)):
+        ci = len(params)
+        params.append(f"        Parameter({cname!r}, {term.unit!r}, 0.0, -math.inf, math.inf, {term.key!r}),")
+        gi = None
+        if gname is not None:
+            gi = len(params)
+            params.append(f"        Parameter({gname!r}, 'SI', 1.0, 0.0, math.inf, 'shape of {term.key}'),")
+        state = None
+        if term.form == "delay":
+            state, n_states = n_states, n_states + 1
+        slots.append(TermSlot(term, ci, gi, state))
+    states = "\n".join(f"        StateSpec('w_{k}', 'V', 1.0)," for k in range(n_states))
+    return (
+        '"""Generated by workbench.discovery_dictionary: every candidate term of shm discover (not for editing)."""\n\n'
+        + HEADER_IMPORTS + "\n\n"
+        f"class {class_name}(PhysicalEffect):\n"
+        f"    name = {effect_name!r}\n"
+        "    description = 'shm discover: the candidate correction terms'\n"
+        "    parameters = (\n" + "\n".join(params) + "\n    )\n"
+        + ("    states = (\n" + states + "\n    )\n" if n_states else "")
+        + "\n" + hooks_source(slots, guard=True)
+    )
+
+
+def scale_of(term: Term, scales: Mapping[str, float]) -> float:
+    """A typical magnitude of the form's value (its unit: the signal's unit to the form's power)."""
+    s = scales.get(term.signal, 1.0) if term.signal != "one" else 1.0
+    f = FORMS[term.form]
+    if term.form in ("sign",):
+        return 1.0
+    if term.form == "delay":
+        return max(term.shape * s * 2 * math.pi * 10.0, 1e-300)
+    if term.form in ("pos", "neg", "dead", "sat"):
+        return max(s - term.shape, 0.1 * s) if term.form != "sat" else 0.2 * s
+    if term.form == "clip":
+        return term.shape
+    return s ** f.power if f.power else 1.0
