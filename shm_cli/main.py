@@ -43,6 +43,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "shm_cli.compare_cmd",
     "shm_cli.diagnose_cmd",
     "shm_cli.fit_cmd",
+    "shm_cli.discover_cmd",
     "shm_cli.calibrate_cmd",
 )
 
