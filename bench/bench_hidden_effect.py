@@ -40,19 +40,21 @@ def _one(item: tuple) -> dict:
 
 
 def cases(quick: bool) -> list[tuple[HiddenCase, str, float, int]]:
+    """Every case × test kind × noise level, interleaved (the first noise level over every case and kind first, the
+    null seeds spread through) so that a run stopped early is still a representative sample."""
     kinds = ["mbit-b"] if quick else list(KINDS)
     noises = NOISE_LEVELS_M[:1] if quick else NOISE_LEVELS_M
     n_null = 3 if quick else N_NULL
+    hidden = [(i, case) for ck in CASE_KINDS for i, case in enumerate(cases_of(ck)) if not (quick and i % 3)]
     out = []
-    for kind in kinds:
-        for ck in CASE_KINDS:
-            for i, case in enumerate(cases_of(ck)):
-                if quick and i % 3:
-                    continue
-                for noise in noises:
-                    out.append((case, kind, noise, 1 + i % 3))
-        for s in range(n_null):
-            out.append((null_case(), kind, noises[s % len(noises)], 1000 + s))
+    for noise in noises:
+        for i, case in hidden:
+            for kind in kinds:
+                out.append((case, kind, noise, 1 + i % 3))
+    nulls = [(null_case(), kind, noises[s % len(noises)], 1000 + s) for s in range(n_null) for kind in kinds]
+    step = max(1, len(out) // max(len(nulls), 1))
+    for k, item in enumerate(nulls):
+        out.insert(min(len(out), k * (step + 1)), item)
     return out
 
 
@@ -62,8 +64,13 @@ def run(out_dir: Path, quick: bool) -> dict:
     todo = cases(quick)
     t0 = time.perf_counter()
     workers = max(1, min(2, os.cpu_count() or 1))
-    with ProcessPoolExecutor(workers) as pool:
-        results = [CaseResult(**r) for r in pool.map(_one, todo)]
+    results = []
+    progress = Path(out_dir) / "hidden_effect_progress.jsonl"
+    with ProcessPoolExecutor(workers) as pool, progress.open("w") as log:
+        for r in pool.map(_one, todo):  # in order, as they complete
+            results.append(CaseResult(**r))
+            log.write(json.dumps(r) + "\n")
+            log.flush()
     wall = time.perf_counter() - t0
     summary = summarise(results)
     matrix = format_confusion(results)

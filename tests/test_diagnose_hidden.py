@@ -1,18 +1,24 @@
 """The hidden-effect challenge, a small fast subset (the full sweep is ``python -m bench --only hidden_effect``):
-library effects hidden in MBIT.b records are named first and fitted down to the noise floor; effect-free records
-are "nothing missing"; the confusion matrix and the summary count what they should."""
+library effects hidden in MBIT.b records are named first and fitted down to the noise floor, wrong core parameters
+are named first as re-estimations; effect-free records are "nothing missing"; the confusion matrix and the summary
+count what they should; the case-kind registry takes new kinds."""
 
 from __future__ import annotations
 
 import pytest
 
 from workbench.hidden_effect import (
+    CASE_KINDS,
     STRENGTHS,
     CaseResult,
+    HiddenCase,
+    cases_of,
     confusion_matrix,
     effect_size_sigma,
     format_confusion,
+    register_case_kind,
     run_case,
+    run_hidden_case,
     summarise,
 )
 
@@ -29,18 +35,40 @@ CASES = [
 @pytest.fixture(scope="module")
 def results() -> list[CaseResult]:
     out = [run_case(effect, values, "mbit-b", NOISE, seed=3, strength="test") for effect, values in CASES]
+    wrong = {c.label: c for c in cases_of("parameter")}
+    out += [run_hidden_case(wrong[label], "mbit-b", NOISE, seed=3) for label in ("m3+50%", "k2-20%", "d_ep-15%")]
     out += [run_case(None, None, "mbit-b", NOISE, seed=s) for s in (21, 22)]
     return out
 
 
 def test_hidden_effects_are_ranked_first_and_fitted_to_the_noise_floor(results):
     for r in results:
-        if r.effect == "none":
+        if r.effect == "none" or r.case_kind != "library":
             continue
         assert r.counts, f"{r.effect}: size {r.size_sigma:.3g} σ should be above the noise in this subset"
         assert r.ranked_first, f"{r.effect} diagnosed as {r.diagnosed} (ranking {r.ranking[:3]})"
         assert r.held_after_true_sigma <= 1.5, f"{r.effect}: held-out {r.held_after_true_sigma:.3g} σ after fit"
         assert r.held_before_sigma > 1.5
+
+
+def test_wrong_parameters_are_named_first_as_re_estimations(results):
+    wrong = [r for r in results if r.case_kind == "parameter"]
+    assert len(wrong) == 3
+    for r in wrong:
+        assert r.counts and r.size_sigma > 3
+        assert r.verdict == "wrong_parameter" and r.found == r.expected, (r.effect, r.diagnosed)
+        assert r.held_after_winner_sigma <= 1.5
+
+
+def test_case_kinds_are_a_registry():
+    assert {"library", "parameter", "pair"} <= set(CASE_KINDS)
+    assert len(cases_of("library")) == 24 and len(cases_of("parameter")) >= 8 and len(cases_of("pair")) >= 3
+    new = HiddenCase("test_kind", "x", ("dielectric_leakage",), {"G_leak": 1e-5}, ("dielectric_leakage",))
+    register_case_kind("test_kind", lambda: [new])
+    try:
+        assert cases_of("test_kind") == [new]
+    finally:
+        CASE_KINDS.pop("test_kind")
 
 
 def test_effect_free_records_are_nothing_missing(results):
@@ -58,6 +86,7 @@ def test_confusion_matrix_and_summary(results):
     assert text.splitlines()[0].startswith("truth \\ diagnosis") and "nothing" in text
     s = summarise(results)
     assert s["ranked_first_rate"] == 1.0 and s["null_nothing_missing_rate"] == 1.0 and not s["misses"]
+    assert s["parameter_named_first_rate"] == 1.0 and s["library_top1_rate"] == 1.0
 
 
 def test_effect_size_is_zero_at_neutral_and_grows_with_strength():

@@ -104,6 +104,17 @@ def test_a_candidate_at_its_own_bound_loses_its_claim():
     assert d.verdict in ("unexplained", "partial") and "shm discover" in d.message
 
 
+def test_joint_standard_error_of_correlated_sensitivities():
+    import numpy as np
+
+    from workbench.identifiability import joint_rel_se
+
+    a = np.array([3.0, 4.0, 0.0])
+    assert joint_rel_se(a, np.array([0.0, 0.0, 2.0])) == pytest.approx(1 / 5)  # orthogonal: 1/|a|
+    assert joint_rel_se(a, 2 * a) == float("inf")  # the same shape: cannot be told apart at all
+    assert joint_rel_se(a, a + np.array([0.0, 0.0, 0.05])) > 10 * joint_rel_se(a, np.array([0.0, 0.0, 2.0]))
+
+
 def test_acceptance_scales_with_the_noise_floor_not_a_hard_two_sigma():
     assert explained(1.1, 50.0, 2000)
     assert explained(2.05, 200.0, 2000)  # a true effect found exactly, the remainder 0.01 % of the excess

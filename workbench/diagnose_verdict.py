@@ -129,8 +129,9 @@ def identifiability_lines(d: Any, cand: CandidateResult, base: ParameterSet) -> 
                      + tail)
     for a in about:
         if not any(c.a == a for c in conf) and a in closest and closest[a][0]:
-            b, rho = closest[a]
-            lines.append(f"{a} is identifiable on these records (closest other parameter: {b}, ρ = {rho:+.2f})")
+            b, rho, se = closest[a]
+            lines.append(f"{a} is identifiable on these records: even with the most similar parameter, {b} "
+                         f"(ρ = {rho:+.3f}), free too, {a} is pinned to ±{100 * se:.2g} %")
     return lines
 
 

@@ -101,7 +101,8 @@ def _test_separation(params: ParameterSet, a: str, b: str, kind: str,
 def confusions(targets: Sequence[Target], params: ParameterSet, fitted: Mapping[str, float],
                about: Sequence[str], threshold: float = CONFUSED_ABOVE) -> tuple[list[Confusion], dict[str, tuple]]:
     """Pairs (one of ``about``, another core parameter) these records cannot separate, each with the synthetic
-    tests ranked by how well they separate the pair; and, per ``about`` parameter, its closest other (name, ρ)."""
+    tests ranked by how well they separate the pair; and, per ``about`` parameter, its closest other (name, ρ,
+    relative standard error of the parameter with that other one free too)."""
     names, J = sensitivity_matrix(targets, fitted)
     fitted_set = params.with_values(**{k: v for k, v in fitted.items() if k in CORE_SCHEMA}) if fitted else params
     out, closest = [], {}
@@ -109,14 +110,14 @@ def confusions(targets: Sequence[Target], params: ParameterSet, fitted: Mapping[
         if a not in names:
             continue
         ia = names.index(a)
-        best = ("", 0.0)
+        best: tuple = ("", 0.0, 0.0)
         for ib, b in enumerate(names):
             if b == a or b in about:
                 continue
             rho = _corr(J[ia], J[ib])
-            if abs(rho) > abs(best[1]):
-                best = (b, rho)
             se = joint_rel_se(J[ia], J[ib])
+            if abs(rho) > abs(best[1]):
+                best = (b, rho, se)
             if abs(rho) >= threshold and se >= UNCERTAIN_ABOVE:
                 sep = sorted(((k, *_test_separation(fitted_set, a, b, k, o)) for k, o in SEPARATING_TESTS.items()),
                              key=lambda kr: kr[2])
