@@ -159,3 +159,28 @@ def test_every_completed_mbit_leaves_a_record_linked_in_the_log(tmp_path):
     ta = a.meta["provenance"]["board_time_s"]
     tb = b.meta["provenance"]["board_time_s"]
     assert tb == pytest.approx(ta + a.t[-1] + 0.01, abs=1e-6)
+
+
+def test_stable_laminate_gets_no_trend_and_a_lower_bound_not_a_date(tmp_path):
+    """Records from shm synth stamped with --operating-hours, a laminate that does not change: no significant trend,
+    the forecast's date fields are null and a lower bound on the remaining life is given."""
+    files = []
+    for i, h in enumerate((0, 150, 300, 450)):
+        f = tmp_path / f"b{h}.csv"
+        r = subprocess.run([sys.executable, "-m", "shm_cli.main", "synth", "--test", "mbit-b", "--params", "table2",
+                            "--deviation", "k3=-0.05", "--operating-hours", str(h), "--seed", str(i + 1), "--out",
+                            str(f)], capture_output=True, text=True)
+        assert r.returncode == 0, r.stderr
+        files.append(str(f))
+    r = subprocess.run([sys.executable, "-m", "shm_cli.main", "health", *files, "--params", "table2", "--workers",
+                        "1", "--json", "--out", str(tmp_path / "h")], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert [v["operating_hours"] for v in doc["visits"]] == [0, 150, 300, 450]
+    assert not any(t["significant"] for t in doc["trend"].values())
+    f = doc["forecast"]
+    assert f["trip_operating_hours"] is None and f["trip_interval_90"] is None and f["rul_hours"] is None
+    assert f["p_fault_next_visit"] is None and f["lower_bound_hours"] > 450
+    assert "no significant trend" in doc["levels"]["how_long"]
+    k3 = [next(e for e in v["estimates"] if e["name"] == "k3") for v in doc["visits"]]
+    assert all(abs(e["relative"] + 0.05) < 0.02 for e in k3)  # the constant offset is measured, not trended
