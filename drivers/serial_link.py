@@ -113,6 +113,7 @@ class SerialLink:
         self.stats: Counter[str] = Counter()
         self._log = IncidentLog(log)
         self.rig_protocol_version: int | None = None
+        self._ping_due = False
 
     # ------------------------------------------------------------------------------------------ lifecycle
     def open(self) -> None:
@@ -189,20 +190,7 @@ class SerialLink:
             raise
         self.stats["reopened"] += 1
         self._log.warn("reopened", "%s: port reopened", self.url)
-        if self.handshake:  # the device behind a reopened port may have changed: PING it again
-            try:
-                version = self.ping(attempts=1)
-            except LinkError as exc:
-                self.close()
-                self._backoff = min(2 * self._backoff, MAX_BACKOFF_CALLS)
-                raise LinkError(f"{self.url}: reopened, but no PONG: {exc}") from exc
-            if version != PROTOCOL_VERSION:
-                self.close()
-                raise LinkError(f"{self.url}: reopened port answers protocol version {version}, "
-                                f"this board speaks {PROTOCOL_VERSION}")
-            # the PING was this tick's round trip: the command goes out at the next tick (one tick, not two)
-            raise LinkError(f"{self.url}: port reopened, the rig answered PING (protocol {version}); "
-                            "commands resume at the next tick")
+        self._ping_due = self.handshake  # the device behind a reopened port may have changed: PING it again
         assert self._port is not None
         return self._port
 
@@ -216,10 +204,26 @@ class SerialLink:
             raise LinkError(f"{self.url}: command not sendable: {exc}") from exc
         reply = self._transact(frame, MessageType.COMMAND, command.seq & 0xFFFFFFFF)
         try:
-            return decode_sample(reply)
+            sample = decode_sample(reply)
         except FramingError as exc:  # a SAMPLE of the wrong size from a foreign rig
             self.stats["bad_reply"] += 1
             raise LinkError(f"{self.url}: bad reply: {exc}") from exc
+        if self._ping_due:  # after a reopen: the first answered command is followed by a PING (the rig's version)
+            self._check_after_reopen()
+        return sample
+
+    def _check_after_reopen(self) -> None:
+        try:
+            version = self.ping(attempts=1)
+        except LinkError:
+            self.stats["ping_after_reopen_failed"] += 1
+            return  # the rig answered the command: try the PING again after the next one
+        self._ping_due = False
+        self.stats["ping_after_reopen"] += 1
+        if version != PROTOCOL_VERSION:
+            self.close()
+            raise LinkError(f"{self.url}: the reopened port answers protocol version {version}, this board speaks "
+                            f"{PROTOCOL_VERSION}")
 
     def ping(self, attempts: int = 1, timeout: float | None = None) -> int:
         """Round trip a PING (reply budget ``timeout``, default the link's); return the rig's protocol version."""

@@ -136,6 +136,12 @@ class Board:
         self.ticks = 0
         self._v_batt = math.nan
 
+    def set_realtime_rig(self, realtime: bool) -> None:
+        """A real-time rig answers with its latest snapshot, taken before the command it answers acts (one tick of
+        link delay); a lock-step or in-process rig answers after it. With ``realtime`` the monitor estimates which
+        from the visit's samples (0 or 1 tick); without, it assumes 0 (the default)."""
+        self.maintenance.set_link_lags((0, 1) if realtime else (0,))
+
     # --- operator -----------------------------------------------------------------------------------
     def request_rearm(self) -> None:
         """Operator re-arm: taken into account at the next tick (refused, and logged, while a cause persists)."""

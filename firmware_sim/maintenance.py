@@ -71,12 +71,28 @@ class MaintenanceSequencer:
         self._z3_md = 0.0
         self._rows: list[tuple[float, float, float, float]] = []  # (t s, v_ch1 V, v_ch2 V, z3 m) of this visit
         self._mark = 0  # first row of the current MBIT's record (its preceding settle included)
+        #: link delays (ticks) the monitor may attribute to the link: (0,) for a rig that answers with the state after
+        #: the command acted (in-process, lock-step); (0, 1) for a real-time rig, whose sample precedes the command's
+        #: action by one tick (see :meth:`set_link_lags`)
+        self.lags: tuple[int, ...] = (0,)
+        self._sse = [0.0]  # per lag: sum of squared residuals (m^2) over this visit's samples
+        self.lag = 0  # the link delay (ticks) the monitor currently uses
+
+    def set_link_lags(self, lags: tuple[int, ...]) -> None:
+        """The link delays (ticks) to choose from; the visit's samples pick the one with the least squared residual
+        so far (causal: each sample is judged with what was known when it arrived)."""
+        if not lags or min(lags) < 0:
+            raise ValueError(f"link lags must be non-negative ticks, got {lags!r}")
+        self.lags = tuple(int(x) for x in lags)
+        self._sse = [0.0] * len(self.lags)
 
     # --- lifecycle ----------------------------------------------------------------------------------
     def start(self, tick: int) -> list[BoardEvent]:
         """Begin a visit at ``tick``: nominal model at rest, first settle period, zero demand."""
         self._ref = self._reference()
         self._calls = 0
+        self._sse = [0.0] * len(self.lags)
+        self.lag = self.lags[0]
         self.monitor.reset()
         self.active = True
         self.results = []
@@ -125,7 +141,10 @@ class MaintenanceSequencer:
         self._rows.append((now, self._cmd[0], self._cmd[1], z3_meas))
         # 1. the nominal model follows the command just applied by the rig (slew from the previous one)
         self._calls += 1
-        self._z3_md = z3_md = self._ref[self._calls]
+        if len(self.lags) > 1:
+            self._z3_md = z3_md = self._model_with_lag(z3_meas)
+        else:
+            self._z3_md = z3_md = self._ref[max(self._calls - self.lags[0], 0)]
         st = self.plan[self._i]
         # 2. monitor the response during an MBIT (sample j answers command j-1 of this plan step)
         if st.kind == "mbit" and self._j > 0:
@@ -157,6 +176,20 @@ class MaintenanceSequencer:
             cmd = (0.0, 0.0)
         self._j += 1
         return self._send(cmd, events)
+
+    def _model_with_lag(self, z3_meas: float) -> float:
+        """The nominal z3 (m) for this sample under the link delay with the least squared residual so far."""
+        best = 0
+        for i in range(1, len(self.lags)):
+            if self._sse[i] < self._sse[best]:
+                best = i
+        self.lag = self.lags[best]
+        z3_md = self._ref[max(self._calls - self.lag, 0)]
+        if z3_meas == z3_meas:  # not NaN (a missing or invalid sample tells nothing about the delay)
+            for i, lag in enumerate(self.lags):
+                r = z3_meas - self._ref[max(self._calls - lag, 0)]
+                self._sse[i] += r * r
+        return z3_md
 
     def _send(self, cmd: tuple[float, float], events: list[BoardEvent] | None = None
               ) -> tuple[tuple[float, float], list[BoardEvent]]:

@@ -71,6 +71,8 @@ class BoardRunner:
         if abs(self.scheduler.rate - board.cfg.tick_rate) > 1e-9:
             raise ValueError(f"scheduler rate {self.scheduler.rate:g} Hz differs from the board's tick rate "
                              f"{board.cfg.tick_rate:g} Hz")
+        if self.scheduler.paced:  # paced on the wall clock: the rig may be a real-time one (one tick of link delay)
+            board.set_realtime_rig(True)
         self.rearm_times = sorted(float(t) for t in rearm_times)
         self.on_event = on_event
         self.trace_every = trace_every

@@ -251,7 +251,9 @@ class RigHost:
                 if not self._clock_running:
                     self._stop.wait(0.001)
                     continue
-                next_t = clock()  # first command: anchor the schedule
+                # first command: anchor the schedule half a tick later, so that the board's commands (one per
+                # tick, at the same phase) arrive mid-tick and a little jitter never moves one into another tick
+                next_t = clock() + 0.5 * self.dt
                 waiting = False
             delay = next_t - clock()
             if delay > 0:
