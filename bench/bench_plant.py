@@ -283,7 +283,7 @@ def run(out_dir: Path, quick: bool) -> dict:
     att_a, acc_a, rej_a = steps(res_after)
     throughput = n_batch / batch_s
     res: dict[str, Any] = {
-        "load_average_before": list(load_before),
+        "load_average_1_5_15min_before": " ".join(f"{v:.2f}" for v in load_before),
         "timing": f"best of {repeats} interleaved repetitions on a possibly shared machine",
         "kernel_load_s": load_s,
         "single_mbit_a_20s_wall_s": single_s,
@@ -319,7 +319,7 @@ def run(out_dir: Path, quick: bool) -> dict:
         res["numbalsoda_accuracy_worst_rel_err_z3_vs_rtol1e-9"] = max(errs_nbl)
     else:
         res["numbalsoda_skipped"] = numbalsoda_skip
-    res["load_average_after"] = list(os.getloadavg())
+    res["load_average_1_5_15min_after"] = " ".join(f"{v:.2f}" for v in os.getloadavg())
     try:
         import matplotlib
 
