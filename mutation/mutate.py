@@ -108,8 +108,10 @@ def _sha(*paths: Path | str) -> str:
     return h.hexdigest()[:16]
 
 
-def prepare_work(mods: list[Module], cfg: dict) -> None:
-    """The work directory: symlinks to the sources, a tests/ with the rooms' tests, a pyproject with the config."""
+def prepare_work(mods: list[Module], chosen: list[Module], cfg: dict) -> None:
+    """The work directory: symlinks to the sources, a tests/ with the rooms' tests (of every module, so the test
+    selection mutmut caches never changes with ``--module``), a pyproject whose ``only_mutate`` is the chosen
+    modules' files."""
     WORK.mkdir(parents=True, exist_ok=True)
     for name in LINKED:
         link = WORK / name
@@ -134,7 +136,7 @@ def prepare_work(mods: list[Module], cfg: dict) -> None:
         for p in copied.glob("test_*.py"):
             if p.name not in wanted:
                 p.unlink()
-    only = sorted({m.file for m in mods})
+    only = sorted({m.file for m in chosen})
     text = (ROOT / "pyproject.toml").read_text()
     section = "\n[tool.mutmut]\n" + "\n".join([
         f"source_paths = {json.dumps(list(SOURCE_PATHS))}",
@@ -183,10 +185,11 @@ def reset_survivors(m: Module, reason: str) -> int:
     return n
 
 
-def run_mutmut(mods: list[Module], cfg: dict) -> None:
-    globs = [g for m in mods for g in m.globs()]
+def run_mutmut(cfg: dict) -> None:
+    """``mutmut run`` over the files in ``only_mutate``; no mutant names, so cached verdicts stand (mutmut re-runs
+    every mutant it is given by name)."""
     cmd = ["nice", "-n", "10", str(Path(sys.executable).parent / "mutmut"), "run",
-           "--max-children", str(int(cfg.get("max_children", 2))), *globs]
+           "--max-children", str(int(cfg.get("max_children", 2)))]
     print("mutate: " + " ".join(cmd), file=sys.stderr)
     r = subprocess.run(cmd, cwd=WORK, env=_env(), stdout=subprocess.DEVNULL)
     if r.returncode != 0:
@@ -322,12 +325,12 @@ def main(argv: list[str] | None = None) -> int:
     start = time.monotonic()
     state = json.loads(STATE.read_text()) if STATE.is_file() else {}
     if not args.report_only:
-        prepare_work(mods, cfg)
+        prepare_work(mods, chosen, cfg)
         for m in chosen:
             fp = _sha(*(ROOT / t for t in m.existing_tests()))
             if state.get("tests", {}).get(m.name) not in (None, fp):
                 reset_survivors(m, "its tests changed")
-        run_mutmut(chosen, cfg)
+        run_mutmut(cfg)
         for m in chosen:
             state.setdefault("tests", {})[m.name] = _sha(*(ROOT / t for t in m.existing_tests()))
     rows, survivors, stale = tabulate(chosen, state, fallback=not args.no_fallback)
