@@ -74,6 +74,9 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         raise ConfigError(str(path), "-", "file not found") from None
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(str(path), "-", f"not valid TOML: {exc}") from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(str(path), "-", f"not a UTF-8 text file, so not TOML ({exc.reason} at byte {exc.start})"
+                          ) from None
     except OSError as exc:
         raise ConfigError(str(path), "-", f"cannot read: {exc}") from None
 

@@ -9,7 +9,7 @@ import tomllib
 from pathlib import Path
 
 from board_config.errors import InputError
-from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir, pyplot
+from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir, output_file_arg, pyplot
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -25,7 +25,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-keep-actuation", action="store_true",
                    help="do not hold the quasi-static tip gain z3/v_a at the starting set's value")
     p.add_argument("--name", default="calibrated", help="name written into the saved set")
-    p.add_argument("--save", default=None, metavar="FILE.toml", help="write the calibrated parameter set here")
+    p.add_argument("--save", default=None, metavar="FILE.toml", type=output_file_arg,
+                   help="write the calibrated parameter set here")
     p.add_argument("--json", action="store_true", help="print the result table as JSON")
     add_out_arg(p)
     p.set_defaults(func=cmd_calibrate)
@@ -37,6 +38,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from plant.linear import static_tip_gain_closed_form
     from workbench.calibrate import CLAIMS_FILE, DEFAULT_FREE, calibrate, load_claim_targets
 
+    if not args.name.strip():
+        raise InputError("--name is empty: the saved parameter set needs a name")
     if not 0.0 <= args.min_damping < 1.0:
         raise InputError(f"--min-damping must be in [0, 1), got {args.min_damping}")
     base = load_parameter_set(args.params)

@@ -7,7 +7,7 @@ import functools
 import sys
 from pathlib import Path
 
-from shm_cli.common import Decorations, add_params_arg, dump_json, even_int, out_dir
+from shm_cli.common import Decorations, add_params_arg, dump_json, even_int, out_dir, output_file_arg
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -26,7 +26,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--free", action="append", default=[], metavar="PARAM[:LO:HI]",
                    help="also fit this parameter (core, e.g. k3, or an effect's), optionally with its range in SI "
                         "units (repeatable)")
-    p.add_argument("--save", required=True, metavar="NAME.toml",
+    p.add_argument("--save", required=True, metavar="NAME.toml", type=output_file_arg,
                    help="write the fitted parameter set here (its name is the file's stem)")
     p.add_argument("--holdout", choices=("blocks", "records"), default="blocks",
                    help="held-out data: alternate blocks of every record (default) or every second record")

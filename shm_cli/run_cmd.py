@@ -302,6 +302,10 @@ def cmd_run(args: argparse.Namespace) -> int:
     from shm_cli.main import CliError
     from shm_cli.run_lock import OutputLock
 
+    for opt, value in (("--scenario", args.scenario), ("--params", args.params), ("--board-config", args.board_config),
+                       ("--link", args.link)):
+        if value is not None and not str(value).strip():
+            raise CliError(f"{opt} is empty: give a name or a path")
     scenario = load_scenario(args.scenario)
     if scenario.life is not None:  # many visits over an operating life (issue 17): studies.health.life
         from shm_cli.health_cmd import run_life_command

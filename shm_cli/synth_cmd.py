@@ -18,6 +18,8 @@ from shm_cli.common import (
     seed_int,
 )
 
+#: test frequencies synth accepts (Hz): up to Table 1's operational limit of the MFC (10 kHz)
+FREQUENCY_HZ = number_in_range(1e-3, 1e4, unit="Hz (Table 1: the MFC operates from DC to 10 kHz)")
 #: memory per record sample kept while simulating (the plant's states and outputs, the written columns), bytes
 BYTES_PER_SAMPLE = 400
 
@@ -50,9 +52,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="voltage on the patches (actuation) or base acceleration (harvesting, open circuit)")
     p.add_argument("--amplitude", type=positive_float, default=None,
                    help="drive amplitude: V (differential) for voltage, g for base (default per test)")
-    p.add_argument("--freq-hz", type=positive_float, default=None, help="sine frequency (Hz)")
-    p.add_argument("--f0-hz", type=positive_float, default=None, help="sweep / FRF start frequency (Hz)")
-    p.add_argument("--f1-hz", type=positive_float, default=None, help="sweep / FRF end frequency (Hz)")
+    p.add_argument("--freq-hz", type=FREQUENCY_HZ, default=None, help="sine frequency (Hz)")
+    p.add_argument("--f0-hz", type=FREQUENCY_HZ, default=None, help="sweep / FRF start frequency (Hz)")
+    p.add_argument("--f1-hz", type=FREQUENCY_HZ, default=None, help="sweep / FRF end frequency (Hz)")
     p.add_argument("--n-freqs", type=number_in_range(2, 100_000, integer=True), default=None,
                    help="FRF: number of frequencies (log-spaced)")
     p.add_argument("--duration-s", type=positive_float, default=None, help="record length (s)")
@@ -135,6 +137,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
                      n * BYTES_PER_SAMPLE, hint="shorten --duration-s or lower --rate-hz")
     channels = (args.channels.split(",") if args.channels else (["v_stored", "z3"] if base else ["z3"]))
     channels = [c.strip() for c in channels if c.strip()]
+    _check_set_names(values, args.effect, CORE_PARAMETER_NAMES)
     model = truth_model(pset, effects=args.effect, values=values, terminal="open_circuit" if base else "amplifier")
     out.parent.mkdir(parents=True, exist_ok=True)
     if args.test == "frf":
@@ -178,6 +181,23 @@ def cmd_synth(args: argparse.Namespace) -> int:
               + (f" + {', '.join(args.effect)}" if args.effect and not args.blind else "")
               + (" [blind]" if args.blind else "") + ")", file=sys.stderr)
     return 0
+
+
+def _check_set_names(values: dict[str, float], effects: list[str], core: tuple[str, ...]) -> None:
+    """An unknown ``--set`` name is the command line's fault: say so, with the names that exist."""
+    from plant import resolve_effect
+
+    own: dict[str, str] = {}
+    for spec in effects:
+        cls = resolve_effect(spec)
+        for par in cls.own_parameters():
+            own[par.name] = cls.name
+    for name in values:
+        if name not in core and name not in own:
+            known = (f"parameters of the injected effects: {', '.join(sorted(own))}" if own else
+                     "no effect is injected (--effect NAME adds one)")
+            raise InputError(f"--set {name}: no such parameter on the command line's truth plant (core parameters: "
+                             f"{', '.join(core)}; {known})")
 
 
 def _stamp_hours(rec, hours: float):

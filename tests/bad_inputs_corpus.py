@@ -289,6 +289,8 @@ def write_corpus_files(d: Path) -> None:
     (done / "summary.json").write_text('{"scenario": "maintenance", "ticks": 6000}')
     (done / "usage.db").write_bytes(b"")
     np.savez(d / "not_a_record.npz", x=np.zeros(3))
+    (d / "latin1.toml").write_bytes('[scenario]\nname = "\u00e9t\u00e9"\n'.encode("latin-1"))
+    (d / "random.toml").write_bytes(bytes((k * 151 + 7) % 256 for k in range(300)))
 
 
 def _file_cases() -> list[Case]:
@@ -355,7 +357,7 @@ def _option_cases() -> list[Case]:
           code=1),  # an unreachable peer: the job failed, not the input
         c("run-link-badport", f"run --link socket://127.0.0.1:99999 --quiet {out}", "99999"),
         c("run-link-textport", f"run --link modbus-tcp://127.0.0.1:http --quiet {out}", "http"),
-        c("run-link-empty", ["run", "--link", "", "--quiet", "--out", "{o}"], "--link", "unknown link url"),
+        c("run-link-empty", ["run", "--link", "", "--quiet", "--out", "{o}"], "--link", "empty"),
         c("run-out-file", "run --quiet --out {d}/a_file", "--out", "a_file", "not a directory"),
         c("run-out-under-file", "run --quiet --out {d}/a_file/sub", "--out", "a_file", "not a directory"),
         c("run-finished-dir", "run --quiet --out {d}/finished_run", "finished_run", "--force"),
@@ -518,6 +520,25 @@ def _option_cases() -> list[Case]:
         c("calibrate-damping", "calibrate --min-damping -1 --out {o}", "--min-damping", "-1"),
         c("calibrate-free", "calibrate --free warp --out {o}", "warp"),
         c("calibrate-out-file", "calibrate --out {d}/a_file", "--out", "a_file"),
+        # files that are not text at all, and empty names
+        c("run-scenario-latin1", f"run --scenario {{d}}/latin1.toml --quiet {out}", "latin1.toml", "utf-8"),
+        c("run-params-random", f"run --params {{d}}/random.toml --quiet {out}", "random.toml", "utf-8"),
+        c("run-board-random", f"run --board-config {{d}}/random.toml --quiet {out}", "random.toml", "utf-8"),
+        c("model-info-params-latin1", "model info --params {d}/latin1.toml", "latin1.toml", "utf-8"),
+        c("campaign-mbit-config-random", "campaign --n 2 --mbit-config {d}/random.toml --out {o} --no-progress",
+          "random.toml", "utf-8"),
+        c("campaign-monitor-config-bad", "campaign --n 2 --monitor-config {d}/p_syntax.toml --out {o} --no-progress",
+          "p_syntax.toml", "toml"),
+        c("run-params-empty", ["run", "--params", "", "--quiet", "--out", "{o}"], "--params", "empty"),
+        c("run-scenario-empty", ["run", "--scenario", " ", "--quiet", "--out", "{o}"], "--scenario", "empty"),
+        c("campaign-ranges-billion", "campaign --n 2 --ranges 0:1e9:1 --out {o} --no-progress", "--ranges", "1e+09",
+          "at most"),
+        c("calibrate-name-empty", ["calibrate", "--name", "", "--out", "{o}"], "--name", "empty"),
+        c("calibrate-save-under-file", "calibrate --save {d}/a_file/x.toml --out {o}", "--save", "a_file"),
+        c("synth-frf-extreme-freq", "synth --test frf --f0-hz 1e-300 --f1-hz 1e300 --out {o}/x.csv", "--f0-hz",
+          "1e-300"),
+        c("synth-freq-over-table1", "synth --test sine --freq-hz 20000 --out {o}/x.csv", "--freq-hz", "10 kHz"),
+        c("log-table-empty", ["log", "show", "--db", "{d}/finished_run/usage.db", "--table", ""], "usage.db"),
         # argparse itself
         c("no-command", [], "command"),
         c("unknown-command", "frobnicate", "frobnicate"),

@@ -63,6 +63,10 @@ class DeviationRange:
         return f"{self.lo * 100:g}-{self.hi * 100:g}%"
 
 
+#: most deviation ranges one campaign takes (each is a class of degraded units with its own statistics)
+MAX_RANGES = 1000
+
+
 def _pct(text: str, what: str, spec: str) -> float:
     try:
         value = float(text)
@@ -92,6 +96,8 @@ def parse_ranges(spec: str) -> tuple[DeviationRange, ...]:
         if step <= 0:
             raise InputError(f"--ranges {spec!r}: STEP must be positive, got {step:g}")
         n = (stop - start) / step
+        if n > MAX_RANGES:
+            raise InputError(f"--ranges {spec!r}: {n:.3g} ranges; at most {MAX_RANGES} (use a larger STEP)")
         if abs(n - round(n)) > 1e-9:
             raise InputError(f"--ranges {spec!r}: STEP {step:g} does not divide STOP-START = {stop - start:g}")
         for k in range(round(n)):
