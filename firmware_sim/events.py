@@ -6,9 +6,10 @@
 kind                   data keys (SI units in the names)
 =====================  =====================================================================================
 ``regime_change``      from_regime, to_regime, trigger, v_battery_V
-``incident``           incident (link_error: one failed exchange; sensor_fault, limit_violation, overrun,
-                       brownout, brownout_cleared, wake_refused, rearm_refused, rearm, mbit_aborted,
-                       mbit_clamped, link_restored), detail
+``incident``           incident (link_error: the first of a run of failed exchanges, link_restored: its end with
+                       the count; sensor_fault / sensor_fault_cleared: a persisting sensor condition's start and
+                       end with its count; limit_violation, overrun, brownout, brownout_cleared, wake_refused,
+                       rearm_refused, rearm, mbit_aborted, mbit_clamped, visit_kept, clock_mismatch), detail
 ``usage_summary``      see :meth:`firmware_sim.usage.UsageSummary.as_record`
 ``mbit_result``        mbit, label, verdict (PASS / FAULT), fault_time_s, max_count, max_eps, n_samples, n_exceed,
                        n_invalid, clamp
