@@ -9,8 +9,10 @@ Options (URL query):
 
     unit      Modbus unit (slave) id, 1..247 (default 1)
     timeout   reply budget of one exchange (both transactions) in seconds: the write may use all of it, the read
-              what the write left (default 0.008 for TCP, which fits a 10 ms tick; for RTU 0.008 s plus twice the
-              exchange's 90 bytes of line time at the given baud rate, 23.6 ms at 115200 8N1)
+              what the write left, never less than 0.5 ms and never past the budget (default 0.008 for TCP; for
+              RTU the line time of the exchange's 90 bytes + 4 ms, between 8 and 9.5 ms — a line too slow for a
+              10 ms tick, below ~115200 baud, keeps 8 ms + twice its line time)
+    handshake 1 (default) reads the rig's identity (holding 8-13) at open and refuses a mismatch; 0 skips it
     baud, parity, stopbits   RTU line settings (default 115200, N, 1)
     reopen    consecutive timeouts after which the connection is closed and reopened (default 25)
 
@@ -42,7 +44,7 @@ from pymodbus.exceptions import ConnectionException, ModbusException
 from pymodbus.framer import FramerType
 
 from board_config.errors import InputError
-from drivers.incident_log import IncidentLog
+from drivers.incident_log import IncidentLog, SilentLog
 from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, LinkError, RigSample
 from drivers.modbus_registers import (
     BY_NAME,
@@ -227,6 +229,7 @@ class ModbusLink:
         """Connect, check the rig (unless ``handshake=0``: map version, tick, Table 1 limits, float word order) and
         read the sample block once. Raises ``LinkError`` (:class:`RigMismatchError` for a rig serving another map)."""
         self._connect()
+        log_, self._log = self._log, SilentLog()  # one error below, not a warning per attempt
         try:
             if self.settings["handshake"]:
                 self.check_rig()
@@ -234,6 +237,8 @@ class ModbusLink:
         except LinkError:
             self.close()
             raise
+        finally:
+            self._log = log_
 
     def check_rig(self) -> None:
         """Read the rig's identity block (holding 8–13) and refuse a rig this board cannot drive."""
@@ -250,7 +255,9 @@ class ModbusLink:
                     raise
         else:
             assert last is not None
-            raise LinkError(f"{self.url}: the rig does not answer at start-up ({last})")
+            raise LinkError(f"{self.url}: the rig does not answer at start-up (3 attempts of {1e3 * budget:.0f} ms; "
+                            f"is it a Modbus server serving docs/registers.md as unit {self.unit}? last: "
+                            f"{str(last).removeprefix(self.url + ': ')})")
         if rr.isError() or getattr(rr, "registers", None) is None or len(rr.registers) != _ID_COUNT:
             raise RigMismatchError(f"{self.url}: the rig refused to read holding registers 8-13 (map_version, "
                                    f"rig_tick, v_limit_min, v_limit_max; docs/registers.md): "

@@ -45,7 +45,7 @@ from drivers.framing import (
     encode_command,
     encode_ping,
 )
-from drivers.incident_log import IncidentLog
+from drivers.incident_log import IncidentLog, SilentLog
 from drivers.link import ActuatorCommand, LinkError, RigSample
 
 log = logging.getLogger("drivers.serial_link")
@@ -120,11 +120,17 @@ class SerialLink:
         """Open the port (and check the rig answers a PING unless ``handshake=0``). Raises ``LinkError``."""
         self._open_port()
         if self.handshake:
+            budget = max(self.timeout, _OPEN_BUDGET_S)
+            log_, self._log = self._log, SilentLog()  # one error below, not a warning per attempt
             try:
-                self.rig_protocol_version = self.ping(attempts=5, timeout=max(self.timeout, _OPEN_BUDGET_S))
-            except LinkError:
+                self.rig_protocol_version = self.ping(attempts=5, timeout=budget)
+            except LinkError as exc:
                 self.close()
-                raise
+                raise LinkError(f"{self.url}: the rig does not answer PING at start-up (5 attempts of "
+                                f"{1e3 * budget:.0f} ms; is it running and speaking docs/protocol.md at "
+                                f"{self.baudrate} baud? last: {str(exc).removeprefix(self.url + ': ')})") from exc
+            finally:
+                self._log = log_
             if self.rig_protocol_version != PROTOCOL_VERSION:
                 self.close()
                 raise LinkError(f"{self.url}: rig speaks protocol version {self.rig_protocol_version}, "
