@@ -123,3 +123,17 @@ def test_controller_constants_reach_the_kernel_cache_key(table2_model, monkeypat
     assert f"_PI_BETA = {integrate._PI_BETA!r}" in before
     monkeypatch.setattr(integrate, "_PI_BETA", integrate._PI_BETA / 2)
     assert generate_source(*args) != before
+
+
+def test_short_intervals_ramp_up_as_fast_as_the_elementary_controller(table2_model):
+    """A rig or stepper restarts the integrator every 10 ms tick from a 0.1 ms step. Until the first rejection the
+    step grows by the elementary controller's factor (up to 5x), so a tick of the MBIT.a drive takes about six
+    attempts, as before the PI controller (applying PI from the first step took ~8.7)."""
+    from plant import PlantStepper
+
+    st = PlantStepper(table2_model)
+    ticks = 200
+    for _ in range(ticks):
+        v = 600.0 * np.sin(2 * np.pi * 0.1 * np.array([st.t, st.t + 0.01]))
+        st.advance(np.stack([100.0 + v, 100.0 - v, 0.0 * v], axis=1), 0.01)
+    assert st.total_steps / ticks < 7.0
