@@ -214,6 +214,8 @@ def scenario_files(draw, where: Path) -> tuple[str, float]:
         lines += ["", "[[phase]]", f'kind = "{kind}"', f'duration = {{ value = {dur}, unit = "s" }}']
         if kind != "maintenance" and draw(st.booleans()):
             lines.append(f'vibration_rms = {{ value = {draw(floats(0.05, 2.0))}, unit = "m/s^2" }}')
+        if kind == "landing":  # a landing phase starts with its touchdown transient (docs/scenarios.md)
+            lines.append(f'touchdown_peak = {{ value = {draw(floats(1.0, 30.0))}, unit = "m/s^2" }}')
     if draw(st.booleans()):
         lines += ["", "[[event]]", 'kind = "gust"', f'at = {{ value = {draw(floats(0.0, total))}, unit = "s" }}',
                   f'peak = {{ value = {draw(floats(1.0, 20.0))}, unit = "m/s^2" }}',
