@@ -294,14 +294,20 @@ def screen_parameters(targets: Sequence[Target], candidates: Sequence[ParameterC
         step = float(np.clip(-g / jj, -math.log(CORE_RANGE_FACTOR), math.log(CORE_RANGE_FACTOR)))
         newton.append(step)
         pred.append(math.sqrt(max(rss0 - g * g / jj, 0.0) / max(r0_train.size, 1)))
+    # a candidate whose largest move (×/÷ CORE_RANGE_FACTOR, with a factor 2 for nonlinearity) changes the training
+    # residual by less than 1 % of its norm cannot remove the 2 % of its energy acceptance asks for (masses and
+    # stiffnesses on a quasi-static test): its Newton point is enough
+    need = max(1.0, 0.01 * float(np.linalg.norm(r0_train)))
+    visible = [2.0 * float(np.linalg.norm(J[c])) * math.log(CORE_RANGE_FACTOR) >= need for c in range(len(cands))]
     steps = []
     for c, pc in enumerate(cands):
         steps.append((pc, newton[c]))
-        steps.extend((pc, s) for s in _PROBES)
+        if visible[c]:
+            steps.extend((pc, s) for s in _PROBES)
     best = _best_of(ro, rows_for(steps), steps, cands)
     # second stage: a dense line search for the most promising (a stiffness or mass that moves a resonance has a
     # narrow basin that two probes and a linear step can miss)
-    order = sorted(range(len(cands)), key=lambda c: best[c][0])[:refine_top]
+    order = sorted((c for c in range(len(cands)) if visible[c]), key=lambda c: best[c][0])[:refine_top]
     dense = [(cands[c], s) for c in order for s in _DENSE]
     if dense:
         best2 = _best_of(ro, rows_for(dense), dense, cands)
@@ -314,13 +320,12 @@ def screen_parameters(targets: Sequence[Target], candidates: Sequence[ParameterC
         for c in order:
             if best3[c][0] < best[c][0]:
                 best[c] = best3[c]
-    per = 1 + len(_PROBES)
     out = []
     for c, pc in enumerate(cands):
         train, held, best_s = best[c]
         start = ({pc.scale_name: math.exp(best_s)} if pc.tied else
                  {n: _moved(n, float(base_values[n]), best_s) for n in pc.members})
-        n_sims = 1 + per + (len(_DENSE) + len(_ZOOM) if c in order else 0)
+        n_sims = 2 + (len(_PROBES) if visible[c] else 0) + (len(_DENSE) + len(_ZOOM) if c in order else 0)
         out.append(ScreenResult(CandidateSpec(params=(pc,)), train, held, start, pred[c], n_sims, rms(r0_train)))
     return out
 
