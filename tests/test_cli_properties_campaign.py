@@ -94,8 +94,16 @@ def test_campaign_any_valid_options(mbit, n, seed, sign, deviate, noise_um, batc
         keys = {"a": ["a"], "b": ["b"], "both": ["a", "b"]}[mbit]
         assert {r["mbit"] for r in summary["summary"]} >= set(keys)
         # the ROC view over the stored traces, with grids of the documented forms
-        roc = shm("campaign-roc", "--from", out, "--eps-th", "0.05:0.5:0.05", "--count-max", "25,100,300",
-                  "--json", "--out", Path(tmp) / "roc")
+        if data.draw(st.booleans(), label="eps grid form"):
+            e0 = data.draw(floats(0.01, 0.5), label="eps start")
+            eps = f"{e0}:{data.draw(floats(e0, 2.0), label='eps stop')}:{data.draw(floats(0.005, 0.5), label='step')}"
+        else:
+            eps = ",".join(str(v) for v in data.draw(st.lists(floats(0.01, 2.0), min_size=1, max_size=8)))
+        counts = ",".join(str(v) for v in data.draw(st.lists(st.integers(1, 2000), min_size=1, max_size=6)))
+        healthy = data.draw(floats(0.0, 50.0), label="healthy max")
+        faulty = data.draw(floats(healthy, 90.0), label="faulty min")
+        roc = shm("campaign-roc", "--from", out, "--eps-th", eps, "--count-max", counts, "--healthy-max-pct",
+                  healthy, "--faulty-min-pct", faulty, "--json", "--out", Path(tmp) / "roc")
         doc = assert_ok(roc, json_out=True)
         assert doc["roc"] and Path(doc["files"]["roc_csv"]).exists()
         assert_readable(Path(tmp) / "roc" / "roc.png")
