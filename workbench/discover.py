@@ -253,7 +253,7 @@ def _refine(obj: Objective, guess: dict[str, float], max_nfev: int) -> FitOutcom
 
 
 #: forms whose linearisation along the nominal run misleads (stick, contact, play, saturation): probed at a
-#: 0.1, 1/3, 3 and 10 times the linearised coefficient as well
+#: 0.1, 1/3, 0.6, 1.7, 3 and 10 times the linearised coefficient as well
 HARD_FORMS = ("sign", "pos", "neg", "dead", "clip", "sat")
 _LAST_PROBES: list[tuple[int, list[float]]] = []
 
@@ -262,10 +262,10 @@ def _nonlinear_check(rows: list[ScreenRow], terms: Sequence[Term], targets: Sequ
                      models: Sequence[PlantModel], values: dict[str, float], names: list[tuple[str, str | None]],
                      threads: int | None) -> list[ScreenRow]:
     """Every screened term simulated on the full nonlinear model at its linearised coefficient (hard forms also at
-    ×0.1, ×1/3, ×3 and ×10), in one batch; rows re-ranked by the error they really leave, at their best probe."""
+    ×0.1 … ×10), in one batch; rows re-ranked by the error they really leave, at their best probe."""
     probes: list[tuple[int, list[float]]] = []
     for j, r in enumerate(rows):
-        mult = (1.0, 0.1, 1.0 / 3.0, 3.0, 10.0) if r.term.form in HARD_FORMS else (1.0,)
+        mult = (1.0, 0.1, 1.0 / 3.0, 0.6, 1.7, 3.0, 10.0) if r.term.form in HARD_FORMS else (1.0,)
         probes.append((j, [r.coef * m for m in mult]))
     _LAST_PROBES[:] = probes
     flat = [(j, c) for j, cs in probes for c in cs]
@@ -300,6 +300,20 @@ def _nonlinear_check(rows: list[ScreenRow], terms: Sequence[Term], targets: Sequ
         if j not in best or row.train_rms_sigma < best[j].train_rms_sigma:
             best[j] = row
     return sorted(best.values(), key=lambda r: r.train_rms_sigma)
+
+
+def _refit_list(rows: list[ScreenRow], n_refit: int, n_siblings: int = 2) -> list[ScreenRow]:
+    """The best ``n_refit`` rows, then the best ``n_siblings`` *siblings* of the first: the same form acting on
+    another mass or section (a force on mass 3 and one in section 3 look alike on one sensor; the probe's coarse
+    coefficient can rank the wrong one first)."""
+    out = list(rows[:n_refit])
+    if rows and rows[0].term.placement in ("force_mass", "force_section"):
+        top = rows[0].term
+        sib = [r for r in rows[n_refit:] if r.term.form == top.form
+               and r.term.placement in ("force_mass", "force_section")]
+        sib.sort(key=lambda r: r.term.index != top.index)  # the same mass/section number first (stable)
+        out += sib[:n_siblings]
+    return out
 
 
 def _free_for(terms: Sequence[Term], names: list[tuple[str, str | None]], idx: Sequence[int],
@@ -426,7 +440,7 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
         t0 = time.perf_counter()
         best: tuple[float, int, FitOutcome] | None = None
         tried = []
-        for row in rows[:n_refit]:
+        for row in _refit_list(rows, n_refit):
             k = terms.index(row.term)
             start = dict(state.values)
             start[names[k][0]] = row.coef

@@ -116,6 +116,8 @@ def settle_time_s(model: PlantModel) -> float:
     from workbench.replay import linearise
 
     a, _ = linearise(model, ["z3"])
+    if not np.all(np.isfinite(a)):  # a model producing NaN: the simulation that follows names the culprit
+        return 1.0
     ev = np.linalg.eigvals(a)
     dec = -ev.real[(ev.real < -1e-6)]
     osc = dec[np.abs(ev.imag[(ev.real < -1e-6)]) > 1e-6]
@@ -184,6 +186,53 @@ def truth_model(params: Any = "table2", effects: Sequence[str | type[PhysicalEff
     return PlantModel(pset, effects=effects, terminal=terminal, effect_params=rest)
 
 
+class TruthSimulationError(InputError):
+    """The truth plant cannot be simulated (an injected effect or a parameter value makes it produce NaN/Inf)."""
+
+
+def blame_non_finite(model: PlantModel, sim: Any, u: np.ndarray, dt: float, params: np.ndarray | None = None
+                     ) -> str | None:
+    """Name the effect (and hook) whose contribution first turns non-finite: the hooks are plain Python functions,
+    so they are run one by one, uncompiled, at the start and at the last finite recorded state (time, state and
+    inputs), checking the bus, the rates and the outputs after each."""
+    from plant import layout as L
+
+    p = np.asarray(model.p_nominal if params is None else params, float).ravel()
+    points = [(0.0, model.x0_nominal.copy(), u[0])]
+    if sim.states is not None:
+        xs = sim.states[0]
+        good = np.flatnonzero(np.all(np.isfinite(xs), axis=1))
+        if good.size:
+            k = int(good[-1])
+            tk = float(sim.t[k])
+            points.append((tk, xs[k].copy(), u[min(round(tk / dt), u.shape[0] - 1)]))
+    s_off, p_off, y_off = model._offsets
+    for t, x, uu in points:
+        bus = np.zeros(L.N_BUS)
+        dx = np.zeros(model.n_states)
+        y = np.zeros(model.n_outputs)
+        bus[L.B_T], bus[L.B_U_V1], bus[L.B_U_V2], bus[L.B_Z0DD] = t, uu[0], uu[1], uu[2]
+        with np.errstate(all="ignore"):
+            for phase in ("pre", "rates", "post", "output"):
+                for k, cls in enumerate(model.effects):
+                    fn = getattr(cls, phase)
+                    if fn is None:
+                        continue
+                    try:
+                        if phase == "output":
+                            fn(t, x, p, bus, y, s_off[k], p_off[k], y_off[k])
+                        else:
+                            fn(t, x, p, bus, dx, s_off[k], p_off[k])
+                    except (ZeroDivisionError, ValueError, OverflowError) as exc:
+                        return (f"effect '{cls.name}' ({cls.__module__}.{cls.__qualname__}), hook '{phase}', fails at "
+                                f"t = {t:.6g} s: {type(exc).__name__}: {exc}")
+                    if not (np.all(np.isfinite(bus)) and np.all(np.isfinite(dx)) and np.all(np.isfinite(y))):
+                        return (f"effect '{cls.name}' ({cls.__module__}.{cls.__qualname__}), hook '{phase}', produces "
+                                f"NaN/Inf at t = {t:.6g} s — check its parameter values (division by a zero "
+                                "parameter?) and its formula")
+    return None
+
+
 def _column(name: str) -> str:
     for prefix, unit in sorted(_COLUMN_UNITS.items(), key=lambda kv: -len(kv[0])):
         if name.startswith(prefix):
@@ -230,9 +279,11 @@ def synth_record(spec: SynthTest, model: PlantModel, channels: Sequence[str] = (
         if not (np.isfinite(noise_map[k]) and noise_map[k] >= 0):
             raise InputError(f"noise for '{k}' must be a non-negative number, got {noise_map[k]!r}")
     t, u, segs = synth_inputs(spec, settle_time_s(model) if spec.kind in ("mbit-b", "step") else 1.0)
-    sim = model.simulate(InputSignals(0.0, 1.0 / spec.rate_hz, u), t_out=t, params=params)
-    if not sim.ok:
-        raise FloatingPointError(f"truth simulation failed: {'; '.join(sim.failures())}")
+    sim = model.simulate(InputSignals(0.0, 1.0 / spec.rate_hz, u), t_out=t, params=params, record_states=True)
+    if not sim.ok or not np.all(np.isfinite(sim.y)):
+        raise TruthSimulationError(f"the truth plant fails on the {spec.kind} test: "
+                                   + (blame_non_finite(model, sim, u, 1.0 / spec.rate_hz, params)
+                                      or '; '.join(sim.failures()) or "non-finite outputs"))
     rng = np.random.default_rng(seed)
     cols: dict[str, np.ndarray] = {}
     inputs: list[str] = []
