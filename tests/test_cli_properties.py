@@ -170,7 +170,7 @@ def test_synth_frf_and_compare(n_freqs, f0, span, drive, seed, noiseless):
 
 
 # --- shm harvest ----------------------------------------------------------------------------------------------
-@examples(fast=3)
+@examples(fast=2)
 @given(coupling=st.sampled_from(["coupled", "paper"]), accel=floats(0.01, 2.0, log=True),
        freq=floats(1.0, 60.0, log=True), r_int=floats(0.1, 100.0, log=True), from_v=floats(2.0, 3.0),
        duration=floats(0.2, 3.0 if FUZZ else 0.8), diode=st.one_of(st.just(0.0), floats(0.05, 0.7)),
