@@ -12,10 +12,11 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
+import re
 import textwrap
 from collections.abc import Mapping, Sequence
 
-from workbench.discovery_dictionary import FORMS, HEADER_IMPORTS, SIGNALS, Term, TermSlot, hooks_source
+from workbench.discovery_dictionary import FORMS, SIGNALS, Term, TermSlot, hooks_source
 
 
 def _si(x: float, unit: str) -> str:
@@ -172,23 +173,23 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
     for term in terms:
         cname, gname = parameter_names(term, free_shapes)
         k = len(params)
-        c = float(values.get(cname, 0.0))
+        c = _r(float(values.get(cname, 0.0)))
         span = max(abs(c), 1e-300)
-        lo, hi = min(0.0, -20 * span if c < 0 else -span), max(0.0, 20 * span if c > 0 else span)
+        lo, hi = _r(min(0.0, -20 * span if c < 0 else -span)), _r(max(0.0, 20 * span if c > 0 else span))
         params.append(f"        Parameter({cname!r}, {term.unit!r}, 0.0, {lo!r}, {hi!r},\n"
                       f"                  {('coefficient of ' + term.key)!r}),")
-        a, b = sorted((c * 0.2, c * 3.0))
+        a, b = sorted((_r(c * 0.2), _r(c * 3.0)))
         fit_ranges.append(f"        {cname!r}: FitRange({a!r}, {b!r}),")
         neutral.append(f"{cname!r}: 0.0")
         discovered[cname] = c
         shape_idx = None
         if gname is not None:
-            g = float(values.get(gname, term.shape))
+            g = _r(float(values.get(gname, term.shape)))
             shape_idx = len(params)
             unit = "s" if term.form == "delay" else SIGNALS[term.signal].unit
-            params.append(f"        Parameter({gname!r}, {unit!r}, {g!r}, {g / 20!r}, {g * 20!r},\n"
+            params.append(f"        Parameter({gname!r}, {unit!r}, {g!r}, {_r(g / 20)!r}, {_r(g * 20)!r},\n"
                           f"                  {(FORMS[term.form].shape + ' of ' + term.key)!r}),")
-            lo_g, hi_g = (g / 10, g * 2) if term.form == "sign" else (g / 4, g * 4)
+            lo_g, hi_g = (_r(g / 10), _r(g * 2)) if term.form == "sign" else (_r(g / 4), _r(g * 4))
             fit_ranges.append(f"        {gname!r}: FitRange({lo_g!r}, {hi_g!r}, log=True),")
             discovered[gname] = g
         state = None
@@ -213,10 +214,17 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
             f"Written {_dt.datetime.now(_dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}. Edit freely: it is an "
             "ordinary effect (docs/effects.md).", '"""']
     states = "".join(f"        StateSpec('w_delay_{k}', 'V', 1.0),\n" for k in range(n_states))
+    hooks = hooks_source(slots)
+    layout = sorted(n for n in ("B_FM", "B_S", "B_VA", "B_VA_DEMAND", "B_VC", "B_Z", "B_ZD", "X_DDELTA", "X_DELTA",
+                                "X_Q", "Y_Z3_MEAS") if re.search(rf"\b{n}\b", hooks))
+    effect_names = "Parameter, PhysicalEffect" + (", StateSpec" if n_states else "")
+    imports = (("import math\n\n" if "math." in hooks else "")
+               + f"from plant.effect import {effect_names}\n"
+               "from plant.effects.library_support import FitRange\n"
+               f"from plant.layout import {', '.join(layout)}\n")
     body = (
         "\n".join(doc) + "\n\nfrom __future__ import annotations\n\n"
-        + HEADER_IMPORTS.replace("from plant.effect", "from plant.effects.library_support import FitRange\n"
-                                 "from plant.effect") + "\n\n"
+        + imports + "\n\n"
         f"class {cls}(PhysicalEffect):\n"
         '    """' + "\n    ".join(textwrap.wrap(what[0].upper() + what[1:] + ".", 110)) + '"""\n\n'
         f"    name = {effect_name!r}\n"
@@ -232,9 +240,14 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
         "    def guess(cls, data=None):\n"
         '        """Start a fit at the values shm discover found."""\n'
         "        return dict(cls.DISCOVERED)\n\n"
-        + hooks_source(slots)
+        + hooks
     )
     return body
+
+
+def _r(x: float) -> float:
+    """Six significant digits: readable, and far below what the data determine."""
+    return float(f"{x:.6g}")
 
 
 def parameter_names(term: Term, free_shapes: bool = True) -> tuple[str, str | None]:
