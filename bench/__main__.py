@@ -19,6 +19,8 @@ BENCHMARKS: tuple[str, ...] = (
     "bench.bench_compare",
     "bench.bench_diagnose",
     "bench.bench_hidden_effect",
+    "bench.bench_discover",
+    "bench.bench_discovery_challenge",
     "bench.bench_health",
 )
 
