@@ -56,6 +56,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     except (TypeError, ValueError) as exc:
         raise InputError(f"--claims {claims}: a claim is not a number: {exc}") from None
     out = out_dir(args.out)
+    (out / "calibration.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
 
     def progress(i: int, cost: float) -> None:
         if not args.json:

@@ -65,6 +65,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         if not candidates:
             raise CliError("--candidates is empty")
     out = out_dir(args.out)
+    (out / "diagnosis.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
     records = [load_record(p) for p in args.records]
     bar = tqdm(total=None, desc="candidates", unit="fit", file=sys.stderr, disable=None)
 

@@ -63,6 +63,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         raise CliError("--max-rate-hz must be > 0 and --max-nfev >= 1")
     out = out_dir(args.out) if args.out else out_dir(save.parent if str(save.parent) else ".",
                                                      option="--save (its directory)")
+    (out / "fit.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
     records = _load_records(args.records)
     base = load_parameter_set(args.params)
     progress: list[ProgressPlot] = []

@@ -189,6 +189,7 @@ def cmd_harvest(args: argparse.Namespace) -> int:
     setup = _setup_from_args(args)
     load_parameter_set(args.params)  # a bad set fails here, before any output
     out = out_dir(args.out)
+    (out / "harvest_summary.json").unlink(missing_ok=True)  # an earlier one must not outlive a failure
     from tqdm import tqdm
 
     tty = sys.stderr.isatty()

@@ -161,3 +161,21 @@ def test_main_docstring_states_the_policy():
     doc = shm_main.__doc__ or ""
     for needle in ("**0**", "**2**", "**1**", "InputError", "SHM_DEBUG", "--debug"):
         assert needle in doc
+
+
+def test_a_failed_rerun_leaves_no_earlier_summary(tmp_path, capsys, monkeypatch):
+    """harvest_summary.json (like campaign.json, diagnosis.json, fit.json, calibration.json) is written at the end
+    of a run: a rerun into the same --out that fails must not leave the earlier one looking like its result."""
+    import plant.harvest
+
+    out = tmp_path / "h"
+    out.mkdir()
+    (out / "harvest_summary.json").write_text('{"verdict": "from an earlier run"}')
+
+    def exploding(*a, **k):
+        raise RuntimeError("integrator state corrupted")
+
+    monkeypatch.setattr(plant.harvest, "run_harvest", exploding)
+    assert main(["harvest", "--duration-s", "0.5", "--out", str(out)]) == 1
+    assert "bug in mfc-shm" in capsys.readouterr().err
+    assert not (out / "harvest_summary.json").exists()
