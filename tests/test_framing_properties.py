@@ -93,6 +93,24 @@ def test_worked_examples_byte_for_byte():
     assert d.stats == DecoderStats(frames=3)
 
 
+def _code_blocks_after(marker: str) -> bytes:
+    """The hex bytes of the first fenced block after ``marker`` (separators and captions dropped)."""
+    block = DOC.split(marker, 1)[1].split("```", 2)[1]
+    rows = [ln for ln in block.splitlines() if re.fullmatch(r"[0-9A-F |]+", ln.strip() or "x")]
+    return _hex("".join(rows).replace("|", ""))
+
+
+def test_command_and_sample_worked_examples_byte_for_byte():
+    command = _code_blocks_after("COMMAND, tick 1234")
+    assert encode_command(ActuatorCommand(1234, 700.0, -500.0, 0.006)) == command
+    sample = _code_blocks_after("SAMPLE answering it (rig sample")
+    rig = RigSample(seq=1233, t=12.34, z3=5.4e-3, v_patch=600.0, z0dd=0.05, v_battery=3.05, hv_present=True, flags=0)
+    assert encode_sample(rig, 1234) == sample
+    assert sample[8 + 28] == 1  # hv_present is the byte 0/1
+    back = decode_sample(FrameDecoder().feed(sample)[0])
+    assert (back.seq, back.t, back.hv_present, back.flags) == (1233, 12.34, True, 0)
+
+
 def test_the_largest_legal_payload_is_accepted_and_one_more_is_not():
     payload = bytes(range(MAX_PAYLOAD))
     wire = encode_frame(0x7F, 9, payload)
@@ -179,6 +197,7 @@ def test_a_non_finite_value_from_a_rig_raises_the_sensor_fault_flag(field, bad):
     clean = sanitize_sample(_sample(**{field: bad}))
     assert getattr(clean, field) == 0.0 and clean.flags == FLAG_LIMIT_REFUSED | FLAG_SENSOR_FAULT
     assert all(getattr(clean, k) == getattr(_sample(), k) for k in values if k != field)
+    assert (clean.seq, clean.hv_present) == (5, True)
 
 
 def test_a_finite_sample_keeps_its_flags_and_values():

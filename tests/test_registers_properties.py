@@ -110,18 +110,18 @@ def test_the_rigs_own_limits_replace_table1_for_the_channels():
 
 @pytest.mark.parametrize(("address", "n", "code", "says"), [
     (0, 0, VALUE, "empty write"),
-    (-1, 2, ADDR, "outside the map"),
-    (HOLDING_END, 1, ADDR, "outside the map"),
-    (HOLDING_END - 1, 2, ADDR, "outside the map"),
+    (-1, 2, ADDR, "holding -1..0 outside the map (0..13)"),
+    (HOLDING_END, 1, ADDR, "holding 14..14 outside the map (0..13)"),
+    (HOLDING_END - 1, 2, ADDR, "holding 13..14 outside the map (0..13)"),
     (HOLDING_END - 2, 2, ADDR, "'v_limit_max' (holding 12) is read-only"),
     (8, 1, ADDR, "'map_version' (holding 8) is read-only"),
-    (1, 1, ADDR, "splits 'v_ch1' (holding 0..1)"),
-    (0, 3, ADDR, "splits 'v_ch2' (holding 2..3)"),
-    (6, 3, ADDR, "read-only"),
+    (1, 1, ADDR, "write 1..1 splits 'v_ch1' (holding 0..1)"),
+    (0, 3, ADDR, "write 0..2 splits 'v_ch2' (holding 2..3)"),
+    (6, 3, ADDR, "'map_version' (holding 8) is read-only"),
 ])
 def test_writes_refused_with_exception_02_or_03(address, n, code, says):
     v = check_holding_write(address, [0] * n, CURRENT)
-    assert v.code is code and says in v.reason and v.changed == ()
+    assert v.code is code and v.reason == says and v.changed == ()
 
 
 def test_cmd_seq_has_no_range_and_a_single_register_write_of_a_whole_value_is_fine():
