@@ -115,7 +115,12 @@ def report_bug(what: str, exc: BaseException, debug: bool) -> None:
 def main(argv: Sequence[str] | None = None) -> int:
     argv, debug_flag = _split_debug(list(sys.argv[1:] if argv is None else argv))
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # a usage error (argparse printed it): return its code; --help (0) still exits
+        if exc.code in (0, None):
+            raise
+        return exc.code if isinstance(exc.code, int) else EXIT_USAGE
     debug = debug_enabled(debug_flag or args.debug)
     what = command_words(args)
     try:
