@@ -206,6 +206,7 @@ class ModbusLink:
         self.processing_budget = self.timeout / 2
         self.line_time = float(self.settings["line_time"])  # type: ignore[arg-type]
         self.last_transaction_s = 0.0
+        self._check_due = False
         self._client = None
         self._down = True
         self._backoff = 1
@@ -240,11 +241,11 @@ class ModbusLink:
         finally:
             self._log = log_
 
-    def check_rig(self) -> None:
+    def check_rig(self, attempts: int = 3, budget: float | None = None) -> None:
         """Read the rig's identity block (holding 8–13) and refuse a rig this board cannot drive."""
-        budget = max(self.timeout, _OPEN_BUDGET_S)
+        budget = max(self.timeout, _OPEN_BUDGET_S) if budget is None else budget
         last: LinkError | None = None
-        for _ in range(3):  # a slow peer at start-up gets three chances
+        for _ in range(attempts):  # a slow peer at start-up gets three chances
             try:
                 rr = self._call("read the rig's identity (FC03, holding 8-13)", self._client.read_holding_registers,
                                 _ID_START, count=_ID_COUNT, budget=budget)
@@ -337,6 +338,7 @@ class ModbusLink:
             raise
         self.stats["reconnected"] += 1
         self._log.warn("reconnected", "%s: reconnected", self.url)
+        self._check_due = bool(self.settings["handshake"])  # the server behind the port may have changed
 
     # ------------------------------------------------------------------------------------------ exchange
     def _set_timeout(self, seconds: float) -> None:
@@ -472,6 +474,16 @@ class ModbusLink:
         block = self._read_inputs(budget=left, context=context, deadline=deadline)
         self.stats["replies"] += 1
         sample = block.sample
+        if self._check_due:  # after a reconnect: the first good exchange is followed by the identity check
+            try:
+                self.check_rig(attempts=1, budget=self.timeout)
+                self._check_due = False
+                self.stats["identity_after_reconnect"] += 1
+            except RigMismatchError:
+                self.close()
+                raise
+            except LinkError:
+                self.stats["identity_after_reconnect_failed"] += 1  # tried again after the next exchange
         if refused:
             sample = RigSample(seq=sample.seq, t=sample.t, z3=sample.z3, v_patch=sample.v_patch, z0dd=sample.z0dd,
                                v_battery=sample.v_battery, hv_present=sample.hv_present,

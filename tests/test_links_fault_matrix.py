@@ -67,14 +67,14 @@ LINKS = ("serial", "modbus-tcp", "modbus-rtu")
 #: time for a visit to complete). Lost replies cost a timeout of wall time, so lock-step runs use a short one.
 #: Modbus RTU at 115200 baud leaves the rig 9.5 - 7.8 = 1.7 ms (docs/real-rig.md): a 2-5 ms rig is out of budget.
 FAULTS: dict[str, tuple[LinkFaults, float | None, tuple[str, ...]]] = {
-    "clean": (LinkFaults(), 0.05, ("serial", "modbus-tcp", "modbus-rtu")),
-    "drop 1 %": (LinkFaults(drop=0.01), 0.05, ("serial", "modbus-tcp", "modbus-rtu")),
-    "drop 5 %": (LinkFaults(drop=0.05), 0.03, ()),
-    "corrupt 1 %": (LinkFaults(corrupt=0.01), 0.05, ("serial", "modbus-tcp", "modbus-rtu")),
+    "clean": (LinkFaults(), 0.1, ("serial", "modbus-tcp", "modbus-rtu")),
+    "drop 1 %": (LinkFaults(drop=0.01), 0.1, ("serial", "modbus-tcp", "modbus-rtu")),
+    "drop 5 %": (LinkFaults(drop=0.05), 0.1, ()),
+    "corrupt 1 %": (LinkFaults(corrupt=0.01), 0.1, ("serial", "modbus-tcp", "modbus-rtu")),
     # the link's real reply budget: whether a reply is late depends on the machine's load, so only the SAFE rule
     # is asserted here; measured on a quiet machine in docs/real-rig.md
     "latency 2-5 ms": (LinkFaults(latency_s=0.002, jitter_s=0.003), None, ()),
-    "disconnect 3 s": (LinkFaults(), 0.05, ("serial", "modbus-tcp", "modbus-rtu")),
+    "disconnect 3 s": (LinkFaults(), 0.1, ("serial", "modbus-tcp", "modbus-rtu")),
 }
 DISCONNECT = (350, 649)  # exchanges: 3 s away from 3.5 s (MBIT.b running), then back under the same name / port
 FAST = {("serial", "drop 5 %"), ("modbus-tcp", "drop 1 %"), ("modbus-tcp", "disconnect 3 s"),
@@ -119,7 +119,11 @@ def run_case(scen, kind: str, fault: str, realtime: bool = False):
             link = EndpointAway(link, srv, *DISCONNECT)
         result, cfg = run(scen, link, realtime)
         lost = srv.faulter.dropped + srv.faulter.corrupted
-    return result, cfg, lost
+        stats = getattr(link, "link", link).stats
+        # replies that came after their exchange gave up (a lock-step plant step outlasting the timeout on a loaded
+        # machine): seen when they arrive — skipped as stale, flushed, or refused as the wrong reply
+        late = sum(stats[k] for k in ("stale_or_unexpected", "stale_skipped", "flushed_reads", "bad_reply"))
+    return result, cfg, lost, late
 
 
 def failure_runs(ok: np.ndarray) -> list[tuple[int, int]]:
@@ -161,15 +165,14 @@ def check_safe_as_documented(result, cfg) -> None:
         assert np.all(ok[row - recovery + 1: row + 1] == 1) and ok[row - recovery] == 0
 
 
-def check_case(kind: str, fault: str, result, cfg, lost: int, clean: dict) -> dict:
+def check_case(kind: str, fault: str, result, cfg, lost: int, late: int, clean: dict) -> dict:
     s = summarise(result)
     check_safe_as_documented(result, cfg)
-    budget = lost
+    budget = lost + late
     if fault.startswith("disconnect"):
         budget += DISCONNECT[1] - DISCONNECT[0] + 1 + 64  # the ticks away and at most one back-off period
     if fault != "latency 2-5 ms":  # (latency: no reply is lost; failures there are late replies)
-        # + 2: a lock-step plant step that outlasts the timeout on a loaded machine is a late reply, not a lost one
-        assert s["failed"] <= budget + 2, f"{kind}/{fault}: {s['failed']} failed exchanges for {budget} lost replies"
+        assert s["failed"] <= budget, f"{kind}/{fault}: {s['failed']} failed exchanges for {lost} lost + {late} late"
     if s["safe"] == 0 and fault != "latency 2-5 ms":
         assert s["mbits"] == clean["mbits"] and s["verdicts"] == clean["verdicts"]
     if kind in FAULTS[fault][2]:
@@ -199,10 +202,11 @@ CASES = [pytest.param(k, f, marks=() if (k, f) in FAST else pytest.mark.slow, id
 
 @pytest.mark.parametrize(("kind", "fault"), CASES)
 def test_fault_matrix_lockstep(scen, clean_verdicts, kind: str, fault: str):
-    result, cfg, lost = run_case(scen, kind, fault)
-    s = check_case(kind, fault, result, cfg, lost, clean_verdicts)
+    result, cfg, lost, late = run_case(scen, kind, fault)
+    s = check_case(kind, fault, result, cfg, lost, late, clean_verdicts)
     if os.environ.get("SHM_MATRIX_PRINT"):
-        print(f"\nMATRIX lockstep {kind:10s} {fault:15s} lost {lost:3d} failed {s['failed']:4d} SAFE {s['safe']} "
+        print(f"\nMATRIX lockstep {kind:10s} {fault:15s} lost {lost:3d} late {late:3d} failed {s['failed']:4d} "
+              f"SAFE {s['safe']} "
               f"mbits {s['mbits']} verdicts {s['verdicts']} max_eps {s['max_eps']:.4f}")
 
 
@@ -212,7 +216,7 @@ def test_fault_matrix_lockstep(scen, clean_verdicts, kind: str, fault: str):
 def test_fault_matrix_realtime(scen, clean_verdicts, kind: str, fault: str):
     """The same in real time (stub paced at 100 Hz, board on the wall clock): timing on a shared machine is not
     deterministic, so only the documented SAFE rule and the verdicts are asserted; the table is printed."""
-    result, cfg, lost = run_case(scen, kind, fault, realtime=True)
+    result, cfg, lost, _late = run_case(scen, kind, fault, realtime=True)
     s = summarise(result)
     check_safe_as_documented(result, cfg)
     if s["safe"] == 0:
