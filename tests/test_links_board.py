@@ -181,7 +181,7 @@ def test_scheduled_outage_mid_mbit_goes_safe_within_3_ticks_and_recovers(tmp_pat
     with HilService(build_truth_rig(scen, seed=1), mode="lockstep") as hil:
         srv = {"serial": lambda: hil.add_serial("pty"), "modbus-tcp": lambda: hil.add_modbus_tcp("127.0.0.1:0"),
                "modbus-rtu": lambda: hil.add_modbus_rtu("pty")}[kind]()
-        url = srv.board_url + ("&" if "?" in srv.board_url else "?") + "timeout=0.06"
+        url = srv.board_url + ("&" if "?" in srv.board_url else "?") + "timeout=0.15"
         result = run_board(scen, open_link(url), duration=12.0)
         # every command and PING during the 30 ticks goes unanswered (a serial link that reopens its port after 25
         # timeouts PINGs instead of sending a command: fewer commands reach the rig, as many requests are withheld)
@@ -222,7 +222,7 @@ def test_vanishing_endpoint_mid_mbit(tmp_path, kind):
     scen = scenario(tmp_path)
     with HilService(build_truth_rig(scen, seed=1), mode="lockstep") as hil:
         srv = hil.add_serial("pty") if kind == "serial" else hil.add_modbus_tcp("127.0.0.1:0")
-        url = srv.board_url + ("&" if "?" in srv.board_url else "?") + "timeout=0.06"
+        url = srv.board_url + ("&" if "?" in srv.board_url else "?") + "timeout=0.15"
         link = EndpointAway(open_link(url), srv, 500, 539)
         result = run_board(scen, link, duration=12.0)
         assert hil.host.incident_count >= 1
