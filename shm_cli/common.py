@@ -183,6 +183,8 @@ def _writable_target(path: Path, want_dir: bool) -> str | None:
 
 def output_dir_arg(text: str) -> str:
     """argparse ``type=`` of an output directory: refused at parse time when it is a file or cannot be created."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty path: give a directory")
     why = _writable_target(Path(text), want_dir=True)
     if why is not None:
         raise argparse.ArgumentTypeError(f"'{text}' {why}")
@@ -191,6 +193,8 @@ def output_dir_arg(text: str) -> str:
 
 def output_file_arg(text: str) -> str:
     """argparse ``type=`` of an output file: refused at parse time when it is a directory or cannot be written."""
+    if not text.strip():
+        raise argparse.ArgumentTypeError("empty path: give a file name")
     why = _writable_target(Path(text), want_dir=False)
     if why is not None:
         raise argparse.ArgumentTypeError(f"'{text}' {why}")
@@ -206,7 +210,7 @@ def out_dir(path: str | Path, option: str = "--out") -> Path:
     """Create (if missing) and return an output directory; a path that is a file, or a directory that cannot be
     created or written, is an :class:`OutputPathError` naming ``option``, the path and the reason (exit 2)."""
     d = Path(path)
-    why = _writable_target(d, want_dir=True)
+    why = "empty path" if not str(path).strip() else _writable_target(d, want_dir=True)
     if why is None:
         try:
             d.mkdir(parents=True, exist_ok=True)
