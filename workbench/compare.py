@@ -202,6 +202,9 @@ def _findings(ch: str, m: ChannelMetrics, p: PredictionMetrics | None, rt: Resid
               ) -> list[str]:
     out = [f"{ch}: free-run fit {m.fit_pct:.2f} %" + (f", {p.label.split(' (')[0]} fit {p.fit_pct:.2f} %" if p else "")
            + "."]
+    # one reading of the evidence first: the most likely hypothesis class, in numbers (localisation ranks them)
+    lead = [f for f in loc.findings if f.startswith("Most likely:")]
+    out.extend(lead)
     if p is not None and m.rmse > 0 and m.rmse > 2 * loc.noise_std:
         removed = 1.0 - p.rmse / m.rmse
         horizon = p.label.split("(")[1].split(",")[0]
@@ -222,7 +225,7 @@ def _findings(ch: str, m: ChannelMetrics, p: PredictionMetrics | None, rt: Resid
                    "from white noise independent of the drive.")
     for t in failed:
         out.append(f"{t.symbol} fails ({t.title}; {t.statistic:.3g} vs band {t.band:.3g}): {t.points_at}")
-    out.extend(loc.findings[1:] if loc.findings and loc.windows else loc.findings)
+    out.extend(f for f in (loc.findings[1:] if loc.findings and loc.windows else loc.findings) if f not in lead)
     return out
 
 

@@ -440,6 +440,12 @@ def _time_section(cmp: Comparison, figs: dict[str, list[Path]]) -> str:
         parts.append(f"<h3>{html.escape(ch)}: where the model fails (one screen)</h3>")
         parts.append(_img(paths[0]))
         parts.append("<ul class='find'>" + "".join(f"<li>{html.escape(f)}</li>" for f in cmp.findings[ch]) + "</ul>")
+        hyp = cmp.localisation[ch].hypotheses
+        if hyp:
+            parts.append(f"<h3>{html.escape(ch)}: readings of the evidence, most likely first</h3>")
+            parts.append(_table(["hypothesis class", "share explained beyond a gain error", "in numbers"],
+                                [[html.escape(h.kind), f"{100 * h.score:.0f} %", html.escape(h.sentence)]
+                                 for h in hyp], raw=True))
         rt = cmp.tests[ch]
         parts.append(f"<h3>{html.escape(ch)}: residual tests (level α = {rt.level:g} per test, {rt.max_lag} lags, "
                      f"N = {rt.n}, input {html.escape(rt.input_name)})</h3>")
