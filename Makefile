@@ -31,7 +31,7 @@ system-packages:
 	fi
 
 run: setup
-	$(BIN)/shm run --out $(OUT)/run
+	$(BIN)/shm run --force --out $(OUT)/run
 
 test: setup
 	$(BIN)/ruff check .
