@@ -161,7 +161,7 @@ def decode_value(reg: Register, words: list[int] | tuple[int, ...]) -> float:
         return float(bool(words[0]))
     raw = b"".join(int(w & 0xFFFF).to_bytes(2, "big") for w in words)
     (x,) = struct.unpack(_STRUCT[reg.dtype], raw)
-    return float(x) if reg.dtype.startswith("float") else float(x) * reg.scale
+    return float(x) * reg.scale  # floats have scale 1
 
 
 def float32_to_registers(value: float) -> list[int]:
@@ -326,7 +326,7 @@ def markdown_table() -> str:
             if r.lower is not None or r.upper is not None:
                 rng = f"{r.lower:g} … {r.upper:g}"
             span = f"{r.address}" if r.words == 1 else f"{r.address}–{r.end - 1}"
-            scale = "IEEE-754" if r.dtype.startswith("float") else (f"{r.scale:g}" if r.scale != 1 else "1")
+            scale = "IEEE-754" if r.dtype.startswith("float") else f"{r.scale:g}"
             out.append(f"| {span} | {r.address + 1} | `{r.name}` | {r.dtype} | {r.words} | {r.unit} | {scale} | "
                        f"{'R/W' if r.writable else 'R'} | {rng} | {r.description} |")
         out.append("")

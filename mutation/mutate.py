@@ -199,8 +199,8 @@ def run_mutmut(cfg: dict) -> None:
 def _functions(path: Path) -> dict[str, str]:
     """Every function's source in a mutmut-generated file, by name."""
     src = path.read_text()
-    tree = ast.parse(src)
-    return {n.name: ast.get_source_segment(src, n) or "" for n in ast.walk(tree)
+    lines = src.splitlines()
+    return {n.name: "\n".join(lines[n.lineno - 1 : n.end_lineno]) for n in ast.walk(ast.parse(src))
             if isinstance(n, ast.FunctionDef | ast.AsyncFunctionDef)}
 
 
@@ -208,8 +208,9 @@ def mutant_diff(m: Module, key: str, funcs: dict[str, str]) -> list[str]:
     """The changed lines of mutant ``key`` against the original function ('-'/'+' lines)."""
     local = key.removeprefix(m.dotted + ".")
     orig_name = local.rsplit("__mutmut_", 1)[0] + "__mutmut_orig"
-    a = funcs.get(orig_name, "").splitlines()[1:]
-    b = funcs.get(local, "").splitlines()[1:]
+    name = local.rsplit(".", 1)[-1]
+    a = funcs.get(orig_name, "").splitlines()
+    b = funcs.get(name, "").replace(name, orig_name, 1).splitlines()
     return [ln for ln in difflib.unified_diff(a, b, lineterm="", n=0)
             if ln[:1] in "+-" and not ln.startswith(("+++", "---"))]
 
@@ -328,7 +329,7 @@ def main(argv: list[str] | None = None) -> int:
         prepare_work(mods, chosen, cfg)
         for m in chosen:
             fp = _sha(*(ROOT / t for t in m.existing_tests()))
-            if state.get("tests", {}).get(m.name) not in (None, fp):
+            if state.get("tests", {}).get(m.name) != fp:  # changed, or never recorded
                 reset_survivors(m, "its tests changed")
         run_mutmut(cfg)
         for m in chosen:

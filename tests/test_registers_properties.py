@@ -25,6 +25,7 @@ from drivers.modbus_registers import (
     MAP_VERSION,
     STATUS_HV_PRESENT,
     ModbusExceptionCode,
+    WriteVerdict,
     check_holding_write,
     decode_command_block,
     decode_input_block,
@@ -77,7 +78,7 @@ def test_set_points_exactly_at_a_table1_limit_are_accepted(name, lo, hi):
     reg = BY_NAME[name]
     for ok in (lo, hi):
         v = check_holding_write(reg.address, encode_value(reg, ok), CURRENT)
-        assert v.code is None and v.changed == (name,), ok
+        assert v == WriteVerdict(None, "", (name,)), ok
     for bad in (below(lo), above(hi), math.nan, math.inf):
         before = list(CURRENT)
         words = (encode_value(reg, bad) if math.isfinite(bad)
@@ -168,6 +169,8 @@ def sample(**kw) -> RigSample:
 
 def test_status_word_and_counters_wrap():
     assert status_word(sample()) == FLAG_LIMIT_REFUSED | FLAG_RIG_FAULT | STATUS_HV_PRESENT
+    blk = decode_input_block(encode_input_block(sample()))  # a rig that has applied and refused nothing yet
+    assert (blk.cmd_seq_applied, blk.refused_count) == (0, 0)
     assert status_word(sample(hv_present=False, flags=0x1FF)) == 0xFF
     blk = decode_input_block(encode_input_block(sample(seq=2**32 + 3), cmd_seq_applied=2**32 + 9,
                                                 refused_count=65536 + 4))
@@ -183,11 +186,11 @@ def test_status_word_and_counters_wrap():
 
 @pytest.mark.parametrize("name", ["t", "z3", "v_patch", "z0dd", "v_battery"])
 def test_a_nan_from_a_foreign_rig_raises_the_sensor_fault_flag(name):
-    words = encode_input_block(sample(hv_present=False, flags=0))
+    words = encode_input_block(sample(hv_present=False, flags=FLAG_LIMIT_REFUSED))
     reg = BY_NAME[name]
     nan = list(struct.unpack(f">{reg.words}H", struct.pack(">d" if reg.words == 4 else ">f", math.nan)))
     words[reg.address:reg.end] = nan
-    assert decode_input_block(words).sample.flags == FLAG_SENSOR_FAULT
+    assert decode_input_block(words).sample.flags == FLAG_SENSOR_FAULT | FLAG_LIMIT_REFUSED  # added, others kept
     assert decode_input_block(encode_input_block(sample(flags=0))).sample.flags == 0
 
 
