@@ -318,3 +318,17 @@ def test_crlf_line_ends_are_read(tmp_path: Path) -> None:
     p = tmp_path / "crlf.csv"
     p.write_bytes((HEADER + _rows()).replace("\n", "\r\n").encode())
     assert load_record(p).n_samples == 5
+
+
+@pytest.mark.parametrize("cut", [5, 1000])
+def test_a_tdms_file_cut_off_mid_write_is_refused(tmp_path: Path, cut: int) -> None:
+    from workbench.records import record_from_arrays
+
+    t = np.arange(500) * 1e-3
+    rec = record_from_arrays(t, {"v_ch1_V": 100 + 0 * t, "v_ch2_V": 100 + 0 * t, "z3_mm": np.sin(t)},
+                             {"test": "step"})
+    full = write_tdms_record(rec, tmp_path / "full.tdms")
+    p = tmp_path / "cut.tdms"
+    p.write_bytes(full.read_bytes()[:-cut])
+    with pytest.raises(RecordError, match=r"cut\.tdms, column 'z3'.*samples but.*cut off"):
+        load_record(p)

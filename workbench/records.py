@@ -672,7 +672,8 @@ def load_tdms_record(path: str | Path) -> Record:
             n0 = data.size
         elif data.size != n0:
             raise RecordError(path, f"has {data.size} samples but '{group.channels()[0].name}' has {n0} "
-                                    "(channels of a record must have equal lengths)", column=ch.name)
+                                    "(channels of a record must have equal lengths; a file cut off mid-write "
+                                    "ends short in its last channels)", column=ch.name)
         if split_column(col)[0] == "time":
             columns.insert(0, col)
             arrays.insert(0, data)
