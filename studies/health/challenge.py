@@ -94,7 +94,7 @@ def challenge_lives(full: bool = True) -> list[ChallengeLife]:
         ChallengeLife("linear-alpha-fast", (_lin("alpha_h", 2.5e-4), _lin("k3", -1e-4)), visits=8, interval=100.0,
                       seed=11),
         ChallengeLife("stable-fast", (_const("k3", -0.03),), visits=5, kind="stable", seed=12),
-        ChallengeLife("sudden-k3-fast", (_step("k3", -0.15, 230.0),), visits=6, kind="sudden", step_hours=230.0,
+        ChallengeLife("sudden-k3-fast", (_step("k3", -0.15, 330.0),), visits=7, kind="sudden", step_hours=330.0,
                       step_parameter="k3", seed=13),
     ]
     if not full:
