@@ -40,9 +40,10 @@ def incidents(out):
 
 
 def test_budget_is_the_config():
-    assert B == PowerBudget(CFG.power_current_standby, CFG.power_current_sensing, CFG.power_current_maintenance,
-                            CFG.power_current_safe, CFG.power_wake_min_voltage, CFG.power_brownout_voltage,
-                            CFG.power_brownout_hysteresis, CFG.power_brownout_ticks, CFG.tick_period)
+    want = PowerBudget(CFG.power_current_standby, CFG.power_current_sensing, CFG.power_current_maintenance,
+                       CFG.power_current_safe, CFG.power_wake_min_voltage, CFG.power_brownout_voltage,
+                       CFG.power_brownout_hysteresis, CFG.power_brownout_ticks, CFG.tick_period)
+    assert PowerBudget.from_config(CFG) == want == B
     assert N >= 2  # the consecutive-ticks tests below need a run of at least two
 
 
@@ -109,6 +110,8 @@ def test_clears_strictly_above_the_hysteresis_band_once():
     assert out[-1][1].brownout and out[-2][1].brownout
     assert out[-1][0] == PowerState(True, 0, 1)
     out = feed([*base, CLEAR + 1e-06, HIGH, HIGH], start=7)
+    detail = feed([*base, HIGH])[-1][2][0].data["detail"]
+    assert detail == f"battery {HIGH:.4f} V above {CLEAR:.4f} V"
     cleared = out[N]
     assert cleared[1].brownout is False and cleared[0] == PowerState(False, 0, 1)
     evs = incidents(out)
@@ -133,12 +136,12 @@ def test_wake_threshold_is_inclusive_on_every_path(v, ok):
 
 
 def reference(voltages):
-    """The documented rules, tick by tick: (brownout, energy_ok, incident names)."""
+    """The documented rules, tick by tick: (brownout, energy_ok, incident names, consecutive ticks below)."""
     brown, run, out = False, 0, []
     for v in voltages:
         evs = []
         if not (v > 0.0):  # NaN or not positive: unknown, hold
-            out.append((brown, False, evs))
+            out.append((brown, False, evs, run))
             continue
         if v < B.brownout:
             run = min(run + 1, N)
@@ -150,7 +153,7 @@ def reference(voltages):
             if brown and v > CLEAR:
                 brown = False
                 evs.append("brownout_cleared")
-        out.append((brown, (not brown) and v >= B.wake_min, evs))
+        out.append((brown, (not brown) and v >= B.wake_min, evs, run))
     return out
 
 
@@ -163,10 +166,10 @@ VOLTS = st.sampled_from([math.nan, 0.0, 0.5, LOW, B.brownout, B.brownout + B.hys
 def test_random_voltage_sequences_follow_the_rules(seq):
     got = feed(seq)
     want = reference(seq)
-    for (s, status, ev), (brown, ok, names) in zip(got, want, strict=True):
+    for (s, status, ev), (brown, ok, names, run) in zip(got, want, strict=True):
         assert (status.brownout, status.energy_ok, [e.data["incident"] for e in ev]) == (brown, ok, names)
-        assert s.brownout == brown
-    assert got[-1][0].brownouts == sum(names.count("brownout") for *_, names in want)
+        assert (s.brownout, s.below_run) == (brown, run)
+    assert got[-1][0].brownouts == sum(w[2].count("brownout") for w in want)
 
 
 def test_ledger_counts_valid_voltages_only():
@@ -178,6 +181,9 @@ def test_ledger_counts_valid_voltages_only():
     led.add(Regime.MAINTENANCE, 3.5)
     led.add(Regime.SAFE, math.nan)
     assert (led.v_first, led.v_last, led.v_min) == (3.0, 3.5, 3.0)
+    low = PowerLedger(B)
+    low.add(Regime.SAFE, 0.5)  # a deeply discharged cell is still a measurement
+    assert (low.v_first, low.v_last, low.v_min) == (0.5, 0.5, 0.5)
     assert led.energy_used == pytest.approx(B.period * (B.maintenance * 3.0 + B.maintenance * 3.5 + B.safe * 3.5))
     assert led.ticks == {Regime.STANDBY_HARVEST: 0, Regime.SENSING: 0, Regime.MAINTENANCE: 2, Regime.SAFE: 2}
     assert led.charge_by_regime() == pytest.approx({"STANDBY_HARVEST": 0.0, "SENSING": 0.0,
