@@ -551,10 +551,13 @@ def hypotheses(t: np.ndarray, e: np.ndarray, yhat: np.ndarray, u: np.ndarray, y:
     # time-varying
     thirds = np.array_split(np.arange(e.size), 3)
     r_first, r_last = _rms(e[thirds[0]]), _rms(e[thirds[-1]])
+    steady = dominant_frequency(t, u) is not None or np.ptp(u) == 0
     out.append(Hypothesis("time-varying", _r2(e, [yc, rel_t * yc, rel_t]) - base,
                           f"the residual grows in time: RMS {_fmt(r_first, unit)} in the first third of the record, "
                           f"{_fmt(r_last, unit)} in the last ({r_last / max(r_first, 1e-300):.2g}×): a gain or zero "
-                          "drifting during the test (temperature, creep, a warming sensor)"))
+                          "drifting during the test (temperature, creep, a warming sensor)"
+                          + ("" if steady else " — but the drive changes its character in time (a sweep: time is also "
+                             "frequency); confirm on a record with a steady drive")))
     # shifted dynamics
     sc_dyn = _r2(e, [yc, v, acc]) - base
     words = "the dynamics are shifted: the error is in phase with the modelled velocity/acceleration"
