@@ -14,7 +14,7 @@ import sys
 import time
 from typing import Any
 
-from shm_cli.common import add_out_arg, dump_json, out_dir
+from shm_cli.common import add_out_arg, dump_json, out_dir, seed_int
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -38,7 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dask-scheduler", default=None, metavar="ADDRESS",
                    help="fit the visits on this Dask cluster (as shm campaign; extra mfc-shm[cluster]; the workers "
                         "must see the record files)")
-    p.add_argument("--seed", type=int, default=1, help="seed of the forecast's Monte Carlo (default 1)")
+    p.add_argument("--seed", type=seed_int, default=1, help="seed of the forecast's Monte Carlo (default 1)")
     p.add_argument("--json", action="store_true", help="print one JSON document (also written to DIR/health.json)")
     add_out_arg(p, default="out/health")
     p.set_defaults(func=cmd_health)
