@@ -22,7 +22,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "health", help="health over time: per-visit re-estimation, trends, forecast of the board's first FAULT",
         description="Re-estimate the health parameters at every maintenance visit from the board's records, trend "
                     "them against operating time, and forecast when the board's own monitor will first say FAULT "
-                    "(trip time with a 90 %% interval, remaining useful life). Prints the four levels (detected? "
+                    "(trip time with a 90 % interval, remaining useful life). Prints the four levels (detected? "
                     "where? how much? how long?); plots and report.html go to --out. docs/health.md.")
     p.add_argument("sources", nargs="+", metavar="SOURCE",
                    help="a run directory of 'shm run', its usage.db, or record files (CSV/TDMS) with operating_hours")
