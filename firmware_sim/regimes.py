@@ -163,7 +163,7 @@ class RegimeTimers:
             wake_debounce=cfg.wake_debounce_ticks,
             quiet=max(1, cfg.ticks(cfg.sensing_quiet_period)),
             hv_debounce=max(1, cfg.ticks(cfg.maintenance_hv_debounce)),
-            link_recovery=cfg.ticks(cfg.safe_link_recovery) if cfg.safe_link_recovery > 0 else 0,
+            link_recovery=cfg.ticks(cfg.safe_link_recovery),  # 0 s -> 0 ticks: disabled
             period=cfg.tick_period,
         )
 

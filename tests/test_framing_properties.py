@@ -89,7 +89,8 @@ def test_worked_examples_byte_for_byte():
     f_ping, f_pong, f_nak = d.feed(ping + pong + nak)
     assert (f_ping.type, f_ping.seq, f_ping.payload) == (MessageType.PING, 7, b"")
     assert decode_pong(f_pong) == PROTOCOL_VERSION
-    assert decode_nak(f_nak) == (MessageType.COMMAND, NakReason.BAD_LENGTH)
+    rejected, reason = decode_nak(f_nak)
+    assert rejected == MessageType.COMMAND and reason is NakReason.BAD_LENGTH  # the enum, not just its number
     assert d.stats == DecoderStats(frames=3)
 
 
@@ -221,7 +222,7 @@ def test_command_values_must_be_finite_float32(i):
     for bad in (math.nan, math.inf, F32_MAX * 2):
         v = list(vals)
         v[i] = bad
-        with pytest.raises(FramingError, match=("v_ch1", "v_ch2", "board_current")[i]):
+        with pytest.raises(FramingError, match=rf'^{("v_ch1", "v_ch2", "board_current")[i]}='):
             encode_command(ActuatorCommand(3, *v))
     v = list(vals)
     v[i] = F32_MAX
