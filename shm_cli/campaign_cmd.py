@@ -31,6 +31,7 @@ from shm_cli.common import (
     dump_json,
     out_dir,
     positive_float,
+    seed_int,
 )
 
 DEFAULT_EPS_GRID = "0.025:0.6:0.025"
@@ -49,7 +50,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="deviation ranges in percent: START:STOP:STEP (default 0:50:10 = 0-10,...,40-50), LO:HI, "
                         "or LO-HI,LO-HI")
     p.add_argument("--n", type=int, default=100, help="runs (degraded units) per range (default 100)")
-    p.add_argument("--seed", type=int, default=1, help="random seed (default 1); results are bit-for-bit "
+    p.add_argument("--seed", type=seed_int, default=1, help="random seed (default 1); results are bit-for-bit "
                    "reproducible for a seed whatever the workers")
     add_params_arg(p)
     ex = p.add_mutually_exclusive_group()

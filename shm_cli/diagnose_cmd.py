@@ -6,7 +6,7 @@ import argparse
 import functools
 import sys
 
-from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, even_int, out_dir
+from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, even_int, out_dir, seed_int
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -42,7 +42,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--min-reduction", type=float, default=0.02,
                    help="held-out residual-energy reduction a candidate must reach to be accepted (default 0.02)")
     p.add_argument("--workers", type=int, default=1, help="candidates fitted concurrently (threads; default 1)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the multi-start design")
+    p.add_argument("--seed", type=seed_int, default=0, help="seed of the multi-start design")
     p.add_argument("--json", action="store_true", help="print the diagnosis as JSON on stdout")
     add_out_arg(p)
     p.set_defaults(func=cmd_diagnose)

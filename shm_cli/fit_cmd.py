@@ -7,7 +7,7 @@ import functools
 import sys
 from pathlib import Path
 
-from shm_cli.common import Decorations, add_params_arg, dump_json, even_int, out_dir, output_file_arg
+from shm_cli.common import Decorations, add_params_arg, dump_json, even_int, out_dir, output_file_arg, seed_int
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -35,7 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-rate-hz", type=float, default=250.0,
                    help="sub-sample records to at most this rate for fitting (default 250 Hz)")
     p.add_argument("--max-nfev", type=int, default=40, help="optimiser evaluations per start (default 40)")
-    p.add_argument("--seed", type=int, default=0, help="seed of the multi-start design")
+    p.add_argument("--seed", type=seed_int, default=0, help="seed of the multi-start design")
     p.add_argument("--out", default=None, metavar="DIR",
                    help="directory for fit.json, fit_progress.png, fit_overlay.png, fit.html (default: beside --save)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")

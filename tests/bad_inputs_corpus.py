@@ -552,6 +552,11 @@ def _option_cases() -> list[Case]:
         c("run-scenario-is-params", "run --scenario {d}/p_nan.toml --quiet --out {o}", "p_nan.toml", "meta"),
         c("run-board-is-scenario", "run --board-config {d}/s_neg_seed.toml --quiet --out {o}", "s_neg_seed.toml",
           "phase"),
+        c("fit-seed-negative", "fit {d}/good.csv --free k3 --seed -1 --save {o}/x.toml", "--seed", "-1"),
+        c("diagnose-seed-negative", "diagnose {d}/good.csv --seed -1 --out {o}", "--seed", "-1"),
+        c("campaign-seed-huge", "campaign --n 2 --seed 99999999999999999999 --out {o} --no-progress", "--seed",
+          "99999999999999999999"),
+        c("health-seed-huge", "health {d}/good.csv --seed 99999999999999999999 --out {o}", "--seed"),
         # argparse itself
         c("no-command", [], "command"),
         c("unknown-command", "frobnicate", "frobnicate"),
