@@ -154,7 +154,9 @@ def check_safe_as_documented(result, cfg) -> None:
     n_loss = cfg.tick_link_loss_ticks
     recovery = round(cfg.safe_link_recovery * cfg.tick_rate)
     entries = [e for e in result.events if e.kind == "regime_change" and e.data["to_regime"] == "SAFE"]
-    assert all(e.data["trigger"] == "link_lost" for e in entries), "only link loss may put this board in SAFE"
+    # link loss, or (paced on a loaded machine) [tick] overrun_ticks missed deadlines in a row — nothing else
+    assert all(e.data["trigger"] in ("link_lost", "overrun") for e in entries), [e.data for e in entries]
+    entries = [e for e in entries if e.data["trigger"] == "link_lost"]
     expected = []
     for first, length in failure_runs(ok):
         if length >= n_loss and regime[first - 1] != 3:
