@@ -434,8 +434,9 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
         timings["screen_s"] += time.perf_counter() - t0
         if round_no == 0:
             screen_rows = rows[:12]
-        say(f"round {round_no + 1}: screened {len(rows)} terms in {time.perf_counter() - t0:.2g} s; best by held-out "
-            "(linearised): " + ", ".join(f"{r.term.key} {r.held_rms_sigma:.3g} σ" for r in rows[:4]))
+        say(f"round {round_no + 1}: screened {len(rows)} terms in {time.perf_counter() - t0:.2g} s; best on the full "
+            "model at the screened coefficients (held-out): "
+            + ", ".join(f"{r.term.key} {r.held_rms_sigma:.3g} σ" for r in rows[:4]))
         # --- refit the best few on the full nonlinear model
         t0 = time.perf_counter()
         best: tuple[float, int, FitOutcome] | None = None

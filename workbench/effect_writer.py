@@ -125,7 +125,8 @@ def describe_term(term: Term, coef: float, shape: float, scale: float) -> str:
                     f"{_si(scale, 'm')})" + tail)
         if f == "cube":
             return (f"a cubic laser nonlinearity: reading += {c:.3g} 1/m² · z3³ ({_si(c * scale ** 3, 'm')} at "
-                    f"{_si(scale, 'm')})" + tail)
+                    f"{_si(scale, 'm')})" + (": the reading falls short at large deflection, the onset of "
+                                             "saturation" if c < 0 else "") + tail)
         if f == "sat":
             return f"the laser reading saturates at about {_si(g, 'm')} ({100 * c:.3g} % of it applied)" + tail
         if f == "time":
