@@ -209,3 +209,19 @@ def test_a_life_is_reproducible_by_seed_whatever_the_workers(tmp_path):
     assert a == b
     assert [v[2] for v in a[0]] == ["PASS", "PASS", "FAULT"]  # alpha_h +0 %, +8 %, +16 % (the monitor: ~+15 %)
     assert a[1] != c[1]
+
+
+def test_health_bad_input_is_one_line_and_exit_2(tmp_path):
+    rec = tmp_path / "no_hours.csv"
+    rec.write_text("# test = \"mbit-b\"\ntime_s,v_ch1_V,v_ch2_V,z3_m\n0,0,0,0\n0.01,0,0,0\n0.02,0,0,0\n")
+    cases = [
+        ([str(tmp_path / "missing")], "no such file or directory"),
+        ([str(rec)], "no 'operating_hours' header key"),
+        ([str(rec), "--free", "gamma_h"], "--free 'gamma_h'"),
+        ([str(rec), "--as-of", "-1"], "--as-of must be"),
+    ]
+    for argv, msg in cases:
+        r = subprocess.run([sys.executable, "-m", "shm_cli.main", "health", *argv, "--out", str(tmp_path / "h")],
+                           capture_output=True, text=True)
+        assert r.returncode == 2, (argv, r.stderr)
+        assert msg in r.stderr and "Traceback" not in r.stderr
