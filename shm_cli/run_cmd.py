@@ -189,6 +189,16 @@ def _previous_run(out: Path) -> str | None:
     return what or ", ".join(present)
 
 
+def _last_visit_number(records: Path) -> int:
+    """Highest NNN of the ``visit-NNN_mbit-X.csv`` files in ``records`` (0: none)."""
+    best = 0
+    for f in records.glob("visit-*_mbit-*.csv") if records.is_dir() else ():
+        num = f.name[len("visit-"):].split("_", 1)[0]
+        if num.isdigit():
+            best = max(best, int(num))
+    return best
+
+
 def _prepare_out(args: argparse.Namespace, out: Path) -> None:
     """Refuse to overwrite an earlier run (unless --force / --append); with --force remove its files."""
     from firmware_sim.usage_log import check_is_usage_log
@@ -388,6 +398,8 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
 
         recorder = VisitRecordWriter(out, db_path, params=params, z3_noise_m=scenario.rig.z3_noise,
                                      scenario=scenario.name, run_id=run_id)
+        if args.append:  # the earlier runs' visit records stay: number this run's visits after theirs
+            recorder.visit = _last_visit_number(out / "records")
 
         def on_event(ev) -> None:
             printer(ev)

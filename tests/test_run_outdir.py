@@ -141,3 +141,22 @@ def test_a_signal_ends_a_run_cleanly_and_the_out_dir_is_locked_meanwhile(tmp_pat
     # the lock went with the process: the directory can be reused (here: refused only for the earlier run)
     assert _shm(["run", "--scenario", "maintenance", "--quiet", "--out", str(out)]) == 2
     assert "holds an earlier run" in capsys.readouterr().err
+
+
+def test_append_keeps_the_earlier_runs_visit_records(tmp_path: Path, capsys) -> None:
+    """Every completed MBIT writes records/visit-NNN_mbit-X.csv; an appended run numbers its visits after the
+    earlier ones instead of overwriting the files the earlier run's log links to."""
+    out = tmp_path / "run"
+    assert _shm(["run", "--scenario", "maintenance", "--quiet", "--out", str(out)]) == 0
+    first = {p.name: p.read_bytes() for p in (out / "records").iterdir()}
+    assert sorted(first) == ["visit-001_mbit-a.csv", "visit-001_mbit-b.csv"]
+    assert _shm(["run", "--scenario", "maintenance", "--quiet", "--append", "--out", str(out)]) == 0
+    now = {p.name: p.read_bytes() for p in (out / "records").iterdir()}
+    assert sorted(now) == ["visit-001_mbit-a.csv", "visit-001_mbit-b.csv", "visit-002_mbit-a.csv",
+                           "visit-002_mbit-b.csv"]
+    assert all(now[name] == data for name, data in first.items())
+    con = sqlite3.connect(out / "usage.db")
+    links = con.execute("SELECT run_id, path FROM mbit_records ORDER BY id").fetchall()
+    con.close()
+    assert links == [(1, "records/visit-001_mbit-a.csv"), (1, "records/visit-001_mbit-b.csv"),
+                     (2, "records/visit-002_mbit-a.csv"), (2, "records/visit-002_mbit-b.csv")]
