@@ -550,12 +550,14 @@ def hypotheses(t: np.ndarray, e: np.ndarray, yhat: np.ndarray, u: np.ndarray, y:
                           "viscous term): dry friction, a clearance or backlash"))
     # time-varying
     thirds = np.array_split(np.arange(e.size), 3)
-    r_first, r_last = _rms(e[thirds[0]]), _rms(e[thirds[-1]])
+    # relative to the modelled response in each third (a sweep's response changes size with frequency)
+    r_first = _rms(e[thirds[0]]) / max(_rms(yc[thirds[0]]), 1e-300)
+    r_last = _rms(e[thirds[-1]]) / max(_rms(yc[thirds[-1]]), 1e-300)
     steady = dominant_frequency(t, u) is not None or np.ptp(u) == 0
     out.append(Hypothesis("time-varying", _r2(e, [yc, rel_t * yc, rel_t]) - base,
-                          f"the residual grows in time: RMS {_fmt(r_first, unit)} in the first third of the record, "
-                          f"{_fmt(r_last, unit)} in the last ({r_last / max(r_first, 1e-300):.2g}×): a gain or zero "
-                          "drifting during the test (temperature, creep, a warming sensor)"
+                          f"the residual grows in time: {100 * r_first:.3g} % of the response in the first third of "
+                          f"the record, {100 * r_last:.3g} % in the last ({r_last / max(r_first, 1e-300):.2g}×): "
+                          "a gain or zero drifting during the test (temperature, creep, a warming sensor)"
                           + ("" if steady else " — but the drive changes its character in time (a sweep: time is also "
                              "frequency); confirm on a record with a steady drive")))
     # shifted dynamics
