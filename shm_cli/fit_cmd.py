@@ -14,15 +14,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "fit", help="add physical effects, refit their parameters on records, save a parameter set",
         description="Add one or more physical effects (library names, see `shm diagnose`, or your own "
-                    "pkg.mod:Class) to the model, fit their parameters (and any --free ones) on the training part of "
-                    "the records with least squares, and show the error falling per iteration (terminal and "
-                    "fit_progress.png). Prints a before/after table on training and held-out data, parameter "
-                    "estimates with standard errors, and writes a parameter set (TOML with [[effects]]) that "
+                    "pkg.mod:Class or FILE.py) to the model, fit their parameters (and any --free ones) on the "
+                    "training part of the records with least squares, and show the error falling per iteration "
+                    "(terminal and fit_progress.png). Prints a before/after table on training and held-out data, "
+                    "parameter estimates with standard errors, and writes a parameter set (TOML with [[effects]]) that "
                     "`shm run` and the board's monitor load at once.")
     p.add_argument("records", nargs="+", metavar="RECORD", help="time records (.csv or .tdms; docs/records.md)")
     add_params_arg(p)
     p.add_argument("--add", action="append", default=[], metavar="EFFECT",
-                   help="effect to add: a library name or pkg.mod:Class (repeatable)")
+                   help="effect to add: a library name, pkg.mod:Class, or a file FILE.py / FILE.py:Class (e.g. the one "
+                        "`shm discover --emit` wrote; repeatable)")
     p.add_argument("--free", action="append", default=[], metavar="PARAM[:LO:HI]",
                    help="also fit this parameter (core, e.g. k3, or an effect's), optionally with its range in SI "
                         "units (repeatable)")

@@ -36,7 +36,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--test", required=True, choices=TESTS, help="test to simulate")
     add_params_arg(p)
     p.add_argument("--effect", action="append", default=[], metavar="NAME|pkg.mod:Class",
-                   help="inject a physical effect into the truth plant (registered name or dotted path); repeatable")
+                   help="inject a physical effect into the truth plant (registered name, dotted path or "
+                        "FILE.py[:Class]); repeatable")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", dest="set_values",
                    help="absolute value of a truth parameter (core or an injected effect's), SI; repeatable")
     p.add_argument("--deviation", action="append", default=[], metavar="NAME=REL",
