@@ -30,16 +30,18 @@ def _record(effects=(), values=None, kind="mbit-b", seed=0, **spec):
 @pytest.fixture(scope="module")
 def creep_diagnosis():
     rec = _record(["piezo_creep"], {"gamma_creep": 0.03, "tau_creep": 0.4})
-    return diagnose([rec], "table2", fit_top=None)
+    return diagnose([rec], "table2")
 
 
 def test_hidden_creep_is_named_with_signature_and_estimates(creep_diagnosis):
     d = creep_diagnosis
     assert d.verdict == "missing" and d.winner is not None and d.winner.effect == "piezo_creep"
     assert d.ranked_names[0] == "piezo_creep" and d.found == ("piezo_creep",)
-    # every library effect and every parameter candidate is ranked (fit_top=None: all fitted in full)
+    # every library effect and every parameter candidate is ranked; the most promising of each kind fitted in full
     assert {"geometric_stiffening", "m3", "stiffness", "electrical"} <= set(d.ranked_names)
-    assert all(c.outcome is not None for c in d.ranking)
+    fitted = [c for c in d.ranking if c.outcome is not None]
+    assert {c.kind for c in fitted} == {"effect", "parameter"} and len(fitted) >= 6
+    assert all(c.status == "screened out" for c in d.ranking if c.outcome is None)
     w = d.winner
     assert w.held_rms_sigma < 1.5 < d.baseline_held_rms_sigma
     assert w.held_reduction > 0.9 and w.delta_bic_held > 0

@@ -20,6 +20,7 @@ from workbench.hidden_effect import (
     run_case,
     run_hidden_case,
     summarise,
+    truth_label,
 )
 
 NOISE = 2e-6
@@ -81,7 +82,7 @@ def test_confusion_matrix_and_summary(results):
     assert m.sum() == len(results)
     for i, t in enumerate(truths):
         j = diags.index(t if t != "none" else "nothing missing")
-        assert m[i, j] == sum(1 for r in results if r.effect == t)  # all on the diagonal in this subset
+        assert m[i, j] == sum(1 for r in results if truth_label(r) == t)  # all on the diagonal here
     text = format_confusion(results)
     assert text.splitlines()[0].startswith("truth \\ diagnosis") and "nothing" in text
     s = summarise(results)

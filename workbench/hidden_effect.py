@@ -238,7 +238,8 @@ def run_case(effect: str | None, values: Mapping[str, float] | None, kind: str, 
                            workers=workers)
 
 
-def _label(r: CaseResult) -> str:
+def truth_label(r: CaseResult) -> str:
+    """The confusion matrix row of a case: the effect, "x wrong" for a wrong parameter x, "pair: a+b"."""
     if r.case_kind == "library" or r.case_kind == "none":
         return r.effect
     if r.case_kind == "parameter":
@@ -259,13 +260,13 @@ def _diag_label(r: CaseResult, known: set[str]) -> str:
 
 def confusion_matrix(results: Sequence[CaseResult]) -> tuple[list[str], list[str], np.ndarray]:
     """(truth labels, diagnosis labels, counts[truth, diagnosis]) over ``results``."""
-    truths = list(dict.fromkeys(_label(r) for r in results))
+    truths = list(dict.fromkeys(truth_label(r) for r in results))
     known = set(truths)
     diags = list(dict.fromkeys([*[t for t in truths if t != "none" and not t.startswith("pair")],
                                 *(_diag_label(r, known) for r in results), "nothing missing"]))
     m = np.zeros((len(truths), len(diags)), dtype=int)
     for r in results:
-        m[truths.index(_label(r)), diags.index(_diag_label(r, known))] += 1
+        m[truths.index(truth_label(r)), diags.index(_diag_label(r, known))] += 1
     used = [j for j in range(len(diags)) if m[:, j].any() or diags[j] in truths or diags[j] == "nothing missing"]
     return truths, [diags[j] for j in used], m[:, used]
 
