@@ -125,6 +125,7 @@ def test_the_largest_legal_payload_is_accepted_and_one_more_is_not():
     d = FrameDecoder()
     assert d.feed(SYNC + bytes([MAX_PAYLOAD + 1, 1]) + bytes(4)) == []
     assert d.stats == DecoderStats(oversized=1, discarded_bytes=8)
+    assert d.feed(SYNC + bytes([0xFF, 1]) + bytes(4)) == [] and d.stats.oversized == 2
 
 
 @pytest.mark.parametrize(("field", "lo", "hi"), [("type", 0, 0xFF), ("seq", 0, 0xFFFFFFFF)])
@@ -134,7 +135,7 @@ def test_header_fields_at_their_limits(field, lo, hi):
 
     for ok in (lo, hi):
         f = FrameDecoder().feed(enc(ok))[0]
-        assert getattr(f, field) == ok
+        assert getattr(f, field) == ok and f.payload == b""  # no payload given: an empty one
     for bad in (lo - 1, hi + 1):
         with pytest.raises(FramingError, match=field.replace("seq", "sequence number")):
             enc(bad)
@@ -165,6 +166,14 @@ def test_decoder_statistics_are_exact():
     assert d.stats == DecoderStats(frames=1, discarded_bytes=2)
     d = FrameDecoder()
     assert d.feed(b"\x01\x02\x03") == [] and d.pending == 0 and d.stats.discarded_bytes == 3
+
+
+def test_bytes_bytearray_and_memoryview_reads_decode_alike():
+    wire = encode_ping(3) + encode_pong(3)
+    want = FrameDecoder().feed(wire)
+    assert len(want) == 2
+    assert FrameDecoder().feed(bytearray(wire)) == want
+    assert FrameDecoder().feed(memoryview(wire)) == want
 
 
 @settings(max_examples=100, deadline=None)
