@@ -256,6 +256,8 @@ def _refine(obj: Objective, guess: dict[str, float], max_nfev: int) -> FitOutcom
 #: 0.1, 1/3, 0.6, 1.7, 3 and 10 times the linearised coefficient as well
 HARD_FORMS = ("sign", "pos", "neg", "dead", "clip", "sat")
 _LAST_PROBES: list[tuple[int, list[float]]] = []
+#: how many hard-form terms (best by the linearised screen) get the extra probes
+MAX_HARD_PROBED = 14
 
 
 def _nonlinear_check(rows: list[ScreenRow], terms: Sequence[Term], targets: Sequence[Target],
@@ -264,8 +266,11 @@ def _nonlinear_check(rows: list[ScreenRow], terms: Sequence[Term], targets: Sequ
     """Every screened term simulated on the full nonlinear model at its linearised coefficient (hard forms also at
     ×0.1 … ×10), in one batch; rows re-ranked by the error they really leave, at their best probe."""
     probes: list[tuple[int, list[float]]] = []
-    for j, r in enumerate(rows):
-        mult = (1.0, 0.1, 1.0 / 3.0, 0.6, 1.7, 3.0, 10.0) if r.term.form in HARD_FORMS else (1.0,)
+    n_hard = 0
+    for j, r in enumerate(rows):  # rows come ranked by the linearised screen
+        hard = r.term.form in HARD_FORMS and n_hard < MAX_HARD_PROBED
+        n_hard += hard
+        mult = (1.0, 0.1, 1.0 / 3.0, 0.6, 1.7, 3.0, 10.0) if hard else (1.0,)
         probes.append((j, [r.coef * m for m in mult]))
     _LAST_PROBES[:] = probes
     flat = [(j, c) for j, cs in probes for c in cs]
