@@ -41,7 +41,7 @@ test: setup
 # Long property-based run over the command line (issue 15): many more valid inputs than `make test` draws, and
 # `shm campaign` for every n = 1..500. Hypothesis keeps its example database in .cache/hypothesis (git-ignored),
 # so a failure found once is replayed first next time. FUZZ_EXAMPLES sets the examples per property.
-FUZZ_EXAMPLES ?= 80
+FUZZ_EXAMPLES ?= 50
 fuzz: setup
 	SHM_CLI_FUZZ=1 SHM_CLI_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(BIN)/pytest -n 2 --timeout=0 -q \
 	  tests/test_cli_properties.py tests/test_cli_properties_campaign.py tests/test_cli_properties_json.py \

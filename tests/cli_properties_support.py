@@ -30,7 +30,7 @@ from hypothesis.database import DirectoryBasedExampleDatabase
 
 REPO = Path(__file__).resolve().parents[1]
 FUZZ = os.environ.get("SHM_CLI_FUZZ", "") not in ("", "0")
-FUZZ_EXAMPLES = int(os.environ.get("SHM_CLI_FUZZ_EXAMPLES", "80"))
+FUZZ_EXAMPLES = int(os.environ.get("SHM_CLI_FUZZ_EXAMPLES", "50"))
 _SUPPRESS = [HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much,
              HealthCheck.function_scoped_fixture]
 
