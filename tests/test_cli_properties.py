@@ -256,14 +256,15 @@ def test_run_and_log_any_valid_scenario(data):
             assert_readable(out / name)
         assert "overview.png" in summary["figures"]
         db = out / "usage.db"
-        shown = assert_ok(shm("log", "show", "--db", db, *(["--telemetry"] if data.draw(st.booleans()) else [])))
-        del shown
-        exported = assert_ok(shm("log", "export", "--db", db), json_out=True)
+        assert_ok(shm("log", "show", "--db", db, *(["--telemetry"] if data.draw(st.booleans()) else []),
+                      "--limit", data.draw(st.integers(0, 50), label="limit")))
+        exported = assert_ok(shm("log", "export", "--db", db, "--run", summary["run_id"]), json_out=True)
         assert exported["run_id"] == summary["run_id"] and "runs" in exported["tables"]
         assert_ok(shm("log", "export", "--db", db, "--csv", "--out", tmp / "csv"))
         for t in exported["tables"]:
             assert_readable(tmp / "csv" / f"{t}.csv")
         one = data.draw(st.sampled_from(sorted(exported["tables"])), label="table")
+        assert_ok(shm("log", "show", "--db", db, "--table", one))
         assert_ok(shm("log", "export", "--db", db, "--table", one, "--out", tmp / "one.json"))
         assert json.loads((tmp / "one.json").read_text())["tables"].keys() == {one}
 
