@@ -40,7 +40,7 @@ ROOT = Path(__file__).resolve().parents[1]
 CONFIG = ROOT / "mutation" / "config.toml"
 EQUIVALENTS = ROOT / "mutation" / "equivalents.toml"
 OUT = ROOT / "out" / "mutate"
-WORK = OUT / "work"
+WORK_ROOT = OUT / "work"  # one work directory per module: out/mutate/work/<module>
 STATE = OUT / "state.json"
 #: linked into the work directory as they are (mutmut copies them into mutants/)
 LINKED = ("board_config", "plant", "firmware_sim", "drivers", "hil_stub", "workbench", "studies", "shm_cli", "bench",
@@ -108,10 +108,14 @@ def _sha(*paths: Path | str) -> str:
     return h.hexdigest()[:16]
 
 
-def prepare_work(mods: list[Module], chosen: list[Module], cfg: dict) -> None:
-    """The work directory: symlinks to the sources, a tests/ with the rooms' tests (of every module, so the test
-    selection mutmut caches never changes with ``--module``), a pyproject whose ``only_mutate`` is the chosen
-    modules' files."""
+def work_dir(m: Module) -> Path:
+    return WORK_ROOT / m.name
+
+
+def prepare_work(m: Module, cfg: dict) -> None:
+    """The module's work directory: symlinks to the sources, a tests/ with exactly its room's tests (plus the shared
+    helpers), a pyproject whose ``[tool.mutmut]`` mutates only its file. Its mutmut cache lives there."""
+    WORK = work_dir(m)
     WORK.mkdir(parents=True, exist_ok=True)
     for name in LINKED:
         link = WORK / name
@@ -121,8 +125,7 @@ def prepare_work(mods: list[Module], chosen: list[Module], cfg: dict) -> None:
     tests.mkdir(exist_ok=True)
     wanted = {p.name for p in (ROOT / "tests").iterdir()
               if not p.name.startswith("test_") and p.name != "__pycache__"}
-    for m in mods:
-        wanted |= {Path(t).name for t in m.existing_tests()}
+    wanted |= {Path(t).name for t in m.existing_tests()}
     for p in tests.iterdir():
         if p.name not in wanted and p.is_symlink():
             p.unlink()
@@ -136,7 +139,7 @@ def prepare_work(mods: list[Module], chosen: list[Module], cfg: dict) -> None:
         for p in copied.glob("test_*.py"):
             if p.name not in wanted:
                 p.unlink()
-    only = sorted({m.file for m in chosen})
+    only = [m.file]
     text = (ROOT / "pyproject.toml").read_text()
     section = "\n[tool.mutmut]\n" + "\n".join([
         f"source_paths = {json.dumps(list(SOURCE_PATHS))}",
@@ -164,13 +167,13 @@ def _env() -> dict[str, str]:
 
 
 def _meta(m: Module) -> dict:
-    p = WORK / "mutants" / (m.file + ".meta")
+    p = work_dir(m) / "mutants" / (m.file + ".meta")
     return json.loads(p.read_text()) if p.is_file() else {}
 
 
 def reset_survivors(m: Module, reason: str) -> int:
     """Force a re-check of this module's survivors (its room tests changed)."""
-    p = WORK / "mutants" / (m.file + ".meta")
+    p = work_dir(m) / "mutants" / (m.file + ".meta")
     if not p.is_file():
         return 0
     data = json.loads(p.read_text())
@@ -185,13 +188,13 @@ def reset_survivors(m: Module, reason: str) -> int:
     return n
 
 
-def run_mutmut(cfg: dict) -> None:
+def run_mutmut(m: Module, cfg: dict) -> None:
     """``mutmut run`` over the files in ``only_mutate``; no mutant names, so cached verdicts stand (mutmut re-runs
     every mutant it is given by name)."""
     cmd = ["nice", "-n", "10", str(Path(sys.executable).parent / "mutmut"), "run",
            "--max-children", str(int(cfg.get("max_children", 2)))]
     print("mutate: " + " ".join(cmd), file=sys.stderr)
-    r = subprocess.run(cmd, cwd=WORK, env=_env(), stdout=subprocess.DEVNULL)
+    r = subprocess.run(cmd, cwd=work_dir(m), env=_env(), stdout=subprocess.DEVNULL)
     if r.returncode != 0:
         print(f"mutate: mutmut exited {r.returncode}", file=sys.stderr)
 
@@ -222,10 +225,13 @@ def fallback_check(m: Module, key: str, diff: list[str], state: dict, tests: lis
     if cache.get(key, {}).get("fp") == fp:
         return bool(cache[key]["caught"])
     env = _env() | {"MUTANT_UNDER_TEST": key}
+    # the repository's test files, importing the mutated packages from mutants/ (the current directory comes first
+    # on sys.path with ``python -m``)
     cmd = ["nice", "-n", "10", sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", "-m", "not slow",
-           "--timeout=600", *tests]
-    r = subprocess.run(cmd, cwd=WORK / "mutants", env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    caught = r.returncode in CAUGHT_CODES
+           "--timeout=600", *(str(ROOT / t) for t in tests)]
+    r = subprocess.run(cmd, cwd=work_dir(m) / "mutants", env=env, stdout=subprocess.DEVNULL,
+                       stderr=subprocess.DEVNULL)
+    caught = r.returncode in (1, 2, 3)  # failed, collection/import broken, internal error (4 = bad usage: not caught)
     cache[key] = {"fp": fp, "caught": caught, "exit": r.returncode}
     return caught
 
@@ -251,7 +257,7 @@ def tabulate(mods: list[Module], state: dict, fallback: bool) -> tuple[list[dict
     for m in mods:
         meta = _meta(m)
         codes = {k: v for k, v in meta.get("exit_code_by_key", {}).items() if m.in_scope(k)}
-        mfile = WORK / "mutants" / m.file
+        mfile = work_dir(m) / "mutants" / m.file
         funcs = _functions(mfile) if mfile.is_file() else {}
         fb_tests = m.fallback_tests()
         row = {"module": m.name, "file": m.file, "mutants": len(codes), "caught": 0, "survived": 0,
@@ -326,14 +332,16 @@ def main(argv: list[str] | None = None) -> int:
     start = time.monotonic()
     state = json.loads(STATE.read_text()) if STATE.is_file() else {}
     if not args.report_only:
-        prepare_work(mods, chosen, cfg)
         for m in chosen:
+            prepare_work(m, cfg)
             fp = _sha(*(ROOT / t for t in m.existing_tests()))
             if state.get("tests", {}).get(m.name) != fp:  # changed, or never recorded
                 reset_survivors(m, "its tests changed")
-        run_mutmut(cfg)
-        for m in chosen:
-            state.setdefault("tests", {})[m.name] = _sha(*(ROOT / t for t in m.existing_tests()))
+            t0 = time.monotonic()
+            run_mutmut(m, cfg)
+            state.setdefault("tests", {})[m.name] = fp
+            state.setdefault("seconds", {})[m.name] = round(time.monotonic() - t0, 1)
+            STATE.write_text(json.dumps(state, indent=1))
     rows, survivors, stale = tabulate(chosen, state, fallback=not args.no_fallback)
     STATE.write_text(json.dumps(state, indent=1))
     target = float(cfg.get("target", 95.0))
