@@ -162,7 +162,8 @@ def _env() -> dict[str, str]:
     env["MPLBACKEND"] = "Agg"
     env["PYTHONHASHSEED"] = "0"
     env["MFC_SHM_THREADS"] = "1"
-    env["PYTHONPATH"] = ""
+    env["PYTHONPATH"] = str(ROOT / "mutation")  # for the plugin below only
+    env["PYTEST_PLUGINS"] = "hypothesis_profile"  # no shrinking in mutant runs
     return env
 
 
