@@ -434,19 +434,9 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
             a = float(x @ r_tr_v) / den
             rows.append(ScreenRow(terms[k], a, rms(r_he_v - a * Xhe[j]), rms(r_tr_v - a * x)))
         rows.sort(key=lambda r: r.held_rms_sigma)
-        rows = _nonlinear_check(rows, terms, targets, models, state.values, names, threads)
-        n_sims += sum(len(r[1]) for r in _LAST_PROBES) * len(targets)
-        timings["screen_s"] += time.perf_counter() - t0
-        if round_no == 0:
-            screen_rows = rows[:12]
-        say(f"round {round_no + 1}: screened {len(rows)} terms in {time.perf_counter() - t0:.2g} s; best on the full "
-            "model at the screened coefficients (held-out): "
-            + ", ".join(f"{r.term.key} {r.held_rms_sigma:.3g} σ" for r in rows[:4]))
-        # --- refit the best few on the full nonlinear model
-        t0 = time.perf_counter()
-        best: tuple[float, int, FitOutcome] | None = None
-        tried = []
-        for row in _refit_list(rows, n_refit):
+
+        def refit_row(row: ScreenRow) -> FitOutcome | None:
+            nonlocal n_sims
             k = terms.index(row.term)
             start = dict(state.values)
             start[names[k][0]] = row.coef
@@ -455,9 +445,7 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
             out = _refine(robj, start, max_nfev)
             n_sims += robj.n_sims
             if not out.ok:
-                continue
-            tried.append({"term": row.term.key, "held_rms_sigma": out.held_rms_sigma,
-                          "train_rms_sigma": out.train_rms_sigma})
+                return None
             # a coefficient at its range bound: widen once (the linearised start underestimated it)
             if any(e.at_bound and e.name.startswith("a_") for e in out.estimates):
                 start2 = dict(start) | out.values
@@ -467,6 +455,40 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
                 n_sims += robj2.n_sims
                 if out2.ok and out2.train_rms_sigma < out.train_rms_sigma:
                     out = out2
+            return out
+
+        best: tuple[float, int, FitOutcome] | None = None
+        tried = []
+        # fast path: the linearised screen already reaches the noise floor with one term — confirm it on the full
+        # model before probing every term nonlinearly
+        fast = bool(rows) and explained(rows[0].held_rms_sigma, held_before, n_held)
+        if fast:
+            t1 = time.perf_counter()
+            out = refit_row(rows[0])
+            timings["refit_s"] += time.perf_counter() - t1
+            if out is not None and explained(out.held_rms_sigma, held_before, n_held):
+                best = (out.held_rms_sigma, terms.index(rows[0].term), out)
+                tried.append({"term": rows[0].term.key, "held_rms_sigma": out.held_rms_sigma,
+                              "train_rms_sigma": out.train_rms_sigma})
+        if best is None:
+            rows = _nonlinear_check(rows, terms, targets, models, state.values, names, threads)
+            n_sims += sum(len(r[1]) for r in _LAST_PROBES) * len(targets)
+        timings["screen_s"] += time.perf_counter() - t0
+        if round_no == 0:
+            screen_rows = rows[:12]
+        say(f"round {round_no + 1}: screened {len(rows)} terms in {time.perf_counter() - t0:.2g} s; best "
+            + ("by the linearised screen, confirmed on the full model" if best is not None else
+               "on the full model at the screened coefficients") + " (held-out): "
+            + ", ".join(f"{r.term.key} {r.held_rms_sigma:.3g} σ" for r in rows[:4]))
+        # --- refit the best few on the full nonlinear model
+        t0 = time.perf_counter()
+        for row in ([] if best is not None else _refit_list(rows, n_refit)):
+            k = terms.index(row.term)
+            out = refit_row(row)
+            if out is None:
+                continue
+            tried.append({"term": row.term.key, "held_rms_sigma": out.held_rms_sigma,
+                          "train_rms_sigma": out.train_rms_sigma})
             if best is None or out.held_rms_sigma < best[0]:
                 best = (out.held_rms_sigma, k, out)
             if explained(out.held_rms_sigma, held_before, n_held):
