@@ -204,6 +204,7 @@ _LIFE_SCHEMA = {
     "visit_interval": QuantitySpec("h", **_POS),
     "first_visit": _opt("h", **_NONNEG),
     "flights_between_visits": _opt("1", integer=True, lower=0, upper=100_000),
+    "tick_flights": _opt("1", integer=True, lower=0, upper=1000),
 }
 
 
@@ -233,13 +234,17 @@ class LifeLaw:
 class LifeSpec:
     """Many maintenance visits over an operating life (``[life]``): the scenario's phases are one visit, played
     at operating hours ``first_visit + i·visit_interval`` (i = 0 … visits−1) on a truth plant whose deviations
-    follow ``laws``; the ``flights_between_visits`` are summarised (logged), not ticked."""
+    follow ``laws``; the ``flights_between_visits`` are summarised (logged), not ticked — unless ``tick_flights``
+    > 0: then that many flights (the phases of ``flight_scenario`` before its first maintenance phase, with their
+    events) are ticked by the board before every visit after the first, and their usage is summarised in the log."""
 
     visits: int
     visit_interval: float  # h of operating time between visits
     first_visit: float = 0.0  # h
     flights_between_visits: int = 0
     laws: tuple[LifeLaw, ...] = ()
+    tick_flights: int = 0  # flights ticked by the board before each visit after the first (0: summarised only)
+    flight_scenario: str = "default"  # whose phases before its first maintenance phase make one ticked flight
 
     def visit_hours(self) -> list[float]:
         return [self.first_visit + i * self.visit_interval for i in range(self.visits)]
@@ -431,11 +436,12 @@ def _parse_life(file: str, table: Any) -> LifeSpec:
     """``[life]`` with ``[[life.law]]`` terms (see :class:`LifeSpec`, :class:`LifeLaw`, docs/scenarios.md)."""
     if not isinstance(table, Mapping):
         raise ConfigError(file, "life", "expected a table")
-    quant = {k: v for k, v in table.items() if k != "law"}
+    quant = {k: v for k, v in table.items() if k not in ("law", "flight_scenario")}
     unknown = set(quant) - set(_LIFE_SCHEMA)
     if unknown:
         raise ConfigError(file, f"life.{sorted(unknown)[0]}",
-                          f"unknown key (known: {', '.join(sorted([*_LIFE_SCHEMA, 'law']))})")
+                          f"unknown key (known: {', '.join(sorted([*_LIFE_SCHEMA, 'law', 'flight_scenario']))})")
+    flight_scenario = _plain_str(file, "life.flight_scenario", table.get("flight_scenario", "default"))
     vals, _ = parse_quantities(file, "life", quant, _LIFE_SCHEMA)
     raw = table.get("law", [])
     if not isinstance(raw, list):
@@ -452,7 +458,8 @@ def _parse_life(file: str, table: Any) -> LifeSpec:
         laws.append(LifeLaw(parameter=param, kind=kind, **{k: float(v) for k, v in lv.items()}))
     return LifeSpec(visits=int(vals["visits"]), visit_interval=float(vals["visit_interval"]),
                     first_visit=float(vals.get("first_visit", 0.0)),
-                    flights_between_visits=int(vals.get("flights_between_visits", 0)), laws=tuple(laws))
+                    flights_between_visits=int(vals.get("flights_between_visits", 0)), laws=tuple(laws),
+                    tick_flights=int(vals.get("tick_flights", 0)), flight_scenario=flight_scenario)
 
 
 def load_scenario(name_or_path: str | Path) -> Scenario:

@@ -1,6 +1,7 @@
 """``shm health``: from the board's visit records to severity, location and remaining life (issue 17).
 
-    shm health SOURCE... --params P [--as-of HOURS] [--free NAME ...] [--workers N] [--json] --out DIR
+    shm health SOURCE... --params P [--as-of HOURS] [--free NAME ...] [--locate auto|always|never]
+               [--locate-diagnose] [--workers N] [--json] --out DIR
 
 A SOURCE is a run directory of ``shm run`` (its ``records/`` and ``usage.db``), its ``usage.db``, or record files
 carrying ``operating_hours``. Also home of the life runner behind ``shm run --scenario aging`` (a scenario with a
@@ -38,6 +39,13 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--dask-scheduler", default=None, metavar="ADDRESS",
                    help="fit the visits on this Dask cluster (as shm campaign; extra mfc-shm[cluster]; the workers "
                         "must see the record files)")
+    p.add_argument("--locate", choices=("auto", "always", "never"), default="auto",
+                   help="where? place a stiffness loss in its section by freeing k1, k2, k3 one at a time on the "
+                        "latest visit and scoring them on held-out data (auto: when a stiffness changed or trends, "
+                        "or the health fit leaves excess residual; default auto)")
+    p.add_argument("--locate-diagnose", action="store_true",
+                   help="also run shm diagnose on the latest visit and add what it names first to the candidates "
+                        "(slower)")
     p.add_argument("--seed", type=seed_int, default=1, help="seed of the forecast's Monte Carlo (default 1)")
     p.add_argument("--json", action="store_true", help="print one JSON document (also written to DIR/health.json)")
     add_out_arg(p, default="out/health")
@@ -59,7 +67,8 @@ def cmd_health(args: argparse.Namespace) -> int:
     log = (lambda s: print(s, file=sys.stderr, flush=True)) if args.json else (lambda s: print(s, flush=True))
     t0 = time.perf_counter()
     result = assess_health(args.sources, params=args.params, as_of=args.as_of, free=args.free or None,
-                           workers=args.workers, seed=args.seed, progress=log, dask_scheduler=args.dask_scheduler)
+                           workers=args.workers, seed=args.seed, progress=log, dask_scheduler=args.dask_scheduler,
+                           locate=args.locate, locate_diagnose=args.locate_diagnose)
     result.doc["wall_s"] = time.perf_counter() - t0
     text = four_levels_text(result)
     failed = write_health_outputs(result, out, text)
@@ -116,7 +125,8 @@ def _run_life_locked(args: argparse.Namespace, scenario: Any, seed: int, params:
 
     say(f"shm run: life scenario '{scenario.name}' ({scenario.source}), seed {seed}, params {params}: "
         f"{life.visits} visits every {life.visit_interval:g} h ({life.flights_between_visits} flights between "
-        "visits, summarised)")
+        + (f"visits, {life.tick_flights} of them ticked before each visit from the 2nd ({life.flight_scenario}'s "
+           "flight phases), the rest summarised)" if life.tick_flights else "visits, summarised)"))
     result = run_life(scenario, seed=seed, params=params, board_config=args.board_config,
                       on_visit=lambda v: say(visit_line(v)))
     summary = write_life_log(result, scenario, out, seed=seed, params=params, board_config=cfg.as_dict())

@@ -15,13 +15,14 @@ import numpy as np
 from board_config.errors import InputError
 from studies.health.estimate import DEFAULT_FREE, Visit, estimate_visits
 from studies.health.forecast import Forecast, forecast_trip, visit_of
+from studies.health.locate import SECTIONS, diagnose_first_name, locate_stiffness, location_sentence
 from studies.health.sources import load_visits
 from studies.health.trend import Trend, fit_trend
 from studies.health.trip import HEALTH_PARAMS, trip_boundary
 
 #: where a health parameter lives on the laminate (the lumped model's own map; docs/model.md)
 LOCATION = {
-    "k3": "the tip section (section 3) bending stiffness",
+    "k3": "a bending stiffness (fitted as k3, the tip section's, which stands for any section here)",
     "alpha_h": "the MFC patches' hysteresis (Bouc-Wen linearity factor α_h)",
     "beta_h": "the MFC patches' hysteresis (Bouc-Wen shape factor β_h)",
 }
@@ -39,8 +40,14 @@ class Assessment:
 
 def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: float | None = None,
                   free: Sequence[str] | None = None, workers: int | None = None, seed: int = 1,
-                  progress: Callable[[str], None] | None = None, dask_scheduler: str | None = None) -> Assessment:
+                  progress: Callable[[str], None] | None = None, dask_scheduler: str | None = None,
+                  locate: str = "auto", locate_diagnose: bool = False) -> Assessment:
+    """``locate``: "auto" (place a stiffness loss in its section when the latest visit shows one — a stiffness
+    changed or trending, or a health fit leaving 1.5 × the first visit's held-out residual), "always" or "never";
+    ``locate_diagnose`` adds what ``shm diagnose`` names first on the latest visit to the candidates."""
     say = progress or (lambda s: None)
+    if locate not in ("auto", "always", "never"):
+        raise InputError(f"--locate must be auto, always or never, got {locate!r}")
     free = tuple(free) if free else DEFAULT_FREE
     unknown = [f for f in free if f not in HEALTH_PARAMS]
     if unknown:
@@ -71,11 +78,57 @@ def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: floa
     interval = float(np.median(np.diff(hours))) if len(hours) > 1 else 100.0
     current = {n: trends[n].best.predict(np.array([hours[-1]]))[0] for n in free}
     fc = forecast_trip(trends, boundary, hours[-1], interval, current=current, seed=seed)
-    doc = _document(visits, all_visits, ests, trends, fc, hours, interval, as_of, params, free)
+    location = _locate(visits, ests, trends, params, locate, locate_diagnose, say)
+    doc = _document(visits, all_visits, ests, trends, fc, hours, interval, as_of, params, free, location)
     return Assessment(doc, visits, ests, trends, fc, boundary)
 
 
-def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, as_of, params, free) -> dict[str, Any]:
+def _locate_trigger(ests: list[dict[str, Any]], trends: dict[str, Trend]) -> str | None:
+    """Why the latest visit calls for placing a stiffness loss (None: no reason)."""
+    last = ests[-1]
+    for x in last["estimates"]:
+        if x["name"] in SECTIONS and _est_verdict(x) == "changed":
+            return f"{x['name']} changed at the latest visit"
+    for n, t in trends.items():
+        if n in SECTIONS and t.significant:
+            return f"significant {n} trend"
+    first = ests[0]["held_rms_sigma"]
+    if math.isfinite(first) and last["held_rms_sigma"] > 1.5 * first:
+        return (f"the health fit leaves {last['held_rms_sigma']:.2f} σ held-out residual at the latest visit "
+                f"({first:.2f} σ at the first)")
+    return None
+
+
+def _locate(visits: list[Visit], ests: list[dict[str, Any]], trends: dict[str, Trend], params: str, mode: str,
+            with_diagnose: bool, say: Callable[[str], None]) -> dict[str, Any]:
+    why = _locate_trigger(ests, trends) if mode == "auto" else ("asked (--locate always)" if mode == "always"
+                                                                  else None)
+    if why is None:
+        return {"run": False, "reason": "not asked (--locate never)" if mode == "never" else
+                "no stiffness change, trend or excess residual at the latest visit (--locate always forces it)"}
+    v = visits[-1]
+    extra: list[str] = []
+    if with_diagnose:
+        say(f"where? shm diagnose on the visit at {v.operating_hours:g} h ...")
+        name = diagnose_first_name(v.records, params)
+        say(f"  shm diagnose names first: {name}")
+        if name:
+            extra.append(name)
+    say(f"where? ({why}) freeing k1, k2, k3{''.join(', ' + e for e in extra)} one at a time with alpha_h, beta_h "
+        f"on the visit at {v.operating_hours:g} h")
+    loc = locate_stiffness(v.records, params, operating_hours=v.operating_hours, extra=extra)
+    loc.update({"run": True, "trigger": why, "diagnose_named": extra[0] if extra else None})
+    for c in loc["candidates"]:
+        if "error" in c:
+            say(f"  {c['name']}: could not be fitted ({c['error']})")
+        else:
+            rel = f"{100 * c['relative']:+.2f} %" if "relative" in c else "effect"
+            say(f"  {c['name']} alone: {rel}, held-out rss {c['held_rss_sigma2']:.0f} σ² ({c['fit_wall_s']:.1f} s)")
+    return loc
+
+
+def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, as_of, params, free,
+              location: dict[str, Any] | None = None) -> dict[str, Any]:
     vis = []
     for v, e in zip(visits, ests):
         vis.append({
@@ -109,6 +162,7 @@ def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, a
     doc = {
         "params": params, "free": list(free), "as_of_hours": as_of, "visits_used": len(visits),
         "visits_later_not_used": len(later), "visits": vis, "trend": trend_doc, "forecast": f,
+        "location": location,
         "board_first_fault": None if first_fault is None else {"visit": first_fault.visit,
                                                                "operating_hours": first_fault.operating_hours},
     }
@@ -143,9 +197,13 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
         names = sorted({e["name"] for e in changed} | set(sig))
         detected = (f"yes — {', '.join(names)} changed since entry into service"
                     + (f" (significant trend: {', '.join(sig)})" if sig else "") + board)
-        where = "; ".join(f"{n}: {LOCATION.get(n, n)}" for n in names) + \
-            " (from which model parameter moved; the records of one MBIT pair cannot split a stiffness loss " \
-            "between sections further)"
+        loc = doc.get("location") or {}
+        where = "; ".join(f"{n}: {LOCATION.get(n, n)}" for n in names if not (loc.get("run") and n in SECTIONS))
+        if loc.get("run"):
+            where = (where + "; " if where else "") + location_sentence(loc)
+        elif any(n in SECTIONS for n in names):
+            where += (" (from which model parameter moved: the section stiffnesses were not compared; "
+                      "--locate always does)")
     else:
         detected = "no — every health parameter is within 3 standard errors (or 2 %) of nominal, no trend" + board
         where = "nothing to place"
@@ -160,6 +218,16 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
             rate = f", {100 * t.rate_per_100h(last['operating_hours']):+.2f} % per 100 h ({t.best.name}{acc})"
         parts.append(f"{e['name']} {100 * e['relative']:+.2f} % (± {se:.2g} %){rate}")
     how_much = f"at {last['operating_hours']:g} h: " + "; ".join(parts)
+    loc = doc.get("location") or {}
+    if loc.get("run") and loc.get("distinguishable") is not None:
+        alts = [c for c in loc["candidates"] if c.get("section") in (loc.get("possible_sections") or [])
+                and "relative" in c]
+        how_much += ("; the stiffness loss itself: " + (" or ".join(
+            f"{c['name']} {100 * c['relative']:+.1f} % if in section {c['section']}" for c in alts))
+            if len(alts) > 1 or loc.get("section") is None else "")
+        if loc.get("section") is not None and len(alts) <= 1:
+            how_much += (f"; the stiffness loss itself: {loc['parameter']} {100 * loc['relative']:+.1f} % "
+                         f"(section {loc['section']})")
     f = doc["forecast"]
     if fc.already_faulty:
         how_long = ("now: the estimated parameters are already beyond the monitor's trip limit (the built-in test "

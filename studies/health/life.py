@@ -46,6 +46,7 @@ class VisitRun:
     wall_s: float
     verdict: str = "NONE"
     mbits: list[dict[str, Any]] = field(default_factory=list)
+    flights: dict[str, Any] | None = None  # the ticked flights before this visit (tick_flights > 0), summarised
 
 
 _PROCESS_CACHE: dict[str, Any] = {}
@@ -64,6 +65,9 @@ def run_visit(source: str, visit: int, hours: float, deviations: dict[str, float
     t0 = time.perf_counter()
     sc = load_scenario(source)
     sc = sc.with_rig(deviations=dict(deviations))
+    flight_end = 0.0
+    if sc.life is not None and sc.life.tick_flights > 0 and visit > 1:
+        sc, flight_end = with_ticked_flights(sc, sc.life.tick_flights)
     cfg = load_board_config(board_config, overrides=sc.board_overrides, overrides_source=sc.source)
     key = f"nominal:{params}"
     if key not in _PROCESS_CACHE:
@@ -79,8 +83,54 @@ def run_visit(source: str, visit: int, hours: float, deviations: dict[str, float
         link.close()
     verdicts = [e.data["verdict"] for e in res.events if e.kind == "maintenance_verdict"]
     mbits = [dict(e.data) for e in res.events if e.kind == "mbit_result"]
+    flights = None
+    if flight_end > 0:
+        during = [e for e in res.events if e.time < flight_end]
+        kinds: dict[str, int] = {}
+        for e in during:
+            kinds[e.kind] = kinds.get(e.kind, 0) + 1
+        flights = {"ticked": sc.life.tick_flights if sc.life else 0, "board_time_s": flight_end,
+                   "events": kinds, "incidents": kinds.get("incident", 0),
+                   "usage_summaries": kinds.get("usage_summary", 0)}
     return VisitRun(visit, hours, dict(deviations), seed, list(res.events), time.perf_counter() - t0,
-                    verdicts[-1] if verdicts else "NONE", mbits)
+                    verdicts[-1] if verdicts else "NONE", mbits, flights)
+
+
+def flight_segment(life_source: str, flight_scenario: str) -> tuple[tuple[Any, ...], tuple[Any, ...], float]:
+    """(phases, events, length in s) of one flight: ``flight_scenario``'s phases before its first maintenance
+    phase, with the events inside them. A relative ``.toml`` path is taken from the life scenario's folder."""
+    p = Path(flight_scenario)
+    if flight_scenario.endswith(".toml") and not p.is_absolute() and not p.exists():
+        p = Path(life_source).parent / p
+    fs = load_scenario(p if flight_scenario.endswith(".toml") else flight_scenario)
+    phases = []
+    for ph in fs.phases:
+        if ph.kind == "maintenance":
+            break
+        phases.append(ph)
+    if not phases:
+        raise ValueError(f"{fs.source}: no flight phases before its first maintenance phase (life.flight_scenario)")
+    end = phases[-1].end
+    events = tuple(e for e in fs.events if e.at < end and e.kind != "rearm")
+    return tuple(phases), events, end
+
+
+def with_ticked_flights(sc: Scenario, n: int) -> tuple[Scenario, float]:
+    """The visit scenario preceded by ``n`` ticked flights; returns it and the board time (s) the flights take."""
+    from dataclasses import replace
+
+    assert sc.life is not None
+    phases, events, length = flight_segment(sc.source, sc.life.flight_scenario)
+    new_ph: list[Any] = []
+    new_ev: list[Any] = []
+    for i in range(n):
+        off = i * length
+        new_ph += [replace(ph, start=ph.start + off, name=f"flight{i + 1}:{ph.name}") for ph in phases]
+        new_ev += [replace(e, at=e.at + off) for e in events]
+    total = n * length
+    new_ph += [replace(ph, start=ph.start + total) for ph in sc.phases]
+    new_ev += [replace(e, at=e.at + total) for e in sc.events]
+    return replace(sc, phases=tuple(new_ph), events=tuple(new_ev)), total
 
 
 @dataclass
@@ -174,12 +224,13 @@ def write_life_log(result: LifeResult, scenario: Scenario, out: Path, *, seed: i
             {"visit": v.visit, "operating_hours": v.operating_hours, "verdict": v.verdict, "seed": v.seed,
              "truth_deviations": v.deviations, "wall_s": v.wall_s,
              "mbits": [{k: m.get(k) for k in ("label", "verdict", "max_count", "max_eps", "fault_time_s")}
-                       for m in v.mbits],
+                       for m in v.mbits], "ticked_flights": v.flights,
              "records": [f"records/visit-{v.visit:03d}_mbit-{m['mbit']}.csv" for m in v.mbits]}
             for v in result.visits],
         "first_fault_visit": first,
         "first_fault_operating_hours": result.first_fault_hours(),
         "flights_between_visits": life.flights_between_visits,
+        "tick_flights": life.tick_flights, "flight_scenario": life.flight_scenario if life.tick_flights else None,
         "visit_interval_h": life.visit_interval,
     }
     (out / "life.json").write_text(json.dumps(summary, indent=2, default=float))
@@ -191,4 +242,10 @@ def visit_line(v: VisitRun) -> str:
     mb = ", ".join(f"{m['label']} {m['verdict']} (max eps {m['max_eps']:.3f}, counter {m['max_count']})"
                    for m in v.mbits)
     devs = ", ".join(f"{k} {100 * d:+.1f} %" for k, d in sorted(v.deviations.items()))
-    return f"visit {v.visit:3d} at {v.operating_hours:8.1f} h  [{devs}]  {mb}  -> {v.verdict}  ({v.wall_s:.1f} s)"
+    fl = ""
+    if v.flights:
+        f = v.flights
+        fl = (f"  after {f['ticked']} ticked flight(s) ({f['board_time_s']:g} s of board time: "
+              f"{f['incidents']} incident(s), {f['usage_summaries']} usage summary record(s))")
+    return (f"visit {v.visit:3d} at {v.operating_hours:8.1f} h  [{devs}]  {mb}  -> {v.verdict}{fl}  "
+            f"({v.wall_s:.1f} s)")

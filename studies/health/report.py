@@ -117,8 +117,21 @@ def write_health_outputs(a: Assessment, out: Path, text: str) -> dict[str, str]:
         heads = "".join(f"<th>{html.escape(n)}</th>" for n in a.trends)
         lv = "".join(f"<p><b>{k.replace('_', ' ').upper()}?</b> {html.escape(v)}</p>"
                      for k, v in a.doc["levels"].items())
+        loc = a.doc.get("location") or {}
+        loc_html = ""
+        if loc.get("run"):
+            crow = "".join(
+                f"<tr><td>{html.escape(c['name'])}</td><td>{c.get('section') or ''}</td>"
+                + (f"<td>{100 * c['relative']:+.2f} ± {100 * (c.get('relative_stderr') or 0):.2g} %</td>"
+                   if "relative" in c else "<td></td>")
+                + (f"<td>{c['held_rss_sigma2']:.0f}</td>" if "held_rss_sigma2" in c
+                   else f"<td>{html.escape(c.get('error', ''))}</td>") + "</tr>" for c in loc["candidates"])
+            loc_html = (f"<h2>Where? (visit at {loc.get('operating_hours')} h)</h2><p>{html.escape(loc['reason'])}</p>"
+                        "<table border=1 cellpadding=3><tr><th>freed alone (with α_h, β_h)</th><th>section</th>"
+                        f"<th>change</th><th>held-out RSS (σ²)</th></tr>{crow}</table>")
         page = (f"<!doctype html><meta charset='utf-8'><title>shm health</title><h1>Health over time</h1>{lv}"
                 + (f"<img src='data:image/png;base64,{img}' style='max-width:100%'>" if img else "")
+                + loc_html
                 + f"<h2>Visits</h2><table border=1 cellpadding=3><tr><th>visit</th><th>h</th><th>board</th>{heads}"
                 f"</tr>{rows}</table><h2>JSON</h2><pre>{html.escape(health_json(a))}</pre>")
         (out / "report.html").write_text(page)
