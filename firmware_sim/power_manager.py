@@ -109,11 +109,12 @@ class PowerLedger:
     """The board's accounting of its own consumption: ticks and charge per regime (from its declared currents),
     energy at the measured voltage, first/last/lowest valid voltage. Plain counters, updated once per tick."""
 
-    __slots__ = ("budget", "energy_used", "ticks", "v_first", "v_last", "v_min")
+    __slots__ = ("_charge_per_tick", "budget", "energy_used", "ticks", "v_first", "v_last", "v_min")
 
     def __init__(self, budget: PowerBudget) -> None:
         self.budget = budget
         self.ticks = {r: 0 for r in Regime}
+        self._charge_per_tick = {r: budget.current(r) * budget.period for r in Regime}  # C per tick
         self.energy_used = 0.0  # J
         self.v_first = math.nan
         self.v_last = math.nan
@@ -128,7 +129,7 @@ class PowerLedger:
             if self.v_first != self.v_first:
                 self.v_first = v_battery
         if self.v_last == self.v_last:
-            self.energy_used += self.budget.current(regime) * self.budget.period * self.v_last
+            self.energy_used += self._charge_per_tick[regime] * self.v_last
 
     @property
     def charge_used(self) -> float:

@@ -181,6 +181,7 @@ class SimulatedRig:
             raise InputError(f"rig coupling {self.coupling!r} unknown (allowed: {', '.join(COUPLING_TERMINALS)})")
         flight_terminal = COUPLING_TERMINALS[self.coupling]
         self.limits = limits if limits is not None else load_mfc_limits()
+        self._v_range = (self.limits.voltage_min, self.limits.voltage_max)
         if not (tick > 0 and math.isfinite(tick)):
             raise ValueError(f"rig tick must be positive, got {tick!r}")
         self.tick = float(tick)
@@ -231,7 +232,8 @@ class SimulatedRig:
         self._x = self._flight.model.x0_nominal.copy()
         if self._flight.has_battery:
             self._x[self._flight.s_qd] = self._qd
-        self._y = self._outputs_now()
+        self._yb = self._outputs_now()[None, :]
+        self._yj = 0
         f0 = self._flight
         self._row = (float(self._y[f0.i_z3]), float(self._y[f0.i_vterm]),
                      float(self._y[f0.i_vbat]) if f0.i_vbat >= 0 else math.nan, float(self._u_now()[2]))
@@ -296,7 +298,7 @@ class SimulatedRig:
     def apply(self, command: ActuatorCommand) -> None:
         """Take the board's command for the coming interval (refused, keeping the last valid output, if invalid)."""
         v1, v2, i = command.v_ch1, command.v_ch2, command.board_current
-        lo, hi = self.limits.voltage_min, self.limits.voltage_max
+        lo, hi = self._v_range
         if not (lo <= v1 <= hi and lo <= v2 <= hi and 0.0 <= i < 10.0):  # NaN fails every comparison
             self.refused_commands += 1
             self._refused_flag = True
@@ -315,7 +317,7 @@ class SimulatedRig:
             self._watchdog_open = True
             self.watchdog_trips += 1
             self._v = (0.0, 0.0)
-        seg = self._segment()
+        seg = self._seg if self.t < self._seg_until else self._segment()
         hv = self._hv_override if self._hv_override is not None else seg[0]
         want = self._amp if hv else self._flight
         aligned = abs(dt - self.tick) <= 1e-9 * self.tick and not self._offgrid
@@ -331,9 +333,10 @@ class SimulatedRig:
             self._integrate_direct(dt, v, i_load)
         self._v_prev = v
         self.ticks += 1
-        if self._segment()[1] != "frozen_seq":
+        seg = self._seg if self.t < self._seg_until else self._segment()
+        if seg[1] != "frozen_seq":
             self.seq = (self.seq + 1) & 0xFFFFFFFF
-            self._sample = self._make_sample()
+            self._sample = self._make_sample(seg)
 
     def sample(self) -> RigSample:
         """The latest snapshot (repeatable: nothing advances)."""
@@ -359,7 +362,9 @@ class SimulatedRig:
 
     def link_down(self, t: float | None = None) -> bool:
         """Whether the scenario schedules a link outage at ``t`` (default: now); used by the in-process link."""
-        return self._segment()[2] if t is None else self.env.link_down(t)
+        if t is None:
+            return (self._seg if self.t < self._seg_until else self._segment())[2]
+        return self.env.link_down(t)
 
     @property
     def battery_discharged(self) -> float:
@@ -395,6 +400,11 @@ class SimulatedRig:
         }
 
     # --- internals ----------------------------------------------------------------------------------
+    @property
+    def _y(self) -> np.ndarray:
+        """Outputs of the truth plant now (SI units, the active composition's output order)."""
+        return self._yb[self._yj]
+
     def _state_now(self) -> np.ndarray:
         b = self._block
         return b.x[b.j] if b is not None else self._x
@@ -484,7 +494,8 @@ class SimulatedRig:
         self._k += 1
         self.t = self._k * self.tick
         j = b.j
-        self._y = b.y[j]
+        self._yb = b.y  # the outputs now are row j of the block (no view made per tick; see ``_y``)
+        self._yj = j
         self._row = (b.z3[j], b.vt[j], b.vb[j] if b.vb is not None else math.nan, b.zdd[j])  # type: ignore[index]
         if not self._active.has_battery:
             self._qd += i_load * self.tick
@@ -514,7 +525,8 @@ class SimulatedRig:
         t_out = np.array([self.t, self.t + dt])
         y, xs = model.integrate(self._x, self.t, u, dt / (n - 1), t_out, min(5e-3, dt))
         self._x = xs[-1].copy()
-        self._y = y[-1]
+        self._yb = y
+        self._yj = y.shape[0] - 1
         self.t += dt
         self._row = (float(y[-1, model.i_z3]), float(y[-1, model.i_vterm]),
                      float(y[-1, model.i_vbat]) if model.i_vbat >= 0 else math.nan, float(u[-1, 2]))
@@ -538,10 +550,15 @@ class SimulatedRig:
         self._noise_i += 1
         return row
 
-    def _make_sample(self) -> RigSample:
+    def _make_sample(self, seg: tuple[bool, str | None, bool, float, float] | None = None) -> RigSample:
         z3, vp, vb, zdd = self._row
-        nz = self._draw_noise()
-        seg = self._segment()
+        if self._noise_i < len(self._noise):
+            nz = self._noise[self._noise_i]
+            self._noise_i += 1
+        else:
+            nz = self._draw_noise()
+        if seg is None:
+            seg = self._segment()
         if vb != vb:  # the cell is not part of the active plant: integrated here
             vb = self._ocv(self._qd) - self._r_int * (self._i_board + seg[3])
         z3 += self.z3_noise * nz[0]
