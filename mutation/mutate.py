@@ -192,7 +192,7 @@ def reset_survivors(m: Module, reason: str) -> int:
 def run_mutmut(m: Module, cfg: dict) -> None:
     """``mutmut run`` over the files in ``only_mutate``; no mutant names, so cached verdicts stand (mutmut re-runs
     every mutant it is given by name)."""
-    cmd = ["nice", "-n", "10", str(Path(sys.executable).parent / "mutmut"), "run",
+    cmd = ["nice", "-n", "10", sys.executable, str(ROOT / "mutation" / "run_mutmut.py"), "run",
            "--max-children", str(int(cfg.get("max_children", 2)))]
     print("mutate: " + " ".join(cmd), file=sys.stderr)
     r = subprocess.run(cmd, cwd=work_dir(m), env=_env(), stdout=subprocess.DEVNULL)
@@ -312,6 +312,16 @@ def write_table(rows: list[dict], survivors: list[str], stale: list[str], target
     print("\n".join(lines + notes), file=sys.stderr)
 
 
+def save_state(state: dict) -> None:
+    """Write the driver's cache, merging what a concurrent run saved meanwhile (fallback verdicts are additive)."""
+    if STATE.is_file():
+        disk = json.loads(STATE.read_text())
+        for key in ("fallback", "tests", "seconds"):
+            state[key] = disk.get(key, {}) | state.get(key, {})
+    STATE.parent.mkdir(parents=True, exist_ok=True)
+    STATE.write_text(json.dumps(state, indent=1))
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--module", action="append", default=[], help="only this module (name in mutation/config.toml)")
@@ -342,9 +352,9 @@ def main(argv: list[str] | None = None) -> int:
             run_mutmut(m, cfg)
             state.setdefault("tests", {})[m.name] = fp
             state.setdefault("seconds", {})[m.name] = round(time.monotonic() - t0, 1)
-            STATE.write_text(json.dumps(state, indent=1))
+            save_state(state)
     rows, survivors, stale = tabulate(chosen, state, fallback=not args.no_fallback)
-    STATE.write_text(json.dumps(state, indent=1))
+    save_state(state)
     target = float(cfg.get("target", 95.0))
     write_table(rows, survivors, stale, target, time.monotonic() - start)
     return 0 if all(r["score"] >= target and not r["not_checked"] for r in rows) and not stale else 1
