@@ -220,8 +220,8 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
     how_much = f"at {last['operating_hours']:g} h: " + "; ".join(parts)
     loc = doc.get("location") or {}
     if loc.get("run") and loc.get("distinguishable") is not None:
-        alts = [c for c in loc["candidates"] if c.get("section") in (loc.get("possible_sections") or [])
-                and "relative" in c]
+        alts = sorted((c for c in loc["candidates"] if c.get("section") in (loc.get("possible_sections") or [])
+                       and "relative" in c), key=lambda c: c["held_rss_sigma2"])
         how_much += ("; the stiffness loss itself: " + (" or ".join(
             f"{c['name']} {100 * c['relative']:+.1f} % if in section {c['section']}" for c in alts))
             if len(alts) > 1 or loc.get("section") is None else "")
