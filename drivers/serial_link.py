@@ -253,6 +253,15 @@ class SerialLink:
         self.stats["requests"] += 1
         try:
             port.write(frame)
+        except serial.SerialTimeoutException:
+            # pyserial raises "Write timeout" when its clock says the write timeout has passed *after* os.write
+            # took the frame — under CPU load the process is simply descheduled for longer than write_timeout
+            # between the two (issue 14: this took the pty link down). Not a lost port: wait for the reply as
+            # usual; a frame that really did not go out ends as an ordinary reply timeout (and the port is
+            # reopened only after ``reopen`` of those in a row).
+            self.stats["write_timeouts"] += 1
+            self._log.warn("write_timeout", "%s: write of seq %d reported a timeout (CPU load?); waiting for the "
+                           "reply anyway", self.url, seq)
         except (OSError, serial.SerialException) as exc:
             raise self._link_down(f"write failed: {exc}") from exc
         t0 = time.monotonic()
