@@ -189,6 +189,21 @@ def reset_survivors(m: Module, reason: str) -> int:
     return n
 
 
+def skip_equivalents(m: Module) -> None:
+    """Mark the listed equivalents as skipped (34) in mutmut's cache: it does not run a mutant with a verdict."""
+    p = work_dir(m) / "mutants" / (m.file + ".meta")
+    if not p.is_file():
+        return
+    eqs = {e["mutant"] for e in load_equivalents()}
+    data = json.loads(p.read_text())
+    codes = data.get("exit_code_by_key", {})
+    hit = [k for k in codes if k in eqs and codes[k] in (None, 0)]
+    for k in hit:
+        codes[k] = 34
+    if hit:
+        p.write_text(json.dumps(data, indent=4))
+
+
 def run_mutmut(m: Module, cfg: dict) -> None:
     """``mutmut run`` over the files in ``only_mutate``; no mutant names, so cached verdicts stand (mutmut re-runs
     every mutant it is given by name)."""
@@ -348,6 +363,7 @@ def main(argv: list[str] | None = None) -> int:
             fp = _sha(*(ROOT / t for t in m.existing_tests()))
             if state.get("tests", {}).get(m.name) != fp:  # changed, or never recorded
                 reset_survivors(m, "its tests changed")
+            skip_equivalents(m)
             t0 = time.monotonic()
             run_mutmut(m, cfg)
             state.setdefault("tests", {})[m.name] = fp
