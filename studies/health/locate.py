@@ -154,7 +154,7 @@ def locate_stiffness(records: Sequence[Record], params: str, *, operating_hours:
                          "reason": f"no section stiffness has moved beyond 3 standard errors or 2 % ({best_k['name']}"
                                    f" alone: {100 * rel:+.1f} %)"})
     elif abs(corr_pair) >= MAX_SENSITIVITY_CORR or delta <= noise:
-        why = (f"the sensitivities of {best_k['name']} and {runner['name']} are correlated at {corr_pair:+.3f}"
+        why = (f"the sensitivities of {best_k['name']} and {runner['name']} are correlated at {corr_pair:+.4f}"
                if abs(corr_pair) >= MAX_SENSITIVITY_CORR else
                f"the held-out scores of {best_k['name']} and {runner['name']} differ by {delta:.1f} σ² "
                f"(noise {noise:.1f} σ²)")
