@@ -292,7 +292,8 @@ def tabulate(mods: list[Module], state: dict, fallback: bool) -> tuple[list[dict
                 row["caught"] += 1
             elif code is None:
                 row["not_checked"] += 1
-            elif fallback and fb_tests and fallback_check(m, key, diff, state, fb_tests):
+            elif (fallback and fb_tests and fallback_check(m, key, diff, state, fb_tests)) or (
+                    not fallback and state.get("fallback", {}).get(key, {}).get("caught")):  # cached verdict
                 row["caught"] += 1
                 row["by_fallback"] += 1
             else:

@@ -348,3 +348,15 @@ def test_every_change_is_allowed_and_only_maintenance_actuates():
         prev = out.regime
     assert [c.data["to_regime"] for c in r.changes()] == ["SENSING", "MAINTENANCE", "SAFE", "STANDBY_HARVEST"]
     assert not is_allowed(S, S) and not is_allowed(X, SE)
+
+
+@pytest.mark.parametrize(("field", "n"), [("overrun", T.overrun), ("wake_signal", T.wake_debounce),
+                                          ("hv_present", T.hv_debounce)])
+def test_one_uneventful_tick_restarts_every_count_in_a_settled_standby(field, n):
+    # a settled stand-by (every counter saturated or zero: the tick the board spends most of its life in)
+    r = Run().feed(TickInputs(), times=T.quiet + T.hv_debounce + T.link_recovery)
+    ev = TickInputs(**{field: True})
+    r.feed(ev).feed(TickInputs()).feed(ev, times=n - 1)  # one, a break, then one short of the debounce
+    assert r.regime is S and not r.changes()
+    r.feed(ev)
+    assert r.regime is not S
