@@ -114,7 +114,8 @@ def _locate(visits: list[Visit], ests: list[dict[str, Any]], trends: dict[str, T
         say(f"  shm diagnose names first: {name}")
         if name:
             extra.append(name)
-    say(f"where? ({why}) freeing k1, k2, k3{''.join(', ' + e for e in extra)} one at a time with alpha_h, beta_h "
+    say(f"where? ({why}) freeing k1, k2, k3{''.join(', ' + e for e in extra if e not in SECTIONS)} one at a time "
+        "with alpha_h, beta_h "
         f"on the visit at {v.operating_hours:g} h")
     loc = locate_stiffness(v.records, params, operating_hours=v.operating_hours, extra=extra)
     loc.update({"run": True, "trigger": why, "diagnose_named": extra[0] if extra else None})

@@ -189,6 +189,8 @@ def location_sentence(loc: dict[str, Any]) -> str:
              f"± {se:.1g} %): {loc['reason']}")
     else:
         s = f"{loc['reason']}; to separate them: {loc['separating_test']}"
+    if loc.get("diagnose_named"):
+        s += f"; shm diagnose on this visit names {loc['diagnose_named']} first"
     if loc.get("better_explained_by"):
         s += f"; note: {loc['better_explained_by']} (named by shm diagnose) explains the held-out data better still"
     return s
