@@ -3,9 +3,10 @@
 ``[life]`` (:class:`board_config.scenario.LifeSpec`) says when the visits are (operating hours) and how the truth
 plant degrades (:mod:`.laws`). Each visit is a full board run of the scenario's phases — the 100 Hz firmware, the
 simulated rig with that visit's deviations, the link, the MBITs and the condition monitor — on a fresh board and rig
-(the flights between visits are summarised: their count and hours are logged, not ticked). Visits are independent,
-so they run on a local process pool (or in this process with ``workers=1``); visit ``i`` draws its rig seed from
-``SeedSequence([seed, i])``, so a life is reproducible whatever the number of workers.
+(the flights between visits are summarised: their count and hours are logged, not ticked — unless ``[life]
+tick_flights`` asks for some: then the board first ticks that many flights, :func:`with_ticked_flights`). Visits
+are independent, so they run on a local process pool (or in this process with ``workers=1``); visit ``i`` draws
+its rig seed from ``SeedSequence([seed, i])``, so a life is reproducible whatever the number of workers.
 
 The parent process writes one usage log (``usage.db``: one run, board time = operating hours × 3600 s + the time
 inside the visit), the visit records (:mod:`.visit_records`), ``life.json`` and ``timeline.txt``.
