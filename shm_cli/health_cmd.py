@@ -46,6 +46,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--locate-diagnose", action="store_true",
                    help="also run shm diagnose on the latest visit and add what it names first to the candidates "
                         "(slower)")
+    p.add_argument("--locate-visits", type=int, default=1, metavar="N",
+                   help="place the stiffness loss on the last N visits, not only the latest (location.history; "
+                        "about 6 s of CPU per visit; default 1)")
     p.add_argument("--seed", type=seed_int, default=1, help="seed of the forecast's Monte Carlo (default 1)")
     p.add_argument("--json", action="store_true", help="print one JSON document (also written to DIR/health.json)")
     add_out_arg(p, default="out/health")
@@ -68,7 +71,8 @@ def cmd_health(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     result = assess_health(args.sources, params=args.params, as_of=args.as_of, free=args.free or None,
                            workers=args.workers, seed=args.seed, progress=log, dask_scheduler=args.dask_scheduler,
-                           locate=args.locate, locate_diagnose=args.locate_diagnose)
+                           locate=args.locate, locate_diagnose=args.locate_diagnose,
+                           locate_visits=args.locate_visits)
     result.doc["wall_s"] = time.perf_counter() - t0
     text = four_levels_text(result)
     failed = write_health_outputs(result, out, text)

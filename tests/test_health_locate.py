@@ -34,10 +34,14 @@ def test_a_k2_loss_is_not_placed_in_section_3(tmp_path, nominal_visit):
     not claim section 3: it names section 2 or says the records cannot tell 1 from 2 and names the separating test."""
     files = nominal_visit + [_synth(tmp_path / f"{t}.csv", t, 500, 7, "k2=-0.12") for t in ("mbit-a", "mbit-b")]
     r = subprocess.run([sys.executable, "-m", "shm_cli.main", "health", *files, "--params", "table2", "--workers",
-                        "1", "--json", "--out", str(tmp_path / "h")], capture_output=True, text=True)
+                        "1", "--locate-visits", "2", "--json", "--out", str(tmp_path / "h")],
+                       capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
     doc = json.loads(r.stdout)
     loc = doc["location"]
+    # --locate-visits 2: the nominal visit too — nothing to place there
+    assert [h["operating_hours"] for h in loc["history"]] == [0, 500]
+    assert loc["history"][0]["distinguishable"] is None and loc["history"][1]["section"] == loc["section"]
     assert loc["run"] and loc["operating_hours"] == 500  # auto: k3 moved at the latest visit
     assert loc["section"] != 3 and 3 not in loc["possible_sections"] and 2 in loc["possible_sections"]
     k2 = next(c for c in loc["candidates"] if c["name"] == "k2")

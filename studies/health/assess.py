@@ -41,10 +41,11 @@ class Assessment:
 def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: float | None = None,
                   free: Sequence[str] | None = None, workers: int | None = None, seed: int = 1,
                   progress: Callable[[str], None] | None = None, dask_scheduler: str | None = None,
-                  locate: str = "auto", locate_diagnose: bool = False) -> Assessment:
+                  locate: str = "auto", locate_diagnose: bool = False, locate_visits: int = 1) -> Assessment:
     """``locate``: "auto" (place a stiffness loss in its section when the latest visit shows one — a stiffness
     changed or trending, or a health fit leaving 1.5 × the first visit's held-out residual), "always" or "never";
-    ``locate_diagnose`` adds what ``shm diagnose`` names first on the latest visit to the candidates."""
+    ``locate_diagnose`` adds what ``shm diagnose`` names first on the latest visit to the candidates;
+    ``locate_visits`` > 1 also places the loss on that many visits before the latest (``location_history``)."""
     say = progress or (lambda s: None)
     if locate not in ("auto", "always", "never"):
         raise InputError(f"--locate must be auto, always or never, got {locate!r}")
@@ -78,7 +79,18 @@ def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: floa
     interval = float(np.median(np.diff(hours))) if len(hours) > 1 else 100.0
     current = {n: trends[n].best.predict(np.array([hours[-1]]))[0] for n in free}
     fc = forecast_trip(trends, boundary, hours[-1], interval, current=current, seed=seed)
+    if locate_visits < 1:
+        raise InputError(f"--locate-visits must be >= 1, got {locate_visits}")
     location = _locate(visits, ests, trends, params, locate, locate_diagnose, say)
+    history = []
+    if location.get("run") and locate_visits > 1:
+        for v in visits[-locate_visits:-1]:
+            say(f"where? the visit at {v.operating_hours:g} h (--locate-visits)")
+            h = locate_stiffness(v.records, params, operating_hours=v.operating_hours)
+            history.append({k: h[k] for k in ("operating_hours", "section", "parameter", "distinguishable",
+                                              "possible_sections", "relative", "relative_stderr", "ranking",
+                                              "reason")})
+        location["history"] = [*history, {k: location[k] for k in history[0]}] if history else []
     doc = _document(visits, all_visits, ests, trends, fc, hours, interval, as_of, params, free, location)
     return Assessment(doc, visits, ests, trends, fc, boundary)
 
