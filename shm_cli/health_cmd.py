@@ -64,6 +64,8 @@ def cmd_health(args: argparse.Namespace) -> int:
         raise CliError(f"--as-of must be a number of hours >= 0, got {args.as_of!r}")
     if args.seed < 0:
         raise CliError(f"--seed must be >= 0, got {args.seed}")
+    if args.locate_visits < 1:
+        raise CliError(f"--locate-visits must be >= 1, got {args.locate_visits}")
     if args.workers is not None and args.workers < 1:
         raise CliError(f"--workers must be >= 1, got {args.workers}")
     out = out_dir(args.out)
