@@ -16,6 +16,7 @@ Python, board logic, log, loop), and whether both runs reached the same regime c
 
 from __future__ import annotations
 
+import os
 import time
 from pathlib import Path
 from typing import Any
@@ -115,6 +116,7 @@ def run(out_dir: Path, quick: bool) -> dict:
     scenario = load_scenario("default")
     duration = 240.0 if quick else scenario.duration
     SimulatedRig(scenario)  # compile/load every kernel before timing
+    load_before = os.getloadavg()[0]
     calib_before = _python_calibration()
     board = _run(scenario, duration, out_dir, "board", {}, instrument=False)
     baseline = _run(scenario, duration, out_dir, "baseline",
@@ -133,6 +135,8 @@ def run(out_dir: Path, quick: bool) -> dict:
         "speedup_vs_tick_by_tick_baseline": baseline["wall_s"] / board["wall_s"],
         "same_regime_changes_and_verdicts_as_baseline": same,
         "us_per_tick": board["us_per_tick_wall"], "breakdown_us_per_tick": breakdown,
+        "load_average_1min": {"before": load_before, "after": os.getloadavg()[0]},
+        "plant_attempts_per_tick": board["plant_steps_per_tick"],
         "python_calibration_s": {"before": calib_before, "after": calib_after,
                                  "meaning": "best of 3 of a fixed 300k-iteration Python loop: grows when other jobs "
                                             "share the CPU; compare bench runs by it"},

@@ -111,6 +111,8 @@ class Board:
         self.ledger = PowerLedger(self.budget)
         self._currents = {r: self.budget.current(r) for r in Regime}
         self._wake_v = cfg.wake_patch_voltage
+        self._sample_limits = (cfg.sensors_z3_limit, cfg.sensors_v_patch_limit, cfg.sensors_z0dd_limit,
+                               cfg.sensors_v_battery_max)
         self._wake_acc = cfg.wake_base_acceleration
         self._v_lo, self._v_hi = self.limits.voltage_min, self.limits.voltage_max
         self.episode: UsageEpisode | None = None
@@ -170,7 +172,13 @@ class Board:
         wake = hv = False
         v_meas = math.nan  # the battery voltage this tick, if trustworthy
         if sample is not None:
-            reason = check_sample(sample, cfg)
+            lim = self._sample_limits  # check_sample's test inlined for the common, plausible sample
+            if (not sample.flags & (FLAG_SENSOR_FAULT | FLAG_RIG_FAULT) and abs(sample.z3) <= lim[0]
+                    and abs(sample.v_patch) <= lim[1] and abs(sample.z0dd) <= lim[2]
+                    and 0.0 <= sample.v_battery <= lim[3] and -math.inf < sample.t < math.inf):
+                reason = ""
+            else:
+                reason = check_sample(sample, cfg)
             if sample.seq == self._prev_seq:
                 self._stale += 1
                 if self._stale >= cfg.tick_stale_ticks and not reason:
@@ -190,7 +198,8 @@ class Board:
                     self._fault_key, self._fault_since, self._fault_ticks = key, k, 0
                 self._fault_ticks += 1
             else:
-                self._close_fault(k, events)
+                if self._fault_key:
+                    self._close_fault(k, events)
                 v_meas = self._v_batt = sample.v_battery
                 wake = abs(sample.z0dd) >= self._wake_acc or abs(sample.v_patch) >= self._wake_v
             self._fault_reason = reason

@@ -320,7 +320,7 @@ class SimulatedRig:
         seg = self._seg if self.t < self._seg_until else self._segment()
         hv = self._hv_override if self._hv_override is not None else seg[0]
         want = self._amp if hv else self._flight
-        aligned = abs(dt - self.tick) <= 1e-9 * self.tick and not self._offgrid
+        aligned = (dt == self.tick or abs(dt - self.tick) <= 1e-9 * self.tick) and not self._offgrid
         if want is not self._active and not (aligned and want is self._flight and self._active is self._idle):
             self._switch(want)
         v = self._v if hv else (0.0, 0.0)
@@ -463,7 +463,7 @@ class SimulatedRig:
 
     def _advance_tick(self, v: tuple[float, float], i_load: float, want: _TruthModel) -> None:
         b = self._block
-        if b is not None and b.key == (id(self._active), v, i_load) and b.j < b.n and v == self._v_prev:
+        if b is not None and b.j < b.n and v == self._v_prev and b.key == (id(self._active), v, i_load):
             b.j += 1
         else:
             ramp = v != self._v_prev
