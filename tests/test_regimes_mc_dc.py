@@ -191,7 +191,9 @@ def test_hv_present_debounce_and_guard_from_standby():
     for flip in ({"energy_ok": False}, {"brownout": True}):
         r = Run().feed(hv._replace(**flip), times=T.hv_debounce + 4)
         assert r.regime is S, flip
-        assert len(r.incidents("wake_refused")) == 1 and "HV" in r.incidents("wake_refused")[0].data["detail"]
+        (ev,) = r.incidents("wake_refused")
+        assert "HV" in ev.data["detail"] and ev.tick == T.hv_debounce - 1
+        assert ev.time == pytest.approx((T.hv_debounce - 1) * T.period)
         r.feed(hv)  # energy back, equipment still there: enters at once
         assert r.regime is M
 
@@ -331,6 +333,7 @@ def test_rearm_refused_while_overruns_or_link_loss_persist():
     assert r.incidents("rearm_refused")[0].data["detail"] == "re-arm refused: link_lost, no sample"
     r = in_regime(X).feed(TickInputs(), times=20)
     assert r.regime is X  # no re-arm asked: SAFE stays
+    assert r.state.entered_tick == 0  # the tick it went SAFE, kept while it stays
 
 
 def test_every_change_is_allowed_and_only_maintenance_actuates():
