@@ -342,3 +342,20 @@ def test_hil_serve_any_valid_endpoints_and_faults(data):
             assert summary["mode"] == argv[argv.index("--clock") + 1]
     finally:
         sys.setswitchinterval(interval)  # the stub tunes the interpreter for its threads
+
+
+# --- regressions found by the properties ----------------------------------------------------------------------
+def test_diagnose_ranking_figure_when_everything_sits_at_the_noise_floor():
+    """Found by test_synth_compare_diagnose_fit (make fuzz): a clean 20 V MBIT.a record, one candidate; nominal and
+    candidate both at 1.004 σ made the log axis span a hair, the labels ran outside it and tight_layout gave up
+    with a UserWarning (ranking.png not written)."""
+    with _tmp("regression-ranking") as tmp:
+        tmp = Path(tmp)
+        rec = tmp / "rec.csv"
+        assert_ok(shm("synth", "--test", "mbit-a", "--rate-hz", 1000, "--duration-s", 1.5, "--seed", 0,
+                      "--amplitude", 20.0, "--out", rec))
+        diag = assert_ok(shm("diagnose", rec, "--params", "table2", "--candidates", "air_damping", "--max-rate-hz",
+                             200, "--blocks", 4, "--min-reduction", 0.0, "--seed", 0, "--json", "--out",
+                             tmp / "diag"), json_out=True)
+        assert "failed" not in diag
+        assert_readable(tmp / "diag" / "ranking.png")

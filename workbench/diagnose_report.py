@@ -98,6 +98,11 @@ def ranking_figure(diagnosis: Any, path: Path) -> Path:
     ax.axvline(1.0, color="k", ls=":", lw=1, label="noise floor (1 σ)")
     ax.set_yticks(y, names)
     ax.set_xscale("log")
+    # explicit limits with room on the right for the labels: when every value sits near the noise floor, the
+    # automatic log limits span a hair (1.003 .. 1.005 σ) and the labels run far outside the axes, which made
+    # tight_layout give up (a UserWarning) and the figure unreadable
+    positive = [v for v in vals_plot if v > 0] or [1.0]
+    ax.set_xlim(min(min(positive), 1.0) / 1.5, max(max(positive), 1.0) * 30.0)
     ax.set_xlabel("held-out residual RMS (σ)")
     ax.set_title("Which effect is missing? (green: accepted, orange: not enough, red: unstable)", fontsize=9)
     ax.legend(fontsize=7, loc="lower right")
