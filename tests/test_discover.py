@@ -120,7 +120,8 @@ def test_done_when_chain_foreign_friction(tmp_path, capsys):
     rec = _sweep("TipDryFriction", {"F_coulomb": 1e-3})
     path = write_record(rec, tmp_path / "friction.csv")
     # diagnose: the library does not explain it, and the verdict ends with the discover command
-    assert main(["diagnose", str(path), "--params", "table2", "--out", str(tmp_path / "diag"), "--json"]) == 0
+    assert main(["diagnose", str(path), "--params", "table2", "--fit-top", "1", "--out", str(tmp_path / "diag"),
+                 "--json"]) == 0
     diag = json.loads(capsys.readouterr().out)
     assert diag["verdict"] in ("partial", "unexplained") or "shm discover" in json.dumps(diag)
     # discover names the physics and writes the effect file
@@ -137,7 +138,7 @@ def test_done_when_chain_foreign_friction(tmp_path, capsys):
     # the emitted file refits through the documented seam
     save = tmp_path / "refit.toml"
     assert main(["fit", str(path), "--params", "table2", "--add", str(emit), "--save", str(save), "--out",
-                 str(tmp_path / "fit"), "--json"]) == 0
+                 str(tmp_path / "fit"), "--max-nfev", "6", "--json"]) == 0
     fit = json.loads(capsys.readouterr().out)
     assert fit["held_rms_sigma"]["before"] > 20 and fit["held_rms_sigma"]["after"] < 1.5
     # the saved set refers to the file and loads as `shm run` would
@@ -180,3 +181,17 @@ def test_synth_unknown_set_name_is_blamed_on_the_command_line(tmp_path, capsys):
                  "--out", str(tmp_path / "r.csv")])
     err = capsys.readouterr().err
     assert code == 2 and "--set c_aair" in err and "c_air" in err and ".toml" not in err
+
+
+def test_challenge_subset_drifting_laser_gain_on_mbit_b():
+    """The not-in-the-library challenge on one fast case (full sweep: python -m bench --only discovery_challenge)."""
+    from plant.effect import load_effect_file
+    from workbench.discovery_challenge import DiscoveryCase, run_discovery_case, summarise
+
+    mod = load_effect_file(FOREIGN)
+    strengths, words = mod.FOREIGN["DriftingLaserGain"]
+    case = DiscoveryCase("DriftingLaserGain", mod.DriftingLaserGain, strengths[1], words, "strong")
+    r = run_discovery_case(case, "mbit-b", 1e-5, 5)
+    assert r.counts and r.named and r.passed, r
+    s = summarise([r])
+    assert s["rate_both"] == 1.0 and not s["misses"]
