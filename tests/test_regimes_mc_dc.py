@@ -192,7 +192,8 @@ def test_hv_present_debounce_and_guard_from_standby():
         r = Run().feed(hv._replace(**flip), times=T.hv_debounce + 4)
         assert r.regime is S, flip
         (ev,) = r.incidents("wake_refused")
-        assert "HV" in ev.data["detail"] and ev.tick == T.hv_debounce - 1
+        assert ev.data["detail"] == "HV equipment present but the battery cannot afford waking into MAINTENANCE"
+        assert ev.tick == T.hv_debounce - 1
         assert ev.time == pytest.approx((T.hv_debounce - 1) * T.period)
         r.feed(hv)  # energy back, equipment still there: enters at once
         assert r.regime is M
@@ -237,6 +238,8 @@ def test_wake_debounce_and_each_guard():
         r = Run().feed(w._replace(**flip), times=T.wake_debounce + 5)
         assert r.regime is S, flip
         (ev,) = r.incidents("wake_refused")  # once per comparator episode
+        assert ev.data["detail"] == ("wake comparator fired but the battery cannot afford waking "
+                                     "(below wake_min_voltage or brown-out)")
         assert ev.tick == T.wake_debounce - 1 and ev.time == pytest.approx((T.wake_debounce - 1) * T.period)
         r.feed(w)
         assert r.regime is SE
