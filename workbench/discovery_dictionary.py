@@ -206,6 +206,8 @@ def build_dictionary(scales: Mapping[str, float], *, driven: bool = True) -> lis
                   Term("current", -1, "vc", "cube")]
     if driven and ok("va"):
         terms += [Term("drive", -1, "va", "delay", tau) for tau in DELAYS_S]
+        terms += [Term("drive", -1, "va", "pos", 0.01 * scales["va"]),
+                  Term("drive", -1, "va", "neg", 0.01 * scales["va"])]
         terms += [Term("drive", -1, "va", "square"), Term("drive", -1, "va", "cube"),
                   Term("drive", -1, "va", "sat", SAT_LEVEL * scales["va"]), Term("drive", -1, "va", "time")]
     if ok("z3"):

@@ -96,6 +96,11 @@ def describe_term(term: Term, coef: float, shape: float, scale: float) -> str:
         if f == "delay":
             return (f"a transport delay of {_si(c * g, 's')} on the drive: the patches see the commanded voltage "
                     "late (amplifier/controller latency)")
+        if f in ("pos", "neg"):
+            side = "positive" if f == "pos" else "negative"
+            return (f"a drive gain that depends on the drive's sign: {100 * c:+.3g} % more authority for {side} drive "
+                    f"(beyond {g:.3g} V) than for the other side (sign-asymmetric: polarisation-dependent piezo "
+                    "coefficient or a one-sided amplifier)")
         if f == "square":
             pct = 100 * c * 100.0
             return (f"a drive gain that depends on the drive's sign: {pct:+.3g} % per +100 V of drive, so the response "
