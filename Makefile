@@ -10,7 +10,7 @@ export NUMBA_CACHE_DIR ?= $(HOME)/.cache/mfc-shm/numba
 export MPLBACKEND := Agg
 export PYTHONHASHSEED := 0
 
-.PHONY: setup system-packages run test lint bench bench-extra mutate clean fuzz
+.PHONY: setup system-packages run test test-fast test-realtime lint bench bench-extra mutate clean fuzz
 
 setup: $(STAMP) system-packages
 
@@ -36,7 +36,16 @@ run: setup
 test: setup
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
-	$(BIN)/pytest -n 2 --timeout=600
+	$(BIN)/pytest -n 2 --timeout=600 -m "not realtime"
+
+# The paced wall-clock fault matrix (board and stub on real clocks over pty/TCP/RTU): ~17 s of waiting per case.
+# Best run with real-time priority: `chrt -f 10 make test-realtime` (docs/real-rig.md).
+test-realtime: setup
+	$(BIN)/pytest -n 2 --timeout=600 -m realtime -s
+
+# Inner loop: unit and property tests only (no sockets, ptys, subprocesses or long end-to-end runs).
+test-fast: setup
+	$(BIN)/pytest -n 2 --timeout=600 -m "not slow and not integration and not realtime" -q
 
 # Long property-based run over the command line (issue 15): many more valid inputs than `make test` draws, and
 # `shm campaign` for every n = 1..500. Hypothesis keeps its example database in .cache/hypothesis (git-ignored),

@@ -213,6 +213,7 @@ def test_fault_matrix_lockstep(scen, clean_verdicts, kind: str, fault: str):
 
 
 @pytest.mark.slow
+@pytest.mark.realtime
 @pytest.mark.parametrize("kind", LINKS)
 @pytest.mark.parametrize("fault", ["clean", "drop 1 %", "drop 5 %", "corrupt 1 %", "latency 2-5 ms"])
 def test_fault_matrix_realtime(scen, clean_verdicts, kind: str, fault: str):
