@@ -5,12 +5,11 @@ from __future__ import annotations
 import base64
 import html
 import json
-import math
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
+from firmware_sim.campaign.results import jsonable
 from studies.health.assess import Assessment
 
 
@@ -24,23 +23,8 @@ def four_levels_text(a: Assessment) -> str:
     ])
 
 
-def _to_json(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): _to_json(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_to_json(v) for v in obj]
-    if isinstance(obj, (float, np.floating)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
-
-
 def health_json(a: Assessment) -> str:
-    return json.dumps(_to_json(a.doc), indent=2)
+    return json.dumps(jsonable(a.doc), indent=2)
 
 
 def plot_parameters(a: Assessment, path: Path) -> None:
