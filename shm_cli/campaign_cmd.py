@@ -144,12 +144,9 @@ def _write_roc(tables, directory: Path, mark, figure: bool = True) -> dict[str, 
 
 
 def cmd_campaign(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
-    from firmware_sim.campaign import build_spec, load_traces, run_campaign
-    from firmware_sim.campaign.results import jsonable, save_json
-    from shm_cli import campaign_figures
+    from firmware_sim.campaign import build_spec
     from shm_cli.main import CliError
+    from shm_cli.run_lock import OutputLock
 
     if args.n <= 0:
         raise CliError(f"--n must be a positive integer (runs per range), got {args.n}")
@@ -168,6 +165,19 @@ def cmd_campaign(args: argparse.Namespace) -> int:
     check_memory(f"--n {args.n} x {len(spec.ranges)} ranges = {runs:.3g} units", 2.0 * runs * per_run,
                  hint="use a smaller --n or fewer --ranges")
     out = out_dir(args.out)
+    # one campaign per --out at a time: a second one would mix its batches into this store (issue 12)
+    with OutputLock(out, command=f"shm campaign --out {args.out}"):
+        return _campaign_in(args, spec, out)
+
+
+def _campaign_in(args: argparse.Namespace, spec, out: Path) -> int:
+    """The campaign proper, run while ``out`` is locked."""
+    from tqdm import tqdm
+
+    from firmware_sim.campaign import load_traces, run_campaign
+    from firmware_sim.campaign.results import jsonable, save_json
+    from shm_cli import campaign_figures
+
     # campaign.json marks a finished campaign: an earlier one must not survive a run that fails
     (out / "campaign.json").unlink(missing_ok=True)
     total = len(spec.ranges) * spec.n_runs

@@ -261,3 +261,20 @@ def test_cli_reports_unfinished_batches_with_exit_1_and_resumes(tmp_path, capsys
     assert main(args) == 0
     captured = capsys.readouterr()
     assert "resumed: 2 of 3 batches" in captured.err and json.loads(captured.out)["complete"] is True
+
+
+def test_a_second_campaign_on_an_out_in_use_is_refused_and_touches_nothing(tmp_path, capsys):
+    """Two campaigns on one --out would mix their batches in one store: the second is refused, naming the first."""
+    from shm_cli.run_lock import OutputLock
+
+    out = tmp_path / "c"
+    out.mkdir()
+    (out / "campaign.json").write_text('{"complete": true}')  # a finished campaign of the holder
+    with OutputLock(out, command="shm campaign --out c"):
+        code = main(["campaign", "--mbit", "a", "--ranges", "0:10:10", "--n", "1", "--seed", "3", "--workers", "1",
+                     "--no-progress", "--out", str(out)])
+    err = capsys.readouterr().err
+    assert code == 2
+    assert "is in use by another running shm campaign" in err and "pid" in err and "Traceback" not in err
+    assert (out / "campaign.json").read_text() == '{"complete": true}'
+    assert not (out / "batches").exists()
