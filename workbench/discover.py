@@ -52,7 +52,6 @@ from workbench.effect_writer import describe_term, emit_effect_source, parameter
 from workbench.fit import (
     DEFAULT_BLOCKS,
     DEFAULT_MAX_RATE_HZ,
-    FD_STEP,
     FitError,
     FitOutcome,
     Objective,
@@ -61,6 +60,7 @@ from workbench.fit import (
     model_factory,
     prepare_targets,
     rms,
+    train_residual_and_jacobian,
 )
 from workbench.records import Record
 
@@ -228,19 +228,7 @@ def _refine(obj: Objective, guess: dict[str, float], max_nfev: int) -> FitOutcom
     sims0 = obj.n_sims
     k = obj.k
     u0 = np.array([float(fp.to_unit(guess[fp.name])) for fp in obj.free])
-    cache: dict[bytes, np.ndarray] = {}
-
-    def fun(u: np.ndarray) -> np.ndarray:
-        key = np.round(u, 12).tobytes()
-        if key not in cache:
-            cache[key] = obj.residuals(obj.simulate(u[None]), "train")[0]
-        return cache[key]
-
-    def jac(u: np.ndarray) -> np.ndarray:
-        steps = np.where(u + FD_STEP <= 1.0, FD_STEP, -FD_STEP)
-        U = np.tile(u, (k, 1)) + np.diag(steps)
-        R = obj.residuals(obj.simulate(U), "train")
-        return ((R - fun(u)[None]) / steps[:, None]).T
+    fun, jac = train_residual_and_jacobian(obj)
 
     try:
         res = least_squares(fun, u0, jac=jac, bounds=(np.zeros(k), np.ones(k)), method="trf", x_scale=1.0,

@@ -365,6 +365,34 @@ def _starts(obj: Objective, guess_u: np.ndarray | None, n_random: int, rng: np.r
     return np.array(pts)
 
 
+def train_residual_and_jacobian(obj: Objective, batched: bool = True
+                                ) -> tuple[Callable[[np.ndarray], np.ndarray], Callable[[np.ndarray], np.ndarray]]:
+    """The training residual ``r(u)`` (cached per point) and its forward-difference Jacobian over the unit box
+    (step :data:`FD_STEP`, taken inward at the upper bound), for ``least_squares``. ``batched`` integrates the k
+    perturbed points in one batch; otherwise one column at a time (what scipy's own finite differences do; the
+    benchmark's baseline)."""
+    k = obj.k
+    cache: dict[bytes, np.ndarray] = {}
+
+    def fun(u: np.ndarray) -> np.ndarray:
+        key = np.round(u, 12).tobytes()
+        if key not in cache:
+            cache[key] = obj.residuals(obj.simulate(u[None]), "train")[0]
+        return cache[key]
+
+    def jac(u: np.ndarray) -> np.ndarray:
+        steps = np.where(u + FD_STEP <= 1.0, FD_STEP, -FD_STEP)
+        U = np.tile(u, (k, 1)) + np.diag(steps)
+        r0 = fun(u)
+        if batched:
+            R = obj.residuals(obj.simulate(U), "train")
+        else:
+            R = np.vstack([obj.residuals(obj.simulate(U[j:j + 1]), "train") for j in range(k)])
+        return ((R - r0[None]) / steps[:, None]).T
+
+    return fun, jac
+
+
 def optimise(obj: Objective, guess: Mapping[str, float] | None = None, *, n_screen: int | None = None,
              n_refine: int = 2, max_nfev: int = 40, seed: int = 0, stop_at_rms: float = 1.05,
              on_iteration: Callable[[FitHistoryPoint], None] | None = None,
@@ -422,23 +450,7 @@ def optimise(obj: Objective, guess: Mapping[str, float] | None = None, *, n_scre
             on_iteration(pt)
 
     note(U0[order[0]], float(cost0[order[0]]))
-    cache: dict[bytes, np.ndarray] = {}
-
-    def fun(u: np.ndarray) -> np.ndarray:
-        key = np.round(u, 12).tobytes()
-        if key not in cache:
-            cache[key] = obj.residuals(obj.simulate(u[None]), "train")[0]
-        return cache[key]
-
-    def jac(u: np.ndarray) -> np.ndarray:
-        steps = np.where(u + FD_STEP <= 1.0, FD_STEP, -FD_STEP)
-        U = np.tile(u, (k, 1)) + np.diag(steps)
-        r0 = fun(u)
-        if batched_jacobian:
-            R = obj.residuals(obj.simulate(U), "train")
-        else:  # one column at a time (what scipy's own finite differences do; the benchmark's baseline)
-            R = np.vstack([obj.residuals(obj.simulate(U[j:j + 1]), "train") for j in range(k)])
-        return ((R - r0[None]) / steps[:, None]).T
+    fun, jac = train_residual_and_jacobian(obj, batched=batched_jacobian)
 
     def callback(intermediate_result):
         note(intermediate_result.x, math.sqrt(2.0 * intermediate_result.cost / max(len(fun(intermediate_result.x)),
