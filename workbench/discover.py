@@ -49,19 +49,9 @@ from workbench.discovery_dictionary import (
 )
 from workbench.effect_library import FreeParameter, resolve_candidates
 from workbench.effect_writer import describe_term, emit_effect_source, parameter_names
-from workbench.fit import (
-    DEFAULT_BLOCKS,
-    DEFAULT_MAX_RATE_HZ,
-    FitError,
-    FitOutcome,
-    Objective,
-    Target,
-    _outcome,
-    model_factory,
-    prepare_targets,
-    rms,
-    train_residual_and_jacobian,
-)
+from workbench.fit_objective import Objective, rms
+from workbench.fit_optimiser import FitOutcome, outcome_at, train_residual_and_jacobian
+from workbench.fit_targets import DEFAULT_BLOCKS, DEFAULT_MAX_RATE_HZ, FitError, Target, model_factory, prepare_targets
 from workbench.records import Record
 
 #: a term is kept when its refit removes at least this share of the held-out energy left above the noise
@@ -237,7 +227,7 @@ def _refine(obj: Objective, guess: dict[str, float], max_nfev: int) -> FitOutcom
     except (ValueError, FloatingPointError) as exc:
         u, msg = u0, f"optimiser failed: {exc}"
     sim = obj.simulate(u[None])
-    return _outcome(obj, u, sim, jac if sim.ok.all() else None, [], msg, t0, sims0)
+    return outcome_at(obj, u, sim, jac if sim.ok.all() else None, [], msg, t0, sims0)
 
 
 #: forms whose linearisation along the nominal run misleads (stick, contact, play, saturation): probed at a
