@@ -10,7 +10,7 @@ export NUMBA_CACHE_DIR ?= $(HOME)/.cache/mfc-shm/numba
 export MPLBACKEND := Agg
 export PYTHONHASHSEED := 0
 
-.PHONY: setup system-packages run test test-fast test-realtime lint bench bench-extra mutate clean fuzz
+.PHONY: setup system-packages run test test-fast test-realtime lint typecheck bench bench-extra mutate clean fuzz
 
 setup: $(STAMP) system-packages
 
@@ -33,7 +33,7 @@ system-packages:
 run: setup
 	$(BIN)/shm run --force --out $(OUT)/run
 
-test: setup
+test: setup typecheck
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
 	$(BIN)/pytest -n 2 --timeout=600 -m "not realtime"
@@ -55,6 +55,10 @@ fuzz: setup
 	SHM_CLI_FUZZ=1 SHM_CLI_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(BIN)/pytest -n 2 --timeout=0 -q \
 	  tests/test_cli_properties.py tests/test_cli_properties_campaign.py tests/test_cli_properties_json.py \
 	  tests/test_campaign_intervals.py
+
+# Static types of every package (mypy; settings and the per-library exceptions in pyproject.toml [tool.mypy]).
+typecheck: setup
+	$(BIN)/mypy
 
 lint: setup
 	$(BIN)/ruff check .

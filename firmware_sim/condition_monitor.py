@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
-from typing import NamedTuple
 
 import numpy as np
 
@@ -88,7 +87,8 @@ class MonitorState:
     t_last: float | None = None  # s, time of the last sample
 
 
-class MonitorSample(NamedTuple):
+@dataclass(frozen=True, slots=True)
+class MonitorSample:
     """The monitor's answer to one sample."""
 
     t: float  # s

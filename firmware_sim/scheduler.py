@@ -117,8 +117,8 @@ class Scheduler:
         clock = self.clock
         period = self.period
         n = int(n_ticks)
-        jitter = np.zeros(n) if self.paced else None
-        busy = np.zeros(n) if self.paced else None
+        jitter = np.zeros(n if self.paced else 0)  # s, filled only when paced
+        busy = np.zeros(n if self.paced else 0)
         misses = 0
         run = 0
         worst_run = 0
@@ -149,8 +149,8 @@ class Scheduler:
                 t0 = clock.now()
                 stop = step(k, overran)
                 t1 = clock.now()
-                jitter[i] = t0 - deadline  # type: ignore[index]
-                busy[i] = t1 - t0  # type: ignore[index]
+                jitter[i] = t0 - deadline
+                busy[i] = t1 - t0
                 overran = t1 > deadline + period
             else:
                 clock.sleep_until(deadline)
@@ -169,8 +169,8 @@ class Scheduler:
                 break
         elapsed = clock.now() - start
         if self.paced and done:
-            j = jitter[:done]  # type: ignore[index]
-            b = busy[:done]  # type: ignore[index]
+            j = jitter[:done]
+            b = busy[:done]
             stats = TickStats(done, self.rate, True, misses, worst_run, float(j.mean()), float(j.std()),
                               float(np.percentile(j, 50)), float(np.percentile(j, 99)), float(j.max()),
                               float(b.mean()), float(b.max()), float(elapsed))

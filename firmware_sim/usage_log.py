@@ -160,6 +160,14 @@ def _now_utc() -> str:
     return datetime.now(UTC).isoformat(timespec="seconds")
 
 
+def _row_id(cur: sqlite3.Cursor) -> int:
+    """The id of the row an INSERT just stored (sqlite3 always sets it after an INSERT)."""
+    row_id = cur.lastrowid
+    if row_id is None:
+        raise LogError("the usage log did not report the id of the row just written")
+    return row_id
+
+
 def _sql_value(v: Any) -> Any:
     if isinstance(v, (list, tuple, dict)):
         return json.dumps(v)
@@ -212,7 +220,7 @@ class UsageLog:
             "VALUES (?, 'running', ?, ?, ?, ?, ?, ?)",
             (_now_utc(), scenario, seed, link_url, params, json.dumps(dict(board_config or {}), default=str),
              json.dumps(dict(rig or {}), default=str)))
-        self.run_id = int(cur.lastrowid)
+        self.run_id = _row_id(cur)
         return self.run_id
 
     def finish_run(self, status: str = "finished") -> None:
@@ -236,7 +244,7 @@ class UsageLog:
         except sqlite3.DatabaseError as exc:
             raise LogError(f"{self.path}: cannot write a {event.kind} record: {exc}") from None
         self.records += 1
-        return int(cur.lastrowid)
+        return _row_id(cur)
 
     def close(self, status: str | None = "finished") -> None:
         if status is not None:
