@@ -1,0 +1,136 @@
+"""Columns with units and metadata -> a validated time :class:`Record` (SI units), whatever file they came from."""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from types import MappingProxyType
+from typing import Any
+
+import numpy as np
+
+from workbench.record_metadata import check_meta
+from workbench.record_types import INPUT_QUANTITIES, KNOWN_QUANTITY_UNITS, Channel, Record, RecordError, Segment
+from workbench.units import Unit, known_units, split_column
+
+
+def parse_columns(file: Path, names: Sequence[str], line: int | None) -> list[tuple[str, Unit]]:
+    out: list[tuple[str, Unit]] = []
+    seen: dict[str, str] = {}
+    for col in names:
+        if not col:
+            raise RecordError(file, "empty column name", line=line)
+        qty, unit = split_column(col)
+        if unit is None:
+            last = col.rsplit("_", 1)[-1] if "_" in col else ""
+            reason = (f"unknown unit '{last}'" if last else "no unit suffix") + \
+                f" (a column is named <quantity>_<unit>, e.g. z3_m; known units: {known_units()})"
+            raise RecordError(file, reason, line=line, column=col)
+        expected = KNOWN_QUANTITY_UNITS.get(qty)
+        if expected is not None and unit.si != expected:
+            raise RecordError(file, f"'{qty}' is measured in {expected}, but the unit '{unit.token}' is {unit.si}",
+                              line=line, column=col)
+        if qty in seen:
+            raise RecordError(file, f"quantity '{qty}' appears twice (also as column '{seen[qty]}')",
+                              line=line, column=col)
+        seen[qty] = col
+        out.append((qty, unit))
+    return out
+
+
+def build_record(file: Path, columns: Sequence[str], data: np.ndarray, meta: dict[str, Any],
+                  locate: Callable[[int], str], time_si: np.ndarray | None = None) -> Record:
+    """Validate and assemble. ``data[:, j]`` holds column ``columns[j]`` as written (not yet SI).
+
+    ``locate(k)`` names sample ``k`` for messages (a file line for CSV, a sample index for TDMS). When
+    ``time_si`` is given (TDMS waveform timing) there is no time column in ``columns``.
+    """
+    check_meta(file, meta)
+    header_line = None
+    parsed = parse_columns(file, columns, header_line)
+    colnames = list(columns)
+    # NaN / Inf
+    bad = ~np.isfinite(data)
+    if bad.any():
+        k, j = np.argwhere(bad)[0]
+        raise RecordError(file, f"value {float(data[k, j])!r} is not finite (NaN/Inf are not allowed; cut the stretch "
+                                "out or split the record)", where=locate(int(k)), column=colnames[j])
+    if time_si is None:
+        if not parsed or parsed[0][0] != "time":
+            raise RecordError(file, f"the first column must be the time, e.g. 'time_s' (got '{colnames[0]}')",
+                              column=colnames[0] if colnames else None)
+        t = parsed[0][1].to_si(data[:, 0])
+        first = 1
+    else:
+        t = np.asarray(time_si, dtype=float)
+        first = 0
+        if t.size != data.shape[0]:
+            raise RecordError(file, f"time track has {t.size} samples but the channels have {data.shape[0]}")
+    if t.size < 2:
+        raise RecordError(file, f"needs at least 2 samples, found {t.size}")
+    d = np.diff(t)
+    if np.any(d <= 0):
+        k = int(np.flatnonzero(d <= 0)[0]) + 1
+        raise RecordError(file, f"time is not strictly increasing ({t[k - 1]:.9g} s then {t[k]:.9g} s)",
+                          where=locate(k), column=colnames[0] if time_si is None else "time")
+    if "sample_rate_Hz" in meta:
+        fs = float(meta["sample_rate_Hz"])
+        fs_t = 1.0 / float(np.median(d))
+        if abs(fs_t - fs) > 0.01 * fs:
+            raise RecordError(file, f"sample_rate_Hz = {fs:g} but the time column has {fs_t:.6g} Hz",
+                              key="sample_rate_Hz")
+    by_col = {c: parsed[j] for j, c in enumerate(colnames)}
+    data_cols = colnames[first:]
+    chan_meta: dict[str, dict[str, Any]] = meta.get("channels", {})
+    for col in chan_meta:
+        if col not in by_col:
+            raise RecordError(file, f"describes column '{col}', which the record does not have "
+                                    f"(columns: {', '.join(colnames)})", key=f"channels.{col}")
+    inputs_cols = meta.get("inputs")
+    if inputs_cols is None:
+        inputs_cols = [c for c in data_cols if by_col[c][0] in INPUT_QUANTITIES]
+    for c in inputs_cols:
+        if c not in by_col or c not in data_cols:
+            raise RecordError(file, f"input column '{c}' is missing (columns: {', '.join(colnames)})",
+                              key="inputs", column=c)
+        if by_col[c][0] not in INPUT_QUANTITIES:
+            raise RecordError(file, f"'{by_col[c][0]}' is not a model input (inputs: "
+                                    f"{', '.join(INPUT_QUANTITIES)})", key="inputs", column=c)
+    in_q = {by_col[c][0] for c in inputs_cols}
+    if "va" in in_q and in_q & {"v_ch1", "v_ch2"}:
+        raise RecordError(file, "give either the differential drive 'va' or the channel voltages v_ch1/v_ch2, "
+                                "not both", key="inputs")
+    if not inputs_cols:
+        raise RecordError(file, f"no input channel (expected one of {', '.join(INPUT_QUANTITIES)} with a unit, "
+                                "e.g. v_ch1_V; or list them under 'inputs')", key="inputs")
+    outputs_cols = meta.get("outputs")
+    if outputs_cols is None:
+        outputs_cols = [c for c in data_cols if c not in inputs_cols]
+    for c in outputs_cols:
+        if c not in by_col or c not in data_cols:
+            raise RecordError(file, f"output column '{c}' is missing (columns: {', '.join(colnames)})",
+                              key="outputs", column=c)
+        if c in inputs_cols:
+            raise RecordError(file, "listed as both input and output", key="outputs", column=c)
+    if not outputs_cols:
+        raise RecordError(file, "no measured output channel (e.g. z3_m)", key="outputs")
+    channels: dict[str, Channel] = {}
+    for j, col in enumerate(colnames):
+        if col not in inputs_cols and col not in outputs_cols:
+            continue
+        qty, unit = by_col[col]
+        spec = chan_meta.get(col, {})
+        noise = spec.get("noise_std")
+        channels[qty] = Channel(
+            name=qty, column=col, unit=unit, values=np.ascontiguousarray(unit.to_si(data[:, j]), dtype=float),
+            role="input" if col in inputs_cols else "output", model_output=spec.get("model_output"),
+            sensor=spec.get("sensor"), position_m=spec.get("position_m"),
+            noise_std=None if noise is None else float(noise) * unit.factor, description=spec.get("description", ""),
+        )
+    segments = tuple(Segment(float(s["start_s"]), float(s["end_s"]), s["label"]) for s in meta.get("segments", []))
+    test = meta.get("test", "other")
+    return Record(
+        path=str(file), test=test, t=np.ascontiguousarray(t, dtype=float), channels=MappingProxyType(channels),
+        inputs=tuple(by_col[c][0] for c in inputs_cols), outputs=tuple(by_col[c][0] for c in outputs_cols),
+        segments=segments, terminal=meta.get("terminal"), meta=MappingProxyType(dict(meta)),
+    )
