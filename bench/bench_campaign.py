@@ -17,9 +17,9 @@ import numpy as np
 from scipy.integrate import solve_ivp
 
 from board_config import load_parameter_set
-from firmware_sim.campaign import build_spec, run_campaign
-from firmware_sim.campaign.worker import mbit_sequence
 from plant.reference import make_solve_ivp_rhs
+from studies.campaign import build_spec, run_campaign
+from studies.campaign.worker import mbit_sequence
 
 TARGET_WALL_S = 15.0  # issue 4: under 15 s on these 2-core machines
 

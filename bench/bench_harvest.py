@@ -1,8 +1,8 @@
 """Harvesting benchmark: 600 s of charging at 5.8 Hz, coupled circuit, audit on (issue 3, target < 10 s wall).
 
-Ours: :func:`plant.harvest.run_harvest` (compiled Dormand-Prince, chunked, with the 13 battery/audit states).
+Ours: :func:`studies.harvest.run_harvest` (compiled Dormand-Prince, chunked, with the 13 battery/audit states).
 Baseline, measured in the same run: the same problem written the way a user would write it for
-``scipy.integrate.solve_ivp`` (:mod:`plant.harvest_reference`: plain-Python right-hand side with the cell through
+``scipy.integrate.solve_ivp`` (:mod:`studies.harvest.reference`: plain-Python right-hand side with the cell through
 scipy's PCHIP and the same audit states), RK45 and LSODA at the same tolerance. A 600-s solve_ivp run takes minutes
 on these machines, so it is timed on ``window`` seconds of the same run and its cost per simulated second
 is scaled to 600 s (the window starts from the run's state at t = 20 s, in the steady motion, where the problem is
@@ -24,8 +24,8 @@ from scipy.integrate import solve_ivp
 
 from board_config import load_parameter_set
 from plant import G0
-from plant.harvest import HarvestSetup, run_harvest, step_cap
-from plant.harvest_reference import ReferenceCell, make_solve_ivp_rhs
+from studies.harvest import HarvestSetup, run_harvest, step_cap
+from studies.harvest.reference import ReferenceCell, make_solve_ivp_rhs
 
 
 def whatif_parameters():

@@ -125,7 +125,7 @@ def parse_grid(text: str, what: str, integer: bool = False) -> np.ndarray:
 
 
 def _roc_tables(traces, eps_grid, count_grid, healthy_max, faulty_min):
-    from firmware_sim.campaign import roc_sweep
+    from studies.campaign import roc_sweep
 
     return [roc_sweep(traces.eps[k], traces.range_lo, traces.range_hi, traces.status[k] == 0, eps_grid, count_grid,
                       traces.monitor, mbit=k, label=traces.labels[k], healthy_max=healthy_max,
@@ -133,8 +133,8 @@ def _roc_tables(traces, eps_grid, count_grid, healthy_max, faulty_min):
 
 
 def _write_roc(tables, directory: Path, mark, figure: bool = True) -> dict[str, Path]:
-    from firmware_sim.campaign.results import write_rows
     from shm_cli import campaign_figures
+    from studies.campaign.results import write_rows
 
     csv_path = directory / "roc.csv"
     write_rows(csv_path, [row for t in tables for row in t.rows()])
@@ -144,9 +144,9 @@ def _write_roc(tables, directory: Path, mark, figure: bool = True) -> dict[str, 
 
 
 def cmd_campaign(args: argparse.Namespace) -> int:
-    from firmware_sim.campaign import build_spec
     from shm_cli.main import CliError
     from shm_cli.run_lock import OutputLock
+    from studies.campaign import build_spec
 
     if args.n <= 0:
         raise CliError(f"--n must be a positive integer (runs per range), got {args.n}")
@@ -174,9 +174,9 @@ def _campaign_in(args: argparse.Namespace, spec, out: Path) -> int:
     """The campaign proper, run while ``out`` is locked."""
     from tqdm import tqdm
 
-    from firmware_sim.campaign import load_traces, run_campaign
-    from firmware_sim.campaign.results import jsonable, save_json
     from shm_cli import campaign_figures
+    from studies.campaign import load_traces, run_campaign
+    from studies.campaign.results import jsonable, save_json
 
     # campaign.json marks a finished campaign: an earlier one must not survive a run that fails
     (out / "campaign.json").unlink(missing_ok=True)
@@ -254,7 +254,7 @@ def _campaign_in(args: argparse.Namespace, spec, out: Path) -> int:
 
 
 def cmd_roc(args: argparse.Namespace) -> int:
-    from firmware_sim.campaign import load_traces
+    from studies.campaign import load_traces
 
     eps_grid = parse_grid(args.eps_th, "--eps-th")
     count_grid = parse_grid(args.count_max, "--count-max", integer=True)

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_sim.campaign import CampaignResult, RocTable
-from firmware_sim.campaign.paper import PAPER_FAULT_PROBABILITY
 from shm_cli.common import pyplot
+from studies.campaign import CampaignResult, RocTable
+from studies.campaign.paper import PAPER_FAULT_PROBABILITY
 
 
 def _save(fig, path: Path, svg: bool = True) -> list[Path]:

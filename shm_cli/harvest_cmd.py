@@ -20,7 +20,7 @@ import numpy as np
 from board_config.errors import InputError
 from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir, pyplot, write_csv
 
-#: the paper's claim, full recharge from 2 V within 10 minutes (= plant.harvest.PAPER_CLAIM_S; kept here so that
+#: the paper's claim, full recharge from 2 V within 10 minutes (= studies.harvest.PAPER_CLAIM_S; kept here so that
 #: building the parser does not import the plant)
 PAPER_CLAIM_S = 600.0
 
@@ -64,7 +64,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 def _setup_from_args(args: argparse.Namespace):
     from plant import G0
-    from plant.harvest import HarvestSetup
+    from studies.harvest import HarvestSetup
 
     if args.eq8_literal and args.coupling != "paper":
         raise InputError("--eq8-literal applies to --coupling paper only")
@@ -184,7 +184,7 @@ def plot_charge_curve(run: Any, path: Path) -> Path:
 
 def cmd_harvest(args: argparse.Namespace) -> int:
     from board_config import load_parameter_set
-    from plant.harvest import run_harvest
+    from studies.harvest import run_harvest
 
     setup = _setup_from_args(args)
     load_parameter_set(args.params)  # a bad set fails here, before any output

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import os
 
-from firmware_sim.campaign import BatchSpec, run_batch
+from studies.campaign import BatchSpec, run_batch
 
 
 def crash_process_on(batch: BatchSpec, threads: int | None = 1, *, key: str):

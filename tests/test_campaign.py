@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 from campaign_crash_helper import crash_process_on, raise_on
 
-from firmware_sim.campaign import (
+from firmware_sim.condition_monitor import evaluate
+from shm_cli.main import main
+from studies.campaign import (
     CampaignStoreError,
     DeviationRange,
     build_spec,
@@ -23,8 +25,6 @@ from firmware_sim.campaign import (
     verdicts_at,
     wilson_interval,
 )
-from firmware_sim.condition_monitor import evaluate
-from shm_cli.main import main
 
 
 def _arrays_equal(r1, r2) -> None:
@@ -239,7 +239,7 @@ def test_cli_runs_writes_the_fig11_files_and_roc(tmp_path, capsys):
 
 
 def test_cli_reports_unfinished_batches_with_exit_1_and_resumes(tmp_path, capsys, monkeypatch):
-    import firmware_sim.campaign as campaign_pkg
+    import studies.campaign as campaign_pkg
 
     real = campaign_pkg.run_campaign
     spec = build_spec(**{**SMALL, "mbits": "b", "n_runs": 2})

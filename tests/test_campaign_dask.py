@@ -10,7 +10,7 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from firmware_sim.campaign import CampaignError, build_spec, connect_dask, run_campaign  # noqa: E402
+from studies.campaign import CampaignError, build_spec, connect_dask, run_campaign  # noqa: E402
 
 
 def test_dask_local_cluster_gives_identical_numbers(tmp_path):

@@ -11,7 +11,7 @@ import numpy as np
 from hypothesis import given
 from hypothesis import strategies as st
 
-from firmware_sim.campaign.statistics import DetectionStat, wilson_interval
+from studies.campaign.statistics import DetectionStat, wilson_interval
 
 
 def _check(k: int, n: int, confidence: float = 0.95) -> tuple[float, float]:

@@ -1,6 +1,6 @@
 """No orphans (issue 12, point 7): the campaign's pool workers die with the campaign process, SIGKILL included.
 
-A real subprocess builds the campaign's process pool (:func:`firmware_sim.campaign.runner._process_executor`, the
+A real subprocess builds the campaign's process pool (:func:`studies.campaign.runner._process_executor`, the
 one ``shm campaign`` uses), makes every worker busy with a task that never ends, and is killed with SIGKILL; the
 workers must be gone within seconds (before the fix they lived for ever)."""
 
@@ -28,7 +28,7 @@ def busy_forever(pid_dir):
 DRIVER = '''
 import sys, threading, time
 sys.path.insert(0, sys.argv[1])
-from firmware_sim.campaign.runner import _process_executor
+from studies.campaign.runner import _process_executor
 import orphan_task
 method = sys.argv[3]
 if method == "forkserver":  # a live thread makes the pool use forkserver

@@ -70,10 +70,10 @@ def test_user_input_errors_exit_2_naming_the_item(info_raises, capsys, exc):
 
 def test_typed_input_errors_of_every_layer_are_input_errors():
     """The error classes that name a user's file, option or value all derive from InputError (exit 2)."""
-    from firmware_sim.campaign.runner import CampaignError
-    from firmware_sim.campaign.store import CampaignStoreError
     from firmware_sim.mbit import MbitClampError
     from plant.effect import EffectError
+    from studies.campaign.runner import CampaignError
+    from studies.campaign.store import CampaignStoreError
     from workbench.fit import FitError
     from workbench.records import RecordError
     from workbench.replay import ReplayError
@@ -145,7 +145,7 @@ def test_a_failed_campaign_leaves_no_finished_looking_campaign_json(tmp_path, ca
             "--no-figures", "--out", str(out)]
     assert main(argv) == 0
     assert (out / "campaign.json").exists()
-    import firmware_sim.campaign as fc
+    import studies.campaign as fc
 
     def exploding(*a, **k):
         raise RuntimeError("worker pool vanished")
@@ -166,7 +166,7 @@ def test_main_docstring_states_the_policy():
 def test_a_failed_rerun_leaves_no_earlier_summary(tmp_path, capsys, monkeypatch):
     """harvest_summary.json (like campaign.json, diagnosis.json, fit.json, calibration.json) is written at the end
     of a run: a rerun into the same --out that fails must not leave the earlier one looking like its result."""
-    import plant.harvest
+    import studies.harvest
 
     out = tmp_path / "h"
     out.mkdir()
@@ -175,7 +175,7 @@ def test_a_failed_rerun_leaves_no_earlier_summary(tmp_path, capsys, monkeypatch)
     def exploding(*a, **k):
         raise RuntimeError("integrator state corrupted")
 
-    monkeypatch.setattr(plant.harvest, "run_harvest", exploding)
+    monkeypatch.setattr(studies.harvest, "run_harvest", exploding)
     assert main(["harvest", "--duration-s", "0.5", "--out", str(out)]) == 1
     assert "bug in mfc-shm" in capsys.readouterr().err
     assert not (out / "harvest_summary.json").exists()

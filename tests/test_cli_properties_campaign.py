@@ -25,9 +25,9 @@ FIGURES = ("fig11.png", "fig11.svg", "error_traces.png", "roc.png")
 
 def max_range_pct(params: str, deviated: list[str], sign: str) -> int:
     """The largest deviation (percent, at most 90) that keeps every deviated parameter inside its bounds — the
-    documented limit of --ranges (`firmware_sim.campaign.spec.check_deviation_bounds`)."""
+    documented limit of --ranges (`studies.campaign.spec.check_deviation_bounds`)."""
     from board_config import load_parameter_set
-    from firmware_sim.campaign.spec import core_bounds
+    from studies.campaign.spec import core_bounds
 
     values, bounds, cap = load_parameter_set(params).values, core_bounds(), 0.90
     for name in deviated:

@@ -15,14 +15,14 @@ import pytest
 from board_config.battery import load_battery
 from plant import G0, PlantModel, PlantStepper
 from plant.battery import TheveninBattery, battery_state, initial_state, set_board_current
-from plant.harvest import (
+from studies.harvest import (
     HarvestSetup,
     eq8_required_amplitude,
     eq8_time_to_full,
     project_time_to_full,
     run_harvest,
 )
-from plant.harvest_reference import ReferenceCell, harvest_rhs
+from studies.harvest.reference import ReferenceCell, harvest_rhs
 
 WHATIF = str(Path(__file__).parent / "data" / "harvest_whatif.toml")
 

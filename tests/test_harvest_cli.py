@@ -88,7 +88,7 @@ def test_help_lists_the_couplings(capsys):
 
 
 def test_cli_claim_constant_matches_the_plant():
-    from plant.harvest import PAPER_CLAIM_S
     from shm_cli import harvest_cmd
+    from studies.harvest import PAPER_CLAIM_S
 
     assert harvest_cmd.PAPER_CLAIM_S == PAPER_CLAIM_S

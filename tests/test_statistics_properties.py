@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.stats import binomtest
 
-from firmware_sim.campaign.statistics import DetectionStat, wilson_interval
+from studies.campaign.statistics import DetectionStat, wilson_interval
 
 
 @settings(max_examples=80, deadline=None)

@@ -117,7 +117,7 @@ def estimate_visits(visits: Sequence[Visit], params: str, free: Sequence[str] = 
     paths = [[str(r.path) for r in v.records] for v in visits]
     results: list[dict[str, Any]] = []
     if dask_scheduler:
-        from firmware_sim.campaign import connect_dask
+        from studies.campaign import connect_dask
 
         client = connect_dask(dask_scheduler)
         try:

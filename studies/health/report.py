@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from firmware_sim.campaign.results import jsonable
+from studies.campaign.results import jsonable
 from studies.health.assess import Assessment
 
 

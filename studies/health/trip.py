@@ -1,6 +1,6 @@
 """Where the board's own monitor trips: P(FAULT | deviations) from the campaign's machinery, as a boundary.
 
-The campaign (``firmware_sim.campaign``) simulates MBIT.a and MBIT.b for a batch of parameter deviations and runs the
+The campaign (``studies.campaign``) simulates MBIT.a and MBIT.b for a batch of parameter deviations and runs the
 board's monitor (Eq. 11, Table 3 thresholds from ``board_config/monitor.toml``, the +2/−1 counter) on each: a FAULT
 if either MBIT latches. :func:`fault_batch` is that, for any deviation vectors (k3, α_h, β_h relative deviations).
 
@@ -37,9 +37,9 @@ def _cache_dir() -> Path:
 def fault_batch(params: str, devs: np.ndarray, seed: int = 1) -> np.ndarray:
     """The board monitor's verdict (True = FAULT by MBIT.a or MBIT.b) for each row of relative deviations
     ``devs`` (n, 3) of (k3, α_h, β_h), through the campaign worker's simulation and monitor."""
-    from firmware_sim.campaign.build import build_spec
-    from firmware_sim.campaign.worker import mbit_sequence, model_from_toml, nominal_prediction
     from firmware_sim.condition_monitor import evaluate, normalised_error
+    from studies.campaign.build import build_spec
+    from studies.campaign.worker import mbit_sequence, model_from_toml, nominal_prediction
 
     spec = build_spec(params, mbits="both", ranges="0:10:10", n_runs=1, seed=seed, noise_std=NOISE_STD_M)
     model = model_from_toml(spec.params_toml)

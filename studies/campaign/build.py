@@ -1,4 +1,4 @@
-"""Assemble a :class:`~firmware_sim.campaign.spec.CampaignSpec` from names (parameter set, MBIT keys, ranges),
+"""Assemble a :class:`~studies.campaign.spec.CampaignSpec` from names (parameter set, MBIT keys, ranges),
 validating every input with a message that names it."""
 
 from __future__ import annotations
@@ -8,7 +8,8 @@ from pathlib import Path
 
 from board_config import MbitDefinition, MonitorSettings, load_mbit_definitions, load_monitor_settings
 from board_config.errors import InputError
-from firmware_sim.campaign.spec import (
+from plant import PlantModel
+from studies.campaign.spec import (
     DEFAULT_BATCH_SIZE,
     DEFAULT_DEVIATED,
     CampaignSpec,
@@ -17,7 +18,6 @@ from firmware_sim.campaign.spec import (
     core_bounds,
     parse_ranges,
 )
-from plant import PlantModel
 
 
 def select_mbits(selection: str, definitions: dict[str, MbitDefinition]) -> tuple[MbitDefinition, ...]:
@@ -55,7 +55,7 @@ def build_spec(
     mbit_config: str | Path | None = None,
     monitor: MonitorSettings | str | Path | None = None,
 ) -> CampaignSpec:
-    """A validated campaign specification (see :mod:`firmware_sim.campaign.spec` for the meaning of each field)."""
+    """A validated campaign specification (see :mod:`studies.campaign.spec` for the meaning of each field)."""
     if isinstance(n_runs, bool) or not isinstance(n_runs, int) or n_runs <= 0:
         raise InputError(f"--n must be a positive integer (runs per range), got {n_runs!r}")
     if isinstance(seed, bool) or not isinstance(seed, int) or seed < 0:

@@ -22,8 +22,8 @@ from typing import Any
 import numpy as np
 
 from board_config.errors import InputError
-from firmware_sim.campaign.spec import CampaignSpec
-from firmware_sim.campaign.worker import BatchResult
+from studies.campaign.spec import CampaignSpec
+from studies.campaign.worker import BatchResult
 
 
 class CampaignStoreError(InputError):

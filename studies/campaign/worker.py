@@ -24,10 +24,10 @@ from pathlib import Path
 import numpy as np
 
 from board_config import MbitDefinition, load_parameter_set
-from firmware_sim.campaign.spec import BatchSpec, CampaignSpec, draw_deviations, noise_generator
 from firmware_sim.condition_monitor import evaluate, normalised_error
 from firmware_sim.mbit import MbitSequence, generate_mbit
 from plant import PlantModel
+from studies.campaign.spec import BatchSpec, CampaignSpec, draw_deviations, noise_generator
 
 _LOCK = threading.Lock()
 _MODELS: dict[str, PlantModel] = {}

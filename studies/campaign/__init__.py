@@ -3,7 +3,7 @@ monitor, detection statistics with Wilson intervals, a resumable result store, l
 
 Typical use::
 
-    from firmware_sim.campaign import build_spec, run_campaign
+    from studies.campaign import build_spec, run_campaign
     spec = build_spec("table2", mbits="both", ranges="0:50:10", n_runs=100, seed=1)
     outcome = run_campaign(spec, "out/campaign", workers=2)
     for row in outcome.result.summary():
@@ -14,17 +14,17 @@ batch), :mod:`.store` (partial results, resume), :mod:`.runner` (executors, cras
 (assembled runs, tables, files), :mod:`.statistics` (Wilson), :mod:`.roc` (threshold sweep), :mod:`.paper`.
 """
 
-from firmware_sim.campaign.build import build_spec, select_mbits
-from firmware_sim.campaign.results import CampaignResult, MbitRuns, StoredTraces, load_traces
-from firmware_sim.campaign.roc import RocTable, roc_sweep, verdicts_at
-from firmware_sim.campaign.runner import (
+from studies.campaign.build import build_spec, select_mbits
+from studies.campaign.results import CampaignResult, MbitRuns, StoredTraces, load_traces
+from studies.campaign.roc import RocTable, roc_sweep, verdicts_at
+from studies.campaign.runner import (
     BatchFailure,
     CampaignError,
     CampaignOutcome,
     connect_dask,
     run_campaign,
 )
-from firmware_sim.campaign.spec import (
+from studies.campaign.spec import (
     SIGN_CONVENTIONS,
     BatchSpec,
     CampaignSpec,
@@ -32,9 +32,9 @@ from firmware_sim.campaign.spec import (
     draw_deviations,
     parse_ranges,
 )
-from firmware_sim.campaign.statistics import DetectionStat, wilson_interval
-from firmware_sim.campaign.store import CampaignStoreError, ResultStore
-from firmware_sim.campaign.worker import BatchResult, run_batch
+from studies.campaign.statistics import DetectionStat, wilson_interval
+from studies.campaign.store import CampaignStoreError, ResultStore
+from studies.campaign.worker import BatchResult, run_batch
 
 __all__ = [
     "SIGN_CONVENTIONS",

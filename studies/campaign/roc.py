@@ -22,8 +22,8 @@ import numpy as np
 
 from board_config import MonitorSettings
 from board_config.errors import InputError
-from firmware_sim.campaign.statistics import wilson_interval
 from firmware_sim.condition_monitor import counter_trajectory
+from studies.campaign.statistics import wilson_interval
 
 _TOL = 1e-9
 

@@ -25,9 +25,9 @@ import numpy as np
 
 from board_config import MonitorSettings
 from board_config.errors import InputError
-from firmware_sim.campaign.paper import PAPER_FAULT_PROBABILITY
-from firmware_sim.campaign.spec import CampaignSpec
-from firmware_sim.campaign.statistics import DetectionStat, wilson_interval
+from studies.campaign.paper import PAPER_FAULT_PROBABILITY
+from studies.campaign.spec import CampaignSpec
+from studies.campaign.statistics import DetectionStat, wilson_interval
 
 _TOL = 1e-9
 

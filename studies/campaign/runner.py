@@ -1,9 +1,9 @@
 """Run a campaign's batches on an executor — in-process, a local process pool (default) or a Dask cluster — and
 keep every finished batch in the result store, whatever happens to the others.
 
-All three paths submit the same module-level task (:func:`~firmware_sim.campaign.worker.run_batch`) through the
+All three paths submit the same module-level task (:func:`~studies.campaign.worker.run_batch`) through the
 ``concurrent.futures`` interface (Dask's ``Client.get_executor()``), and the results do not depend on which one
-ran them (see :mod:`firmware_sim.campaign.spec`). A worker that dies (a crashed process, a Dask ``KilledWorker``)
+ran them (see :mod:`studies.campaign.spec`). A worker that dies (a crashed process, a Dask ``KilledWorker``)
 or a task that raises is reported per batch; the batches that finished are already stored, and rerunning the
 same campaign into the same directory computes only what is missing.
 """
@@ -22,10 +22,10 @@ from pathlib import Path
 from typing import Any
 
 from board_config.errors import InputError
-from firmware_sim.campaign.results import CampaignResult
-from firmware_sim.campaign.spec import BatchSpec, CampaignSpec
-from firmware_sim.campaign.store import ResultStore
-from firmware_sim.campaign.worker import BatchResult, mbit_sequence, model_from_toml, nominal_prediction, run_batch
+from studies.campaign.results import CampaignResult
+from studies.campaign.spec import BatchSpec, CampaignSpec
+from studies.campaign.store import ResultStore
+from studies.campaign.worker import BatchResult, mbit_sequence, model_from_toml, nominal_prediction, run_batch
 
 ProgressFn = Callable[[int], None]
 BatchFn = Callable[..., BatchResult]
@@ -146,7 +146,7 @@ def _process_executor(workers: int) -> tuple[ProcessPoolExecutor, str]:
     elif "forkserver" in methods:
         method = "forkserver"
         ctx = mp.get_context("forkserver")
-        ctx.set_forkserver_preload(["firmware_sim.campaign.worker"])
+        ctx.set_forkserver_preload(["studies.campaign.worker"])
     else:
         method = "spawn"
         ctx = mp.get_context("spawn")

@@ -1,0 +1,62 @@
+"""The harvesting study (seed paper Sec. 3.3, Fig. 9): charge the cell from base vibration, the time to full charge
+(measured or projected), the power audit, and Eq. 8's closed forms.
+
+Modules: :mod:`.run` (set-up, runs, audit, projection), :mod:`.reference` (an independent plain-Python statement of
+the model for ``scipy.integrate.solve_ivp``: the tests' check and the benchmark's baseline).
+"""
+
+from studies.harvest.run import (
+    ACCEL_RANGE_G,
+    AUDIT_TOLERANCE,
+    COUPLINGS,
+    DURATION_RANGE_S,
+    FREQ_RANGE_HZ,
+    I_BOARD_RANGE_A,
+    PAPER_CLAIM_S,
+    PAPER_GAIN_V_PER_G,
+    R_INT_RANGE_OHM,
+    AuditRow,
+    ChargeRateCurve,
+    HarvestRun,
+    HarvestSetup,
+    PowerAudit,
+    Projection,
+    charge_rate_curve,
+    eq8_required_amplitude,
+    eq8_time_to_full,
+    open_circuit_base_power,
+    power_audit,
+    project_time_to_full,
+    required_mean_power,
+    run_harvest,
+    slowest_decay_time,
+    step_cap,
+)
+
+__all__ = [
+    "ACCEL_RANGE_G",
+    "AUDIT_TOLERANCE",
+    "COUPLINGS",
+    "DURATION_RANGE_S",
+    "FREQ_RANGE_HZ",
+    "I_BOARD_RANGE_A",
+    "PAPER_CLAIM_S",
+    "PAPER_GAIN_V_PER_G",
+    "R_INT_RANGE_OHM",
+    "AuditRow",
+    "ChargeRateCurve",
+    "HarvestRun",
+    "HarvestSetup",
+    "PowerAudit",
+    "Projection",
+    "charge_rate_curve",
+    "eq8_required_amplitude",
+    "eq8_time_to_full",
+    "open_circuit_base_power",
+    "power_audit",
+    "project_time_to_full",
+    "required_mean_power",
+    "run_harvest",
+    "slowest_decay_time",
+    "step_cap",
+]
