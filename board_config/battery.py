@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import csv
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -29,7 +29,7 @@ CONFIG_DIR = Path(__file__).resolve().parent
 BATTERIES_FILE = CONFIG_DIR / "batteries.toml"
 MAH = 3.6  # coulombs per mAh
 
-_POS = {"lower": 0.0, "lower_open": True}
+_POS: dict[str, Any] = {"lower": 0.0, "lower_open": True}
 _RATINGS_SCHEMA: Mapping[str, QuantitySpec] = MappingProxyType({
     "nominal_voltage": QuantitySpec("V", **_POS),
     "capacity": QuantitySpec("C", **_POS),
@@ -118,12 +118,18 @@ class BatterySpec:
     v_oc: np.ndarray  # V
     table_file: str
     provenance: str
+    _v_of_q: MonotoneCubic = field(init=False, repr=False, compare=False)  # the curve v_oc(q_d) between the points
 
     def __post_init__(self) -> None:
-        interp = MonotoneCubic(self.q_d, self.v_oc)
-        object.__setattr__(self, "_v_of_q", interp)
-        object.__setattr__(self, "_dv_dq", lambda q: interp(q, 1))
-        object.__setattr__(self, "_d2v_dq2", lambda q: interp(q, 2))
+        object.__setattr__(self, "_v_of_q", MonotoneCubic(self.q_d, self.v_oc))
+
+    def _dv_dq(self, q: float | np.ndarray) -> np.ndarray:
+        """``dv_oc/dq_d`` (V/C) of the curve at ``q`` (C)."""
+        return self._v_of_q(q, 1)
+
+    def _d2v_dq2(self, q: float | np.ndarray) -> np.ndarray:
+        """``d^2 v_oc/dq_d^2`` (V/C^2) of the curve at ``q`` (C)."""
+        return self._v_of_q(q, 2)
 
     # --- range checks --------------------------------------------------------------------------------
     @property
@@ -152,9 +158,9 @@ class BatterySpec:
         """Open-circuit voltage (V) at discharged capacity ``q_d`` (C); extrapolated linearly outside the table."""
         q = np.asarray(q_d, dtype=float)
         inside = np.clip(q, 0.0, self.capacity)
-        v = np.asarray(self._v_of_q(inside))  # type: ignore[attr-defined]
-        slope_full = float(self._dv_dq(0.0))  # type: ignore[attr-defined]
-        slope_cut = float(self._dv_dq(self.capacity))  # type: ignore[attr-defined]
+        v = np.asarray(self._v_of_q(inside))
+        slope_full = float(self._dv_dq(0.0))
+        slope_cut = float(self._dv_dq(self.capacity))
         v = np.where(q < 0.0, self.v_oc[0] + slope_full * q, v)
         return np.where(q > self.capacity, self.v_oc[-1] + slope_cut * (q - self.capacity), v)
 
@@ -176,20 +182,20 @@ class BatterySpec:
     def capacitance(self, v: float | np.ndarray) -> np.ndarray:
         """Eq. 6: the equivalent capacitance ``C_b = -dq_d/dv_b`` (F) at open-circuit voltage ``v`` (V)."""
         q = self.discharged_capacity(v)
-        return -1.0 / np.asarray(self._dv_dq(q))  # type: ignore[attr-defined]
+        return -1.0 / np.asarray(self._dv_dq(q))
 
     def d2qd_dv2(self, v: float | np.ndarray) -> np.ndarray:
         """``d^2 q_d / dv_b^2`` (C/V^2) at ``v`` (V), the extra term of the paper's Eq. 9-10."""
         q = self.discharged_capacity(v)
-        d1 = np.asarray(self._dv_dq(q))  # type: ignore[attr-defined]
-        d2 = np.asarray(self._d2v_dq2(q))  # type: ignore[attr-defined]
+        d1 = np.asarray(self._dv_dq(q))
+        d2 = np.asarray(self._d2v_dq2(q))
         return -d2 / d1**3
 
     def stored_energy(self, q_d: float | np.ndarray) -> np.ndarray:
         """Chemical energy (J) the cell can still deliver down to the cut-off: ``integral of v_oc dq`` from
         ``q_d`` to ``capacity``."""
         q = np.clip(np.asarray(q_d, dtype=float), 0.0, self.capacity)
-        integ = self._v_of_q.integral  # type: ignore[attr-defined]
+        integ = self._v_of_q.integral
         return np.vectorize(lambda qq: integ(float(qq), self.capacity))(q)
 
     def state_of_charge(self, q_d: float | np.ndarray) -> np.ndarray:
@@ -249,7 +255,7 @@ def load_battery(name: str = "ML2032", path: str | Path | None = None) -> Batter
         full_voltage=float(v[0]), charge_voltage_max=float(ratings["charge_voltage_max"]),
         q_d=q, v_oc=v, table_file=where, provenance=provenance,
     )
-    slopes = np.asarray(spec._dv_dq(q))  # type: ignore[attr-defined]
+    slopes = np.asarray(spec._dv_dq(q))
     if not np.all(slopes < 0):
         bad = int(np.argmax(slopes >= 0))
         raise ConfigError(where, f"row {bad + 1}", "the interpolated curve is flat there: C_b = -dq_d/dv_b would be "

@@ -21,9 +21,9 @@ from board_config.quantities import DESCRIPTIVE_FIELDS, QuantitySpec, parse_quan
 CONFIG_DIR = Path(__file__).resolve().parent
 DEFAULT_BOARD_FILE = CONFIG_DIR / "board.toml"
 
-_POS = {"lower": 0.0, "lower_open": True}
-_NONNEG = {"lower": 0.0}
-_COUNT1 = {"integer": True, "lower": 1}
+_POS: dict[str, Any] = {"lower": 0.0, "lower_open": True}
+_NONNEG: dict[str, Any] = {"lower": 0.0}
+_COUNT1: dict[str, Any] = {"integer": True, "lower": 1}
 
 #: section -> key -> spec (scalar quantities)
 BOARD_SCHEMA: dict[str, dict[str, QuantitySpec]] = {

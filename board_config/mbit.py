@@ -19,7 +19,7 @@ CONFIG_DIR = Path(__file__).resolve().parent
 
 WAVEFORMS = ("sine", "step")
 _PLAIN_KEYS = frozenset({"label", "description", "waveform", "channel_polarity"})
-_POS = {"lower": 0.0, "lower_open": True}
+_POS: dict[str, Any] = {"lower": 0.0, "lower_open": True}
 _COMMON_SCHEMA: dict[str, QuantitySpec] = {
     "amplitude": QuantitySpec("V", **_POS),
     "duration": QuantitySpec("s", **_POS),

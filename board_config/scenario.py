@@ -51,8 +51,8 @@ EVENT_KINDS = ("gust", "link_outage", "sensor_fault", "rearm", "battery_load")
 SENSOR_FAULT_MODES = ("nan", "flag", "frozen_seq", "out_of_range")
 VERDICTS = ("PASS", "FAULT", "NONE")
 
-_POS = {"lower": 0.0, "lower_open": True}
-_NONNEG = {"lower": 0.0}
+_POS: dict[str, Any] = {"lower": 0.0, "lower_open": True}
+_NONNEG: dict[str, Any] = {"lower": 0.0}
 
 
 def _opt(unit: str, **kw: Any) -> QuantitySpec:

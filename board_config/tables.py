@@ -71,7 +71,7 @@ def load_mfc_limits(path: str | Path | None = None) -> MfcLimits:
     values, _ = parse_quantities(str(path), "limits", data.get("limits"), _LIMITS_SCHEMA)
     if values["voltage_min"] >= values["voltage_max"]:
         raise ConfigError(str(path), "limits.voltage_min", "must be below limits.voltage_max")
-    return MfcLimits(**values)  # type: ignore[arg-type]
+    return MfcLimits(**values)
 
 
 def load_monitor_settings(path: str | Path | None = None) -> MonitorSettings:
@@ -79,4 +79,6 @@ def load_monitor_settings(path: str | Path | None = None) -> MonitorSettings:
     path = Path(path) if path is not None else CONFIG_DIR / "monitor.toml"
     data = read_toml(path)
     values, _ = parse_quantities(str(path), "monitor", data.get("monitor"), _MONITOR_SCHEMA)
-    return MonitorSettings(**values)  # type: ignore[arg-type]
+    counts = {k: int(values[k]) for k in ("count_max", "counter_up", "counter_down")}  # integer=True in the schema
+    return MonitorSettings(f_mon=values["f_mon"], eps_th=values["eps_th"], e0z=values["e0z"], kerr_z=values["kerr_z"],
+                           **counts)
