@@ -11,7 +11,8 @@ import time
 from pathlib import Path
 
 from bench.bench_diagnose import _record
-from workbench.discover import _generated_effect, discover
+from workbench.discover import discover
+from workbench.discover_dictionary_effect import generated_effect, signal_scales
 from workbench.discovery_dictionary import build_dictionary, dictionary_parameter_names, dictionary_source
 from workbench.effect_library import FreeParameter
 from workbench.fit import Objective, model_factory, optimise, prepare_targets
@@ -21,14 +22,13 @@ def _brute_force_per_term(rec, n_sample: int = 3) -> tuple[float, int, list[str]
     """Seconds per term when every term is fitted on its own (fit engine defaults: screening design + least
     squares), over ``n_sample`` terms of the dictionary."""
     from board_config import load_parameter_set
-    from workbench.discover import _signal_scales
 
     base = load_parameter_set("table2")
     targets = prepare_targets([rec], model_factory(base, []))
-    scales, _ = _signal_scales(targets)
+    scales, _ = signal_scales(targets)
     terms = build_dictionary(scales)
     names = dictionary_parameter_names(terms)
-    cls = _generated_effect(dictionary_source(terms), "dictionary_driven")
+    cls = generated_effect(dictionary_source(terms), "dictionary_driven")
     models = [model_factory(base, [cls])(tg.record) for tg in targets]
     shapes = {g: (t.shape if t.shape > 0 else 1.0) for t, (_, g) in zip(terms, names) if g}
     picked = [k for k, t in enumerate(terms) if t.placement == "current" and t.form == "lin"][:1]

@@ -19,302 +19,44 @@
 
 The result (:class:`Discovery`) names each kept term in words and units and carries the source of a readable effect
 (:func:`workbench.effect_writer.emit_effect_source`) that ``shm fit --add FILE.py`` refits.
+
+:func:`discover` runs the rounds; the pieces live beside it: :mod:`workbench.discover_results` (what it returns),
+:mod:`workbench.discover_dictionary_effect` (the generated dictionary effect) and :mod:`workbench.discover_search`
+(refits, nonlinear probes, the stability guard).
 """
 
 from __future__ import annotations
 
-import hashlib
-import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from board_config import ParameterSet, load_parameter_set
-from plant import PhysicalEffect, PlantModel
-from plant import layout as L
-from plant.compose import kernel_dir
-from plant.effect import EffectError, load_effect_file, resolve_effect
+from plant import PhysicalEffect
+from plant.effect import EffectError, resolve_effect
 from workbench.candidate_fit import explained, noise_tolerance
-from workbench.discovery_dictionary import (
-    FORMS,
-    Term,
-    build_dictionary,
-    dictionary_parameter_names,
-    dictionary_source,
-    form_values,
+from workbench.discover_dictionary_effect import (
+    generated_effect,
+    reference_magnitudes,
+    signal_scales,
+    term_scale,
 )
+from workbench.discover_results import DiscoverError, Discovery, FoundTerm, ScreenRow, describe_units
+from workbench.discover_search import SearchState, free_for, free_run_check, nonlinear_check, refine, refit_list
+from workbench.discovery_dictionary import build_dictionary, dictionary_parameter_names, dictionary_source
 from workbench.effect_library import FreeParameter, resolve_candidates
-from workbench.effect_writer import describe_term, emit_effect_source, parameter_names
+from workbench.effect_writer import describe_term
 from workbench.fit_objective import Objective, rms
-from workbench.fit_optimiser import FitOutcome, outcome_at, train_residual_and_jacobian
-from workbench.fit_targets import DEFAULT_BLOCKS, DEFAULT_MAX_RATE_HZ, FitError, Target, model_factory, prepare_targets
+from workbench.fit_optimiser import FitOutcome
+from workbench.fit_targets import DEFAULT_BLOCKS, DEFAULT_MAX_RATE_HZ, model_factory, prepare_targets
 from workbench.records import Record
 
 #: a term is kept when its refit removes at least this share of the held-out energy left above the noise
 MIN_SHARE = 0.25
-#: relative size of the switched-on coefficient in the sensitivity batch (of the placement's reference magnitude)
-EPS_REL = 2e-3
 #: integrator tolerance of the sensitivity batch (tighter than the fits: differences of near-equal runs)
 SENS_RTOL = 1e-7
-
-
-class DiscoverError(FitError):
-    """Discovery cannot start (bad records or effects)."""
-
-
-@dataclass
-class FoundTerm:
-    """A kept term: its fitted coefficient and shape, its size along the records, and what it means."""
-
-    term: Term
-    coef: float
-    shape: float
-    scale: float
-    words: str
-
-    def to_dict(self) -> dict[str, Any]:
-        return {"key": self.term.key, "placement": self.term.placement, "index": self.term.index,
-                "signal": self.term.signal, "form": self.term.form, "coefficient": self.coef,
-                "coefficient_unit": self.term.unit, "shape": self.shape if FORMS[self.term.form].shape else None,
-                "signal_scale": self.scale, "words": self.words}
-
-
-@dataclass
-class ScreenRow:
-    term: Term
-    coef: float
-    held_rms_sigma: float
-    train_rms_sigma: float
-
-
-@dataclass
-class Discovery:
-    """What ``shm discover`` found (``verdict``: ``found`` | ``partial`` | ``not_found``)."""
-
-    verdict: str
-    message: str
-    terms: list[FoundTerm]
-    train_before: float
-    held_before: float
-    train_after: float
-    held_after: float
-    screen: list[ScreenRow]
-    n_terms_searched: int
-    stable: bool
-    stability_note: str
-    records: list[str]
-    outcome: FitOutcome | None
-    targets: list[Target]
-    n_sims: int
-    timings: dict[str, float] = field(default_factory=dict)
-    rounds: list[dict[str, Any]] = field(default_factory=list)
-
-    def effect_source(self, class_name: str | None = None, effect_name: str = "discovered") -> str | None:
-        """The readable effect module for the kept terms (None when nothing was found)."""
-        if not self.terms:
-            return None
-        values: dict[str, float] = {}
-        for ft in self.terms:
-            cname, gname = parameter_names(ft.term)
-            values[cname] = ft.coef
-            if gname:
-                values[gname] = ft.shape
-        return emit_effect_source([ft.term for ft in self.terms], values, class_name=class_name,
-                                  effect_name=effect_name, words=[ft.words for ft in self.terms],
-                                  records=self.records, held_before=self.held_before, held_after=self.held_after)
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "verdict": self.verdict, "message": self.message, "terms": [t.to_dict() for t in self.terms],
-            "train_rms_sigma": {"before": self.train_before, "after": self.train_after},
-            "held_rms_sigma": {"before": self.held_before, "after": self.held_after},
-            "screen": [{"key": r.term.key, "placement": r.term.placement, "form": r.term.form, "signal": r.term.signal,
-                        "coefficient": r.coef, "coefficient_unit": r.term.unit, "held_rms_sigma": r.held_rms_sigma,
-                        "train_rms_sigma": r.train_rms_sigma} for r in self.screen],
-            "terms_searched": self.n_terms_searched, "stable": self.stable, "stability": self.stability_note,
-            "records": self.records, "simulations": self.n_sims, "timings_s": self.timings, "rounds": self.rounds,
-        }
-
-
-# ----------------------------------------------------------------------------------------------------------------
-# the dictionary effect for a set of records
-
-
-def _signal_scales(targets: Sequence[Target]) -> tuple[dict[str, float], dict[str, list[np.ndarray]]]:
-    """99th percentile of |signal| along the records (nominal free run) and the signals themselves."""
-    sig: dict[str, list[np.ndarray]] = {}
-    for tg in targets:
-        res = tg.model.simulate(tg.inputs, t_out=tg.t, record_states=True, record_bus=True,
-                                max_steps=Objective.max_steps(tg))
-        if not res.ok:
-            raise DiscoverError(f"{tg.name}: the starting model fails to integrate on the record "
-                                f"({'; '.join(res.failures())})")
-        bus, xs = res.bus[0], res.states[0]
-        for j in range(3):
-            sig.setdefault(f"z{j + 1}", []).append(bus[:, L.B_Z + j])
-            sig.setdefault(f"zd{j + 1}", []).append(bus[:, L.B_ZD + j])
-            sig.setdefault(f"delta{j + 1}", []).append(xs[:, L.X_DELTA + j])
-            sig.setdefault(f"ddelta{j + 1}", []).append(xs[:, L.X_DDELTA + j])
-        sig.setdefault("vc", []).append(bus[:, L.B_VC])
-        sig.setdefault("va", []).append(bus[:, L.B_VA_DEMAND])
-        sig.setdefault("one", []).append(np.ones(tg.t.size))
-    scales = {k: float(np.percentile(np.abs(np.concatenate(v)), 99)) for k, v in sig.items()}
-    return scales, sig
-
-
-def _generated_effect(source: str, stem: str) -> type[PhysicalEffect]:
-    """Write generated effect source to the kernel cache (content-addressed) and load it as a file effect."""
-    d = kernel_dir() / "discover"
-    d.mkdir(parents=True, exist_ok=True)
-    path = d / f"{stem}_{hashlib.sha256(source.encode()).hexdigest()[:16]}.py"
-    if not path.exists() or path.read_text() != source:
-        tmp = path.with_suffix(f".{time.time_ns()}.tmp")
-        tmp.write_text(source)
-        tmp.replace(path)
-    mod = load_effect_file(path)
-    return next(o for o in vars(mod).values() if isinstance(o, type) and issubclass(o, PhysicalEffect)
-                and o.__module__ == mod.__name__)
-
-
-def _reference_magnitudes(model: PlantModel, scales: dict[str, float]) -> dict[str, float]:
-    """A small magnitude per placement (SI) whose effect on the tip is ~EPS_REL of its motion."""
-    k3 = model.param_value("k3")
-    r = model.param_value("R_ep")
-    z3 = max(scales.get("z3", 0.0), 1e-9)
-    va = max(scales.get("va", 0.0), scales.get("vc", 0.0), 1e-3)
-    return {"force_mass": EPS_REL * k3 * z3, "force_section": EPS_REL * k3 * z3, "current": EPS_REL * va / r,
-            "drive": EPS_REL * va, "measurement": EPS_REL * z3}
-
-
-def _term_scale(term: Term, sig: dict[str, list[np.ndarray]], targets: Sequence[Target]) -> float:
-    """RMS of the form's value along the records (for the sensitivity step)."""
-    vals = []
-    for s, tg in zip(sig[term.signal], targets):
-        dt = float(np.median(np.diff(tg.t))) if tg.t.size > 1 else 1.0
-        vals.append(form_values(term.form, s, term.shape if term.shape > 0 else 1.0, tg.t, dt))
-    v = np.concatenate(vals)
-    return float(np.sqrt(np.mean(v * v)))
-
-
-# ----------------------------------------------------------------------------------------------------------------
-# the search
-
-
-@dataclass
-class _State:
-    """The current model: the dictionary effect's parameter values (coefficients of kept terms, every shape)."""
-
-    values: dict[str, float]
-    kept: list[int]
-
-
-def _refine(obj: Objective, guess: dict[str, float], max_nfev: int) -> FitOutcome:
-    """Least squares from ``guess`` with the batched Jacobian (no multi-start: the screen gave the start)."""
-    t0 = time.perf_counter()
-    sims0 = obj.n_sims
-    k = obj.k
-    u0 = np.array([float(fp.to_unit(guess[fp.name])) for fp in obj.free])
-    fun, jac = train_residual_and_jacobian(obj)
-
-    try:
-        res = least_squares(fun, u0, jac=jac, bounds=(np.zeros(k), np.ones(k)), method="trf", x_scale=1.0,
-                            max_nfev=max_nfev, ftol=1e-5, xtol=1e-6, gtol=1e-8)
-        u, msg = res.x, str(res.message)
-    except (ValueError, FloatingPointError) as exc:
-        u, msg = u0, f"optimiser failed: {exc}"
-    sim = obj.simulate(u[None])
-    return outcome_at(obj, u, sim, jac if sim.ok.all() else None, [], msg, t0, sims0)
-
-
-#: forms whose linearisation along the nominal run misleads (stick, contact, play, saturation): probed at a
-#: 0.1, 1/3, 0.6, 1.7, 3 and 10 times the linearised coefficient as well
-HARD_FORMS = ("sign", "pos", "neg", "dead", "clip", "sat")
-_LAST_PROBES: list[tuple[int, list[float]]] = []
-#: how many hard-form terms (best by the linearised screen) get the extra probes
-MAX_HARD_PROBED = 14
-
-
-def _nonlinear_check(rows: list[ScreenRow], terms: Sequence[Term], targets: Sequence[Target],
-                     models: Sequence[PlantModel], values: dict[str, float], names: list[tuple[str, str | None]],
-                     threads: int | None) -> list[ScreenRow]:
-    """Every screened term simulated on the full nonlinear model at its linearised coefficient (hard forms also at
-    ×0.1 … ×10), in one batch; rows re-ranked by the error they really leave, at their best probe."""
-    probes: list[tuple[int, list[float]]] = []
-    n_hard = 0
-    for j, r in enumerate(rows):  # rows come ranked by the linearised screen
-        hard = r.term.form in HARD_FORMS and n_hard < MAX_HARD_PROBED
-        n_hard += hard
-        mult = (1.0, 0.1, 1.0 / 3.0, 0.6, 1.7, 3.0, 10.0) if hard else (1.0,)
-        probes.append((j, [r.coef * m for m in mult]))
-    _LAST_PROBES[:] = probes
-    flat = [(j, c) for j, cs in probes for c in cs]
-    if not flat:
-        return rows
-    cols = [names[terms.index(rows[j].term)][0] for j, _ in flat]
-    held = np.zeros(len(flat))
-    train = np.zeros(len(flat))
-    ok = np.ones(len(flat), bool)
-    for tg, m in zip(targets, models):
-        p0 = m.p_nominal.copy()
-        for n, v in values.items():
-            p0[m.param_index(n)] = v
-        P = np.tile(p0, (len(flat), 1))
-        for i, ((_, c), col) in enumerate(zip(flat, cols)):
-            P[i, m.param_index(col)] = c
-        res = m.simulate(tg.inputs, t_out=tg.t, params=P, threads=threads, max_steps=Objective.max_steps(tg))
-        y = res.y[:, :, tg.out_idx(m)].transpose(0, 2, 1)
-        good = (res.status == 0) & np.all(np.isfinite(y), axis=(1, 2))
-        ok &= good
-        for part, acc in (("held", held), ("train", train)):
-            mask = tg.held if part == "held" else tg.train
-            e = (tg.measured[None][:, :, mask] - np.nan_to_num(y[:, :, mask])) / tg.sigma[None, :, None]
-            acc += np.sum(e * e, axis=(1, 2))
-    n_h = sum(int(tg.held.sum()) * len(tg.channels) for tg in targets)
-    n_t = sum(int(tg.train.sum()) * len(tg.channels) for tg in targets)
-    best: dict[int, ScreenRow] = {}
-    for i, (j, c) in enumerate(flat):
-        if not ok[i]:
-            continue
-        row = ScreenRow(rows[j].term, c, math.sqrt(held[i] / n_h), math.sqrt(train[i] / n_t))
-        if j not in best or row.train_rms_sigma < best[j].train_rms_sigma:
-            best[j] = row
-    return sorted(best.values(), key=lambda r: r.train_rms_sigma)
-
-
-def _refit_list(rows: list[ScreenRow], n_refit: int, n_siblings: int = 2) -> list[ScreenRow]:
-    """The best ``n_refit`` rows, then the best ``n_siblings`` *siblings* of the first: the same form acting on
-    another mass or section (a force on mass 3 and one in section 3 look alike on one sensor; the probe's coarse
-    coefficient can rank the wrong one first)."""
-    out = list(rows[:n_refit])
-    if rows and rows[0].term.placement in ("force_mass", "force_section"):
-        top = rows[0].term
-        sib = [r for r in rows[n_refit:] if r.term.form == top.form
-               and r.term.placement in ("force_mass", "force_section")]
-        sib.sort(key=lambda r: r.term.index != top.index)  # the same mass/section number first (stable)
-        out += sib[:n_siblings]
-    return out
-
-
-def _free_for(terms: Sequence[Term], names: list[tuple[str, str | None]], idx: Sequence[int],
-              start: dict[str, float], new: int | None, shapes_free: bool = True) -> list[FreeParameter]:
-    """Free parameters of the refit: the coefficients of ``idx`` (around their start) and the shapes of the new
-    term (a factor of four either way; the smoothing width of a sign term stays)."""
-    out = []
-    for k in idx:
-        cname, gname = names[k]
-        c = start[cname]
-        span = max(abs(c), 1e-300)
-        wide = 4.0 if k == new else 1.5
-        out.append(FreeParameter(cname, terms[k].unit, c - wide * span, c + wide * span, False, "discover"))
-        if shapes_free and gname is not None and k == new:
-            g = start[gname]
-            lo, hi = (g / 20.0, g * 2.0) if terms[k].form == "sign" else (g / 4.0, g * 4.0)
-            out.append(FreeParameter(gname, "SI", lo, hi, True, "discover"))
-    return out
 
 
 def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
@@ -334,21 +76,21 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
     targets = prepare_targets(records, model_factory(base, classes), holdout=holdout, n_blocks=n_blocks,
                               max_rate_Hz=max_rate_Hz)
     t0 = time.perf_counter()
-    scales, sig = _signal_scales(targets)
+    scales, sig = signal_scales(targets)
     driven = all(next(c.name for c in tg.model.effects if c.role == "terminal") == "amplifier" for tg in targets)
     terms = build_dictionary(scales, driven=driven)
     names = dictionary_parameter_names(terms)
-    dict_cls = _generated_effect(dictionary_source(terms), "dictionary_" + ("driven" if driven else "open"))
+    dict_cls = generated_effect(dictionary_source(terms), "dictionary_" + ("driven" if driven else "open"))
     dict_build = model_factory(base, [*classes, dict_cls])
     models = [dict_build(tg.record) for tg in targets]
     timings["dictionary_s"] = time.perf_counter() - t0
-    state = _State({}, [])
+    state = SearchState({}, [])
     for k, (cname, gname) in enumerate(names):
         state.values[cname] = 0.0
         if gname is not None:
             state.values[gname] = terms[k].shape if terms[k].shape > 0 else 1.0
-    ref = _reference_magnitudes(targets[0].model, scales)
-    eps = np.array([ref[t.placement] / max(_term_scale(t, sig, targets), 1e-300) for t in terms])
+    ref = reference_magnitudes(targets[0].model, scales)
+    eps = np.array([ref[t.placement] / max(term_scale(t, sig, targets), 1e-300) for t in terms])
     n_sims = 0
     base_obj = Objective(targets, models, [], base_values=state.values)
     base_sim = base_obj.simulate(np.zeros((1, 0)))
@@ -418,18 +160,18 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
             k = terms.index(row.term)
             start = dict(state.values)
             start[names[k][0]] = row.coef
-            free = _free_for(terms, names, [*state.kept, k], start, k)
+            free = free_for(terms, names, [*state.kept, k], start, k)
             robj = Objective(targets, models, free, base_values=state.values, threads=threads)
-            out = _refine(robj, start, max_nfev)
+            out = refine(robj, start, max_nfev)
             n_sims += robj.n_sims
             if not out.ok:
                 return None
             # a coefficient at its range bound: widen once (the linearised start underestimated it)
             if any(e.at_bound and e.name.startswith("a_") for e in out.estimates):
                 start2 = dict(start) | out.values
-                free2 = _free_for(terms, names, [*state.kept, k], start2, k)
+                free2 = free_for(terms, names, [*state.kept, k], start2, k)
                 robj2 = Objective(targets, models, free2, base_values=state.values, threads=threads)
-                out2 = _refine(robj2, start2, max_nfev)
+                out2 = refine(robj2, start2, max_nfev)
                 n_sims += robj2.n_sims
                 if out2.ok and out2.train_rms_sigma < out.train_rms_sigma:
                     out = out2
@@ -449,8 +191,8 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
                 tried.append({"term": rows[0].term.key, "held_rms_sigma": out.held_rms_sigma,
                               "train_rms_sigma": out.train_rms_sigma})
         if best is None:
-            rows = _nonlinear_check(rows, terms, targets, models, state.values, names, threads)
-            n_sims += sum(len(r[1]) for r in _LAST_PROBES) * len(targets)
+            rows, n_probes = nonlinear_check(rows, terms, targets, models, state.values, names, threads)
+            n_sims += n_probes * len(targets)
         timings["screen_s"] += time.perf_counter() - t0
         if round_no == 0:
             screen_rows = rows[:12]
@@ -460,7 +202,7 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
             + ", ".join(f"{r.term.key} {r.held_rms_sigma:.3g} σ" for r in rows[:4]))
         # --- refit the best few on the full nonlinear model
         t0 = time.perf_counter()
-        for row in ([] if best is not None else _refit_list(rows, n_refit)):
+        for row in ([] if best is not None else refit_list(rows, n_refit)):
             k = terms.index(row.term)
             out = refit_row(row)
             if out is None:
@@ -489,7 +231,7 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
     t0 = time.perf_counter()
     stable, note = True, "no term kept"
     if state.kept:
-        stable, note = _free_run_check(records, models, targets, state.values)
+        stable, note = free_run_check(records, models, targets, state.values)
     timings["stability_s"] = time.perf_counter() - t0
     found = []
     for k in state.kept:
@@ -529,42 +271,9 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
                      targets, n_sims, timings, rounds)
 
 
-def _free_run_check(records: Sequence[Record], models: Sequence[PlantModel], targets: Sequence[Target],
-                    values: dict[str, float]) -> tuple[bool, str]:
-    """Every record at its full rate, free run from rest: integrates, finite, and no more than 10× the measured
-    range."""
-    for tg, m in zip(targets, models):
-        rec = tg.record
-        p = m.p_nominal.copy()
-        for n, v in values.items():
-            p[m.param_index(n)] = v
-        res = m.simulate(rec.input_signals(), t_out=rec.t, params=p, max_steps=Objective.max_steps(tg) * 2)
-        if not res.ok:
-            return False, f"{tg.name}: {'; '.join(res.failures())}"
-        for j, o in enumerate(tg.outputs):
-            y = res[o][0]
-            span = float(np.ptp(tg.measured[j])) + 10 * float(tg.sigma[j])
-            if not np.all(np.isfinite(y)) or float(np.max(np.abs(y - np.mean(tg.measured[j])))) > 10 * span:
-                return False, f"{tg.name}: {o} leaves 10× the measured range"
-    return True, "free run at the full rate stays bounded on every record"
-
-
 def load_emitted(path: str) -> type[PhysicalEffect]:
     """Load an emitted effect file through the documented seam (``resolve_effect('FILE.py')``)."""
     return resolve_effect(str(path))
-
-
-def describe_units(found: Sequence[FoundTerm]) -> list[str]:
-    """One line per kept term: coefficient with unit and, for a shaped form, its shape."""
-    out = []
-    for f in found:
-        line = f"{f.term.key}: coefficient {f.coef:.4g} {f.term.unit}"
-        if FORMS[f.term.form].shape:
-            unit = "s" if f.term.form == "delay" else ("m/s" if f.term.signal.startswith(("zd", "dd")) else
-                                                        "V" if f.term.signal in ("va", "vc") else "m")
-            line += f", {FORMS[f.term.form].shape} {f.shape:.4g} {unit}"
-        out.append(line)
-    return out
 
 
 __all__ = ["DiscoverError", "Discovery", "FoundTerm", "describe_units", "discover", "load_emitted"]

@@ -1,0 +1,104 @@
+"""What ``shm discover`` returns: :class:`Discovery` with its kept terms (:class:`FoundTerm`), the screen table
+(:class:`ScreenRow`), and :class:`DiscoverError`."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from workbench.discovery_dictionary import FORMS, Term
+from workbench.effect_writer import emit_effect_source, parameter_names
+from workbench.fit_optimiser import FitOutcome
+from workbench.fit_targets import FitError, Target
+
+
+class DiscoverError(FitError):
+    """Discovery cannot start (bad records or effects)."""
+
+
+@dataclass
+class FoundTerm:
+    """A kept term: its fitted coefficient and shape, its size along the records, and what it means."""
+
+    term: Term
+    coef: float
+    shape: float
+    scale: float
+    words: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"key": self.term.key, "placement": self.term.placement, "index": self.term.index,
+                "signal": self.term.signal, "form": self.term.form, "coefficient": self.coef,
+                "coefficient_unit": self.term.unit, "shape": self.shape if FORMS[self.term.form].shape else None,
+                "signal_scale": self.scale, "words": self.words}
+
+
+@dataclass
+class ScreenRow:
+    term: Term
+    coef: float
+    held_rms_sigma: float
+    train_rms_sigma: float
+
+
+@dataclass
+class Discovery:
+    """What ``shm discover`` found (``verdict``: ``found`` | ``partial`` | ``not_found``)."""
+
+    verdict: str
+    message: str
+    terms: list[FoundTerm]
+    train_before: float
+    held_before: float
+    train_after: float
+    held_after: float
+    screen: list[ScreenRow]
+    n_terms_searched: int
+    stable: bool
+    stability_note: str
+    records: list[str]
+    outcome: FitOutcome | None
+    targets: list[Target]
+    n_sims: int
+    timings: dict[str, float] = field(default_factory=dict)
+    rounds: list[dict[str, Any]] = field(default_factory=list)
+
+    def effect_source(self, class_name: str | None = None, effect_name: str = "discovered") -> str | None:
+        """The readable effect module for the kept terms (None when nothing was found)."""
+        if not self.terms:
+            return None
+        values: dict[str, float] = {}
+        for ft in self.terms:
+            cname, gname = parameter_names(ft.term)
+            values[cname] = ft.coef
+            if gname:
+                values[gname] = ft.shape
+        return emit_effect_source([ft.term for ft in self.terms], values, class_name=class_name,
+                                  effect_name=effect_name, words=[ft.words for ft in self.terms],
+                                  records=self.records, held_before=self.held_before, held_after=self.held_after)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "verdict": self.verdict, "message": self.message, "terms": [t.to_dict() for t in self.terms],
+            "train_rms_sigma": {"before": self.train_before, "after": self.train_after},
+            "held_rms_sigma": {"before": self.held_before, "after": self.held_after},
+            "screen": [{"key": r.term.key, "placement": r.term.placement, "form": r.term.form, "signal": r.term.signal,
+                        "coefficient": r.coef, "coefficient_unit": r.term.unit, "held_rms_sigma": r.held_rms_sigma,
+                        "train_rms_sigma": r.train_rms_sigma} for r in self.screen],
+            "terms_searched": self.n_terms_searched, "stable": self.stable, "stability": self.stability_note,
+            "records": self.records, "simulations": self.n_sims, "timings_s": self.timings, "rounds": self.rounds,
+        }
+
+
+def describe_units(found: Sequence[FoundTerm]) -> list[str]:
+    """One line per kept term: coefficient with unit and, for a shaped form, its shape."""
+    out = []
+    for f in found:
+        line = f"{f.term.key}: coefficient {f.coef:.4g} {f.term.unit}"
+        if FORMS[f.term.form].shape:
+            unit = "s" if f.term.form == "delay" else ("m/s" if f.term.signal.startswith(("zd", "dd")) else
+                                                        "V" if f.term.signal in ("va", "vc") else "m")
+            line += f", {FORMS[f.term.form].shape} {f.shape:.4g} {unit}"
+        out.append(line)
+    return out

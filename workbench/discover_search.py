@@ -1,0 +1,153 @@
+"""The search's steps: refining a few free parameters, probing screened terms on the full nonlinear model, choosing
+what to refit (and with which free parameters), and the free-run stability guard."""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.optimize import least_squares
+
+from plant import PlantModel
+from workbench.discover_results import ScreenRow
+from workbench.discovery_dictionary import Term
+from workbench.effect_library import FreeParameter
+from workbench.fit_objective import Objective
+from workbench.fit_optimiser import FitOutcome, outcome_at, train_residual_and_jacobian
+from workbench.fit_targets import Target
+from workbench.records import Record
+
+
+@dataclass
+class SearchState:
+    """The current model: the dictionary effect's parameter values (coefficients of kept terms, every shape)."""
+
+    values: dict[str, float]
+    kept: list[int]
+
+
+def refine(obj: Objective, guess: dict[str, float], max_nfev: int) -> FitOutcome:
+    """Least squares from ``guess`` with the batched Jacobian (no multi-start: the screen gave the start)."""
+    t0 = time.perf_counter()
+    sims0 = obj.n_sims
+    k = obj.k
+    u0 = np.array([float(fp.to_unit(guess[fp.name])) for fp in obj.free])
+    fun, jac = train_residual_and_jacobian(obj)
+
+    try:
+        res = least_squares(fun, u0, jac=jac, bounds=(np.zeros(k), np.ones(k)), method="trf", x_scale=1.0,
+                            max_nfev=max_nfev, ftol=1e-5, xtol=1e-6, gtol=1e-8)
+        u, msg = res.x, str(res.message)
+    except (ValueError, FloatingPointError) as exc:
+        u, msg = u0, f"optimiser failed: {exc}"
+    sim = obj.simulate(u[None])
+    return outcome_at(obj, u, sim, jac if sim.ok.all() else None, [], msg, t0, sims0)
+
+
+#: forms whose linearisation along the nominal run misleads (stick, contact, play, saturation): probed at a
+#: 0.1, 1/3, 0.6, 1.7, 3 and 10 times the linearised coefficient as well
+HARD_FORMS = ("sign", "pos", "neg", "dead", "clip", "sat")
+#: how many hard-form terms (best by the linearised screen) get the extra probes
+MAX_HARD_PROBED = 14
+
+
+def nonlinear_check(rows: list[ScreenRow], terms: Sequence[Term], targets: Sequence[Target],
+                    models: Sequence[PlantModel], values: dict[str, float], names: list[tuple[str, str | None]],
+                    threads: int | None) -> tuple[list[ScreenRow], int]:
+    """Every screened term simulated on the full nonlinear model at its linearised coefficient (hard forms also at
+    ×0.1 … ×10), in one batch; rows re-ranked by the error they really leave, at their best probe, and the number
+    of probes per record (for the simulation count)."""
+    probes: list[tuple[int, list[float]]] = []
+    n_hard = 0
+    for j, r in enumerate(rows):  # rows come ranked by the linearised screen
+        hard = r.term.form in HARD_FORMS and n_hard < MAX_HARD_PROBED
+        n_hard += hard
+        mult = (1.0, 0.1, 1.0 / 3.0, 0.6, 1.7, 3.0, 10.0) if hard else (1.0,)
+        probes.append((j, [r.coef * m for m in mult]))
+    flat = [(j, c) for j, cs in probes for c in cs]
+    if not flat:
+        return rows, 0
+    cols = [names[terms.index(rows[j].term)][0] for j, _ in flat]
+    held = np.zeros(len(flat))
+    train = np.zeros(len(flat))
+    ok = np.ones(len(flat), bool)
+    for tg, m in zip(targets, models):
+        p0 = m.p_nominal.copy()
+        for n, v in values.items():
+            p0[m.param_index(n)] = v
+        P = np.tile(p0, (len(flat), 1))
+        for i, ((_, c), col) in enumerate(zip(flat, cols)):
+            P[i, m.param_index(col)] = c
+        res = m.simulate(tg.inputs, t_out=tg.t, params=P, threads=threads, max_steps=Objective.max_steps(tg))
+        y = res.y[:, :, tg.out_idx(m)].transpose(0, 2, 1)
+        good = (res.status == 0) & np.all(np.isfinite(y), axis=(1, 2))
+        ok &= good
+        for part, acc in (("held", held), ("train", train)):
+            mask = tg.held if part == "held" else tg.train
+            e = (tg.measured[None][:, :, mask] - np.nan_to_num(y[:, :, mask])) / tg.sigma[None, :, None]
+            acc += np.sum(e * e, axis=(1, 2))
+    n_h = sum(int(tg.held.sum()) * len(tg.channels) for tg in targets)
+    n_t = sum(int(tg.train.sum()) * len(tg.channels) for tg in targets)
+    best: dict[int, ScreenRow] = {}
+    for i, (j, c) in enumerate(flat):
+        if not ok[i]:
+            continue
+        row = ScreenRow(rows[j].term, c, math.sqrt(held[i] / n_h), math.sqrt(train[i] / n_t))
+        if j not in best or row.train_rms_sigma < best[j].train_rms_sigma:
+            best[j] = row
+    return sorted(best.values(), key=lambda r: r.train_rms_sigma), len(flat)
+
+
+def refit_list(rows: list[ScreenRow], n_refit: int, n_siblings: int = 2) -> list[ScreenRow]:
+    """The best ``n_refit`` rows, then the best ``n_siblings`` *siblings* of the first: the same form acting on
+    another mass or section (a force on mass 3 and one in section 3 look alike on one sensor; the probe's coarse
+    coefficient can rank the wrong one first)."""
+    out = list(rows[:n_refit])
+    if rows and rows[0].term.placement in ("force_mass", "force_section"):
+        top = rows[0].term
+        sib = [r for r in rows[n_refit:] if r.term.form == top.form
+               and r.term.placement in ("force_mass", "force_section")]
+        sib.sort(key=lambda r: r.term.index != top.index)  # the same mass/section number first (stable)
+        out += sib[:n_siblings]
+    return out
+
+
+def free_for(terms: Sequence[Term], names: list[tuple[str, str | None]], idx: Sequence[int],
+             start: dict[str, float], new: int | None, shapes_free: bool = True) -> list[FreeParameter]:
+    """Free parameters of the refit: the coefficients of ``idx`` (around their start) and the shapes of the new
+    term (a factor of four either way; the smoothing width of a sign term stays)."""
+    out = []
+    for k in idx:
+        cname, gname = names[k]
+        c = start[cname]
+        span = max(abs(c), 1e-300)
+        wide = 4.0 if k == new else 1.5
+        out.append(FreeParameter(cname, terms[k].unit, c - wide * span, c + wide * span, False, "discover"))
+        if shapes_free and gname is not None and k == new:
+            g = start[gname]
+            lo, hi = (g / 20.0, g * 2.0) if terms[k].form == "sign" else (g / 4.0, g * 4.0)
+            out.append(FreeParameter(gname, "SI", lo, hi, True, "discover"))
+    return out
+
+
+def free_run_check(records: Sequence[Record], models: Sequence[PlantModel], targets: Sequence[Target],
+                   values: dict[str, float]) -> tuple[bool, str]:
+    """Every record at its full rate, free run from rest: integrates, finite, and no more than 10× the measured
+    range."""
+    for tg, m in zip(targets, models):
+        rec = tg.record
+        p = m.p_nominal.copy()
+        for n, v in values.items():
+            p[m.param_index(n)] = v
+        res = m.simulate(rec.input_signals(), t_out=rec.t, params=p, max_steps=Objective.max_steps(tg) * 2)
+        if not res.ok:
+            return False, f"{tg.name}: {'; '.join(res.failures())}"
+        for j, o in enumerate(tg.outputs):
+            y = res[o][0]
+            span = float(np.ptp(tg.measured[j])) + 10 * float(tg.sigma[j])
+            if not np.all(np.isfinite(y)) or float(np.max(np.abs(y - np.mean(tg.measured[j])))) > 10 * span:
+                return False, f"{tg.name}: {o} leaves 10× the measured range"
+    return True, "free run at the full rate stays bounded on every record"
