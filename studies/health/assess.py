@@ -246,6 +246,8 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
         how_long = ("now: the estimated parameters are already beyond the monitor's trip limit (the built-in test "
                     "flags this laminate)")
     elif fc.significant and fc.trip_operating_hours is not None:
+        # forecast_trip sets the remaining life and P(FAULT at the next visit) together with the trip time
+        assert fc.rul_hours is not None and fc.p_fault_next_visit is not None
         lo, hi = f["trip_interval_90"]
         hi_s = f"{hi:.0f}" if hi is not None else "beyond the horizon"
         vis = f.get("trip_visits_90") or [None, None]
@@ -264,6 +266,7 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
                     "horizon)")
     else:
         lb = fc.lower_bound_hours
+        assert lb is not None  # forecast_trip sets it whenever no trend is significant
         how_long = (f"no significant trend: no date. No FAULT of the monitor expected before {lb:.0f} h "
                     f"(lower bound: remaining life ≥ {lb - fc.last_hours:.0f} h)")
     return {"detected": detected, "where": where, "how_much": how_much, "how_long": how_long}

@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 
+from board_config.errors import InputError
 from workbench.records import Record, record_from_arrays
 
 DEFAULT_FREE: tuple[str, ...] = ("k3", "alpha_h", "beta_h")
@@ -63,7 +64,8 @@ def join_visit_records(records: Sequence[Record]) -> Record:
 
     recs = sorted(records, key=board_t)
     rate = recs[0].sample_rate_Hz
-    ts, cols = [], {c: [] for c in ("v_ch1_V", "v_ch2_V", "z3_m")}
+    ts: list[np.ndarray] = []
+    cols: dict[str, list[np.ndarray]] = {c: [] for c in ("v_ch1_V", "v_ch2_V", "z3_m")}
     t_next = 0.0
     for r in recs:
         t = r.t - r.t[0] + t_next
@@ -103,7 +105,13 @@ def estimate_visit(records: Sequence[Record], params: str, free: Sequence[str] =
 def _estimate_job(paths: list[str], params: str, free: tuple[str, ...]) -> dict[str, Any]:
     from workbench.records import load_record
 
-    return estimate_visit([load_record(p) for p in paths], params, free)  # type: ignore[list-item]
+    records = []
+    for p in paths:
+        rec = load_record(p)
+        if not isinstance(rec, Record):
+            raise InputError(f"{p}: a frequency-response table cannot be used for per-visit re-estimation")
+        records.append(rec)
+    return estimate_visit(records, params, free)
 
 
 def estimate_visits(visits: Sequence[Visit], params: str, free: Sequence[str] = DEFAULT_FREE,

@@ -29,7 +29,7 @@ BOUNDARY_SIGMA = 0.003
 @dataclass
 class Forecast:
     trip_operating_hours: float | None
-    trip_interval_90: list[float] | None
+    trip_interval_90: list[float | None] | None  # upper end None: beyond the horizon
     rul_hours: float | None
     p_fault_next_visit: float | None
     lower_bound_hours: float | None  # no significant trend: no FAULT expected before this

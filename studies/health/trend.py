@@ -184,8 +184,8 @@ def _psd(c: np.ndarray) -> np.ndarray:
     return (v * np.maximum(w, 0.0)) @ v.T
 
 
-def fit_trend(parameter: str, hours: Sequence[float], y: Sequence[float], stderr: Sequence[float | None]
-              ) -> Trend:
+def fit_trend(parameter: str, hours: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray,
+              stderr: Sequence[float | None] | np.ndarray) -> Trend:
     """Choose the trend of one parameter (see the module docstring)."""
     h = np.asarray(hours, float)
     yv = np.asarray(y, float)
