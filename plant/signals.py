@@ -6,9 +6,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from board_config.physical_constants import G0
 from plant.layout import INPUT_NAMES, N_INPUTS, U_V_CH1, U_V_CH2, U_Z0DD
 
-G0 = 9.80665  # standard gravity, m/s^2
+__all__ = ["G0", "InputSignals", "base_sine", "sine_drive", "step_drive"]
 
 
 @dataclass(frozen=True)

@@ -9,6 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from board_config.errors import InputError
+from board_config.physical_constants import G0
 from shm_cli.common import (
     add_out_arg,
     add_params_arg,
@@ -84,7 +85,7 @@ def model_summary(params: str) -> dict:
     modal = modal_summary(lin)
     lin_oc = linearise(PlantModel(model.params, terminal="open_circuit"))
     f = np.logspace(-1, np.log10(300.0), 3000)
-    gain = np.abs(lin_oc.frf(f, "v_stored", "z0dd")) * 9.80665
+    gain = np.abs(lin_oc.frf(f, "v_stored", "z0dd")) * G0
     peaks = []
     for mode in modal.modes:
         fp, gp = peak_near(f, gain, mode["frequency_Hz"], 0.15)
@@ -147,7 +148,7 @@ def cmd_frf(args: argparse.Namespace) -> int:
     lin_oc = linearise(PlantModel(model.params, terminal="open_circuit"))
     f = np.logspace(np.log10(args.f_min_hz), np.log10(args.f_max_hz), args.points)
     h_z = lin.frf(f, "z3", "va")
-    h_v = lin_oc.frf(f, "v_stored", "z0dd") * 9.80665
+    h_v = lin_oc.frf(f, "v_stored", "z0dd") * G0
     write_csv(out / "frf_z3_per_va.csv", {"frequency_Hz": f, "amplitude_m_per_V": np.abs(h_z),
                                           "phase_deg": np.degrees(np.unwrap(np.angle(h_z)))})
     write_csv(out / "frf_vstored_per_accel.csv", {"frequency_Hz": f, "amplitude_V_per_g": np.abs(h_v),

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-G0 = 9.80665  # m/s^2 per g (standard gravity); repeated here so the unit table needs nothing else
+from board_config.physical_constants import G0
 
 
 @dataclass(frozen=True)
