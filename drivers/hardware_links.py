@@ -16,22 +16,22 @@ scheme                 example                                     implementatio
 
 from __future__ import annotations
 
-from drivers.link import Link, register_link_scheme
+from drivers.link import Link, LinkFactory, register_link_scheme
 
 
-def _serial_link(url: str) -> Link:
+def _serial_link(url: str, **_defaults: object) -> Link:
     from drivers.serial_link import SerialLink
 
     return SerialLink(url)
 
 
-def _modbus_link(url: str) -> Link:
+def _modbus_link(url: str, **_defaults: object) -> Link:
     from drivers.modbus_link import ModbusLink
 
     return ModbusLink(url)
 
 
-HARDWARE_SCHEMES: dict[str, object] = {
+HARDWARE_SCHEMES: dict[str, LinkFactory] = {
     "serial:": _serial_link,
     "socket://": _serial_link,
     "rfc2217://": _serial_link,
@@ -40,4 +40,4 @@ HARDWARE_SCHEMES: dict[str, object] = {
 }
 
 for _scheme, _factory in HARDWARE_SCHEMES.items():
-    register_link_scheme(_scheme, _factory)  # type: ignore[arg-type]
+    register_link_scheme(_scheme, _factory)

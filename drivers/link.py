@@ -93,12 +93,14 @@ class RigEndpoint(Protocol):
     def sample(self) -> RigSample: ...
 
 
-LinkFactory = Callable[[str], Link]
+#: ``factory(url, **defaults)``: the link for ``url``; ``defaults`` (see :func:`open_link`) it has no use for it ignores
+LinkFactory = Callable[..., Link]
 _SCHEMES: dict[str, LinkFactory] = {}
 
 
 def register_link_scheme(scheme: str, factory: LinkFactory) -> None:
-    """Make ``open_link`` build ``factory(url)`` for URLs starting with ``scheme`` (e.g. ``"modbus-tcp://"``)."""
+    """Make ``open_link`` build ``factory(url, **defaults)`` for URLs starting with ``scheme`` (e.g.
+    ``"modbus-tcp://"``)."""
     _SCHEMES[scheme] = factory
 
 
@@ -106,9 +108,15 @@ def registered_schemes() -> list[str]:
     return sorted(_SCHEMES)
 
 
-def open_link(url: str) -> Link:
-    """The link for ``url`` (longest registered scheme prefix wins). Raises ``ValueError`` on an unknown URL."""
+def open_link(url: str, **defaults: object) -> Link:
+    """The link for ``url`` (longest registered scheme prefix wins). Raises ``InputError`` on an unknown URL.
+
+    ``defaults``: what the caller knows for the settings ``url`` leaves out — ``tick`` (s, the board's tick) and, for
+    a simulated rig, the caller's ``scenario``, ``seed`` and ``params`` (``shm run`` passes its own, so ``sim`` is
+    the run's rig). A link ignores the defaults it has no use for; ``None`` values count as not given.
+    """
+    given = {key: value for key, value in defaults.items() if value is not None}
     for scheme in sorted(_SCHEMES, key=len, reverse=True):
         if url.startswith(scheme):
-            return _SCHEMES[scheme](url)
+            return _SCHEMES[scheme](url, **given)
     raise InputError(f"unknown link URL '{url}' (known schemes: {', '.join(registered_schemes()) or 'none'})")

@@ -21,8 +21,9 @@ registers 0–7), FC 04 reads the sample block (input registers 0–21); the map
 A command refused with exception 03 (outside the rig's limits) still returns the sample, with
 ``FLAG_LIMIT_REFUSED`` set, as the in-process link does; every other exception reply, a timeout, a reply of
 the wrong kind or a lost connection is a ``LinkError``. A lost connection is reopened with a back-off counted
-in exchange calls (1, 2, 4 … 64). Incidents go to the ``drivers.modbus_link`` logger (the first three of a kind,
-then every 10th, 100th …) and are all counted in :attr:`ModbusLink.stats`. pymodbus' own per-request error messages
+in exchange calls (1, 2, 4 … 64; :class:`~drivers.reconnecting_link.ReconnectingLink`). Incidents go to the
+``drivers.modbus_link`` logger (the first three of a kind, then every 10th, 100th …) and are all counted in
+:attr:`ModbusLink.stats`. pymodbus' own per-request error messages
 are silenced unless the application has configured the ``pymodbus`` logger itself.
 
 On a slow RTU line (19200 baud needs ~22 ms for this poll) one exchange does not fit a 10 ms tick: use
@@ -36,15 +37,14 @@ import logging
 import select
 import socket
 import time
-from collections import Counter
-from urllib.parse import parse_qsl, urlsplit
+from urllib.parse import urlsplit
 
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException
 from pymodbus.framer import FramerType
 
 from board_config.errors import InputError
-from drivers.incident_log import IncidentLog, SilentLog
+from board_config.url_options import UrlOptions, split_url_query
 from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, LinkError, RigSample
 from drivers.modbus_registers import (
     BY_NAME,
@@ -57,9 +57,9 @@ from drivers.modbus_registers import (
     decode_value,
     encode_command_block,
 )
+from drivers.reconnecting_link import ReconnectingLink
 
 log = logging.getLogger("drivers.modbus_link")
-MAX_BACKOFF_CALLS = 64
 _KNOWN = {"tcp": {"unit", "timeout", "reopen", "handshake"},
           "rtu": {"unit", "timeout", "reopen", "baud", "parity", "stopbits", "handshake"}}
 # RTU bytes on the line per exchange: FC16 request 1+1+2+2+1+16+2 = 25, its reply 8, FC04 request 8, its reply 49
@@ -92,18 +92,6 @@ class _RtuClient(ModbusSerialClient):
             raise ConnectionException(f"serial port lost: {exc}") from None
 
 
-def _num(opts: dict[str, str], key: str, default: float, url: str, lo: float, hi: float) -> float:
-    if key not in opts:
-        return default
-    try:
-        v = float(opts[key])
-    except ValueError:
-        raise InputError(f"link URL '{url}': option {key}={opts[key]!r} is not a number") from None
-    if not lo <= v <= hi:
-        raise InputError(f"link URL '{url}': option {key}={v:g} outside the allowed range [{lo:g}, {hi:g}]")
-    return v
-
-
 def parse_modbus_url(url: str) -> dict[str, object]:
     """Parse a ``modbus-tcp://`` or ``modbus-rtu:`` URL into client settings; ``ValueError`` names the problem."""
     if url.startswith("modbus-tcp://"):
@@ -116,39 +104,34 @@ def parse_modbus_url(url: str) -> dict[str, object]:
         except ValueError:
             raise InputError(f"link URL '{url}': bad port") from None
         target: dict[str, object] = {"host": parts.hostname, "port": port}
-        query = parts.query
+        opts = UrlOptions.from_query(url, parts.query)
     elif url.startswith("modbus-rtu:"):
         kind = "rtu"
-        path, _, query = url.removeprefix("modbus-rtu:").partition("?")
+        path, _ = split_url_query(url.removeprefix("modbus-rtu:"))
         if not path:
             raise InputError(f"link URL '{url}': expected modbus-rtu:PATH (a serial device or pty)")
         target = {"port": path}
+        opts = UrlOptions.of(url)
     else:
         raise InputError(f"link URL '{url}': not a modbus-tcp:// or modbus-rtu: URL")
-    opts = dict(parse_qsl(query, keep_blank_values=True))
-    unknown = set(opts) - _KNOWN[kind]
-    if unknown:
-        raise InputError(f"link URL '{url}': unknown option(s) {', '.join(sorted(unknown))} "
-                         f"(known: {', '.join(sorted(_KNOWN[kind]))})")
+    opts.check_known(_KNOWN[kind])
     settings: dict[str, object] = {"kind": kind, **target,
-                                   "unit": int(_num(opts, "unit", 1, url, 1, 247)),
-                                   "reopen": int(_num(opts, "reopen", 25, url, 1, 1e9)),
-                                   "handshake": bool(_num(opts, "handshake", 1, url, 0, 1))}
+                                   "unit": opts.integer("unit", 1, 1, 247),
+                                   "reopen": opts.integer("reopen", 25, 1, 1e9),
+                                   "handshake": opts.flag("handshake", True)}
     if kind == "rtu":
-        baud = int(_num(opts, "baud", 115200, url, 300, 4_000_000))
-        parity = opts.get("parity", "N").upper()
-        if parity not in ("N", "E", "O"):
-            raise InputError(f"link URL '{url}': parity={parity!r}, allowed N, E, O")
-        stopbits = int(_num(opts, "stopbits", 1, url, 1, 2))
+        baud = opts.integer("baud", 115200, 300, 4_000_000)
+        parity = opts.choice("parity", "N", ("N", "E", "O"))
+        stopbits = opts.integer("stopbits", 1, 1, 2)
         wire = _RTU_EXCHANGE_BYTES * (1 + 8 + stopbits + (parity != "N")) / baud
         # the exchange must fit one 10 ms tick: 8 ms, or the line time + 4 ms for the rig, at most 9.5 ms; a line
         # too slow for the tick at all (< ~115200 baud) keeps 8 ms plus twice its line time and is reported at open
         fits = wire + 0.001 <= _RTU_MAX_TIMEOUT_S
         default = max(0.008, min(wire + 0.004, _RTU_MAX_TIMEOUT_S)) if fits else 0.008 + 2 * wire
         settings.update(baud=baud, parity=parity, stopbits=stopbits, line_time=wire,
-                        timeout=_num(opts, "timeout", default, url, 1e-4, 60.0))
+                        timeout=opts.number("timeout", default, 1e-4, 60.0))
     else:
-        settings["timeout"] = _num(opts, "timeout", 0.008, url, 1e-4, 60.0)
+        settings["timeout"] = opts.number("timeout", 0.008, 1e-4, 60.0)
         settings["line_time"] = 0.0
     return settings
 
@@ -190,18 +173,20 @@ def rig_identity_problem(words: list[int], tick: float = 0.01) -> str:
     return ""
 
 
-class ModbusLink:
+class ModbusLink(ReconnectingLink):
     """The board side over Modbus TCP or RTU (see the module docstring)."""
 
+    verb = "reconnect"
+    reconnected_note = "reconnected"
+
     def __init__(self, url: str) -> None:
-        self.url = url
         self.settings = parse_modbus_url(url)
+        super().__init__(url, log, timeout=float(self.settings["timeout"]),  # type: ignore[arg-type]
+                         reopen_after=int(self.settings["reopen"]))  # type: ignore[arg-type]
         pm = logging.getLogger("pymodbus")
         if pm.level == logging.NOTSET:  # pymodbus logs every timeout itself; this link logs them rate-limited
             pm.setLevel(logging.CRITICAL)
         self.unit = int(self.settings["unit"])  # type: ignore[arg-type]
-        self.timeout = float(self.settings["timeout"])  # type: ignore[arg-type]
-        self.reopen_after = int(self.settings["reopen"])  # type: ignore[arg-type]
         #: request-to-reply time one transaction may take (s): half the exchange budget (two transactions per tick)
         self.processing_budget = self.timeout / 2
         self.line_time = float(self.settings["line_time"])  # type: ignore[arg-type]
@@ -209,11 +194,6 @@ class ModbusLink:
         self._check_due = False
         self._client = None
         self._down = True
-        self._backoff = 1
-        self._calls_while_down = 0
-        self._timeouts_in_row = 0
-        self.stats: Counter[str] = Counter()
-        self._log = IncidentLog(log)
         self.last_exception_code: int | None = None
 
     # ------------------------------------------------------------------------------------------ lifecycle
@@ -229,17 +209,15 @@ class ModbusLink:
     def open(self) -> None:
         """Connect, check the rig (unless ``handshake=0``: map version, tick, Table 1 limits, float word order) and
         read the sample block once. Raises ``LinkError`` (:class:`RigMismatchError` for a rig serving another map)."""
-        self._connect()
-        log_, self._log = self._log, SilentLog()  # one error below, not a warning per attempt
-        try:
-            if self.settings["handshake"]:
-                self.check_rig()
-            self._read_inputs(budget=max(self.timeout, _OPEN_BUDGET_S))
-        except LinkError:
-            self.close()
-            raise
-        finally:
-            self._log = log_
+        self._bring_up()
+        with self._silenced():  # one error below, not a warning per attempt
+            try:
+                if self.settings["handshake"]:
+                    self.check_rig()
+                self._read_inputs(budget=max(self.timeout, _OPEN_BUDGET_S))
+            except LinkError:
+                self.close()
+                raise
 
     def check_rig(self, attempts: int = 3, budget: float | None = None) -> None:
         """Read the rig's identity block (holding 8–13) and refuse a rig this board cannot drive."""
@@ -280,14 +258,7 @@ class ModbusLink:
     def is_open(self) -> bool:
         return not self._down
 
-    def __enter__(self) -> ModbusLink:
-        self.open()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def _connect(self) -> None:
+    def _open_transport(self) -> None:
         if self._client is None:
             self._client = self._make_client()
         try:
@@ -305,39 +276,16 @@ class ModbusLink:
             with contextlib.suppress(OSError):
                 sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         self._down = False
-        self._backoff = 1
-        self._calls_while_down = 0
-        self._timeouts_in_row = 0
 
-    def _link_down(self, why: str) -> LinkError:
-        self.stats["link_down"] += 1
-        self._log.warn("link_down", "%s: link down (%s); reconnecting with back-off", self.url, why)
-        if self._client is not None:
+    def _drop_transport(self) -> None:
+        if self._client is not None:  # the client object stays: it reconnects
             try:
                 self._client.close()
             except Exception:
                 pass
         self._down = True
-        self._calls_while_down = 0
-        return LinkError(f"{self.url}: {why}")
 
-    def _ensure_up(self) -> None:
-        if not self._down:
-            return
-        self._calls_while_down += 1
-        if self._calls_while_down < self._backoff:
-            self.stats["down_exchanges"] += 1
-            raise LinkError(f"{self.url}: link down (next reconnect attempt in "
-                            f"{self._backoff - self._calls_while_down} exchange(s))")
-        self._calls_while_down = 0
-        try:
-            self._connect()
-        except LinkError:
-            self._backoff = min(2 * self._backoff, MAX_BACKOFF_CALLS)
-            self.stats["reconnect_failed"] += 1
-            raise
-        self.stats["reconnected"] += 1
-        self._log.warn("reconnected", "%s: reconnected", self.url)
+    def _after_reconnect(self) -> None:
         self._check_due = bool(self.settings["handshake"])  # the server behind the port may have changed
 
     # ------------------------------------------------------------------------------------------ exchange
@@ -356,13 +304,7 @@ class ModbusLink:
         except ConnectionException as exc:
             raise self._link_down(f"{what}: connection lost ({exc})") from exc
         except ModbusException as exc:  # ModbusIOException: no (valid) reply within the timeout
-            self.stats["timeouts"] += 1
-            self._timeouts_in_row += 1
-            why = f"{what}: no valid reply within {1e3 * budget:.1f} ms{context}"
-            self._log.warn("timeout", "%s: %s", self.url, why)
-            if self._timeouts_in_row >= self.reopen_after:
-                raise self._link_down(f"{self._timeouts_in_row} timeouts in a row") from exc
-            raise LinkError(f"{self.url}: {why}") from exc
+            raise self._timed_out(f"{what}: no valid reply within {1e3 * budget:.1f} ms{context}") from exc
         except (OSError, ValueError) as exc:  # serial port vanished under pyserial, etc.
             raise self._link_down(f"{what}: {exc}") from exc
         if rr is None:

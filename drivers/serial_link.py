@@ -20,20 +20,20 @@ One :meth:`SerialLink.exchange` per tick: write a COMMAND frame, read until the 
 sequence number arrives or the timeout expires. Stale replies (earlier sequence numbers), garbage and
 bad frames are counted and skipped. A lost port (pty closed, EIO, socket reset) closes the link; it is
 reopened with a back-off counted in exchange calls (1, 2, 4 … 64), so a dead port costs one cheap
-``LinkError`` per tick and never blocks the tick loop. Every incident is logged on the
-``drivers.serial_link`` logger and counted in :attr:`SerialLink.stats`.
+``LinkError`` per tick and never blocks the tick loop (:class:`~drivers.reconnecting_link.ReconnectingLink`).
+Every incident is logged on the ``drivers.serial_link`` logger and counted in :attr:`SerialLink.stats`.
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from collections import Counter
-from urllib.parse import parse_qsl, urlencode
+from urllib.parse import urlencode
 
 import serial
 
 from board_config.errors import InputError
+from board_config.url_options import UrlOptions, split_url_query
 from drivers.framing import (
     PROTOCOL_VERSION,
     FrameDecoder,
@@ -45,60 +45,44 @@ from drivers.framing import (
     encode_command,
     encode_ping,
 )
-from drivers.incident_log import IncidentLog, SilentLog
 from drivers.link import ActuatorCommand, LinkError, RigSample
+from drivers.reconnecting_link import ReconnectingLink
 
 log = logging.getLogger("drivers.serial_link")
 
 _OUR_KEYS = ("baud", "parity", "timeout", "handshake", "reopen")
-MAX_BACKOFF_CALLS = 64
 _EXCHANGE_BITS = 62 * 10  # COMMAND (22 bytes) + SAMPLE (40 bytes), 8N1
 _OPEN_BUDGET_S = 0.5  # reply budget of the PING at open (no tick deadline yet)
 
 
 def split_link_options(target: str) -> tuple[str, dict[str, str]]:
     """Split ``target`` into (URL for pyserial, our options). Unknown query keys stay with pyserial."""
-    base, sep, query = target.partition("?")
-    if not sep:
+    base, pairs = split_url_query(target)
+    if "?" not in target:
         return target, {}
-    ours: dict[str, str] = {}
-    theirs: list[tuple[str, str]] = []
-    for key, value in parse_qsl(query, keep_blank_values=True):
-        (ours.__setitem__(key, value) if key in _OUR_KEYS else theirs.append((key, value)))
+    ours = {key: value for key, value in pairs if key in _OUR_KEYS}
+    theirs = [(key, value) for key, value in pairs if key not in _OUR_KEYS]
     return (base + ("?" + urlencode(theirs) if theirs else "")), ours
 
 
-def _option(opts: dict[str, str], key: str, default: float, url: str, lo: float, hi: float) -> float:
-    raw = opts.get(key)
-    if raw is None:
-        return default
-    try:
-        value = float(raw)
-    except ValueError:
-        raise InputError(f"link URL '{url}': option {key}={raw!r} is not a number") from None
-    if not lo <= value <= hi:
-        raise InputError(f"link URL '{url}': option {key}={value:g} outside the allowed range [{lo:g}, {hi:g}]")
-    return value
-
-
-class SerialLink:
+class SerialLink(ReconnectingLink):
     """The board side of the framed protocol over a pyserial port (see the module docstring for URLs)."""
+
+    verb = "reopen"
+    reconnected_note = "port reopened"
 
     def __init__(self, url: str, *, timeout: float | None = None, baudrate: int | None = None,
                  handshake: bool | None = None) -> None:
-        self.url = url
         target = url.removeprefix("serial:") if url.startswith("serial:") else url
-        self.port_url, opts = split_link_options(target)
+        self.port_url, ours = split_link_options(target)
         if not self.port_url:
             raise InputError(f"link URL '{url}': no port given (e.g. serial:/dev/ttyUSB0 or socket://HOST:PORT)")
-        self.baudrate = int(baudrate or _option(opts, "baud", 115200, url, 50, 20_000_000))
-        parity = opts.get("parity", "N").upper()
-        if parity not in ("N", "E", "O"):
-            raise InputError(f"link URL '{url}': parity={parity!r}, allowed N, E, O")
-        self.parity = parity
-        self.timeout = float(timeout if timeout is not None else _option(opts, "timeout", 0.008, url, 1e-4, 60.0))
-        self.handshake = bool(handshake if handshake is not None else _option(opts, "handshake", 1, url, 0, 1))
-        self.reopen_after = int(_option(opts, "reopen", 25, url, 1, 1e9))
+        opts = UrlOptions(url, ours.items())
+        self.baudrate = int(baudrate or opts.number("baud", 115200, 50, 20_000_000))
+        self.parity = opts.choice("parity", "N", ("N", "E", "O"))
+        timeout = float(timeout if timeout is not None else opts.number("timeout", 0.008, 1e-4, 60.0))
+        self.handshake = bool(handshake if handshake is not None else opts.flag("handshake", True))
+        super().__init__(url, log, timeout=timeout, reopen_after=opts.integer("reopen", 25, 1, 1e9))
         #: line time of one exchange (s): 62 bytes of 10 bits; 0 for ptys and sockets, which have no baud rate
         self.line_time = 0.0 if self.port_url.startswith(("socket://", "loop://")) else _EXCHANGE_BITS / self.baudrate
         #: rig processing budget per exchange (s): what the timeout leaves after the line time, less 1 ms of slack
@@ -106,31 +90,24 @@ class SerialLink:
         self.last_round_trip_s = 0.0
         self._port: serial.SerialBase | None = None
         self._decoder = FrameDecoder()
-        self._backoff = 1
-        self._calls_while_down = 0
-        self._timeouts_in_row = 0
         self._ping_seq = 0
-        self.stats: Counter[str] = Counter()
-        self._log = IncidentLog(log)
         self.rig_protocol_version: int | None = None
         self._ping_due = False
 
     # ------------------------------------------------------------------------------------------ lifecycle
     def open(self) -> None:
         """Open the port (and check the rig answers a PING unless ``handshake=0``). Raises ``LinkError``."""
-        self._open_port()
+        self._bring_up()
         if self.handshake:
             budget = max(self.timeout, _OPEN_BUDGET_S)
-            log_, self._log = self._log, SilentLog()  # one error below, not a warning per attempt
-            try:
-                self.rig_protocol_version = self.ping(attempts=5, timeout=budget)
-            except LinkError as exc:
-                self.close()
-                raise LinkError(f"{self.url}: the rig does not answer PING at start-up (5 attempts of "
-                                f"{1e3 * budget:.0f} ms; is it running and speaking docs/protocol.md at "
-                                f"{self.baudrate} baud? last: {str(exc).removeprefix(self.url + ': ')})") from exc
-            finally:
-                self._log = log_
+            with self._silenced():  # one error below, not a warning per attempt
+                try:
+                    self.rig_protocol_version = self.ping(attempts=5, timeout=budget)
+                except LinkError as exc:
+                    self.close()
+                    raise LinkError(f"{self.url}: the rig does not answer PING at start-up (5 attempts of "
+                                    f"{1e3 * budget:.0f} ms; is it running and speaking docs/protocol.md at "
+                                    f"{self.baudrate} baud? last: {str(exc).removeprefix(self.url + ': ')})") from exc
             if self.rig_protocol_version != PROTOCOL_VERSION:
                 self.close()
                 raise LinkError(f"{self.url}: rig speaks protocol version {self.rig_protocol_version}, "
@@ -148,14 +125,7 @@ class SerialLink:
     def is_open(self) -> bool:
         return self._port is not None
 
-    def __enter__(self) -> SerialLink:
-        self.open()
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-    def _open_port(self) -> None:
+    def _open_transport(self) -> None:
         try:
             port = serial.serial_for_url(self.port_url, baudrate=self.baudrate, parity=self.parity,
                                          timeout=min(self.timeout, 0.002), write_timeout=max(self.timeout, 0.05),
@@ -168,37 +138,12 @@ class SerialLink:
             pass
         self._port = port
         self._decoder.reset()
-        self._timeouts_in_row = 0
-        self._backoff = 1
-        self._calls_while_down = 0
 
-    def _link_down(self, why: str) -> LinkError:
-        self.stats["link_down"] += 1
-        self._log.warn("link_down", "%s: link down (%s); reopening with back-off", self.url, why)
+    def _drop_transport(self) -> None:
         self.close()
-        self._calls_while_down = 0
-        return LinkError(f"{self.url}: {why}")
 
-    def _ensure_open(self) -> serial.SerialBase:
-        if self._port is not None:
-            return self._port
-        self._calls_while_down += 1
-        if self._calls_while_down < self._backoff:
-            self.stats["down_exchanges"] += 1
-            raise LinkError(f"{self.url}: link down (next reopen attempt in "
-                            f"{self._backoff - self._calls_while_down} exchange(s))")
-        self._calls_while_down = 0
-        try:
-            self._open_port()
-        except LinkError:
-            self._backoff = min(2 * self._backoff, MAX_BACKOFF_CALLS)
-            self.stats["reopen_failed"] += 1
-            raise
-        self.stats["reopened"] += 1
-        self._log.warn("reopened", "%s: port reopened", self.url)
+    def _after_reconnect(self) -> None:
         self._ping_due = self.handshake  # the device behind a reopened port may have changed: PING it again
-        assert self._port is not None
-        return self._port
 
     # ------------------------------------------------------------------------------------------ exchange
     def exchange(self, command: ActuatorCommand) -> RigSample:
@@ -247,7 +192,9 @@ class SerialLink:
         raise last
 
     def _transact(self, frame: bytes, request: MessageType, seq: int, timeout: float | None = None):
-        port = self._ensure_open()
+        self._ensure_up()
+        port = self._port
+        assert port is not None
         budget = self.timeout if timeout is None else timeout
         want = MessageType.SAMPLE if request == MessageType.COMMAND else MessageType.PONG
         self.stats["requests"] += 1
@@ -302,17 +249,12 @@ class SerialLink:
                     log.debug("%s: skipped frame type 0x%02X seq %d while waiting for seq %d", self.url,
                               fr.type, fr.seq, seq)
             if time.monotonic() >= deadline:
-                self.stats["timeouts"] += 1
-                self._timeouts_in_row += 1
                 why = f"no reply to seq {seq} within {1e3 * budget:.1f} ms" + (
                     "; a reply to an earlier request arrived late: the rig answers slower than its budget of "
                     f"{1e3 * (self.processing_budget + self.line_time):.1f} ms (docs/real-rig.md)" if late else "")
-                self._log.warn("timeout", "%s: %s", self.url, why)
                 if late:
                     self.stats["late_replies"] += 1
-                elif self._timeouts_in_row >= self.reopen_after:  # silence, not slowness: reopen the port
-                    raise self._link_down(f"{self._timeouts_in_row} timeouts in a row")
-                raise LinkError(f"{self.url}: {why}")
+                raise self._timed_out(why, may_reopen=not late)  # silence, not slowness, reopens the port
 
     def _count_decoder(self, before: dict[str, int]) -> None:
         after = self._decoder.stats.as_dict()

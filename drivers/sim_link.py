@@ -8,8 +8,10 @@ A rig may schedule link outages (``rig.link_down()`` true): the exchange then st
 is *not* delivered; the rig's own watchdog handles that) and raises :class:`~drivers.link.LinkError`, exactly as a
 serial or Modbus link would on a timeout. ``fail_next(n)`` injects ``n`` failures from a test.
 
-URL: ``"sim"`` (or ``"sim:NAME"``, ``"sim://?scenario=NAME&seed=S&params=P"``). ``drivers`` cannot build a rig
-itself (rigs live in ``hil_stub``, which imports drivers, not the other way round): importing ``hil_stub.rig``
+URL: ``"sim"`` (or ``"sim:NAME"``, ``"sim://?scenario=NAME&seed=S&params=P"``), opened with :func:`drivers.open_link`
+like any other; what the URL leaves out comes from the caller's defaults (``open_link("sim", scenario=...,
+seed=..., params=..., tick=...)``: ``shm run`` passes its own) and otherwise from the rig. ``drivers`` cannot build
+a rig itself (rigs live in ``hil_stub``, which imports drivers, not the other way round): importing ``hil_stub.rig``
 registers the rig factory with :func:`set_sim_rig_factory`; :func:`drivers.open_link` then works for ``sim`` URLs.
 """
 
@@ -20,10 +22,11 @@ from collections.abc import Callable
 from board_config.errors import InputError
 from drivers.link import ActuatorCommand, LinkError, RigEndpoint, RigSample, register_link_scheme
 
-_RIG_FACTORY: Callable[[str], RigEndpoint] | None = None
+#: ``factory(url, **defaults)``: the rig of a ``sim`` URL (``defaults`` as given to :func:`drivers.open_link`)
+_RIG_FACTORY: Callable[..., RigEndpoint] | None = None
 
 
-def set_sim_rig_factory(factory: Callable[[str], RigEndpoint] | None) -> None:
+def set_sim_rig_factory(factory: Callable[..., RigEndpoint] | None) -> None:
     """Register how a ``sim`` URL becomes a rig (``hil_stub.rig`` does this on import)."""
     global _RIG_FACTORY
     _RIG_FACTORY = factory
@@ -80,10 +83,11 @@ class InProcessLink:
         return self.rig.sample()
 
 
-def _open_sim(url: str) -> InProcessLink:
+def _open_sim(url: str, **defaults: object) -> InProcessLink:
     if _RIG_FACTORY is None:
         raise InputError(f"link URL {url!r}: no simulated rig available (import hil_stub.rig, which registers it)")
-    return InProcessLink(_RIG_FACTORY(url), url=url)
+    rig = _RIG_FACTORY(url, **defaults) if defaults else _RIG_FACTORY(url)
+    return InProcessLink(rig, tick=float(defaults.get("tick", 0.01)), url=url)  # type: ignore[arg-type]
 
 
 register_link_scheme("sim", _open_sim)

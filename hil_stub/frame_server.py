@@ -32,6 +32,7 @@ from pathlib import Path
 import serial
 
 from board_config.errors import InputError
+from board_config.url_options import split_host_port
 from drivers.framing import (
     Frame,
     FrameDecoder,
@@ -174,11 +175,10 @@ class FrameServer:
             link = link_path or (where[4:] or None if where.startswith("pty:") else None)
             self._channel: _Channel = _PtyChannel(Path(link) if link else None)
         elif where.startswith("socket://"):
-            hostport = where.removeprefix("socket://").split("?", 1)[0]
-            h, _, p = hostport.rpartition(":")
-            if not h or not p.isdigit():
+            endpoint = split_host_port(where.removeprefix("socket://").split("?", 1)[0])
+            if endpoint is None:
                 raise InputError(f"--serial {where!r}: expected socket://HOST:PORT to listen on")
-            self._channel = _TcpListenChannel(h, int(p))
+            self._channel = _TcpListenChannel(*endpoint)
         else:
             self._channel = _SerialChannel(where.removeprefix("serial:"), baudrate)
         self._stop = threading.Event()

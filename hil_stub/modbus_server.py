@@ -38,6 +38,7 @@ from pymodbus.server.requesthandler import ServerRequestHandler
 from pymodbus.simulator import DataType, SimData, SimDevice
 
 from board_config.errors import InputError
+from board_config.url_options import split_host_port
 from drivers.modbus_registers import (
     BY_NAME,
     COMMAND_END,
@@ -193,10 +194,10 @@ class ModbusRigServer:
         self._silence = False
         self._wire = "send"
         if kind == "tcp":
-            h, _, p = where.rpartition(":")
-            if not h or not p.isdigit():
+            endpoint = split_host_port(where)
+            if endpoint is None:
                 raise InputError(f"--modbus-tcp {where!r}: expected HOST:PORT (PORT 0 picks a free port)")
-            self._tcp_host, self.port = h, int(p)
+            self._tcp_host, self.port = endpoint
         elif where == "pty":
             self._pair = PtyPair(names=("modbus-rtu-rig", "modbus-rtu-board"))
         else:

@@ -48,6 +48,30 @@ class FakeRig:
         return any(a <= self.t < b for a, b in self.outages)
 
 
+class LinkWrapper:
+    """A Link around ``link`` for a test: passes everything through, counting exchanges in ``n`` (1-based); a test
+    overrides :meth:`before_exchange` to record, fail or disturb exchange ``n`` before it reaches ``link``."""
+
+    def __init__(self, link) -> None:
+        self.link = link
+        self.url = link.url
+        self.n = 0
+
+    def open(self) -> None:
+        self.link.open()
+
+    def close(self) -> None:
+        self.link.close()
+
+    def before_exchange(self, command: ActuatorCommand) -> None:
+        """Called with ``self.n`` already counting this exchange."""
+
+    def exchange(self, command: ActuatorCommand) -> RigSample:
+        self.n += 1
+        self.before_exchange(command)
+        return self.link.exchange(command)
+
+
 def cmd(k: int, v1: float = 100.0, v2: float = -100.0) -> ActuatorCommand:
     """A board command for tick ``k`` (±100 V differential, 2 mA board current)."""
     return ActuatorCommand(seq=k, v_ch1=v1, v_ch2=v2, board_current=0.002)

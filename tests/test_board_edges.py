@@ -14,7 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from links_support import FakeRig
+from links_support import FakeRig, LinkWrapper
 from test_links_board import SCENARIO, run_board, scenario, verdicts
 
 from drivers.link import LinkError
@@ -23,31 +23,22 @@ from hil_stub.faults import SensorFaultRig, SensorFaults
 from hil_stub.truth import build_truth_rig
 
 
-class Recorder:
+class Recorder(LinkWrapper):
     """A Link wrapper: records every command; fails exchanges in ``fail`` (1-based exchange numbers) and raises
     ``interrupt`` at exchange ``interrupt_at``."""
 
     def __init__(self, link, fail: range = range(0), interrupt_at: int = 0,
                  interrupt: type[BaseException] = KeyboardInterrupt) -> None:
-        self.link, self.fail, self.interrupt_at, self.interrupt = link, fail, interrupt_at, interrupt
-        self.url = link.url
+        super().__init__(link)
+        self.fail, self.interrupt_at, self.interrupt = fail, interrupt_at, interrupt
         self.sent = []
-        self.n = 0
 
-    def open(self) -> None:
-        self.link.open()
-
-    def close(self) -> None:
-        self.link.close()
-
-    def exchange(self, command):
-        self.n += 1
+    def before_exchange(self, command) -> None:
         if self.n == self.interrupt_at:
             raise self.interrupt()
         self.sent.append(command)
         if self.n in self.fail:
             raise LinkError("test: reply lost")
-        return self.link.exchange(command)
 
 
 def incidents(result, kind: str) -> list:

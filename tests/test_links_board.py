@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from links_support import wait_for
+from links_support import LinkWrapper, wait_for
 
 from drivers import open_link
 from drivers.sim_link import InProcessLink
@@ -191,28 +191,19 @@ def test_scheduled_outage_mid_mbit_goes_safe_within_3_ticks_and_recovers(tmp_pat
     assert list(result.trace.columns()["link_ok"]) == list(ref.trace.columns()["link_ok"])  # the same ticks fail
 
 
-class EndpointAway:
+class EndpointAway(LinkWrapper):
     """A Link wrapper for the test: the server's endpoint goes away before exchange ``first`` and comes back before
     exchange ``last + 1`` (synchronously, counted in board ticks, so the run is the same on any machine)."""
 
     def __init__(self, link, server, first: int, last: int) -> None:
-        self.link, self.server, self.first, self.last = link, server, first, last
-        self.url = link.url
-        self.n = 0
+        super().__init__(link)
+        self.server, self.first, self.last = server, first, last
 
-    def open(self) -> None:
-        self.link.open()
-
-    def close(self) -> None:
-        self.link.close()
-
-    def exchange(self, command):
-        self.n += 1
+    def before_exchange(self, command) -> None:
         if self.n == self.first:
             self.server.go_down()
         elif self.n == self.last + 1:
             self.server.come_back()
-        return self.link.exchange(command)
 
 
 @pytest.mark.parametrize("kind", ["serial", "modbus-tcp"])
