@@ -8,7 +8,6 @@ the plant checks their names, units and bounds when it composes the model (it kn
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -17,6 +16,7 @@ from typing import Any
 
 from board_config.errors import ConfigError
 from board_config.quantities import QuantitySpec, parse_quantities, read_toml
+from board_config.toml_writer import toml_key, toml_string, toml_value
 
 PARAMS_DIR = Path(__file__).resolve().parent / "params"
 
@@ -85,39 +85,23 @@ class ParameterSet:
 
     def to_toml(self) -> str:
         """Serialise to the same TOML format the loader reads (round-trips through :func:`load_parameter_set`)."""
-        lines = ["[meta]", f"name = {_toml_str(self.name)}"]
+        lines = ["[meta]", f"name = {toml_string(self.name)}"]
         for key, value in self.meta.items():
             if key != "name" and isinstance(value, (str, int, float)) and not isinstance(value, bool):
-                lines.append(f"{key} = {_toml_value(value)}")
+                lines.append(f"{toml_key(key)} = {toml_value(value)}")
         lines += ["", "[parameters]"]
         for key in CORE_PARAMETER_NAMES:
             det = dict(self.details.get(key, {}))
             det["unit"] = CORE_SCHEMA[key].unit
-            fields = [f"value = {_toml_value(self.values[key])}"]
-            fields += [f"{f} = {_toml_str(str(v))}" for f, v in det.items()]
+            fields = [f"value = {toml_value(self.values[key])}"]
+            fields += [f"{f} = {toml_string(str(v))}" for f, v in det.items()]
             lines.append(f"{key} = {{ {', '.join(fields)} }}")
         for eff in self.effects:
-            lines += ["", "[[effects]]", f"name = {_toml_str(eff.name)}", "[effects.parameters]"]
+            lines += ["", "[[effects]]", f"name = {toml_string(eff.name)}", "[effects.parameters]"]
             for key, value in eff.parameters.items():
                 unit = eff.units.get(key, "1")
-                lines.append(f"{key} = {{ value = {_toml_value(value)}, unit = {_toml_str(unit)} }}")
+                lines.append(f"{toml_key(key)} = {{ value = {toml_value(value)}, unit = {toml_string(unit)} }}")
         return "\n".join(lines) + "\n"
-
-
-def _toml_str(text: str) -> str:
-    return '"' + text.replace("\\", "\\\\").replace('"', '\\"') + '"'
-
-
-def _toml_value(value: float | int | str) -> str:
-    if isinstance(value, str):
-        return _toml_str(value)
-    if isinstance(value, float):
-        if math.isnan(value):
-            return "nan"
-        if math.isinf(value):
-            return "inf" if value > 0 else "-inf"
-        return repr(value)
-    return str(value)
 
 
 def available_parameter_sets() -> list[str]:

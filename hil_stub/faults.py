@@ -23,6 +23,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from board_config.assignments import parse_assignments as parse_assignments
+from board_config.assignments import parse_number
 from board_config.errors import InputError
 from drivers.link import ActuatorCommand, RigEndpoint, RigSample
 
@@ -221,30 +223,11 @@ class FaultPlan:
 # ------------------------------------------------------------------------------------------- spec parsing
 
 
-def _number(flag: str, text: str, raw: str) -> float:
-    try:
-        return float(raw)
-    except ValueError:
-        raise InputError(f"{flag} {text!r}: {raw!r} is not a number") from None
-
-
-def parse_assignments(flag: str, specs: list[str] | None) -> dict[str, float]:
-    """``["z3=2e-6", "v_patch=0.1"]`` → ``{"z3": 2e-6, "v_patch": 0.1}`` (also comma-separated)."""
-    out: dict[str, float] = {}
-    for spec in specs or []:
-        for part in filter(None, (p.strip() for p in spec.split(","))):
-            name, sep, value = part.partition("=")
-            if not sep or not name.strip():
-                raise InputError(f"{flag} {part!r}: expected NAME=VALUE")
-            out[name.strip()] = _number(flag, part, value.strip())
-    return out
-
-
 def parse_stuck(specs: list[str] | None) -> dict[str, float]:
     """``["z3@12.5", "seq@20"]`` → channel → rig time (s); ``z3`` alone means from t = 0."""
     out: dict[str, float] = {}
     for spec in specs or []:
         for part in filter(None, (p.strip() for p in spec.split(","))):
             name, sep, at = part.partition("@")
-            out[name.strip()] = _number("--stuck", part, at.strip()) if sep else 0.0
+            out[name.strip()] = parse_number("--stuck", part, at.strip()) if sep else 0.0
     return out

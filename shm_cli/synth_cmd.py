@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from board_config.assignments import parse_assignments
 from board_config.errors import InputError
 from shm_cli.common import (
     add_params_arg,
@@ -72,16 +73,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def _assignments(flag: str, items: list[str]) -> dict[str, float]:
-    out: dict[str, float] = {}
-    for item in items:
-        name, sep, value = item.partition("=")
-        if not sep or not name.strip():
-            raise InputError(f"{flag} expects NAME=VALUE, got '{item}'")
-        try:
-            out[name.strip()] = float(value)
-        except ValueError:
-            raise InputError(f"{flag} {name.strip()}: '{value}' is not a number") from None
-    return out
+    """``NAME=VALUE`` items, one assignment per item (board_config.assignments)."""
+    return parse_assignments(flag, items, comma_lists=False)
 
 
 #: largest base-acceleration amplitude synth accepts (g): far beyond any flight or test load of the laminate
