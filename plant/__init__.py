@@ -18,7 +18,7 @@ from plant.effect import (
     resolve_effect,
 )
 from plant.effects import NOMINAL_EFFECTS
-from plant.integrate import IntegrationStatus
+from plant.integrate import IntegrationFailed, IntegrationStatus
 from plant.model import PlantModel, SimulationResult
 from plant.signals import G0, InputSignals, base_sine, sine_drive, step_drive
 
@@ -27,6 +27,7 @@ __all__ = [
     "NOMINAL_EFFECTS",
     "EffectError",
     "InputSignals",
+    "IntegrationFailed",
     "IntegrationStatus",
     "OutputSpec",
     "Parameter",
@@ -42,6 +43,6 @@ __all__ = [
     "step_drive",
 ]
 
-from plant.stepper import PlantStepper
+from plant.stepper import Integrator, PlantStepper
 
-__all__ += ["PlantStepper"]
+__all__ += ["Integrator", "PlantStepper"]

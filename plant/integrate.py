@@ -52,6 +52,18 @@ class IntegrationStatus(IntEnum):
         }[int(self)]
 
 
+class IntegrationFailed(FloatingPointError):
+    """An integration stopped early: ``status`` (an :class:`IntegrationStatus`), the first failing batch
+    ``member`` and ``t``, the start (s) of the interval in which it stopped (for a batch simulation: the last output
+    time it reached). A ``FloatingPointError``, so ``except FloatingPointError`` catches it."""
+
+    def __init__(self, message: str, status: IntegrationStatus | int, member: int, t: float) -> None:
+        super().__init__(message)
+        self.status = IntegrationStatus(int(status))
+        self.member = int(member)
+        self.t = float(t)
+
+
 # Step-size control: Gustafsson's PI controller as in Hairer's DOPRI5 (Hairer, Nørsett & Wanner, Solving ODE I,
 # Sec. II.4 and IV.2): h_new = h · clip(SAFE · err^(-PI_ALPHA) · err_prev^(PI_BETA), GROW_MIN, GROW_MAX) with
 # PI_ALPHA = 1/5 − 0.75 PI_BETA. The β term damps the step-size oscillation an elementary controller

@@ -3,9 +3,7 @@
 from __future__ import annotations
 
 import copy
-import os
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from types import ModuleType
 from typing import Any
@@ -19,6 +17,7 @@ from plant.effect import EffectError, OutputSpec, Parameter, PhysicalEffect, Sta
 from plant.effects import NOMINAL_EFFECTS
 from plant.integrate import IntegrationStatus
 from plant.signals import InputSignals
+from plant.stepper import Integrator, default_threads, failure_of
 
 #: typical magnitudes of the core states (set the integrator's absolute tolerances)
 CORE_STATE_SCALES = np.array([1e-3] * 3 + [1e-2] * 3 + [1e-3] * 6)
@@ -28,12 +27,6 @@ CORE_STATE_SCALES = np.array([1e-3] * 3 + [1e-2] * 3 + [1e-3] * 6)
 #: the 102 Hz mode of table2 limits explicit steps to ~3 ms anyway. Inputs are sampled at the stage points of each
 #: step: pass ``h_max`` = the input sample interval when the input carries content above ~1/(10 h_max).
 DEFAULT_H_MAX = 0.01
-
-
-def default_threads() -> int:
-    """Threads used to integrate a batch (``$MFC_SHM_THREADS``, else the number of CPUs)."""
-    env = os.environ.get("MFC_SHM_THREADS")
-    return max(1, int(env)) if env else max(1, os.cpu_count() or 1)
 
 
 @dataclass
@@ -70,6 +63,13 @@ class SimulationResult:
     def failures(self) -> list[str]:
         return [f"batch member {b}: {IntegrationStatus(int(s)).message}"
                 for b, s in enumerate(self.status) if s != 0]
+
+    def raise_on_failure(self, prefix: str = "") -> None:
+        """Raise :class:`~plant.integrate.IntegrationFailed` (a ``FloatingPointError``) for the first failed batch
+        member, with the message ``prefix`` + the failures joined by ``"; "``; nothing if every member succeeded."""
+        exc = failure_of(self.status, self.t, self.y, prefix + "; ".join(self.failures()))
+        if exc is not None:
+            raise exc
 
 
 class PlantModel:
@@ -301,32 +301,16 @@ class PlantModel:
         t_out = np.ascontiguousarray(t_out, dtype=float)
         if t_out.ndim != 1 or t_out.size < 1 or np.any(np.diff(t_out) <= 0):
             raise ValueError("t_out must be a strictly increasing 1-D array")
-        atol_v = np.array(self.state_scales * rtol if atol is None else
-                          np.broadcast_to(np.asarray(atol, float), (self.n_states,)), dtype=float, order="C")
         if h_max is None:
             h_max = DEFAULT_H_MAX
-        run_chunk = self.kernels().run_chunk_stats
-        y = np.empty((batch, t_out.size, self.n_outputs))
-        xs = np.empty((batch, t_out.size, self.n_states)) if record_states else np.empty((1, 1, 1))
-        bs = np.empty((batch, t_out.size, L.N_BUS)) if record_bus else np.empty((1, 1, 1))
-        status = np.zeros(batch, dtype=np.int64)
-        nsteps = np.zeros(batch, dtype=np.int64)
-        nrej = np.zeros(batch, dtype=np.int64)
         u = np.array(inputs.values, dtype=float, order="C")
-        args = (xs0, p, u, float(inputs.t0), float(inputs.dt), t_out, float(rtol), atol_v, float(h_max), 1e-14,
-                int(max_steps), y, xs, bs, bool(record_states), bool(record_bus), status, nsteps, nrej)
-        n_threads = min(threads or default_threads(), batch)
-        if n_threads <= 1:
-            run_chunk(0, batch, *args)
-        else:
-            edges = np.linspace(0, batch, n_threads + 1).astype(int)
-            with ThreadPoolExecutor(n_threads) as pool:
-                list(pool.map(lambda k: run_chunk(int(edges[k]), int(edges[k + 1]), *args), range(n_threads)))
+        run = Integrator(self, rtol, atol, max_steps=max_steps).batch(
+            xs0, p, u, inputs.t0, inputs.dt, t_out, h_max, record_states=record_states, record_bus=record_bus,
+            threads=threads or default_threads())
         return SimulationResult(
-            t=t_out, y=y, output_names=self.output_names, output_units=self.output_units, status=status,
-            n_steps=nsteps, states=xs if record_states else None, state_names=self.state_names,
-            bus=bs if record_bus else None, meta={"effects": self.effect_names, "params": self.params.name},
-            n_rejected=nrej,
+            t=t_out, y=run.y, output_names=self.output_names, output_units=self.output_units, status=run.status,
+            n_steps=run.n_steps, states=run.states, state_names=self.state_names, bus=run.bus,
+            meta={"effects": self.effect_names, "params": self.params.name}, n_rejected=run.n_rejected,
         )
 
     def describe(self) -> dict[str, Any]:

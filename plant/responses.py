@@ -30,7 +30,7 @@ def hysteresis_loop(model: PlantModel, amplitude_v: float = 600.0, freq_hz: floa
     dt_out = dt_out if dt_out is not None else min(0.05, 1.0 / (freq_hz * 400))
     inp = sine_drive(amplitude_v, freq_hz, t_end, dt=min(1e-2, 1.0 / (freq_hz * 2000)))
     res = model.simulate(inp, dt_out=dt_out)
-    _raise_on_failure(res)
+    res.raise_on_failure()
     va = amplitude_v * np.sin(2 * np.pi * freq_hz * res.t)
     return TimeResponse(res.t, va, res["z3"][0], f"{amplitude_v:g} V sine at {freq_hz:g} Hz")
 
@@ -40,11 +40,6 @@ def step_response(model: PlantModel, amplitude_v: float = 300.0, duration_s: flo
     """Differential voltage step (Fig. 7b: 300 V) with a 1 ms rise."""
     inp = step_drive(amplitude_v, duration_s, t_step=t_step)
     res = model.simulate(inp, dt_out=dt_out)
-    _raise_on_failure(res)
+    res.raise_on_failure()
     va = amplitude_v * np.clip((res.t - t_step) / 1e-3, 0.0, 1.0)
     return TimeResponse(res.t, va, res["z3"][0], f"{amplitude_v:g} V step")
-
-
-def _raise_on_failure(res) -> None:
-    if not res.ok:
-        raise FloatingPointError("; ".join(res.failures()))

@@ -1,11 +1,140 @@
-"""Step a plant through time in short intervals (a rig or a board tick), keeping its state between calls."""
+"""The plant's one integration seam: every call of a composition's compiled batch integrator goes through here.
+
+* :class:`Integrator` — the only caller of the compiled ``run_chunk`` / ``run_chunk_stats`` (kernel source in
+  :mod:`plant.integrate`). It owns the integrator's constants (``h_min``, the step budget), the absolute tolerances
+  and the status buffers, and reports a failed interval as :class:`~plant.integrate.IntegrationFailed` (a
+  ``FloatingPointError`` carrying the :class:`~plant.integrate.IntegrationStatus`, the batch member and the time)
+  instead of a raw status code. ``batch`` runs a whole batch (threads, rejection counts; statuses are returned
+  per member, as :meth:`plant.PlantModel.simulate` reports them); ``interval`` integrates one interval into
+  caller-owned buffers with no allocation (a rig, a stepper, an observer: one call per tick).
+* :class:`PlantStepper` — a batch of trajectories advanced interval by interval, keeping its state between calls.
+"""
 
 from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from plant import layout as L
-from plant.model import PlantModel
+from plant.integrate import IntegrationFailed, IntegrationStatus
+
+if TYPE_CHECKING:
+    from plant.model import PlantModel
+
+#: smallest step (s) before an integration stops with ``STEP_TOO_SMALL``
+H_MIN = 1e-14
+#: attempted steps per trajectory and call before an integration stops with ``TOO_MANY_STEPS``
+MAX_STEPS = 50_000_000
+
+
+def default_threads() -> int:
+    """Threads used to integrate a batch (``$MFC_SHM_THREADS``, else the number of CPUs)."""
+    env = os.environ.get("MFC_SHM_THREADS")
+    return max(1, int(env)) if env else max(1, os.cpu_count() or 1)
+
+
+@dataclass
+class BatchRun:
+    """What :meth:`Integrator.batch` produced: outputs ``y[b, k, j]`` at the output times, the recorded states and
+    bus (or ``None``), and per member the status code, attempted and rejected steps."""
+
+    y: np.ndarray
+    states: np.ndarray | None
+    bus: np.ndarray | None
+    status: np.ndarray
+    n_steps: np.ndarray
+    n_rejected: np.ndarray
+
+
+class Integrator:
+    """The compiled batch integrator of one composition, at relative tolerance ``rtol`` and absolute tolerances
+    ``atol`` per state (default: the model's state scales × ``rtol``)."""
+
+    def __init__(self, model: PlantModel, rtol: float = 1e-6, atol: np.ndarray | None = None,
+                 max_steps: int = MAX_STEPS) -> None:
+        kernels = model.kernels()
+        self._run = kernels.run_chunk
+        self._run_stats = kernels.run_chunk_stats
+        self.n_states = model.n_states
+        self.n_outputs = model.n_outputs
+        self.rtol = float(rtol)
+        self.atol = np.array(model.state_scales * rtol if atol is None else
+                             np.broadcast_to(np.asarray(atol, float), (model.n_states,)), dtype=float, order="C")
+        self.max_steps = int(max_steps)
+        self._status = np.zeros(1, dtype=np.int64)
+        self._nsteps = np.zeros(1, dtype=np.int64)
+        self._no_bus = np.zeros((1, 1, 1))
+
+    def batch(self, x0: np.ndarray, p: np.ndarray, u: np.ndarray, u_t0: float, u_dt: float, t_out: np.ndarray,
+              h_max: float, *, record_states: bool = False, record_bus: bool = False, threads: int = 1) -> BatchRun:
+        """Integrate ``batch = p.shape[0]`` trajectories (``x0`` (batch, n_states), ``p`` (batch, n_params), C
+        order; inputs ``u`` (1 or batch, samples, 3) on the grid ``u_t0 + k u_dt``) to the output times ``t_out``
+        (``t_out[0]`` is the start), split over ``threads`` threads. A failed member has its status set and NaN
+        outputs from where it stopped; nothing is raised (see :func:`failure_of`)."""
+        batch = p.shape[0]
+        y = np.empty((batch, t_out.size, self.n_outputs))
+        xs = np.empty((batch, t_out.size, self.n_states)) if record_states else np.empty((1, 1, 1))
+        bs = np.empty((batch, t_out.size, L.N_BUS)) if record_bus else np.empty((1, 1, 1))
+        status = np.zeros(batch, dtype=np.int64)
+        nsteps = np.zeros(batch, dtype=np.int64)
+        nrej = np.zeros(batch, dtype=np.int64)
+        run = self._run_stats
+        args = (x0, p, u, float(u_t0), float(u_dt), t_out, self.rtol, self.atol, float(h_max), H_MIN,
+                self.max_steps, y, xs, bs, bool(record_states), bool(record_bus), status, nsteps, nrej)
+        n_threads = min(threads, batch)
+        if n_threads <= 1:
+            run(0, batch, *args)
+        else:
+            edges = np.linspace(0, batch, n_threads + 1).astype(int)
+            with ThreadPoolExecutor(n_threads) as pool:
+                list(pool.map(lambda k: run(int(edges[k]), int(edges[k + 1]), *args), range(n_threads)))
+        return BatchRun(y, xs if record_states else None, bs if record_bus else None, status, nsteps, nrej)
+
+    def interval(self, x0: np.ndarray, p: np.ndarray, u: np.ndarray, u_t0: float, u_dt: float, t_out: np.ndarray,
+                 h_max: float, y: np.ndarray, xs: np.ndarray, bs: np.ndarray | None = None, *,
+                 what: str = "plant") -> int:
+        """Integrate the batch ``p.shape[0]`` from ``x0`` over ``t_out`` into ``y`` (batch, len(t_out),
+        n_outputs) and ``xs`` (batch, len(t_out), n_states) (and the bus into ``bs`` if given); the states at
+        ``t_out[-1]`` are exact (ready to continue from). Returns the attempted steps; raises
+        :class:`IntegrationFailed` (naming ``what``) if a member stops early."""
+        n = p.shape[0]
+        if self._status.shape[0] != n:
+            self._status = np.zeros(n, dtype=np.int64)
+            self._nsteps = np.zeros(n, dtype=np.int64)
+        status = self._status
+        nsteps = self._nsteps
+        self._run(0, n, x0, p, u, u_t0, u_dt, t_out, self.rtol, self.atol, h_max, H_MIN, self.max_steps, y, xs,
+                  self._no_bus if bs is None else bs, True, bs is not None, status, nsteps)
+        if n == 1:
+            if status[0] != 0:
+                raise _failed(what, 0, int(status[0]), float(t_out[0]))
+            return int(nsteps[0])
+        if np.any(status != 0):
+            bad = int(np.flatnonzero(status)[0])
+            raise _failed(what, bad, int(status[bad]), float(t_out[0]))
+        return int(nsteps.sum())
+
+
+def _failed(what: str, member: int, code: int, t: float) -> IntegrationFailed:
+    status = IntegrationStatus(code)
+    return IntegrationFailed(f"{what} integration failed at t={t:.6g} s for batch member {member}: {status.message} "
+                             f"(status {code})", status, member, t)
+
+
+def failure_of(status: np.ndarray, t_out: np.ndarray, y: np.ndarray, message: str) -> IntegrationFailed | None:
+    """The :class:`IntegrationFailed` of a batch run's first failed member (``None`` if all succeeded), with
+    ``message``; its time is the last output time the member reached."""
+    bad = np.flatnonzero(status)
+    if bad.size == 0:
+        return None
+    b = int(bad[0])
+    finite = np.flatnonzero(np.all(np.isfinite(y[b]), axis=-1)) if y.shape[0] > b else np.zeros(0, dtype=int)
+    reached = int(finite[-1]) if finite.size else 0
+    return IntegrationFailed(message, int(status[b]), b, float(t_out[min(reached, t_out.size - 1)]))
 
 
 class PlantStepper:
@@ -14,11 +143,13 @@ class PlantStepper:
     ``advance(u, dt)`` integrates from the current time over ``dt`` seconds with the inputs ``u`` sampled
     uniformly across the interval (shape ``(samples, 3)`` or ``(batch, samples, 3)``, at least two
     samples: the start and end values; inputs in SI units ``v_ch1`` V, ``v_ch2`` V, ``z0dd`` m/s^2) and
-    returns the outputs at the end, shape ``(batch, n_outputs)``.
+    returns the outputs at the end, shape ``(batch, n_outputs)``. A failed interval (non-finite state, step below
+    ``H_MIN``, more than ``max_steps`` attempted steps in it) raises :class:`~plant.integrate.IntegrationFailed` (a
+    ``FloatingPointError``).
     """
 
     def __init__(self, model: PlantModel, params: np.ndarray | None = None, x0: np.ndarray | None = None,
-                 rtol: float = 1e-6, h_max: float = 5e-3) -> None:
+                 rtol: float = 1e-6, h_max: float = 5e-3, max_steps: int = MAX_STEPS) -> None:
         self.model = model
         p = model.p_nominal[None] if params is None else np.atleast_2d(np.asarray(params, dtype=float))
         self.p = np.array(p, dtype=float, order="C")
@@ -28,13 +159,10 @@ class PlantStepper:
         self.t = 0.0
         self.rtol = float(rtol)
         self.h_max = float(h_max)
-        self._atol = np.array(model.state_scales * rtol, dtype=float, order="C")
+        self._integrator = Integrator(model, rtol, max_steps=max_steps)
         self._y = np.zeros((batch, 2, model.n_outputs))
         self._xs = np.zeros((batch, 2, model.n_states))
         self._bs = np.zeros((batch, 2, L.N_BUS))
-        self._status = np.zeros(batch, dtype=np.int64)
-        self._nsteps = np.zeros(batch, dtype=np.int64)
-        self._run = model.kernels().run_chunk
         self.total_steps = 0
 
     @property
@@ -61,14 +189,8 @@ class PlantStepper:
         u = np.ascontiguousarray(u)
         t_out = np.array([self.t, self.t + dt])
         u_dt = dt / (u.shape[1] - 1)
-        self._run(0, self.batch, self.x, self.p, u, self.t, u_dt, t_out, self.rtol, self._atol,
-                  min(self.h_max, dt), 1e-14, 10_000_000, self._y, self._xs, self._bs, True, True,
-                  self._status, self._nsteps)
-        if np.any(self._status != 0):
-            bad = int(np.flatnonzero(self._status)[0])
-            raise FloatingPointError(f"plant integration failed at t={self.t:.6g} s for batch member {bad} "
-                                     f"(status {int(self._status[bad])})")
+        self.total_steps += self._integrator.interval(self.x, self.p, u, self.t, u_dt, t_out, min(self.h_max, dt),
+                                                      self._y, self._xs, self._bs)
         self.x[:] = self._xs[:, -1, :]
         self.t += dt
-        self.total_steps += int(self._nsteps.sum())
         return self._y[:, -1, :]

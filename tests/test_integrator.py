@@ -1,7 +1,8 @@
 """The batch integrator (Dormand–Prince 5(4) with a PI step-size controller): properties of the algorithm, not
 timings — rejection rate and step size at the stability limit of the 102 Hz mode, tolerance proportionality,
-accuracy against solve_ivp, the direct ``run_chunk`` entry point (rig, stepper, observer) equal to ``simulate``,
-and a changed controller constant reaching the compiled-kernel cache key."""
+accuracy against solve_ivp, the interval entry point of the integration seam (rig, stepper, observer) equal to
+``simulate``, failures reported as ``IntegrationFailed`` with their status, and a changed controller constant reaching
+the compiled-kernel cache key."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import pytest
 from scipy.integrate import solve_ivp
 
 import plant.integrate as integrate
-from plant import PlantModel, sine_drive, step_drive
+from plant import IntegrationFailed, IntegrationStatus, Integrator, PlantModel, PlantStepper, sine_drive, step_drive
 from plant.compose import generate_source
 from plant.linear import linearise
 from plant.reference import make_solve_ivp_rhs
@@ -87,21 +88,42 @@ def test_deviated_member_matches_solve_ivp_rtol_1e9(table2_model, table2_params,
 
 
 def test_run_chunk_entry_point_equals_simulate(table2_model):
-    """The rig, stepper and observer call ``run_chunk`` directly (no rejection counts): same numbers."""
+    """The rig, stepper and observer integrate through ``Integrator.interval`` (the compiled ``run_chunk``, no
+    rejection counts): same numbers as ``simulate``."""
     inp = sine_drive(300.0, 2.0, 1.0, dt=1e-3)
     ref = table2_model.simulate(inp, dt_out=0.01, record_states=True)
-    k = table2_model.kernels()
     n_out = ref.t.size
     y = np.empty((1, n_out, table2_model.n_outputs))
     xs = np.empty((1, n_out, table2_model.n_states))
-    status = np.zeros(1, dtype=np.int64)
-    nsteps = np.zeros(1, dtype=np.int64)
-    atol = np.ascontiguousarray(table2_model.state_scales * 1e-6)
-    k.run_chunk(0, 1, np.zeros((1, 12)), table2_model.p_nominal[None].copy(), inp.values, inp.t0, inp.dt, ref.t,
-                1e-6, atol, 0.01, 1e-14, 10_000_000, y, xs, np.zeros((1, 1, 1)), True, False, status, nsteps)
-    assert status[0] == 0 and nsteps[0] == ref.n_steps[0]
+    steps = Integrator(table2_model, 1e-6).interval(np.zeros((1, 12)), table2_model.p_nominal[None].copy(),
+                                                    inp.values, inp.t0, inp.dt, ref.t, 0.01, y, xs)
+    assert steps == ref.n_steps[0]
     np.testing.assert_array_equal(y, ref.y)
     np.testing.assert_array_equal(xs, ref.states)
+
+
+def test_failures_are_reported_as_integration_failed(table2_model):
+    """A diverging member: the seam raises ``IntegrationFailed`` (a ``FloatingPointError``) with the status, the
+    member and the time, from a stepper interval and from a batch simulation alike."""
+    p = table2_model.param_batch(n=2)
+    p[1, table2_model.param_index("c3")] = -50.0  # negative damping: unstable
+    res = table2_model.simulate(sine_drive(600.0, 1.0, 3.0), dt_out=0.01, params=p, max_steps=200_000)
+    with pytest.raises(FloatingPointError) as info:
+        res.raise_on_failure("batch: ")
+    exc = info.value
+    assert isinstance(exc, IntegrationFailed) and exc.member == 1 and exc.status != IntegrationStatus.OK
+    assert exc.status == IntegrationStatus(int(res.status[1])) and str(exc).startswith("batch: batch member 1: ")
+    assert 0.0 <= exc.t < 3.0 and np.all(np.isfinite(res.y[1, res.t <= exc.t]))
+    table2_model.simulate(sine_drive(600.0, 1.0, 0.1), dt_out=0.01).raise_on_failure()  # nothing to raise
+    st = PlantStepper(table2_model, params=p, max_steps=200_000)
+    u = np.zeros((2, 3))
+    u[:, 0] = 600.0
+    with pytest.raises(IntegrationFailed) as info:
+        for _ in range(300):
+            st.advance(u, 0.01)
+    exc = info.value
+    assert exc.member == 1 and exc.status != IntegrationStatus.OK
+    assert exc.t == pytest.approx(st.t) and exc.status.message in str(exc)
 
 
 def test_dense_output_does_not_steer_the_steps(table2_model):

@@ -55,7 +55,8 @@ def stepped_sine(model: PlantModel, frequencies_hz: Sequence[float], outputs: Se
     """Complex response (output per unit drive, SI) of each output at each frequency.
 
     Phase is relative to the drive ``sin(ωt)``. Settling: ``max(settle_cycles/f, min_settle_s)`` seconds, then
-    ``measure_cycles`` whole cycles are fitted. Raises ``FloatingPointError`` if an integration fails.
+    ``measure_cycles`` whole cycles are fitted. Raises :class:`plant.IntegrationFailed` (a ``FloatingPointError``)
+    if an integration fails.
     """
     for name in outputs:
         if name not in model.output_names:
@@ -73,8 +74,7 @@ def stepped_sine(model: PlantModel, frequencies_hz: Sequence[float], outputs: Se
         n_meas = measure_cycles * 64
         t_out = np.concatenate([[0.0], settle + np.arange(n_meas) / (64 * f)])
         sim = model.simulate(inp, t_out=t_out, params=params, h_max=min(1e-3, 1.0 / (20 * f)))
-        if not sim.ok:
-            raise FloatingPointError(f"stepped sine at {f:g} Hz failed: {'; '.join(sim.failures())}")
+        sim.raise_on_failure(f"stepped sine at {f:g} Hz failed: ")
         for o in outputs:
             res[o].append(first_harmonic(t_out[1:], sim[o][0, 1:], f) / amplitude)
     return {o: np.asarray(v) for o, v in res.items()}

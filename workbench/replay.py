@@ -24,7 +24,7 @@ import numpy as np
 from scipy import linalg
 
 from board_config.errors import InputError
-from plant import InputSignals, PhysicalEffect, PlantModel
+from plant import InputSignals, IntegrationFailed, Integrator, PhysicalEffect, PlantModel
 from workbench.frequency_response import stepped_sine
 from workbench.records import FrfRecord, Record
 
@@ -183,8 +183,10 @@ def replay(model: PlantModel, record: Record, *, params: np.ndarray | None = Non
     inputs = record.input_signals()
     sim = model.simulate(inputs, t_out=record.t, params=params, x0=x0, rtol=rtol)
     wall["simulate_s"] = time.perf_counter() - t0
-    if not sim.ok:
-        raise SimulationFailed(f"{record.path}: free-run simulation failed: {'; '.join(sim.failures())}")
+    try:
+        sim.raise_on_failure(f"{record.path}: free-run simulation failed: ")
+    except IntegrationFailed as exc:
+        raise SimulationFailed(str(exc)) from None
     channels = {
         n: ChannelReplay(n, mapping[n], record.channels[n].si_unit, record[n], sim[mapping[n]][0].copy(),
                          record.channels[n].noise_std)
@@ -279,20 +281,15 @@ def _observer_run(model: PlantModel, inputs: InputSignals, m: int, n_int: int, m
     """Run the nonlinear model with output-injection corrections every ``m`` samples.
 
     Returns the corrected states at the correction times (``n_int + 1`` rows) and the one-interval-ahead
-    outputs before each correction (``n_int`` rows). Calls the compiled integrator directly (one call per
-    interval, no per-call allocation).
+    outputs before each correction (``n_int`` rows). One integrator interval per correction, no per-call allocation.
     """
-    run = model.kernels().run_chunk
+    integrator = Integrator(model, rtol)
     n = model.n_states
     x = np.array((model.x0_nominal if x0 is None else np.asarray(x0, float)).reshape(1, n), order="C")
     pp = np.ascontiguousarray(p, dtype=float).reshape(1, -1)
     u = inputs.values  # (1, samples, 3), absolute time from inputs.t0
-    atol = np.ascontiguousarray(model.state_scales * rtol)
     y = np.zeros((1, 2, model.n_outputs))
     xsb = np.zeros((1, 2, n))
-    bs = np.zeros((1, 1, 1))
-    status = np.zeros(1, dtype=np.int64)
-    nsteps = np.zeros(1, dtype=np.int64)
     t_out = np.zeros(2)
     h_max = min(interval, 5e-3)
     xs = np.empty((n_int + 1, n))
@@ -302,11 +299,10 @@ def _observer_run(model: PlantModel, inputs: InputSignals, m: int, n_int: int, m
     for i in range(n_int):
         t_out[0] = t0 + i * m * dt
         t_out[1] = t0 + (i + 1) * m * dt
-        run(0, 1, x, pp, u, t0, dt, t_out, rtol, atol, h_max, 1e-14, 10_000_000, y, xsb, bs, True, False,
-            status, nsteps)
-        if status[0] != 0:
-            raise PredictionUnavailable(f"observer run failed at t = {t_out[0]:.6g} s (integrator status "
-                                        f"{int(status[0])})")
+        try:
+            integrator.interval(x, pp, u, t0, dt, t_out, h_max, y, xsb, what="observer")
+        except IntegrationFailed as exc:
+            raise PredictionUnavailable(f"observer run failed at t = {exc.t:.6g} s ({exc.status.message})") from None
         yi = y[0, 1, yidx]
         one[i] = yi
         x[0] = xsb[0, 1] + gain @ (meas[(i + 1) * m] - yi)
