@@ -40,7 +40,7 @@ def toml_value(value: Any) -> str:
 
     numpy scalars count as their Python kind. ``TypeError`` for anything else.
     """
-    if isinstance(value, bool) or type(value).__name__ == "bool_":
+    if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, str):
         return toml_string(value)
