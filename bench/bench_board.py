@@ -19,7 +19,10 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from firmware_sim.events import BoardEvent, EventSink
 
 TARGET = 200.0
 
@@ -41,7 +44,7 @@ def _run(scenario, duration: float, out: Path, label: str, rig_kw: dict[str, Any
         Path(str(db) + suffix).unlink(missing_ok=True)
     timers = {"link_s": 0.0, "board_s": 0.0, "log_s": 0.0}
     with UsageLog(db) as log:
-        sink = log
+        sink: EventSink = log
         if instrument:
             sink = _TimedSink(log, timers)
             link.exchange = _timed(link.exchange, timers, "link_s")  # type: ignore[method-assign]
@@ -75,11 +78,11 @@ def _run(scenario, duration: float, out: Path, label: str, rig_kw: dict[str, Any
 
 
 class _TimedSink:
-    def __init__(self, log, timers):
+    def __init__(self, log: EventSink, timers: dict[str, float]) -> None:
         self.log = log
         self.timers = timers
 
-    def write(self, ev):
+    def write(self, ev: BoardEvent) -> None:
         t0 = time.perf_counter()
         self.log.write(ev)
         self.timers["log_s"] += time.perf_counter() - t0

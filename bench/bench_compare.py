@@ -17,10 +17,17 @@ from scipy.integrate import solve_ivp
 from board_config import load_parameter_set
 from plant.reference import make_solve_ivp_rhs
 from workbench.compare import CompareOptions, compare
-from workbench.records import load_record, write_record
+from workbench.records import Record, load_record, write_record
 from workbench.replay import model_for, replay
 from workbench.report import write_report
 from workbench.synth import synth_record, synth_test, truth_model
+
+
+def _load_time_record(path: Path) -> Record:
+    rec = load_record(path)
+    if not isinstance(rec, Record):
+        raise TypeError(f"{path}: expected a time record, got a frequency-response table")
+    return rec
 
 
 def run(out_dir: Path, quick: bool) -> dict:
@@ -32,13 +39,13 @@ def run(out_dir: Path, quick: bool) -> dict:
     write_record(synth_record(synth_test("mbit-a", duration_s=duration), truth, seed=1), rec_path)
 
     # warm-up: kernels and matplotlib's first-use costs are per process, not per comparison
-    warm = load_record(rec_path).slice(0.0, 1.0)
+    warm = _load_time_record(rec_path).slice(0.0, 1.0)
     write_report([compare(model_for(warm, "table2"), warm)], out / "warmup")
 
     phases: dict[str, float] = {}
     c0 = time.process_time()
     t0 = time.perf_counter()
-    rec = load_record(rec_path)
+    rec = _load_time_record(rec_path)
     phases["load_s"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     model = model_for(rec, "table2")

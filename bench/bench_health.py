@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import os
 import time
+from dataclasses import replace
 from pathlib import Path
 
 
@@ -30,7 +31,9 @@ def run(out_dir: Path, quick: bool) -> dict:
     write_life_log(life, sc, run_dir, seed=sc.seed, params="table2")
     one = [v.wall_s for v in life.visits]
     t0 = time.perf_counter()
-    small = sc.__class__(**{**sc.__dict__, "life": sc.life.__class__(**{**sc.life.__dict__, "visits": 4})})
+    if sc.life is None:
+        raise RuntimeError(f"{sc.source}: the aging scenario has no [life] table")
+    small = replace(sc, life=replace(sc.life, visits=4))
     run_life(small, seed=sc.seed, params="table2", workers=1)
     serial4 = time.perf_counter() - t0
 

@@ -41,4 +41,4 @@ class BoardEvent:
 class EventSink(Protocol):
     """Where board events go (the SQLite usage log, a list in a test)."""
 
-    def write(self, event: BoardEvent) -> None: ...
+    def write(self, event: BoardEvent) -> object: ...  # what it returns (a row id, ...) is not used

@@ -163,12 +163,12 @@ def calibrate(base: ParameterSet, targets: Sequence[ClaimTarget], free: Sequence
         # the soft damping floor (none at min_damping_ratio = 0, a documented value: log(0) is undefined)
         r += [100.0 * max(0.0, math.log(min_damping_ratio / max(z, 1e-12))) if min_damping_ratio > 0 else 0.0
               for z in zetas]
-        r = np.array(r)
-        cost = float(0.5 * r @ r)
+        res = np.array(r)
+        cost = float(0.5 * res @ res)
         history.append(cost)
         if on_iteration is not None:
             on_iteration(len(history), cost)
-        return r
+        return res
 
     lo = x0 - math.log(bounds_factor)
     hi = x0 + math.log(bounds_factor)

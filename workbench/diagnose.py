@@ -318,7 +318,7 @@ def diagnose(records: Sequence[Record], params: ParameterSet | str = "table2",
     # effect is a contender; the held-out score decides whether the evidence calls for it
     variants = []
     for r in results:
-        if r.kind == "effect" and r.stable and r.accepted:
+        if r.spec is not None and r.kind == "effect" and r.stable and r.accepted:
             cls = r.spec.effects[0]
             extra = tuple(getattr(cls, "extra_ranges", {}) or ())
             if extra:

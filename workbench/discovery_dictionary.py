@@ -312,7 +312,8 @@ def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDiction
     its shape as a parameter (placeholder default 1; the workbench sets it per record). The source depends only on
     the terms' structure (placement, index, signal, form), so the compiled kernel is cached across records and
     runs; a term whose coefficient is 0 is skipped at run time."""
-    slots, params = [], []
+    slots: list[TermSlot] = []
+    params: list[str] = []  # source lines
     n_states = 0
     for term, (cname, gname) in zip(terms, dictionary_parameter_names(terms)):
         ci = len(params)

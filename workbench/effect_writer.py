@@ -173,7 +173,11 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
                        free_shapes: bool = True) -> str:
     """The Python source of a readable effect holding ``terms`` with the fitted ``values`` (by parameter name,
     see :func:`parameter_names`)."""
-    slots, params, fit_ranges, neutral, discovered = [], [], [], [], {}
+    slots: list[TermSlot] = []
+    params: list[str] = []  # source lines
+    fit_ranges: list[str] = []
+    neutral: list[str] = []
+    discovered: dict[str, float] = {}
     n_states = 0
     formulas = []
     for term in terms:

@@ -102,7 +102,7 @@ def forward_select(winner: CandidateResult, others: Sequence[CandidateResult], b
     ranked = sorted((c for c in others if c.spec is not None and c.stable and c.kind != "combination"),
                     key=lambda c: (c.outcome is None, -c.delta_bic_held if c.outcome is not None
                                    else c.screen_train_rms_sigma))
-    singles = list(specs) or [c.spec for c in ranked]
+    singles = list(specs) or [c.spec for c in ranked if c.spec is not None]  # (ranked holds only those)
     # effects in the order of their strength alone (the re-screen is limited to the strongest few)
     order = {c.spec.label: i for i, c in enumerate(ranked)}
     singles.sort(key=lambda s: order.get(s.label, len(order)))
@@ -112,8 +112,8 @@ def forward_select(winner: CandidateResult, others: Sequence[CandidateResult], b
         mine = _touches(current.spec)
         screened = rescreen(current, singles, base, targets, data, seed=seed)
         tries_specs: list[tuple[CandidateSpec, dict[str, float]]] = []
-        for r in screened[:POOL_RESCREENED]:
-            tries_specs.append((r.spec, dict(r.start)))
+        for sr in screened[:POOL_RESCREENED]:
+            tries_specs.append((sr.spec, dict(sr.start)))
         for c in fitted_alone:
             if len(tries_specs) >= POOL_RESCREENED + POOL_FITTED:
                 break
@@ -177,6 +177,7 @@ def _prune(current: CandidateResult, base: ParameterSet, targets: Sequence[Targe
     for name in current.members:
         if len(current.members) < 2:
             break
+        assert current.spec is not None and current.outcome is not None  # an accepted fit keeps both
         spec = _without(current.spec, name)
         r = fit_spec(spec, base, targets, data, rss0_held, start=dict(current.outcome.values), **kw)
         if r.accepted and r.held_rss <= PRUNE_WITHIN * current.held_rss:
