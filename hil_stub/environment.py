@@ -11,6 +11,7 @@ environment is quiet (z̈0 = 0) and the last phase's HV presence holds.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 from scipy import signal
@@ -18,6 +19,18 @@ from scipy import signal
 from board_config.scenario import Phase, Scenario
 
 FADE_S = 0.5  # cross-fade between phases (s)
+
+
+@dataclass(frozen=True, slots=True)
+class Segment:
+    """Everything the scenario schedules for the rig at some time; it holds until ``until`` (s), the next start or
+    end of a scheduled interval."""
+
+    hv_present: bool
+    sensor_fault: str | None  # nan, flag, frozen_seq, out_of_range or None
+    link_down: bool
+    extra_load: float  # A, drawn from the board cell by a failing component
+    until: float
 
 
 class Environment:
@@ -127,12 +140,11 @@ class Environment:
         """Extra current drawn from the board battery at ``t`` by a failing component (A)."""
         return sum(c for a, b, c in self._loads if a <= t < b)
 
-    def segment(self, t: float) -> tuple[bool, str | None, bool, float, float]:
-        """Everything scheduled at ``t``: (hv_present, sensor-fault mode, link down, extra load A, valid until s).
-
-        The tuple holds until the returned time (the next start or end of a scheduled interval), so a caller can
-        cache it instead of asking every tick."""
-        return (self.hv_present(t), self.sensor_fault(t), self.link_down(t), self.extra_load(t), self.next_change(t))
+    def segment(self, t: float) -> Segment:
+        """Everything scheduled at ``t``; it holds until ``Segment.until`` (the next start or end of a scheduled
+        interval), so a caller can cache it instead of asking every tick."""
+        return Segment(self.hv_present(t), self.sensor_fault(t), self.link_down(t), self.extra_load(t),
+                       self.next_change(t))
 
     def next_change(self, t: float) -> float:
         """The next time after ``t`` at which HV presence, a sensor fault, an outage or a load starts or stops."""

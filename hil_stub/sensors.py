@@ -1,0 +1,78 @@
+"""The rig's sensors: what the board reads of the truth plant, with seeded Gaussian noise and scheduled faults."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from drivers.link import FLAG_LIMIT_REFUSED, FLAG_SENSOR_FAULT, RigSample
+
+#: rows of standard-normal noise drawn at once (one row per sample: z3, v_patch, z0dd)
+NOISE_ROWS = 1000
+
+
+@dataclass(slots=True)
+class TruthReading:
+    """Noise-free sensor quantities at a tick boundary (SI): the tip displacement as the laser sees it (m), the
+    patch terminal voltage (V), the cell's terminal voltage (V; NaN when the cell is not part of the active plant)
+    and the base acceleration (m/s^2)."""
+
+    z3: float
+    v_patch: float
+    v_battery: float
+    z0dd: float
+
+
+@dataclass(frozen=True)
+class SensorNoise:
+    """1-sigma white noise of the laser (m), the patch-voltage channel (V) and the base accelerometer (m/s^2)."""
+
+    z3: float
+    v_patch: float
+    accel: float
+
+
+class RigSensors:
+    """Turns a :class:`TruthReading` into a :class:`~drivers.link.RigSample`: adds noise drawn from the rig's seeded
+    generator (one row per sample, so a sample is repeatable) and applies a scheduled sensor fault (``nan``: the
+    laser reads NaN; ``flag``: the sample carries ``FLAG_SENSOR_FAULT``; ``out_of_range``: the laser reads 1 m;
+    ``frozen_seq`` is the rig's: no new sample)."""
+
+    def __init__(self, noise: SensorNoise, seed: int) -> None:
+        self.noise = noise
+        self._rng = np.random.default_rng([seed, 104729])
+        self._rows: list[list[float]] = []
+        self._i = 0
+
+    def _draw(self) -> list[float]:
+        if self._i >= len(self._rows):
+            self._rows = self._rng.standard_normal((NOISE_ROWS, 3)).tolist()
+            self._i = 0
+        row = self._rows[self._i]
+        self._i += 1
+        return row
+
+    def sample(self, seq: int, t: float, reading: TruthReading, v_battery: float, fault: str | None,
+               hv_present: bool, refused: bool) -> RigSample:
+        """The sample ``seq`` at ``t`` (s); ``v_battery`` (V) is the cell's terminal voltage (``reading``'s, or the
+        rig's own when the cell is outside the plant)."""
+        if self._i < len(self._rows):
+            nz = self._rows[self._i]
+            self._i += 1
+        else:
+            nz = self._draw()
+        noise = self.noise
+        z3 = reading.z3 + noise.z3 * nz[0]
+        vp = reading.v_patch + noise.v_patch * nz[1]
+        zdd = reading.z0dd + noise.accel * nz[2]
+        flags = FLAG_LIMIT_REFUSED if refused else 0
+        if fault is not None:
+            if fault == "nan":
+                z3 = math.nan
+            elif fault == "flag":
+                flags |= FLAG_SENSOR_FAULT
+            elif fault == "out_of_range":
+                z3 = 1.0
+        return RigSample(seq, t, z3, vp, zdd, v_battery, hv_present, flags)
