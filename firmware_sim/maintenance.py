@@ -241,8 +241,7 @@ class MaintenanceSequencer:
         t_out = self.period * np.arange(m + 2)
         res = self.nominal.simulate(InputSignals(0.0, self.period, u), t_out=t_out, rtol=1e-6,
                                     h_max=min(5e-3, self.period), threads=1)
-        if not res.ok:
-            raise FloatingPointError(f"nominal model failed on the MBIT sequence: {'; '.join(res.failures())}")
+        res.raise_on_failure("nominal model failed on the MBIT sequence: ")
         return res.y[0, :, self._i_z3].tolist()
 
     # --- records --------------------------------------------------------------------------------------

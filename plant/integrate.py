@@ -63,6 +63,10 @@ class IntegrationFailed(FloatingPointError):
         self.member = int(member)
         self.t = float(t)
 
+    def __reduce__(self) -> tuple[type[IntegrationFailed], tuple[str, int, int, float]]:
+        # pickled whole (a worker process reports it to the campaign's parent)
+        return type(self), (str(self), int(self.status), self.member, self.t)
+
 
 # Step-size control: Gustafsson's PI controller as in Hairer's DOPRI5 (Hairer, Nørsett & Wanner, Solving ODE I,
 # Sec. II.4 and IV.2): h_new = h · clip(SAFE · err^(-PI_ALPHA) · err_prev^(PI_BETA), GROW_MIN, GROW_MAX) with

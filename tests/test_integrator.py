@@ -7,6 +7,7 @@ the compiled-kernel cache key."""
 from __future__ import annotations
 
 import math
+import pickle
 
 import numpy as np
 import pytest
@@ -114,6 +115,8 @@ def test_failures_are_reported_as_integration_failed(table2_model):
     assert isinstance(exc, IntegrationFailed) and exc.member == 1 and exc.status != IntegrationStatus.OK
     assert exc.status == IntegrationStatus(int(res.status[1])) and str(exc).startswith("batch: batch member 1: ")
     assert 0.0 <= exc.t < 3.0 and np.all(np.isfinite(res.y[1, res.t <= exc.t]))
+    back = pickle.loads(pickle.dumps(exc))  # a campaign worker process reports it to its parent
+    assert (str(back), back.status, back.member, back.t) == (str(exc), exc.status, exc.member, exc.t)
     table2_model.simulate(sine_drive(600.0, 1.0, 0.1), dt_out=0.01).raise_on_failure()  # nothing to raise
     st = PlantStepper(table2_model, params=p, max_steps=200_000)
     u = np.zeros((2, 3))

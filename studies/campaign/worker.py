@@ -80,8 +80,7 @@ def nominal_prediction(spec: CampaignSpec, defn: MbitDefinition) -> tuple[np.nda
         model = model_from_toml(spec.params_toml)
         res = model.simulate(mbit_sequence(defn).to_inputs(), dt_out=1.0 / spec.monitor.f_mon, rtol=spec.rtol,
                              threads=1)
-        if not res.ok:
-            raise FloatingPointError(f"nominal {defn.label} simulation failed: {'; '.join(res.failures())}")
+        res.raise_on_failure(f"nominal {defn.label} simulation failed: ")
         hit = (res.t.copy(), res["z3"][0].copy())
         with _LOCK:
             _NOMINAL[key] = hit

@@ -75,8 +75,7 @@ def charge_rate_curve(setup: HarvestSetup, q_d_points: np.ndarray, model: PlantM
     t_out = t0 + np.array([0.0, settle, settle + average])
     res = model.simulate(setup.inputs(t0, t0 + settle + average), t_out=t_out, x0=x0, params=params,
                          record_states=True, rtol=rtol, h_max=step_cap(setup.freq))
-    if not res.ok:
-        raise FloatingPointError("charging-rate batch failed: " + "; ".join(res.failures()))
+    res.raise_on_failure("charging-rate batch failed: ")
     xs = res.states
     assert xs is not None
     i_e = {n: model.state_names.index(n) for n in ("E_base_in", "E_battery")}

@@ -71,8 +71,7 @@ def open_circuit_base_power(params: str | ParameterSet, accel: float, freqs: np.
     t_out = np.concatenate([[0.0], t_out])
     res = model.simulate(InputSignals(0.0, dt, vals), t_out=t_out, x0=x0, record_states=True,
                          h_max=step_cap(float(freqs.max())))
-    if not res.ok:
-        raise FloatingPointError("open-circuit power batch failed: " + "; ".join(res.failures()))
+    res.raise_on_failure("open-circuit power batch failed: ")
     xs = res.states
     assert xs is not None
     i_e = model.state_names.index("E_base_in")

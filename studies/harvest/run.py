@@ -169,8 +169,7 @@ def run_harvest(setup: HarvestSetup, progress: ProgressFn | None = None, chunk_s
         t_out = np.linspace(t0, t1, n_out)
         res: SimulationResult = model.simulate(setup.inputs(t0, t1), t_out=t_out, x0=x, record_states=True,
                                                rtol=rtol, h_max=h_max)
-        if not res.ok:
-            raise FloatingPointError(f"harvesting run failed in [{t0:g}, {t1:g}] s: {'; '.join(res.failures())}")
+        res.raise_on_failure(f"harvesting run failed in [{t0:g}, {t1:g}] s: ")
         xs = res.states
         assert xs is not None
         steps += int(res.n_steps.sum())

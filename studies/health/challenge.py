@@ -166,8 +166,7 @@ def simulate_visit_records(life: ChallengeLife, params: str, devs: list[dict[str
     cols = {p: np.array([nominal[p] * (1 + d.get(p, 0.0)) for d in devs]) for p in HEALTH_PARAMS}
     res = model.simulate(InputSignals(0.0, 1.0 / RATE_HZ, u), t_out=t, params=model.param_batch(n=len(devs), **cols),
                          rtol=1e-6, h_max=5e-3, threads=1)
-    if not res.ok:
-        raise FloatingPointError(f"{life.name}: truth simulation failed: {'; '.join(res.failures())}")
+    res.raise_on_failure(f"{life.name}: truth simulation failed: ")
     rng = np.random.default_rng(np.random.SeedSequence([life.seed, 17]))
     recs = []
     for i, h in enumerate(life.hours()):
