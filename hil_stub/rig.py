@@ -123,11 +123,18 @@ class SimulatedRig:
 
     # --- construction helpers ---------------------------------------------------------------------
     @classmethod
-    def from_url(cls, url: str) -> SimulatedRig:
-        """``sim``, ``sim:NAME`` or ``sim://?scenario=NAME|PATH&seed=S&params=P&coupling=C`` (query keys optional)."""
+    def from_url(cls, url: str, *, scenario: Scenario | None = None, seed: int | None = None,
+                 params: str | ParameterSet | None = None, tick: float = 0.01) -> SimulatedRig:
+        """``sim``, ``sim:NAME`` or ``sim://?scenario=NAME|PATH&seed=S&params=P&coupling=C`` (query keys optional).
+
+        What the URL leaves out comes from the keyword defaults, which ``drivers.open_link(url, **defaults)`` passes
+        on (``shm run`` gives its scenario, ``--seed``, ``--params`` and board tick), and otherwise from the scenario.
+        """
         opts = parse_sim_url(url)
-        scenario = load_scenario(opts.scenario) if opts.scenario else None
-        return cls(scenario, seed=opts.seed, params=opts.params, coupling=opts.coupling)
+        if opts.scenario:
+            scenario = load_scenario(opts.scenario)
+        return cls(scenario, seed=opts.seed if opts.seed is not None else seed, params=opts.params or params,
+                   coupling=opts.coupling, tick=tick)
 
     def _model(self, terminal: str) -> TruthComposition:
         """The truth plant's composition with ``terminal`` (built or loaded now if it was not)."""

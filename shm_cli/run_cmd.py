@@ -352,23 +352,25 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
                 LogError, Scheduler, SimulatedRig, UsageLog, VirtualClock, WallClock, open_link) -> int:
     db_path = out / "usage.db"
     t_setup = time.perf_counter()
-    rig = None
+    # every URL is opened by drivers.open_link with the run's defaults for what it leaves out: a bare 'sim' is the
+    # run's own simulated rig (the scenario's [rig], --seed, --params, the board tick)
+    defaults = {"scenario": scenario, "seed": args.seed, "params": args.params, "tick": cfg.tick_period}
+    link = None
     try:
         if args.link == "sim":
-            rig = SimulatedRig(scenario, seed=seed, params=params, tick=cfg.tick_period)
+            link = open_link(args.link, **defaults)
         board = Board(cfg, nominal=params)
     except InputError as exc:  # the scenario's [rig] (params, effects, deviations): say which file it came from
         if scenario.source in str(exc) or (args.params is not None and args.params in str(exc)):
             raise
         raise InputError(f"{scenario.source}: [rig]: {exc}") from None
-    if rig is not None:
-        link = InProcessLink(rig, tick=cfg.tick_period)
-    else:
+    if link is None:
         _check_link_url(args.link)
         try:
-            link = open_link(args.link)
+            link = open_link(args.link, **defaults)
         except InputError as exc:
             raise InputError(f"--link {args.link!r}: {exc}") from None
+    rig = link.rig if isinstance(link, InProcessLink) else None
     paced = args.realtime or (args.link != "sim" and not args.virtual)
     scheduler = StoppableScheduler(Scheduler(cfg.tick_rate, WallClock() if paced else VirtualClock()), stopper)
     setup_s = time.perf_counter() - t_setup
