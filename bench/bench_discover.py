@@ -11,10 +11,10 @@ import time
 from pathlib import Path
 
 from bench.bench_diagnose import _record
+from board_config.parameter import freed
 from workbench.discover import discover
 from workbench.discover_dictionary_effect import generated_effect, signal_scales
 from workbench.discovery_dictionary import build_dictionary, dictionary_parameter_names, dictionary_source
-from workbench.effect_library import FreeParameter
 from workbench.fit import Objective, model_factory, optimise, prepare_targets
 
 
@@ -35,7 +35,7 @@ def _brute_force_per_term(rec, n_sample: int = 3) -> tuple[float, int, list[str]
     picked += [k for k, t in enumerate(terms) if t.form in ("sign", "cube")][: n_sample - len(picked)]
     t0 = time.perf_counter()
     for k in picked:
-        fp = FreeParameter(names[k][0], terms[k].unit, -1e-3, 1e-3, False, "brute")
+        fp = freed(names[k][0], terms[k].unit, -1e-3, 1e-3, False, "brute")
         obj = Objective(targets, models, [fp], base_values=shapes)
         optimise(obj, {fp.name: 0.0}, max_nfev=20)
     return (time.perf_counter() - t0) / len(picked), len(terms), [terms[k].key for k in picked]

@@ -15,35 +15,49 @@ from types import MappingProxyType
 from typing import Any
 
 from board_config.errors import ConfigError
-from board_config.quantities import QuantitySpec, parse_quantities, read_toml
+from board_config.parameter import Parameter, ParameterVector
+from board_config.quantities import parse_quantities, read_toml
 from board_config.toml_writer import toml_key, toml_string, toml_value
 
 PARAMS_DIR = Path(__file__).resolve().parent / "params"
 
 _POS = {"lower": 0.0, "lower_open": True}
-#: The core parameters (seed paper Table 2), their SI units and physical bounds.
-CORE_SCHEMA: Mapping[str, QuantitySpec] = MappingProxyType(
-    {
-        "R_ep": QuantitySpec("ohm", **_POS),
-        "C_ep": QuantitySpec("F", **_POS),
-        "d_ep": QuantitySpec("m/V", **_POS),
-        "m1": QuantitySpec("kg", **_POS),
-        "m2": QuantitySpec("kg", **_POS),
-        "m3": QuantitySpec("kg", **_POS),
-        "k1": QuantitySpec("N/m", **_POS),
-        "k2": QuantitySpec("N/m", **_POS),
-        "k3": QuantitySpec("N/m", **_POS),
-        "c1": QuantitySpec("N*s/m", lower=0.0),
-        "c2": QuantitySpec("N*s/m", lower=0.0),
-        "c3": QuantitySpec("N*s/m", lower=0.0),
-        "alpha_h": QuantitySpec("1", lower=0.0, upper=1.0),
-        "A_h": QuantitySpec("1"),
-        "n_h": QuantitySpec("1", lower=0.0, lower_open=True),
-        "beta_h": QuantitySpec("C^-n"),
-        "gamma_h": QuantitySpec("C^-n"),
-    }
+_NONNEG = {"lower": 0.0}
+#: The core parameters (seed paper Table 2), in the order of the core parameter block (``core_index``): name, SI
+#: unit, physical bounds, description. The one declaration of each: the plant's layout indices (``plant.layout``)
+#: and the core effects' parameters are taken from here; the values come from a parameter set (``table2.toml``).
+CORE_PARAMETERS: tuple[Parameter, ...] = tuple(
+    Parameter(name, unit, description=text, core_index=i, **bounds)  # type: ignore[arg-type]
+    for i, (name, unit, bounds, text) in enumerate((
+        ("R_ep", "ohm", _POS, "Patch resistance"),
+        ("C_ep", "F", _POS, "Patch capacitance"),
+        ("d_ep", "m/V", _POS, "Patch piezoelectric coefficient"),
+        ("m1", "kg", _POS, "Root section mass"),
+        ("m2", "kg", _POS, "Intermediate section mass"),
+        ("m3", "kg", _POS, "Tip section mass"),
+        ("k1", "N/m", _POS, "Root bending stiffness"),
+        ("k2", "N/m", _POS, "Intermediate bending stiffness"),
+        ("k3", "N/m", _POS, "Tip bending stiffness"),
+        ("c1", "N*s/m", _NONNEG, "Root structural damping"),
+        ("c2", "N*s/m", _NONNEG, "Intermediate structural damping"),
+        ("c3", "N*s/m", _NONNEG, "Tip structural damping"),
+        ("alpha_h", "1", {"lower": 0.0, "upper": 1.0}, "Bouc-Wen linearity factor"),
+        ("A_h", "1", {}, "Bouc-Wen dissipation gain"),
+        ("n_h", "1", _POS, "Bouc-Wen exponent n"),
+        ("beta_h", "C^-n", {}, "Bouc-Wen shape factor"),
+        ("gamma_h", "C^-n", {}, "Bouc-Wen shape factor"),
+    ))
 )
+#: name -> core parameter
+CORE_SCHEMA: Mapping[str, Parameter] = MappingProxyType({p.name: p for p in CORE_PARAMETERS})
+#: name -> index in the core parameter block
+CORE_INDEX: Mapping[str, int] = MappingProxyType({p.name: i for i, p in enumerate(CORE_PARAMETERS)})
 CORE_PARAMETER_NAMES: tuple[str, ...] = tuple(CORE_SCHEMA)
+
+
+def core_parameters(*names: str) -> tuple[Parameter, ...]:
+    """The named core parameters from the schema (what a core effect declares as its ``parameters``)."""
+    return tuple(CORE_SCHEMA[n] for n in names)
 
 
 @dataclass(frozen=True)
@@ -75,9 +89,13 @@ class ParameterSet:
         for key, value in changes.items():
             if key not in CORE_SCHEMA:
                 raise ConfigError(self.source, f"parameters.{key}", "unknown core parameter")
-            values[key] = CORE_SCHEMA[key].check(self.source, f"parameters.{key}.value", value)
+            values[key] = CORE_SCHEMA[key].quantity.check(self.source, f"parameters.{key}.value", value)
         return ParameterSet(name or self.name, MappingProxyType(values), self.details, self.effects,
                             self.meta, self.source)
+
+    def core_vector(self) -> ParameterVector:
+        """The core parameters with this set's values."""
+        return ParameterVector.of(CORE_PARAMETERS, (self.values[p.name] for p in CORE_PARAMETERS))
 
     def with_effects(self, effects: tuple[EffectEntry, ...], name: str | None = None) -> ParameterSet:
         return ParameterSet(name or self.name, self.values, self.details, tuple(effects), self.meta,
@@ -135,7 +153,8 @@ def load_parameter_set(name_or_path: str | Path) -> ParameterSet:
         raise ConfigError(file, "meta", "expected a table")
     if "parameters" not in data:
         raise ConfigError(file, "parameters", "missing required section")
-    values, details = parse_quantities(file, "parameters", data["parameters"], CORE_SCHEMA)
+    values, details = parse_quantities(file, "parameters", data["parameters"],
+                                       {k: p.quantity for k, p in CORE_SCHEMA.items()})
     effects = []
     raw_effects = data.get("effects", [])
     if not isinstance(raw_effects, list):

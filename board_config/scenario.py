@@ -42,6 +42,7 @@ from types import MappingProxyType
 from typing import Any
 
 from board_config.errors import ConfigError
+from board_config.parameter import DEVIATION_RANGE, deviation_problem
 from board_config.quantities import QuantitySpec, parse_quantities, read_toml
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
@@ -191,13 +192,14 @@ class RigSpec:
 LIFE_LAW_KINDS = ("constant", "linear", "exponential", "power", "step")
 #: per law kind: its quantities (besides ``parameter`` and ``kind``); relative deviations are in "1"
 _LIFE_LAW_SCHEMA: dict[str, dict[str, QuantitySpec]] = {
-    "constant": {"value": QuantitySpec("1", lower=-0.95, upper=5.0)},
+    "constant": {"value": QuantitySpec("1", lower=DEVIATION_RANGE[0], upper=DEVIATION_RANGE[1])},
     "linear": {"rate": QuantitySpec("1/h", lower=-1.0, upper=1.0), "start": _opt("h", **_NONNEG)},
     "exponential": {"amplitude": QuantitySpec("1", lower=-5.0, upper=5.0),
                     "time_constant": QuantitySpec("h", **_POS), "start": _opt("h", **_NONNEG)},
     "power": {"amplitude": QuantitySpec("1", lower=-5.0, upper=5.0), "exponent": QuantitySpec("1", **_POS, upper=10.0),
               "reference": QuantitySpec("h", **_POS), "start": _opt("h", **_NONNEG)},
-    "step": {"size": QuantitySpec("1", lower=-0.95, upper=5.0), "at": QuantitySpec("h", **_NONNEG)},
+    "step": {"size": QuantitySpec("1", lower=DEVIATION_RANGE[0], upper=DEVIATION_RANGE[1]),
+             "at": QuantitySpec("h", **_NONNEG)},
 }
 _LIFE_SCHEMA = {
     "visits": QuantitySpec("1", integer=True, lower=1, upper=1000),
@@ -343,9 +345,8 @@ def _parse_rig(file: str, table: Any) -> RigSpec:
     if "deviations" in plain:
         devs = _number_map(file, "rig.deviations", plain["deviations"])
         for k, d in devs.items():
-            if not -0.95 <= d <= 5.0:
-                raise ConfigError(file, f"rig.deviations.{k}",
-                                  f"relative deviation {d!r} outside the allowed range [-0.95, 5]")
+            if (reason := deviation_problem(k, d)) is not None:
+                raise ConfigError(file, f"rig.deviations.{k}", reason)
         kw["deviations"] = MappingProxyType(devs)
     if "effect_params" in plain:
         kw["effect_params"] = MappingProxyType(_number_map(file, "rig.effect_params", plain["effect_params"]))

@@ -26,6 +26,7 @@ import numpy as np
 from board_config.assignments import parse_assignments as parse_assignments
 from board_config.assignments import parse_number
 from board_config.errors import InputError
+from board_config.parameter import ParameterError, deviation_problem
 from drivers.link import ActuatorCommand, RigEndpoint, RigSample
 
 SENSOR_CHANNELS = ("z3", "v_patch", "z0dd", "v_battery")
@@ -183,8 +184,8 @@ class TruthChanges:
 
     def __post_init__(self) -> None:
         for k, v in self.deviations.items():
-            if not (math.isfinite(v) and v > -1.0):
-                raise InputError(f"--deviation {k}={v!r}: relative deviation must be > -1 (truth = nominal × (1 + d))")
+            if (reason := deviation_problem(k, v)) is not None:
+                raise ParameterError(f"--deviation {k}={v!r}: {reason}")
 
     @property
     def active(self) -> bool:

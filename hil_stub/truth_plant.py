@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from board_config import CORE_SCHEMA, ConfigError, ParameterSet
+from board_config import ConfigError, ParameterError, ParameterSet
 from hil_stub.amplifier import ChannelVoltages
 from hil_stub.cell import RigCell
 from hil_stub.environment import Environment
@@ -33,22 +33,12 @@ TRUTH_H_MAX = 5e-3
 
 def deviated_parameters(model: PlantModel, deviations: Mapping[str, float], where: str) -> np.ndarray:
     """``model``'s nominal parameter vector with the relative ``deviations`` applied (``nominal × (1 + d)``); a
-    :class:`ConfigError` naming ``where`` and ``rig.deviations.NAME`` for an unknown parameter or a deviated core
-    value outside its bounds."""
-    p = model.p_nominal.copy()
-    for name, d in deviations.items():
-        try:
-            idx = model.param_index(name)
-        except KeyError:
-            raise ConfigError(where, f"rig.deviations.{name}",
-                              f"no such model parameter (known: {', '.join(model.param_names)})") from None
-        value = p[idx] * (1.0 + d)
-        if name in CORE_SCHEMA:
-            spec = CORE_SCHEMA[name]
-            quantity = getattr(spec, "quantity", spec)  # the core schema's bounds as a TOML quantity
-            quantity.check(where, f"rig.deviations.{name} (gives {name} = {value:g})", value)
-        p[idx] = value
-    return p
+    :class:`ConfigError` naming ``where`` and ``rig.deviations.NAME`` for an unknown parameter, a deviation outside
+    the accepted range or a deviated value outside its bounds (:meth:`board_config.ParameterVector.with_deviations`)."""
+    try:
+        return model.nominal.with_deviations(deviations, "rig.deviations").array()
+    except ParameterError as exc:  # the one check of a deviation (range, name, bounds), reported as the file's key
+        raise ConfigError(where, f"rig.deviations.{exc.name}", exc.reason) from None
 
 
 class TruthComposition:

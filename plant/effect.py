@@ -42,9 +42,8 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-import numpy as np
-
 from board_config.errors import InputError
+from board_config.parameter import Parameter as OneParameter
 
 
 class EffectError(InputError):
@@ -52,25 +51,13 @@ class EffectError(InputError):
 
 
 @dataclass(frozen=True)
-class Parameter:
-    """A parameter of an effect. ``core_index`` is set for the Table 2 parameters (fixed layout)."""
+class Parameter(OneParameter):
+    """A parameter of an effect: the one parameter type (:class:`board_config.parameter.Parameter`: name, SI unit,
+    default, bounds, description, neutral value, fit range ...); its :meth:`check` raises :class:`EffectError`.
+    ``core_index`` is set for the Table 2 parameters, which the core effects take from
+    ``board_config.CORE_SCHEMA``."""
 
-    name: str
-    unit: str
-    default: float
-    lower: float = -np.inf
-    upper: float = np.inf
-    description: str = ""
-    core_index: int | None = None
-
-    def check(self, value: float, where: str) -> float:
-        value = float(value)
-        if not np.isfinite(value):
-            raise EffectError(f"{where}: parameter '{self.name}' must be finite, got {value!r}")
-        if value < self.lower or value > self.upper:
-            raise EffectError(f"{where}: parameter '{self.name}' = {value!r} {self.unit} outside its bounds "
-                              f"[{self.lower:g}, {self.upper:g}] {self.unit}")
-        return value
+    error: ClassVar[type[InputError]] = EffectError
 
 
 @dataclass(frozen=True)
@@ -136,7 +123,7 @@ class PhysicalEffect:
             raise EffectError(f"{label}: defines none of the hooks pre, rates, post, output")
         seen: set[str] = set()
         for par in cls.parameters:
-            if not isinstance(par, Parameter):
+            if not isinstance(par, OneParameter):
                 raise EffectError(f"{label}: parameters must be Parameter objects, got {par!r}")
             if par.name in seen:
                 raise EffectError(f"{label}: parameter '{par.name}' declared twice")

@@ -18,6 +18,8 @@ index  symbol                  unit
 
 from __future__ import annotations
 
+from board_config.parameter_sets import CORE_INDEX as _CORE_INDEX
+
 N_SECTIONS = 3
 
 # --- core states -----------------------------------------------------------------------------------
@@ -34,19 +36,22 @@ CORE_STATE_NAMES: tuple[str, ...] = (
 )
 CORE_STATE_UNITS: tuple[str, ...] = ("m",) * 3 + ("m/s",) * 3 + ("C",) * 6
 
-# --- core parameters (order of board_config.CORE_PARAMETER_NAMES) ----------------------------------
-P_R_EP = 0
-P_C_EP = 1
-P_D_EP = 2
-P_M = 3  # m_i at P_M + i
-P_K = 6  # k_i at P_K + i
-P_C = 9  # c_i at P_C + i
-P_ALPHA_H = 12
-P_A_H = 13
-P_N_H = 14
-P_BETA_H = 15
-P_GAMMA_H = 16
-N_CORE_PARAMS = 17
+# --- core parameters: indices from the one schema, board_config.CORE_PARAMETERS (plain ints, folded by numba) ----
+P_R_EP: int = _CORE_INDEX["R_ep"]
+P_C_EP: int = _CORE_INDEX["C_ep"]
+P_D_EP: int = _CORE_INDEX["d_ep"]
+P_M: int = _CORE_INDEX["m1"]  # m_i at P_M + i
+P_K: int = _CORE_INDEX["k1"]  # k_i at P_K + i
+P_C: int = _CORE_INDEX["c1"]  # c_i at P_C + i
+P_ALPHA_H: int = _CORE_INDEX["alpha_h"]
+P_A_H: int = _CORE_INDEX["A_h"]
+P_N_H: int = _CORE_INDEX["n_h"]
+P_BETA_H: int = _CORE_INDEX["beta_h"]
+P_GAMMA_H: int = _CORE_INDEX["gamma_h"]
+N_CORE_PARAMS: int = len(_CORE_INDEX)
+if any(_CORE_INDEX[f"{s}{i + 1}"] != base + i for s, base in (("m", P_M), ("k", P_K), ("c", P_C))
+       for i in range(N_SECTIONS)):
+    raise ImportError("board_config.CORE_PARAMETERS must list m1..m3, k1..k3 and c1..c3 consecutively")
 
 # --- inputs ----------------------------------------------------------------------------------------
 U_V_CH1 = 0  # channel-1 voltage (patches of side 1), V

@@ -10,7 +10,15 @@ from typing import Any
 
 import numpy as np
 
-from board_config import CORE_PARAMETER_NAMES, CORE_SCHEMA, EffectEntry, ParameterSet, load_parameter_set
+from board_config import (
+    CORE_PARAMETER_NAMES,
+    CORE_PARAMETERS,
+    CORE_SCHEMA,
+    EffectEntry,
+    ParameterSet,
+    ParameterVector,
+    load_parameter_set,
+)
 from plant import layout as L
 from plant.compose import compose
 from plant.effect import EffectError, OutputSpec, Parameter, PhysicalEffect, StateSpec, resolve_effect
@@ -215,6 +223,11 @@ class PlantModel:
 
     def param_value(self, name: str) -> float:
         return float(self.p_nominal[self.param_index(name)])
+
+    @property
+    def nominal(self) -> ParameterVector:
+        """The model's parameters (core, then the effects' own) with their nominal values, by name."""
+        return ParameterVector.of(CORE_PARAMETERS + self.own_parameters, self.p_nominal)
 
     def param_batch(self, n: int | None = None, **columns: Any) -> np.ndarray:
         """A (batch, n_params) parameter array: nominal values with named columns replaced.

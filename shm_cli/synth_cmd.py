@@ -101,7 +101,7 @@ def _check_drive_limits(args: argparse.Namespace, spec, base: bool) -> None:
 
 
 def cmd_synth(args: argparse.Namespace) -> int:
-    from board_config import CORE_PARAMETER_NAMES, load_parameter_set
+    from board_config import CORE_PARAMETER_NAMES, CORE_PARAMETERS, ParameterVector, load_parameter_set
     from plant import G0
     from workbench.records import write_record
     from workbench.synth import synth_frf, synth_record, synth_test, truth_model, write_frf_record
@@ -113,12 +113,11 @@ def cmd_synth(args: argparse.Namespace) -> int:
         raise InputError("--test frf writes a frequency-response table: use a .csv file name")
     pset = load_parameter_set(args.params)
     values = _assignments("--set", args.set_values)
-    for name, rel in _assignments("--deviation", args.deviation).items():
-        if name not in CORE_PARAMETER_NAMES:
-            raise InputError(f"--deviation {name}: not a core parameter ({', '.join(CORE_PARAMETER_NAMES)})")
-        if not rel > -1.0:
-            raise InputError(f"--deviation {name}={rel}: a relative deviation must be above -1")
-        values[name] = values.get(name, pset.values[name]) * (1.0 + rel)
+    deviations = _assignments("--deviation", args.deviation)
+    if deviations:  # on top of --set values; validated (names, range, bounds) by the one with_deviations
+        base = ParameterVector.of(CORE_PARAMETERS, (values.get(n, pset.values[n]) for n in CORE_PARAMETER_NAMES))
+        deviated = base.with_deviations(deviations, "--deviation")
+        values.update({name: deviated[name] for name in deviations})
     base = args.drive == "base"
     amplitude = None if args.amplitude is None else args.amplitude * (G0 if base else 1.0)
     spec = synth_test(args.test, drive=args.drive, amplitude=amplitude, freq_hz=args.freq_hz, f0_hz=args.f0_hz,

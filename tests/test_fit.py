@@ -13,10 +13,10 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from board_config import load_parameter_set
+from board_config.parameter import freed
 from plant import Parameter, PhysicalEffect, PlantModel
 from plant.layout import B_FM, B_Z, B_ZD
 from shm_cli.main import main
-from workbench.effect_library import FreeParameter
 from workbench.fit import FitError, block_masks, fit_records
 from workbench.records import write_record
 from workbench.synth import synth_record, synth_test, truth_model
@@ -35,7 +35,7 @@ def _record(effects=(), values=None, kind="mbit-b", seed=0, **spec):
 def test_free_parameter_unit_box_round_trip(lo, width, u, mode):
     if mode == "log":
         lo = abs(lo) + 1e-3
-    fp = FreeParameter("p", "1", lo, lo + width, log=mode == "log", linthresh=1.0 if mode == "symlog" else None)
+    fp = freed("p", "1", lo, lo + width, log=mode == "log", linthresh=1.0 if mode == "symlog" else None)
     v = float(fp.from_unit(u))
     assert fp.lower - 1e-9 * abs(fp.lower) <= v <= fp.upper + 1e-9 * abs(fp.upper)
     assert float(fp.to_unit(v)) == pytest.approx(u, abs=1e-7)

@@ -36,7 +36,7 @@ def test_spec_parsing_and_errors():
         LinkFaults(drop=1.5)
     with pytest.raises(ValueError, match="exceeds 1"):
         LinkFaults(drop=0.6, corrupt=0.6)
-    with pytest.raises(ValueError, match="> -1"):
+    with pytest.raises(ValueError, match=r"--deviation k3=-1\.0: .*outside the allowed range \[-0\.95, 5\]"):
         TruthChanges(deviations={"k3": -1.0})
     plan = FaultPlan(link=LinkFaults(drop=0.1, latency_s=0.002, disconnect_at_s=5.0), seed=4,
                      sensors=SensorFaults(noise={"z3": 1e-6}, stuck={"z3": 3.0}),

@@ -14,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from board_config import ParameterSet
+from board_config.parameter import Parameter
 from plant import PhysicalEffect, PlantModel
 from plant.effect import EffectError
 from workbench.candidates import (
@@ -24,7 +25,7 @@ from workbench.candidates import (
     neutral_end,
     widen,
 )
-from workbench.effect_library import FreeParameter, guess_values
+from workbench.effect_library import guess_values
 from workbench.fit import (
     ChannelScore,
     FitError,
@@ -76,7 +77,7 @@ class CandidateResult:
     description: str
     origin: str
     signature: str
-    free: list[FreeParameter]
+    free: list[Parameter]
     outcome: FitOutcome | None
     held_reduction: float = float("nan")  # 1 − RSS_held / RSS0_held
     delta_bic_held: float = float("-inf")
@@ -207,7 +208,7 @@ def spec_models(spec: CandidateSpec, base: ParameterSet, targets: Sequence[Targe
     return models
 
 
-def spec_guess(spec: CandidateSpec, data: Mapping[str, Any], free: Sequence[FreeParameter],
+def spec_guess(spec: CandidateSpec, data: Mapping[str, Any], free: Sequence[Parameter],
                base_values: Mapping[str, float]) -> dict[str, float]:
     guess: dict[str, float] = {}
     for cls in spec.effects:
@@ -236,7 +237,7 @@ def fit_spec(spec: CandidateSpec, base: ParameterSet, targets: Sequence[Target],
     load_s = time.perf_counter() - t0
     for cls in spec.effects:
         check_effect_runs(models[0], cls, targets[0])
-    ranges: dict[str, FreeParameter] = {}
+    ranges: dict[str, Parameter] = {}
     free, ties = spec.free_parameters(base_values, ranges)
     guess = spec_guess(spec, data, free, base_values)
     guess.update(start or {})

@@ -25,8 +25,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from board_config import CORE_SCHEMA, ParameterSet
+from board_config.parameter import Parameter, freed
 from plant import PhysicalEffect, PlantModel
-from workbench.effect_library import LIBRARY, FreeParameter, effect_free_parameters
+from workbench.effect_library import LIBRARY, effect_free_parameters
 from workbench.fit import Objective, SimBatch, Target, rms
 
 #: default search range of a re-estimated core parameter: a factor around its current value
@@ -87,22 +88,21 @@ def parameter_candidate(name: str) -> ParameterCandidate:
     raise KeyError(f"unknown parameter candidate '{name}' (known: {', '.join(PARAMETER_CANDIDATE_NAMES)})")
 
 
-def core_range(name: str, value: float, factor: float = CORE_RANGE_FACTOR) -> FreeParameter:
+def core_range(name: str, value: float, factor: float = CORE_RANGE_FACTOR) -> Parameter:
     """Search range of core parameter ``name`` at ``value``: ×/÷ ``factor`` (log) clipped to its own bounds; a
     parameter at zero (γ_h) or of either sign gets a linear range."""
     spec = CORE_SCHEMA[name]
     unit = spec.unit
-    lo_b = spec.lower if spec.lower is not None else -math.inf
-    hi_b = spec.upper if spec.upper is not None else math.inf
+    lo_b, hi_b = spec.lower, spec.upper
     if value > 0:
         lo, hi = value / factor, value * factor
         lo = max(lo, lo_b if lo_b > 0 else 0.0)
         hi = min(hi, hi_b)
         if lo > 0 and (hi_b == math.inf or hi < hi_b):
-            return FreeParameter(name, unit, lo, hi, True, "core")
-        return FreeParameter(name, unit, max(lo, 1e-12 * value), hi, lo > 0 and hi / max(lo, 1e-300) > 3.0, "core")
+            return freed(name, unit, lo, hi, True, "core")
+        return freed(name, unit, max(lo, 1e-12 * value), hi, lo > 0 and hi / max(lo, 1e-300) > 3.0, "core")
     span = max(abs(value), 1.0) * factor / 4.0
-    return FreeParameter(name, unit, max(value - span, lo_b), min(value + span, hi_b), False, "core")
+    return freed(name, unit, max(value - span, lo_b), min(value + span, hi_b), False, "core")
 
 
 @dataclass(frozen=True)
@@ -143,11 +143,11 @@ class CandidateSpec:
         return CandidateSpec(tuple(effects), params, tuple(extras.items()))
 
     def free_parameters(self, base_values: Mapping[str, float],
-                        ranges: Mapping[str, FreeParameter] | None = None) -> tuple[list[FreeParameter], list]:
+                        ranges: Mapping[str, Parameter] | None = None) -> tuple[list[Parameter], list]:
         """(free parameters, ties): ``ties[j]`` is None for a parameter set directly, or the member names a tied
         scale factor multiplies."""
         ranges = ranges or {}
-        free: list[FreeParameter] = []
+        free: list[Parameter] = []
         ties: list = []
         for cls in self.effects:
             names = list(getattr(cls, "fit_ranges", {}) or [p.name for p in cls.own_parameters()])
@@ -157,7 +157,7 @@ class CandidateSpec:
                 ties.append(None)
         for pc in self.params:
             if pc.tied:
-                fp = FreeParameter(pc.scale_name, "1", 1.0 / CORE_RANGE_FACTOR, CORE_RANGE_FACTOR, True, pc.name)
+                fp = freed(pc.scale_name, "1", 1.0 / CORE_RANGE_FACTOR, CORE_RANGE_FACTOR, True, pc.name)
                 free.append(ranges.get(fp.name, fp))
                 ties.append(pc.members)
             else:
@@ -173,7 +173,7 @@ class TiedObjective(Objective):
     """:class:`workbench.fit.Objective` whose free parameters may also be common scale factors of several model
     parameters (``ties[j]``: the names scaled by free parameter j, or None for a parameter set directly)."""
 
-    def __init__(self, targets: Sequence[Target], models: Sequence[PlantModel], free: Sequence[FreeParameter],
+    def __init__(self, targets: Sequence[Target], models: Sequence[PlantModel], free: Sequence[Parameter],
                  ties: Sequence[tuple[str, ...] | None], base_values: Mapping[str, float] | None = None,
                  threads: int | None = None, rtol: float = 1e-6):
         super().__init__(targets, models, [], base_values=base_values, threads=threads, rtol=rtol)
@@ -356,10 +356,7 @@ def _moved(name: str, value: float, s: float) -> float:
     else:
         v = s * 10.0  # γ_h (C^-n) at zero: an additive probe of the scale of β_h
     if spec is not None:
-        if spec.upper is not None:
-            v = min(v, spec.upper)
-        if spec.lower is not None:
-            v = max(v, spec.lower)
+        v = max(min(v, spec.upper), spec.lower)
     return v
 
 
@@ -391,7 +388,7 @@ def screen_effects(targets: Sequence[Target], effect_models: Mapping[str, Sequen
     return out
 
 
-def widen(fp: FreeParameter, at_upper: bool, cls: type[PhysicalEffect] | None, value: float) -> FreeParameter | None:
+def widen(fp: Parameter, at_upper: bool, cls: type[PhysicalEffect] | None, value: float) -> Parameter | None:
     """``fp`` with the bound it hit pushed out to the parameter's own bound (an effect parameter) or
     :data:`CORE_WIDE_FACTOR` (a core parameter or tied scale); None when it cannot move further."""
     lo, hi = fp.lower, fp.upper
@@ -402,8 +399,7 @@ def widen(fp: FreeParameter, at_upper: bool, cls: type[PhysicalEffect] | None, v
             own_lo, own_hi = par.lower, par.upper
     elif fp.name in CORE_SCHEMA:
         spec = CORE_SCHEMA[fp.name]
-        own_lo = spec.lower if spec.lower is not None else -math.inf
-        own_hi = spec.upper if spec.upper is not None else math.inf
+        own_lo, own_hi = spec.lower, spec.upper
         ref = abs(value) if value != 0 else max(abs(lo), abs(hi))
         own_lo = max(own_lo, ref / CORE_WIDE_FACTOR if lo > 0 else lo - 5 * (hi - lo))
         own_hi = min(own_hi, ref * CORE_WIDE_FACTOR if hi > 0 else hi + 5 * (hi - lo))
@@ -421,10 +417,10 @@ def widen(fp: FreeParameter, at_upper: bool, cls: type[PhysicalEffect] | None, v
         if not new_lo < lo - 1e-12 * abs(lo):
             return None
         lo = new_lo
-    return FreeParameter(fp.name, fp.unit, lo, hi, fp.log, fp.owner, fp.linthresh)
+    return fp.free(lo, hi, log=fp.log, linthresh=fp.linthresh)
 
 
-def neutral_end(fp: FreeParameter, cls: type[PhysicalEffect] | None) -> tuple[bool, bool]:
+def neutral_end(fp: Parameter, cls: type[PhysicalEffect] | None) -> tuple[bool, bool]:
     """(lower, upper): whether each end of ``fp`` is the effect's neutral value (a fit there means 'absent',
     not 'beyond the range')."""
     if cls is None:

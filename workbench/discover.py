@@ -34,6 +34,7 @@ from typing import Any
 import numpy as np
 
 from board_config import ParameterSet, load_parameter_set
+from board_config.parameter import freed
 from plant import PhysicalEffect
 from plant.effect import EffectError, resolve_effect
 from workbench.candidate_fit import explained, noise_tolerance
@@ -46,7 +47,7 @@ from workbench.discover_dictionary_effect import (
 from workbench.discover_results import DiscoverError, Discovery, FoundTerm, ScreenRow, describe_units
 from workbench.discover_search import SearchState, free_for, free_run_check, nonlinear_check, refine, refit_list
 from workbench.discovery_dictionary import build_dictionary, dictionary_parameter_names, dictionary_source
-from workbench.effect_library import FreeParameter, resolve_candidates
+from workbench.effect_library import resolve_candidates
 from workbench.effect_writer import describe_term
 from workbench.fit_objective import Objective, rms
 from workbench.fit_optimiser import FitOutcome
@@ -111,7 +112,7 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
         # --- sensitivities: one batch, member k+1 switches term k on with eps_k
         t0 = time.perf_counter()
         cand = [k for k in range(len(terms)) if k not in state.kept]
-        names_free = [FreeParameter(names[k][0], terms[k].unit, -1e300, 1e300, False, "discover") for k in cand]
+        names_free = [freed(names[k][0], terms[k].unit, -1e300, 1e300, False, "discover") for k in cand]
         obj = Objective(targets, models, names_free, base_values=state.values, rtol=SENS_RTOL, threads=threads)
         U = np.zeros((len(cand) + 1, len(cand)))
         # unit box of a linear [-1e300, 1e300] range: u = 0.5 + v / 2e300 — set the values directly instead

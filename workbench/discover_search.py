@@ -11,10 +11,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import least_squares
 
+from board_config.parameter import Parameter, freed
 from plant import PlantModel
 from workbench.discover_results import ScreenRow
 from workbench.discovery_dictionary import Term
-from workbench.effect_library import FreeParameter
 from workbench.fit_objective import Objective
 from workbench.fit_optimiser import FitOutcome, outcome_at, train_residual_and_jacobian
 from workbench.fit_targets import Target
@@ -116,7 +116,7 @@ def refit_list(rows: list[ScreenRow], n_refit: int, n_siblings: int = 2) -> list
 
 
 def free_for(terms: Sequence[Term], names: list[tuple[str, str | None]], idx: Sequence[int],
-             start: dict[str, float], new: int | None, shapes_free: bool = True) -> list[FreeParameter]:
+             start: dict[str, float], new: int | None, shapes_free: bool = True) -> list[Parameter]:
     """Free parameters of the refit: the coefficients of ``idx`` (around their start) and the shapes of the new
     term (a factor of four either way; the smoothing width of a sign term stays)."""
     out = []
@@ -125,11 +125,11 @@ def free_for(terms: Sequence[Term], names: list[tuple[str, str | None]], idx: Se
         c = start[cname]
         span = max(abs(c), 1e-300)
         wide = 4.0 if k == new else 1.5
-        out.append(FreeParameter(cname, terms[k].unit, c - wide * span, c + wide * span, False, "discover"))
+        out.append(freed(cname, terms[k].unit, c - wide * span, c + wide * span, False, "discover"))
         if shapes_free and gname is not None and k == new:
             g = start[gname]
             lo, hi = (g / 20.0, g * 2.0) if terms[k].form == "sign" else (g / 4.0, g * 4.0)
-            out.append(FreeParameter(gname, "SI", lo, hi, True, "discover"))
+            out.append(freed(gname, "SI", lo, hi, True, "discover"))
     return out
 
 

@@ -5,18 +5,20 @@ declares neither: then every own parameter is free over its declared bounds (inf
 range around the default), linear, unless the bounds span more than three decades on the positive side (log).
 Core parameters (Table 2) can be freed too (``--free k3`` or ``--free k3:10:40``): default range a factor of
 three around the current value (log), or ±1 around a value of zero (linear).
+
+A freed parameter is the one parameter type (:class:`board_config.parameter.Parameter`) with ``vary`` set: its
+``lower``/``upper`` are the search range and its ``fit`` the scaling (:meth:`~board_config.parameter.Parameter.free`).
 """
 
 from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
 from board_config import CORE_PARAMETER_NAMES
-from board_config.errors import InputError
+from board_config.parameter import Parameter, freed
 from plant import PhysicalEffect, PlantModel, resolve_effect
 from plant.effect import EffectError
 
@@ -25,72 +27,6 @@ LIBRARY: tuple[str, ...] = (
     "piezo_creep", "geometric_stiffening", "air_damping", "dielectric_leakage", "amplifier_current_limit",
     "laser_sensor", "root_compliance", "thermal_drift",
 )
-
-
-@dataclass(frozen=True)
-class FreeParameter:
-    """A parameter the fit varies: SI name and unit, search interval, scaling, its owner.
-
-    The optimiser works in the unit box: ``u = 0`` at ``lower``, ``u = 1`` at ``upper``; linear in the value, in
-    log10 of the value (``log``), or in asinh(value/linthresh) (``linthresh``: symmetric-log, for parameters whose
-    neutral value is 0 and whose magnitudes span decades)."""
-
-    name: str
-    unit: str
-    lower: float
-    upper: float
-    log: bool = False
-    owner: str = "core"
-    linthresh: float | None = None
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.lower) and math.isfinite(self.upper) and self.lower < self.upper):
-            raise InputError(f"parameter '{self.name}': fit range needs finite lower < upper, got "
-                             f"[{self.lower:g}, {self.upper:g}] {self.unit}")
-        if self.log and self.lower <= 0:
-            raise InputError(f"parameter '{self.name}': a logarithmic fit range needs lower > 0, got {self.lower:g}")
-        if self.linthresh is not None and not self.linthresh > 0:
-            raise InputError(f"parameter '{self.name}': linthresh must be > 0, got {self.linthresh}")
-
-    def _ends(self) -> tuple[float, float]:
-        if self.log:
-            return math.log10(self.lower), math.log10(self.upper)
-        if self.linthresh is not None:
-            return math.asinh(self.lower / self.linthresh), math.asinh(self.upper / self.linthresh)
-        return self.lower, self.upper
-
-    def to_unit(self, value: float | np.ndarray) -> np.ndarray:
-        v = np.clip(np.asarray(value, float), self.lower, self.upper)
-        a, b = self._ends()
-        if self.log:
-            s = np.log10(v)
-        elif self.linthresh is not None:
-            s = np.arcsinh(v / self.linthresh)
-        else:
-            s = v
-        return (s - a) / (b - a)
-
-    def from_unit(self, u: float | np.ndarray) -> np.ndarray:
-        a, b = self._ends()
-        s = a + np.clip(np.asarray(u, float), 0.0, 1.0) * (b - a)
-        if self.log:
-            return np.clip(10.0 ** s, self.lower, self.upper)
-        if self.linthresh is not None:
-            return np.clip(self.linthresh * np.sinh(s), self.lower, self.upper)
-        return s
-
-    def dvalue_du(self, value: float) -> float:
-        """d(value)/du at ``value`` (for turning Jacobians in the unit box into SI)."""
-        a, b = self._ends()
-        if self.log:
-            return float(value) * math.log(10.0) * (b - a)
-        if self.linthresh is not None:
-            return self.linthresh * math.cosh(math.asinh(float(value) / self.linthresh)) * (b - a)
-        return b - a
-
-    def describe(self) -> str:
-        scale = " (log)" if self.log else (f" (symlog, linear within ±{self.linthresh:g})" if self.linthresh else "")
-        return f"{self.name} in [{self.lower:g}, {self.upper:g}] {self.unit}{scale}"
 
 
 def resolve_candidates(specs: Sequence[str | type[PhysicalEffect]]) -> list[type[PhysicalEffect]]:
@@ -108,18 +44,7 @@ def resolve_candidates(specs: Sequence[str | type[PhysicalEffect]]) -> list[type
     return out
 
 
-def _auto_range(default: float, lower: float, upper: float) -> tuple[float, float, bool]:
-    lo, hi = lower, upper
-    scale = max(abs(default), 1.0)
-    if not math.isfinite(lo):
-        lo = default - 10.0 * scale
-    if not math.isfinite(hi):
-        hi = default + 10.0 * scale
-    log = lo > 0 and hi / lo > 1e3
-    return lo, hi, log
-
-
-def effect_free_parameters(cls: type[PhysicalEffect], names: Sequence[str] | None = None) -> list[FreeParameter]:
+def effect_free_parameters(cls: type[PhysicalEffect], names: Sequence[str] | None = None) -> list[Parameter]:
     """The parameters of ``cls`` the workbench fits by default (or ``names``), with their ranges."""
     ranges: Mapping[str, object] = {**getattr(cls, "extra_ranges", {}), **getattr(cls, "fit_ranges", {})}
     own = {p.name: p for p in cls.own_parameters()}
@@ -131,17 +56,15 @@ def effect_free_parameters(cls: type[PhysicalEffect], names: Sequence[str] | Non
         if par is None:
             raise EffectError(f"effect '{cls.name}' has no parameter '{n}' (parameters: {', '.join(own)})")
         rng = ranges.get(n)
-        linthresh = None
         if rng is not None:
-            lo, hi, log = float(rng.lower), float(rng.upper), bool(rng.log)  # type: ignore[attr-defined]
-            linthresh = getattr(rng, "linthresh", None)
+            out.append(par.free(float(rng.lower), float(rng.upper), log=bool(rng.log),  # type: ignore[attr-defined]
+                                linthresh=getattr(rng, "linthresh", None), owner=cls.name))
         else:
-            lo, hi, log = _auto_range(par.default, par.lower, par.upper)
-        out.append(FreeParameter(n, par.unit, lo, hi, log, cls.name, linthresh))
+            out.append(par.free(owner=cls.name))  # its declared fit range, else one from its bounds
     return out
 
 
-def core_free_parameter(model: PlantModel, spec: str) -> FreeParameter:
+def core_free_parameter(model: PlantModel, spec: str) -> Parameter:
     """A freed core (or any model) parameter from ``name`` or ``name:lower:upper`` (SI)."""
     name, _, rest = spec.partition(":")
     try:
@@ -161,19 +84,19 @@ def core_free_parameter(model: PlantModel, spec: str) -> FreeParameter:
         except (ValueError, IndexError):
             raise EffectError(f"--free '{spec}': expected NAME or NAME:LOWER:UPPER (SI units, {unit})") from None
         log = lo > 0 and hi / lo > 1e2
-        return FreeParameter(name, unit, lo, hi, log, owner)
+        return freed(name, unit, lo, hi, log, owner)
     if owner != "core":
         cls = next(c for c in model.effects if c.name == owner)
         fp = effect_free_parameters(cls, [name])[0]
         return fp
     if value > 0:
-        return FreeParameter(name, unit, value / 3.0, value * 3.0, True, owner)
+        return freed(name, unit, value / 3.0, value * 3.0, True, owner)
     if value < 0:
-        return FreeParameter(name, unit, value * 3.0, value / 3.0, False, owner)
-    return FreeParameter(name, unit, -1.0, 1.0, False, owner)
+        return freed(name, unit, value * 3.0, value / 3.0, False, owner)
+    return freed(name, unit, -1.0, 1.0, False, owner)
 
 
-def guess_values(cls: type[PhysicalEffect], data: Mapping | None, free: Sequence[FreeParameter]) -> dict[str, float]:
+def guess_values(cls: type[PhysicalEffect], data: Mapping | None, free: Sequence[Parameter]) -> dict[str, float]:
     """The effect's ``guess(data)`` restricted to ``free`` and clipped into their ranges (a parameter the guess
     leaves out starts mid-range). A guess that raises, returns something other than a mapping, or gives a
     parameter a value that is not one finite number is an :class:`EffectError` naming the effect and the key."""

@@ -14,10 +14,10 @@ from typing import Any
 import numpy as np
 
 from board_config import ParameterSet, load_parameter_set
+from board_config.parameter import Parameter
 from plant import InputSignals, PhysicalEffect, PlantModel
 from plant.effect import EffectError
 from workbench.effect_library import (
-    FreeParameter,
     core_free_parameter,
     effect_free_parameters,
     guess_values,
@@ -43,7 +43,7 @@ class FitReport:
     """What ``shm fit`` reports: before/after on training and held-out data, estimates, history, the new set."""
 
     added: list[str]
-    free: list[FreeParameter]
+    free: list[Parameter]
     outcome: FitOutcome
     before: list[ChannelScore]
     after: list[ChannelScore]
@@ -133,7 +133,7 @@ def fit_records(records: Sequence[Record], params: ParameterSet | str = "table2"
                        + "; ".join(f"{tg.name}: status {int(s[0])}" for tg, s in zip(targets, base_sim.status)))
     # the effects' own starting guesses first (cheap; a malformed guess fails before anything compiles)
     data = guess_data(targets[0], base_sim, base_models[0])
-    free_params: list[FreeParameter] = []
+    free_params: list[Parameter] = []
     guess: dict[str, float] = {}
     for cls in classes:
         try:

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from board_config.parameter import Parameter
 from plant import PlantModel
-from workbench.effect_library import FreeParameter
 from workbench.fit_targets import FitError, Target
 
 
@@ -34,7 +34,7 @@ class Objective:
     ``base_values`` are parameter values (by name) that override the models' nominal vectors.
     """
 
-    def __init__(self, targets: Sequence[Target], models: Sequence[PlantModel], free: Sequence[FreeParameter],
+    def __init__(self, targets: Sequence[Target], models: Sequence[PlantModel], free: Sequence[Parameter],
                  base_values: Mapping[str, float] | None = None, rtol: float = 1e-6, threads: int | None = None):
         self.targets = list(targets)
         self.models = list(models)

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from plant.effect import Parameter, PhysicalEffect
+from board_config.parameter_sets import core_parameters
+from plant.effect import PhysicalEffect
 from plant.layout import B_QH, P_A_H, P_ALPHA_H, P_BETA_H, P_GAMMA_H, P_N_H, X_H, X_Q
 
 
@@ -13,15 +14,7 @@ class BoucWenHysteresis(PhysicalEffect):
     role = "core"
     description = "Bouc-Wen hysteretic charge h_q and effective charge q_h = α q + (1 − α) h"
     origin = "Seed paper Eq. (1)-(2); piezo-ceramic domain switching gives rate-independent hysteresis"
-    parameters = (
-        Parameter("alpha_h", "1", 0.605, 0.0, 1.0, "Bouc-Wen linearity factor", core_index=P_ALPHA_H),
-        Parameter("A_h", "1", -1.0, -float("inf"), float("inf"), "Bouc-Wen dissipation gain", core_index=P_A_H),
-        Parameter("n_h", "1", 1.0, 0.0, float("inf"), "Bouc-Wen exponent n", core_index=P_N_H),
-        Parameter("beta_h", "C^-n", 8.307, -float("inf"), float("inf"), "Bouc-Wen shape factor",
-                  core_index=P_BETA_H),
-        Parameter("gamma_h", "C^-n", 0.0, -float("inf"), float("inf"), "Bouc-Wen shape factor",
-                  core_index=P_GAMMA_H),
-    )
+    parameters = core_parameters("alpha_h", "A_h", "n_h", "beta_h", "gamma_h")
 
     @staticmethod
     def pre(t, x, p, bus, dx, so, po):

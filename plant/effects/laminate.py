@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from plant.effect import Parameter, PhysicalEffect
+from board_config.parameter_sets import core_parameters
+from plant.effect import PhysicalEffect
 from plant.layout import B_FM, B_S, B_Z, B_Z0DD, B_ZD, P_C, P_K, P_M, X_DDELTA, X_DELTA
 
 
@@ -17,17 +18,7 @@ class LaminateModes(PhysicalEffect):
     role = "core"
     description = "Three bending sections (masses m_i, stiffness k_i, structural damping c_i)"
     origin = "Seed paper Eq. (1)-(3): lumped-parameter cantilever with three bending deformations"
-    parameters = (
-        Parameter("m1", "kg", 1.16e-3, 0.0, float("inf"), "Root section mass", core_index=P_M),
-        Parameter("m2", "kg", 2.32e-3, 0.0, float("inf"), "Intermediate section mass", core_index=P_M + 1),
-        Parameter("m3", "kg", 1.39e-3, 0.0, float("inf"), "Tip section mass", core_index=P_M + 2),
-        Parameter("k1", "N/m", 332.98, 0.0, float("inf"), "Root bending stiffness", core_index=P_K),
-        Parameter("k2", "N/m", 125.40, 0.0, float("inf"), "Intermediate bending stiffness", core_index=P_K + 1),
-        Parameter("k3", "N/m", 21.28, 0.0, float("inf"), "Tip bending stiffness", core_index=P_K + 2),
-        Parameter("c1", "N*s/m", 0.098, 0.0, float("inf"), "Root structural damping", core_index=P_C),
-        Parameter("c2", "N*s/m", 0.020, 0.0, float("inf"), "Intermediate structural damping", core_index=P_C + 1),
-        Parameter("c3", "N*s/m", 0.025, 0.0, float("inf"), "Tip structural damping", core_index=P_C + 2),
-    )
+    parameters = core_parameters("m1", "m2", "m3", "k1", "k2", "k3", "c1", "c2", "c3")
 
     @staticmethod
     def pre(t, x, p, bus, dx, so, po):

@@ -6,8 +6,9 @@ Library effects (creep, stiffening, air damping, ...) declare, besides the seam'
     parameter values at which the effect leaves the response exactly unchanged (the nominal model);
 ``fit_ranges``
     for each parameter the workbench should fit by default, a :class:`FitRange` (search interval, linear or
-    logarithmic scaling). Parameters not listed stay at their value (e.g. a literature coefficient whose
-    product with another parameter is all the data can identify).
+    logarithmic scaling; the fit range of the one parameter type, :mod:`board_config.parameter`). Parameters not
+    listed stay at their value (e.g. a literature coefficient whose product with another parameter is all the data
+    can identify).
 
 The ``guess(data)`` hook of an effect receives a mapping with any of these keys (all optional; an effect
 falls back to its defaults for what is missing):
@@ -23,39 +24,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from board_config.errors import InputError
+from board_config.parameter import FitRange
 
-
-@dataclass(frozen=True)
-class FitRange:
-    """Where the workbench searches a parameter: ``[lower, upper]`` in SI units.
-
-    Scaling of the search: linear by default; ``log`` for scale parameters that span decades (fitted as log10 of
-    the value; the interval must then be positive); ``linthresh`` for a *symmetric-log* search of a parameter
-    whose neutral value is 0 and whose plausible magnitudes span decades (fitted as asinh(value/linthresh):
-    linear within ±linthresh, logarithmic beyond, either sign).
-    """
-
-    lower: float
-    upper: float
-    log: bool = False
-    linthresh: float | None = None
-
-    def __post_init__(self) -> None:
-        if not (math.isfinite(self.lower) and math.isfinite(self.upper) and self.lower < self.upper):
-            raise InputError(f"FitRange needs finite lower < upper, got [{self.lower}, {self.upper}]")
-        if self.log and self.lower <= 0:
-            raise InputError(f"a logarithmic FitRange needs a positive lower bound, got {self.lower}")
-        if self.linthresh is not None and (self.log or not self.linthresh > 0):
-            raise InputError(f"a symmetric-log FitRange needs linthresh > 0 and log=False, got {self.linthresh}")
-
-    def clip(self, value: float) -> float:
-        return float(min(max(value, self.lower), self.upper))
+__all__ = ["FitRange", "param", "regress", "residual", "series", "time_axis"]
 
 
 def series(data: Mapping[str, Any] | None, group: str, name: str) -> np.ndarray | None:

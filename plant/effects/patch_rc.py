@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from plant.effect import Parameter, PhysicalEffect
+from board_config.parameter_sets import core_parameters
+from plant.effect import PhysicalEffect
 from plant.layout import B_IR, B_QH, B_VA, B_VC, P_C_EP, P_R_EP, X_Q
 
 
@@ -16,10 +17,7 @@ class PatchRC(PhysicalEffect):
     role = "core"
     description = "Patch resistance and capacitance: the R-C charge dynamics (real pole 1/(2π R C))"
     origin = "Seed paper Eq. (1), fourth line; Table 2 R_ep, C_ep"
-    parameters = (
-        Parameter("R_ep", "ohm", 1500.0, 0.0, float("inf"), "Patch resistance", core_index=P_R_EP),
-        Parameter("C_ep", "F", 1.06e-5, 0.0, float("inf"), "Patch capacitance", core_index=P_C_EP),
-    )
+    parameters = core_parameters("R_ep", "C_ep")
 
     @staticmethod
     def pre(t, x, p, bus, dx, so, po):

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from plant.effect import Parameter, PhysicalEffect
+from board_config.parameter_sets import core_parameters
+from plant.effect import PhysicalEffect
 from plant.layout import B_P_PIEZO, B_QH, B_S, P_C_EP, P_D_EP, P_K, X_DDELTA, X_Q
 
 
@@ -13,10 +14,7 @@ class PiezoCoupling(PhysicalEffect):
     role = "core"
     description = "Piezo force θ q_h / C on each section and back-coupling current θ δ̇, θ_i = k_i d_ep"
     origin = "Seed paper Eq. (1): terms k_i d_ep q_hi / C_ep and R_ep k_i d_ep δ̇_i"
-    parameters = (
-        Parameter("d_ep", "m/V", 1.37e-5, 0.0, float("inf"), "Patch piezoelectric coefficient",
-                  core_index=P_D_EP),
-    )
+    parameters = core_parameters("d_ep")
 
     @staticmethod
     def rates(t, x, p, bus, dx, so, po):

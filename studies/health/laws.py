@@ -10,10 +10,11 @@ from __future__ import annotations
 import math
 from collections.abc import Iterable, Mapping
 
+from board_config.parameter import DEVIATION_RANGE
 from board_config.scenario import LifeLaw
 
-#: relative deviations are kept inside the rig's accepted range
-D_MIN, D_MAX = -0.95, 5.0
+#: relative deviations are kept inside the accepted range (board_config.DEVIATION_RANGE)
+D_MIN, D_MAX = DEVIATION_RANGE
 
 
 def law_value(law: LifeLaw, hours: float) -> float:
