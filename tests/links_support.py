@@ -77,6 +77,32 @@ def cmd(k: int, v1: float = 100.0, v2: float = -100.0) -> ActuatorCommand:
     return ActuatorCommand(seq=k, v_ch1=v1, v_ch2=v2, board_current=0.002)
 
 
+def first_reply(link, seqs: range) -> RigSample | None:
+    """Exchange ``cmd(k)`` for k in ``seqs`` until one is answered (``LinkError`` skipped): that sample, or ``None``.
+    Bounded by ``seqs`` (a reopen back-off is at most 64 exchange calls)."""
+    from drivers.link import LinkError
+
+    for k in seqs:
+        try:
+            return link.exchange(cmd(k))
+        except LinkError:
+            pass
+    return None
+
+
+def exchange_errors(link, seqs: range) -> list[str]:
+    """Exchange ``cmd(k)`` for every k in ``seqs``; the messages of the exchanges that raised ``LinkError``."""
+    from drivers.link import LinkError
+
+    errors = []
+    for k in seqs:
+        try:
+            link.exchange(cmd(k))
+        except LinkError as exc:
+            errors.append(str(exc))
+    return errors
+
+
 def wait_for(predicate: Callable[[], bool], timeout: float = 5.0, interval: float = 0.005) -> bool:
     """Poll until ``predicate()`` or ``timeout`` seconds (bounded)."""
     end = time.monotonic() + timeout

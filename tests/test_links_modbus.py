@@ -4,7 +4,7 @@ exception replies, unit-id silence, refused set-points, faults, a restarting ser
 from __future__ import annotations
 
 import pytest
-from links_support import FakeRig, cmd, exchange_through_outage
+from links_support import FakeRig, cmd, exchange_errors, exchange_through_outage, first_reply
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ModbusIOException
 from pymodbus.framer import FramerType
@@ -140,31 +140,12 @@ def test_server_restart_and_outage_are_survived(tcp_lockstep):
     try:
         link.exchange(cmd(1))
         srv.restart()
-        ok = None
-        for k in range(2, 300):  # bounded; the back-off is at most 64 calls
-            try:
-                ok = link.exchange(cmd(k))
-                break
-            except LinkError:
-                pass
-        assert ok is not None
+        assert first_reply(link, range(2, 300)) is not None  # bounded; the back-off is at most 64 calls
         srv.loop.run(srv._stop_server())  # down for good: every exchange a LinkError, quickly
-        errors = 0
-        for k in range(300, 340):
-            try:
-                link.exchange(cmd(k))
-            except LinkError:
-                errors += 1
+        errors = len(exchange_errors(link, range(300, 340)))
         assert errors == 40 and link.stats["down_exchanges"] > 10  # most calls never touch the socket
         srv.loop.run(srv._start())
-        back = None
-        for k in range(340, 700):
-            try:
-                back = link.exchange(cmd(k))
-                break
-            except LinkError:
-                pass
-        assert back is not None
+        assert first_reply(link, range(340, 700)) is not None
     finally:
         link.close()
     assert link.stats["link_down"] >= 2 and link.stats["reconnected"] >= 2
@@ -183,12 +164,8 @@ def test_wire_faults_give_only_link_errors():
             except LinkError:
                 pass
         try:
-            for k in range(1, 101):
-                try:
-                    link.exchange(cmd(k))
-                    ok += 1
-                except LinkError:
-                    fail += 1
+            fail = len(exchange_errors(link, range(1, 101)))  # nothing but LinkErrors escapes
+            ok = 100 - fail
         finally:
             link.close()
     # two transactions per exchange, each lost with probability 0.4: about 64 % of exchanges fail

@@ -8,7 +8,7 @@ import threading
 
 import pytest
 import serial
-from links_support import FakeRig, cmd, exchange_through_outage, wait_for
+from links_support import FakeRig, cmd, exchange_errors, exchange_through_outage, first_reply, wait_for
 
 from drivers import LinkError, open_link
 from drivers.framing import (
@@ -199,12 +199,8 @@ def test_dropped_and_corrupted_replies_are_link_errors_and_nothing_else():
         link.open()
         ok = fail = 0
         try:
-            for k in range(1, 121):
-                try:
-                    link.exchange(cmd(k))
-                    ok += 1
-                except LinkError:
-                    fail += 1
+            fail = len(exchange_errors(link, range(1, 121)))  # nothing but LinkErrors escapes
+            ok = 120 - fail
         finally:
             link.close()
     assert ok + fail == 120 and 25 <= fail <= 95  # about half, seeded
@@ -222,22 +218,10 @@ def test_pty_that_vanishes_then_returns():
             assert link.exchange(cmd(1)).seq == 1
             srv.disconnect(0.4)
             assert wait_for(lambda: not os.path.exists(path), timeout=2)
-            errors = []
-            for k in range(2, 12):  # link down: cheap LinkErrors with back-off, nothing else escapes
-                try:
-                    link.exchange(cmd(k))
-                except LinkError as exc:
-                    errors.append(str(exc))
+            errors = exchange_errors(link, range(2, 12))  # link down: cheap LinkErrors with back-off, nothing else
             assert len(errors) == 10 and any("read failed" in e or "write failed" in e for e in errors)
             assert wait_for(lambda: os.path.exists(path), timeout=3)
-            back = None
-            for k in range(12, 400):  # bounded: the back-off is at most 64 calls
-                try:
-                    back = link.exchange(cmd(k))
-                    break
-                except LinkError:
-                    pass
-            assert back is not None
+            assert first_reply(link, range(12, 400)) is not None  # bounded: the back-off is at most 64 calls
         finally:
             link.close()
         assert link.stats["link_down"] >= 1 and link.stats["reopened"] >= 1
@@ -257,14 +241,7 @@ def test_socket_url_against_a_listening_server_that_restarts():
                 for k in range(2, 5):
                     link.exchange(cmd(k))
             srv.start()  # same port
-            back = None
-            for k in range(5, 400):
-                try:
-                    back = link.exchange(cmd(k))
-                    break
-                except LinkError:
-                    pass
-            assert back is not None
+            assert first_reply(link, range(5, 400)) is not None
         finally:
             link.close()
 

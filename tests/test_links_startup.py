@@ -9,7 +9,7 @@ import os
 import tty
 
 import pytest
-from links_support import FakeRig, cmd
+from links_support import FakeRig, exchange_errors
 
 from drivers import LinkError, open_link
 from hil_stub.faults import FaultPlan, LinkFaults
@@ -41,12 +41,7 @@ def test_a_modbus_rig_slower_than_its_budget_is_reported_and_bounded():
         link = open_link(srv.board_url)
         link.open()  # the start-up reads have their own budget: a slow rig still connects
         try:
-            errors = []
-            for k in range(1, 31):
-                try:
-                    link.exchange(cmd(k))
-                except LinkError as exc:
-                    errors.append(str(exc))
+            errors = exchange_errors(link, range(1, 31))
         finally:
             link.close()
     assert len(errors) >= 25, "two 4.5 ms transactions do not fit the 8 ms exchange budget"
