@@ -26,6 +26,7 @@ import select
 import socket
 import threading
 import time
+from abc import ABC, abstractmethod
 from collections import Counter
 from pathlib import Path
 
@@ -52,21 +53,41 @@ log = logging.getLogger("hil_stub.frame_server")
 REOPEN_PAUSE_S = 0.2
 
 
-class _Channel:
-    """A byte pipe the server owns."""
+class _Channel(ABC):
+    """A byte pipe the server owns: the URL the board opens to reach it, and a line for the operator."""
 
+    @property
+    @abstractmethod
+    def board_url(self) -> str: ...
+
+    @property
+    @abstractmethod
+    def description(self) -> str: ...
+
+    @abstractmethod
     def open(self) -> None: ...
 
+    @abstractmethod
     def close(self) -> None: ...
 
+    @abstractmethod
     def read(self, timeout: float) -> bytes: ...
 
+    @abstractmethod
     def write(self, data: bytes) -> None: ...
 
 
 class _PtyChannel(_Channel):
     def __init__(self, link: Path | None) -> None:
         self.pty = PtyPort(link)
+
+    @property
+    def board_url(self) -> str:
+        return f"serial:{self.pty.link}"
+
+    @property
+    def description(self) -> str:
+        return f"serial frames on pty {self.pty.slave_name} (stable link {self.pty.link})"
 
     def open(self) -> None:
         self.pty.open()
@@ -82,10 +103,19 @@ class _PtyChannel(_Channel):
 
 
 class _SerialChannel(_Channel):
-    def __init__(self, url: str, baudrate: int) -> None:
-        self.url = url
+    def __init__(self, where: str, baudrate: int) -> None:
+        self.where = where
+        self.url = where.removeprefix("serial:")
         self.baudrate = baudrate
         self.port: serial.SerialBase | None = None
+
+    @property
+    def board_url(self) -> str:
+        return f"serial:{self.where}"
+
+    @property
+    def description(self) -> str:
+        return f"serial frames on {self.where}"
 
     def open(self) -> None:
         self.port = serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=0.01, write_timeout=0.1)
@@ -110,6 +140,14 @@ class _TcpListenChannel(_Channel):
         self.host, self.port = host, port
         self.listener: socket.socket | None = None
         self.client: socket.socket | None = None
+
+    @property
+    def board_url(self) -> str:
+        return f"socket://{self.host}:{self.port}"
+
+    @property
+    def description(self) -> str:
+        return f"serial frames on tcp {self.host}:{self.port}"
 
     def open(self) -> None:
         ls = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -180,7 +218,7 @@ class FrameServer:
                 raise InputError(f"--serial {where!r}: expected socket://HOST:PORT to listen on")
             self._channel = _TcpListenChannel(*endpoint)
         else:
-            self._channel = _SerialChannel(where.removeprefix("serial:"), baudrate)
+            self._channel = _SerialChannel(where, baudrate)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._down_until: float | None = None
@@ -193,20 +231,10 @@ class FrameServer:
     @property
     def board_url(self) -> str:
         """The URL the board passes to ``shm run --link``."""
-        ch = self._channel
-        if isinstance(ch, _PtyChannel):
-            return f"serial:{ch.pty.link}"
-        if isinstance(ch, _TcpListenChannel):
-            return f"socket://{ch.host}:{ch.port}"
-        return f"serial:{self.where}"
+        return self._channel.board_url
 
     def describe(self) -> str:
-        ch = self._channel
-        if isinstance(ch, _PtyChannel):
-            return f"serial frames on pty {ch.pty.slave_name} (stable link {ch.pty.link})"
-        if isinstance(ch, _TcpListenChannel):
-            return f"serial frames on tcp {ch.host}:{ch.port}"
-        return f"serial frames on {self.where}"
+        return self._channel.description
 
     # ------------------------------------------------------------------------------------------ lifecycle
     def start(self) -> None:

@@ -152,11 +152,15 @@ class _CheckingHandler(ServerRequestHandler):
 
 
 class _TcpServer(ModbusTcpServer):
+    rig: ModbusRigServer | None = None  # the server whose precheck runs first (read by _CheckingHandler)
+
     def callback_new_connection(self):
         return _CheckingHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
 
 
 class _SerialServer(ModbusSerialServer):
+    rig: ModbusRigServer | None = None
+
     def callback_new_connection(self):
         return _CheckingHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
 
@@ -361,19 +365,23 @@ class ModbusRigServer:
     async def _start(self) -> None:
         device = self._device()
         if self.kind == "tcp":
-            self._server = _TcpServer(device, address=(self._tcp_host, self.port), trace_pdu=self._trace_pdu,
-                                      trace_packet=self._trace_packet)
-            self._server.rig = self  # type: ignore[attr-defined]
-            await self._server.serve_forever(background=True)
-            sock = self._server.transport.sockets[0]  # type: ignore[union-attr]
-            self.port = sock.getsockname()[1]  # keep the same port across restarts
+            tcp = _TcpServer(device, address=(self._tcp_host, self.port), trace_pdu=self._trace_pdu,
+                             trace_packet=self._trace_packet)
+            tcp.rig = self
+            self._server = tcp
+            await tcp.serve_forever(background=True)
+            listener = tcp.transport  # pymodbus keeps its listening asyncio.Server there (typed as a transport)
+            if not isinstance(listener, asyncio.Server):
+                raise OSError(f"{self.describe()}: cannot listen on {self._tcp_host}:{self.port}")
+            self.port = listener.sockets[0].getsockname()[1]  # keep the same port across restarts
         else:
             path = self._pair.path_a if self._pair is not None else self.serial_path
-            self._server = _SerialServer(device, framer=FramerType.RTU, port=path, baudrate=self.baudrate,
-                                         parity=self.parity, trace_pdu=self._trace_pdu,
-                                         trace_packet=self._trace_packet, reconnect_delay=0.2)
-            self._server.rig = self  # type: ignore[attr-defined]
-            await self._server.serve_forever(background=True)
+            rtu = _SerialServer(device, framer=FramerType.RTU, port=path, baudrate=self.baudrate,
+                                parity=self.parity, trace_pdu=self._trace_pdu, trace_packet=self._trace_packet,
+                                reconnect_delay=0.2)
+            rtu.rig = self
+            self._server = rtu
+            await rtu.serve_forever(background=True)
         if self._watch_task is None:
             self._watch_task = asyncio.get_running_loop().create_task(self._watch())
 

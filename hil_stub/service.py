@@ -17,13 +17,15 @@ endpoint (:func:`hil_stub.truth.build_truth_rig`).
 from __future__ import annotations
 
 import contextlib
-from typing import Any
+from typing import Any, TypeVar
 
 from drivers.link import RigEndpoint
 from hil_stub.faults import FaultPlan, SensorFaultRig
 from hil_stub.frame_server import FrameServer
 from hil_stub.modbus_server import LoopThread, ModbusRigServer
 from hil_stub.rig_host import RigHost
+
+_Server = TypeVar("_Server", FrameServer, ModbusRigServer)
 
 
 class HilService:
@@ -46,7 +48,7 @@ class HilService:
             self._loop = LoopThread()
         return self._loop
 
-    def _add(self, server: FrameServer | ModbusRigServer) -> FrameServer | ModbusRigServer:
+    def _add(self, server: _Server) -> _Server:
         self.servers.append(server)
         if self._started:
             server.start()
@@ -57,18 +59,18 @@ class HilService:
         """The framed serial protocol on ``where`` (``pty``, ``socket://HOST:PORT`` to listen, or a device)."""
         srv = FrameServer(self.host, where, faults=self.plan.link, seed=self.plan.seed, stream=len(self.servers) + 1,
                           link_path=link_path, baudrate=baudrate)
-        return self._add(srv)  # type: ignore[return-value]
+        return self._add(srv)
 
     def add_modbus_tcp(self, address: str = "127.0.0.1:0", *, unit: int = 1) -> ModbusRigServer:
         srv = ModbusRigServer(self.host, "tcp", address, loop=self.loop, unit=unit, faults=self.plan.link,
                               seed=self.plan.seed, stream=len(self.servers) + 1)
-        return self._add(srv)  # type: ignore[return-value]
+        return self._add(srv)
 
     def add_modbus_rtu(self, path: str = "pty", *, unit: int = 1, baudrate: int = 115200,
                        parity: str = "N") -> ModbusRigServer:
         srv = ModbusRigServer(self.host, "rtu", path, loop=self.loop, unit=unit, faults=self.plan.link,
                               seed=self.plan.seed, stream=len(self.servers) + 1, baudrate=baudrate, parity=parity)
-        return self._add(srv)  # type: ignore[return-value]
+        return self._add(srv)
 
     def start(self) -> None:
         if self._started:
