@@ -39,7 +39,7 @@ def parse_columns(file: Path, names: Sequence[str], line: int | None) -> list[tu
 
 
 def build_record(file: Path, columns: Sequence[str], data: np.ndarray, meta: dict[str, Any],
-                  locate: Callable[[int], str], time_si: np.ndarray | None = None) -> Record:
+                 locate: Callable[[int], str], time_si: np.ndarray | None = None) -> Record:
     """Validate and assemble. ``data[:, j]`` holds column ``columns[j]`` as written (not yet SI).
 
     ``locate(k)`` names sample ``k`` for messages (a file line for CSV, a sample index for TDMS). When

@@ -24,7 +24,7 @@ from workbench.units import Unit, split_column, unit_from_string
 
 
 def build_frf(file: Path, columns: Sequence[str], data: np.ndarray, meta: dict[str, Any],
-               locate: Callable[[int], str]) -> FrfRecord:
+              locate: Callable[[int], str]) -> FrfRecord:
     check_meta(file, meta)
     parsed = parse_columns(file, columns, None)
     if not parsed or parsed[0][0] != "frequency" or parsed[0][1].si != "Hz":

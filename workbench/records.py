@@ -69,7 +69,7 @@ def load_record(path: str | Path) -> Record | FrfRecord:
 
 
 def record_from_arrays(time_s: np.ndarray, columns: Mapping[str, np.ndarray], meta: Mapping[str, Any],
-                      path: str = "<memory>") -> Record:
+                       path: str = "<memory>") -> Record:
     """Build (and validate) a record in memory; ``columns`` maps column names with units to values in those
     units, exactly as they would appear in the file."""
     names = ["time_s", *columns]
