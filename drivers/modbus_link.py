@@ -37,6 +37,7 @@ import logging
 import select
 import socket
 import time
+from typing import Any
 from urllib.parse import urlsplit
 
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
@@ -92,7 +93,7 @@ class _RtuClient(ModbusSerialClient):
             raise ConnectionException(f"serial port lost: {exc}") from None
 
 
-def parse_modbus_url(url: str) -> dict[str, object]:
+def parse_modbus_url(url: str) -> dict[str, Any]:
     """Parse a ``modbus-tcp://`` or ``modbus-rtu:`` URL into client settings; ``ValueError`` names the problem."""
     if url.startswith("modbus-tcp://"):
         kind = "tcp"
@@ -103,7 +104,7 @@ def parse_modbus_url(url: str) -> dict[str, object]:
             port = parts.port or 502
         except ValueError:
             raise InputError(f"link URL '{url}': bad port") from None
-        target: dict[str, object] = {"host": parts.hostname, "port": port}
+        target: dict[str, Any] = {"host": parts.hostname, "port": port}
         opts = UrlOptions.from_query(url, parts.query)
     elif url.startswith("modbus-rtu:"):
         kind = "rtu"
@@ -115,7 +116,7 @@ def parse_modbus_url(url: str) -> dict[str, object]:
     else:
         raise InputError(f"link URL '{url}': not a modbus-tcp:// or modbus-rtu: URL")
     opts.check_known(_KNOWN[kind])
-    settings: dict[str, object] = {"kind": kind, **target,
+    settings: dict[str, Any] = {"kind": kind, **target,
                                    "unit": opts.integer("unit", 1, 1, 247),
                                    "reopen": opts.integer("reopen", 25, 1, 1e9),
                                    "handshake": opts.flag("handshake", True)}
@@ -181,18 +182,17 @@ class ModbusLink(ReconnectingLink):
 
     def __init__(self, url: str) -> None:
         self.settings = parse_modbus_url(url)
-        super().__init__(url, log, timeout=float(self.settings["timeout"]),  # type: ignore[arg-type]
-                         reopen_after=int(self.settings["reopen"]))  # type: ignore[arg-type]
+        super().__init__(url, log, timeout=float(self.settings["timeout"]), reopen_after=int(self.settings["reopen"]))
         pm = logging.getLogger("pymodbus")
         if pm.level == logging.NOTSET:  # pymodbus logs every timeout itself; this link logs them rate-limited
             pm.setLevel(logging.CRITICAL)
-        self.unit = int(self.settings["unit"])  # type: ignore[arg-type]
+        self.unit = int(self.settings["unit"])
         #: request-to-reply time one transaction may take (s): half the exchange budget (two transactions per tick)
         self.processing_budget = self.timeout / 2
-        self.line_time = float(self.settings["line_time"])  # type: ignore[arg-type]
+        self.line_time = float(self.settings["line_time"])
         self.last_transaction_s = 0.0
         self._check_due = False
-        self._client = None
+        self._client: Any = None  # the pymodbus client, made at the first open and kept across reconnects
         self._down = True
         self.last_exception_code: int | None = None
 
@@ -200,10 +200,10 @@ class ModbusLink(ReconnectingLink):
     def _make_client(self):
         s = self.settings
         if s["kind"] == "tcp":
-            return ModbusTcpClient(str(s["host"]), port=int(s["port"]), timeout=self.timeout,  # type: ignore[arg-type]
+            return ModbusTcpClient(str(s["host"]), port=int(s["port"]), timeout=self.timeout,
                                    retries=0, name="shm-board")
-        return _RtuClient(str(s["port"]), framer=FramerType.RTU, baudrate=int(s["baud"]),  # type: ignore[arg-type]
-                                  parity=str(s["parity"]), stopbits=int(s["stopbits"]),  # type: ignore[arg-type]
+        return _RtuClient(str(s["port"]), framer=FramerType.RTU, baudrate=int(s["baud"]),
+                                  parity=str(s["parity"]), stopbits=int(s["stopbits"]),
                                   bytesize=8, timeout=self.timeout, retries=0, name="shm-board")
 
     def open(self) -> None:
