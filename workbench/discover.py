@@ -133,7 +133,10 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
         n_sims += (len(cand) + 1) * len(targets)
         if not ok[0]:
             raise DiscoverError("the current model fails to integrate on the records")
-        r_tr, r_he, X_tr, X_he = [], [], [], []
+        r_tr: list[np.ndarray] = []
+        r_he: list[np.ndarray] = []
+        X_tr: list[np.ndarray] = []
+        X_he: list[np.ndarray] = []
         for tg, y in zip(targets, ys):
             for part, rr, XX in (("train", r_tr, X_tr), ("held", r_he, X_he)):
                 mask = tg.train if part == "train" else tg.held

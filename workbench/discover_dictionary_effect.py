@@ -31,6 +31,7 @@ def signal_scales(targets: Sequence[Target]) -> tuple[dict[str, float], dict[str
         if not res.ok:
             raise DiscoverError(f"{tg.name}: the starting model fails to integrate on the record "
                                 f"({'; '.join(res.failures())})")
+        assert res.bus is not None and res.states is not None  # recorded above
         bus, xs = res.bus[0], res.states[0]
         for j in range(3):
             sig.setdefault(f"z{j + 1}", []).append(bus[:, L.B_Z + j])

@@ -11,6 +11,7 @@ import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -183,7 +184,7 @@ def optimise(obj: Objective, guess: Mapping[str, float] | None = None, *, n_scre
     refine = list(order[:n_refine])
     if guess_u is not None and 0 not in refine:
         refine = [refine[0], 0, *refine[1:]][:max(n_refine, 2)]
-    results = []
+    results: list[Any] = []  # scipy OptimizeResult
     for j in refine:
         if not np.isfinite(cost0[j]):
             continue

@@ -101,7 +101,7 @@ def build_frf(file: Path, columns: Sequence[str], data: np.ndarray, meta: dict[s
                               column=columns[j])
         jp, up = phases[out]
         h = unit.to_si(data[:, j]) * np.exp(1j * up.to_si(data[:, jp]))
-        spec = next((v for k, v in chans_meta.items() if split_column(k)[0] in (out, f"{out}_amp")), {})
+        spec: dict[str, Any] = next((v for k, v in chans_meta.items() if split_column(k)[0] in (out, f"{out}_amp")), {})
         responses[out] = FrfChannel(out, unit.si, h, data[:, cohs[out]] if out in cohs else None,
                                     spec.get("model_output"))
     return FrfRecord(path=str(file), frequency_Hz=f, drive=drive, drive_amplitude=float(au.to_si(float(amp))),
