@@ -261,9 +261,4 @@ def check_deviation_bounds(names: tuple[str, ...], nominal: tuple[float, ...],
 
 def core_bounds() -> dict[str, tuple[float, float]]:
     """Physical bounds of the Table 2 parameters (from the board_config schema)."""
-    out = {}
-    for name, spec in CORE_SCHEMA.items():
-        lo = -math.inf if spec.lower is None else spec.lower
-        hi = math.inf if spec.upper is None else spec.upper
-        out[name] = (lo, hi)
-    return out
+    return {name: (par.lower, par.upper) for name, par in CORE_SCHEMA.items()}
