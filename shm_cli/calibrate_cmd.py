@@ -9,7 +9,7 @@ import tomllib
 from pathlib import Path
 
 from board_config.errors import InputError
-from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir, output_file_arg, pyplot
+from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir, output_file_arg
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -79,23 +79,9 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     (out / "calibration.json").write_text(dump_json(summary))
 
     def figure() -> Path:
-        plt = pyplot()
-        fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
-        a1.semilogy(res.history)
-        a1.set_xlabel("model evaluation")
-        a1.set_ylabel("weighted cost")
-        a1.set_title("calibration: the error falling")
-        a1.grid(True, alpha=0.3)
-        names = [r["claim"] for r in rows]
-        a2.barh(names, [100 * r["rel_error_start"] for r in rows], alpha=0.5, label=base.name)
-        a2.barh(names, [100 * r["rel_error_calibrated"] for r in rows], alpha=0.8, label=args.name)
-        a2.set_xscale("symlog", linthresh=1.0)
-        a2.set_xlabel("relative error against the paper (%)")
-        a2.legend()
-        fig.tight_layout()
-        fig.savefig(out / "calibration.png", dpi=110)
-        plt.close(fig)
-        return out / "calibration.png"
+        from workbench.model_figures import calibration_figure
+
+        return calibration_figure(out / "calibration.png", res.history, rows, base.name, args.name)
 
     deco = Decorations("calibrate", args)
     if deco.attempt("calibration.png", figure) is None:

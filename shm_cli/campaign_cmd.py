@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from board_config.errors import InputError
+from board_config.json_values import to_jsonable
 from shm_cli.common import (
     Decorations,
     add_out_arg,
@@ -133,7 +134,7 @@ def _roc_tables(traces, eps_grid, count_grid, healthy_max, faulty_min):
 
 
 def _write_roc(tables, directory: Path, mark, figure: bool = True) -> dict[str, Path]:
-    from shm_cli import campaign_figures
+    from studies.campaign import figures as campaign_figures
     from studies.campaign.results import write_rows
 
     csv_path = directory / "roc.csv"
@@ -174,9 +175,9 @@ def _campaign_in(args: argparse.Namespace, spec, out: Path) -> int:
     """The campaign proper, run while ``out`` is locked."""
     from tqdm import tqdm
 
-    from shm_cli import campaign_figures
+    from studies.campaign import figures as campaign_figures
     from studies.campaign import load_traces, run_campaign
-    from studies.campaign.results import jsonable, save_json
+    from studies.campaign.results import save_json
 
     # campaign.json marks a finished campaign: an earlier one must not survive a run that fails
     (out / "campaign.json").unlink(missing_ok=True)
@@ -227,7 +228,7 @@ def _campaign_in(args: argparse.Namespace, spec, out: Path) -> int:
         "files": files,
         "figures": "skipped (--no-figures)" if args.no_figures else "not written yet",
     }
-    save_json(out / "campaign.json", jsonable(summary))
+    save_json(out / "campaign.json", to_jsonable(summary))
     deco = Decorations("campaign", args)
     if not args.no_figures:
         for key, name, make in (
@@ -240,7 +241,7 @@ def _campaign_in(args: argparse.Namespace, spec, out: Path) -> int:
             if path is not None:
                 files[key] = str(path)
         summary["figures"] = "written" if deco.ok else {"failed": deco.failed}
-        save_json(out / "campaign.json", jsonable(summary))
+        save_json(out / "campaign.json", to_jsonable(summary))
     if args.json:
         print(dump_json(summary))
     else:

@@ -1,5 +1,5 @@
-"""Small helpers shared by the command modules: output directories, JSON, plotting set-up, decorations that
-may fail without losing the results."""
+"""Small helpers shared by the command modules: argparse value types, memory checks, output directories, JSON,
+decorations (figures, reports) that may fail without losing the results."""
 
 from __future__ import annotations
 
@@ -13,9 +13,9 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
-import numpy as np
-
 from board_config.errors import InputError
+from board_config.json_values import to_jsonable
+from reporting.csv_columns import write_csv as write_csv  # re-exported for the commands
 
 T = TypeVar("T")
 
@@ -227,42 +227,8 @@ def out_dir(path: str | Path, option: str = "--out") -> Path:
     return d
 
 
-def to_jsonable(obj: Any) -> Any:
-    if isinstance(obj, dict):
-        return {str(k): to_jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [to_jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return to_jsonable(obj.tolist())
-    if isinstance(obj, (np.floating, float)):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
-
-
 def dump_json(obj: Any) -> str:
     return json.dumps(to_jsonable(obj), indent=2, sort_keys=False)
-
-
-def pyplot():
-    """matplotlib.pyplot with the non-interactive Agg backend."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def write_csv(path: Path, columns: dict[str, np.ndarray]) -> None:
-    """Write columns (names carry units, e.g. ``time_s``) as CSV."""
-    names = list(columns)
-    data = np.column_stack([np.asarray(columns[n], dtype=float) for n in names])
-    np.savetxt(path, data, delimiter=",", header=",".join(names), comments="", fmt="%.10g")
 
 
 def debug_requested(args: argparse.Namespace | None = None) -> bool:

@@ -12,13 +12,10 @@ from __future__ import annotations
 import argparse
 import math
 import sys
-from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from board_config.errors import InputError
-from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir, pyplot, write_csv
+from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir
 
 #: the paper's claim, full recharge from 2 V within 10 minutes (= studies.harvest.PAPER_CLAIM_S; kept here so that
 #: building the parser does not import the plant)
@@ -83,108 +80,11 @@ def _setup_from_args(args: argparse.Namespace):
     return setup
 
 
-def _fmt_time(seconds: float | None) -> str:
-    if seconds is None or not math.isfinite(seconds):
-        return "never"
-    if seconds < 120:
-        return f"{seconds:.1f} s"
-    if seconds < 7200:
-        return f"{seconds / 60:.1f} min"
-    if seconds < 3 * 86400:
-        return f"{seconds / 3600:.1f} h"
-    return f"{seconds / 86400:.1f} days"
-
-
-def verdict(run: Any) -> str:
-    """One line on the paper's 10-minute claim for this run."""
-    t = run.time_to_full_s
-    how = "measured" if run.t_full_s is not None else "projected"
-    if not math.isfinite(t):
-        v = run.projection.stall_voltage_V if run.projection is not None else None
-        stall = f" (charging stops at v_b = {v:.3f} V" if v is not None else ""
-        if v is not None:
-            peak = float(run.chunks["va_peak_V"][-1])
-            stall += (f": the patch voltage peak {peak:.3g} V never beats the cell voltage plus "
-                      f"{2 * run.setup.v_diode:g} V of diode drop)" if peak < v + 2 * run.setup.v_diode else ")")
-        return f"the cell never reaches full{stall}: the paper's 10-minute recharge is NOT reproduced"
-    ok = t <= PAPER_CLAIM_S
-    return (f"time to full {how}: {_fmt_time(t)} ({t:.4g} s) — the paper's 10-minute claim is "
-            f"{'reproduced' if ok else 'NOT reproduced'}")
-
-
-def write_outputs(run: Any, out: Path) -> dict[str, str]:
-    """The numeric results as CSV (charge curve, chunks, audit, charge rate); returns the written files by role.
-    The Fig. 9-style plot is separate (:func:`plot_charge_curve`), written after them."""
-    files: dict[str, str] = {}
-    write_csv(out / "charge_curve.csv", {
-        "time_s": run.t, "v_bat_V": run.v_bat, "v_bat_term_V": run.v_bat_term, "soc_1": run.soc,
-        "v_stored_V": run.v_stored})
-    files["charge_curve"] = str(out / "charge_curve.csv")
-    ch = run.chunks
-    write_csv(out / "chunks.csv", {
-        "t_end_s": ch["t_end_s"], "v_bat_V": ch["v_bat_V"], "soc_1": ch["soc"], "i_mean_A": ch["i_mean_A"],
-        "p_base_in_W": ch["p_in_W"], "v_stored_peak_V": ch["va_peak_V"], "z3_peak_m": ch["z3_peak_m"]})
-    files["chunks"] = str(out / "chunks.csv")
-    with (out / "audit.csv").open("w") as fh:
-        fh.write("term,energy_J,mean_power_W,side\n")
-        for r in run.audit.rows:
-            fh.write(f"\"{r.name}\",{r.energy_J:.10g},{r.energy_J / run.audit.duration_s:.10g},{r.side}\n")
-        fh.write(f"\"residual (sources - uses)\",{run.audit.residual_J:.10g},"
-                 f"{run.audit.residual_J / run.audit.duration_s:.10g},residual\n")
-    files["audit"] = str(out / "audit.csv")
-    if run.projection is not None:
-        c = run.projection.curve
-        write_csv(out / "charge_rate.csv", {"q_d_C": c.q_d, "v_oc_V": c.v_oc, "i_mean_A": c.i_mean,
-                                            "p_base_in_W": c.p_in_mean, "p_cell_W": c.p_cell_mean})
-        files["charge_rate"] = str(out / "charge_rate.csv")
-    return files
-
-
-def plot_charge_curve(run: Any, path: Path) -> Path:
-    """Fig. 9 style: cell voltage against time (minutes), the 10-minute mark, and the stored (patch) voltage."""
-    plt = pyplot()
-    has_proj = run.projection is not None and len(run.projection.curve.q_d) > 1
-    fig, axes = plt.subplots(1, 3 if has_proj else 2, figsize=(14 if has_proj else 10, 4.2))
-    s = run.setup
-    ax = axes[0]
-    ax.plot(run.t / 60.0, run.v_bat_term, lw=0.4, alpha=0.25, color="tab:orange", zorder=1,
-            label="terminal voltage (pulses with the charging current)")
-    ax.plot(run.t / 60.0, run.v_bat, lw=2.0, color="tab:blue", zorder=3, label="open-circuit v_b")
-    proj = run.projection
-    if proj is not None and proj.t_path.size and math.isfinite(proj.t_full_s) and proj.t_full_s < 20 * run.t_end:
-        ax.plot(proj.t_path / 60.0, proj.v_path, "--", color="tab:blue", zorder=3, label="projected (quasi-steady)")
-    lo = min(float(np.nanmin(run.v_bat)), run.battery["cutoff_voltage_V"]) - 0.1
-    ax.set_ylim(lo, run.battery["full_voltage_V"] + 0.25)
-    ax.axvline(PAPER_CLAIM_S / 60.0, color="k", ls=":", lw=1, label="paper: full within 10 min")
-    ax.axhline(run.battery["full_voltage_V"], color="g", ls="--", lw=0.8, label="full")
-    ax.set_xlabel("time (min)")
-    ax.set_ylabel("cell voltage (V)")
-    ax.set_title(f"{s.coupling}: {s.accel / 9.80665:g} g, {s.freq:g} Hz, R_bint {s.r_int:g} ohm")
-    ax.legend(fontsize=7, loc="lower right")
-    ax.grid(alpha=0.3)
-    ax = axes[1]
-    ax.plot(run.tail["t_s"], run.tail["v_stored_V"], lw=0.8)
-    ax.set_xlabel("time (s)")
-    ax.set_ylabel("patch terminal voltage v_a (V)")
-    ax.set_title(f"last seconds: peak {run.chunks['va_peak_V'][-1]:.3g} V")
-    ax.grid(alpha=0.3)
-    if has_proj:
-        c = run.projection.curve
-        ax = axes[2]
-        ax.plot(c.v_oc, c.i_mean * 1e3, "o-")
-        ax.set_xlabel("cell open-circuit voltage (V)")
-        ax.set_ylabel("cycle-mean charging current (mA)")
-        ax.set_title(f"projection: full after {_fmt_time(run.projection.t_full_s)}")
-        ax.grid(alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
-
-
 def cmd_harvest(args: argparse.Namespace) -> int:
     from board_config import load_parameter_set
     from studies.harvest import run_harvest
+    from studies.harvest.figures import plot_charge_curve
+    from studies.harvest.outputs import format_duration, verdict, write_outputs
 
     setup = _setup_from_args(args)
     load_parameter_set(args.params)  # a bad set fails here, before any output
@@ -254,7 +154,7 @@ def cmd_harvest(args: argparse.Namespace) -> int:
               f"{setup.freq:g} Hz{at_eff}")
         print(f"  Eq. 8 (unloaded patches) needs an open-circuit amplitude of {w['eq8_required_amplitude_V']:.4g} V "
               f"({w['eq8_required_gain_V_per_g']:.4g} V/g; this run: {w['measured_gain_V_per_g']:.3g} V/g); with the "
-              f"paper's {w['paper_gain_V_per_g']:g} V/g it takes {_fmt_time(w['eq8_time_at_paper_gain_s'])}")
+              f"paper's {w['paper_gain_V_per_g']:g} V/g it takes {format_duration(w['eq8_time_at_paper_gain_s'])}")
         print()
         print(run.audit.table())
         if setup.coupling == "paper" and run.audit.energy_from_nowhere_J > 0:
@@ -269,4 +169,4 @@ def cmd_harvest(args: argparse.Namespace) -> int:
     return 0 if deco.ok else 1
 
 
-__all__ = ["cmd_harvest", "plot_charge_curve", "register", "verdict", "write_outputs"]
+__all__ = ["cmd_harvest", "register"]

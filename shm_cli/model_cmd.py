@@ -18,7 +18,6 @@ from shm_cli.common import (
     number_in_range,
     out_dir,
     positive_float,
-    pyplot,
     write_csv,
 )
 
@@ -153,43 +152,19 @@ def cmd_frf(args: argparse.Namespace) -> int:
                                           "phase_deg": np.degrees(np.unwrap(np.angle(h_z)))})
     write_csv(out / "frf_vstored_per_accel.csv", {"frequency_Hz": f, "amplitude_V_per_g": np.abs(h_v),
                                                   "phase_deg": np.degrees(np.unwrap(np.angle(h_v)))})
-    plt = pyplot()
-    for name, h, ylabel, title in (
-        ("frf_z3_per_va", h_z * 1e6, "|z3 / v_a| (µm/V)", "Tip deformation response to voltage (cf. Fig. 6a)"),
-        ("frf_vstored_per_accel", h_v, "|v_stored / z̈0| (V/g)",
-         "Stored voltage response to base acceleration (cf. Fig. 6b)"),
-    ):
-        fig, (a1, a2) = plt.subplots(2, 1, sharex=True, figsize=(7, 6))
-        a1.loglog(f, np.abs(h))
-        a1.set_ylabel(ylabel)
-        a1.set_title(f"{title} — {model.params.name}")
-        a1.grid(True, which="both", alpha=0.3)
-        a2.semilogx(f, np.degrees(np.unwrap(np.angle(h))))
-        a2.set_ylabel("phase (deg)")
-        a2.set_xlabel("frequency (Hz)")
-        a2.grid(True, which="both", alpha=0.3)
-        fig.tight_layout()
-        fig.savefig(out / f"{name}.png", dpi=120)
-        plt.close(fig)
+    from workbench.model_figures import FRF_FIGURES, bode_figure
+
+    for name, h in (("frf_z3_per_va", h_z * 1e6), ("frf_vstored_per_accel", h_v)):
+        ylabel, title = FRF_FIGURES[name]
+        bode_figure(out / f"{name}.png", f, h, ylabel, f"{title} — {model.params.name}")
     print(f"wrote {out}/frf_z3_per_va.(csv|png) and {out}/frf_vstored_per_accel.(csv|png)")
     return 0
 
 
 def _plot_time(out: Path, name: str, resp, xy_loop: bool, title: str) -> None:
-    plt = pyplot()
-    fig, ax = plt.subplots(figsize=(7, 4.5))
-    if xy_loop:
-        ax.plot(resp.va, resp.z3 * 1e3)
-        ax.set_xlabel("differential drive v_a (V)")
-    else:
-        ax.plot(resp.t, resp.z3 * 1e3)
-        ax.set_xlabel("time (s)")
-    ax.set_ylabel("tip displacement z3 (mm)")
-    ax.set_title(title)
-    ax.grid(True, alpha=0.3)
-    fig.tight_layout()
-    fig.savefig(out / f"{name}.png", dpi=120)
-    plt.close(fig)
+    from workbench.model_figures import time_response_figure
+
+    time_response_figure(out / f"{name}.png", resp, xy_loop, title)
 
 
 def cmd_step(args: argparse.Namespace) -> int:

@@ -31,8 +31,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from board_config.errors import InputError
 from shm_cli.common import (
     Decorations,
@@ -41,8 +39,9 @@ from shm_cli.common import (
     dump_json,
     nonnegative_float,
     out_dir,
-    write_csv,
 )
+from studies.board_run.summary import build_summary, closing_line, write_traces
+from studies.board_run.timeline import format_event
 
 EXIT_SIGINT = 130
 EXIT_SIGTERM = 143
@@ -97,43 +96,6 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 # --- timeline ---------------------------------------------------------------------------------------------
-def _fmt_v(v: Any) -> str:
-    try:
-        return f"{float(v):.3f} V"
-    except (TypeError, ValueError):
-        return "? V"
-
-
-def format_event(ev: Any, incidents: int = 0) -> str | None:
-    """One timeline line for a board event (None: not shown)."""
-    d = ev.data
-    t = f"{ev.time:9.2f} s  "
-    if ev.kind == "regime_change":
-        causes = f" [{', '.join(d.get('causes') or [])}]" if d.get("causes") else ""
-        return (f"{t}{d['from_regime']:>15} -> {d['to_regime']:<15} trigger {d['trigger']}{causes}   "
-                f"battery {_fmt_v(d.get('v_battery_V'))}")
-    if ev.kind == "incident":
-        return f"{t}  ! {d['incident']}: {d.get('detail', '')}"
-    if ev.kind == "usage_summary":
-        exc = json.loads(d["exceedance_json"])
-        over = ", ".join(f"|z3|>={e['level_m'] * 1e3:g} mm {e['time_s']:.2f} s" for e in exc if e["time_s"] > 0)
-        return (f"{t}  usage {d['duration_s']:.1f} s ({d['reason']}): peak z3 {d['peak_z3_m'] * 1e3:.3f} mm, "
-                f"peak z0dd {d['peak_z0dd_m_s2']:.2f} m/s^2, {d['n_cycles']:g} cycles "
-                f"(max range {d['max_range_m'] * 1e3:.3f} mm)" + (f"; {over}" if over else ""))
-    if ev.kind == "mbit_start":
-        return f"{t}  {d['label']} started"
-    if ev.kind == "mbit_result":
-        ft = f", fault latched at t = {d['fault_time_s']:.2f} s" if d.get("fault_time_s") is not None else ""
-        return (f"{t}  {d['label']} {d['verdict']}: fault counter max {d['max_count']}, max eps {d['max_eps']:.3f}, "
-                f"{d['n_exceed']}/{d['n_samples']} samples above eps_th{ft}")
-    if ev.kind == "maintenance_verdict":
-        return f"{t}  MAINTENANCE VERDICT {d['verdict']} ({d['mbits'] or 'no MBIT'}; {d['detail']})"
-    if ev.kind == "telemetry":
-        return (f"{t}  [{d['regime']}] battery {_fmt_v(d['v_battery_V'])}, fault counter {d['monitor_count']}, "
-                f"incidents {d['incidents_total']}, charge used {d['charge_used_C'] * 1e3:.3f} mC")
-    return None
-
-
 class TimelinePrinter:
     """Prints (and keeps) timeline lines for events as they are committed to the log."""
 
@@ -440,20 +402,21 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
         if bar is not None:
             bar.close()
 
-    summary = build_summary(args, scenario, seed, params, cfg, board, result, rig, setup_s, paced, db_path, run_id)
+    summary = build_summary(args.link, scenario, seed, params, cfg, board, result, rig, setup_s, paced, db_path,
+                            run_id)
     summary["status"] = status
     if status == "interrupted":
         summary["interrupted_by"] = stopper.name
         printer.add_line(f"{result.duration_s:9.2f} s    interrupted by {stopper.name}: the board closed, the log "
                          "and this report cover the part that ran")
-    printer.add_line(_closing_line(summary))
+    printer.add_line(closing_line(summary))
     (out / "timeline.txt").write_text("\n".join(printer.lines) + "\n")
-    _write_traces(out, result.trace)
+    write_traces(out, result.trace)
     # the numbers first (usage.db is written; summary.json, traces), then the figures and report.html: a plotting
     # failure never loses them, and summary.json says which figures exist
     summary["figures"] = []
     (out / "summary.json").write_text(dump_json(summary))
-    from shm_cli.run_report import write_plots_and_report
+    from studies.board_run.report import write_plots_and_report
 
     deco = Decorations("run", args)
     figures = deco.attempt("the figures and report.html",
@@ -481,57 +444,3 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
     return 0 if status == "finished" and deco.ok else 1
 
 
-def _closing_line(s: dict[str, Any]) -> str:
-    v = s["maintenance_verdicts"]
-    verdict = v[-1]["verdict"] if v else "no maintenance verdict"
-    exp = s["expected_verdict"]
-    as_expected = "as expected" if s["verdict_as_expected"] else "NOT AS EXPECTED: exit 1"
-    check = "" if exp is None else f" (expected {exp}: {as_expected})"
-    return (f"end: {s['ticks']} ticks = {s['board_time_s']:.1f} s board time in {s['wall_s']:.2f} s wall "
-            f"({s['realtime_factor']:.1f}x real time); final regime {s['final_regime']}; verdict {verdict}{check}; "
-            f"incidents {s['incidents']}; battery {s['battery_last_V']:.3f} V")
-
-
-def build_summary(args, scenario, seed, params, cfg, board, result, rig, setup_s, paced, db_path, run_id
-                  ) -> dict[str, Any]:
-    ev = result.events
-    verdicts = [dict(e.data, time_s=e.time) for e in ev if e.kind == "maintenance_verdict"]
-    mbits = [dict(e.data, time_s=e.time) for e in ev if e.kind == "mbit_result"]
-    changes = [dict(e.data, time_s=e.time) for e in ev if e.kind == "regime_change"]
-    usage = [dict(e.data, time_s=e.time) for e in ev if e.kind == "usage_summary"]
-    incidents = [dict(e.data, time_s=e.time) for e in ev if e.kind == "incident"]
-    # the scenario's expected verdict is checked only when the run covered the whole scenario (not a shorter
-    # --duration-s, not an interrupted run)
-    whole = result.duration_s >= scenario.duration - 0.5 / cfg.tick_rate
-    expected = scenario.expect_verdict if whole else None
-    final_verdict = verdicts[-1]["verdict"] if verdicts else "NONE"
-    time_in = board.ledger.time_by_regime()
-    summary = {
-        "scenario": scenario.name, "scenario_file": scenario.source, "seed": seed, "params": params,
-        "link": args.link, "paced": paced, "run_id": run_id, "database": str(db_path),
-        "ticks": result.ticks, "board_time_s": result.duration_s, "wall_s": result.wall_s, "setup_s": setup_s,
-        "realtime_factor": result.realtime_factor, "tick_stats": result.stats.as_dict(),
-        "final_regime": board.regime.value, "regime_changes": changes, "time_in_regime_s": time_in,
-        "usage_summaries": usage, "mbit_results": mbits, "maintenance_verdicts": verdicts,
-        "incidents_list": incidents, "incidents": len(incidents),
-        "expected_verdict": expected,
-        "verdict_as_expected": None if expected is None else (final_verdict == expected),
-        "battery_first_V": board.ledger.v_first,
-        "battery_last_V": board.ledger.v_last, "battery_min_V": board.ledger.v_min,
-        "charge_used_C": board.ledger.charge_used, "energy_used_J": board.ledger.energy_used,
-        "charge_by_regime_C": board.ledger.charge_by_regime(), "brownouts": board.power.brownouts,
-        "board_config": cfg.as_dict(),
-    }
-    if rig is not None:
-        summary["rig"] = rig.describe()
-        summary["rig_truth_end"] = rig.truth()
-    return summary
-
-
-def _write_traces(out: Path, trace) -> None:
-    if trace is None:
-        return
-    cols = trace.columns()
-    np.savez_compressed(out / "trace.npz", **cols)
-    every = max(1, round(10 / max(1, trace.every)))  # ~10 Hz for the CSV
-    write_csv(out / "trace.csv", {k: v[::every] for k, v in cols.items()})

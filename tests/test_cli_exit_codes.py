@@ -114,7 +114,7 @@ def test_user_input_deep_in_the_layers_is_exit_2(tmp_path, capsys):
 def test_a_failing_figure_keeps_the_campaign_results(tmp_path, capsys, monkeypatch):
     """Point 3: the numbers (tables, runs, traces, campaign.json) are written before the figures; a figure that
     fails is named, campaign.json says so, and the exit code is 1."""
-    from shm_cli import campaign_figures
+    from studies.campaign import figures as campaign_figures
 
     def broken(result, path):
         raise ValueError("'yerr' must not contain negative values")

@@ -10,9 +10,9 @@ import json
 import numpy as np
 import pytest
 
+from board_config.json_values import to_jsonable
 from plant import Parameter, PhysicalEffect
 from plant.layout import B_FM, B_ZD, Y_Z3_MEAS
-from shm_cli.common import to_jsonable
 from shm_cli.main import main
 from workbench.diagnose import diagnose
 from workbench.fit import FitError

@@ -10,7 +10,6 @@
 
 from __future__ import annotations
 
-import base64
 import html
 import time
 from collections.abc import Sequence
@@ -19,24 +18,13 @@ from typing import Any
 
 import numpy as np
 
+from reporting.figures import display_scale, pyplot, save_figure
+from reporting.html_page import img_tag, table
 from workbench.fit import FitHistoryPoint, SimBatch, Target
-
-_SI_SCALE = {"m": (1e3, "mm"), "V": (1.0, "V"), "C": (1e6, "µC")}
-
-
-def _pyplot():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def _save(fig, path: Path) -> Path:
-    fig.savefig(path, dpi=90)
-    _pyplot().close(fig)
-    return path
+    return save_figure(fig, path, 90)
 
 
 def _held_spans(tg: Target) -> list[tuple[float, float]]:
@@ -50,12 +38,12 @@ def _held_spans(tg: Target) -> list[tuple[float, float]]:
 
 def overlay_figure(targets: Sequence[Target], before: SimBatch, after: SimBatch | None, path: Path,
                    label_after: str = "improved model") -> Path:
-    plt = _pyplot()
+    plt = pyplot()
     rows = [(i, j) for i, tg in enumerate(targets) for j in range(len(tg.channels))]
     fig, axes = plt.subplots(2 * len(rows), 1, figsize=(11, 3.2 * len(rows) + 1.2), squeeze=False)
     for r, (i, j) in enumerate(rows):
         tg = targets[i]
-        s, su = _SI_SCALE.get(tg.units[j], (1.0, tg.units[j]))
+        s, su = display_scale(tg.units[j])
         ax, axr = axes[2 * r, 0], axes[2 * r + 1, 0]
         for a, b in _held_spans(tg):
             ax.axvspan(a, b, color="0.85", lw=0)
@@ -80,7 +68,7 @@ def overlay_figure(targets: Sequence[Target], before: SimBatch, after: SimBatch 
 
 
 def ranking_figure(diagnosis: Any, path: Path) -> Path:
-    plt = _pyplot()
+    plt = pyplot()
     ranking = diagnosis.ranking
     names = ["nominal"] + [c.effect for c in ranking]
     vals = [diagnosis.baseline_held_rms_sigma] + [c.held_rms_sigma for c in ranking]
@@ -130,7 +118,7 @@ class ProgressPlot:
             self._last = now
 
     def draw(self, held_after: float | None = None) -> Path:
-        plt = _pyplot()
+        plt = pyplot()
         fig, ax = plt.subplots(figsize=(7, 4))
         it = [0] + [p.iteration for p in self.points]
         err = [self.start] + [p.train_rms_sigma for p in self.points]
@@ -150,19 +138,6 @@ class ProgressPlot:
         return _save(fig, self.path)
 
 
-def _img(path: Path | None) -> str:
-    if path is None:
-        return ""
-    data = base64.b64encode(Path(path).read_bytes()).decode("ascii")
-    return f'<img alt="{html.escape(Path(path).name)}" src="data:image/png;base64,{data}" style="max-width:100%">'
-
-
-def _table(header: Sequence[str], rows: Sequence[Sequence[Any]]) -> str:
-    h = "".join(f"<th>{html.escape(str(x))}</th>" for x in header)
-    body = "".join("<tr>" + "".join(f"<td>{html.escape(str(x))}</td>" for x in r) + "</tr>" for r in rows)
-    return f"<table><tr>{h}</tr>{body}</table>"
-
-
 _CSS = ("body{font-family:sans-serif;max-width:1100px;margin:auto;padding:1em}table{border-collapse:collapse;"
         "font-size:13px;margin:0.5em 0}td,th{border:1px solid #bbb;padding:2px 6px;text-align:left}"
         ".verdict{font-size:15px;background:#f4f4f4;padding:0.6em;border-left:4px solid #36c}")
@@ -174,9 +149,9 @@ def write_html(path: Path, title: str, verdict: str, tables: Sequence[tuple[str,
              f"<style>{_CSS}</style></head><body><h1>{html.escape(title)}</h1>",
              f"<p class='verdict'>{html.escape(verdict)}</p>"]
     for caption, header, rows in tables:
-        parts.append(f"<h2>{html.escape(caption)}</h2>{_table(header, rows)}")
+        parts.append(f"<h2>{html.escape(caption)}</h2>{table(header, rows)}")
     for img in images:
-        parts.append(_img(img))
+        parts.append(img_tag(img))
     if notes:
         parts.append("<h2>Notes</h2><ul>" + "".join(f"<li>{html.escape(n)}</li>" for n in notes) + "</ul>")
     parts.append("</body></html>")

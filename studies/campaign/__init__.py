@@ -11,7 +11,8 @@ Typical use::
 
 Modules: :mod:`.spec` (ranges, draws, seeds), :mod:`.build` (validated spec from names), :mod:`.worker` (one
 batch), :mod:`.store` (partial results, resume), :mod:`.runner` (executors, crash handling), :mod:`.results`
-(assembled runs, tables, files), :mod:`.statistics` (Wilson), :mod:`.roc` (threshold sweep), :mod:`.paper`.
+(assembled runs, tables, files), :mod:`.statistics` (Wilson), :mod:`.roc` (threshold sweep), :mod:`.paper`,
+:mod:`.figures` (Fig. 11, error traces, ROC; imported on demand: matplotlib).
 """
 
 from studies.campaign.build import build_spec, select_mbits

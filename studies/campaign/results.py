@@ -282,23 +282,5 @@ def _json_default(o: Any) -> Any:
     raise TypeError(f"not JSON-serialisable: {type(o).__name__}")
 
 
-def jsonable(obj: Any) -> Any:
-    """NaN/inf → None, numpy → Python, recursively."""
-    if isinstance(obj, dict):
-        return {str(k): jsonable(v) for k, v in obj.items()}
-    if isinstance(obj, list | tuple):
-        return [jsonable(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return jsonable(obj.tolist())
-    if isinstance(obj, float | np.floating):
-        v = float(obj)
-        return v if math.isfinite(v) else None
-    if isinstance(obj, np.integer):
-        return int(obj)
-    if isinstance(obj, np.bool_):
-        return bool(obj)
-    return obj
-
-
-__all__ = ["CampaignResult", "MbitRuns", "StoredTraces", "jsonable", "load_traces", "save_json", "wilson_interval",
+__all__ = ["CampaignResult", "MbitRuns", "StoredTraces", "load_traces", "save_json", "wilson_interval",
            "write_rows"]

@@ -2,14 +2,15 @@
 
 from __future__ import annotations
 
-import base64
 import html
 import json
 from pathlib import Path
 
 import numpy as np
 
-from studies.campaign.results import jsonable
+from board_config.json_values import to_jsonable
+from reporting.figures import pyplot
+from reporting.html_page import img_tag
 from studies.health.assess import Assessment
 
 
@@ -24,15 +25,11 @@ def four_levels_text(a: Assessment) -> str:
 
 
 def health_json(a: Assessment) -> str:
-    return json.dumps(jsonable(a.doc), indent=2)
+    return json.dumps(to_jsonable(a.doc), indent=2)
 
 
 def plot_parameters(a: Assessment, path: Path) -> None:
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     names = list(a.trends)
     fig, axes = plt.subplots(len(names) + 1, 1, figsize=(8, 2.6 * (len(names) + 1)), constrained_layout=True)
     hours = np.array([v.operating_hours for v in a.visits])
@@ -91,9 +88,7 @@ def write_health_outputs(a: Assessment, out: Path, text: str) -> dict[str, str]:
     except Exception as exc:  # a figure must not lose the numbers
         failed["health.png"] = f"{type(exc).__name__}: {exc}"
     try:
-        img = ""
-        if (out / "health.png").exists():
-            img = base64.b64encode((out / "health.png").read_bytes()).decode()
+        img = img_tag(out / "health.png") if (out / "health.png").exists() else ""
         rows = "".join(
             f"<tr><td>{v['visit']}</td><td>{v['operating_hours']:g}</td><td>{v['board_verdict'] or ''}</td>"
             + "".join(f"<td>{100 * e['relative']:+.2f} ± {100 * (e['stderr'] or 0) / abs(e['nominal']):.2f} %</td>"
@@ -114,7 +109,7 @@ def write_health_outputs(a: Assessment, out: Path, text: str) -> dict[str, str]:
                         "<table border=1 cellpadding=3><tr><th>freed alone (with α_h, β_h)</th><th>section</th>"
                         f"<th>change</th><th>held-out RSS (σ²)</th></tr>{crow}</table>")
         page = (f"<!doctype html><meta charset='utf-8'><title>shm health</title><h1>Health over time</h1>{lv}"
-                + (f"<img src='data:image/png;base64,{img}' style='max-width:100%'>" if img else "")
+                + img
                 + loc_html
                 + f"<h2>Visits</h2><table border=1 cellpadding=3><tr><th>visit</th><th>h</th><th>board</th>{heads}"
                 f"</tr>{rows}</table><h2>JSON</h2><pre>{html.escape(health_json(a))}</pre>")

@@ -1,4 +1,5 @@
-"""Figures of the Monte-Carlo MBIT campaign: Fig. 11-style bars, error traces, ROC curves (matplotlib Agg)."""
+"""Figures of the Monte-Carlo MBIT campaign (``shm campaign``, ``shm campaign-roc``): Fig. 11-style bars, error
+traces, ROC curves (matplotlib Agg)."""
 
 from __future__ import annotations
 
@@ -6,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from shm_cli.common import pyplot
+from reporting.figures import pyplot
 from studies.campaign import CampaignResult, RocTable
 from studies.campaign.paper import PAPER_FAULT_PROBABILITY
 
