@@ -189,3 +189,26 @@ def test_a_freed_parameter_stays_inside_its_range(lo, width, x, mode):
     assert p.lower <= v <= p.upper and p.in_bounds(v)
     if lo <= x <= hi:
         assert v == pytest.approx(x, rel=1e-6, abs=1e-9 * max(1.0, abs(lo), abs(hi)))
+
+
+def test_an_effect_may_declare_fit_range_and_neutral_on_its_parameters():
+    from plant.effect import Parameter as EffectParameter
+    from plant.effect import PhysicalEffect
+    from workbench.candidates import neutral_end
+    from workbench.effect_library import effect_free_parameters
+
+    class TipSpring(PhysicalEffect):
+        name = "tip_spring_declared"
+        parameters = (EffectParameter("k_tip_d", "N/m", 0.0, 0.0, 1e3, "tip spring", neutral=0.0,
+                                      fit=FitRange(0.0, 50.0, linthresh=0.1)),
+                      EffectParameter("g_fixed", "1", 1.0, 0.0, 2.0, "a coefficient the fit leaves alone"))
+
+        @staticmethod
+        def rates(t, x, p, bus, dx, so, po):
+            pass
+
+    (fp,) = effect_free_parameters(TipSpring)  # only the parameter with a declared range is fitted by default
+    assert fp.name == "k_tip_d" and (fp.lower, fp.upper, fp.linthresh) == (0.0, 50.0, 0.1)
+    assert fp.owner == TipSpring.name
+    assert neutral_end(fp, TipSpring) == (True, False)
+    assert [p.name for p in effect_free_parameters(TipSpring, ["g_fixed"])] == ["g_fixed"]

@@ -425,7 +425,8 @@ def neutral_end(fp: Parameter, cls: type[PhysicalEffect] | None) -> tuple[bool, 
     not 'beyond the range')."""
     if cls is None:
         return False, False
-    neutral = getattr(cls, "neutral", {}) or {}
+    neutral = {**{p.name: p.neutral for p in cls.own_parameters() if p.neutral is not None},
+               **(getattr(cls, "neutral", {}) or {})}  # declared on the parameter, or in the effect's table
     if fp.name not in neutral:
         return False, False
     v = float(neutral[fp.name])

@@ -1,8 +1,9 @@
 """The candidate effects the workbench tries, and which of an effect's parameters it fits, over which range.
 
-Library effects (``plant/effects``) declare ``fit_ranges`` (and ``neutral``); a user's own effect usually
-declares neither: then every own parameter is free over its declared bounds (infinite bounds are replaced by a
-range around the default), linear, unless the bounds span more than three decades on the positive side (log).
+Library effects (``plant/effects``) declare ``fit_ranges`` (and ``neutral``), or give a parameter its ``fit`` range
+(and ``neutral`` value) where it is declared; a user's own effect usually declares neither: then every own
+parameter is free over its declared bounds (infinite bounds are replaced by a range around the default), linear,
+unless the bounds span more than three decades on the positive side (log).
 Core parameters (Table 2) can be freed too (``--free k3`` or ``--free k3:10:40``): default range a factor of
 three around the current value (log), or ±1 around a value of zero (linear).
 
@@ -48,7 +49,8 @@ def effect_free_parameters(cls: type[PhysicalEffect], names: Sequence[str] | Non
     """The parameters of ``cls`` the workbench fits by default (or ``names``), with their ranges."""
     ranges: Mapping[str, object] = {**getattr(cls, "extra_ranges", {}), **getattr(cls, "fit_ranges", {})}
     own = {p.name: p for p in cls.own_parameters()}
-    default_names = list(getattr(cls, "fit_ranges", {}) or own)
+    declared = [p.name for p in own.values() if p.fit is not None or p.vary]  # fit range on the parameter itself
+    default_names = list(getattr(cls, "fit_ranges", {}) or declared or own)
     chosen = list(names) if names is not None else default_names
     out = []
     for n in chosen:
