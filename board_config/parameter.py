@@ -274,6 +274,7 @@ class ParameterVector:
 
     parameters: tuple[Parameter, ...]
     values: tuple[float, ...]
+    _index: dict[str, int] = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if len(self.parameters) != len(self.values):
@@ -293,7 +294,7 @@ class ParameterVector:
 
     def index(self, name: str) -> int:
         try:
-            return self._index[name]  # type: ignore[attr-defined,no-any-return]
+            return self._index[name]
         except KeyError:
             raise KeyError(f"no such model parameter '{name}' (known: {', '.join(self.names)})") from None
 
@@ -304,7 +305,7 @@ class ParameterVector:
         return self.values[self.index(name)]
 
     def __contains__(self, name: object) -> bool:
-        return name in self._index  # type: ignore[attr-defined]
+        return name in self._index
 
     def __iter__(self) -> Iterator[str]:
         return iter(self.names)
@@ -357,7 +358,7 @@ class ParameterVector:
         return tuple(out)
 
     def _lookup(self, name: str, where: str) -> int:
-        i = self._index.get(name)  # type: ignore[attr-defined]
+        i = self._index.get(name)
         if i is None:
             raise ParameterError.at(where, name, f"no such model parameter '{name}' (known: {', '.join(self.names)})")
         return int(i)

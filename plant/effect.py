@@ -33,6 +33,7 @@ A user's own effect is loaded by dotted path, ``package.module:ClassName``, or f
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import importlib
 import importlib.util
@@ -58,6 +59,13 @@ class Parameter(OneParameter):
     ``board_config.CORE_SCHEMA``."""
 
     error: ClassVar[type[InputError]] = EffectError
+
+    @classmethod
+    def of(cls, par: OneParameter) -> Parameter:
+        """``par`` as an effect parameter (the same values; its check raises :class:`EffectError`)."""
+        if isinstance(par, Parameter):
+            return par
+        return cls(**{f.name: getattr(par, f.name) for f in dataclasses.fields(par)})
 
 
 @dataclass(frozen=True)
@@ -89,7 +97,7 @@ class PhysicalEffect:
     #: "core" effects make up the nominal model; "terminal" decides the patch terminal voltage (exactly one
     #: per model); "effect" is anything added on top.
     role: ClassVar[str] = "effect"
-    parameters: ClassVar[tuple[Parameter, ...]] = ()
+    parameters: ClassVar[tuple[OneParameter, ...]] = ()
     states: ClassVar[tuple[StateSpec, ...]] = ()
     outputs: ClassVar[tuple[OutputSpec, ...]] = ()
     #: What the effect's absence leaves in residuals (used by the workbench to explain a diagnosis).
@@ -109,7 +117,7 @@ class PhysicalEffect:
 
     @classmethod
     def own_parameters(cls) -> tuple[Parameter, ...]:
-        return tuple(p for p in cls.parameters if p.core_index is None)
+        return tuple(Parameter.of(p) for p in cls.parameters if p.core_index is None)
 
     @classmethod
     def validate_class(cls) -> None:
