@@ -1,21 +1,29 @@
 """Compose effects into compiled kernels: generate one module per composition and let numba cache it.
 
-For a composition (an ordered tuple of effect classes and their offsets) we generate Python source that
-imports each effect, compiles its hooks, defines ``rhs``/``out`` calling them in phase order, and pastes
+For a composition (an ordered tuple of effect classes laid out by :mod:`plant.composition`) we generate Python
+source that imports each effect, compiles its hooks, binds each effect's slot tables (``_slots0_X``, ...: named
+tuples of integer constants) or offsets, defines ``rhs``/``out`` calling the hooks in phase order, and pastes
 the batch integrator (:data:`plant.integrate.INTEGRATOR_SOURCE`). When every effect is importable by
 module path, the source is written to a cache directory and imported as a file, so numba's on-disk cache
 applies (``cache=True``): later processes load machine code instead of compiling for seconds. Effects
 that cannot be imported by path (defined in ``__main__`` or inside a function) are compiled in memory.
+
+The cache key covers the generated source (hence the slots and constants), numba's version and the source of
+every effect's module *and of the modules it imports* from outside the standard library and site-packages
+(``plant.layout``, helper modules, ...), transitively: numba freezes their constants and inlines their functions
+into the cached machine code, so an edit there must recompile.
 """
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import importlib
 import importlib.util
 import inspect
 import os
 import sys
+import sysconfig
 import threading
 from pathlib import Path
 from types import ModuleType
@@ -25,7 +33,8 @@ from numba import types
 
 from plant import integrate
 from plant import layout as L
-from plant.effect import EffectError, PhysicalEffect, importable_by_path
+from plant.composition import Composition, build_composition
+from plant.effect import EffectError, PhysicalEffect, hook_function, importable_by_path
 from plant.integrate import INTEGRATOR_SOURCE, TABLEAU_NAMES
 
 HOOK_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], types.float64[::1],
@@ -33,7 +42,7 @@ HOOK_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], typ
 OUT_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], types.float64[::1],
                      types.float64[::1], types.int64, types.int64, types.int64)
 PHASES = ("pre", "rates", "post")
-_GENERATOR_VERSION = "7"
+_GENERATOR_VERSION = "8"
 
 _LOADED: dict[str, ModuleType] = {}
 _LOCK = threading.Lock()
@@ -48,22 +57,133 @@ def kernel_dir() -> Path:
     return Path(base) / "kernels"
 
 
-def _source_fingerprint(cls: type) -> str:
-    # an effect loaded from a file (plant.effect.load_effect_file) carries the digest of the file's bytes
-    digest = getattr(sys.modules.get(cls.__module__), "__mfc_shm_digest__", None)
+_MODULE_FACTS: dict[tuple[str, int, int], tuple[str, tuple[str, ...]]] = {}
+
+
+def _outside_project(module: ModuleType) -> bool:
+    """True for built-in, standard-library and installed (site-packages) modules."""
+    path = getattr(module, "__file__", None)
+    if not path:
+        return True
+    path = os.path.realpath(path)
+    paths = sysconfig.get_paths()
+    roots = {paths.get(k) for k in ("stdlib", "platstdlib", "purelib", "platlib")} - {None}
+    return any(path.startswith(os.path.realpath(str(r)) + os.sep) for r in roots)
+
+
+def _module_facts(module: ModuleType) -> tuple[str, tuple[str, ...]]:
+    """(digest of the module's source, names of the modules it takes names from); memoised per file version."""
+    path = getattr(module, "__file__", None) or ""
+    try:
+        mtime = os.stat(path).st_mtime_ns if path else 0
+    except OSError:
+        mtime = 0
+    key = (module.__name__, id(module), mtime)
+    facts = _MODULE_FACTS.get(key)
+    if facts is None:
+        facts = (_module_digest(module), tuple(_imported_modules(module)))
+        _MODULE_FACTS[key] = facts
+    return facts
+
+
+def _module_digest(module: ModuleType) -> str:
+    # a module loaded from a file (plant.effect.load_effect_file) carries the digest of the file's bytes
+    digest = getattr(module, "__mfc_shm_digest__", None)
     if digest:
         return str(digest)[:16]
     try:
-        return hashlib.sha256(inspect.getsource(sys.modules[cls.__module__]).encode()).hexdigest()[:16]
-    except (OSError, TypeError, KeyError):
+        return hashlib.sha256(inspect.getsource(module).encode()).hexdigest()[:16]
+    except (OSError, TypeError):
         return "nosource"
+
+
+def _imported_modules(module: ModuleType) -> list[str]:
+    """The modules ``module`` takes names from: ``import m`` gives m; ``from m import f`` gives the module that
+    *defines* f when f is a function or class (so ``from plant import PhysicalEffect`` follows plant.effect, not
+    the whole package), m itself for constants, m.f when f is a module."""
+    try:
+        tree = ast.parse(inspect.getsource(module))
+    except (OSError, TypeError, SyntaxError):
+        return []
+    package = module.__name__ if hasattr(module, "__path__") else module.__name__.rpartition(".")[0]
+    out: list[str] = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                parts = package.split(".")
+                parent = ".".join(parts[: len(parts) - node.level + 1]) if node.level <= len(parts) else ""
+                base = f"{parent}.{base}" if base and parent else (parent or base)
+            source = sys.modules.get(base)
+            for alias in node.names:
+                sub = f"{base}.{alias.name}"
+                obj = getattr(source, alias.name, None) if source is not None and alias.name != "*" else None
+                if sub in sys.modules:
+                    out.append(sub)
+                elif obj is not None and (callable(obj) or isinstance(obj, type)) and \
+                        getattr(obj, "__module__", None) in sys.modules:
+                    out.append(obj.__module__)
+                else:
+                    out.append(base)
+    return out
+
+
+def _module_closure(name: str) -> list[ModuleType]:
+    """``name``'s module and, transitively, the project modules it takes names from (not stdlib or
+    site-packages)."""
+    seen: dict[str, ModuleType] = {}
+    todo = [name]
+    while todo:
+        mod_name = todo.pop()
+        if mod_name in seen:
+            continue
+        module = sys.modules.get(mod_name)
+        if module is None or (seen and _outside_project(module)):
+            continue
+        seen[mod_name] = module
+        todo += [m for m in _module_facts(module)[1] if m in sys.modules and m not in seen]
+    return [seen[k] for k in sorted(seen)]
+
+
+def _source_fingerprint(cls: type) -> str:
+    """Digest of the source of ``cls``'s module, of the modules its hooks come from, and of every project module
+    they import (transitively): what numba compiles into the cached kernel."""
+    names = {cls.__module__}
+    for hook in (*PHASES, "output"):
+        fn = hook_function(cls, hook)
+        if fn is not None and getattr(fn, "__module__", None):
+            names.add(fn.__module__)
+    modules: dict[str, ModuleType] = {}
+    for n in sorted(names):
+        for m in _module_closure(n):
+            modules.setdefault(m.__name__, m)
+    if not modules:
+        return "nosource"
+    return hashlib.sha256("|".join(f"{k}:{_module_facts(m)[0]}" for k, m in sorted(modules.items())).encode()
+                          ).hexdigest()[:16]
+
+
+def _hook_call(comp: Composition, k: int, hook: str) -> str:
+    slot = comp.slots[k]
+    if slot.styles[hook] == "offsets":
+        args = [slot.state_offset, slot.param_offset] + ([slot.output_offset] if hook == "output" else [])
+        return ", ".join(str(a) for a in args)
+    kinds = ("X", "P", "B", "Y") if hook == "output" else ("X", "P", "B")
+    return ", ".join(f"_slots{k}_{kind}" for kind in kinds)
 
 
 def generate_source(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int, ...], p_off: tuple[int, ...],
                     y_off: tuple[int, ...], n_states: int, cacheable: bool,
-                    integrator_source: str = INTEGRATOR_SOURCE) -> str:
+                    integrator_source: str = INTEGRATOR_SOURCE, composition: Composition | None = None) -> str:
     """The Python source of the composed kernels (see the module docstring); ``integrator_source`` replaces
-    the batch integrator (the benchmark times the previous one against the current one)."""
+    the batch integrator (the benchmark times the previous one against the current one). ``composition`` is
+    the layout (:func:`plant.composition.build_composition` of ``classes`` when not given; its offsets are
+    those of ``s_off``/``p_off``/``y_off``)."""
+    comp = composition if composition is not None else build_composition(classes)
+    if comp.offsets != (tuple(s_off), tuple(p_off), tuple(y_off)):
+        raise EffectError(f"offsets {s_off, p_off, y_off} do not match the layout of {[c.name for c in classes]}")
     cache = "True" if cacheable else "False"
     lines = [
         "# Generated by plant.compose. Do not edit: regenerated from the effects it names.",
@@ -71,6 +191,7 @@ def generate_source(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int,
         "import importlib",
         "import numba",
         "import numpy as np",
+        "from plant.composition import slot_table",
         # the integrator's constants as literals: a changed constant changes the source, hence the cache key
         # (numba's on-disk cache keys on this file, not on plant.integrate)
         *(f"{name} = {getattr(integrate, name)!r}" for name in TABLEAU_NAMES),
@@ -80,14 +201,20 @@ def generate_source(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int,
         "",
     ]
     for k, cls in enumerate(classes):
-        if cacheable:
-            lines.append(f"_EFF{k} = importlib.import_module({cls.__module__!r})")
-            for part in cls.__qualname__.split("."):
+        if cacheable:  # an instance (prefix) runs the hooks of the class it is an instance of
+            src = cls.instance_of or cls
+            lines.append(f"_EFF{k} = importlib.import_module({src.__module__!r})")
+            for part in src.__qualname__.split("."):
                 lines.append(f"_EFF{k} = _EFF{k}.{part}")
         for hook in (*PHASES, "output"):
             if getattr(cls, hook) is not None:
                 lines.append(f"e{k}_{hook} = numba.njit(cache=CACHE, nogil=True, error_model='numpy', "
                              f"inline='always')(_EFF{k}.{hook})")
+        tables = comp.slots[k].tables
+        if tables is not None:
+            for kind, names in tables.items():
+                lines.append(f"_slots{k}_{kind} = slot_table({kind!r}, {tuple(names)!r}, "
+                             f"{tuple(names.values())!r})")
     lines += [
         "",
         "",
@@ -105,7 +232,7 @@ def generate_source(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int,
     for phase in PHASES:
         for k, cls in enumerate(classes):
             if getattr(cls, phase) is not None:
-                lines.append(f"    e{k}_{phase}(t, x, p, bus, dx, {s_off[k]}, {p_off[k]})")
+                lines.append(f"    e{k}_{phase}(t, x, p, bus, dx, {_hook_call(comp, k, phase)})")
     lines += [
         "",
         "",
@@ -123,33 +250,41 @@ def generate_source(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int,
     ]
     for k, cls in enumerate(classes):
         if cls.output is not None:
-            lines.append(f"    e{k}_output(t, x, p, bus, y, {s_off[k]}, {p_off[k]}, {y_off[k]})")
+            lines.append(f"    e{k}_output(t, x, p, bus, y, {_hook_call(comp, k, 'output')})")
     lines += ["", "", integrator_source]
     return "\n".join(lines) + "\n"
 
 
-def _diagnose_hooks(classes: tuple[type[PhysicalEffect], ...]) -> None:
+def _diagnose_hooks(classes: tuple[type[PhysicalEffect], ...], comp: Composition) -> None:
     """After a failed build: compile each hook alone and raise an error naming the culprit."""
-    for cls in classes:
+    for k, cls in enumerate(classes):
         for hook in (*PHASES, "output"):
-            fn = getattr(cls, hook)
+            fn = hook_function(cls, hook)
             if fn is None:
                 continue
+            if comp.slots[k].styles[hook] == "offsets":
+                sig = OUT_SIG if hook == "output" else HOOK_SIG
+            else:
+                arr = types.float64[::1]
+                tables = tuple(numba.typeof(a) for a in comp.hook_args(k, hook))
+                sig = types.void(types.float64, arr, arr, arr, arr, *tables)
             try:
-                numba.njit(OUT_SIG if hook == "output" else HOOK_SIG, cache=False)(fn)
+                numba.njit(sig, cache=False)(fn)
             except Exception as exc:
                 first = str(exc).strip().splitlines()
                 raise EffectError(
                     f"effect '{cls.name}' ({cls.__module__}.{cls.__qualname__}): hook '{hook}' does not compile "
-                    f"with numba (hooks must be numba-compilable: scalars, numpy arrays, math): "
-                    f"{type(exc).__name__}: {first[0] if first else ''}") from exc
+                    f"with numba (hooks must be numba-compilable: scalars, numpy arrays, math; slot tables by "
+                    f"declared names): {type(exc).__name__}: {first[0] if first else ''}") from exc
 
 
 def compose(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int, ...], p_off: tuple[int, ...],
-            y_off: tuple[int, ...], n_states: int, integrator_source: str = INTEGRATOR_SOURCE) -> ModuleType:
+            y_off: tuple[int, ...], n_states: int, integrator_source: str = INTEGRATOR_SOURCE,
+            composition: Composition | None = None) -> ModuleType:
     """The compiled kernel module of a composition (``rhs``, ``out``, ``run_chunk``), built or loaded."""
-    cacheable = all(importable_by_path(c) for c in classes)
-    source = generate_source(classes, s_off, p_off, y_off, n_states, cacheable, integrator_source)
+    comp = composition if composition is not None else build_composition(classes)
+    cacheable = all(importable_by_path(c.instance_of or c) for c in classes)
+    source = generate_source(classes, s_off, p_off, y_off, n_states, cacheable, integrator_source, comp)
     fingerprint = "|".join([_GENERATOR_VERSION, numba.__version__, source,
                             *(_source_fingerprint(c) for c in classes)])
     key = hashlib.sha256(fingerprint.encode()).hexdigest()[:20]
@@ -170,7 +305,7 @@ def compose(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int, ...], p
         except EffectError:
             raise
         except Exception as exc:
-            _diagnose_hooks(classes)
+            _diagnose_hooks(classes, comp)
             raise EffectError(f"composing effects {[c.name for c in classes]} failed: "
                               f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}") from exc
         _LOADED[key] = module

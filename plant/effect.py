@@ -6,29 +6,43 @@ The plant is a composition of *physical effects*. Each effect is a small class t
 * ``parameters`` — :class:`Parameter` objects (name, SI unit, default, bounds, description);
 * ``states`` — extra states it adds (:class:`StateSpec`: name, unit, typical magnitude, initial value);
 * ``outputs`` — extra output channels it adds (:class:`OutputSpec`);
+* ``signals`` — bus signals it publishes for other effects (:class:`SignalSpec`; the composer allocates their
+  slots), and ``reads`` — the names of other effects' signals it reads;
 * its contribution to the equations, as up to four *hooks* (plain functions that numba compiles):
 
-  ``pre(t, x, p, bus, dx, so, po)``
+  ``pre(t, x, p, bus, dx, X, P, B)``
       compute derived signals from the states into the bus (e.g. the hysteretic charge ``q_h``);
-  ``rates(t, x, p, bus, dx, so, po)``
-      add forces to the bus (``B_S`` section forces, ``B_FM`` forces on masses) and add to rates ``dx``;
-  ``post(t, x, p, bus, dx, so, po)``
+  ``rates(t, x, p, bus, dx, X, P, B)``
+      add forces to the bus (section forces ``bus[B.s1]``, forces on masses ``bus[B.fm3]``) and add to rates ``dx``;
+  ``post(t, x, p, bus, dx, X, P, B)``
       work that needs the completed rates of other states (Bouc-Wen needs q̇, the mass chain needs
       every force);
-  ``output(t, x, p, bus, y, so, po, yo)``
+  ``output(t, x, p, bus, y, X, P, B, Y)``
       write or modify output channels (``y``).
 
 ``x`` is the state vector, ``p`` the parameter vector, ``bus`` the signal bus (see :mod:`plant.layout`),
-``dx`` the state-rate vector being assembled. ``so``/``po``/``yo`` are the offsets of *this effect's*
-extra states, parameters and outputs. Core states, core parameters and bus slots have fixed indices
-(:mod:`plant.layout`). Hooks run in model order within each phase: all ``pre``, then all ``rates``, then
-all ``post``. Kernels must be numba-compilable (scalars, numpy arrays, math); a kernel that does not
-compile is reported with the effect's name.
+``dx`` the state-rate vector being assembled, ``y`` the output vector. ``X``, ``P``, ``B`` and ``Y`` are this
+effect's *slot tables* (:mod:`plant.composition`): named tuples of integer indices, constants in the compiled
+kernel, that hold the core names (``X.delta1``, ``P.k3``, ``B.z3``, ``Y.z3_meas``) and the effect's own
+(``P.kappa_nl``, ``X.w_creep11``, ``B.my_signal``, ``Y.my_output``) under the names the effect declared — also
+when the effect is an instance with a prefix. Hooks run in model order within each phase: all ``pre``, then all
+``rates``, then all ``post``. Kernels must be numba-compilable (scalars, numpy arrays, math); a kernel that does
+not compile is reported with the effect's name.
+
+The seam before the slot tables — ``rates(t, x, p, bus, dx, so, po)`` and ``output(t, x, p, bus, y, so, po, yo)``
+with the effect's own states, parameters and outputs at ``x[so + k]``, ``p[po + k]``, ``y[yo + k]`` — still works
+(the arity tells the two apart); such hooks cannot publish signals.
 
 A user's own effect is loaded by dotted path, ``package.module:ClassName``, or from a file, ``path/to/file.py``
 (the one effect class it defines) or ``path/to/file.py:ClassName``, through the same registry as the built-ins
 (:func:`resolve_effect`). A file is imported under a module name derived from its absolute path
-(:func:`load_effect_file`), so the composed kernel's cache key follows the file's content.
+(:func:`load_effect_file`), so the composed kernel's cache key follows the file's content. Any of these specs
+followed by ``as PREFIX`` (``"tip_mass as tip_mass_2"``) is an *instance* of the effect whose parameters, states,
+outputs and signals are named ``PREFIX.name`` in the model, so two effects of one kind can coexist.
+
+Library effects are registered by package (:func:`register_effect_package`): every effect class in every module
+of ``plant/effects`` is registered on import, and those of role ``"effect"`` form the workbench's library
+(:func:`library_effects`) — a new library effect is one file there.
 """
 
 from __future__ import annotations
@@ -37,7 +51,12 @@ import dataclasses
 import hashlib
 import importlib
 import importlib.util
+import inspect
+import keyword
+import math
 import os
+import pkgutil
+import re
 import sys
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
@@ -86,7 +105,64 @@ class OutputSpec:
     unit: str
 
 
+@dataclass(frozen=True)
+class SignalSpec:
+    """A bus signal an effect publishes (the composer allocates its slot): name, SI unit, description."""
+
+    name: str
+    unit: str
+    description: str = ""
+
+
 Hook = Callable[..., None]
+HOOKS: tuple[str, ...] = ("pre", "rates", "post", "output")
+#: positional arguments of a hook with slot tables (named) and of one written against the offsets seam
+NAMED_ARGS: dict[str, tuple[str, ...]] = {
+    **{h: ("t", "x", "p", "bus", "dx", "X", "P", "B") for h in ("pre", "rates", "post")},
+    "output": ("t", "x", "p", "bus", "y", "X", "P", "B", "Y"),
+}
+OFFSET_ARGS: dict[str, tuple[str, ...]] = {
+    **{h: ("t", "x", "p", "bus", "dx", "so", "po") for h in ("pre", "rates", "post")},
+    "output": ("t", "x", "p", "bus", "y", "so", "po", "yo"),
+}
+
+
+def hook_function(cls: type, hook: str) -> Callable[..., None] | None:
+    """The plain Python function of ``cls``'s hook (a numba dispatcher's ``py_func``), or None."""
+    fn = getattr(cls, hook, None)
+    return getattr(fn, "py_func", fn)
+
+
+def hook_style(cls: type, hook: str) -> str:
+    """``"named"`` (slot tables X, P, B[, Y]) or ``"offsets"`` (the seam before them: so, po[, yo])."""
+    fn = hook_function(cls, hook)
+    try:
+        params = list(inspect.signature(fn).parameters.values())  # type: ignore[arg-type]
+    except (TypeError, ValueError):
+        return "named"
+    n = len(params)
+    if any(p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD) for p in params):
+        n = -1
+    if n == len(NAMED_ARGS[hook]):
+        return "named"
+    if n == len(OFFSET_ARGS[hook]):
+        return "offsets"
+    raise EffectError(
+        f"effect {cls.__module__}.{cls.__qualname__}: hook '{hook}' takes {n if n >= 0 else 'a variable number of'} "
+        f"arguments; write it as {hook}({', '.join(NAMED_ARGS[hook])}) and use the slot tables by name "
+        f"(p[P.my_parameter], bus[B.fm3], x[X.my_state], docs/effects.md) — the older form "
+        f"{hook}({', '.join(OFFSET_ARGS[hook])}) is still accepted")
+
+
+def _renamed(spec: Any, name: str) -> Any:
+    """A copy of a frozen declaration (parameter, state, output, signal) under another name."""
+    if dataclasses.is_dataclass(spec):
+        return dataclasses.replace(spec, name=name)
+    import copy
+
+    out = copy.copy(spec)
+    object.__setattr__(out, "name", name)
+    return out
 
 
 class PhysicalEffect:
@@ -100,6 +176,14 @@ class PhysicalEffect:
     parameters: ClassVar[tuple[OneParameter, ...]] = ()
     states: ClassVar[tuple[StateSpec, ...]] = ()
     outputs: ClassVar[tuple[OutputSpec, ...]] = ()
+    #: bus signals this effect publishes; each gets a slot from ``B_USER`` on, ``bus[B.name]`` in its hooks
+    signals: ClassVar[tuple[SignalSpec, ...]] = ()
+    #: names of signals other effects of the model publish that this effect reads (``bus[B.name]``; a prefixed
+    #: publisher's ``prefix.name`` is ``B.prefix_name``)
+    reads: ClassVar[tuple[str, ...]] = ()
+    #: set on an instance made by :meth:`instance`: the prefix of its names and the class it is an instance of
+    prefix: ClassVar[str] = ""
+    instance_of: ClassVar[type[PhysicalEffect] | None] = None
     #: What the effect's absence leaves in residuals (used by the workbench to explain a diagnosis).
     signature: ClassVar[str] = ""
     #: Physical origin, for the effects library documentation.
@@ -120,6 +204,56 @@ class PhysicalEffect:
         return tuple(Parameter.of(p) for p in cls.parameters if p.core_index is None)
 
     @classmethod
+    def declared_name(cls, name: str) -> str:
+        """The name an effect declared for one of its (possibly prefixed) parameters, states, outputs, signals."""
+        head = f"{cls.prefix}." if cls.prefix else ""
+        return name[len(head):] if head and name.startswith(head) else name
+
+    @classmethod
+    def instance(cls, prefix: str) -> type[PhysicalEffect]:
+        """This effect under the name ``prefix`` with its parameters, states, outputs and signals named
+        ``prefix.name`` (the hooks keep using the declared names), so that two of a kind can coexist in a model."""
+        base = cls.instance_of or cls
+        if not isinstance(prefix, str) or not prefix.isidentifier() or keyword.iskeyword(prefix):
+            raise EffectError(f"effect '{base.name}': instance prefix must be a Python identifier, got {prefix!r}")
+        if prefix == base.name:
+            return base
+        key = (base, prefix)
+        if key in _INSTANCES:
+            return _INSTANCES[key]
+
+        def pre(names: Mapping[str, Any]) -> dict[str, Any]:
+            return {f"{prefix}.{k}": v for k, v in names.items()}
+
+        def guess(sub: type[PhysicalEffect], data: Mapping[str, Any] | None = None) -> dict[str, float]:
+            if data and isinstance(data.get("params"), Mapping):
+                params = dict(data["params"])
+                for par in base.own_parameters():
+                    if f"{prefix}.{par.name}" in params:
+                        params[par.name] = params[f"{prefix}.{par.name}"]
+                data = {**data, "params": params}
+            return pre(base.guess(data))
+
+        attrs: dict[str, Any] = {
+            "name": prefix, "prefix": prefix, "instance_of": base, "__module__": base.__module__,
+            "description": f"{base.description} (instance '{prefix}' of '{base.name}')",
+            "parameters": tuple(p if getattr(p, "core_index", None) is not None else _renamed(p, f"{prefix}.{p.name}")
+                                for p in base.parameters),
+            "states": tuple(_renamed(st, f"{prefix}.{st.name}") for st in base.states),
+            "outputs": tuple(_renamed(o, f"{prefix}.{o.name}") for o in base.outputs),
+            "signals": tuple(_renamed(sg, f"{prefix}.{sg.name}") for sg in base.signals),
+            "guess": classmethod(guess),
+        }
+        for table in ("neutral", "fit_ranges", "extra_ranges"):
+            if isinstance(getattr(base, table, None), Mapping):
+                attrs[table] = pre(getattr(base, table))
+        sub = type(f"{base.__name__}_{prefix}", (base,), attrs)
+        sub.__qualname__ = f"{base.__qualname__}_{prefix}"
+        sub.validate_class()
+        _INSTANCES[key] = sub
+        return sub
+
+    @classmethod
     def validate_class(cls) -> None:
         """Raise :class:`EffectError` when the class is ill-formed (checked at registration and load)."""
         label = f"effect {cls.__module__}.{cls.__qualname__}"
@@ -127,8 +261,19 @@ class PhysicalEffect:
             raise EffectError(f"{label}: 'name' must be a Python identifier, got {cls.name!r}")
         if cls.role not in ("core", "terminal", "effect"):
             raise EffectError(f"{label}: role must be core, terminal or effect, got {cls.role!r}")
-        if all(getattr(cls, h) is None for h in ("pre", "rates", "post", "output")):
+        if all(getattr(cls, h) is None for h in HOOKS):
             raise EffectError(f"{label}: defines none of the hooks pre, rates, post, output")
+        styles = {hook_style(cls, h) for h in HOOKS if getattr(cls, h) is not None}
+        if (cls.signals or cls.reads) and styles != {"named"}:
+            raise EffectError(f"{label}: declares signals or reads, so every hook must take the slot tables "
+                              "(rates(t, x, p, bus, dx, X, P, B), output(t, x, p, bus, y, X, P, B, Y)) to find them "
+                              "by name; the offsets form (so, po) has no way to reach an allocated signal")
+        for sg in cls.signals:
+            if not isinstance(sg, SignalSpec):
+                raise EffectError(f"{label}: signals must be SignalSpec objects, got {sg!r}")
+        for name in cls.reads:
+            if not isinstance(name, str) or not name:
+                raise EffectError(f"{label}: reads must be signal names, got {name!r}")
         seen: set[str] = set()
         for par in cls.parameters:
             if not isinstance(par, OneParameter):
@@ -157,6 +302,9 @@ def importable_by_path(cls: type) -> bool:
 
 
 _REGISTRY: dict[str, type[PhysicalEffect]] = {}
+#: registered names that belong to the library (registered from a library package), in registration order
+_LIBRARY: list[str] = []
+_INSTANCES: dict[tuple[type, str], type[PhysicalEffect]] = {}
 
 
 def register_effect(cls: type[PhysicalEffect]) -> type[PhysicalEffect]:
@@ -172,6 +320,48 @@ def register_effect(cls: type[PhysicalEffect]) -> type[PhysicalEffect]:
 def registered_effects() -> dict[str, type[PhysicalEffect]]:
     """Short name -> class, for every registered effect (built-ins are registered on import of plant)."""
     return dict(_REGISTRY)
+
+
+def unregister_effect(name: str) -> None:
+    """Forget a registered effect (tests that register one of their own clean up with this)."""
+    _REGISTRY.pop(name, None)
+    if name in _LIBRARY:
+        _LIBRARY.remove(name)
+
+
+def register_effect_package(package: str, library: bool = False) -> list[type[PhysicalEffect]]:
+    """Import every module of ``package`` (its ``__path__``, modules in name order, ``_private`` ones skipped) and
+    register every effect class defined there; with ``library`` the registered ones of role ``"effect"`` join the
+    library (:func:`library_effects`). Called again, it picks up modules added since (e.g. to ``__path__``)."""
+    try:
+        pkg = importlib.import_module(package)
+    except Exception as exc:
+        raise EffectError(f"cannot import effect package '{package}': {type(exc).__name__}: {exc}") from exc
+    found: list[type[PhysicalEffect]] = []
+    for info in sorted(pkgutil.iter_modules(getattr(pkg, "__path__", [])), key=lambda m: m.name):
+        if info.name.startswith("_"):
+            continue
+        mod_name = f"{package}.{info.name}"
+        try:
+            module = importlib.import_module(mod_name)
+        except Exception as exc:
+            raise EffectError(f"cannot import effect module '{mod_name}': {type(exc).__name__}: {exc}") from exc
+        for obj in vars(module).values():
+            if (isinstance(obj, type) and issubclass(obj, PhysicalEffect) and obj.__module__ == mod_name
+                    and obj.name and obj.instance_of is None):
+                register_effect(obj)
+                found.append(obj)
+                if library and obj.role == "effect" and obj.name not in _LIBRARY:
+                    _LIBRARY.append(obj.name)
+    return found
+
+
+def library_effects() -> tuple[str, ...]:
+    """Names of the library effects (the workbench's default candidates), ordered by their ``library_order``
+    (a class attribute; those without one last), then by registration."""
+    names = [n for n in _LIBRARY if n in _REGISTRY]
+    rank = {n: i for i, n in enumerate(names)}
+    return tuple(sorted(names, key=lambda n: (getattr(_REGISTRY[n], "library_order", math.inf), rank[n])))
 
 
 #: module attribute set on a module loaded from a file: the file's absolute path (how a parameter set refers to it)
@@ -249,9 +439,23 @@ def _resolve_file(spec: str) -> type[PhysicalEffect]:
     return found[0]
 
 
+_INSTANCE_SPEC = re.compile(r"^(?P<spec>.*\S)\s+as\s+(?P<prefix>[A-Za-z_]\w*)\s*$")
+
+
+def split_instance_spec(spec: str) -> tuple[str, str]:
+    """``("tip_mass", "tip_mass_2")`` from ``"tip_mass as tip_mass_2"``; ``(spec, "")`` without ``as``."""
+    m = _INSTANCE_SPEC.match(spec)
+    return (m.group("spec"), m.group("prefix")) if m else (spec, "")
+
+
 def resolve_effect(spec: str | type[PhysicalEffect]) -> type[PhysicalEffect]:
     """An effect class from a registered name, a dotted path ``package.module:ClassName``, or a file
-    ``path/to/file.py`` / ``path/to/file.py:ClassName``."""
+    ``path/to/file.py`` / ``path/to/file.py:ClassName``; any of them followed by ``as PREFIX`` gives an instance
+    with prefixed names (:meth:`PhysicalEffect.instance`)."""
+    if isinstance(spec, str):
+        inner, prefix = split_instance_spec(spec)
+        if prefix:
+            return resolve_effect(inner).instance(prefix)
     if isinstance(spec, type):
         if not issubclass(spec, PhysicalEffect):
             raise EffectError(f"{spec!r} is not a PhysicalEffect subclass")

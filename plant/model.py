@@ -21,7 +21,8 @@ from board_config import (
 )
 from plant import layout as L
 from plant.compose import compose
-from plant.effect import EffectError, OutputSpec, Parameter, PhysicalEffect, StateSpec, resolve_effect
+from plant.composition import build_composition
+from plant.effect import EffectError, Parameter, PhysicalEffect, resolve_effect
 from plant.effects import NOMINAL_EFFECTS
 from plant.integrate import IntegrationStatus
 from plant.signals import InputSignals
@@ -59,8 +60,9 @@ class SimulationResult:
             return self.y[:, :, self.output_names.index(name)]
         if self.states is not None and name in self.state_names:
             return self.states[:, :, self.state_names.index(name)]
-        if self.bus is not None and name in L.BUS_NAMES.values():
-            idx = next(i for i, n in L.BUS_NAMES.items() if n == name)
+        bus_names = self.meta.get("bus_names", L.BUS_NAMES)  # core signals and those the composer allocated
+        if self.bus is not None and name in bus_names.values():
+            idx = next(i for i, n in bus_names.items() if n == name)
             return self.bus[:, :, idx]
         raise KeyError(f"no output or recorded state named '{name}' (outputs: {', '.join(self.output_names)})")
 
@@ -112,10 +114,13 @@ class PlantModel:
         entries: list[EffectEntry] = list(self.params.effects)
         set_values: dict[str, float] = {}
         set_units: dict[str, str] = {}
-        for e in entries:
-            set_values.update(e.parameters)
-            set_units.update(e.units)
-        added = [resolve_effect(e.name) for e in entries] + [resolve_effect(e) for e in effects]
+        from_set = [resolve_effect(e.name) for e in entries]
+        for e, cls in zip(entries, from_set):
+            # an instance's entry may name its parameters as declared ("m") or as in the model ("tip_2.m")
+            own = {cls.declared_name(q.name): q.name for q in cls.own_parameters()} if cls.prefix else {}
+            set_values.update({own.get(k, k): v for k, v in e.parameters.items()})
+            set_units.update({own.get(k, k): v for k, v in e.units.items()})
+        added = from_set + [resolve_effect(e) for e in effects]
         core_cls = [resolve_effect(c) for c in core]
         term_cls = resolve_effect(terminal)
         if term_cls.role != "terminal":
@@ -132,25 +137,13 @@ class PlantModel:
             classes.append(c)
         self.effects: tuple[type[PhysicalEffect], ...] = tuple(classes)
 
-        # layout of extra states / parameters / outputs
-        s_off, p_off, y_off = [], [], []
-        state_specs: list[StateSpec] = []
-        own_params: list[Parameter] = []
-        out_specs: list[OutputSpec] = []
-        owner: dict[str, str] = {n: "core" for n in CORE_PARAMETER_NAMES}
-        for c in classes:
-            s_off.append(L.N_CORE_STATES + len(state_specs))
-            p_off.append(L.N_CORE_PARAMS + len(own_params))
-            y_off.append(L.N_CORE_OUTPUTS + len(out_specs))
-            state_specs.extend(c.states)
-            for par in c.own_parameters():
-                if par.name in owner:
-                    raise EffectError(f"parameter '{par.name}' of effect '{c.name}' clashes with one of "
-                                      f"'{owner[par.name]}'")
-                owner[par.name] = c.name
-                own_params.append(par)
-            out_specs.extend(c.outputs)
-        self._offsets = (tuple(s_off), tuple(p_off), tuple(y_off))
+        # layout of extra states / parameters / outputs, slot tables and allocated signals (plant.composition)
+        self.composition = build_composition(self.effects)
+        state_specs = self.composition.states
+        own_params = list(self.composition.parameters)
+        out_specs = self.composition.outputs
+        owner = self.composition.owner
+        self._offsets = self.composition.offsets
         self.state_names = L.CORE_STATE_NAMES + tuple(s.name for s in state_specs)
         self.state_units = L.CORE_STATE_UNITS + tuple(s.unit for s in state_specs)
         self.state_scales = np.concatenate([CORE_STATE_SCALES, [s.scale for s in state_specs]])
@@ -195,10 +188,12 @@ class PlantModel:
         if self._kernel_module is None:
             s_off, p_off, y_off = self._offsets
             if self._integrator_source is None:
-                self._kernel_module = compose(self.effects, s_off, p_off, y_off, self.n_states)
+                self._kernel_module = compose(self.effects, s_off, p_off, y_off, self.n_states,
+                                              composition=self.composition)
             else:
                 self._kernel_module = compose(self.effects, s_off, p_off, y_off, self.n_states,
-                                              integrator_source=self._integrator_source)
+                                              integrator_source=self._integrator_source,
+                                              composition=self.composition)
         return self._kernel_module
 
     def with_integrator_source(self, source: str) -> PlantModel:
@@ -323,7 +318,8 @@ class PlantModel:
         return SimulationResult(
             t=t_out, y=run.y, output_names=self.output_names, output_units=self.output_units, status=run.status,
             n_steps=run.n_steps, states=run.states, state_names=self.state_names, bus=run.bus,
-            meta={"effects": self.effect_names, "params": self.params.name}, n_rejected=run.n_rejected,
+            meta={"effects": self.effect_names, "params": self.params.name,
+                  "bus_names": self.composition.bus_names}, n_rejected=run.n_rejected,
         )
 
     def describe(self) -> dict[str, Any]:

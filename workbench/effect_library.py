@@ -1,5 +1,9 @@
 """The candidate effects the workbench tries, and which of an effect's parameters it fits, over which range.
 
+The library is the registry's (:func:`plant.effect.library_effects`: every effect of role ``"effect"`` in a file
+of ``plant/effects``, ordered by ``library_order``); :data:`LIBRARY` reads it each time it is used, so there is no
+list to edit here when an effect joins.
+
 Library effects (``plant/effects``) declare ``fit_ranges`` (and ``neutral``), or give a parameter its ``fit`` range
 (and ``neutral`` value) where it is declared; a user's own effect usually declares neither: then every own
 parameter is free over its declared bounds (infinite bounds are replaced by a range around the default), linear,
@@ -14,20 +18,48 @@ A freed parameter is the one parameter type (:class:`board_config.parameter.Para
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterator, Mapping, Sequence
+from typing import overload
 
 import numpy as np
 
 from board_config import CORE_PARAMETER_NAMES
 from board_config.parameter import Parameter, freed
 from plant import PhysicalEffect, PlantModel, resolve_effect
-from plant.effect import EffectError
+from plant.effect import EffectError, library_effects
 
-#: the effects library, in the order the reports list them
-LIBRARY: tuple[str, ...] = (
-    "piezo_creep", "geometric_stiffening", "air_damping", "dielectric_leakage", "amplifier_current_limit",
-    "laser_sensor", "root_compliance", "thermal_drift",
-)
+
+class LibraryNames(Sequence[str]):
+    """The names of the library effects, in the order the reports list them, read from the registry on every
+    use (an effect registered later is in it)."""
+
+    def _names(self) -> tuple[str, ...]:
+        return library_effects()
+
+    @overload
+    def __getitem__(self, index: int) -> str: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> tuple[str, ...]: ...
+
+    def __getitem__(self, index: int | slice) -> str | tuple[str, ...]:
+        return self._names()[index]
+
+    def __len__(self) -> int:
+        return len(self._names())
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names())
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._names()
+
+    def __repr__(self) -> str:
+        return f"LibraryNames{self._names()!r}"
+
+
+#: the effects library, in the order the reports list them (live view of the registry)
+LIBRARY: Sequence[str] = LibraryNames()
 
 
 def resolve_candidates(specs: Sequence[str | type[PhysicalEffect]]) -> list[type[PhysicalEffect]]:

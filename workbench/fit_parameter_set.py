@@ -12,7 +12,10 @@ from workbench.fit_targets import FitError
 
 
 def effect_entry_name(cls: type[PhysicalEffect]) -> str:
-    """How a parameter set refers to an effect: its registered name, else its dotted path."""
+    """How a parameter set refers to an effect: its registered name, else its dotted path (or file); an instance
+    with a prefix as ``"<how its class is referred to> as <prefix>"``."""
+    if cls.instance_of is not None:
+        return f"{effect_entry_name(cls.instance_of)} as {cls.prefix}"
     try:
         if resolve_effect(cls.name) is cls:
             return cls.name
@@ -43,9 +46,10 @@ def fitted_parameter_set(base: ParameterSet, model: PlantModel, values: Mapping[
         if cls.role != "effect":
             continue
         own = cls.own_parameters()
+        # an instance's parameters under their declared names: the entry names the instance ("x as prefix")
         entries.append(EffectEntry(effect_entry_name(cls),
-                                   {q.name: float(p[model.param_index(q.name)]) for q in own},
-                                   {q.name: q.unit for q in own}))
+                                   {cls.declared_name(q.name): float(p[model.param_index(q.name)]) for q in own},
+                                   {cls.declared_name(q.name): q.unit for q in own}))
     merged_meta = dict(new.meta)
     merged_meta.update(meta or {})
     merged_meta["name"] = name

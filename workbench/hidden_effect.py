@@ -5,7 +5,8 @@ parameters — and what ``shm diagnose`` should blame (``expected``). Cases come
 registry :data:`CASE_KINDS` (:func:`register_case_kind`; part B of issue 11 adds effects outside the library
 from its own module):
 
-* ``library``   — one library effect at three strengths (:data:`STRENGTHS`);
+* ``library``   — one library effect at three strengths (:data:`STRENGTHS`: every library effect of the registry
+  with the ``challenge_strengths`` its own file declares — weak, medium, strong parameter values of the truth);
 * ``parameter`` — one wrong core parameter at two deviations (:data:`PARAMETER_CASES`): the truth differs from the
   parameter set, nothing is missing;
 * ``pair``      — two library effects at once (:data:`PAIRS`), two strengths;
@@ -23,32 +24,50 @@ parameters, the issue's threshold).
 from __future__ import annotations
 
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
 
 from board_config import load_parameter_set
+from plant.effect import EffectError, registered_effects
 from workbench.candidates import PARAMETER_CANDIDATES
 from workbench.diagnose import diagnose
 from workbench.effect_library import LIBRARY
 from workbench.synth import synth_inputs, synth_record, synth_test, truth_model
 
-#: three strengths per library effect (parameter values of the truth), weak → strong
-STRENGTHS: dict[str, tuple[dict[str, float], ...]] = {
-    "piezo_creep": ({"gamma_creep": 0.01, "tau_creep": 0.5}, {"gamma_creep": 0.03, "tau_creep": 1.0},
-                    {"gamma_creep": 0.1, "tau_creep": 2.0}),
-    "geometric_stiffening": ({"kappa_nl": 2e3}, {"kappa_nl": 1e4}, {"kappa_nl": 5e4}),
-    "air_damping": ({"c_air": 0.02}, {"c_air": 0.08}, {"c_air": 0.3}),
-    "dielectric_leakage": ({"G_leak": 2e-6}, {"G_leak": 1e-5}, {"G_leak": 5e-5}),
-    "amplifier_current_limit": ({"I_max": 0.2}, {"I_max": 0.05}, {"I_max": 0.008}),
-    "laser_sensor": ({"z_offset": 5e-6, "tau_sensor": 1e-3}, {"z_offset": 2e-5, "tau_sensor": 3e-3},
-                     {"z_offset": 1e-4, "tau_sensor": 1e-2}),
-    "root_compliance": ({"clamp_compliance": 1e-3}, {"clamp_compliance": 4e-3}, {"clamp_compliance": 1.5e-2}),
-    "thermal_drift": ({"dT_dt": 0.05}, {"dT_dt": 0.2}, {"dT_dt": 1.0}),
-}
 STRENGTH_NAMES = ("weak", "medium", "strong")
+
+
+def challenge_strengths(name: str) -> tuple[dict[str, float], ...]:
+    """The weak, medium and strong parameter values of library effect ``name`` in the challenge (its
+    ``challenge_strengths``)."""
+    cls = registered_effects().get(name)
+    values = getattr(cls, "challenge_strengths", None)
+    if cls is None or not values or len(values) != len(STRENGTH_NAMES):
+        raise EffectError(f"library effect '{name}' declares no challenge_strengths (a tuple of "
+                          f"{len(STRENGTH_NAMES)} parameter mappings: {', '.join(STRENGTH_NAMES)})")
+    return tuple(dict(v) for v in values)
+
+
+class LibraryStrengths(Mapping[str, tuple[dict[str, float], ...]]):
+    """Library effect name -> its challenge strengths, read from the registry on every use."""
+
+    def __getitem__(self, name: str) -> tuple[dict[str, float], ...]:
+        if name not in LIBRARY:
+            raise KeyError(name)
+        return challenge_strengths(name)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(LIBRARY)
+
+    def __len__(self) -> int:
+        return len(LIBRARY)
+
+
+#: three strengths per library effect (parameter values of the truth), weak → strong
+STRENGTHS: Mapping[str, tuple[dict[str, float], ...]] = LibraryStrengths()
 #: wrong core parameters: (name, relative factors of the truth against the parameter set, weaker first)
 PARAMETER_CASES: tuple[tuple[str, tuple[float, ...]], ...] = (
     ("m3", (1.2, 1.5)),
@@ -271,14 +290,15 @@ def confusion_matrix(results: Sequence[CaseResult]) -> tuple[list[str], list[str
     return truths, [diags[j] for j in used], m[:, used]
 
 
-_SHORT = {"amplifier_current_limit": "amp_limit", "geometric_stiffening": "stiffening",
-          "dielectric_leakage": "leakage", "nothing missing": "nothing", "root_compliance": "root_compl",
-          "thermal_drift": "thermal", "piezo_creep": "creep", "laser_sensor": "laser", "air_damping": "air_damp",
-          "combination": "combo", "other parameter": "other_par", "unexplained": "unexpl"}
+#: short column labels of the verdicts; a library effect's is its ``short_name`` (else its name)
+_SHORT = {"nothing missing": "nothing", "combination": "combo", "other parameter": "other_par",
+          "unexplained": "unexpl"}
 
 
 def _short(name: str) -> str:
-    for k, v in _SHORT.items():
+    reg = registered_effects()
+    effects = {n: getattr(reg[n], "short_name", n) for n in LIBRARY}
+    for k, v in {**effects, **_SHORT}.items():
         name = name.replace(k, v)
     return name.replace(" wrong", "✗").replace("pair: ", "")
 

@@ -206,7 +206,6 @@ def blame_non_finite(model: PlantModel, sim: Any, u: np.ndarray, dt: float, para
             k = int(good[-1])
             tk = float(sim.t[k])
             points.append((tk, xs[k].copy(), u[min(round(tk / dt), u.shape[0] - 1)]))
-    s_off, p_off, y_off = model._offsets
     for t, x, uu in points:
         bus = np.zeros(L.N_BUS)
         dx = np.zeros(model.n_states)
@@ -219,10 +218,7 @@ def blame_non_finite(model: PlantModel, sim: Any, u: np.ndarray, dt: float, para
                     if fn is None:
                         continue
                     try:
-                        if phase == "output":
-                            fn(t, x, p, bus, y, s_off[k], p_off[k], y_off[k])
-                        else:
-                            fn(t, x, p, bus, dx, s_off[k], p_off[k])
+                        fn(t, x, p, bus, y if phase == "output" else dx, *model.composition.hook_args(k, phase))
                     except (ZeroDivisionError, ValueError, OverflowError) as exc:
                         return (f"effect '{cls.name}' ({cls.__module__}.{cls.__qualname__}), hook '{phase}', fails at "
                                 f"t = {t:.6g} s: {type(exc).__name__}: {exc}")

@@ -1,25 +1,15 @@
-"""Built-in physical effects. Each is one file; registering it here is the only other edit."""
+"""Built-in physical effects, one file each: every effect class in every module of this package is registered on
+import, and those of role ``"effect"`` form the workbench's library (:func:`plant.effect.library_effects`). A new
+library effect is one new file here — nothing else is edited."""
 
-from plant.effect import register_effect
-from plant.effects.air_damping import QuadraticAirDamping
-from plant.effects.amplifier_current_limit import AmplifierCurrentLimit
+from plant.effect import register_effect_package
 from plant.effects.bouc_wen import BoucWenHysteresis
-from plant.effects.dielectric_leakage import DielectricLeakage
-from plant.effects.geometric_stiffening import GeometricStiffening
-from plant.effects.harvesting import HarvestCoupled, HarvestPaper
 from plant.effects.laminate import LaminateModes
-from plant.effects.laser_sensor import LaserSensor
 from plant.effects.patch_rc import PatchRC
 from plant.effects.piezo_coupling import PiezoCoupling
-from plant.effects.piezo_creep import PiezoCreep
-from plant.effects.root_compliance import RootClampCompliance
 from plant.effects.terminals import AmplifierDrive, OpenCircuit
-from plant.effects.thermal_drift import PiezoThermalDrift
 
-for _cls in (LaminateModes, PatchRC, BoucWenHysteresis, PiezoCoupling, AmplifierDrive, OpenCircuit,
-             PiezoCreep, GeometricStiffening, QuadraticAirDamping, DielectricLeakage, AmplifierCurrentLimit,
-             LaserSensor, RootClampCompliance, PiezoThermalDrift, HarvestCoupled, HarvestPaper):
-    register_effect(_cls)
+register_effect_package(__name__, library=True)
 
 #: The nominal model of the seed paper, in evaluation order.
 NOMINAL_EFFECTS: tuple[str, ...] = ("laminate", "patch_rc", "bouc_wen", "piezo_coupling")

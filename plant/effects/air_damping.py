@@ -11,7 +11,6 @@ from plant.effect import Parameter, PhysicalEffect
 from plant.effects.library_support import FitRange, regress, residual, time_axis
 from plant.layout import B_FM, B_ZD
 
-_P_CAIR = 0
 #: share of the drag on each lumped mass (root, intermediate, tip): proportional to the section's plate area
 #: times its typical velocity share is folded into one coefficient; the root section barely moves.
 _SHARE = (0.2, 0.35, 0.45)
@@ -40,10 +39,13 @@ class QuadraticAirDamping(PhysicalEffect):
     )
     neutral: ClassVar[Mapping[str, float]] = {"c_air": 0.0}
     fit_ranges: ClassVar[Mapping[str, FitRange]] = {"c_air": FitRange(0.0, 1.0, linthresh=1e-3)}
+    library_order = 3
+    short_name = "air_damp"
+    challenge_strengths = ({"c_air": 0.02}, {"c_air": 0.08}, {"c_air": 0.3})
 
     @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        c = p[po + _P_CAIR]
+    def rates(t, x, p, bus, dx, X, P, B):
+        c = p[P.c_air]
         for i in range(3):
             v = bus[B_ZD + i]
             bus[B_FM + i] -= _SHARE[i] * c * abs(v) * v

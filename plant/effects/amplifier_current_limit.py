@@ -9,9 +9,7 @@ import numpy as np
 
 from plant.effect import Parameter, PhysicalEffect
 from plant.effects.library_support import FitRange, param, series
-from plant.layout import B_VA, B_VC, P_R_EP
-
-_P_IMAX = 0
+from plant.layout import B_VC
 
 
 class AmplifierCurrentLimit(PhysicalEffect):
@@ -42,16 +40,19 @@ class AmplifierCurrentLimit(PhysicalEffect):
     )
     neutral: ClassVar[Mapping[str, float]] = {"I_max": 10.0}
     fit_ranges: ClassVar[Mapping[str, FitRange]] = {"I_max": FitRange(1.0e-3, 10.0, log=True)}
+    library_order = 5
+    short_name = "amp_limit"
+    challenge_strengths = ({"I_max": 0.2}, {"I_max": 0.05}, {"I_max": 0.008})
 
     @staticmethod
-    def pre(t, x, p, bus, dx, so, po):
+    def pre(t, x, p, bus, dx, X, P, B):
         vc = (bus[B_VC] + bus[B_VC + 1] + bus[B_VC + 2]) / 3.0
-        band = p[po + _P_IMAX] * p[P_R_EP] / 3.0
-        va = bus[B_VA]
+        band = p[P.I_max] * p[P.R_ep] / 3.0
+        va = bus[B.va]
         if va > vc + band:
-            bus[B_VA] = vc + band
+            bus[B.va] = vc + band
         elif va < vc - band:
-            bus[B_VA] = vc - band
+            bus[B.va] = vc - band
 
     @classmethod
     def guess(cls, data: Mapping[str, Any] | None = None) -> dict[str, float]:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from board_config.parameter_sets import core_parameters
 from plant.effect import PhysicalEffect
-from plant.layout import B_QH, P_A_H, P_ALPHA_H, P_BETA_H, P_GAMMA_H, P_N_H, X_H, X_Q
+from plant.layout import B_QH, X_H, X_Q
 
 
 class BoucWenHysteresis(PhysicalEffect):
@@ -17,17 +17,17 @@ class BoucWenHysteresis(PhysicalEffect):
     parameters = core_parameters("alpha_h", "A_h", "n_h", "beta_h", "gamma_h")
 
     @staticmethod
-    def pre(t, x, p, bus, dx, so, po):
-        a = p[P_ALPHA_H]
+    def pre(t, x, p, bus, dx, X, P, B):
+        a = p[P.alpha_h]
         for i in range(3):
             bus[B_QH + i] = a * x[X_Q + i] + (1.0 - a) * x[X_H + i]
 
     @staticmethod
-    def post(t, x, p, bus, dx, so, po):
-        n = p[P_N_H]
+    def post(t, x, p, bus, dx, X, P, B):
+        n = p[P.n_h]
         for i in range(3):
             qd = dx[X_Q + i]
             h = x[X_H + i]
             ah = abs(h)
             hn1 = 1.0 if n == 1.0 else ah ** (n - 1.0)
-            dx[X_H + i] += p[P_A_H] * qd - p[P_BETA_H] * abs(qd) * hn1 * h - p[P_GAMMA_H] * qd * hn1 * ah
+            dx[X_H + i] += p[P.A_h] * qd - p[P.beta_h] * abs(qd) * hn1 * h - p[P.gamma_h] * qd * hn1 * ah

@@ -9,8 +9,6 @@ from plant.effect import Parameter, PhysicalEffect
 from plant.effects.library_support import FitRange, param, regress, residual
 from plant.layout import B_VC, X_Q
 
-_P_G = 0
-
 
 class DielectricLeakage(PhysicalEffect):
     r"""Each patch couple leaks its charge through a parallel conductance G_leak: q̇_i −= G_leak q_i / C_ep.
@@ -35,10 +33,13 @@ class DielectricLeakage(PhysicalEffect):
     )
     neutral: ClassVar[Mapping[str, float]] = {"G_leak": 0.0}
     fit_ranges: ClassVar[Mapping[str, FitRange]] = {"G_leak": FitRange(0.0, 2.0e-3, linthresh=1e-7)}
+    library_order = 4
+    short_name = "leakage"
+    challenge_strengths = ({"G_leak": 2e-6}, {"G_leak": 1e-5}, {"G_leak": 5e-5})
 
     @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        g = p[po + _P_G]
+    def rates(t, x, p, bus, dx, X, P, B):
+        g = p[P.G_leak]
         for i in range(3):
             dx[X_Q + i] -= g * bus[B_VC + i]
 

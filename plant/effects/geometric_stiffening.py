@@ -9,8 +9,6 @@ from plant.effect import Parameter, PhysicalEffect
 from plant.effects.library_support import FitRange, regress, residual
 from plant.layout import B_S, P_K, X_DELTA
 
-_P_KAPPA = 0
-
 
 class GeometricStiffening(PhysicalEffect):
     r"""Cubic hardening of each bending section: the section force gains −k_i κ δ_i³.
@@ -35,10 +33,13 @@ class GeometricStiffening(PhysicalEffect):
     )
     neutral: ClassVar[Mapping[str, float]] = {"kappa_nl": 0.0}
     fit_ranges: ClassVar[Mapping[str, FitRange]] = {"kappa_nl": FitRange(-1.0e4, 2.0e5, linthresh=100.0)}
+    library_order = 2
+    short_name = "stiffening"
+    challenge_strengths = ({"kappa_nl": 2e3}, {"kappa_nl": 1e4}, {"kappa_nl": 5e4})
 
     @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        kappa = p[po + _P_KAPPA]
+    def rates(t, x, p, bus, dx, X, P, B):
+        kappa = p[P.kappa_nl]
         for i in range(3):
             d = x[X_DELTA + i]
             bus[B_S + i] -= p[P_K + i] * kappa * d * d * d

@@ -32,7 +32,7 @@ Power audit: extra states integrate, with the same integrator as the dynamics, t
 ``-z0'' sum m_j z_j'``), structural damping, the Bouc-Wen part of the piezo work, the net work of any other added
 effects, ``R_ep`` losses, the power into the bridge, diode, controller, ``R_bint`` and board losses, and the
 chemical energy into the cell (``integral v_oc i_bat dt``). With the stored mechanical and electrical energy (outputs
-``E_mech``, ``E_elec``) the books close to integration accuracy in the coupled circuit (see plant.harvest).
+``E_mech``, ``E_elec``) the books close to integration accuracy in the coupled circuit (see studies.harvest).
 """
 
 from __future__ import annotations
@@ -67,7 +67,9 @@ from plant.layout import (
 #: number of open-circuit-voltage nodes (Chebyshev-spaced in discharged capacity, 0 = full ... bat_q_max = cut-off)
 N_OCV_NODES = 25
 
-# own-parameter indices (relative to the effect's parameter offset po)
+# The helpers below take the slots of the first own state (bat_qd), parameter (R_bint) and output (v_bat) and
+# address the rest relative to them: the OCV table is an array of N_OCV_NODES parameters.
+# own-parameter indices (relative to the effect's parameter offset po = P.R_bint)
 K_R_BINT = 0
 K_V_DIODE = 1
 K_I_BOARD = 2
@@ -76,7 +78,7 @@ K_TAPER = 4
 K_OCV = 5
 K_EQ8_REVERSE = K_OCV + N_OCV_NODES  # harvest_paper only
 
-# extra-state indices (relative to the effect's state offset so)
+# extra-state indices (relative to the effect's state offset so = X.bat_qd)
 S_QD = 0  # discharged capacity q_d, C
 S_Q_BELOW = 1  # charge drawn while below the cut-off, C
 S_E_IN = 2  # base power in, J
@@ -91,7 +93,7 @@ S_E_RINT = 10  # loss in the cell's internal resistance, J
 S_E_BOARD = 11  # energy delivered to the board load, J
 S_E_BAT = 12  # chemical energy into the cell, integral of v_oc * i_bat, J
 
-# extra outputs (relative to the effect's output offset yo)
+# extra outputs (relative to the effect's output offset yo = Y.v_bat)
 O_V_BAT = 0
 O_V_BAT_TERM = 1
 O_SOC = 2
@@ -382,16 +384,16 @@ class HarvestCoupled(PhysicalEffect):
     outputs = _OUTPUTS
 
     @staticmethod
-    def pre(t, x, p, bus, dx, so, po):
-        _pre(x, p, bus, so, po, False)
+    def pre(t, x, p, bus, dx, X, P, B):
+        _pre(x, p, bus, X.bat_qd, P.R_bint, False)
 
     @staticmethod
-    def post(t, x, p, bus, dx, so, po):
-        _post(x, p, bus, dx, so, po, False)
+    def post(t, x, p, bus, dx, X, P, B):
+        _post(x, p, bus, dx, X.bat_qd, P.R_bint, False)
 
     @staticmethod
-    def output(t, x, p, bus, y, so, po, yo):
-        _output(x, p, bus, y, so, po, yo, False)
+    def output(t, x, p, bus, y, X, P, B, Y):
+        _output(x, p, bus, y, X.bat_qd, P.R_bint, Y.v_bat, False)
 
 
 class HarvestPaper(PhysicalEffect):
@@ -412,13 +414,13 @@ class HarvestPaper(PhysicalEffect):
     outputs = _OUTPUTS
 
     @staticmethod
-    def pre(t, x, p, bus, dx, so, po):
-        _pre(x, p, bus, so, po, True)
+    def pre(t, x, p, bus, dx, X, P, B):
+        _pre(x, p, bus, X.bat_qd, P.R_bint, True)
 
     @staticmethod
-    def post(t, x, p, bus, dx, so, po):
-        _post(x, p, bus, dx, so, po, True)
+    def post(t, x, p, bus, dx, X, P, B):
+        _post(x, p, bus, dx, X.bat_qd, P.R_bint, True)
 
     @staticmethod
-    def output(t, x, p, bus, y, so, po, yo):
-        _output(x, p, bus, y, so, po, yo, True)
+    def output(t, x, p, bus, y, X, P, B, Y):
+        _output(x, p, bus, y, X.bat_qd, P.R_bint, Y.v_bat, True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from board_config.parameter_sets import core_parameters
 from plant.effect import PhysicalEffect
-from plant.layout import B_FM, B_S, B_Z, B_Z0DD, B_ZD, P_C, P_K, P_M, X_DDELTA, X_DELTA
+from plant.layout import B_S, B_Z, B_ZD, P_C, P_K, X_DDELTA, X_DELTA
 
 
 class LaminateModes(PhysicalEffect):
@@ -21,7 +21,7 @@ class LaminateModes(PhysicalEffect):
     parameters = core_parameters("m1", "m2", "m3", "k1", "k2", "k3", "c1", "c2", "c3")
 
     @staticmethod
-    def pre(t, x, p, bus, dx, so, po):
+    def pre(t, x, p, bus, dx, X, P, B):
         z = 0.0
         zd = 0.0
         for i in range(3):
@@ -31,17 +31,17 @@ class LaminateModes(PhysicalEffect):
             bus[B_ZD + i] = zd
 
     @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
+    def rates(t, x, p, bus, dx, X, P, B):
         for i in range(3):
             dx[X_DELTA + i] = x[X_DDELTA + i]
             bus[B_S + i] += -p[P_K + i] * x[X_DELTA + i] - p[P_C + i] * x[X_DDELTA + i]
 
     @staticmethod
-    def post(t, x, p, bus, dx, so, po):
-        z0dd = bus[B_Z0DD]
-        a1 = (bus[B_S] - bus[B_S + 1] + bus[B_FM]) / p[P_M] - z0dd
-        a2 = (bus[B_S + 1] - bus[B_S + 2] + bus[B_FM + 1]) / p[P_M + 1] - z0dd
-        a3 = (bus[B_S + 2] + bus[B_FM + 2]) / p[P_M + 2] - z0dd
-        dx[X_DDELTA] += a1
-        dx[X_DDELTA + 1] += a2 - a1
-        dx[X_DDELTA + 2] += a3 - a2
+    def post(t, x, p, bus, dx, X, P, B):
+        z0dd = bus[B.z0dd]
+        a1 = (bus[B.s1] - bus[B.s2] + bus[B.fm1]) / p[P.m1] - z0dd
+        a2 = (bus[B.s2] - bus[B.s3] + bus[B.fm2]) / p[P.m2] - z0dd
+        a3 = (bus[B.s3] + bus[B.fm3]) / p[P.m3] - z0dd
+        dx[X.ddelta1] += a1
+        dx[X.ddelta2] += a2 - a1
+        dx[X.ddelta3] += a3 - a2

@@ -9,11 +9,7 @@ import numpy as np
 
 from plant.effect import Parameter, PhysicalEffect, StateSpec
 from plant.effects.library_support import FitRange, regress, residual, series
-from plant.layout import B_Z, Y_Z3_MEAS
 
-_P_OFFSET = 0
-_P_SPOT = 1
-_P_TAU = 2
 #: lags shorter than this are blended instead of integrated (keeps the integrator non-stiff: a 1 ms lag is the
 #: sampling period of the rig's 1 kHz laser channel; to first order a blended lag τ_s < 1 ms reads z − τ_s ż)
 _TAU_MIN = 1.0e-3
@@ -56,24 +52,28 @@ class LaserSensor(PhysicalEffect):
         "tau_sensor": FitRange(0.0, 0.02, linthresh=1e-4),
     }
     extra_ranges: ClassVar[Mapping[str, FitRange]] = {"spot_offset": FitRange(0.0, 0.5)}
+    library_order = 6
+    short_name = "laser"
+    challenge_strengths = ({"z_offset": 5e-6, "tau_sensor": 1e-3}, {"z_offset": 2e-5, "tau_sensor": 3e-3},
+                           {"z_offset": 1e-4, "tau_sensor": 1e-2})
 
     @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        lam = p[po + _P_SPOT]
-        tau = p[po + _P_TAU]
-        spot = (1.0 - lam) * bus[B_Z + 2] + lam * bus[B_Z + 1]
-        dx[so] += (spot - x[so]) / max(tau, _TAU_MIN)
+    def rates(t, x, p, bus, dx, X, P, B):
+        lam = p[P.spot_offset]
+        tau = p[P.tau_sensor]
+        spot = (1.0 - lam) * bus[B.z3] + lam * bus[B.z2]
+        dx[X.s_laser] += (spot - x[X.s_laser]) / max(tau, _TAU_MIN)
 
     @staticmethod
-    def output(t, x, p, bus, y, so, po, yo):
-        lam = p[po + _P_SPOT]
-        tau = p[po + _P_TAU]
-        spot = (1.0 - lam) * bus[B_Z + 2] + lam * bus[B_Z + 1]
+    def output(t, x, p, bus, y, X, P, B, Y):
+        lam = p[P.spot_offset]
+        tau = p[P.tau_sensor]
+        spot = (1.0 - lam) * bus[B.z3] + lam * bus[B.z2]
         if tau >= _TAU_MIN:
-            reading = x[so]
+            reading = x[X.s_laser]
         else:
-            reading = spot + (x[so] - spot) * (tau / _TAU_MIN)
-        y[Y_Z3_MEAS] = reading + p[po + _P_OFFSET]
+            reading = spot + (x[X.s_laser] - spot) * (tau / _TAU_MIN)
+        y[Y.z3_meas] = reading + p[P.z_offset]
 
     @classmethod
     def guess(cls, data: Mapping[str, Any] | None = None) -> dict[str, float]:

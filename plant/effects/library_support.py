@@ -8,7 +8,16 @@ Library effects (creep, stiffening, air damping, ...) declare, besides the seam'
     for each parameter the workbench should fit by default, a :class:`FitRange` (search interval, linear or
     logarithmic scaling; the fit range of the one parameter type, :mod:`board_config.parameter`). Parameters not
     listed stay at their value (e.g. a literature coefficient whose product with another parameter is all the data
-    can identify).
+    can identify);
+``challenge_strengths``
+    three parameter mappings (weak, medium, strong): the values the hidden-effect challenge hides the effect at;
+``library_order`` (optional)
+    where the reports list the effect (the first eight are 1..8; without it an effect comes after them);
+``short_name`` (optional)
+    a short column label for the challenge's confusion matrix.
+
+Membership needs no list: every effect of role ``"effect"`` in a file of ``plant/effects`` is registered on import
+and is in the library (:func:`plant.effect.library_effects`).
 
 The ``guess(data)`` hook of an effect receives a mapping with any of these keys (all optional; an effect
 falls back to its defaults for what is missing):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from board_config.parameter_sets import core_parameters
 from plant.effect import PhysicalEffect
-from plant.layout import B_IR, B_QH, B_VA, B_VC, P_C_EP, P_R_EP, X_Q
+from plant.layout import B_IR, B_QH, B_VC, X_Q
 
 
 class PatchRC(PhysicalEffect):
@@ -20,14 +20,14 @@ class PatchRC(PhysicalEffect):
     parameters = core_parameters("R_ep", "C_ep")
 
     @staticmethod
-    def pre(t, x, p, bus, dx, so, po):
+    def pre(t, x, p, bus, dx, X, P, B):
         for i in range(3):
-            bus[B_VC + i] = x[X_Q + i] / p[P_C_EP]
+            bus[B_VC + i] = x[X_Q + i] / p[P.C_ep]
             bus[B_QH + i] = x[X_Q + i]
 
     @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
+    def rates(t, x, p, bus, dx, X, P, B):
         for i in range(3):
-            ir = (bus[B_VA] - bus[B_VC + i]) / p[P_R_EP]
+            ir = (bus[B.va] - bus[B_VC + i]) / p[P.R_ep]
             bus[B_IR + i] += ir
             dx[X_Q + i] += ir

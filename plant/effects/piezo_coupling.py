@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from board_config.parameter_sets import core_parameters
 from plant.effect import PhysicalEffect
-from plant.layout import B_P_PIEZO, B_QH, B_S, P_C_EP, P_D_EP, P_K, X_DDELTA, X_Q
+from plant.layout import B_QH, B_S, P_K, X_DDELTA, X_Q
 
 
 class PiezoCoupling(PhysicalEffect):
@@ -17,10 +17,10 @@ class PiezoCoupling(PhysicalEffect):
     parameters = core_parameters("d_ep")
 
     @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
+    def rates(t, x, p, bus, dx, X, P, B):
         for i in range(3):
-            theta = p[P_K + i] * p[P_D_EP]
-            force = theta * bus[B_QH + i] / p[P_C_EP]
+            theta = p[P_K + i] * p[P.d_ep]
+            force = theta * bus[B_QH + i] / p[P.C_ep]
             bus[B_S + i] += force
-            bus[B_P_PIEZO] += force * x[X_DDELTA + i]
+            bus[B.p_piezo] += force * x[X_DDELTA + i]
             dx[X_Q + i] -= theta * x[X_DDELTA + i]

@@ -9,10 +9,7 @@ import numpy as np
 
 from plant.effect import Parameter, PhysicalEffect, StateSpec
 from plant.effects.library_support import FitRange, regress, residual, time_axis
-from plant.layout import B_QH, B_S, P_C_EP, P_D_EP, P_K
-
-_P_GAMMA = 0
-_P_TAU = 1
+from plant.layout import B_QH, B_S, P_K
 
 
 class PiezoCreep(PhysicalEffect):
@@ -51,18 +48,23 @@ class PiezoCreep(PhysicalEffect):
         "gamma_creep": FitRange(0.0, 0.5, linthresh=1e-3),
         "tau_creep": FitRange(0.03, 100.0, log=True),
     }
+    library_order = 1
+    short_name = "creep"
+    challenge_strengths = ({"gamma_creep": 0.01, "tau_creep": 0.5}, {"gamma_creep": 0.03, "tau_creep": 1.0},
+                           {"gamma_creep": 0.1, "tau_creep": 2.0})
 
     @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        gamma = p[po + _P_GAMMA]
-        tau = p[po + _P_TAU]
+    def rates(t, x, p, bus, dx, X, P, B):
+        gamma = p[P.gamma_creep]
+        tau = p[P.tau_creep]
         for i in range(3):
             qh = bus[B_QH + i]
-            w1 = x[so + 2 * i]
-            w2 = x[so + 2 * i + 1]
-            dx[so + 2 * i] += (qh - w1) / tau
-            dx[so + 2 * i + 1] += (qh - w2) / (10.0 * tau)
-            bus[B_S + i] += p[P_K + i] * p[P_D_EP] * gamma * 0.5 * (w1 + w2) / p[P_C_EP]
+            fast = X.w_creep11 + 2 * i  # w_creep{i+1}1; its slow twin w_creep{i+1}2 follows it
+            w1 = x[fast]
+            w2 = x[fast + 1]
+            dx[fast] += (qh - w1) / tau
+            dx[fast + 1] += (qh - w2) / (10.0 * tau)
+            bus[B_S + i] += p[P_K + i] * p[P.d_ep] * gamma * 0.5 * (w1 + w2) / p[P.C_ep]
 
     @classmethod
     def guess(cls, data: Mapping[str, Any] | None = None) -> dict[str, float]:

@@ -8,11 +8,7 @@ from typing import Any, ClassVar
 
 from plant.effect import Parameter, PhysicalEffect, StateSpec
 from plant.effects.library_support import FitRange
-from plant.layout import B_S, B_Z, B_Z0DD, B_ZD, X_DDELTA
-
-_P_COMPLIANCE = 0
-_P_MASS = 1
-_P_ZETA = 2
+from plant.layout import B_Z, B_ZD
 
 
 class RootClampCompliance(PhysicalEffect):
@@ -47,30 +43,33 @@ class RootClampCompliance(PhysicalEffect):
     neutral: ClassVar[Mapping[str, float]] = {"clamp_compliance": 0.0}
     #: below 1e-4 m/N the clamp mode (> 350 Hz) stiffens the integration and moves the bending modes by < 0.2 %
     fit_ranges: ClassVar[Mapping[str, FitRange]] = {"clamp_compliance": FitRange(1.0e-4, 2.0e-2, log=True)}
+    library_order = 7
+    short_name = "root_compl"
+    challenge_strengths = ({"clamp_compliance": 1e-3}, {"clamp_compliance": 4e-3}, {"clamp_compliance": 1.5e-2})
 
     @staticmethod
-    def pre(t, x, p, bus, dx, so, po):
-        d0 = x[so]
-        v0 = x[so + 1]
+    def pre(t, x, p, bus, dx, X, P, B):
+        d0 = x[X.delta0]
+        v0 = x[X.ddelta0]
         for i in range(3):
             bus[B_Z + i] += d0
             bus[B_ZD + i] += v0
 
     @staticmethod
-    def post(t, x, p, bus, dx, so, po):
-        cr = p[po + _P_COMPLIANCE]
+    def post(t, x, p, bus, dx, X, P, B):
+        cr = p[P.clamp_compliance]
         if cr <= 0.0:
-            dx[so] = 0.0
-            dx[so + 1] = 0.0
+            dx[X.delta0] = 0.0
+            dx[X.ddelta0] = 0.0
             return
-        m0 = p[po + _P_MASS]
+        m0 = p[P.m_clamp]
         k0 = 1.0 / cr
-        c0 = 2.0 * p[po + _P_ZETA] * math.sqrt(k0 * m0)
-        s0 = -k0 * x[so] - c0 * x[so + 1]
-        a0 = (s0 - bus[B_S]) / m0 - bus[B_Z0DD]
-        dx[so] = x[so + 1]
-        dx[so + 1] = a0
-        dx[X_DDELTA] -= a0
+        c0 = 2.0 * p[P.zeta_clamp] * math.sqrt(k0 * m0)
+        s0 = -k0 * x[X.delta0] - c0 * x[X.ddelta0]
+        a0 = (s0 - bus[B.s1]) / m0 - bus[B.z0dd]
+        dx[X.delta0] = x[X.ddelta0]
+        dx[X.ddelta0] = a0
+        dx[X.ddelta1] -= a0
 
     @classmethod
     def guess(cls, data: Mapping[str, Any] | None = None) -> dict[str, float]:

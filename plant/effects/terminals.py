@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from plant.effect import PhysicalEffect
-from plant.layout import B_I_TERM, B_IR, B_U_V1, B_U_V2, B_VA, B_VA_DEMAND, P_C_EP, X_Q
+from plant.layout import B_IR, X_Q
 
 
 class AmplifierDrive(PhysicalEffect):
@@ -19,14 +19,14 @@ class AmplifierDrive(PhysicalEffect):
     origin = "Actuation mode of the rig (seed paper Fig. 4, black flows)"
 
     @staticmethod
-    def pre(t, x, p, bus, dx, so, po):
-        va = 0.5 * (bus[B_U_V1] - bus[B_U_V2])
-        bus[B_VA_DEMAND] = va
-        bus[B_VA] = va
+    def pre(t, x, p, bus, dx, X, P, B):
+        va = 0.5 * (bus[B.v_ch1] - bus[B.v_ch2])
+        bus[B.va_demand] = va
+        bus[B.va] = va
 
     @staticmethod
-    def post(t, x, p, bus, dx, so, po):
-        bus[B_I_TERM] = -(bus[B_IR] + bus[B_IR + 1] + bus[B_IR + 2])
+    def post(t, x, p, bus, dx, X, P, B):
+        bus[B.i_term] = -(bus[B_IR] + bus[B_IR + 1] + bus[B_IR + 2])
 
 
 class OpenCircuit(PhysicalEffect):
@@ -41,8 +41,8 @@ class OpenCircuit(PhysicalEffect):
     origin = "Sensing/harvesting mode of the rig (seed paper Fig. 4, red flows; multimeter F)"
 
     @staticmethod
-    def pre(t, x, p, bus, dx, so, po):
-        va = (x[X_Q] + x[X_Q + 1] + x[X_Q + 2]) / (3.0 * p[P_C_EP])
-        bus[B_VA_DEMAND] = va
-        bus[B_VA] = va
-        bus[B_I_TERM] = 0.0
+    def pre(t, x, p, bus, dx, X, P, B):
+        va = (x[X_Q] + x[X_Q + 1] + x[X_Q + 2]) / (3.0 * p[P.C_ep])
+        bus[B.va_demand] = va
+        bus[B.va] = va
+        bus[B.i_term] = 0.0

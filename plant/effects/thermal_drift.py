@@ -9,10 +9,7 @@ import numpy as np
 
 from plant.effect import Parameter, PhysicalEffect
 from plant.effects.library_support import FitRange, param, regress, residual, time_axis
-from plant.layout import B_QH, B_S, P_C_EP, P_D_EP, P_K, X_DDELTA, X_Q
-
-_P_RATE = 0
-_P_KAPPA = 1
+from plant.layout import B_QH, B_S, P_K, X_DDELTA, X_Q
 
 
 class PiezoThermalDrift(PhysicalEffect):
@@ -41,18 +38,21 @@ class PiezoThermalDrift(PhysicalEffect):
     )
     neutral: ClassVar[Mapping[str, float]] = {"dT_dt": 0.0}
     fit_ranges: ClassVar[Mapping[str, FitRange]] = {"dT_dt": FitRange(-2.0, 2.0, linthresh=1e-3)}
+    library_order = 8
+    short_name = "thermal"
+    challenge_strengths = ({"dT_dt": 0.05}, {"dT_dt": 0.2}, {"dT_dt": 1.0})
 
     @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        dtemp = p[po + _P_RATE] * t
+    def rates(t, x, p, bus, dx, X, P, B):
+        dtemp = p[P.dT_dt] * t
         if dtemp > 100.0:
             dtemp = 100.0
         elif dtemp < -100.0:
             dtemp = -100.0
-        rel = p[po + _P_KAPPA] * dtemp
+        rel = p[P.kappa_T] * dtemp
         for i in range(3):
-            dtheta = p[P_K + i] * p[P_D_EP] * rel
-            bus[B_S + i] += dtheta * bus[B_QH + i] / p[P_C_EP]
+            dtheta = p[P_K + i] * p[P.d_ep] * rel
+            bus[B_S + i] += dtheta * bus[B_QH + i] / p[P.C_ep]
             dx[X_Q + i] -= dtheta * x[X_DDELTA + i]
 
     @classmethod
