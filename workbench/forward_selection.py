@@ -104,7 +104,7 @@ def forward_select(winner: CandidateResult, others: Sequence[CandidateResult], b
                                    else c.screen_train_rms_sigma))
     singles = list(specs) or [c.spec for c in ranked if c.spec is not None]  # (ranked holds only those)
     # effects in the order of their strength alone (the re-screen is limited to the strongest few)
-    order = {c.spec.label: i for i, c in enumerate(ranked)}
+    order = {c.spec.label: i for i, c in enumerate(ranked) if c.spec is not None}
     singles.sort(key=lambda s: order.get(s.label, len(order)))
     fitted_alone = [c for c in ranked if c.outcome is not None and c.status == "fitted" and c.held_reduction > 0]
     while len(current.members) < MAX_MEMBERS and current.spec is not None and current.outcome is not None \

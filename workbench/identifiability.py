@@ -104,7 +104,7 @@ def confusions(targets: Sequence[Target], params: ParameterSet, fitted: Mapping[
     tests ranked by how well they separate the pair; and, per ``about`` parameter, its closest other (name, ρ,
     relative standard error of the parameter with that other one free too)."""
     names, J = sensitivity_matrix(targets, fitted)
-    fitted_set = params.with_values(**{k: v for k, v in fitted.items() if k in CORE_SCHEMA}) if fitted else params
+    fitted_set = params.with_values(None, **{k: v for k, v in fitted.items() if k in CORE_SCHEMA}) if fitted else params
     out, closest = [], {}
     for a in about:
         if a not in names:
