@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 from board_config import MfcLimits
 from drivers.link import ActuatorCommand
 
@@ -11,30 +9,25 @@ from drivers.link import ActuatorCommand
 BOARD_CURRENT_MAX = 10.0
 
 
-@dataclass(frozen=True, slots=True)
-class ChannelVoltages:
-    """The two amplifier channel voltages (V)."""
-
-    v_ch1: float
-    v_ch2: float
-
-
-ZERO_VOLTS = ChannelVoltages(0.0, 0.0)
-
-
 class Amplifier:
     """Takes the board's commands: a command is valid when finite, inside Table 1's per-channel voltage range and
     with a board current in [0, 10) A; an invalid one is refused (the last valid demand stays, ``refused_flag``
-    is set until the next valid one). Between two ticks the output slews linearly from ``last_output`` to the
-    demand (a first-order hold). No valid command for ``watchdog`` seconds → the demand drops to 0 V."""
+    is set until the next valid one). Between two ticks the output slews linearly from the last output to the
+    demand (a first-order hold). No valid command for ``watchdog`` seconds → the demand drops to 0 V.
+
+    The channel voltages are plain float attributes (V): the demand in force ``v_ch1``/``v_ch2`` and the output at
+    the end of the last interval ``last_ch1``/``last_ch2`` (the start of the next slew); the rig reads them every
+    tick."""
 
     def __init__(self, limits: MfcLimits, watchdog: float) -> None:
         self.limits = limits
         self.watchdog = watchdog
         self._lo = limits.voltage_min
         self._hi = limits.voltage_max
-        self.demand = ZERO_VOLTS  # in force
-        self.last_output = ZERO_VOLTS  # put out at the end of the last interval (the start of the next slew)
+        self.v_ch1 = 0.0  # demand in force (V)
+        self.v_ch2 = 0.0
+        self.last_ch1 = 0.0  # output at the end of the last interval (V)
+        self.last_ch2 = 0.0
         self.board_current = 0.0  # A, the board's draw from its cell as last commanded
         self.refused_commands = 0
         self.watchdog_trips = 0
@@ -51,7 +44,8 @@ class Amplifier:
             self.refused_flag = True
             return
         self.refused_flag = False
-        self.demand = ChannelVoltages(float(v1), float(v2))
+        self.v_ch1 = float(v1)
+        self.v_ch2 = float(v2)
         self.board_current = float(i)
         self._last_command_t = t
         self._watchdog_open = False
@@ -61,4 +55,5 @@ class Amplifier:
         if t - self._last_command_t > self.watchdog + 1e-12 and not self._watchdog_open:
             self._watchdog_open = True
             self.watchdog_trips += 1
-            self.demand = ZERO_VOLTS
+            self.v_ch1 = 0.0
+            self.v_ch2 = 0.0

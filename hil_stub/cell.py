@@ -56,10 +56,6 @@ class RigCell:
         f = (qd - q0) / h - i
         return v[i] + (v[i + 1] - v[i]) * f
 
-    def terminal_voltage(self, i_load: float) -> float:
-        """Terminal voltage (V) of the cell outside the plant under the load ``i_load`` (A)."""
-        return self.ocv(self.qd) - self.r_int * i_load
-
     def discharge(self, i_load: float, dt: float) -> None:
         """Draw ``i_load`` (A) for ``dt`` (s) from the cell outside the plant."""
         self.qd += i_load * dt

@@ -50,7 +50,7 @@ from board_config import MfcLimits, ParameterSet, load_mfc_limits
 from board_config.scenario import Scenario, load_scenario
 from drivers.link import ActuatorCommand, RigSample
 from drivers.sim_link import InProcessLink, set_sim_rig_factory
-from hil_stub.amplifier import ZERO_VOLTS, Amplifier
+from hil_stub.amplifier import Amplifier
 from hil_stub.cell import RigCell
 from hil_stub.environment import Environment, Segment
 from hil_stub.rig_settings import COUPLING_TERMINALS, RigSettings
@@ -137,7 +137,8 @@ class SimulatedRig:
                    coupling=opts.coupling, tick=tick)
 
     def _model(self, terminal: str) -> TruthComposition:
-        """The truth plant's composition with ``terminal`` (built or loaded now if it was not)."""
+        """The truth plant's composition with ``terminal``, built (its compiled kernels loaded) now if it was not:
+        :func:`hil_stub.truth.build_truth_rig` preloads the amplifier terminal through it."""
         return self.plant.composition(terminal)
 
     # --- RigEndpoint ------------------------------------------------------------------------------
@@ -154,9 +155,12 @@ class SimulatedRig:
         amp.check_watchdog(plant.t)
         seg = self._seg if plant.t < self._seg.until else self._segment()
         hv = self._hv_override if self._hv_override is not None else seg.hv_present
-        output = amp.demand if hv else ZERO_VOLTS
-        plant.advance(dt, hv, amp.last_output, output, amp.board_current + seg.extra_load)
-        amp.last_output = output
+        if hv:
+            v1, v2 = amp.v_ch1, amp.v_ch2
+        else:
+            v1 = v2 = 0.0
+        plant.advance(dt, hv, amp.last_ch1, amp.last_ch2, v1, v2, amp.board_current + seg.extra_load)
+        amp.last_ch1, amp.last_ch2 = v1, v2
         self.ticks += 1
         seg = self._seg if plant.t < self._seg.until else self._segment()
         if seg.sensor_fault != "frozen_seq":
@@ -273,7 +277,7 @@ class SimulatedRig:
             "v_terminal_V": float(y[plant.active.i_vterm]),
             "battery_ocv_V": float(spec.ocv(qd)), "battery_soc": float(1.0 - qd / spec.capacity),
             "battery_discharged_C": qd, "terminal": plant.active.terminal, "hv_present": self.hv_present,
-            "v_ch1_V": amp.demand.v_ch1, "v_ch2_V": amp.demand.v_ch2, "board_current_A": amp.board_current,
+            "v_ch1_V": amp.v_ch1, "v_ch2_V": amp.v_ch2, "board_current_A": amp.board_current,
             "refused_commands": amp.refused_commands, "watchdog_trips": amp.watchdog_trips,
             "plant_steps": plant.steps, "plant_blocks": plant.blocks, "plant_reduced_blocks": plant.reduced_blocks,
             "plant_seconds": plant.seconds,
@@ -294,7 +298,8 @@ class SimulatedRig:
         reading = self.plant.reading
         vb = reading.v_battery
         if vb != vb:  # the cell is not part of the active plant: the rig's own
-            vb = self.cell.terminal_voltage(self.amplifier.board_current + seg.extra_load)
+            cell = self.cell
+            vb = cell.ocv(cell.qd) - cell.r_int * (self.amplifier.board_current + seg.extra_load)
         hv = self._hv_override if self._hv_override is not None else seg.hv_present
         return self.sensors.sample(self.seq, self.plant.t, reading, vb, seg.sensor_fault, hv,
                                    self.amplifier.refused_flag)

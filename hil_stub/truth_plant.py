@@ -20,7 +20,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from board_config import ConfigError, ParameterError, ParameterSet
-from hil_stub.amplifier import ChannelVoltages
 from hil_stub.cell import RigCell
 from hil_stub.environment import Environment
 from hil_stub.sensors import TruthReading
@@ -103,10 +102,11 @@ class TruthComposition:
 @dataclass
 class TruthBlock:
     """Outputs and states of the truth plant at ``n + 1`` tick boundaries from ``t0``, for one composition,
-    amplifier output and load; ``j`` is the row of the current tick."""
+    amplifier output (V) and load (A); ``j`` is the row of the current tick."""
 
     composition: TruthComposition
-    output: ChannelVoltages
+    v_ch1: float
+    v_ch2: float
     i_load: float
     t0: float
     y: np.ndarray  # (n+1, n_outputs)
@@ -119,20 +119,11 @@ class TruthBlock:
     v_battery: list[float] | None
     z0dd: list[float]
 
-    def serves(self, composition: TruthComposition, output: ChannelVoltages, i_load: float) -> bool:
-        """Whether the next tick can be read from this block."""
-        return (self.j < self.n and self.composition is composition and self.output == output
-                and self.i_load == i_load)
-
-    def reading(self) -> TruthReading:
-        j = self.j
-        vb = self.v_battery
-        return TruthReading(self.z3[j], self.v_terminal[j], vb[j] if vb is not None else math.nan, self.z0dd[j])
-
 
 class TruthPlant:
     """The truth plant the rig serves (see the module docstring): ``advance`` one interval under the amplifier
-    output and the board's load; ``outputs`` / ``reading`` now."""
+    output and the board's load; ``outputs`` / ``reading`` now. Amplifier channel voltages are passed as floats (V):
+    the rig calls ``advance`` every tick."""
 
     def __init__(self, params: ParameterSet, effects: Sequence[str], effect_params: Mapping[str, float],
                  deviations: Mapping[str, float], flight_terminal: str, *, env: Environment, tick: float,
@@ -165,7 +156,8 @@ class TruthPlant:
         self._x = f.model.x0_nominal.copy()
         self._y_rows = np.zeros((1, f.model.n_outputs))  # the outputs now are row ``_y_row`` of this array
         self._y_row = 0
-        self._reading = TruthReading(0.0, 0.0, math.nan, 0.0)
+        #: what the sensors see now (noise-free; one object, updated in place as the plant advances)
+        self.reading = TruthReading(0.0, 0.0, math.nan, 0.0)
         self._k = 0  # whole ticks advanced (for the aligned fast path)
         self._offgrid = False  # advanced by a non-tick dt at some point
         self._block: TruthBlock | None = None
@@ -189,19 +181,17 @@ class TruthPlant:
         self._y_rows = self._outputs_at_rest()[None, :]
         self._y_row = 0
         y = self.outputs
-        self._reading = TruthReading(float(y[f.i_z3]), float(y[f.i_vterm]),
-                                     float(y[f.i_vbat]) if f.i_vbat >= 0 else math.nan, float(self._u_now()[2]))
+        r = self.reading
+        r.z3 = float(y[f.i_z3])
+        r.v_patch = float(y[f.i_vterm])
+        r.v_battery = float(y[f.i_vbat]) if f.i_vbat >= 0 else math.nan
+        r.z0dd = float(self._u_now()[2])
 
     # --- now ----------------------------------------------------------------------------------------------
     @property
     def outputs(self) -> np.ndarray:
         """Outputs now (SI units, the active composition's output order)."""
         return self._y_rows[self._y_row]
-
-    @property
-    def reading(self) -> TruthReading:
-        """What the sensors see now (noise-free)."""
-        return self._reading
 
     def state(self) -> np.ndarray:
         """The active composition's state now."""
@@ -231,21 +221,21 @@ class TruthPlant:
         return np.array([0.0, 0.0, float(self.env.base_acceleration(np.array([self.t]))[0])])
 
     # --- stepping -----------------------------------------------------------------------------------------
-    def advance(self, dt: float, hv_connected: bool, start: ChannelVoltages, output: ChannelVoltages,
+    def advance(self, dt: float, hv_connected: bool, start_ch1: float, start_ch2: float, v_ch1: float, v_ch2: float,
                 i_load: float) -> None:
-        """Move the plant ``dt`` seconds on: the amplifier terminal if ``hv_connected`` (its output slewing from
-        ``start`` to ``output`` over the first tick), else the flight terminal; the board cell loaded by
+        """Move the plant ``dt`` seconds on: the amplifier terminal if ``hv_connected`` (its channels slewing from
+        ``start_ch1/2`` to ``v_ch1/2`` (V) over the first tick), else the flight terminal; the board cell loaded by
         ``i_load`` (A)."""
         want = self.amplifier if hv_connected else self.flight
         aligned = (dt == self.tick or abs(dt - self.tick) <= 1e-9 * self.tick) and not self._offgrid
         if want is not self.active and not (aligned and want is self.flight and self.active is self.idle):
             self._switch(want)
         if aligned:
-            self._advance_tick(start, output, i_load, want)
+            self._advance_tick(start_ch1, start_ch2, v_ch1, v_ch2, i_load, want)
         else:
             self._offgrid = True
             self._block = None
-            self._integrate_direct(dt, start, output, i_load)
+            self._integrate_direct(dt, start_ch1, start_ch2, v_ch1, v_ch2, i_load)
 
     def _switch(self, new: TruthComposition) -> None:
         """Change terminal: carry the core and shared extra states over by name; keep the battery state."""
@@ -268,7 +258,7 @@ class TruthPlant:
         self._x = x_new
         self._block = None
 
-    def _inputs(self, t0: float, n_ticks: int, start: ChannelVoltages, end: ChannelVoltages
+    def _inputs(self, t0: float, n_ticks: int, s1: float, s2: float, v1: float, v2: float
                 ) -> tuple[np.ndarray, float]:
         """Input samples over ``n_ticks`` ticks from ``t0`` (rig grid) with a linear slew over the first tick, and
         their spacing (s)."""
@@ -283,25 +273,27 @@ class TruthPlant:
             u_dt = self.tick / 10
         u = np.empty((z.size, 3))
         u[:, 2] = z
-        u[:, 0] = end.v_ch1
-        u[:, 1] = end.v_ch2
-        if start != end:
+        u[:, 0] = v1
+        u[:, 1] = v2
+        if s1 != v1 or s2 != v2:
             frac = np.arange(m + 1) / m
-            u[: m + 1, 0] = start.v_ch1 + (end.v_ch1 - start.v_ch1) * frac
-            u[: m + 1, 1] = start.v_ch2 + (end.v_ch2 - start.v_ch2) * frac
+            u[: m + 1, 0] = s1 + (v1 - s1) * frac
+            u[: m + 1, 1] = s2 + (v2 - s2) * frac
         return u, u_dt
 
-    def _advance_tick(self, start: ChannelVoltages, output: ChannelVoltages, i_load: float,
+    def _advance_tick(self, s1: float, s2: float, v1: float, v2: float, i_load: float,
                       want: TruthComposition) -> None:
         cell = self.cell
         assert cell is not None
         b = self._block
-        if b is not None and output == start and b.serves(self.active, output, i_load):
+        steady = v1 == s1 and v2 == s2
+        if (b is not None and steady and b.j < b.n and b.composition is self.active and b.v_ch1 == v1
+                and b.v_ch2 == v2 and b.i_load == i_load):
             b.j += 1
         else:
-            n = 1 if output != start else self.lookahead_ticks
+            n = self.lookahead_ticks if steady else 1
             t0 = self._k * self.tick
-            u, u_dt = self._inputs(t0, n, start, output)
+            u, u_dt = self._inputs(t0, n, s1, s2, v1, v2)
             t_out = t0 + self.tick * np.arange(n + 1)
             h_max = min(TRUTH_H_MAX, self.tick)
             b = None
@@ -312,7 +304,7 @@ class TruthPlant:
                     self._switch(idle)
                 y, xs = idle.integrate(self.state().copy(), t0, u, u_dt, t_out, h_max)
                 if float(np.max(np.abs(y[:, idle.i_vterm]))) < 0.5 * self._bridge_threshold(i_load):
-                    b = self._new_block(idle, output, i_load, t0, y, xs, n, u)
+                    b = self._new_block(idle, v1, v2, i_load, t0, y, xs, n, u)
                     self.reduced_blocks += 1
                 else:
                     self._switch(self.flight)
@@ -321,22 +313,28 @@ class TruthPlant:
                 x0 = self.state().copy()
                 model.set_load(i_load)
                 y, xs = model.integrate(x0, t0, u, u_dt, t_out, h_max)
-                b = self._new_block(model, output, i_load, t0, y, xs, n, u)
+                b = self._new_block(model, v1, v2, i_load, t0, y, xs, n, u)
             self._block = b
             self.blocks += 1
         self._k += 1
         self.t = self._k * self.tick
+        j = b.j
         self._y_rows = b.y  # the outputs now are row j of the block (no view made per tick; see ``outputs``)
-        self._y_row = b.j
-        self._reading = b.reading()
+        self._y_row = j
+        r = self.reading
+        r.z3 = b.z3[j]
+        r.v_patch = b.v_terminal[j]
+        vb = b.v_battery
+        r.v_battery = vb[j] if vb is not None else math.nan
+        r.z0dd = b.z0dd[j]
         if not self.active.has_battery:
             cell.discharge(i_load, self.tick)
 
     @staticmethod
-    def _new_block(model: TruthComposition, output: ChannelVoltages, i_load: float, t0: float, y: np.ndarray,
+    def _new_block(model: TruthComposition, v1: float, v2: float, i_load: float, t0: float, y: np.ndarray,
                    xs: np.ndarray, n: int, u: np.ndarray) -> TruthBlock:
         m = (u.shape[0] - 1) // n
-        return TruthBlock(model, output, i_load, t0, y, xs, n, 1, y[:, model.i_z3].tolist(),
+        return TruthBlock(model, v1, v2, i_load, t0, y, xs, n, 1, y[:, model.i_z3].tolist(),
                           y[:, model.i_vterm].tolist(), y[:, model.i_vbat].tolist() if model.i_vbat >= 0 else None,
                           u[::m, 2].tolist())
 
@@ -346,7 +344,7 @@ class TruthPlant:
         v_d = self.flight.param(self.flight.p_vdiode, 0.0)
         return self.cell.ocv(self.cell.qd) + 2.0 * v_d - self.cell.r_int * i_load
 
-    def _integrate_direct(self, dt: float, start: ChannelVoltages, output: ChannelVoltages, i_load: float) -> None:
+    def _integrate_direct(self, dt: float, s1: float, s2: float, v1: float, v2: float, i_load: float) -> None:
         assert self.cell is not None
         model = self.active
         model.set_load(i_load)
@@ -355,15 +353,18 @@ class TruthPlant:
         u = np.empty((n, 3))
         u[:, 2] = self.env.base_acceleration(times)
         frac = np.minimum(1.0, (times - self.t) / min(dt, self.tick))
-        u[:, 0] = start.v_ch1 + (output.v_ch1 - start.v_ch1) * frac
-        u[:, 1] = start.v_ch2 + (output.v_ch2 - start.v_ch2) * frac
+        u[:, 0] = s1 + (v1 - s1) * frac
+        u[:, 1] = s2 + (v2 - s2) * frac
         t_out = np.array([self.t, self.t + dt])
         y, xs = model.integrate(self._x, self.t, u, dt / (n - 1), t_out, min(TRUTH_H_MAX, dt))
         self._x = xs[-1].copy()
         self._y_rows = y
         self._y_row = y.shape[0] - 1
         self.t += dt
-        self._reading = TruthReading(float(y[-1, model.i_z3]), float(y[-1, model.i_vterm]),
-                                     float(y[-1, model.i_vbat]) if model.i_vbat >= 0 else math.nan, float(u[-1, 2]))
+        r = self.reading
+        r.z3 = float(y[-1, model.i_z3])
+        r.v_patch = float(y[-1, model.i_vterm])
+        r.v_battery = float(y[-1, model.i_vbat]) if model.i_vbat >= 0 else math.nan
+        r.z0dd = float(u[-1, 2])
         if not model.has_battery:
             self.cell.discharge(i_load, dt)
