@@ -48,8 +48,8 @@ def first_harmonic(t: np.ndarray, y: np.ndarray, freq_hz: float) -> complex:
     return complex(a, b)  # a sin + b cos = Re{(a + jb) e^{jωt}} shifted: amplitude |a+jb|, phase atan2(b, a)
 
 
-def stepped_sine(model: PlantModel, frequencies_hz: Sequence[float], outputs: Sequence[str], drive: str = "va",
-                 amplitude: float = 600.0, bias_v: float = 0.0, params: np.ndarray | None = None,
+def stepped_sine(model: PlantModel, frequencies_hz: Sequence[float] | np.ndarray, outputs: Sequence[str],
+                 drive: str = "va", amplitude: float = 600.0, bias_v: float = 0.0, params: np.ndarray | None = None,
                  settle_cycles: float = 3.0, min_settle_s: float = 1.0, measure_cycles: int = 4,
                  points_per_cycle: int = 200) -> dict[str, np.ndarray]:
     """Complex response (output per unit drive, SI) of each output at each frequency.
