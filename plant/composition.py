@@ -37,11 +37,12 @@ _TABLE_TYPES: dict[tuple[str, tuple[str, ...]], type] = {}
 def slot_table(kind: str, names: Sequence[str], values: Sequence[int]) -> Any:
     """A named tuple ``kind(name=index, ...)`` (one class per kind and field names)."""
     fields = tuple(names)
-    cls = _TABLE_TYPES.get((kind, fields))
-    if cls is None:
-        cls = namedtuple(kind, fields)  # type: ignore[misc]
-        _TABLE_TYPES[(kind, fields)] = cls
-    return cls(*(int(v) for v in values))
+    table_type = _TABLE_TYPES.get((kind, fields))
+    if table_type is None:
+        make: Any = namedtuple  # a named tuple class made at run time (numba types it as a tuple of ints)
+        table_type = make(kind, fields)
+        _TABLE_TYPES[(kind, fields)] = table_type
+    return table_type(*(int(v) for v in values))
 
 
 @dataclass(frozen=True)

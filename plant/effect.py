@@ -156,7 +156,7 @@ def hook_style(cls: type, hook: str) -> str:
 
 def _renamed(spec: Any, name: str) -> Any:
     """A copy of a frozen declaration (parameter, state, output, signal) under another name."""
-    if dataclasses.is_dataclass(spec):
+    if dataclasses.is_dataclass(spec) and not isinstance(spec, type):
         return dataclasses.replace(spec, name=name)
     import copy
 
@@ -247,7 +247,7 @@ class PhysicalEffect:
         for table in ("neutral", "fit_ranges", "extra_ranges"):
             if isinstance(getattr(base, table, None), Mapping):
                 attrs[table] = pre(getattr(base, table))
-        sub = type(f"{base.__name__}_{prefix}", (base,), attrs)
+        sub: type[PhysicalEffect] = type(f"{base.__name__}_{prefix}", (base,), attrs)
         sub.__qualname__ = f"{base.__qualname__}_{prefix}"
         sub.validate_class()
         _INSTANCES[key] = sub
