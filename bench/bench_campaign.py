@@ -103,10 +103,9 @@ def run(out_dir: Path, quick: bool) -> dict:
         **probs,
     }
     try:
-        import matplotlib
+        from reporting.figures import pyplot
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        plt = pyplot()
 
         fig, ax = plt.subplots(figsize=(6, 3.5))
         ax.bar(["solve_ivp LSODA\none at a time\n(extrapolated)", f"campaign\n{workers} processes"],

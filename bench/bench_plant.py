@@ -321,10 +321,9 @@ def run(out_dir: Path, quick: bool) -> dict:
         res["numbalsoda_skipped"] = numbalsoda_skip
     res["load_average_1_5_15min_after"] = " ".join(f"{v:.2f}" for v in os.getloadavg())
     try:
-        import matplotlib
+        from reporting.figures import pyplot
 
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        plt = pyplot()
 
         labels = ["solve_ivp LSODA\n(one at a time)", "before\n(issue 14)", "mfc-shm batch"]
         values = [1.0 / base_per_run, n_batch / best["before"], throughput]

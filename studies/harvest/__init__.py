@@ -3,9 +3,9 @@
 
 Modules: :mod:`.setup` (the experiment, validated), :mod:`.run` (the chunked run), :mod:`.audit` (the energy
 books), :mod:`.projection` (time to full when a run does not get there), :mod:`.requirements` (what a full recharge
-would take: Eq. 8, power bounds), :mod:`.figures` (Fig. 9 and the what-if views), :mod:`.reference` (an independent
-plain-Python statement of the model for ``scipy.integrate.solve_ivp``: the tests' check and the benchmark's
-baseline).
+would take: Eq. 8, power bounds), :mod:`.outputs` (CSV files, the verdict line), :mod:`.figures` (Fig. 9),
+:mod:`.reference` (an independent plain-Python statement of the model for ``scipy.integrate.solve_ivp``: the tests'
+check and the benchmark's baseline).
 """
 
 from studies.harvest.audit import AuditRow, PowerAudit, power_audit
