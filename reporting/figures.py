@@ -4,6 +4,7 @@ units for SI quantities, and decimation of long traces that keeps their peaks.""
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -29,7 +30,8 @@ def display_scale(unit: str) -> tuple[float, str]:
     return SI_DISPLAY.get(unit, (1.0, unit))
 
 
-def save_figure(fig: Any, path: Path, dpi: float, *, tight: bool = False, **adjust: float) -> Path:
+def save_figure(fig: Any, path: Path, dpi: float, *, tight: bool = False,
+                adjust: Mapping[str, float] | None = None) -> Path:
     """Save ``fig`` to ``path`` and close it. ``tight``: ``tight_layout`` first; ``adjust``: ``subplots_adjust``
     margins instead (cheaper than tight_layout on long reports)."""
     if tight:

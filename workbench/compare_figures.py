@@ -24,7 +24,7 @@ def _finish(fig, path: Path, **adjust: float) -> Path:
     """Fixed margins instead of tight_layout (which costs more than the drawing on long reports)."""
     kw = {"left": 0.07, "right": 0.98, "top": 0.92, "bottom": 0.09, "hspace": 0.4, "wspace": 0.25}
     kw.update(adjust)
-    return save_figure(fig, path, 80, **kw)
+    return save_figure(fig, path, 80, adjust=kw)
 
 
 def _slug(text: str) -> str:

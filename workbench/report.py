@@ -126,7 +126,7 @@ def _time_section(cmp: Comparison, figs: dict[str, list[Path]]) -> str:
         parts.append("<h3>Metrics</h3>" + _table(["quantity", "value"], rows))
         parts.append("<h3>Detailed figures</h3>" + "".join(_img(p) for p in paths[1:]))
     parts.append("<h3>Overlay of all channels</h3>" + _img(figs["_overlay"][0]))
-    if figs["_prediction"]:
+    if figs["_prediction"] and rep.prediction is not None:
         parts.append("<h3>k-step-ahead prediction (labelled second figure)</h3>" + _img(figs["_prediction"][0]))
         parts.append(f"<p class='small'>{html.escape(rep.prediction.method)}; {html.escape(rep.prediction.gain_note)}."
                      "</p>")
