@@ -10,6 +10,16 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 os.environ.setdefault("MFC_SHM_THREADS", "1")
 
 
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark the measured-slow tests of ``slow_tests.SLOW_TESTS`` ``slow`` (``make test-fast`` leaves them out)."""
+    from slow_tests import SLOW_TESTS
+
+    for item in items:
+        name = getattr(item, "originalname", None) or item.name
+        if f"{item.path.name}::{name}" in SLOW_TESTS:
+            item.add_marker(pytest.mark.slow)
+
+
 @pytest.fixture(scope="session")
 def table2_model():
     from plant import PlantModel
