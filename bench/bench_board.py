@@ -29,26 +29,40 @@ TARGET = 200.0
 
 def _run(scenario, duration: float, out: Path, label: str, rig_kw: dict[str, Any], instrument: bool) -> dict:
     from board_config.board import load_board_config
+    from drivers.link import ActuatorCommand, RigSample
     from drivers.sim_link import InProcessLink
-    from firmware_sim.board import Board
+    from firmware_sim.board import Board, TickResult
     from firmware_sim.runner import BoardRunner
     from firmware_sim.usage_log import UsageLog
     from hil_stub.rig import SimulatedRig
 
+    timers = {"link_s": 0.0, "board_s": 0.0, "log_s": 0.0}
+
+    class TimedLink(InProcessLink):
+        def exchange(self, command: ActuatorCommand) -> RigSample:
+            t0 = time.perf_counter()
+            try:
+                return super().exchange(command)
+            finally:
+                timers["link_s"] += time.perf_counter() - t0
+
+    class TimedBoard(Board):
+        def tick(self, *args: Any, **kwargs: Any) -> TickResult:
+            t0 = time.perf_counter()
+            try:
+                return super().tick(*args, **kwargs)
+            finally:
+                timers["board_s"] += time.perf_counter() - t0
+
     cfg = load_board_config(overrides=scenario.board_overrides, overrides_source=scenario.source)
     rig = SimulatedRig(scenario, tick=cfg.tick_period, **rig_kw)
-    link = InProcessLink(rig, tick=cfg.tick_period)
-    board = Board(cfg, nominal=scenario.rig.params)
+    link = (TimedLink if instrument else InProcessLink)(rig, tick=cfg.tick_period)
+    board = (TimedBoard if instrument else Board)(cfg, nominal=scenario.rig.params)
     db = out / f"bench_board_{label}.db"
     for suffix in ("", "-wal", "-shm"):
         Path(str(db) + suffix).unlink(missing_ok=True)
-    timers = {"link_s": 0.0, "board_s": 0.0, "log_s": 0.0}
     with UsageLog(db) as log:
-        sink: EventSink = log
-        if instrument:
-            sink = _TimedSink(log, timers)
-            link.exchange = _timed(link.exchange, timers, "link_s")  # type: ignore[method-assign]
-            board.tick = _timed(board.tick, timers, "board_s")  # type: ignore[method-assign]
+        sink: EventSink = _TimedSink(log, timers) if instrument else log
         runner = BoardRunner(board, link, sink=sink, rearm_times=[e.at for e in scenario.events_of("rearm")])
         link.open()
         c0 = time.process_time()
@@ -86,16 +100,6 @@ class _TimedSink:
         t0 = time.perf_counter()
         self.log.write(ev)
         self.timers["log_s"] += time.perf_counter() - t0
-
-
-def _timed(fn, timers, key):
-    def wrapper(*a, **kw):
-        t0 = time.perf_counter()
-        try:
-            return fn(*a, **kw)
-        finally:
-            timers[key] += time.perf_counter() - t0
-    return wrapper
 
 
 def _python_calibration() -> float:
