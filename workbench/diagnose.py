@@ -21,7 +21,8 @@ core parameter of Table 2 and small physical groups (:data:`workbench.candidates
 
 The accepted candidates are ranked by ΔBIC_held. When a re-estimation explains the held-out data as well as the
 best effect (:data:`PREFER_PARAMETER_WITHIN`), the re-estimation wins: no new physics is needed. When the winner
-leaves more than :data:`FORWARD_ABOVE` σ, forward selection adds the candidate that best explains the rest
+leaves more than :data:`FORWARD_ABOVE` σ, forward selection adds the candidate that best explains the rest, with a
+small beam of other starting points and a swap step when the greedy set falls short
 (:mod:`workbench.forward_selection`). The verdict (:mod:`workbench.diagnose_verdict`) compares what is left with the
 noise floor (:func:`explained`), names a wrong parameter with its value and the ``shm fit`` command, says which
 parameters these records cannot tell apart and which test would (:mod:`workbench.identifiability`), and points to
@@ -114,6 +115,12 @@ class Diagnosis:
     identifiability: list[str] = field(default_factory=list)
     fit_command: str = ""
     next_command: str = ""
+    #: a combination: member -> share of the held-out residual energy the set removes that is lost without it
+    term_shares: dict[str, float] = field(default_factory=dict)
+    #: a combination: member -> held-out RMS (σ) of the set refitted without it
+    without_sigma: dict[str, float] = field(default_factory=dict)
+    #: forward selection's paths tried (greedy first, then the beam's other starts and the swap), in words
+    selection_paths: list[str] = field(default_factory=list)
 
     @property
     def ranked_names(self) -> list[str]:
@@ -140,6 +147,8 @@ class Diagnosis:
             "identifiability": self.identifiability,
             "ranking": [c.to_dict() for c in self.ranking],
             "forward_selection": [c.to_dict() for c in self.steps],
+            "term_shares": self.term_shares, "held_rms_sigma_without": self.without_sigma,
+            "selection_paths": self.selection_paths,
             "baseline": {"params": self.params_name, "train_rms_sigma": self.baseline_train_rms_sigma,
                          "held_rms_sigma": self.baseline_held_rms_sigma,
                          "channels": [s.__dict__ | {"rms_sigma": s.rms_sigma} for s in self.baseline_channels]},
@@ -234,7 +243,7 @@ def diagnose(records: Sequence[Record], params: ParameterSet | str = "table2",
     and when it is done. ``params_label``: how the fit command names the parameter set (default its name).
     """
     from workbench.diagnose_verdict import verdict_for
-    from workbench.forward_selection import forward_select
+    from workbench.forward_selection import select_set
 
     t_start = time.perf_counter()
     base = params if isinstance(params, ParameterSet) else load_parameter_set(params)
@@ -332,12 +341,23 @@ def diagnose(records: Sequence[Record], params: ParameterSet | str = "table2",
     ranking = sorted(results, key=_rank_key) + [screened_out(s) for s in screened]
     winner = choose_winner(ranking)
     steps: list[CandidateResult] = []
+    term_shares: dict[str, float] = {}
+    without_sigma: dict[str, float] = {}
+    paths: list[str] = []
     t0 = time.perf_counter()
-    if winner is not None and combine and winner.held_rms_sigma > FORWARD_ABOVE and not explained(
-            winner.held_rms_sigma, base_held, winner.n_eff_held):
-        winner, steps = forward_select(winner, [c for c in ranking if c is not winner], base, targets, data,
-                                       rss0_held, min_reduction=min_reduction, threads=threads,
-                                       max_nfev=max_nfev, seed=seed, base_held=base_held)
+    # forward selection whenever the winner leaves more than FORWARD_ABOVE σ, even when that is a tiny share of a
+    # large residual ("explained" for the verdict): on a sweep a second effect can hide in the last 2 σ
+    if winner is not None and combine and winner.held_rms_sigma > FORWARD_ABOVE:
+        sel = select_set(winner, [c for c in ranking if c is not winner], base, targets, data, rss0_held,
+                         min_reduction=min_reduction, threads=threads, max_nfev=max_nfev, seed=seed,
+                         base_held=base_held)
+        winner, steps = sel.final, sel.steps
+        term_shares = sel.shares(rss0_held)
+        without_sigma = {m: r.held_rms_sigma for m, r in sel.without.items() if m in winner.members}
+        for label, final, wall in sel.tried:
+            paths.append(f"from {label}: {final.effect} ({final.held_rms_sigma:.3g} σ, ΔBIC "
+                         f"{final.delta_bic_held:.4g}, {wall:.3g} s)")
+            timings[f"forward_selection_from_{label}_s"] = wall
     timings["forward_selection_s"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     tests_before = run_residual_tests(targets, base_sim)
@@ -349,7 +369,8 @@ def diagnose(records: Sequence[Record], params: ParameterSet | str = "table2",
         notes.append("the noise level was estimated from the data (no noise_std in the record metadata): "
                      "errors quoted in σ are only as good as that estimate")
     d = Diagnosis("", "", winner, ranking, base_train, base_held, channel_scores(targets, base_sim), where,
-                  tests_before, tests_after, targets, base_sim, base.name, timings, notes, steps)
+                  tests_before, tests_after, targets, base_sim, base.name, timings, notes, steps,
+                  term_shares=term_shares, without_sigma=without_sigma, selection_paths=paths)
     t1 = time.perf_counter()
     verdict_for(d, base, params_label or (params if isinstance(params, str) else base.name))
     timings["verdict_s"] = time.perf_counter() - t1

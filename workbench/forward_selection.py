@@ -10,15 +10,35 @@ added parameters as penalty), and the best is kept if it clears the margin: ΔBI
 :data:`EXCESS_SHARE_TO_ADD` of what the current set leaves above the noise floor and at least ``min_reduction`` of
 its held-out residual energy. Selection stops when nothing clears the margin, when the set explains the held-out data
 to the noise floor, or at :data:`MAX_MEMBERS` members; a backward step then drops members the others made redundant.
+
+Greedy selection can be led astray by its first pick: on a resonant sweep a re-estimation (the stiffness group, k3,
+m3) mimics much of an effect, is taken first, and what is left then looks like nothing the library holds.
+:func:`select_set` therefore keeps a small beam: when the greedy set does not reach the noise floor, forward
+selection is started again from each of the next :data:`ALTERNATIVE_STARTS` accepted single candidates (effects
+first when the greedy start was a re-estimation), and a *swap step* tries replacing each re-estimation of the best
+set by the effects that fit best in its place. The final sets are compared on held-out data by ΔBIC against the
+nominal model (one ln N_eff per free parameter), so a re-estimation that merely mimics an effect loses to the true
+effect when both are fitted with the rest; a set without new physics still wins when it leaves no more than
+:data:`~workbench.candidate_fit.PREFER_PARAMETER_WITHIN` times the held-out residual energy of the best.
 """
 
 from __future__ import annotations
 
+import time
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 from board_config import ParameterSet
-from workbench.candidate_fit import CandidateResult, explained, fit_spec, score, spec_guess, spec_models
+from workbench.candidate_fit import (
+    PREFER_PARAMETER_WITHIN,
+    CandidateResult,
+    fit_spec,
+    noise_tolerance,
+    score,
+    spec_guess,
+    spec_models,
+)
 from workbench.candidates import (
     CandidateSpec,
     ScreenResult,
@@ -40,6 +60,34 @@ RESCREEN_EFFECTS = 2
 EXCESS_SHARE_TO_ADD = 0.2
 #: a member is dropped when the set without it leaves at most this factor more held-out residual energy
 PRUNE_WITHIN = 1.02
+#: further starting points of forward selection when the greedy set is not at the noise floor (the beam's width − 1)
+ALTERNATIVE_STARTS = 2
+#: effects tried in place of each re-estimation of the best set by the swap step
+SWAP_EFFECTS = 3
+
+
+@dataclass
+class Selection:
+    """What :func:`select_set` chose: the final set, the sets accepted on its path (the first is its start), how
+    much each member explains, and every path tried (label of the start → final set and seconds spent)."""
+
+    final: CandidateResult
+    steps: list[CandidateResult]
+    #: member → the set refitted without it
+    without: dict[str, CandidateResult] = field(default_factory=dict)
+    tried: list[tuple[str, CandidateResult, float]] = field(default_factory=list)
+
+    def shares(self, rss0_held: float) -> dict[str, float]:
+        """Member → share of the held-out residual energy removed by the set that is lost without that member
+        (0–1; the shares of independent terms add up to about 1, of terms that overlap to less)."""
+        o = self.final.outcome
+        if o is None or len(self.final.members) < 2:
+            return {}
+        removed = rss0_held - o.held_rss
+        if removed <= 0:
+            return {}
+        return {m: min(max((r.held_rss - o.held_rss) / removed, 0.0), 1.0) for m, r in self.without.items()
+                if m in self.final.members}
 
 
 def _touches(spec: CandidateSpec) -> set[str]:
@@ -92,11 +140,14 @@ def rescreen(current: CandidateResult, specs: Sequence[CandidateSpec], base: Par
 def forward_select(winner: CandidateResult, others: Sequence[CandidateResult], base: ParameterSet,
                    targets: Sequence[Target], data: Mapping[str, Any], rss0_held: float, *, min_reduction: float,
                    threads: int | None, max_nfev: int, seed: int, base_held: float,
-                   specs: Sequence[CandidateSpec] = ()) -> tuple[CandidateResult, list[CandidateResult]]:
-    """(the final set, the sets accepted in order — the first is ``winner``); see the module docstring.
+                   specs: Sequence[CandidateSpec] = (), without: dict[str, CandidateResult] | None = None,
+                   ) -> tuple[CandidateResult, list[CandidateResult]]:
+    """(the final set, the sets accepted in order — the first is ``winner``): greedy forward selection from
+    ``winner`` and the backward step; see the module docstring.
 
     ``others``: the other candidates as diagnosed alone (the strongest are tried first among the effects);
-    ``specs``: every single candidate that may join (default: those of ``others``)."""
+    ``specs``: every single candidate that may join (default: those of ``others``); ``without`` collects the
+    backward step's drop-one fits of the final set (see :func:`_prune`)."""
     current = winner
     steps = [winner]
     ranked = sorted((c for c in others if c.spec is not None and c.stable and c.kind != "combination"),
@@ -108,7 +159,7 @@ def forward_select(winner: CandidateResult, others: Sequence[CandidateResult], b
     singles.sort(key=lambda s: order.get(s.label, len(order)))
     fitted_alone = [c for c in ranked if c.outcome is not None and c.status == "fitted" and c.held_reduction > 0]
     while len(current.members) < MAX_MEMBERS and current.spec is not None and current.outcome is not None \
-            and not explained(current.held_rms_sigma, base_held, current.n_eff_held):
+            and not at_noise_floor(current):
         mine = _touches(current.spec)
         screened = rescreen(current, singles, base, targets, data, seed=seed)
         tries_specs: list[tuple[CandidateSpec, dict[str, float]]] = []
@@ -140,8 +191,8 @@ def forward_select(winner: CandidateResult, others: Sequence[CandidateResult], b
         current = best
         steps.append(best)
     if len(current.members) > 1:
-        pruned = _prune(current, base, targets, data, rss0_held, min_reduction=min_reduction, threads=threads,
-                        max_nfev=max_nfev, seed=seed)
+        pruned = _prune(current, base, targets, data, rss0_held, without, min_reduction=min_reduction,
+                        threads=threads, max_nfev=max_nfev, seed=seed)
         if pruned is not current:
             current = pruned
             steps.append(current)
@@ -155,9 +206,11 @@ def _without(spec: CandidateSpec, name: str) -> CandidateSpec:
 
 
 def _prune(current: CandidateResult, base: ParameterSet, targets: Sequence[Target], data: Mapping[str, Any],
-           rss0_held: float, **kw: Any) -> CandidateResult:
+           rss0_held: float, without: dict[str, CandidateResult] | None = None, **kw: Any) -> CandidateResult:
     """Backward step: drop a member the others made redundant (the set without it explains the held-out data
-    within :data:`PRUNE_WITHIN`) — e.g. a parameter taken first that returns to its value once the effects are in."""
+    within :data:`PRUNE_WITHIN`) — e.g. a parameter taken first that returns to its value once the effects are in.
+    ``without`` collects, per member of the returned set, the set refitted without it (when that fit was made on the
+    returned set)."""
     assert current.spec is not None and current.outcome is not None
     # a tied group whose effect one of its members carries alone (the mass group standing in for m3): swap
     for pc in [p for p in current.spec.params if p.tied]:
@@ -174,12 +227,151 @@ def _prune(current: CandidateResult, base: ParameterSet, targets: Sequence[Targe
                 best = r
         if best is not None:
             current = best
+    drops: dict[str, tuple[CandidateResult, CandidateResult]] = {}  # member -> (the set it was dropped from, fit)
     for name in current.members:
         if len(current.members) < 2:
             break
         assert current.spec is not None and current.outcome is not None  # an accepted fit keeps both
         spec = _without(current.spec, name)
         r = fit_spec(spec, base, targets, data, rss0_held, start=dict(current.outcome.values), **kw)
+        drops[name] = (current, r)
         if r.accepted and r.held_rss <= PRUNE_WITHIN * current.held_rss:
             current = r
+    if without is not None:
+        without.update({n: r for n, (of, r) in drops.items() if of is current and n in current.members})
     return current
+
+
+def at_noise_floor(c: CandidateResult) -> bool:
+    """Whether a set leaves only white noise (:func:`~workbench.candidate_fit.noise_tolerance`): the stricter half of
+    :func:`~workbench.candidate_fit.explained`. A set that leaves a small *share* of a large residual (2.7 σ of
+    1000 σ on a sweep) is explained for the verdict, but the rest may still be a second effect worth a search."""
+    return c.held_rms_sigma <= 1.0 + noise_tolerance(c.n_eff_held)
+
+
+def _done(c: CandidateResult, base_held: float) -> bool:
+    return at_noise_floor(c)
+
+
+def _strength_order(cands: Sequence[CandidateResult]) -> list[CandidateResult]:
+    """Fitted and accepted first (by ΔBIC_held), then the rest by their screening error."""
+    return sorted((c for c in cands if c.spec is not None and c.stable and c.kind != "combination"),
+                  key=lambda c: (not c.accepted, c.outcome is None,
+                                 -c.delta_bic_held if c.outcome is not None else c.screen_train_rms_sigma))
+
+
+def alternative_starts(winner: CandidateResult, others: Sequence[CandidateResult],
+                       n: int = ALTERNATIVE_STARTS) -> list[CandidateResult]:
+    """The next ``n`` accepted single candidates to start forward selection from, none touching the winner:
+    effects first when the winner is a re-estimation (the mimic a sweep allows), else by ΔBIC_held."""
+    assert winner.spec is not None
+    used = _touches(winner.spec)
+    pool = [c for c in others if c.accepted and c.status == "fitted" and c.outcome is not None
+            and c.spec is not None and c.kind in ("effect", "parameter")]
+    pool.sort(key=lambda c: (winner.kind == "parameter" and c.kind != "effect", -c.delta_bic_held))
+    out: list[CandidateResult] = []
+    for c in pool:
+        assert c.spec is not None
+        if _touches(c.spec) & used:
+            continue
+        out.append(c)
+        used |= _touches(c.spec)
+        if len(out) >= n:
+            break
+    return out
+
+
+def better(a: CandidateResult, b: CandidateResult) -> CandidateResult:
+    """The set to keep of ``a`` (the incumbent) and ``b``: a set without new physics that leaves no more than
+    :data:`PREFER_PARAMETER_WITHIN` times the other's held-out residual energy wins; otherwise ``b`` must beat ``a``
+    on ΔBIC_held against the nominal model (its extra parameters penalised) *and* leave less than
+    1/:data:`PREFER_PARAMETER_WITHIN` of its held-out residual energy."""
+    if b.outcome is None or not b.accepted:
+        return a
+    if a.outcome is None or not a.accepted:
+        return b
+    a_plain, b_plain = a.spec is not None and not a.spec.effects, b.spec is not None and not b.spec.effects
+    if a_plain and not b_plain and a.held_rss <= PREFER_PARAMETER_WITHIN * b.held_rss:
+        return a
+    if b_plain and not a_plain and b.held_rss <= PREFER_PARAMETER_WITHIN * a.held_rss:
+        return b
+    if b.delta_bic_held > a.delta_bic_held and b.held_rss * PREFER_PARAMETER_WITHIN < a.held_rss:
+        return b
+    return a
+
+
+def select_set(winner: CandidateResult, others: Sequence[CandidateResult], base: ParameterSet,
+               targets: Sequence[Target], data: Mapping[str, Any], rss0_held: float, *, min_reduction: float,
+               threads: int | None, max_nfev: int, seed: int, base_held: float) -> Selection:
+    """Forward selection with a small beam and a swap step (see the module docstring): the greedy path from
+    ``winner``; when it does not reach the noise floor, the paths from :func:`alternative_starts`, then the swap
+    of each re-estimation of the best set for the effects that fit best in its place. Stops as soon as a set
+    explains the held-out data to the noise floor."""
+    kw: dict[str, Any] = dict(min_reduction=min_reduction, threads=threads, max_nfev=max_nfev, seed=seed)
+    everyone = [winner, *others]
+    tried: list[tuple[str, CandidateResult, float]] = []
+
+    def path(start: CandidateResult, before: Sequence[CandidateResult] = ()) -> Selection:
+        t0 = time.perf_counter()
+        without: dict[str, CandidateResult] = {}
+        rest = [c for c in everyone if c is not start]
+        final, steps = forward_select(start, rest, base, targets, data, rss0_held, base_held=base_held,
+                                      without=without, **kw)
+        tried.append((start.effect, final, time.perf_counter() - t0))
+        return Selection(final, [*before, *steps], without)
+
+    best = path(winner)
+    if not _done(best.final, base_held):
+        for start in alternative_starts(winner, others):
+            sel = path(start)
+            if better(best.final, sel.final) is sel.final:
+                best = sel
+            if _done(best.final, base_held):
+                break
+    if not _done(best.final, base_held):
+        swapped = _swap(best, everyone, base, targets, data, rss0_held, **kw)
+        if swapped is not None and better(best.final, swapped) is swapped:
+            best = path(swapped, best.steps)
+    if len(best.final.members) > 1 and set(best.without) != set(best.final.members):
+        _fill_without(best, base, targets, data, rss0_held, **kw)
+    best.tried = tried
+    return best
+
+
+def _swap(sel: Selection, everyone: Sequence[CandidateResult], base: ParameterSet, targets: Sequence[Target],
+          data: Mapping[str, Any], rss0_held: float, **kw: Any) -> CandidateResult | None:
+    """Swap step: each re-estimation of the set replaced by each of the :data:`SWAP_EFFECTS` strongest effects
+    (alone) that do not touch the rest, fitted together with the rest; the best such set (or None)."""
+    cur = sel.final
+    if cur.spec is None or cur.outcome is None or len(cur.members) < 2:
+        return None
+    effects = [c for c in _strength_order(everyone) if c.kind == "effect"]
+    best: CandidateResult | None = None
+    for pc in cur.spec.params:
+        rest = _without(cur.spec, pc.name)
+        n = 0
+        for c in effects:
+            assert c.spec is not None
+            if _touches(c.spec) & _touches(rest):
+                continue
+            n += 1
+            if n > SWAP_EFFECTS:
+                break
+            own = dict(c.outcome.values) if c.outcome is not None else dict(c.screen_start)
+            start = own | {k: v for k, v in cur.outcome.values.items()
+                           if k not in {*pc.members, pc.scale_name}}
+            r = fit_spec(rest.plus(c.spec), base, targets, data, rss0_held, start=start, **kw)
+            if r.accepted and (best is None or better(best, r) is r):
+                best = r
+    return best
+
+
+def _fill_without(sel: Selection, base: ParameterSet, targets: Sequence[Target], data: Mapping[str, Any],
+                  rss0_held: float, **kw: Any) -> None:
+    """The drop-one fits of the final set that the backward step did not leave (how much each member explains)."""
+    cur = sel.final
+    assert cur.spec is not None and cur.outcome is not None
+    for name in cur.members:
+        if name not in sel.without:
+            sel.without[name] = fit_spec(_without(cur.spec, name), base, targets, data, rss0_held,
+                                         start=dict(cur.outcome.values), **kw)

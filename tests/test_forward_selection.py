@@ -1,0 +1,153 @@
+"""Combined explanations without a fit (docs/workbench.md, "Combined explanations"): when the greedy path from a
+re-estimation that mimics an effect falls short of the noise floor, the beam's other starts and the swap step find
+the true pair; a set without new physics still wins when it explains within ``PREFER_PARAMETER_WITHIN``; the
+verdict says how much each member explains. The fits are stubbed: each path's outcome is given."""
+
+from __future__ import annotations
+
+import math
+from types import SimpleNamespace
+
+import pytest
+
+import workbench.forward_selection as fs
+from plant.effect import registered_effects
+from workbench.candidate_fit import PREFER_PARAMETER_WITHIN, CandidateResult
+from workbench.candidates import CandidateSpec, parameter_candidate
+
+N = 2000
+RSS0 = 400.0 ** 2 * N  # the nominal model misses the held-out data by 400 σ
+
+
+def spec(*names: str) -> CandidateSpec:
+    reg = registered_effects()
+    return CandidateSpec(tuple(reg[n] for n in names if n in reg),
+                         tuple(parameter_candidate(n) for n in names if n not in reg))
+
+
+def fitted(held_sigma: float, *names: str, accepted: bool = True) -> CandidateResult:
+    s = spec(*names)
+    o = SimpleNamespace(held_rss=held_sigma ** 2 * N, held_rms_sigma=held_sigma, n_held=N, values={})
+    c = CandidateResult(s.label, "", "", "", [object()] * len(names), o, spec=s)  # type: ignore[arg-type]
+    c.stable, c.accepted, c.n_eff_held = True, accepted, float(N)
+    c.held_reduction = 1 - o.held_rss / RSS0
+    c.delta_bic_held = N * math.log(RSS0 / o.held_rss) - len(names) * math.log(N)
+    return c
+
+
+def screened(*names: str) -> CandidateResult:
+    s = spec(*names)
+    c = CandidateResult(s.label, "", "", "", [], None, spec=s, status="screened out", screen_train_rms_sigma=300.0)
+    c.stable = True
+    return c
+
+
+def _stub_paths(monkeypatch, paths: dict[str, CandidateResult]) -> list[str]:
+    """forward_select from a start returns paths[start label] (or the start itself); records the starts."""
+    starts: list[str] = []
+
+    def fake(start, others, base, targets, data, rss0_held, *, without=None, **kw):
+        starts.append(start.effect)
+        final = paths.get(start.effect, start)
+        if without is not None and len(final.members) > 1:
+            for m in final.members:
+                rest = [x for x in final.members if x != m]
+                without[m] = fitted(300.0 if m == final.members[0] else 100.0, *rest)
+        return final, [start] + ([final] if final is not start else [])
+
+    monkeypatch.setattr(fs, "forward_select", fake)
+    return starts
+
+
+def _select(winner, others):
+    return fs.select_set(winner, others, None, [], {}, RSS0, min_reduction=0.02, threads=None, max_nfev=5, seed=0,
+                         base_held=400.0)
+
+
+def test_a_mimicking_reestimation_taken_first_loses_to_the_true_pair(monkeypatch):
+    # sweep-like: the stiffness group mimics geometric stiffening (taken first, greedy stalls at 40 σ); the beam's
+    # next start, the effect itself, leads to the pair at the noise floor
+    stiffness = fitted(60.0, "stiffness")
+    stiffening = fitted(80.0, "geometric_stiffening")
+    leakage = fitted(200.0, "dielectric_leakage")
+    pair = fitted(1.0, "geometric_stiffening", "dielectric_leakage")
+    starts = _stub_paths(monkeypatch, {"stiffness": fitted(40.0, "dielectric_leakage", "stiffness"),
+                                       "geometric_stiffening": pair})
+    sel = _select(stiffness, [stiffening, leakage])
+    assert sel.final is pair and set(sel.final.members) == {"geometric_stiffening", "dielectric_leakage"}
+    assert starts == ["stiffness", "geometric_stiffening"]  # stops once a set reaches the noise floor
+    assert sel.steps[0] is stiffening  # found: the effect first
+    assert [label for label, _, _ in sel.tried] == starts and all(w >= 0 for _, _, w in sel.tried)
+    shares = sel.shares(RSS0)
+    assert set(shares) == set(pair.members) and all(0 < v <= 1 for v in shares.values())
+
+
+def test_the_swap_step_replaces_a_reestimation_by_an_effect_screened_out_alone(monkeypatch):
+    # geometric stiffening alone looked useless (screened out), so no path starts from it; the swap step tries it
+    # in place of the stiffness group next to the leakage
+    stiffness = fitted(60.0, "stiffness")
+    leakage = fitted(200.0, "dielectric_leakage")
+    partial = fitted(40.0, "dielectric_leakage", "stiffness")
+    pair = fitted(1.0, "geometric_stiffening", "dielectric_leakage")
+    _stub_paths(monkeypatch, {"stiffness": partial, "dielectric_leakage": partial})
+    swaps: list[str] = []
+
+    def fake_fit(s, *a, **kw):
+        swaps.append(s.label)
+        return pair if "geometric_stiffening" in s.members else fitted(50.0, *s.members)
+
+    monkeypatch.setattr(fs, "fit_spec", fake_fit)
+    sel = _select(stiffness, [leakage, screened("geometric_stiffening"), screened("piezo_creep")])
+    assert sel.final is pair
+    assert any("geometric_stiffening" in s for s in swaps)
+    assert all("stiffness" not in s.split(" + ") for s in swaps)  # the re-estimation is what is swapped out
+
+
+def test_greedy_at_the_noise_floor_tries_nothing_else(monkeypatch):
+    winner = fitted(3.0, "piezo_creep")
+    pair = fitted(1.02, "piezo_creep", "laser_sensor")
+    starts = _stub_paths(monkeypatch, {"piezo_creep": pair})
+    sel = _select(winner, [fitted(5.0, "beta_h"), fitted(9.0, "laser_sensor")])
+    assert sel.final is pair and starts == ["piezo_creep"]
+
+
+@pytest.mark.parametrize(("ratio", "plain_wins"), [(1.0, True), (PREFER_PARAMETER_WITHIN * 0.999, True),
+                                                   (PREFER_PARAMETER_WITHIN * 1.01, False)])
+def test_a_set_without_new_physics_wins_within_the_margin(ratio, plain_wins):
+    with_effect = fitted(2.0, "thermal_drift", "k3")
+    plain = fitted(2.0 * math.sqrt(ratio), "k3", "c1")
+    assert (fs.better(with_effect, plain) is plain) is plain_wins
+    assert (fs.better(plain, with_effect) is plain) is plain_wins
+
+
+def test_a_new_set_must_beat_the_incumbent_clearly():
+    a = fitted(3.0, "laser_sensor", "beta_h")
+    assert fs.better(a, fitted(2.95, "laser_sensor", "piezo_creep")) is a  # within 10 % of the energy: keep
+    b = fitted(1.0, "laser_sensor", "piezo_creep")
+    assert fs.better(a, b) is b
+    assert fs.better(a, fitted(1.0, "laser_sensor", "piezo_creep", accepted=False)) is a
+
+
+def test_alternative_starts_put_effects_first_after_a_reestimation():
+    winner = fitted(60.0, "stiffness")
+    others = [fitted(70.0, "k3"), fitted(90.0, "geometric_stiffening"), fitted(65.0, "d_ep"),
+              fitted(150.0, "dielectric_leakage"), fitted(10.0, "damping", accepted=False)]
+    got = [c.effect for c in fs.alternative_starts(winner, others)]
+    assert got == ["geometric_stiffening", "dielectric_leakage"]
+    # two starts at most; after an effect the order is by ΔBIC alone (rejected candidates never start a path)
+    got = [c.effect for c in fs.alternative_starts(fitted(50.0, "laser_sensor"), others)]
+    assert got == ["d_ep", "k3"]
+
+
+def test_the_verdict_says_how_much_each_term_explains():
+    from workbench.diagnose_verdict import term_shares_words
+
+    pair = fitted(1.0, "piezo_creep", "laser_sensor")
+    d = SimpleNamespace(term_shares={"piezo_creep": 0.3, "laser_sensor": 0.7},
+                        without_sigma={"piezo_creep": 220.0, "laser_sensor": 335.0})
+    words = term_shares_words(d, pair)
+    assert "without piezo_creep the rest leaves 220 σ (piezo_creep carries 30 % of what the set removes)" in words
+    assert "laser_sensor carries 70 %" in words and "overlap" not in words
+    d.term_shares = {"piezo_creep": 0.2, "laser_sensor": 0.3}
+    assert "overlap" in term_shares_words(d, pair)
+    assert term_shares_words(SimpleNamespace(), pair) == ""
