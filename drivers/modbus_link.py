@@ -10,8 +10,9 @@ Options (URL query):
     unit      Modbus unit (slave) id, 1..247 (default 1)
     timeout   reply budget of one exchange (both transactions) in seconds: the write may use all of it, the read
               what the write left, never less than 0.5 ms and never past the budget (default 0.008 for TCP; for
-              RTU the line time of the exchange's 90 bytes + 4 ms, between 8 and 9.5 ms — a line too slow for a
-              10 ms tick, below ~115200 baud, keeps 8 ms + twice its line time)
+              RTU the line time of the exchange's 90 bytes + the rig's 2 ms per transaction, between 8 and 8.5 ms,
+              so that an exchange given up at its budget leaves the board 1.5 ms of its 10 ms tick — a line too
+              slow for a 10 ms tick, below 115200 baud, keeps 8 ms + twice its line time)
     handshake 1 (default) reads the rig's identity (holding 8-13) at open and refuses a mismatch; 0 skips it
     baud, parity, stopbits   RTU line settings (default 115200, N, 1)
     reopen    consecutive timeouts after which the connection is closed and reopened (default 25)
@@ -37,12 +38,15 @@ import logging
 import select
 import socket
 import time
+from collections import Counter
 from typing import Any
 from urllib.parse import urlsplit
 
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ConnectionException, ModbusException
 from pymodbus.framer import FramerType
+from pymodbus.framer.rtu import FramerRTU
+from pymodbus.transaction import TransactionManager
 
 from board_config.errors import InputError
 from board_config.url_options import UrlOptions, split_url_query
@@ -65,18 +69,105 @@ _KNOWN = {"tcp": {"unit", "timeout", "reopen", "handshake"},
           "rtu": {"unit", "timeout", "reopen", "baud", "parity", "stopbits", "handshake"}}
 # RTU bytes on the line per exchange: FC16 request 1+1+2+2+1+16+2 = 25, its reply 8, FC04 request 8, its reply 49
 _RTU_EXCHANGE_BYTES = 90
-_RTU_MAX_TIMEOUT_S = 0.0095  # default RTU exchange budget never exceeds this (a 10 ms tick minus the board's work)
+_TICK_S = 0.01  # the board's tick ([tick] rate = 100 Hz)
+#: the board's own work in a tick besides the exchange (monitor, supervisor, records; ~0.3-0.7 ms measured, with a
+#: margin for a loaded machine): an exchange given up at its budget still leaves the tick on time
+_BOARD_RESERVE_S = 0.0015
+_RTU_MAX_TIMEOUT_S = _TICK_S - _BOARD_RESERVE_S  # default RTU exchange budget never exceeds this: 8.5 ms
+_RTU_RIG_BUDGET_S = 0.002  # the rig's documented processing budget per RTU transaction (docs/real-rig.md)
+_RTU_MIN_RIG_S = 0.0005  # a line leaving the rig less than this (both transactions) does not fit a tick
 _MIN_READ_S = 5e-4  # a read is not started with less than this left of the exchange budget
 
 
+class _RtuTransaction(TransactionManager):
+    """pymodbus' sync transaction manager with an RTU receive that keeps to the exchange's deadline and the frame
+    boundaries.
+
+    pymodbus' own RTU receive takes the first frame that decodes and throws away whatever else arrived with it (its
+    framer consumes the whole buffer), and restarts the full timeout on every partial read. On a line where a reply
+    can come late, that turns one late reply into two failed exchanges: the late reply of the previous transaction
+    and the real reply arrive in one read, the late one is taken (or skipped) and the real one is thrown away. Here
+    the bytes are cut into frames by their own length (function code and byte count) and CRC; a frame for another
+    unit or another function code (a late reply to an earlier request) is skipped and counted, and the parsing goes
+    on with the bytes after it; every wait ends at the request's deadline (``timeout_connect`` from the send).
+    """
+
+    def __init__(self, *args: Any, stats: Counter[str], **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        self.stats = stats
+        self._expected_fc = 0
+
+    def pdu_send(self, pdu: Any, addr: tuple | None = None) -> None:
+        self._expected_fc = int(pdu.function_code) & 0x7F
+        super().pdu_send(pdu, addr)
+
+    def _next_frame(self, buf: bytearray) -> tuple[int, bytes] | None:
+        """(device id, PDU bytes) of the first whole frame with a good CRC in ``buf`` (consumed, with any garbage
+        before it); ``None`` when ``buf`` holds only the start of a frame (kept) or nothing usable (cleared)."""
+        decoder = self.framer.decoder
+        while len(buf) >= 4:
+            pdu_class = decoder.lookupPduClass(bytes(buf[:8]))
+            size = pdu_class.calculateRtuFrameSize(bytes(buf)) if pdu_class is not None else 0
+            if pdu_class is not None and not size:
+                return None  # the byte count has not arrived yet
+            if pdu_class is not None and len(buf) < size:
+                return None  # the rest of the frame is on its way
+            if pdu_class is not None and FramerRTU.check_CRC(bytes(buf[: size - 2]),
+                                                             int.from_bytes(buf[size - 2: size], "big")):
+                frame = bytes(buf[:size])
+                del buf[:size]
+                return frame[0], frame[1:-2]
+            del buf[:1]  # not a frame start (garbage, a corrupted reply): hunt on
+            self.stats["rtu_garbage_bytes"] += 1
+        return None
+
+    def sync_get_response(self, dev_id: int, tid: int) -> Any:
+        client = self.sync_client
+        sock = client.socket
+        if sock is None:
+            raise ConnectionException(str(client))
+        deadline = time.monotonic() + self.comm_params.timeout_connect
+        buf = bytearray()
+        while True:
+            while (found := self._next_frame(buf)) is not None:
+                unit, pdu_bytes = found
+                pdu = self.framer.decoder.decode(pdu_bytes)
+                if pdu is None or (dev_id and unit != dev_id) or (int(pdu.function_code) & 0x7F) != self._expected_fc:
+                    self.stats["stale_skipped"] += 1  # a late reply to an earlier request (or another unit's)
+                    continue
+                if buf:
+                    self.stats["flushed_reads"] += 1  # bytes after the reply: not ours, dropped like pymodbus does
+                pdu.dev_id = unit
+                pdu.transaction_id = tid
+                return self.trace_pdu(False, pdu)
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError()
+            try:
+                ready = sock.in_waiting or select.select([sock.fileno()], [], [], left)[0]
+                data = sock.read(max(1, sock.in_waiting)) if ready else b""
+            except (OSError, ValueError) as exc:
+                client.close()
+                raise ConnectionException(f"serial port lost: {exc}") from None
+            if not data:
+                raise TimeoutError()  # pymodbus' transaction manager: no (valid) reply within the timeout
+            buf += self.trace_packet(False, data)
+
+
 class _RtuClient(ModbusSerialClient):
-    """pymodbus' sync RTU client with an event-driven receive.
+    """pymodbus' sync RTU client with an event-driven receive that keeps to the exchange deadline and to frame
+    boundaries (:class:`_RtuTransaction`).
 
     The stock ``recv(None)`` polls ``in_waiting`` with ``time.sleep`` and waits until the byte count stops
     growing (≥ 2 ms per reply, 4 ms per exchange). Here ``recv(None)`` blocks in ``select`` until bytes are
-    there and returns them at once; pymodbus' RTU framer already asks for more while a frame is incomplete
-    (its length follows from the function code), so nothing else changes.
+    there and returns them at once (used by pymodbus outside the transaction's receive).
     """
+
+    def __init__(self, *args: Any, stats: Counter[str], **kwargs: Any) -> None:
+        super().__init__(*args, **kwargs)
+        old = self.transaction
+        self.transaction = _RtuTransaction(self.comm_params, self.framer, self.retries, False, old.trace_packet,
+                                           old.trace_pdu, old.trace_connect, sync_client=self, stats=stats)
 
     def recv(self, size: int | None) -> bytes:
         sock = self.socket
@@ -125,10 +216,12 @@ def parse_modbus_url(url: str) -> dict[str, Any]:
         parity = opts.choice("parity", "N", ("N", "E", "O"))
         stopbits = opts.integer("stopbits", 1, 1, 2)
         wire = _RTU_EXCHANGE_BYTES * (1 + 8 + stopbits + (parity != "N")) / baud
-        # the exchange must fit one 10 ms tick: 8 ms, or the line time + 4 ms for the rig, at most 9.5 ms; a line
-        # too slow for the tick at all (< ~115200 baud) keeps 8 ms plus twice its line time and is reported at open
-        fits = wire + 0.001 <= _RTU_MAX_TIMEOUT_S
-        default = max(0.008, min(wire + 0.004, _RTU_MAX_TIMEOUT_S)) if fits else 0.008 + 2 * wire
+        # the exchange must fit one 10 ms tick with the board's own work: the line time + the rig's budget of 2 ms
+        # per transaction, at least 8 ms, at most 8.5 ms (a give-up then leaves the tick on time); a line too slow
+        # for the tick at all (below 115200 baud) keeps 8 ms plus twice its line time and misses deadlines
+        fits = wire + _RTU_MIN_RIG_S <= _RTU_MAX_TIMEOUT_S
+        default = (max(0.008, min(wire + 2 * _RTU_RIG_BUDGET_S, _RTU_MAX_TIMEOUT_S)) if fits
+                   else 0.008 + 2 * wire)
         settings.update(baud=baud, parity=parity, stopbits=stopbits, line_time=wire,
                         timeout=opts.number("timeout", default, 1e-4, 60.0))
     else:
@@ -204,7 +297,7 @@ class ModbusLink(ReconnectingLink):
                                    retries=0, name="shm-board")
         return _RtuClient(str(s["port"]), framer=FramerType.RTU, baudrate=int(s["baud"]),
                                   parity=str(s["parity"]), stopbits=int(s["stopbits"]),
-                                  bytesize=8, timeout=self.timeout, retries=0, name="shm-board")
+                                  bytesize=8, timeout=self.timeout, retries=0, name="shm-board", stats=self.stats)
 
     def open(self) -> None:
         """Connect, check the rig (unless ``handshake=0``: map version, tick, Table 1 limits, float word order) and

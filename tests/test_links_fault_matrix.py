@@ -65,7 +65,8 @@ duration = { value = 0.5, unit = "s" }
 LINKS = ("serial", "modbus-tcp", "modbus-rtu")
 #: fault name -> (LinkFaults, URL timeout s or None for the link's default, links on which the fault rate leaves
 #: time for a visit to complete). Lost replies cost a timeout of wall time, so lock-step runs use a short one.
-#: Modbus RTU at 115200 baud leaves the rig 9.5 - 7.8 = 1.7 ms (docs/real-rig.md): a 2-5 ms rig is out of budget.
+#: Modbus RTU at 115200 baud leaves a rig on a real line 8.5 - 7.8 = 0.7 ms (docs/real-rig.md): a 2-5 ms rig is out
+#: of budget there (a pty pair has no line time).
 FAULTS: dict[str, tuple[LinkFaults, float | None, tuple[str, ...]]] = {
     "clean": (LinkFaults(), 0.1, ("serial", "modbus-tcp", "modbus-rtu")),
     "drop 1 %": (LinkFaults(drop=0.01), 0.1, ("serial", "modbus-tcp", "modbus-rtu")),
@@ -159,7 +160,7 @@ def check_safe_as_documented(result, cfg) -> None:
     entries = [e for e in entries if e.data["trigger"] == "link_lost"]
     expected = []
     for first, length in failure_runs(ok):
-        if length >= n_loss and regime[first - 1] != 3:
+        if length >= n_loss and (first == 0 or regime[first - 1] != 3):  # (row -1 would wrap to the last row)
             expected.append(first + n_loss - 1)  # trace row k is board tick k + 1
     assert [e.tick - 1 for e in entries] == expected
     for e in (e for e in result.events if e.kind == "regime_change" and e.data["trigger"] == "link_recovered"):
@@ -224,5 +225,9 @@ def test_fault_matrix_realtime(scen, clean_verdicts, kind: str, fault: str):
     check_safe_as_documented(result, cfg)
     if s["safe"] == 0:
         assert s["mbits"] == clean_verdicts["mbits"]
-    print(f"\nMATRIX realtime {kind:10s} {fault:15s} lost {lost:3d} failed {s['failed']:4d} SAFE {s['safe']} "
-          f"misses {s['misses']} mbits {s['mbits']} verdicts {s['verdicts']} max_eps {s['max_eps']:.4f}")
+    line = (f"MATRIX realtime {kind:10s} {fault:15s} lost {lost:3d} failed {s['failed']:4d} SAFE {s['safe']} "
+            f"misses {s['misses']} mbits {s['mbits']} verdicts {s['verdicts']} max_eps {s['max_eps']:.4f}")
+    print("\n" + line)
+    if os.environ.get("SHM_MATRIX_OUT"):  # the table from a -n 2 run (xdist workers' -s output is not shown)
+        with open(os.environ["SHM_MATRIX_OUT"], "a", encoding="utf-8") as out:
+            out.write(f"{line} load {os.getloadavg()[0]:.1f}\n")
