@@ -368,6 +368,9 @@ def diagnose(records: Sequence[Record], params: ParameterSet | str = "table2",
     if any("estimated" in s for tg in targets for s in tg.sigma_source):
         notes.append("the noise level was estimated from the data (no noise_std in the record metadata): "
                      "errors quoted in σ are only as good as that estimate")
+    if len(paths) > 1:
+        notes.append("the greedy forward selection fell short of the noise floor, so it was started again from "
+                     "other candidates (and a re-estimation swapped for an effect); paths tried: " + "; ".join(paths))
     d = Diagnosis("", "", winner, ranking, base_train, base_held, channel_scores(targets, base_sim), where,
                   tests_before, tests_after, targets, base_sim, base.name, timings, notes, steps,
                   term_shares=term_shares, without_sigma=without_sigma, selection_paths=paths)
