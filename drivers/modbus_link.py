@@ -77,6 +77,7 @@ _RTU_MAX_TIMEOUT_S = _TICK_S - _BOARD_RESERVE_S  # default RTU exchange budget n
 _RTU_RIG_BUDGET_S = 0.002  # the rig's documented processing budget per RTU transaction (docs/real-rig.md)
 _RTU_MIN_RIG_S = 0.0005  # a line leaving the rig less than this (both transactions) does not fit a tick
 _MIN_READ_S = 5e-4  # a read is not started with less than this left of the exchange budget
+_RTU_RETRY_MIN_S = 1.5e-3  # RTU: the sample read is split into two attempts only if each gets at least this
 
 
 class _RtuTransaction(TransactionManager):
@@ -480,10 +481,25 @@ class ModbusLink(ReconnectingLink):
         if self._timeouts_in_row:  # the reply that timed out may still arrive: drop its bytes, not the next reply
             self._flush_input()
         deadline = time.monotonic() + self.timeout  # one budget for both transactions
-        rr = self._call("write command (FC16)", self._client.write_registers, COMMAND_START, words)
-        rr = self._skip_stale(rr, 0x10, deadline)
+        # RTU: the write waits for its acknowledgement at most its share of the budget (half); a lost (or late)
+        # acknowledgement is not the end of the exchange — the sample read follows, and its cmd_seq_applied tells
+        # whether the command was applied (a late acknowledgement is skipped by its function code)
+        rtu = self.settings["kind"] == "rtu"
+        ack_lost = False
+        try:
+            rr = self._call("write command (FC16)", self._client.write_registers, COMMAND_START, words,
+                            budget=self.processing_budget if rtu else None)
+        except LinkError:
+            if not rtu or self._down:
+                raise
+            ack_lost = True
+            rr = None
+        if rr is not None:
+            rr = self._skip_stale(rr, 0x10, deadline)
         refused = False
-        if rr.isError():
+        if rr is None:
+            pass
+        elif rr.isError():
             code = getattr(rr, "exception_code", None)
             self.last_exception_code = code
             self.stats["exception_replies"] += 1
@@ -506,7 +522,31 @@ class ModbusLink(ReconnectingLink):
             self._log.warn("no_time_for_read", "%s: no time left to read the sample%s", self.url, context)
             raise LinkError(f"{self.url}: no time left to read the sample{context}; the rig answers slower than "
                             f"its processing budget of {1e3 * self.processing_budget:.1f} ms per transaction")
-        block = self._read_inputs(budget=left, context=context, deadline=deadline)
+        if rtu and left >= 2 * _RTU_RETRY_MIN_S:
+            # RTU: a read has no side effect — one retry within the budget when its reply is lost or late (a late
+            # reply to the first request is taken if it comes during the retry: the same request, the same sample)
+            try:
+                block = self._read_inputs(budget=left / 2, context=context, deadline=deadline)
+            except LinkError:
+                if self._down:
+                    raise
+                self.stats["read_retries"] += 1
+                block = self._read_inputs(budget=max(deadline - time.monotonic(), _MIN_READ_S), context=context,
+                                          deadline=deadline)
+        else:
+            block = self._read_inputs(budget=left, context=context, deadline=deadline)
+        if (rtu and not refused and not ack_lost and block.cmd_seq_applied != command.seq & 0xFFFFFFFF
+                and deadline - time.monotonic() >= _MIN_READ_S):
+            # RTU has no transaction id: a sample that does not show the acknowledged command applied is the late
+            # reply to an earlier read (a tick old); read once more within the budget
+            self.stats["stale_sample_skipped"] += 1
+            with contextlib.suppress(LinkError):
+                block = self._read_inputs(budget=deadline - time.monotonic(), context=context, deadline=deadline)
+        if ack_lost:
+            if block.cmd_seq_applied != command.seq & 0xFFFFFFFF:
+                raise LinkError(f"{self.url}: the command write was not acknowledged and the rig reports command seq "
+                                f"{block.cmd_seq_applied} applied, not {command.seq}{context}")
+            self.stats["ack_lost_but_applied"] += 1  # the sample shows the command applied: the exchange stands
         self.stats["replies"] += 1
         sample = block.sample
         if self._check_due:  # after a reconnect: the first good exchange is followed by the identity check
