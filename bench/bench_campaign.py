@@ -12,6 +12,7 @@ from __future__ import annotations
 import os
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.integrate import solve_ivp
@@ -78,7 +79,7 @@ def run(out_dir: Path, quick: bool) -> dict:
     baseline_cpu_total = sum(per_mbit_cpu[k] * len(spec.ranges) * n_runs for k in per_mbit_cpu)
 
     probs = {f"p_{s.mbit}_{round(s.lo * 100)}_{round(s.hi * 100)}": s.probability for s in result.summary()}
-    res = {
+    res: dict[str, Any] = {
         "simulations": n_sims,
         "workers": workers,
         "campaign_wall_s": outcome.wall_s,

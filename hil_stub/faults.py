@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 
@@ -163,7 +164,7 @@ class SensorFaultRig:
 
     def sample(self) -> RigSample:
         s = self.inner.sample()
-        changes: dict[str, float | int] = {k: getattr(s, k) + v for k, v in self._noise.items()}
+        changes: dict[str, Any] = {k: getattr(s, k) + v for k, v in self._noise.items()}  # RigSample fields
         for k, t_at in self.faults.stuck.items():
             if s.t >= t_at - 1e-9:  # rig time accumulates rounding: 10 x 0.01 s is 0.0999...9 s
                 if k not in self._frozen:

@@ -7,6 +7,8 @@ scenario and seed, so a board over a hardware link and a board in-process face t
 
 from __future__ import annotations
 
+from typing import Any
+
 from board_config.scenario import Scenario, load_scenario
 from hil_stub.faults import TruthChanges
 from hil_stub.rig import SimulatedRig
@@ -32,7 +34,7 @@ def build_truth_rig(scenario: str | Scenario | None = None, *, seed: int | None 
     effects += [e for e in truth.effects if e not in effects]
     if hv_present is None and scen is None:
         hv_present = True
-    extra = {} if lookahead_ticks is None else {"lookahead_ticks": lookahead_ticks}
+    extra: dict[str, Any] = {} if lookahead_ticks is None else {"lookahead_ticks": lookahead_ticks}
     rig = SimulatedRig(scen, seed=seed, params=params, deviations=deviations, effects=effects, tick=tick,
                        hv_present=hv_present, **extra)
     # Load the amplifier-terminal composition now: SimulatedRig builds it on first HV contact, and loading the

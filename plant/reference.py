@@ -7,12 +7,12 @@ and (b) the benchmarks have the honest baseline a user would start from.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
 import numpy as np
 
 
-def nominal_rhs(t: float, x: np.ndarray, u: np.ndarray, prm: dict[str, float]) -> np.ndarray:
+def nominal_rhs(t: float, x: np.ndarray, u: np.ndarray, prm: Mapping[str, float]) -> np.ndarray:
     """dx/dt of the nominal model with the amplifier terminal. ``u`` = (v_ch1 V, v_ch2 V, z0dd m/s^2)."""
     R, C, d = prm["R_ep"], prm["C_ep"], prm["d_ep"]
     m = np.array([prm["m1"], prm["m2"], prm["m3"]])

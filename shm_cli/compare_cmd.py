@@ -110,6 +110,6 @@ def _model(record, params: str, add: list[str], values: dict[str, float]):
     pset = load_parameter_set(params)
     core = {k: v for k, v in values.items() if k in CORE_PARAMETER_NAMES}
     if core:
-        pset = pset.with_values(**core)
+        pset = pset.with_values(None, **core)  # (the set's name kept)
     rest = {k: v for k, v in values.items() if k not in CORE_PARAMETER_NAMES}
     return model_for(record, pset, effects=add, effect_params=rest)

@@ -124,8 +124,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
         names = [e.name for e in o.estimates]
         strong = [(names[i], names[j], o.correlation[i, j]) for i in range(len(names)) for j in range(i)
                   if abs(o.correlation[i, j]) > 0.9]
-        for a, b, c in strong:
-            say(f"  note: {a} and {b} are strongly correlated ({c:+.3f}): the data barely separate them")
+        for first, second, c in strong:
+            say(f"  note: {first} and {second} are strongly correlated ({c:+.3f}): the data barely separate them")
     for n in rep.notes:
         say(f"  note: {n}")
     say(f"saved parameter set '{pset.name}' to {save} (load it with --params {save})")

@@ -13,10 +13,10 @@ from __future__ import annotations
 
 import argparse
 import csv
-import io
 import json
 import sys
 from pathlib import Path
+from typing import TextIO
 
 from shm_cli.common import nonnegative_int, out_dir, output_file_arg, positive_int
 
@@ -147,7 +147,7 @@ def cmd_export(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_csv(fh: io.TextIOBase, cols: list[str], rows: list[tuple]) -> None:
+def _write_csv(fh: TextIO, cols: list[str], rows: list[tuple]) -> None:
     w = csv.writer(fh)
     w.writerow(cols)
     w.writerows(rows)

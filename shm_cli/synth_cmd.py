@@ -157,13 +157,13 @@ def cmd_synth(args: argparse.Namespace) -> int:
             for item in args.noise:
                 if item != "none":
                     noise.update(_assignments("--noise", [item]))
-        rec = synth_record(spec, model, channels, noise=noise, seed=args.seed, effects=args.effect, values=values,
-                           blind=args.blind)
+        trec = synth_record(spec, model, channels, noise=noise, seed=args.seed, effects=args.effect, values=values,
+                            blind=args.blind)
         if args.operating_hours is not None:
-            rec = _stamp_hours(rec, args.operating_hours)
-        path = write_record(rec, out)
-        summary = {"file": str(path), "test": rec.test, "samples": rec.n_samples, "duration_s": rec.duration_s,
-                   "sample_rate_Hz": rec.sample_rate_Hz, "inputs": list(rec.inputs), "outputs": list(rec.outputs)}
+            trec = _stamp_hours(trec, args.operating_hours)
+        path = write_record(trec, out)
+        summary = {"file": str(path), "test": trec.test, "samples": trec.n_samples, "duration_s": trec.duration_s,
+                   "sample_rate_Hz": trec.sample_rate_Hz, "inputs": list(trec.inputs), "outputs": list(trec.outputs)}
     if args.operating_hours is not None:
         summary["operating_hours"] = float(args.operating_hours)
     summary["truth"] = "hidden" if args.blind else {"params": pset.name, "effects": args.effect, "values": values}

@@ -82,7 +82,7 @@ from workbench.fit import (
     rms,
 )
 from workbench.localisation import localise, model_features
-from workbench.records import Record
+from workbench.records import FrfRecord, Record
 from workbench.residual_tests import ResidualTests, residual_tests
 
 __all__ = ["AT_NOISE_FLOOR", "CandidateResult", "Diagnosis", "diagnose", "explained", "fit_spec",
@@ -226,7 +226,7 @@ def split_candidates(candidates: Sequence[str | type[PhysicalEffect]] | None
     return classes, params
 
 
-def diagnose(records: Sequence[Record], params: ParameterSet | str = "table2",
+def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str = "table2",
              candidates: Sequence[str | type[PhysicalEffect]] | None = None, *, holdout: str = "blocks",
              n_blocks: int = DEFAULT_BLOCKS, max_rate_Hz: float = DEFAULT_MAX_RATE_HZ,
              min_reduction: float = MIN_REDUCTION, workers: int = 1, max_nfev: int = 30, seed: int = 0,

@@ -52,7 +52,7 @@ from workbench.effect_writer import describe_term
 from workbench.fit_objective import Objective, rms
 from workbench.fit_optimiser import FitOutcome
 from workbench.fit_targets import DEFAULT_BLOCKS, DEFAULT_MAX_RATE_HZ, model_factory, prepare_targets
-from workbench.records import Record
+from workbench.records import FrfRecord, Record
 
 #: a term is kept when its refit removes at least this share of the held-out energy left above the noise
 MIN_SHARE = 0.25
@@ -60,7 +60,7 @@ MIN_SHARE = 0.25
 SENS_RTOL = 1e-7
 
 
-def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
+def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str = "table2",
              add: Sequence[str | type[PhysicalEffect]] = (), *, max_terms: int = 2, n_refit: int = 4,
              holdout: str = "blocks", n_blocks: int = DEFAULT_BLOCKS, max_rate_Hz: float = DEFAULT_MAX_RATE_HZ,
              max_nfev: int = 12, threads: int | None = None,
@@ -235,7 +235,7 @@ def discover(records: Sequence[Record], params: ParameterSet | str = "table2",
     t0 = time.perf_counter()
     stable, note = True, "no term kept"
     if state.kept:
-        stable, note = free_run_check(records, models, targets, state.values)
+        stable, note = free_run_check([tg.record for tg in targets], models, targets, state.values)  # checked
     timings["stability_s"] = time.perf_counter() - t0
     found = []
     for k in state.kept:

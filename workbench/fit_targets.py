@@ -79,10 +79,11 @@ def block_masks(n: int, n_blocks: int) -> tuple[np.ndarray, np.ndarray]:
     return train, held
 
 
-def prepare_targets(records: Sequence[Record], model_for_record: Callable[[Record], PlantModel], *,
+def prepare_targets(records: Sequence[Record | FrfRecord], model_for_record: Callable[[Record], PlantModel], *,
                     holdout: str = "blocks", n_blocks: int = DEFAULT_BLOCKS,
                     max_rate_Hz: float = DEFAULT_MAX_RATE_HZ) -> list[Target]:
-    """Cut records into training/held-out parts (see the module docstring); errors name record and reason."""
+    """Cut records into training/held-out parts (see the module docstring); errors name record and reason (a
+    frequency-response table, as :func:`workbench.records.load_record` may return, is refused)."""
     if not records:
         raise FitError("no records given")
     if holdout not in ("blocks", "records"):

@@ -182,7 +182,7 @@ def truth_model(params: Any = "table2", effects: Sequence[str | type[PhysicalEff
     core = {k: float(v) for k, v in values.items() if k in CORE_PARAMETER_NAMES}
     rest = {k: float(v) for k, v in values.items() if k not in CORE_PARAMETER_NAMES}
     if core:
-        pset = pset.with_values(**core)
+        pset = pset.with_values(None, **core)  # (the set's name kept)
     return PlantModel(pset, effects=effects, terminal=terminal, effect_params=rest)
 
 

@@ -62,9 +62,12 @@ class AmplifierCurrentLimit(PhysicalEffect):
         v1 = series(data, "inputs", "v_ch1")
         v2 = series(data, "inputs", "v_ch2")
         vps = [series(data, "predicted", f"v_patch{i}") for i in (1, 2, 3)]
-        if v1 is None or v2 is None or any(v is None or v.size != v1.size for v in vps) or v2.size != v1.size:
+        if v1 is None or v2 is None or v2.size != v1.size:
+            return {"I_max": 0.05}
+        patches = [v for v in vps if v is not None and v.size == v1.size]
+        if len(patches) != 3:
             return {"I_max": 0.05}
         va = 0.5 * (v1 - v2)
-        vc = (vps[0] + vps[1] + vps[2]) / 3.0
+        vc = (patches[0] + patches[1] + patches[2]) / 3.0
         peak = 3.0 * float(np.max(np.abs(va - vc))) / r_ep
         return {"I_max": cls.fit_ranges["I_max"].clip(0.5 * peak if peak > 0 else 0.05)}

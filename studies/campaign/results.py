@@ -170,7 +170,7 @@ class CampaignResult:
                            f"eps_{key}": r.eps, f"status_{key}": r.status, f"fault_{key}": r.fault})
         tmp = paths["traces"].with_name(".traces.npz.tmp")
         with tmp.open("wb") as fh:
-            np.savez(fh, **arrays)
+            np.savez(fh, allow_pickle=False, **arrays)  # plain arrays: loaded with allow_pickle=False too
         tmp.replace(paths["traces"])
         return paths
 

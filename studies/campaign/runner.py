@@ -18,6 +18,7 @@ from collections.abc import Callable
 from concurrent.futures import Executor, Future, ProcessPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
+from multiprocessing.context import BaseContext
 from pathlib import Path
 from typing import Any
 
@@ -140,6 +141,7 @@ def _process_executor(workers: int) -> tuple[ProcessPoolExecutor, str]:
     model kernels and nominal predictions: no start-up cost); otherwise ``forkserver`` (fork with live threads can
     deadlock), else ``spawn``."""
     methods = mp.get_all_start_methods()
+    ctx: BaseContext
     if "fork" in methods and threading.active_count() == 1:
         method = "fork"
         ctx = mp.get_context("fork")
@@ -228,7 +230,11 @@ def run_campaign(
     if not todo:
         desc = "none (all batches reused from the store)"
     elif dask_scheduler is not None or dask_client is not None:
-        client = dask_client if dask_client is not None else connect_dask(dask_scheduler, dask_timeout_s)
+        if dask_client is not None:
+            client = dask_client
+        else:
+            assert dask_scheduler is not None  # one of the two, by the condition above
+            client = connect_dask(dask_scheduler, dask_timeout_s)
         executor = client.get_executor(pure=False)
         desc = f"dask {client.scheduler.address}"
     elif (workers or os.cpu_count() or 1) == 1:

@@ -78,8 +78,8 @@ class ResultStore:
         path = self.path(result.key)
         tmp = self.batch_dir / f".{result.key}.{os.getpid()}.tmp"
         with tmp.open("wb") as fh:
-            np.savez(fh, _fingerprint=np.array(self.fingerprint), _elapsed_s=np.array(result.elapsed_s),
-                                _worker=np.array(result.worker), **result.arrays)
+            np.savez(fh, allow_pickle=False, _fingerprint=np.array(self.fingerprint),  # loaded without pickles too
+                     _elapsed_s=np.array(result.elapsed_s), _worker=np.array(result.worker), **result.arrays)
         tmp.replace(path)
         return path
 
