@@ -21,13 +21,13 @@ from board_config.toml_writer import toml_key, toml_string, toml_value
 
 PARAMS_DIR = Path(__file__).resolve().parent / "params"
 
-_POS = {"lower": 0.0, "lower_open": True}
-_NONNEG = {"lower": 0.0}
+_POS: dict[str, Any] = {"lower": 0.0, "lower_open": True}
+_NONNEG: dict[str, Any] = {"lower": 0.0}
 #: The core parameters (seed paper Table 2), in the order of the core parameter block (``core_index``): name, SI
 #: unit, physical bounds, description. The one declaration of each: the plant's layout indices (``plant.layout``)
 #: and the core effects' parameters are taken from here; the values come from a parameter set (``table2.toml``).
 CORE_PARAMETERS: tuple[Parameter, ...] = tuple(
-    Parameter(name, unit, description=text, core_index=i, **bounds)  # type: ignore[arg-type]
+    Parameter(name, unit, description=text, core_index=i, **bounds)
     for i, (name, unit, bounds, text) in enumerate((
         ("R_ep", "ohm", _POS, "Patch resistance"),
         ("C_ep", "F", _POS, "Patch capacitance"),

@@ -87,7 +87,10 @@ def _open_sim(url: str, **defaults: object) -> InProcessLink:
     if _RIG_FACTORY is None:
         raise InputError(f"link URL {url!r}: no simulated rig available (import hil_stub.rig, which registers it)")
     rig = _RIG_FACTORY(url, **defaults) if defaults else _RIG_FACTORY(url)
-    return InProcessLink(rig, tick=float(defaults.get("tick", 0.01)), url=url)  # type: ignore[arg-type]
+    tick = defaults.get("tick", 0.01)
+    if not isinstance(tick, int | float):
+        raise InputError(f"link URL {url!r}: the tick must be a number of seconds, got {tick!r}")
+    return InProcessLink(rig, tick=float(tick), url=url)
 
 
 register_link_scheme("sim", _open_sim)

@@ -136,8 +136,10 @@ def hook_function(cls: type, hook: str) -> Callable[..., None] | None:
 def hook_style(cls: type, hook: str) -> str:
     """``"named"`` (slot tables X, P, B[, Y]) or ``"offsets"`` (the seam before them: so, po[, yo])."""
     fn = hook_function(cls, hook)
+    if fn is None:
+        return "named"
     try:
-        params = list(inspect.signature(fn).parameters.values())  # type: ignore[arg-type]
+        params = list(inspect.signature(fn).parameters.values())
     except (TypeError, ValueError):
         return "named"
     n = len(params)
@@ -366,6 +368,8 @@ def library_effects() -> tuple[str, ...]:
 
 #: module attribute set on a module loaded from a file: the file's absolute path (how a parameter set refers to it)
 SOURCE_FILE_ATTR = "__mfc_shm_effect_file__"
+#: module attribute set on a module loaded from a file: the digest of its source (the kernel cache key reads it)
+DIGEST_ATTR = "__mfc_shm_digest__"
 
 
 def is_file_spec(spec: str) -> bool:
@@ -393,14 +397,14 @@ def load_effect_file(path: str | os.PathLike) -> Any:
     name = f"_mfc_shm_effect_file_{stem}_{hashlib.sha256(p.encode()).hexdigest()[:10]}"
     digest = hashlib.sha256(content).hexdigest()
     old = sys.modules.get(name)
-    if old is not None and getattr(old, "__mfc_shm_digest__", None) == digest:
+    if old is not None and getattr(old, DIGEST_ATTR, None) == digest:
         return old
     spec = importlib.util.spec_from_file_location(name, p)
     if spec is None or spec.loader is None:
         raise EffectError(f"effect file '{path}' cannot be imported as a Python module")
     module = importlib.util.module_from_spec(spec)
     setattr(module, SOURCE_FILE_ATTR, p)
-    module.__mfc_shm_digest__ = digest  # type: ignore[attr-defined]
+    setattr(module, DIGEST_ATTR, digest)
     sys.modules[name] = module
     try:
         spec.loader.exec_module(module)

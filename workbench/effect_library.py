@@ -24,7 +24,7 @@ from typing import overload
 import numpy as np
 
 from board_config import CORE_PARAMETER_NAMES
-from board_config.parameter import Parameter, freed
+from board_config.parameter import FitRange, Parameter, freed
 from plant import PhysicalEffect, PlantModel, resolve_effect
 from plant.effect import EffectError, library_effects
 
@@ -79,7 +79,7 @@ def resolve_candidates(specs: Sequence[str | type[PhysicalEffect]]) -> list[type
 
 def effect_free_parameters(cls: type[PhysicalEffect], names: Sequence[str] | None = None) -> list[Parameter]:
     """The parameters of ``cls`` the workbench fits by default (or ``names``), with their ranges."""
-    ranges: Mapping[str, object] = {**getattr(cls, "extra_ranges", {}), **getattr(cls, "fit_ranges", {})}
+    ranges: Mapping[str, FitRange] = {**getattr(cls, "extra_ranges", {}), **getattr(cls, "fit_ranges", {})}
     own = {p.name: p for p in cls.own_parameters()}
     declared = [p.name for p in own.values() if p.fit is not None or p.vary]  # fit range on the parameter itself
     default_names = list(getattr(cls, "fit_ranges", {}) or declared or own)
@@ -91,7 +91,7 @@ def effect_free_parameters(cls: type[PhysicalEffect], names: Sequence[str] | Non
             raise EffectError(f"effect '{cls.name}' has no parameter '{n}' (parameters: {', '.join(own)})")
         rng = ranges.get(n)
         if rng is not None:
-            out.append(par.free(float(rng.lower), float(rng.upper), log=bool(rng.log),  # type: ignore[attr-defined]
+            out.append(par.free(float(rng.lower), float(rng.upper), log=bool(rng.log),
                                 linthresh=getattr(rng, "linthresh", None), owner=cls.name))
         else:
             out.append(par.free(owner=cls.name))  # its declared fit range, else one from its bounds
