@@ -8,7 +8,8 @@ Normalised model error (Eq. 11, from Eq. 5 with the error model of Eq. 4)::
     eps = |z3_md - z3_hw| / (|z3_hw| + e0z / kerr_z)
 
 with ``e0z`` and ``kerr_z`` from ``board_config.load_monitor_settings()`` (0.75 mm and 0.075, so the
-denominator never falls below 10 mm).
+denominator never falls below 10 mm); the formula lives in ``board_config.error_law`` (the workbench uses the same
+one, model first, measurement second).
 
 Fault counter, once per monitor sample (``f_mon``, 100 Hz)::
 
@@ -48,15 +49,7 @@ from typing import NamedTuple
 import numpy as np
 
 from board_config import MonitorSettings, load_monitor_settings
-
-
-def normalised_error(z3_model, z3_meas, e0z: float, kerr_z: float):
-    """Eq. 11: ``|z3_model - z3_meas| / (|z3_meas| + e0z/kerr_z)``; scalars or arrays (m in, 1 out)."""
-    floor = e0z / kerr_z
-    if isinstance(z3_model, float | int) and isinstance(z3_meas, float | int):
-        return abs(z3_model - z3_meas) / (abs(z3_meas) + floor)
-    return np.abs(np.asarray(z3_model, dtype=float) - np.asarray(z3_meas, dtype=float)) / (
-        np.abs(np.asarray(z3_meas, dtype=float)) + floor)
+from board_config.error_law import normalised_error  # Eq. 11, shared with the workbench (Eq. 5)
 
 
 def consecutive_exceedances_to_fault(count_max: int, counter_up: int, count: int = 0) -> int:
@@ -228,7 +221,6 @@ class ConditionMonitor:
 
     def __init__(self, settings: MonitorSettings | None = None) -> None:
         self.settings = settings if settings is not None else load_monitor_settings()
-        self._floor = self.settings.e0z / self.settings.kerr_z
         self._state = MonitorState()
 
     @property
@@ -254,7 +246,7 @@ class ConditionMonitor:
 
     def error(self, z3_model: float, z3_meas: float) -> float:
         """Eq. 11 for one sample (m in, 1 out)."""
-        return abs(z3_model - z3_meas) / (abs(z3_meas) + self._floor)
+        return normalised_error(z3_model, z3_meas, self.settings.e0z, self.settings.kerr_z)
 
     def update(self, t: float, z3_model: float, z3_meas: float) -> MonitorSample:
         """One monitor sample at time ``t`` (s): model prediction and measurement of z3 (m)."""

@@ -70,10 +70,10 @@ def test_eq4_fit_recovers_the_amplitude_law():
 
 def test_eq5_normalised_error():
     y, yh = np.array([1.0, -2.0, 0.0, 0.0]), np.array([1.5, -1.0, 0.0, 1.0])
-    eps = normalised_error(y, yh, e0=0.5, kerr=0.1)
+    eps = normalised_error(yh, y, e0=0.5, kerr=0.1)  # model first, measurement second
     assert eps.tolist() == pytest.approx([0.5 / (1.0 + 5.0), 1.0 / (2.0 + 5.0), 0.0, 1.0 / 5.0])
-    assert np.isnan(normalised_error(y, yh, 0.5, 0.0)).all() and np.isnan(normalised_error(y, yh, 0.5, -1.0)).all()
-    at_zero = normalised_error(y, yh, e0=0.0, kerr=0.1)  # no floor: zero signal and zero error is 0, else inf
+    assert np.isnan(normalised_error(yh, y, 0.5, 0.0)).all() and np.isnan(normalised_error(yh, y, 0.5, -1.0)).all()
+    at_zero = normalised_error(yh, y, e0=0.0, kerr=0.1)  # no floor: zero signal and zero error is 0, else inf
     assert at_zero[2] == 0.0 and at_zero[3] == math.inf and at_zero[0] == pytest.approx(0.5)
 
 

@@ -7,8 +7,9 @@ Eq. (4):  ``|y_md − y_hw| = e0 + kerr·|y_hw|``, and normalises the error by t
 
 ``e0`` (bias, in the variable's unit) and ``kerr`` (gain, 1) are fitted to the record per Eq. (4) by
 non-negative least squares, or given (the paper's monitor uses e0z = 0.75 mm, kerr = 0.075 for z3,
-Sec. 4.1). We evaluate ε in the equivalent form ``kerr·|e| / (kerr·|y_hw| + e0)``, which stays defined
-when the fit returns ``kerr = 0`` (then ε is reported as undefined: the error does not grow with amplitude).
+Sec. 4.1). ε is ``board_config.error_law.normalised_error(model, measured, e0, kerr)`` — the same function as the
+board's monitor (Eq. 11), re-exported here: undefined (NaN) when the fit returns ``kerr = 0`` (the error does not
+grow with amplitude). The threshold ε_th comes from the monitor's settings (``board_config.load_monitor_settings``).
 """
 
 from __future__ import annotations
@@ -18,6 +19,8 @@ from dataclasses import asdict, dataclass
 import numpy as np
 from scipy.optimize import nnls
 
+from board_config import load_monitor_settings
+from board_config.error_law import normalised_error  # the one Eq. 5/11 implementation (the monitor uses it too)
 from board_config.errors import InputError
 
 
@@ -67,21 +70,6 @@ def fit_eq4(measured: np.ndarray, model: np.ndarray) -> Eq4Fit:
     return Eq4Fit(float(e0), float(k), r2, "fitted (Eq. 4)")
 
 
-def normalised_error(measured: np.ndarray, model: np.ndarray, e0: float, kerr: float) -> np.ndarray:
-    """Eq. (5): ``|y_md − y_hw| / (|y_hw| + e0/kerr)`` evaluated as ``kerr·|e| / (kerr·|y_hw| + e0)``.
-
-    Undefined (NaN everywhere) when ``kerr = 0``: Eq. (5) then divides by an infinite floor.
-    """
-    y = np.asarray(measured, float)
-    e = np.abs(np.asarray(model, float) - y)
-    if kerr <= 0.0:
-        return np.full_like(e, np.nan)
-    den = kerr * np.abs(y) + e0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        eps = np.where(den > 0, kerr * e / np.where(den > 0, den, 1.0), np.where(e > 0, np.inf, 0.0))
-    return eps
-
-
 @dataclass(frozen=True)
 class EpsStats:
     """Summary of ε(t) over a stretch: mean, standard deviation, 95th percentile, maximum, and the fraction of
@@ -125,20 +113,23 @@ class ChannelMetrics:
 
 
 def channel_metrics(channel: str, unit: str, t: np.ndarray, measured: np.ndarray, model: np.ndarray, *,
-                    skip_s: float = 0.0, given: tuple[float, float] | None = None, eps_th: float = 0.225
+                    skip_s: float = 0.0, given: tuple[float, float] | None = None, eps_th: float | None = None
                     ) -> ChannelMetrics:
-    """All metrics of one channel over ``t >= t[0] + skip_s`` (transient skip, as nonlinearbenchmark.org)."""
+    """All metrics of one channel over ``t >= t[0] + skip_s`` (transient skip, as nonlinearbenchmark.org);
+    ``eps_th`` defaults to the monitor's threshold (Table 3, ``board_config/monitor.toml``)."""
+    if eps_th is None:
+        eps_th = load_monitor_settings().eps_th
     k = np.asarray(t) >= t[0] + skip_s
     if np.count_nonzero(k) < 2:
         raise InputError(f"channel '{channel}': transient skip {skip_s} s leaves fewer than 2 samples")
     y, yh = np.asarray(measured, float)[k], np.asarray(model, float)[k]
     e = y - yh
     fit4 = fit_eq4(y, yh)
-    eps_f = EpsStats.of(normalised_error(y, yh, fit4.e0, fit4.kerr), eps_th)
+    eps_f = EpsStats.of(normalised_error(yh, y, fit4.e0, fit4.kerr), eps_th)
     g4 = eps_g = None
     if given is not None:
         g4 = Eq4Fit(float(given[0]), float(given[1]), float("nan"), "given")
-        eps_g = EpsStats.of(normalised_error(y, yh, g4.e0, g4.kerr), eps_th)
+        eps_g = EpsStats.of(normalised_error(yh, y, g4.e0, g4.kerr), eps_th)
     return ChannelMetrics(
         channel=channel, unit=unit, n_samples=int(y.size), skip_s=float(skip_s), fit_pct=fit_percent(y, yh),
         nrmse=nrmse(y, yh), rmse=rmse(y, yh), max_abs_error=float(np.max(np.abs(e))), mean_error=float(e.mean()),
