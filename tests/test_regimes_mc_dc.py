@@ -366,3 +366,17 @@ def test_one_uneventful_tick_restarts_every_count_in_a_settled_standby(field, n)
     assert r.regime is S and not r.changes()
     r.feed(ev)
     assert r.regime is not S
+
+
+@pytest.mark.parametrize("link_recovery", [0, 1, 3])
+def test_a_settled_standby_tick_hands_the_state_back_unchanged(link_recovery):
+    # step()'s documented shortcut: once every debounce run is saturated, an uneventful stand-by tick (with or without
+    # the energy to wake) costs nothing: the very same state comes back, no change, no event
+    tm = dataclasses.replace(T, link_recovery=link_recovery)
+    r = Run(tm).feed(TickInputs(), times=max(tm.quiet, tm.hv_debounce, tm.link_recovery))
+    settled = r.state
+    for inp in (TickInputs(), TickInputs(energy_ok=False)):
+        new, out, events = step(settled, inp, r.tick, tm)
+        assert new is settled and out == RegimeOutputs(S, False, False, None) and events == ()
+    # an eventful percept is evaluated (and changes the state)
+    assert step(settled, TickInputs(wake_signal=True), r.tick, tm)[0] != settled
