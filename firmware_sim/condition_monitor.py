@@ -54,9 +54,7 @@ from board_config.error_law import normalised_error  # Eq. 11, shared with the w
 
 def consecutive_exceedances_to_fault(count_max: int, counter_up: int, count: int = 0) -> int:
     """Consecutive exceedances that latch a fault starting from counter value ``count`` (strict ``>``)."""
-    if count > count_max:
-        return 1  # already above: the next counted sample latches (it can only rise or stay above)
-    return (count_max - count) // counter_up + 1
+    return max((count_max - count) // counter_up + 1, 1)  # already above count_max: the next exceedance latches
 
 
 def counter_step(count: int, exceeded: bool, counter_up: int, counter_down: int) -> int:
@@ -264,8 +262,7 @@ class ConditionMonitor:
 
     def update_many_eps(self, t: np.ndarray, eps: np.ndarray) -> MonitorTrace:
         """A chunk of normalised errors (1-D) at times ``t`` (s), vectorised; the stream continues."""
-        eps = np.atleast_1d(np.asarray(eps, dtype=float))
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        eps, t = np.atleast_1d(eps), np.atleast_1d(t)  # evaluate() makes them float
         if eps.ndim != 1 or t.shape != eps.shape:
             raise ValueError(f"update_many needs 1-D t and eps of equal length, got {t.shape} and {eps.shape}")
         trace = evaluate(eps, self.settings, t, self._state)
@@ -273,7 +270,7 @@ class ConditionMonitor:
             return trace
         st = self._state
         latched_here = bool(trace.fault_index >= 0)
-        finite = eps[trace.valid]
+        finite = trace.eps[trace.valid]
         self._state = replace(
             st,
             count=int(trace.count[-1]),
@@ -284,6 +281,6 @@ class ConditionMonitor:
             n_invalid=st.n_invalid + int((~trace.valid).sum()),
             max_count=max(st.max_count, int(trace.max_count)),
             max_eps=max(st.max_eps, float(finite.max())) if finite.size else st.max_eps,
-            t_last=float(t[-1]),
+            t_last=float(trace.t[-1]),
         )
         return trace

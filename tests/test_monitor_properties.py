@@ -201,3 +201,26 @@ def test_invalid_samples_are_counted_and_hold_the_counter():
         smp = mon.update_eps(0.2 + j, bad)
         assert (smp.valid, smp.exceeded, smp.count) == (False, False, 2)
     assert (mon.state.n_invalid, mon.state.n_exceed, mon.state.max_eps) == (3, 1, 0.9)
+
+
+def test_evaluate_z3_takes_the_given_settings_and_times_else_table3_at_f_mon():
+    # 3 mm of model error at rest over the 10 mm floor: eps = 0.3, above Table 3's 0.225, below SMALL's 0.5
+    z_md, z_hw = np.full(12, 3e-3), np.zeros(12)
+    t = 5.0 + 0.01 * np.arange(12)
+    small = evaluate_z3(z_md, z_hw, SMALL, t)
+    assert small.t.tolist() == t.tolist() and small.count.tolist() == [0] * 12 and not small.detected
+    table3 = evaluate_z3(z_md, z_hw)  # Table 3 settings, t = k / f_mon
+    assert table3.t.tolist() == (np.arange(12) / 100.0).tolist()
+    assert table3.count.tolist() == list(range(2, 25, 2)) and table3.eps.tolist() == pytest.approx([0.3] * 12)
+    # 6 mm: eps = 0.6 exceeds SMALL too; its counter passes count_max = 6 on the 4th sample, at that sample's time
+    fast = evaluate_z3(np.full(12, 6e-3), z_hw, SMALL, t)
+    assert int(fast.fault_index) == 3 and float(fast.fault_time) == t[3]
+
+
+def test_update_many_takes_any_numbers_as_floats():
+    mon, ref = ConditionMonitor(SMALL), ConditionMonitor(SMALL)
+    trace = mon.update_many_eps([1, 2, 3], [1, 0, 2])  # Python ints: times 1..3 s, eps 1, 0, 2
+    ref.update_many_eps(np.array([1.0, 2.0, 3.0]), np.array([1.0, 0.0, 2.0]))
+    assert mon.state == ref.state and trace.count.tolist() == [2, 1, 3]
+    assert mon.state.max_eps == 2.0 and mon.state.t_last == 3.0
+    assert isinstance(mon.state.max_eps, float) and isinstance(mon.state.t_last, float)
