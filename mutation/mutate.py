@@ -48,6 +48,7 @@ LINKED = ("board_config", "plant", "firmware_sim", "drivers", "hil_stub", "workb
 SOURCE_PATHS = ("board_config", "firmware_sim", "drivers", "workbench")
 #: pytest exit codes that mean "the tests noticed": failed, interrupted (collection error), internal error, usage
 CAUGHT_CODES = {1, 2, 3, 4}
+NICENESS = 10
 CAUGHT_STATUSES = {"killed", "timeout", "caught by type check", "segfault", "suspicious"}
 
 
@@ -207,7 +208,7 @@ def skip_equivalents(m: Module) -> None:
 def run_mutmut(m: Module, cfg: dict) -> None:
     """``mutmut run`` over the files in ``only_mutate``; no mutant names, so cached verdicts stand (mutmut re-runs
     every mutant it is given by name)."""
-    cmd = ["nice", "-n", "10", sys.executable, str(ROOT / "mutation" / "run_mutmut.py"), "run",
+    cmd = [sys.executable, str(ROOT / "mutation" / "run_mutmut.py"), "run",
            "--max-children", str(int(cfg.get("max_children", 2)))]
     print("mutate: " + " ".join(cmd), file=sys.stderr)
     r = subprocess.run(cmd, cwd=work_dir(m), env=_env(), stdout=subprocess.DEVNULL)
@@ -243,7 +244,7 @@ def fallback_check(m: Module, key: str, diff: list[str], state: dict, tests: lis
     env = _env() | {"MUTANT_UNDER_TEST": key}
     # the repository's test files, importing the mutated packages from mutants/ (the current directory comes first
     # on sys.path with ``python -m``)
-    cmd = ["nice", "-n", "10", sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", "-m", "not slow",
+    cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-p", "no:cacheprovider", "-m", "not slow",
            "--timeout=600", *(str(ROOT / t) for t in tests)]
     r = subprocess.run(cmd, cwd=work_dir(m) / "mutants", env=env, stdout=subprocess.DEVNULL,
                        stderr=subprocess.DEVNULL)
@@ -344,6 +345,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--report-only", action="store_true", help="tabulate the cached results, run nothing")
     ap.add_argument("--no-fallback", action="store_true", help="do not re-run survivors against the fallback tests")
     args = ap.parse_args(argv)
+    # niceness 10 for the whole run, once: a shared 2-core machine (``make mutate`` already runs under nice 10;
+    # re-nicing every child on top of it would starve the run at 19 behind any other work)
+    os.nice(max(0, NICENESS - os.nice(0)))
     try:
         cfg, mods = load_config()
         load_equivalents()
