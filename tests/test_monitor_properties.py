@@ -89,15 +89,16 @@ def test_a_chunk_whose_first_sample_repeats_the_last_time_is_refused():
 
 
 def test_times_inside_a_chunk_must_increase_strictly_and_shapes_match():
-    with pytest.raises(ValueError, match="increase strictly"):
+    # the messages, exactly (they name what is wrong)
+    with pytest.raises(ValueError, match=r"^monitor sample times must increase strictly$"):
         evaluate(np.array([0.1, 0.2]), SMALL, t=np.array([0.0, 0.0]))
-    with pytest.raises(ValueError, match=r"t must have shape \(2,\)"):
+    with pytest.raises(ValueError, match=r"^t must have shape \(2,\) to match eps \(2,\), got \(3,\)$"):
         evaluate(np.array([0.1, 0.2]), SMALL, t=np.array([0.0, 0.1, 0.2]))
-    with pytest.raises(ValueError, match="time axis"):
+    with pytest.raises(ValueError, match=r"^eps must have a time axis \(shape \(\.\.\., T\)\)$"):
         evaluate(np.float64(0.3), SMALL)
-    with pytest.raises(ValueError, match="single trace"):
+    with pytest.raises(ValueError, match=r"^a start state can only continue a single trace \(1-D eps\)$"):
         evaluate(np.zeros((2, 3)), SMALL, state=MonitorState(count=1))
-    with pytest.raises(ValueError, match="1-D t and eps of equal length"):
+    with pytest.raises(ValueError, match=r"^update_many needs 1-D t and eps of equal length, got \(2,\) and \(1,\)$"):
         ConditionMonitor(SMALL).update_many_eps(np.array([0.1, 0.2]), np.array([0.1]))
     # a single sample needs no ordering inside the chunk
     assert evaluate(np.array([0.9]), SMALL, t=np.array([5.0])).t.tolist() == [5.0]
@@ -224,3 +225,13 @@ def test_update_many_takes_any_numbers_as_floats():
     assert mon.state == ref.state and trace.count.tolist() == [2, 1, 3]
     assert mon.state.max_eps == 2.0 and mon.state.t_last == 3.0
     assert isinstance(mon.state.max_eps, float) and isinstance(mon.state.t_last, float)
+    assert trace.eps.dtype == np.float64 and trace.t.dtype == np.float64  # the traces are float too
+    whole = evaluate([0, 1, 2], SMALL, [1, 2, 3])
+    assert whole.eps.dtype == np.float64 and whole.t.dtype == np.float64 and whole.count.tolist() == [0, 2, 4]
+
+
+def test_evaluate_without_settings_is_table3_at_f_mon():
+    eps = np.full(102, 0.3)  # above Table 3's 0.225: +2 per sample, the fault latches on the 101st (index 100)
+    tr = evaluate(eps)
+    assert int(tr.fault_index) == 100 and float(tr.fault_time) == pytest.approx(1.0)
+    assert evaluate(eps, SMALL).count[0] == 0  # SMALL's threshold is 0.5
