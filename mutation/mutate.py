@@ -264,6 +264,34 @@ def load_equivalents() -> list[dict]:
     return eqs
 
 
+def _survivor_codes(code: int | None) -> bool:
+    from mutmut.stats import status_by_exit_code
+
+    return code is not None and code not in CAUGHT_CODES and status_by_exit_code[code] not in CAUGHT_STATUSES
+
+
+def prefetch_fallback(mods: list[Module], state: dict, workers: int) -> None:
+    """Run the fallback check of every survivor of the room tests, ``workers`` at a time (each is one pytest run
+    of the module's fallback tests: the slowest part of a first run when done one after another)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    eqs = {e["mutant"] for e in load_equivalents()}
+    jobs = []
+    for m in mods:
+        mfile = work_dir(m) / "mutants" / m.file
+        fb_tests = m.fallback_tests()
+        if not mfile.is_file() or not fb_tests:
+            continue
+        funcs = _functions(mfile)
+        for key, code in _meta(m).get("exit_code_by_key", {}).items():
+            if m.in_scope(key) and key not in eqs and _survivor_codes(code):
+                jobs.append((m, key, mutant_diff(m, key, funcs), fb_tests))
+    if jobs:
+        print(f"mutate: fallback tests for {len(jobs)} survivors, {workers} at a time", file=sys.stderr)
+        with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
+            list(pool.map(lambda j: fallback_check(j[0], j[1], j[2], state, j[3]), jobs))
+
+
 def tabulate(mods: list[Module], state: dict, fallback: bool) -> tuple[list[dict], list[str], list[str]]:
     from mutmut.stats import status_by_exit_code
 
@@ -374,6 +402,9 @@ def main(argv: list[str] | None = None) -> int:
             state.setdefault("tests", {})[m.name] = fp
             state.setdefault("seconds", {})[m.name] = round(time.monotonic() - t0, 1)
             save_state(state)
+    if not args.no_fallback:
+        prefetch_fallback(chosen, state, int(cfg.get("max_children", 2)))
+        save_state(state)
     rows, survivors, stale = tabulate(chosen, state, fallback=not args.no_fallback)
     save_state(state)
     target = float(cfg.get("target", 95.0))
