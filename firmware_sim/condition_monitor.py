@@ -178,22 +178,17 @@ def evaluate(eps: np.ndarray, settings: MonitorSettings | None = None, t: np.nda
             raise ValueError(f"monitor sample times must increase: got t={t[0]!r} s after t={state.t_last!r} s")
         count0, fault0 = state.count, state.fault
     valid = np.isfinite(eps)
-    with np.errstate(invalid="ignore"):
-        exceeded = valid & (eps > settings.eps_th)
+    exceeded = valid & (eps > settings.eps_th)  # NaN compares False (no warning)
     count = counter_trajectory(exceeded, valid, settings.counter_up, settings.counter_down, count0)
     above = count > settings.count_max
-    if fault0:
-        fault = np.ones_like(above)
-        fault_index = np.full(eps.shape[:-1], -1, dtype=np.int64)
-    else:
-        fault = np.logical_or.accumulate(above, axis=-1) if n else above
-        any_above = above.any(axis=-1) if n else np.zeros(eps.shape[:-1], dtype=bool)
-        fault_index = np.where(any_above, np.argmax(above, axis=-1) if n else 0, -1).astype(np.int64)
-    fault_time = np.where(fault_index >= 0, t[np.clip(fault_index, 0, max(n - 1, 0))] if n else np.nan, np.nan)
-    max_count = count.max(axis=-1) if n else np.zeros(eps.shape[:-1], dtype=np.int64)
+    fault = np.logical_or.accumulate(above | fault0, axis=-1)  # latched: from the first sample above on
+    latched_here = above.any(axis=-1) & (not fault0)
+    # the first sample above count_max is the first of the trailing run of faulted samples; -1: none latched here
+    fault_index = np.where(latched_here, n - fault.sum(axis=-1), -1)
+    fault_time = np.append(t, np.nan)[fault_index]  # index -1 picks the appended NaN (also for an empty trace)
+    max_count = count.max(axis=-1, initial=0)  # the counter is never negative
     return MonitorTrace(t=t, eps=eps, exceeded=exceeded, valid=valid, count=count, fault=fault,
-                        fault_index=fault_index, fault_time=np.asarray(fault_time, dtype=float),
-                        max_count=np.asarray(max_count, dtype=np.int64))
+                        fault_index=fault_index, fault_time=np.asarray(fault_time), max_count=np.asarray(max_count))
 
 
 def evaluate_z3(z3_model: np.ndarray, z3_meas: np.ndarray, settings: MonitorSettings | None = None,
