@@ -278,13 +278,11 @@ def step_full(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeT
             fired = row
             break
 
-    if regime is Regime.SAFE and fired is None:
-        # stay in SAFE, accumulating any new cause
-        new = [c.value for c in (causes if causes is not None else _fault_causes(st, inputs, timers))
-               if c.value not in st.safe_causes]
-        if new:
-            st = st._replace(safe_causes=st.safe_causes + tuple(new))
     if fired is None:
+        if regime is Regime.SAFE:  # stay in SAFE, accumulating any new cause (SAFE has no fault rows)
+            new = [c.value for c in _fault_causes(st, inputs, timers) if c.value not in st.safe_causes]
+            if new:
+                st = st._replace(safe_causes=st.safe_causes + tuple(new))
         return st, RegimeOutputs(regime, regime is Regime.MAINTENANCE, False, None), tuple(events)
 
     target = fired.target

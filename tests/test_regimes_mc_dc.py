@@ -294,6 +294,12 @@ def test_link_recovered_after_exactly_link_recovery_good_ticks():
     assert r.regime is X
 
 
+def test_link_recovery_of_one_tick_recovers_on_the_first_good_exchange():
+    one = dataclasses.replace(T, link_recovery=1)  # the smallest enabled recovery time
+    r = link_lost_safe(one).feed(TickInputs())
+    assert (r.regime, r.outs[-1].trigger, r.state.safe_causes) == (S, Trigger.LINK_RECOVERED, ())
+
+
 def test_link_recovered_each_guard():
     off = dataclasses.replace(T, link_recovery=0)
     r = link_lost_safe(off).feed(TickInputs(), times=50)
@@ -319,7 +325,7 @@ def test_rearm_refused_while_any_one_cause_persists(persisting, named):
     assert r.regime is X and not r.outs[-1].changed
     (ev,) = r.incidents("rearm_refused")
     assert ev.data["detail"] == "re-arm refused: " + ", ".join(named)
-    assert ev.tick == r.tick - 1
+    assert (ev.tick, ev.time) == (r.tick - 1, pytest.approx((r.tick - 1) * T.period))
     r.feed(TickInputs(rearm=True))
     assert (r.regime, r.outs[-1].trigger) == (S, Trigger.REARM)
     (ch,) = r.changes()
