@@ -141,13 +141,10 @@ def counter_trajectory(exceeded: np.ndarray, valid: np.ndarray | None, counter_u
     Steps ``s_k`` are ``+up`` (exceeded), ``-down`` (not exceeded) or ``0`` (invalid sample); with
     ``S_k = s_1 + ... + s_k`` the floored counter is ``c_k = S_k - min(-count0, min_{j<=k} S_j)``.
     """
-    exceeded = np.asarray(exceeded, dtype=bool)
-    steps = np.where(exceeded, np.int64(counter_up), np.int64(-counter_down))
+    steps = np.where(exceeded, np.int64(counter_up), np.int64(-counter_down))  # int64, any shape (also T = 0)
     if valid is not None:
-        steps = np.where(np.asarray(valid, dtype=bool), steps, np.int64(0))
-    if steps.shape[-1] == 0:
-        return steps.astype(np.int64)
-    cum = np.cumsum(steps, axis=-1, dtype=np.int64)
+        steps = np.where(valid, steps, np.int64(0))
+    cum = np.cumsum(steps, axis=-1)
     low = np.minimum.accumulate(cum, axis=-1)
     return cum - np.minimum(low, np.int64(-count0))
 

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -59,11 +60,29 @@ def test_float_and_array_forms_agree_bit_for_bit(md, hw, e0, kerr):
     assert math.isnan(a) or a >= 0.0
 
 
+def test_integer_arrays_are_numbers_not_wrapping_machine_words():
+    # raw counts in a small integer type: the difference and the magnitude must not wrap around
+    eps = normalised_error(np.array([100], np.int8), np.array([-100], np.int8), 0.0, 1.0)
+    assert eps.tolist() == [2.0]  # |100 - (-100)| / |-100|
+    assert normalised_error(np.zeros(1), np.array([-128], np.int8), 0.0, 1.0).tolist() == [1.0]
+    assert normalised_error(np.array([-128], np.int8), np.zeros(1), 1.0, 1.0).tolist() == [128.0]
+
+
+def test_edges_compute_without_warnings():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # the board logs warnings: the documented edges must stay silent
+        assert normalised_error(np.array([1.0, 0.0]), np.array([0.0, 0.0]), 0.0, 1.0).tolist() == [math.inf, 0.0]
+        assert np.isnan(normalised_error(np.array([math.inf]), np.array([math.inf]), 1.0, 1.0)).all()
+        assert np.isnan(normalised_error(np.array([math.nan]), np.array([0.0]), 0.0, 1.0)).all()
+
+
 def test_ints_are_scalars_and_arrays_broadcast():
     assert normalised_error(3, 1, 1, 1) == 1.0 and type(normalised_error(3, 1, 1, 1)) is float  # 2 / (1 + 1)
     out = normalised_error(np.zeros((2, 3)), np.ones(3), 1.0, 1.0)
     assert out.shape == (2, 3) and np.all(out == 0.5)
     nan = normalised_error(np.zeros((2, 3)), np.ones(3), 1.0, 0.0)
+    assert nan.shape == (2, 3) and np.isnan(nan).all()
+    nan = normalised_error(np.zeros(3), np.ones((2, 3)), 1.0, 0.0)  # the measurement's shape may be the larger
     assert nan.shape == (2, 3) and np.isnan(nan).all()
     assert normalised_error([0.0, 2.0], 1.0, 0.0, 1.0).tolist() == [1.0, 1.0]  # a list is an array
 
