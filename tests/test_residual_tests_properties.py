@@ -160,5 +160,11 @@ def test_test_result_ratio_and_dict():
     assert math.isnan(r.ratio) and r.verdict == "pass"
     d = r.to_dict()
     assert d["lags"] == [0, 1, 2] and d["verdict"] == "pass" and d["key"] == "ue"
+    # the JSON record of one test (shm compare --json), every field by its name
+    r2 = rt_module.TestResult("u2e", "sym", "title", np.arange(2), np.array([0.5, -0.25]), 0.2, 0.05, 0.5, 1, 0.01,
+                              False, "points", "note")
+    assert r2.to_dict() == {"key": "u2e", "symbol": "sym", "title": "title", "verdict": "FAIL", "statistic": 0.5,
+                            "band": 0.2, "ratio": 2.5, "worst_lag": 1, "p_value": 0.01, "level": 0.05,
+                            "points_at": "points", "note": "note", "lags": [0, 1], "r": [0.5, -0.25]}
     rt = ResidualTests("y", "u", 10, 0.01, 2, 1)
     assert rt.adequate is None
