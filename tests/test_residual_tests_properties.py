@@ -96,8 +96,29 @@ def test_white_residual_passes_and_each_built_fault_fails_its_test():
     coloured = np.convolve(NOISE, np.ones(5) / 5, mode="same")
     b = _battery(coloured)
     assert "ee" in [t.key for t in b.failed] and b["ee"].worst_lag == 1
-    with pytest.raises(KeyError):
+    with pytest.raises(KeyError, match="nope"):
         b["nope"]
+
+
+def test_effective_lags_from_the_input_but_all_lags_for_the_residuals_own_tests():
+    # a slow sine drive: its lags are strongly correlated, the cross tests count few independent lags (a wider
+    # band); the whiteness and e(eu) tests are built from the residual itself: white under H0, all m lags count, even
+    # when the residual at hand is coloured
+    u = np.sin(np.arange(N) * 0.02)
+    coloured = np.convolve(NOISE, np.ones(5) / 5, mode="same")
+    b = residual_tests(coloured, u, max_lag=10)
+    both = np.arange(-10, 11)
+    uc = u - u.mean()
+    m_ue = effective_lags(uc, both)
+    assert m_ue < 5.0
+    assert b["ue"].band == pytest.approx(band_for(N, m_ue, 0.01))
+    assert b["ue"].note == f"21 lags, {m_ue:.1f} effectively independent"
+    u2 = uc ** 2 - np.mean(uc ** 2)
+    assert b["u2e"].band == pytest.approx(band_for(N, effective_lags(u2, both), 0.01))
+    assert effective_lags(coloured, np.arange(1, 11)) < 9.0  # an estimate would be well below m here
+    for key in ("ee", "e_eu"):
+        assert b[key].band == pytest.approx(band_for(N, 10.0, 0.01))
+        assert b[key].note == "10 lags, 10.0 effectively independent"
 
 
 def test_statistic_band_and_p_value_are_consistent():
