@@ -235,3 +235,10 @@ def test_evaluate_without_settings_is_table3_at_f_mon():
     tr = evaluate(eps)
     assert int(tr.fault_index) == 100 and float(tr.fault_time) == pytest.approx(1.0)
     assert evaluate(eps, SMALL).count[0] == 0  # SMALL's threshold is 0.5
+
+
+def test_a_monitor_without_settings_runs_table3_and_samples_carry_their_time():
+    mon = ConditionMonitor()
+    assert mon.settings == load_monitor_settings()
+    smp = mon.update_eps(np.float64(0.25), 0.3)  # above Table 3's 0.225 (SMALL's threshold is 0.5)
+    assert smp.t == 0.25 and type(smp.t) is float and smp.exceeded and smp.count == 2
