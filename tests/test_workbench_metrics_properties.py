@@ -128,3 +128,36 @@ def test_frf_metrics_by_hand():
     assert math.isnan(z.fit_pct) and math.isnan(z.amp_err_db_rms) and math.isnan(z.amp_err_db_max)
     half = frf_metrics("x", "1", f, np.array([0, 1, 1, 1], complex), np.array([1, 2, 2, 2], complex))
     assert half.amp_err_db_max == pytest.approx(20 * np.log10(2.0))  # the zero bin is left out
+
+
+def test_channel_metrics_on_a_record_exactly_on_the_eq4_law():
+    # |model - measured| = e0 + kerr |measured| exactly: the fit recovers the law, its ε is kerr everywhere, and the
+    # threshold comparison of both ε summaries uses the monitor's ε_th
+    t = np.arange(400) * 0.01
+    y = 5e-3 * np.sin(2 * np.pi * 0.5 * t)
+    e0, kerr = 0.5e-3, 0.3
+    model = y + (e0 + kerr * np.abs(y)) * np.where(np.arange(400) % 2, 1.0, -1.0)
+    m = channel_metrics("z3", "m", t, y, model, given=(e0, kerr))
+    assert (m.channel, m.unit, m.n_samples, m.skip_s) == ("z3", "m", 400, 0.0)
+    assert m.eq4_fitted.e0 == pytest.approx(e0, rel=1e-6) and m.eq4_fitted.kerr == pytest.approx(kerr, rel=1e-6)
+    assert m.eq4_fitted.r2 == pytest.approx(1.0) and m.eq4_fitted.source == "fitted (Eq. 4)"
+    for eps in (m.eps_fitted, m.eps_given):
+        assert eps.mean == pytest.approx(kerr, rel=1e-6) and eps.max == pytest.approx(kerr, rel=1e-6)
+        assert eps.std == pytest.approx(0.0, abs=1e-6) and eps.frac_above_th == 1.0  # 0.3 > ε_th = 0.225
+
+
+@pytest.mark.parametrize("dtype", [np.int8, np.int16])
+def test_integer_records_are_numbers_not_wrapping_machine_words(dtype):
+    # raw counts in a small integer type: differences and magnitudes near the type's limits must not wrap around
+    y = np.array([-128, 100, -50, 127, 0, 3], dtype)
+    yh = np.array([127, -128, 60, -100, 5, 1], dtype)
+    yf, yhf = y.astype(float), yh.astype(float)
+    t = np.arange(6) * 0.1
+    assert fit_percent(y, yh) == fit_percent(yf, yhf) and nrmse(y, yh) == nrmse(yf, yhf)
+    assert rmse(y, yh) == rmse(yf, yhf)
+    assert fit_eq4(y, yh) == fit_eq4(yf, yhf)
+    assert channel_metrics("n", "1", t, y, yh, given=(1.0, 0.5)) == channel_metrics("n", "1", t, yf, yhf,
+                                                                                   given=(1.0, 0.5))
+    f = np.arange(1.0, 7.0)
+    a, b = frf_metrics("n", "1", f, y, yh), frf_metrics("n", "1", f, yf, yhf)
+    assert all(x == z or (math.isnan(x) and math.isnan(z)) for x, z in zip(vars(a).values(), vars(b).values()))

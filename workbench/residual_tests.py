@@ -36,6 +36,7 @@ sensor noise, that residual *is* the noise. They assume nothing about the input 
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -113,7 +114,7 @@ class TestResult:
     @property
     def ratio(self) -> float:
         """statistic / band: above 1 fails."""
-        return self.statistic / self.band if self.band > 0 and np.isfinite(self.statistic) else float("nan")
+        return self.statistic / self.band if self.band > 0 and np.isfinite(self.statistic) else math.nan
 
     def to_dict(self) -> dict:
         return {"key": self.key, "symbol": self.symbol, "title": self.title, "verdict": self.verdict,
@@ -216,7 +217,7 @@ def _corr_test(key: str, a: np.ndarray, b: np.ndarray, lags: np.ndarray, level: 
     m_eff = float(lags.size) if a_white_under_h0 else effective_lags(a, lags)
     band = band_for(n, m_eff, level)
     if not np.all(np.isfinite(r)):
-        return TestResult(key, symbol, title, lags, r, band, level, float("nan"), 0, float("nan"), None,
+        return TestResult(key, symbol, title, lags, r, band, level, math.nan, 0, math.nan, None,
                           POINTS_AT[key], note or "not applicable: a signal in the test has no variation")
     k = int(np.argmax(np.abs(r)))
     stat = float(abs(r[k]))
@@ -234,7 +235,7 @@ def bias_test(e: np.ndarray, level: float = DEFAULT_LEVEL) -> TestResult:
     zc = float(ndtri(1.0 - level / 2.0))
     if sd == 0.0:
         return TestResult("bias", symbol, title, np.zeros(1, int), np.array([float(np.mean(e))]), zc, level,
-                          float("nan"), 0, float("nan"), None, POINTS_AT["bias"],
+                          math.nan, 0, math.nan, None, POINTS_AT["bias"],
                           "not applicable: the residual is constant")
     t = float(np.mean(e) / (sd / np.sqrt(n)))
     p = float(_norm_sf2(np.array([t]))[0])
