@@ -4,6 +4,7 @@ error, ε statistics, FRF metrics), plus the properties that tie them together."
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -161,3 +162,29 @@ def test_integer_records_are_numbers_not_wrapping_machine_words(dtype):
     f = np.arange(1.0, 7.0)
     a, b = frf_metrics("n", "1", f, y, yh), frf_metrics("n", "1", f, yf, yhf)
     assert all(x == z or (math.isnan(x) and math.isnan(z)) for x, z in zip(vars(a).values(), vars(b).values()))
+
+
+def test_eq4_r2_is_the_coefficient_of_determination_of_the_law():
+    # an error only roughly linear in the amplitude, both coefficients positive: NNLS is the ordinary least-squares
+    # line, and r2 is 1 - SS_res / SS_tot of that line (numpy's polyfit as the independent reference)
+    y = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
+    err = np.array([0.5, 1.0, 1.0, 2.0, 2.5, 2.6])
+    fit = fit_eq4(y, y + err)
+    k, e0 = np.polyfit(y, err, 1)
+    assert fit.e0 == pytest.approx(e0) and fit.kerr == pytest.approx(k)
+    res = err - (e0 + k * y)
+    want = 1.0 - np.sum(res ** 2) / np.sum((err - err.mean()) ** 2)
+    assert fit.r2 == pytest.approx(want, rel=1e-9) and 0.8 < fit.r2 < 1.0
+
+
+def test_frf_metrics_of_a_small_response_and_at_zero_bins():
+    f = np.array([1.0, 2.0, 3.0])
+    h = np.array([0.1, 0.3, 0.2], complex)  # |H| < 1 everywhere: a fit % is still defined
+    m = frf_metrics("z3/v", "m/V", f, h, 1.1 * h)
+    assert m.fit_pct == pytest.approx(90.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # zero bins are expected (no RuntimeWarning)
+        half = frf_metrics("x", "1", np.arange(4.0), np.array([0, 1, 1, 1], complex), np.array([1, 2, 2, 2], complex))
+    # a zero measured bin has no dB error (left out) and is compared in phase against the model's own angle (0 here)
+    assert half.amp_err_db_rms == pytest.approx(20 * np.log10(2.0))
+    assert half.phase_err_deg_rms == 0.0 and half.phase_err_deg_max == 0.0
