@@ -41,12 +41,11 @@ def normalised_error(model, measured, e0: float, kerr: float):
         if den == 0.0:  # e0 = 0 at a zero measurement
             return error * math.inf if error else 0.0  # inf, or NaN for a NaN error
         return error / den
-    model_a = np.asarray(model, dtype=float)
-    measured_a = np.asarray(measured, dtype=float)
+    measured_a = np.asarray(measured, dtype=float)  # the model minus a float array is float as well
     if kerr <= 0.0:
-        return np.full(np.broadcast_shapes(model_a.shape, measured_a.shape), np.nan)
+        return np.full(np.broadcast_shapes(np.shape(model), measured_a.shape), np.nan)
     with np.errstate(divide="ignore", invalid="ignore"):  # inf - inf, x / 0, 0 / 0: see the edges above
-        error = np.abs(model_a - measured_a)
+        error = np.abs(model - measured_a)
         den = np.abs(measured_a) + e0 / kerr
         eps = error / den  # a zero denominator: inf for an error, NaN for none (set to 0 below)
     return np.where((den == 0.0) & (error == 0.0), 0.0, eps)
