@@ -189,3 +189,24 @@ def test_test_result_ratio_and_dict():
                             "points_at": "points", "note": "note", "lags": [0, 1], "r": [0.5, -0.25]}
     rt = ResidualTests("y", "u", 10, 0.01, 2, 1)
     assert rt.adequate is None
+
+
+def test_a_flat_residual_makes_its_correlation_tests_not_applicable():
+    b = _battery(np.full(N, 0.5))
+    ee = b["ee"]
+    assert ee.to_dict() | {"r": None, "statistic": None, "p_value": None, "ratio": None} == {
+        "key": "ee", "symbol": "φee(τ)", "title": "whiteness (autocorrelation)", "verdict": "n/a", "statistic": None,
+        "band": pytest.approx(band_for(N, 25.0, 0.01)), "ratio": None, "worst_lag": 0, "p_value": None,
+        "level": 0.01, "points_at": POINTS_AT["ee"], "note": "not applicable: a signal in the test has no variation",
+        "lags": list(range(1, 26)), "r": None}
+    assert np.isnan(ee.r).all() and ee.r.shape == (25,) and math.isnan(ee.statistic) and math.isnan(ee.p_value)
+    assert b.adequate is None and all(t.passed is None for t in b.tests)
+
+
+def test_integer_records_give_the_same_verdicts():
+    rng = np.random.default_rng(3)
+    e = rng.integers(-128, 128, N).astype(np.int8)
+    u = rng.integers(-128, 128, N).astype(np.int8)
+    a, b = _battery(e, u), _battery(e.astype(float), u.astype(float))
+    for x, y in zip(a.tests, b.tests, strict=True):
+        assert x.to_dict() == y.to_dict()

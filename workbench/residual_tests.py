@@ -249,8 +249,8 @@ def residual_tests(residual: np.ndarray, u: np.ndarray, *, channel: str = "y", i
     input ``u`` sampled at the same instants. ``decimate`` keeps every k-th sample first (longer time scales
     per lag). Returns verdicts at family level ``level`` per test (see the module docstring).
     """
-    e = np.asarray(residual, float)[:: max(1, int(decimate))]
-    u = np.asarray(u, float)[:: max(1, int(decimate))]
+    e = np.asarray(residual)[:: max(1, int(decimate))]  # every use below works in float (means removed first)
+    u = np.asarray(u)[:: max(1, int(decimate))]
     if e.shape != u.shape:
         raise ValueError(f"residual and input must have the same length, got {e.size} and {u.size}")
     if not np.all(np.isfinite(e)) or not np.all(np.isfinite(u)):
