@@ -185,6 +185,10 @@ def test_frf_metrics_of_a_small_response_and_at_zero_bins():
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # zero bins are expected (no RuntimeWarning)
         half = frf_metrics("x", "1", np.arange(4.0), np.array([0, 1, 1, 1], complex), np.array([1, 2, 2, 2], complex))
+        both_zero = frf_metrics("x", "1", np.arange(3.0), np.array([0, 1, 2], complex), np.array([0, 1, 2], complex))
+        none = frf_metrics("x", "1", np.arange(3.0), np.zeros(3, complex), np.ones(3, complex))  # no dB bin at all
+    assert both_zero.amp_err_db_max == 0.0 and both_zero.fit_pct == 100.0
+    assert math.isnan(none.amp_err_db_rms) and math.isnan(none.amp_err_db_max) and math.isnan(none.fit_pct)
     # a zero measured bin has no dB error (left out) and is compared in phase against the model's own angle (0 here)
     assert half.amp_err_db_rms == pytest.approx(20 * np.log10(2.0))
     assert half.phase_err_deg_rms == 0.0 and half.phase_err_deg_max == 0.0
