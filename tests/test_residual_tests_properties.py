@@ -158,18 +158,19 @@ def test_inputs_checked_at_their_limits():
         _battery(NOISE[: 4 * m + 9], U[: 4 * m + 9])
     with pytest.raises(InputError, match="need at least 14 samples for 1 lags"):
         _battery(NOISE[:13], U[:13], max_lag=1)
+    assert _battery(NOISE[:14], U[:14], max_lag=1).max_lag == 1  # one lag is enough
     with pytest.raises(InputError, match="0 lags"):
         _battery(NOISE, max_lag=0)
     for level in (0.0, 1.0):
         with pytest.raises(InputError, match="level must be in"):
             _battery(NOISE, level=level)
-    with pytest.raises(ValueError, match="same length, got 2000 and 1999"):
+    with pytest.raises(ValueError, match=r"^residual and input must have the same length, got 2000 and 1999$"):
         _battery(NOISE, U[:-1])
     bad = NOISE.copy()
     bad[7] = np.nan
-    with pytest.raises(ValueError, match="must be finite"):
+    with pytest.raises(ValueError, match=r"^residual and input must be finite$"):
         _battery(bad)
-    with pytest.raises(ValueError, match="must be finite"):
+    with pytest.raises(ValueError, match=r"^residual and input must be finite$"):
         _battery(NOISE, np.where(np.arange(N) == 3, np.inf, U))
     b = _battery(NOISE, decimate=4, channel="z3", input_name="v")
     assert (b.n, b.decimate, b.channel, b.input_name) == (N // 4, 4, "z3", "v")
@@ -210,3 +211,17 @@ def test_integer_records_give_the_same_verdicts():
     a, b = _battery(e, u), _battery(e.astype(float), u.astype(float))
     for x, y in zip(a.tests, b.tests, strict=True):
         assert x.to_dict() == y.to_dict()
+
+
+def test_the_correlation_tests_are_blind_to_constant_offsets():
+    # the residual or the input shifted by a constant: only the bias test may change; every correlation is the same
+    e = 0.1 * NOISE + 0.05 * np.roll(U, 2) * U  # fails e(eu)-type tests: an error depending on the drive's product
+    ref = _battery(e, U, level=0.05)
+    for e2, u2 in ((e + 3.0, U), (e, U - 7.0), (e - 1.0, U + 2.0)):
+        b = _battery(e2, u2, level=0.05)
+        for x, y in zip(ref.tests[1:], b.tests[1:], strict=True):
+            assert (x.key, x.passed, x.worst_lag) == (y.key, y.passed, y.worst_lag)
+            assert x.r == pytest.approx(y.r, abs=1e-9) and x.band == pytest.approx(y.band)
+    assert all(t.level == 0.05 for t in ref.tests)  # the bias test too
+    ue = ref["ue"]
+    assert (ue.symbol, ue.title) == ("φue(τ)", "input–residual cross-correlation")
