@@ -25,11 +25,19 @@ Pure: this module imports nothing else of ours.
 from __future__ import annotations
 
 import math
+from typing import overload
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 
-def normalised_error(model, measured, e0: float, kerr: float):
+@overload
+def normalised_error(model: float, measured: float, e0: float, kerr: float) -> float: ...
+@overload
+def normalised_error(model: ArrayLike, measured: ArrayLike, e0: float, kerr: float) -> np.ndarray: ...
+
+
+def normalised_error(model: ArrayLike, measured: ArrayLike, e0: float, kerr: float) -> float | np.ndarray:
     """Eq. 5/11: ``|model - measured| / (|measured| + e0/kerr)`` (1), in the unit of ``model``/``measured`` and
     ``e0`` (m for z3). Two floats give a float (the board's 100 Hz loop); anything else gives an array, element by
     element, bit-identical to the float form."""
@@ -45,7 +53,7 @@ def normalised_error(model, measured, e0: float, kerr: float):
     if kerr <= 0.0:
         return np.full(np.broadcast_shapes(np.shape(model), measured_a.shape), np.nan)
     with np.errstate(divide="ignore", invalid="ignore"):  # inf - inf, x / 0, 0 / 0: see the edges above
-        error = np.abs(model - measured_a)
+        error = np.abs(np.subtract(model, measured_a))
         den = np.abs(measured_a) + e0 / kerr
         eps = error / den  # a zero denominator: inf for an error, NaN for none (set to 0 below)
     return np.where((den == 0.0) & (error == 0.0), 0.0, eps)
