@@ -225,3 +225,14 @@ def test_the_correlation_tests_are_blind_to_constant_offsets():
     assert all(t.level == 0.05 for t in ref.tests)  # the bias test too
     ue = ref["ue"]
     assert (ue.symbol, ue.title) == ("φue(τ)", "input–residual cross-correlation")
+
+
+def test_a_statistic_exactly_on_the_band_passes(monkeypatch):
+    # a test fails when max |φ| *leaves* the band: exactly on its edge is a pass (the band is inclusive)
+    delayed = 0.1 * NOISE + 0.05 * np.roll(U, 3)
+    stat = _battery(delayed)["ue"].statistic
+    monkeypatch.setattr(rt_module, "band_for", lambda n, m_eff, level: stat)
+    on_edge = _battery(delayed)["ue"]
+    assert on_edge.statistic == on_edge.band == stat and on_edge.passed is True
+    monkeypatch.setattr(rt_module, "band_for", lambda n, m_eff, level: float(np.nextafter(stat, 0.0)))
+    assert _battery(delayed)["ue"].passed is False
