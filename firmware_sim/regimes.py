@@ -287,9 +287,8 @@ def step_full(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeT
 
     target = fired.target
     safe_causes: tuple[str, ...] = ()
-    if target is Regime.SAFE:
-        safe_causes = ((fired.trigger.value,) if fired.trigger is Trigger.BROWNOUT
-                       else tuple(c.value for c in (causes or [fired.trigger])))
+    if target is Regime.SAFE:  # every fault cause at once; a brown-out (no fault cause, else a fault row fired) alone
+        safe_causes = tuple(c.value for c in (causes or [fired.trigger]))
     st = RegimeState(target, tick, link_fail, link_ok, overruns, 0 if target is Regime.SENSING else wake_run,
                      0, hv_run, hv_off_run, safe_causes)
     events.append(BoardEvent("regime_change", tick, now, {

@@ -386,3 +386,14 @@ def test_a_settled_standby_tick_hands_the_state_back_unchanged(link_recovery):
         assert new is settled and out == RegimeOutputs(S, False, False, None) and events == ()
     # an eventful percept is evaluated (and changes the state)
     assert step(settled, TickInputs(wake_signal=True), r.tick, tm)[0] != settled
+
+
+def test_a_brownout_in_sensing_restarts_the_wake_debounce():
+    # SENSING counts the comparator afresh from its entry: forced back to stand-by by a brown-out one tick later, the
+    # board reports the refused wake when the comparator has been up a full debounce since then, not at once
+    r = in_regime(SE).feed(with_(SE, brownout=True))
+    assert r.regime is S and r.outs[-1].trigger is Trigger.BROWNOUT
+    r.feed(with_(SE, brownout=True), times=T.wake_debounce - 2)
+    assert not r.incidents("wake_refused")
+    r.feed(with_(SE, brownout=True))
+    assert len(r.incidents("wake_refused")) == 1 and r.regime is S

@@ -236,3 +236,10 @@ def test_a_statistic_exactly_on_the_band_passes(monkeypatch):
     assert on_edge.statistic == on_edge.band == stat and on_edge.passed is True
     monkeypatch.setattr(rt_module, "band_for", lambda n, m_eff, level: float(np.nextafter(stat, 0.0)))
     assert _battery(delayed)["ue"].passed is False
+
+
+def test_effective_lags_count_uncorrelated_lags_fully():
+    # a signal whose autocorrelation is exactly zero at lag 1: two adjacent lags are independent, m_eff = 2 exactly
+    a = np.tile([1.0, 0.0, -1.0, 0.0], 100)
+    assert effective_lags(a, np.array([1, 2])) == 2.0
+    assert effective_lags(a, np.array([5])) == 1.0

@@ -196,8 +196,6 @@ def effective_lags(a: np.ndarray, lags: np.ndarray) -> float:
     the eigenvalues of that matrix, ``f(x) = [x ≥ 1] + (x − ⌊x⌋)``.
     """
     m = lags.size
-    if m == 1:
-        return 1.0
     span = int(lags.max() - lags.min())
     rho = cross_correlation(a, a, np.arange(span + 1))
     if not np.all(np.isfinite(rho)):
