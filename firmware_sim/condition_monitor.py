@@ -8,7 +8,8 @@ Normalised model error (Eq. 11, from Eq. 5 with the error model of Eq. 4)::
     eps = |z3_md - z3_hw| / (|z3_hw| + e0z / kerr_z)
 
 with ``e0z`` and ``kerr_z`` from ``board_config.load_monitor_settings()`` (0.75 mm and 0.075, so the
-denominator never falls below 10 mm).
+denominator never falls below 10 mm); the formula lives in ``board_config.error_law`` (the workbench uses the same
+one, model first, measurement second).
 
 Fault counter, once per monitor sample (``f_mon``, 100 Hz)::
 
@@ -47,22 +48,12 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from board_config import MonitorSettings, load_monitor_settings
-
-
-def normalised_error(z3_model, z3_meas, e0z: float, kerr_z: float):
-    """Eq. 11: ``|z3_model - z3_meas| / (|z3_meas| + e0z/kerr_z)``; scalars or arrays (m in, 1 out)."""
-    floor = e0z / kerr_z
-    if isinstance(z3_model, float | int) and isinstance(z3_meas, float | int):
-        return abs(z3_model - z3_meas) / (abs(z3_meas) + floor)
-    return np.abs(np.asarray(z3_model, dtype=float) - np.asarray(z3_meas, dtype=float)) / (
-        np.abs(np.asarray(z3_meas, dtype=float)) + floor)
+from board_config.error_law import normalised_error  # Eq. 11, shared with the workbench (Eq. 5)
 
 
 def consecutive_exceedances_to_fault(count_max: int, counter_up: int, count: int = 0) -> int:
     """Consecutive exceedances that latch a fault starting from counter value ``count`` (strict ``>``)."""
-    if count > count_max:
-        return 1  # already above: the next counted sample latches (it can only rise or stay above)
-    return (count_max - count) // counter_up + 1
+    return max((count_max - count) // counter_up + 1, 1)  # already above count_max: the next exceedance latches
 
 
 def counter_step(count: int, exceeded: bool, counter_up: int, counter_down: int) -> int:
@@ -150,13 +141,10 @@ def counter_trajectory(exceeded: np.ndarray, valid: np.ndarray | None, counter_u
     Steps ``s_k`` are ``+up`` (exceeded), ``-down`` (not exceeded) or ``0`` (invalid sample); with
     ``S_k = s_1 + ... + s_k`` the floored counter is ``c_k = S_k - min(-count0, min_{j<=k} S_j)``.
     """
-    exceeded = np.asarray(exceeded, dtype=bool)
-    steps = np.where(exceeded, np.int64(counter_up), np.int64(-counter_down))
+    steps = np.where(exceeded, np.int64(counter_up), np.int64(-counter_down))  # int64, any shape (also T = 0)
     if valid is not None:
-        steps = np.where(np.asarray(valid, dtype=bool), steps, np.int64(0))
-    if steps.shape[-1] == 0:
-        return steps.astype(np.int64)
-    cum = np.cumsum(steps, axis=-1, dtype=np.int64)
+        steps = np.where(valid, steps, np.int64(0))
+    cum = np.cumsum(steps, axis=-1)
     low = np.minimum.accumulate(cum, axis=-1)
     return cum - np.minimum(low, np.int64(-count0))
 
@@ -177,7 +165,7 @@ def evaluate(eps: np.ndarray, settings: MonitorSettings | None = None, t: np.nda
     t = np.arange(n) / settings.f_mon if t is None else np.asarray(t, dtype=float)
     if t.shape != (n,):
         raise ValueError(f"t must have shape ({n},) to match eps {eps.shape}, got {t.shape}")
-    if n > 1 and not np.all(np.diff(t) > 0):
+    if not np.all(np.diff(t) > 0):  # fewer than two samples: no difference, nothing to order
         raise ValueError("monitor sample times must increase strictly")
     count0, fault0 = 0, False
     if state is not None:
@@ -187,22 +175,17 @@ def evaluate(eps: np.ndarray, settings: MonitorSettings | None = None, t: np.nda
             raise ValueError(f"monitor sample times must increase: got t={t[0]!r} s after t={state.t_last!r} s")
         count0, fault0 = state.count, state.fault
     valid = np.isfinite(eps)
-    with np.errstate(invalid="ignore"):
-        exceeded = valid & (eps > settings.eps_th)
+    exceeded = valid & (eps > settings.eps_th)  # NaN compares False (no warning)
     count = counter_trajectory(exceeded, valid, settings.counter_up, settings.counter_down, count0)
     above = count > settings.count_max
-    if fault0:
-        fault = np.ones_like(above)
-        fault_index = np.full(eps.shape[:-1], -1, dtype=np.int64)
-    else:
-        fault = np.logical_or.accumulate(above, axis=-1) if n else above
-        any_above = above.any(axis=-1) if n else np.zeros(eps.shape[:-1], dtype=bool)
-        fault_index = np.where(any_above, np.argmax(above, axis=-1) if n else 0, -1).astype(np.int64)
-    fault_time = np.where(fault_index >= 0, t[np.clip(fault_index, 0, max(n - 1, 0))] if n else np.nan, np.nan)
-    max_count = count.max(axis=-1) if n else np.zeros(eps.shape[:-1], dtype=np.int64)
+    fault = np.logical_or.accumulate(above | fault0, axis=-1)  # latched: from the first sample above on
+    latched_here = above.any(axis=-1) & (not fault0)
+    # the first sample above count_max is the first of the trailing run of faulted samples; -1: none latched here
+    fault_index = np.where(latched_here, n - fault.sum(axis=-1), -1)
+    fault_time = np.append(t, np.nan)[fault_index]  # index -1 picks the appended NaN (also for an empty trace)
+    max_count = count.max(axis=-1, initial=0)  # the counter is never negative
     return MonitorTrace(t=t, eps=eps, exceeded=exceeded, valid=valid, count=count, fault=fault,
-                        fault_index=fault_index, fault_time=np.asarray(fault_time, dtype=float),
-                        max_count=np.asarray(max_count, dtype=np.int64))
+                        fault_index=fault_index, fault_time=np.asarray(fault_time), max_count=np.asarray(max_count))
 
 
 def evaluate_z3(z3_model: np.ndarray, z3_meas: np.ndarray, settings: MonitorSettings | None = None,
@@ -228,7 +211,6 @@ class ConditionMonitor:
 
     def __init__(self, settings: MonitorSettings | None = None) -> None:
         self.settings = settings if settings is not None else load_monitor_settings()
-        self._floor = self.settings.e0z / self.settings.kerr_z
         self._state = MonitorState()
 
     @property
@@ -254,7 +236,7 @@ class ConditionMonitor:
 
     def error(self, z3_model: float, z3_meas: float) -> float:
         """Eq. 11 for one sample (m in, 1 out)."""
-        return abs(z3_model - z3_meas) / (abs(z3_meas) + self._floor)
+        return normalised_error(z3_model, z3_meas, self.settings.e0z, self.settings.kerr_z)
 
     def update(self, t: float, z3_model: float, z3_meas: float) -> MonitorSample:
         """One monitor sample at time ``t`` (s): model prediction and measurement of z3 (m)."""
@@ -272,8 +254,7 @@ class ConditionMonitor:
 
     def update_many_eps(self, t: np.ndarray, eps: np.ndarray) -> MonitorTrace:
         """A chunk of normalised errors (1-D) at times ``t`` (s), vectorised; the stream continues."""
-        eps = np.atleast_1d(np.asarray(eps, dtype=float))
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        eps, t = np.atleast_1d(eps), np.atleast_1d(t)  # evaluate() makes them float
         if eps.ndim != 1 or t.shape != eps.shape:
             raise ValueError(f"update_many needs 1-D t and eps of equal length, got {t.shape} and {eps.shape}")
         trace = evaluate(eps, self.settings, t, self._state)
@@ -281,7 +262,7 @@ class ConditionMonitor:
             return trace
         st = self._state
         latched_here = bool(trace.fault_index >= 0)
-        finite = eps[trace.valid]
+        finite = trace.eps[trace.valid]
         self._state = replace(
             st,
             count=int(trace.count[-1]),
@@ -292,6 +273,6 @@ class ConditionMonitor:
             n_invalid=st.n_invalid + int((~trace.valid).sum()),
             max_count=max(st.max_count, int(trace.max_count)),
             max_eps=max(st.max_eps, float(finite.max())) if finite.size else st.max_eps,
-            t_last=float(t[-1]),
+            t_last=float(trace.t[-1]),
         )
         return trace

@@ -184,6 +184,16 @@ def _fault_causes(st: RegimeState, inp: TickInputs, tm: RegimeTimers) -> list[Tr
     return causes
 
 
+def _rearm_blockers(st: RegimeState, inp: TickInputs, tm: RegimeTimers) -> list[str]:
+    """What refuses an operator re-arm this tick: a fault cause, no sample, a brown-out (empty: re-arm)."""
+    blockers = [c.value for c in _fault_causes(st, inp, tm)]
+    if not inp.sample_ok:
+        blockers.append("no sample")
+    if inp.brownout:
+        blockers.append("brownout")
+    return blockers
+
+
 #: the percepts of an uneventful tick (a good sample, nothing above threshold, no request)
 _NOMINAL_INPUTS = (TickInputs(), TickInputs(energy_ok=False))
 _STANDBY_OUT = RegimeOutputs(Regime.STANDBY_HARVEST, False, False, None)
@@ -194,13 +204,15 @@ def step(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeTimers
     """One tick of the regime machine. ``tick`` is the board's tick number; its time is ``tick * timers.period``.
 
     The counters saturate just above the value any trigger compares them with, so an uneventful stand-by tick
-    leaves the state unchanged; that case returns at once (same result as the full evaluation, which a test checks
-    against :func:`step_full`).
+    leaves the state unchanged; that case returns the same state at once (same result as the full evaluation, which
+    a test checks against :func:`step_full`). Settled means the three "good" runs at their saturation value and no
+    overrun counted; the other counters are then zero: ``link_ok >= 1`` means the last exchange worked
+    (``link_fail = 0``), ``quiet_run >= 1`` that the comparator was last below threshold (``wake_run = 0``),
+    ``hv_off_run >= 1`` that HV was last absent (``hv_run = 0``).
     """
-    if (state.regime is Regime.STANDBY_HARVEST and inputs in _NOMINAL_INPUTS and state.link_fail == 0
-            and state.overruns == 0 and state.wake_run == 0 and state.hv_run == 0
-            and state.quiet_run >= timers.quiet and state.hv_off_run >= timers.hv_debounce
-            and state.link_ok >= max(timers.link_recovery, 1)):
+    if (state.regime is Regime.STANDBY_HARVEST and inputs in _NOMINAL_INPUTS and state.overruns == 0
+            and state.quiet_run == timers.quiet and state.hv_off_run == timers.hv_debounce
+            and state.link_ok == max(timers.link_recovery, 1)):
         return state, _STANDBY_OUT, ()
     return step_full(state, inputs, tick, timers)
 
@@ -235,62 +247,48 @@ def step_full(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeT
         elif trig is Trigger.BROWNOUT:
             hit = inputs.brownout
         elif trig is Trigger.HV_PRESENT:
-            hit = hv_run >= timers.hv_debounce
-            if hit and regime is Regime.STANDBY_HARVEST and (not inputs.energy_ok or inputs.brownout):
-                hit = False
-                if hv_run == timers.hv_debounce:
-                    events.append(BoardEvent("incident", tick, now, {
-                        "incident": "wake_refused", "detail": "HV equipment present but the battery cannot afford "
-                                                              "waking into MAINTENANCE"}))
+            refused = regime is Regime.STANDBY_HARVEST and (not inputs.energy_ok or inputs.brownout)
+            if refused and hv_run == timers.hv_debounce:  # once per HV episode
+                events.append(BoardEvent("incident", tick, now, {
+                    "incident": "wake_refused", "detail": "HV equipment present but the battery cannot afford "
+                                                          "waking into MAINTENANCE"}))
+            hit = hv_run >= timers.hv_debounce and not refused
         elif trig is Trigger.HV_REMOVED:
             hit = hv_off_run >= timers.hv_debounce
         elif trig is Trigger.WAKE:
-            hit = wake_run >= timers.wake_debounce
-            if hit and (not inputs.energy_ok or inputs.brownout):
-                hit = False
-                if wake_run == timers.wake_debounce:  # once per comparator episode
-                    events.append(BoardEvent("incident", tick, now, {
-                        "incident": "wake_refused", "detail": "wake comparator fired but the battery cannot afford "
-                                                              "waking (below wake_min_voltage or brown-out)"}))
+            refused = not inputs.energy_ok or inputs.brownout
+            if refused and wake_run == timers.wake_debounce:  # once per comparator episode
+                events.append(BoardEvent("incident", tick, now, {
+                    "incident": "wake_refused", "detail": "wake comparator fired but the battery cannot afford "
+                                                          "waking (below wake_min_voltage or brown-out)"}))
+            hit = wake_run >= timers.wake_debounce and not refused
         elif trig is Trigger.QUIET:
             hit = quiet_run >= timers.quiet
         elif trig is Trigger.LINK_RECOVERED:
             hit = (timers.link_recovery > 0 and link_ok >= timers.link_recovery
                    and all(c == Trigger.LINK_LOST.value for c in state.safe_causes)
                    and not _fault_causes(st, inputs, timers) and not inputs.brownout)
-        elif trig is Trigger.REARM:
-            hit = False
-            if inputs.rearm:
-                persisting = [c.value for c in _fault_causes(st, inputs, timers)]
-                if not ok:
-                    persisting.append("no sample")
-                if inputs.brownout:
-                    persisting.append("brownout")
-                if persisting:
-                    events.append(BoardEvent("incident", tick, now, {
-                        "incident": "rearm_refused", "detail": "re-arm refused: " + ", ".join(persisting)}))
-                else:
-                    hit = True
-        else:  # pragma: no cover - every trigger is handled above
-            raise AssertionError(trig)
+        else:  # Trigger.REARM: every other trigger of the table is handled above
+            persisting = _rearm_blockers(st, inputs, timers) if inputs.rearm else []
+            if persisting:
+                events.append(BoardEvent("incident", tick, now, {
+                    "incident": "rearm_refused", "detail": "re-arm refused: " + ", ".join(persisting)}))
+            hit = inputs.rearm and not persisting
         if hit:
             fired = row
             break
 
-    if regime is Regime.SAFE and fired is None:
-        # stay in SAFE, accumulating any new cause
-        new = [c.value for c in (causes if causes is not None else _fault_causes(st, inputs, timers))
-               if c.value not in st.safe_causes]
-        if new:
-            st = st._replace(safe_causes=st.safe_causes + tuple(new))
     if fired is None:
+        if regime is Regime.SAFE:  # stay in SAFE, accumulating any new cause (SAFE has no fault rows)
+            new = [c.value for c in _fault_causes(st, inputs, timers) if c.value not in st.safe_causes]
+            if new:
+                st = st._replace(safe_causes=st.safe_causes + tuple(new))
         return st, RegimeOutputs(regime, regime is Regime.MAINTENANCE, False, None), tuple(events)
 
     target = fired.target
     safe_causes: tuple[str, ...] = ()
-    if target is Regime.SAFE:
-        safe_causes = ((fired.trigger.value,) if fired.trigger is Trigger.BROWNOUT
-                       else tuple(c.value for c in (causes or [fired.trigger])))
+    if target is Regime.SAFE:  # every fault cause at once; a brown-out (no fault cause, else a fault row fired) alone
+        safe_causes = tuple(c.value for c in (causes or [fired.trigger]))
     st = RegimeState(target, tick, link_fail, link_ok, overruns, 0 if target is Regime.SENSING else wake_run,
                      0, hv_run, hv_off_run, safe_causes)
     events.append(BoardEvent("regime_change", tick, now, {

@@ -277,6 +277,12 @@ def test_closed_form_counter_with_start_value():
     assert counter_trajectory(exc, None, 2, 1, count0=5).tolist() == [4, 3, 5, 4, 3, 2]
     assert counter_trajectory(exc, np.array([True, False, True, True, True, True]), 2, 1, 5).tolist() == [
         4, 4, 6, 5, 4, 3]
+    # by default the counter starts at 0; flags may be any truthy/falsy numbers; an empty trace is an empty int trace
+    assert counter_trajectory([True, False, False], None, 2, 1).tolist() == [2, 1, 0]
+    assert counter_trajectory([1, 0, 3], [1, 1, 0], 2, 1).tolist() == [2, 1, 1]
+    empty = counter_trajectory(np.zeros((2, 0), bool), None, 2, 1, count0=3)
+    assert empty.shape == (2, 0) and empty.dtype == np.int64
+    assert counter_trajectory(exc, None, 2, 1).dtype == np.int64
 
 
 # --- the tests above must fail for wrong counters -------------------------------------------------------------

@@ -89,15 +89,16 @@ def test_a_chunk_whose_first_sample_repeats_the_last_time_is_refused():
 
 
 def test_times_inside_a_chunk_must_increase_strictly_and_shapes_match():
-    with pytest.raises(ValueError, match="increase strictly"):
+    # the messages, exactly (they name what is wrong)
+    with pytest.raises(ValueError, match=r"^monitor sample times must increase strictly$"):
         evaluate(np.array([0.1, 0.2]), SMALL, t=np.array([0.0, 0.0]))
-    with pytest.raises(ValueError, match=r"t must have shape \(2,\)"):
+    with pytest.raises(ValueError, match=r"^t must have shape \(2,\) to match eps \(2,\), got \(3,\)$"):
         evaluate(np.array([0.1, 0.2]), SMALL, t=np.array([0.0, 0.1, 0.2]))
-    with pytest.raises(ValueError, match="time axis"):
+    with pytest.raises(ValueError, match=r"^eps must have a time axis \(shape \(\.\.\., T\)\)$"):
         evaluate(np.float64(0.3), SMALL)
-    with pytest.raises(ValueError, match="single trace"):
+    with pytest.raises(ValueError, match=r"^a start state can only continue a single trace \(1-D eps\)$"):
         evaluate(np.zeros((2, 3)), SMALL, state=MonitorState(count=1))
-    with pytest.raises(ValueError, match="1-D t and eps of equal length"):
+    with pytest.raises(ValueError, match=r"^update_many needs 1-D t and eps of equal length, got \(2,\) and \(1,\)$"):
         ConditionMonitor(SMALL).update_many_eps(np.array([0.1, 0.2]), np.array([0.1]))
     # a single sample needs no ordering inside the chunk
     assert evaluate(np.array([0.9]), SMALL, t=np.array([5.0])).t.tolist() == [5.0]
@@ -201,3 +202,43 @@ def test_invalid_samples_are_counted_and_hold_the_counter():
         smp = mon.update_eps(0.2 + j, bad)
         assert (smp.valid, smp.exceeded, smp.count) == (False, False, 2)
     assert (mon.state.n_invalid, mon.state.n_exceed, mon.state.max_eps) == (3, 1, 0.9)
+
+
+def test_evaluate_z3_takes_the_given_settings_and_times_else_table3_at_f_mon():
+    # 3 mm of model error at rest over the 10 mm floor: eps = 0.3, above Table 3's 0.225, below SMALL's 0.5
+    z_md, z_hw = np.full(12, 3e-3), np.zeros(12)
+    t = 5.0 + 0.01 * np.arange(12)
+    small = evaluate_z3(z_md, z_hw, SMALL, t)
+    assert small.t.tolist() == t.tolist() and small.count.tolist() == [0] * 12 and not small.detected
+    table3 = evaluate_z3(z_md, z_hw)  # Table 3 settings, t = k / f_mon
+    assert table3.t.tolist() == (np.arange(12) / 100.0).tolist()
+    assert table3.count.tolist() == list(range(2, 25, 2)) and table3.eps.tolist() == pytest.approx([0.3] * 12)
+    # 6 mm: eps = 0.6 exceeds SMALL too; its counter passes count_max = 6 on the 4th sample, at that sample's time
+    fast = evaluate_z3(np.full(12, 6e-3), z_hw, SMALL, t)
+    assert int(fast.fault_index) == 3 and float(fast.fault_time) == t[3]
+
+
+def test_update_many_takes_any_numbers_as_floats():
+    mon, ref = ConditionMonitor(SMALL), ConditionMonitor(SMALL)
+    trace = mon.update_many_eps([1, 2, 3], [1, 0, 2])  # Python ints: times 1..3 s, eps 1, 0, 2
+    ref.update_many_eps(np.array([1.0, 2.0, 3.0]), np.array([1.0, 0.0, 2.0]))
+    assert mon.state == ref.state and trace.count.tolist() == [2, 1, 3]
+    assert mon.state.max_eps == 2.0 and mon.state.t_last == 3.0
+    assert isinstance(mon.state.max_eps, float) and isinstance(mon.state.t_last, float)
+    assert trace.eps.dtype == np.float64 and trace.t.dtype == np.float64  # the traces are float too
+    whole = evaluate([0, 1, 2], SMALL, [1, 2, 3])
+    assert whole.eps.dtype == np.float64 and whole.t.dtype == np.float64 and whole.count.tolist() == [0, 2, 4]
+
+
+def test_evaluate_without_settings_is_table3_at_f_mon():
+    eps = np.full(102, 0.3)  # above Table 3's 0.225: +2 per sample, the fault latches on the 101st (index 100)
+    tr = evaluate(eps)
+    assert int(tr.fault_index) == 100 and float(tr.fault_time) == pytest.approx(1.0)
+    assert evaluate(eps, SMALL).count[0] == 0  # SMALL's threshold is 0.5
+
+
+def test_a_monitor_without_settings_runs_table3_and_samples_carry_their_time():
+    mon = ConditionMonitor()
+    assert mon.settings == load_monitor_settings()
+    smp = mon.update_eps(np.float64(0.25), 0.3)  # above Table 3's 0.225 (SMALL's threshold is 0.5)
+    assert smp.t == 0.25 and type(smp.t) is float and smp.exceeded and smp.count == 2

@@ -126,6 +126,15 @@ def test_clears_strictly_above_the_hysteresis_band_once():
     assert out[-1][0].brownouts == 2
 
 
+def test_below_run_counts_consecutive_ticks_also_during_a_brownout():
+    # PowerState.below_run is "consecutive ticks below the brown-out voltage": a tick in the hysteresis band ends
+    # the run whatever its length, 1 included
+    band = B.brownout + B.hysteresis / 2
+    out = feed([LOW] * N + [band, LOW, band, LOW, LOW, band])
+    assert [o[0].below_run for o in out[N:]] == [0, 1, 0, 1, 2, 0]
+    assert all(o[1].brownout for o in out[N - 1:]) and out[-1][0].brownouts == 1
+
+
 @pytest.mark.parametrize(("v", "ok"), [(B.wake_min, True), (B.wake_min - 1e-6, False)])
 def test_wake_threshold_is_inclusive_on_every_path(v, ok):
     assert feed([v])[0][1].energy_ok is ok  # no brown-out in force

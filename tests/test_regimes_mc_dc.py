@@ -294,6 +294,12 @@ def test_link_recovered_after_exactly_link_recovery_good_ticks():
     assert r.regime is X
 
 
+def test_link_recovery_of_one_tick_recovers_on_the_first_good_exchange():
+    one = dataclasses.replace(T, link_recovery=1)  # the smallest enabled recovery time
+    r = link_lost_safe(one).feed(TickInputs())
+    assert (r.regime, r.outs[-1].trigger, r.state.safe_causes) == (S, Trigger.LINK_RECOVERED, ())
+
+
 def test_link_recovered_each_guard():
     off = dataclasses.replace(T, link_recovery=0)
     r = link_lost_safe(off).feed(TickInputs(), times=50)
@@ -319,7 +325,7 @@ def test_rearm_refused_while_any_one_cause_persists(persisting, named):
     assert r.regime is X and not r.outs[-1].changed
     (ev,) = r.incidents("rearm_refused")
     assert ev.data["detail"] == "re-arm refused: " + ", ".join(named)
-    assert ev.tick == r.tick - 1
+    assert (ev.tick, ev.time) == (r.tick - 1, pytest.approx((r.tick - 1) * T.period))
     r.feed(TickInputs(rearm=True))
     assert (r.regime, r.outs[-1].trigger) == (S, Trigger.REARM)
     (ch,) = r.changes()
@@ -366,3 +372,28 @@ def test_one_uneventful_tick_restarts_every_count_in_a_settled_standby(field, n)
     assert r.regime is S and not r.changes()
     r.feed(ev)
     assert r.regime is not S
+
+
+@pytest.mark.parametrize("link_recovery", [0, 1, 3])
+def test_a_settled_standby_tick_hands_the_state_back_unchanged(link_recovery):
+    # step()'s documented shortcut: once every debounce run is saturated, an uneventful stand-by tick (with or without
+    # the energy to wake) costs nothing: the very same state comes back, no change, no event
+    tm = dataclasses.replace(T, link_recovery=link_recovery)
+    r = Run(tm).feed(TickInputs(), times=max(tm.quiet, tm.hv_debounce, tm.link_recovery))
+    settled = r.state
+    for inp in (TickInputs(), TickInputs(energy_ok=False)):
+        new, out, events = step(settled, inp, r.tick, tm)
+        assert new is settled and out == RegimeOutputs(S, False, False, None) and events == ()
+    # an eventful percept is evaluated (and changes the state)
+    assert step(settled, TickInputs(wake_signal=True), r.tick, tm)[0] != settled
+
+
+def test_a_brownout_in_sensing_restarts_the_wake_debounce():
+    # SENSING counts the comparator afresh from its entry: forced back to stand-by by a brown-out one tick later, the
+    # board reports the refused wake when the comparator has been up a full debounce since then, not at once
+    r = in_regime(SE).feed(with_(SE, brownout=True))
+    assert r.regime is S and r.outs[-1].trigger is Trigger.BROWNOUT
+    r.feed(with_(SE, brownout=True), times=T.wake_debounce - 2)
+    assert not r.incidents("wake_refused")
+    r.feed(with_(SE, brownout=True))
+    assert len(r.incidents("wake_refused")) == 1 and r.regime is S

@@ -96,8 +96,29 @@ def test_white_residual_passes_and_each_built_fault_fails_its_test():
     coloured = np.convolve(NOISE, np.ones(5) / 5, mode="same")
     b = _battery(coloured)
     assert "ee" in [t.key for t in b.failed] and b["ee"].worst_lag == 1
-    with pytest.raises(KeyError):
+    with pytest.raises(KeyError, match="nope"):
         b["nope"]
+
+
+def test_effective_lags_from_the_input_but_all_lags_for_the_residuals_own_tests():
+    # a slow sine drive: its lags are strongly correlated, the cross tests count few independent lags (a wider
+    # band); the whiteness and e(eu) tests are built from the residual itself: white under H0, all m lags count, even
+    # when the residual at hand is coloured
+    u = np.sin(np.arange(N) * 0.02)
+    coloured = np.convolve(NOISE, np.ones(5) / 5, mode="same")
+    b = residual_tests(coloured, u, max_lag=10)
+    both = np.arange(-10, 11)
+    uc = u - u.mean()
+    m_ue = effective_lags(uc, both)
+    assert m_ue < 5.0
+    assert b["ue"].band == pytest.approx(band_for(N, m_ue, 0.01))
+    assert b["ue"].note == f"21 lags, {m_ue:.1f} effectively independent"
+    u2 = uc ** 2 - np.mean(uc ** 2)
+    assert b["u2e"].band == pytest.approx(band_for(N, effective_lags(u2, both), 0.01))
+    assert effective_lags(coloured, np.arange(1, 11)) < 9.0  # an estimate would be well below m here
+    for key in ("ee", "e_eu"):
+        assert b[key].band == pytest.approx(band_for(N, 10.0, 0.01))
+        assert b[key].note == "10 lags, 10.0 effectively independent"
 
 
 def test_statistic_band_and_p_value_are_consistent():
@@ -137,18 +158,19 @@ def test_inputs_checked_at_their_limits():
         _battery(NOISE[: 4 * m + 9], U[: 4 * m + 9])
     with pytest.raises(InputError, match="need at least 14 samples for 1 lags"):
         _battery(NOISE[:13], U[:13], max_lag=1)
+    assert _battery(NOISE[:14], U[:14], max_lag=1).max_lag == 1  # one lag is enough
     with pytest.raises(InputError, match="0 lags"):
         _battery(NOISE, max_lag=0)
     for level in (0.0, 1.0):
         with pytest.raises(InputError, match="level must be in"):
             _battery(NOISE, level=level)
-    with pytest.raises(ValueError, match="same length, got 2000 and 1999"):
+    with pytest.raises(ValueError, match=r"^residual and input must have the same length, got 2000 and 1999$"):
         _battery(NOISE, U[:-1])
     bad = NOISE.copy()
     bad[7] = np.nan
-    with pytest.raises(ValueError, match="must be finite"):
+    with pytest.raises(ValueError, match=r"^residual and input must be finite$"):
         _battery(bad)
-    with pytest.raises(ValueError, match="must be finite"):
+    with pytest.raises(ValueError, match=r"^residual and input must be finite$"):
         _battery(NOISE, np.where(np.arange(N) == 3, np.inf, U))
     b = _battery(NOISE, decimate=4, channel="z3", input_name="v")
     assert (b.n, b.decimate, b.channel, b.input_name) == (N // 4, 4, "z3", "v")
@@ -160,5 +182,64 @@ def test_test_result_ratio_and_dict():
     assert math.isnan(r.ratio) and r.verdict == "pass"
     d = r.to_dict()
     assert d["lags"] == [0, 1, 2] and d["verdict"] == "pass" and d["key"] == "ue"
+    # the JSON record of one test (shm compare --json), every field by its name
+    r2 = rt_module.TestResult("u2e", "sym", "title", np.arange(2), np.array([0.5, -0.25]), 0.2, 0.05, 0.5, 1, 0.01,
+                              False, "points", "note")
+    assert r2.to_dict() == {"key": "u2e", "symbol": "sym", "title": "title", "verdict": "FAIL", "statistic": 0.5,
+                            "band": 0.2, "ratio": 2.5, "worst_lag": 1, "p_value": 0.01, "level": 0.05,
+                            "points_at": "points", "note": "note", "lags": [0, 1], "r": [0.5, -0.25]}
     rt = ResidualTests("y", "u", 10, 0.01, 2, 1)
     assert rt.adequate is None
+
+
+def test_a_flat_residual_makes_its_correlation_tests_not_applicable():
+    b = _battery(np.full(N, 0.5))
+    ee = b["ee"]
+    assert ee.to_dict() | {"r": None, "statistic": None, "p_value": None, "ratio": None} == {
+        "key": "ee", "symbol": "φee(τ)", "title": "whiteness (autocorrelation)", "verdict": "n/a", "statistic": None,
+        "band": pytest.approx(band_for(N, 25.0, 0.01)), "ratio": None, "worst_lag": 0, "p_value": None,
+        "level": 0.01, "points_at": POINTS_AT["ee"], "note": "not applicable: a signal in the test has no variation",
+        "lags": list(range(1, 26)), "r": None}
+    assert np.isnan(ee.r).all() and ee.r.shape == (25,) and math.isnan(ee.statistic) and math.isnan(ee.p_value)
+    assert b.adequate is None and all(t.passed is None for t in b.tests)
+
+
+def test_integer_records_give_the_same_verdicts():
+    rng = np.random.default_rng(3)
+    e = rng.integers(-128, 128, N).astype(np.int8)
+    u = rng.integers(-128, 128, N).astype(np.int8)
+    a, b = _battery(e, u), _battery(e.astype(float), u.astype(float))
+    for x, y in zip(a.tests, b.tests, strict=True):
+        assert x.to_dict() == y.to_dict()
+
+
+def test_the_correlation_tests_are_blind_to_constant_offsets():
+    # the residual or the input shifted by a constant: only the bias test may change; every correlation is the same
+    e = 0.1 * NOISE + 0.05 * np.roll(U, 2) * U  # fails e(eu)-type tests: an error depending on the drive's product
+    ref = _battery(e, U, level=0.05)
+    for e2, u2 in ((e + 3.0, U), (e, U - 7.0), (e - 1.0, U + 2.0)):
+        b = _battery(e2, u2, level=0.05)
+        for x, y in zip(ref.tests[1:], b.tests[1:], strict=True):
+            assert (x.key, x.passed, x.worst_lag) == (y.key, y.passed, y.worst_lag)
+            assert x.r == pytest.approx(y.r, abs=1e-9) and x.band == pytest.approx(y.band)
+    assert all(t.level == 0.05 for t in ref.tests)  # the bias test too
+    ue = ref["ue"]
+    assert (ue.symbol, ue.title) == ("φue(τ)", "input–residual cross-correlation")
+
+
+def test_a_statistic_exactly_on_the_band_passes(monkeypatch):
+    # a test fails when max |φ| *leaves* the band: exactly on its edge is a pass (the band is inclusive)
+    delayed = 0.1 * NOISE + 0.05 * np.roll(U, 3)
+    stat = _battery(delayed)["ue"].statistic
+    monkeypatch.setattr(rt_module, "band_for", lambda n, m_eff, level: stat)
+    on_edge = _battery(delayed)["ue"]
+    assert on_edge.statistic == on_edge.band == stat and on_edge.passed is True
+    monkeypatch.setattr(rt_module, "band_for", lambda n, m_eff, level: float(np.nextafter(stat, 0.0)))
+    assert _battery(delayed)["ue"].passed is False
+
+
+def test_effective_lags_count_uncorrelated_lags_fully():
+    # a signal whose autocorrelation is exactly zero at lag 1: two adjacent lags are independent, m_eff = 2 exactly
+    a = np.tile([1.0, 0.0, -1.0, 0.0], 100)
+    assert effective_lags(a, np.array([1, 2])) == 2.0
+    assert effective_lags(a, np.array([5])) == 1.0

@@ -26,7 +26,7 @@ def test_eq4_recovers_bias_and_gain_and_eq5_is_then_kerr() -> None:
     err = (e0 + k * np.abs(y)) * rng.choice([-1.0, 1.0], y.size)
     fit = fit_eq4(y, y + err)
     assert fit.e0 == pytest.approx(e0, rel=1e-9) and fit.kerr == pytest.approx(k, rel=1e-9) and fit.r2 > 0.999
-    eps = normalised_error(y, y + err, fit.e0, fit.kerr)
+    eps = normalised_error(y + err, y, fit.e0, fit.kerr)  # model first, measurement second
     np.testing.assert_allclose(eps, k, rtol=1e-9)  # exactly on the law, ε(t) = kerr everywhere
 
 
@@ -34,7 +34,7 @@ def test_eq4_with_no_amplitude_dependence_and_eq5_undefined() -> None:
     y = np.sin(np.linspace(0, 20, 500))
     fit = fit_eq4(y, y + 0.01)  # constant error: e0 = 0.01, kerr = 0
     assert fit.e0 == pytest.approx(0.01, rel=1e-6) and fit.kerr == pytest.approx(0.0, abs=1e-9)
-    assert np.all(np.isnan(normalised_error(y, y + 0.01, fit.e0, 0.0)))
+    assert np.all(np.isnan(normalised_error(y + 0.01, y, fit.e0, 0.0)))
 
 
 def test_given_constants_paper_monitor() -> None:

@@ -4,6 +4,7 @@ error, ε statistics, FRF metrics), plus the properties that tie them together."
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -70,10 +71,10 @@ def test_eq4_fit_recovers_the_amplitude_law():
 
 def test_eq5_normalised_error():
     y, yh = np.array([1.0, -2.0, 0.0, 0.0]), np.array([1.5, -1.0, 0.0, 1.0])
-    eps = normalised_error(y, yh, e0=0.5, kerr=0.1)
+    eps = normalised_error(yh, y, e0=0.5, kerr=0.1)  # model first, measurement second
     assert eps.tolist() == pytest.approx([0.5 / (1.0 + 5.0), 1.0 / (2.0 + 5.0), 0.0, 1.0 / 5.0])
-    assert np.isnan(normalised_error(y, yh, 0.5, 0.0)).all() and np.isnan(normalised_error(y, yh, 0.5, -1.0)).all()
-    at_zero = normalised_error(y, yh, e0=0.0, kerr=0.1)  # no floor: zero signal and zero error is 0, else inf
+    assert np.isnan(normalised_error(yh, y, 0.5, 0.0)).all() and np.isnan(normalised_error(yh, y, 0.5, -1.0)).all()
+    at_zero = normalised_error(yh, y, e0=0.0, kerr=0.1)  # no floor: zero signal and zero error is 0, else inf
     assert at_zero[2] == 0.0 and at_zero[3] == math.inf and at_zero[0] == pytest.approx(0.5)
 
 
@@ -128,3 +129,66 @@ def test_frf_metrics_by_hand():
     assert math.isnan(z.fit_pct) and math.isnan(z.amp_err_db_rms) and math.isnan(z.amp_err_db_max)
     half = frf_metrics("x", "1", f, np.array([0, 1, 1, 1], complex), np.array([1, 2, 2, 2], complex))
     assert half.amp_err_db_max == pytest.approx(20 * np.log10(2.0))  # the zero bin is left out
+
+
+def test_channel_metrics_on_a_record_exactly_on_the_eq4_law():
+    # |model - measured| = e0 + kerr |measured| exactly: the fit recovers the law, its ε is kerr everywhere, and the
+    # threshold comparison of both ε summaries uses the monitor's ε_th
+    t = np.arange(400) * 0.01
+    y = 5e-3 * np.sin(2 * np.pi * 0.5 * t)
+    e0, kerr = 0.5e-3, 0.3
+    model = y + (e0 + kerr * np.abs(y)) * np.where(np.arange(400) % 2, 1.0, -1.0)
+    m = channel_metrics("z3", "m", t, y, model, given=(e0, kerr))
+    assert (m.channel, m.unit, m.n_samples, m.skip_s) == ("z3", "m", 400, 0.0)
+    assert m.eq4_fitted.e0 == pytest.approx(e0, rel=1e-6) and m.eq4_fitted.kerr == pytest.approx(kerr, rel=1e-6)
+    assert m.eq4_fitted.r2 == pytest.approx(1.0) and m.eq4_fitted.source == "fitted (Eq. 4)"
+    for eps in (m.eps_fitted, m.eps_given):
+        assert eps.mean == pytest.approx(kerr, rel=1e-6) and eps.max == pytest.approx(kerr, rel=1e-6)
+        assert eps.std == pytest.approx(0.0, abs=1e-6) and eps.frac_above_th == 1.0  # 0.3 > ε_th = 0.225
+
+
+@pytest.mark.parametrize("dtype", [np.int8, np.int16])
+def test_integer_records_are_numbers_not_wrapping_machine_words(dtype):
+    # raw counts in a small integer type: differences and magnitudes near the type's limits must not wrap around
+    y = np.array([-128, 100, -50, 127, 0, 3], dtype)
+    yh = np.array([127, -128, 60, -100, 5, 1], dtype)
+    yf, yhf = y.astype(float), yh.astype(float)
+    t = np.arange(6) * 0.1
+    assert fit_percent(y, yh) == fit_percent(yf, yhf) and nrmse(y, yh) == nrmse(yf, yhf)
+    assert rmse(y, yh) == rmse(yf, yhf)
+    assert fit_eq4(y, yh) == fit_eq4(yf, yhf)
+    assert channel_metrics("n", "1", t, y, yh, given=(1.0, 0.5)) == channel_metrics("n", "1", t, yf, yhf,
+                                                                                   given=(1.0, 0.5))
+    f = np.arange(1.0, 7.0)
+    a, b = frf_metrics("n", "1", f, y, yh), frf_metrics("n", "1", f, yf, yhf)
+    assert all(x == z or (math.isnan(x) and math.isnan(z)) for x, z in zip(vars(a).values(), vars(b).values()))
+
+
+def test_eq4_r2_is_the_coefficient_of_determination_of_the_law():
+    # an error only roughly linear in the amplitude, both coefficients positive: NNLS is the ordinary least-squares
+    # line, and r2 is 1 - SS_res / SS_tot of that line (numpy's polyfit as the independent reference)
+    y = np.array([0.0, 1.0, 2.0, 3.0, 4.0, 5.0])
+    err = np.array([0.5, 1.0, 1.0, 2.0, 2.5, 2.6])
+    fit = fit_eq4(y, y + err)
+    k, e0 = np.polyfit(y, err, 1)
+    assert fit.e0 == pytest.approx(e0) and fit.kerr == pytest.approx(k)
+    res = err - (e0 + k * y)
+    want = 1.0 - np.sum(res ** 2) / np.sum((err - err.mean()) ** 2)
+    assert fit.r2 == pytest.approx(want, rel=1e-9) and 0.8 < fit.r2 < 1.0
+
+
+def test_frf_metrics_of_a_small_response_and_at_zero_bins():
+    f = np.array([1.0, 2.0, 3.0])
+    h = np.array([0.1, 0.3, 0.2], complex)  # |H| < 1 everywhere: a fit % is still defined
+    m = frf_metrics("z3/v", "m/V", f, h, 1.1 * h)
+    assert m.fit_pct == pytest.approx(90.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # zero bins are expected (no RuntimeWarning)
+        half = frf_metrics("x", "1", np.arange(4.0), np.array([0, 1, 1, 1], complex), np.array([1, 2, 2, 2], complex))
+        both_zero = frf_metrics("x", "1", np.arange(3.0), np.array([0, 1, 2], complex), np.array([0, 1, 2], complex))
+        none = frf_metrics("x", "1", np.arange(3.0), np.zeros(3, complex), np.ones(3, complex))  # no dB bin at all
+    assert both_zero.amp_err_db_max == 0.0 and both_zero.fit_pct == 100.0
+    assert math.isnan(none.amp_err_db_rms) and math.isnan(none.amp_err_db_max) and math.isnan(none.fit_pct)
+    # a zero measured bin has no dB error (left out) and is compared in phase against the model's own angle (0 here)
+    assert half.amp_err_db_rms == pytest.approx(20 * np.log10(2.0))
+    assert half.phase_err_deg_rms == 0.0 and half.phase_err_deg_max == 0.0

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from board_config import load_monitor_settings
+from board_config.error_law import normalised_error
 from plant import PlantModel
 from workbench.localisation import Localisation, localise, model_features
 from workbench.metrics import (
@@ -26,7 +27,6 @@ from workbench.metrics import (
     channel_metrics,
     fit_percent,
     frf_metrics,
-    normalised_error,
     nrmse,
 )
 from workbench.records import FrfRecord, Record
@@ -178,7 +178,7 @@ def compare(model: PlantModel, record: Record | FrfRecord, options: CompareOptio
                             eps_th=mon.eps_th)
         metrics[ch] = m
         e0k = (m.eq4_given.e0, m.eq4_given.kerr) if m.eq4_given else (m.eq4_fitted.e0, m.eq4_fitted.kerr)
-        eps[ch] = normalised_error(cr.measured, cr.simulated, *e0k)
+        eps[ch] = normalised_error(cr.simulated, cr.measured, *e0k)
         eps_src[ch] = (f"given e0 = {e0k[0]:.3g} {cr.unit}, kerr = {e0k[1]:.3g}" if m.eq4_given else
                        f"fitted per Eq. 4: e0 = {e0k[0]:.3g} {cr.unit}, kerr = {e0k[1]:.3g}")
         if rep.prediction is not None and ch in rep.prediction.predicted:

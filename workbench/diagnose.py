@@ -400,9 +400,7 @@ def choose_winner(ranking: Sequence[CandidateResult]) -> CandidateResult | None:
     if not acc:
         return None
     best = acc[0]
-    if best.kind == "parameter":
-        return best
-    par = next((c for c in acc if c.kind == "parameter"), None)
+    par = next((c for c in acc if c.kind == "parameter"), None)  # best itself when it is a re-estimation
     if par is not None and par.held_rss <= PREFER_PARAMETER_WITHIN * best.held_rss:
         return par
     return best

@@ -7,39 +7,50 @@ Eq. (4):  ``|y_md − y_hw| = e0 + kerr·|y_hw|``, and normalises the error by t
 
 ``e0`` (bias, in the variable's unit) and ``kerr`` (gain, 1) are fitted to the record per Eq. (4) by
 non-negative least squares, or given (the paper's monitor uses e0z = 0.75 mm, kerr = 0.075 for z3,
-Sec. 4.1). We evaluate ε in the equivalent form ``kerr·|e| / (kerr·|y_hw| + e0)``, which stays defined
-when the fit returns ``kerr = 0`` (then ε is reported as undefined: the error does not grow with amplitude).
+Sec. 4.1). ε is ``board_config.error_law.normalised_error(model, measured, e0, kerr)`` — the same function as the
+board's monitor (Eq. 11), re-exported here: undefined (NaN) when the fit returns ``kerr = 0`` (the error does not
+grow with amplitude). The threshold ε_th comes from the monitor's settings (``board_config.load_monitor_settings``).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import asdict, dataclass
 
 import numpy as np
 from scipy.optimize import nnls
 
+from board_config import load_monitor_settings
+from board_config.error_law import normalised_error  # the one Eq. 5/11 implementation (the monitor uses it too)
 from board_config.errors import InputError
+
+
+def _as_float_pair(measured: np.ndarray, model: np.ndarray) -> np.ndarray:
+    """Measurement and model as one ``(2, N)`` float array: integer records become numbers together (no
+    difference is ever taken in a wrapping machine type)."""
+    return np.asarray([measured, model], float)
 
 
 def fit_percent(measured: np.ndarray, model: np.ndarray) -> float:
     """MATLAB-style fit: ``100·(1 − ‖y − ŷ‖ / ‖y − mean(y)‖)`` (%). 100 is perfect; it can be negative."""
-    y = np.asarray(measured, float)
-    e = y - np.asarray(model, float)
+    y, y_md = _as_float_pair(measured, model)
+    e = y - y_md
     den = float(np.linalg.norm(y - y.mean()))
     if den == 0.0:
-        return float("nan")
+        return math.nan
     return 100.0 * (1.0 - float(np.linalg.norm(e)) / den)
 
 
 def nrmse(measured: np.ndarray, model: np.ndarray) -> float:
     """``‖y − ŷ‖ / ‖y − mean(y)‖`` (1): the RMS error relative to the signal's own variation."""
-    y = np.asarray(measured, float)
+    y, y_md = _as_float_pair(measured, model)
     den = float(np.linalg.norm(y - y.mean()))
-    return float(np.linalg.norm(y - np.asarray(model, float)) / den) if den > 0 else float("nan")
+    return float(np.linalg.norm(y - y_md) / den) if den > 0 else math.nan
 
 
 def rmse(measured: np.ndarray, model: np.ndarray) -> float:
-    return float(np.sqrt(np.mean((np.asarray(measured, float) - np.asarray(model, float)) ** 2)))
+    y, y_md = _as_float_pair(measured, model)
+    return float(np.sqrt(np.mean((y - y_md) ** 2)))
 
 
 @dataclass(frozen=True)
@@ -55,31 +66,14 @@ class Eq4Fit:
 
 def fit_eq4(measured: np.ndarray, model: np.ndarray) -> Eq4Fit:
     """Fit Eq. (4) by non-negative least squares of ``|y_md − y_hw|`` on ``[1, |y_hw|]``."""
-    y = np.abs(np.asarray(measured, float))
-    e = np.abs(np.asarray(model, float) - np.asarray(measured, float))
-    a = np.column_stack([np.ones_like(y), y])
-    scale = np.array([1.0, 1.0 / max(float(y.max(initial=0.0)), 1e-300) * max(float(e.max(initial=0.0)), 1e-300)])
-    coef, _ = nnls(a * scale, e)
-    e0, k = coef * scale
+    y_hw, y_md = _as_float_pair(measured, model)
+    y = np.abs(y_hw)
+    e = np.abs(y_md - y_hw)
+    (e0, k), _ = nnls(np.column_stack([np.ones_like(y), y]), e)
     pred = e0 + k * y
     ss = float(np.sum((e - e.mean()) ** 2))
-    r2 = 1.0 - float(np.sum((e - pred) ** 2)) / ss if ss > 0 else float("nan")
+    r2 = 1.0 - float(np.sum((e - pred) ** 2)) / ss if ss > 0 else math.nan
     return Eq4Fit(float(e0), float(k), r2, "fitted (Eq. 4)")
-
-
-def normalised_error(measured: np.ndarray, model: np.ndarray, e0: float, kerr: float) -> np.ndarray:
-    """Eq. (5): ``|y_md − y_hw| / (|y_hw| + e0/kerr)`` evaluated as ``kerr·|e| / (kerr·|y_hw| + e0)``.
-
-    Undefined (NaN everywhere) when ``kerr = 0``: Eq. (5) then divides by an infinite floor.
-    """
-    y = np.asarray(measured, float)
-    e = np.abs(np.asarray(model, float) - y)
-    if kerr <= 0.0:
-        return np.full_like(e, np.nan)
-    den = kerr * np.abs(y) + e0
-    with np.errstate(invalid="ignore", divide="ignore"):
-        eps = np.where(den > 0, kerr * e / np.where(den > 0, den, 1.0), np.where(e > 0, np.inf, 0.0))
-    return eps
 
 
 @dataclass(frozen=True)
@@ -97,7 +91,7 @@ class EpsStats:
     def of(cls, eps: np.ndarray, eps_th: float) -> EpsStats:
         e = eps[np.isfinite(eps)]
         if e.size == 0:
-            return cls(*(float("nan"),) * 5)
+            return cls(*(math.nan,) * 5)
         return cls(float(e.mean()), float(e.std()), float(np.percentile(e, 95)), float(e.max()),
                    float(np.mean(e > eps_th)))
 
@@ -125,20 +119,23 @@ class ChannelMetrics:
 
 
 def channel_metrics(channel: str, unit: str, t: np.ndarray, measured: np.ndarray, model: np.ndarray, *,
-                    skip_s: float = 0.0, given: tuple[float, float] | None = None, eps_th: float = 0.225
+                    skip_s: float = 0.0, given: tuple[float, float] | None = None, eps_th: float | None = None
                     ) -> ChannelMetrics:
-    """All metrics of one channel over ``t >= t[0] + skip_s`` (transient skip, as nonlinearbenchmark.org)."""
+    """All metrics of one channel over ``t >= t[0] + skip_s`` (transient skip, as nonlinearbenchmark.org);
+    ``eps_th`` defaults to the monitor's threshold (Table 3, ``board_config/monitor.toml``)."""
+    if eps_th is None:
+        eps_th = load_monitor_settings().eps_th
     k = np.asarray(t) >= t[0] + skip_s
     if np.count_nonzero(k) < 2:
         raise InputError(f"channel '{channel}': transient skip {skip_s} s leaves fewer than 2 samples")
-    y, yh = np.asarray(measured, float)[k], np.asarray(model, float)[k]
+    y, yh = _as_float_pair(measured, model)[:, k]
     e = y - yh
     fit4 = fit_eq4(y, yh)
-    eps_f = EpsStats.of(normalised_error(y, yh, fit4.e0, fit4.kerr), eps_th)
+    eps_f = EpsStats.of(normalised_error(yh, y, fit4.e0, fit4.kerr), eps_th)
     g4 = eps_g = None
     if given is not None:
-        g4 = Eq4Fit(float(given[0]), float(given[1]), float("nan"), "given")
-        eps_g = EpsStats.of(normalised_error(y, yh, g4.e0, g4.kerr), eps_th)
+        g4 = Eq4Fit(float(given[0]), float(given[1]), math.nan, "given")
+        eps_g = EpsStats.of(normalised_error(yh, y, g4.e0, g4.kerr), eps_th)
     return ChannelMetrics(
         channel=channel, unit=unit, n_samples=int(y.size), skip_s=float(skip_s), fit_pct=fit_percent(y, yh),
         nrmse=nrmse(y, yh), rmse=rmse(y, yh), max_abs_error=float(np.max(np.abs(e))), mean_error=float(e.mean()),
@@ -163,17 +160,17 @@ class FrfMetrics:
 
 
 def frf_metrics(channel: str, unit: str, f: np.ndarray, measured: np.ndarray, model: np.ndarray) -> FrfMetrics:
-    h, hm = np.asarray(measured, complex), np.asarray(model, complex)
+    h, hm = np.asarray([measured, model], complex)  # both at once: an integer record cannot wrap around
     den = float(np.linalg.norm(h))
-    fit = 100.0 * (1.0 - float(np.linalg.norm(h - hm)) / den) if den > 0 else float("nan")
+    fit = 100.0 * (1.0 - float(np.linalg.norm(h - hm)) / den) if den > 0 else math.nan
     with np.errstate(divide="ignore", invalid="ignore"):
         db = 20 * np.log10(np.abs(hm) / np.abs(h))
     ph = np.degrees(np.angle(hm / np.where(h == 0, 1, h)))
     db_f = db[np.isfinite(db)]
     return FrfMetrics(
         channel, unit, fit,
-        float(np.sqrt(np.mean(db_f ** 2))) if db_f.size else float("nan"),
-        float(np.max(np.abs(db_f))) if db_f.size else float("nan"),
+        float(np.sqrt(np.mean(db_f ** 2))) if db_f.size else math.nan,
+        float(np.max(np.abs(db_f))) if db_f.size else math.nan,
         float(np.sqrt(np.mean(ph ** 2))), float(np.max(np.abs(ph))),
         float(f[int(np.argmax(np.abs(h)))]), float(f[int(np.argmax(np.abs(hm)))]),
     )
