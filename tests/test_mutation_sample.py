@@ -42,8 +42,8 @@ def test_overruns_that_never_accumulate_are_caught(monkeypatch):
 
 
 def test_latching_only_the_first_safe_cause_is_caught(monkeypatch):
-    plant(monkeypatch, regimes, "step_full", "else tuple(c.value for c in (causes or [fired.trigger])))",
-          "else (fired.trigger.value,))")
+    plant(monkeypatch, regimes, "step_full", "safe_causes = tuple(c.value for c in (causes or [fired.trigger]))",
+          "safe_causes = (fired.trigger.value,)")
     with pytest.raises(AssertionError):
         regimes_tests.test_every_simultaneous_cause_is_latched(regimes.Regime.MAINTENANCE)
 
