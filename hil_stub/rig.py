@@ -48,8 +48,8 @@ from typing import Any
 
 from board_config import MfcLimits, ParameterSet, load_mfc_limits
 from board_config.scenario import Scenario, load_scenario
-from drivers.link import ActuatorCommand, RigSample
-from drivers.sim_link import InProcessLink, set_sim_rig_factory
+from drivers.link import ActuatorCommand, Link, RigSample, open_link
+from drivers.sim_link import set_sim_rig_factory
 from hil_stub.amplifier import Amplifier
 from hil_stub.cell import RigCell
 from hil_stub.environment import Environment, Segment
@@ -305,9 +305,10 @@ class SimulatedRig:
                                    self.amplifier.refused_flag)
 
 
-def open_sim_link(url: str) -> InProcessLink:
-    """The in-process link to a :class:`SimulatedRig` built from a ``sim...`` URL."""
-    return InProcessLink(SimulatedRig.from_url(url), url=url)
+def open_sim_link(url: str) -> Link:
+    """The in-process link to a :class:`SimulatedRig` built from a ``sim...`` URL (``drivers.open_link``'s ``sim``
+    scheme, kept under this name for callers of the rig module)."""
+    return open_link(url)
 
 
 set_sim_rig_factory(SimulatedRig.from_url)
