@@ -140,8 +140,11 @@ def resolve_parameter_file(name_or_path: str | Path) -> Path:
     return shipped
 
 
-def load_parameter_set(name_or_path: str | Path) -> ParameterSet:
-    """Load and validate a parameter set; errors name file, key and reason."""
+def load_parameter_set(name_or_path: str | Path | ParameterSet) -> ParameterSet:
+    """Load and validate a parameter set; errors name file, key and reason. A :class:`ParameterSet` is returned as it
+    is, so callers that take either a name/path or a loaded set need no check of their own."""
+    if isinstance(name_or_path, ParameterSet):
+        return name_or_path
     path = resolve_parameter_file(name_or_path)
     data = read_toml(path)
     file = str(path)

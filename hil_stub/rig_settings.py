@@ -51,7 +51,7 @@ class RigSettings:
         return cls(
             where=scenario.source if scenario is not None else "<rig>",
             seed=int(seed if seed is not None else (scenario.seed if scenario is not None else 0)),
-            params=pset if isinstance(pset, ParameterSet) else load_parameter_set(pset),
+            params=load_parameter_set(pset),
             coupling=coupling,
             battery_initial_voltage=(battery_initial_voltage if battery_initial_voltage is not None
                                      else spec.battery_initial_voltage),

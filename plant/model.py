@@ -110,7 +110,7 @@ class PlantModel:
         core: Sequence[str | type[PhysicalEffect]] = NOMINAL_EFFECTS,
         effect_params: Mapping[str, float] | None = None,
     ) -> None:
-        self.params = params if isinstance(params, ParameterSet) else load_parameter_set(params)
+        self.params = load_parameter_set(params)
         entries: list[EffectEntry] = list(self.params.effects)
         set_values: dict[str, float] = {}
         set_units: dict[str, str] = {}

@@ -246,7 +246,7 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     from workbench.forward_selection import select_set
 
     t_start = time.perf_counter()
-    base = params if isinstance(params, ParameterSet) else load_parameter_set(params)
+    base = load_parameter_set(params)
     classes, pcands = split_candidates(candidates)
     present = {e.name for e in base.effects}
     skipped = [c.name for c in classes if c.name in present or c.__module__ + ":" + c.__qualname__ in present]

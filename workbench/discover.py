@@ -69,7 +69,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     t_start = time.perf_counter()
     say = on_progress or (lambda _msg: None)
     timings: dict[str, float] = {}
-    base = params if isinstance(params, ParameterSet) else load_parameter_set(params)
+    base = load_parameter_set(params)
     try:
         classes = resolve_candidates(add)
     except EffectError as exc:

@@ -118,7 +118,7 @@ def fit_records(records: Sequence[Record], params: ParameterSet | str = "table2"
     ``on_baseline(train_rms_sigma, held_rms_sigma)`` is called once the starting model has been scored,
     ``on_iteration(point)`` at every optimiser iteration (the live display of ``shm fit``)."""
     t0 = time.perf_counter()
-    base = params if isinstance(params, ParameterSet) else load_parameter_set(params)
+    base = load_parameter_set(params)
     try:
         classes = resolve_candidates(add)
     except EffectError as exc:
