@@ -5,7 +5,7 @@ The board logic never reads a clock: it gets the tick number (board time = tick 
 
 * :class:`VirtualClock` — as fast as the machine allows, deterministic: the clock jumps to each deadline.
 * :class:`WallClock` — real time: sleep until each deadline (coarse ``time.sleep``, then a short spin for the last
-  ``spin_s``), run the tick, measure.
+  ``spin_s``; no spin under a real-time policy), run the tick, measure.
 
 Per tick ``k`` the deadline is ``start + k / rate``. The tick's *jitter* is its start minus its deadline; it *misses
 its deadline* when it ends after the next deadline (the next tick then starts late — there is no catch-up burst and
@@ -16,6 +16,7 @@ p50, p99, max), busy time, deadline misses and the longest run of consecutive mi
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -46,11 +47,29 @@ class VirtualClock:
             self.t = t
 
 
-class WallClock:
-    """``time.perf_counter``; sleeps coarsely, then spins for the last ``spin_s`` for a tight start."""
+def running_real_time() -> bool:
+    """Whether this process runs under a real-time scheduling policy (``chrt -f``/``-r``: SCHED_FIFO or SCHED_RR)."""
+    try:
+        return os.sched_getscheduler(0) in (os.SCHED_FIFO, os.SCHED_RR)
+    except (AttributeError, OSError):  # not Linux, or not allowed to ask
+        return False
 
-    def __init__(self, spin_s: float = 0.0015) -> None:
-        self.spin_s = float(spin_s)
+
+#: the spin before a deadline at normal priority (a coarse sleep wakes up to ~1 ms late on a busy machine)
+DEFAULT_SPIN_S = 0.0015
+
+
+class WallClock:
+    """``time.perf_counter``; sleeps coarsely, then spins for the last ``spin_s`` for a tight start.
+
+    Under a real-time policy the default is no spin: the sleep itself is then precise, and a real-time thread
+    that spins keeps every normal-priority thread of its core from running — among them the kernel workers that
+    move pty bytes and the rig's own threads — so the board would starve the link it is waiting for (seen: two
+    boards under ``chrt -f 10`` on 2 cores made no progress for 15 minutes).
+    """
+
+    def __init__(self, spin_s: float | None = None) -> None:
+        self.spin_s = float(spin_s) if spin_s is not None else (0.0 if running_real_time() else DEFAULT_SPIN_S)
 
     def now(self) -> float:
         return time.perf_counter()

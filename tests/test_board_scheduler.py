@@ -83,6 +83,28 @@ def test_wall_clock_paces_real_time():
     assert stats.jitter_p50 >= 0.0
 
 
+def test_wall_clock_does_not_spin_under_a_real_time_policy(monkeypatch):
+    """A SCHED_FIFO board that spins starves the normal-priority threads of its core (the pty's kernel worker, the
+    rig's threads): under a real-time policy the default spin is 0 and the sleep alone keeps the pace."""
+    import os
+
+    import firmware_sim.scheduler as sch
+
+    monkeypatch.setattr(os, "sched_getscheduler", lambda pid: os.SCHED_FIFO)
+    assert sch.running_real_time() and WallClock().spin_s == 0.0
+    assert WallClock(spin_s=0.002).spin_s == 0.002  # an explicit spin is kept
+    stats = Scheduler(200.0, WallClock()).run(20, lambda k, o: None)
+    assert stats.elapsed == pytest.approx(20 / 200.0, abs=0.05)
+    monkeypatch.setattr(os, "sched_getscheduler", lambda pid: os.SCHED_OTHER)
+    assert not sch.running_real_time() and WallClock().spin_s == sch.DEFAULT_SPIN_S
+
+    def refuse(pid):
+        raise PermissionError("not allowed")
+
+    monkeypatch.setattr(os, "sched_getscheduler", refuse)
+    assert not sch.running_real_time()
+
+
 def test_rate_must_be_positive():
     with pytest.raises(ValueError, match="positive"):
         Scheduler(0.0)
