@@ -174,3 +174,26 @@ def test_to_dict_is_the_json_document_diagnose_prints():
     # no winner: no name, no kind, nothing blamed
     empty = _diagnosis(None).to_dict()
     assert empty["winner"] is None and empty["winner_kind"] is None and empty["found"] == []
+
+
+@pytest.mark.parametrize(("winner_kind", "explained", "base_held", "kind"), [
+    (None, False, 1.0, "nothing_missing"),
+    (None, True, 1.25, "nothing_missing"),  # at AT_NOISE_FLOOR exactly: still nothing missing
+    (None, False, 1.2500001, "unexplained"),
+    (None, False, 400.0, "unexplained"),
+    ("parameter", True, 50.0, "wrong_parameter"),
+    ("effect", True, 50.0, "missing"),
+    ("combination", True, 50.0, "combination"),
+    ("parameter", False, 50.0, "partial"),
+    ("effect", False, 50.0, "partial"),
+    ("combination", False, 50.0, "partial"),
+    ("effect", True, 1.0, "missing"),  # a winner decides whatever the baseline
+])
+def test_the_verdict_kind(winner_kind, explained, base_held, kind):
+    """docs/workbench.md's verdict kinds: no winner → nothing missing (nominal at the floor) or unexplained; a winner
+    that leaves more than noise → partial; else wrong parameter / missing effect / combination by its kind."""
+    from workbench.candidate_fit import AT_NOISE_FLOOR
+    from workbench.diagnose_verdict import verdict_kind
+
+    assert AT_NOISE_FLOOR == 1.25
+    assert verdict_kind(winner_kind, explained, base_held) == kind
