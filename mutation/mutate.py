@@ -45,7 +45,7 @@ STATE = OUT / "state.json"
 #: linked into the work directory as they are (mutmut copies them into mutants/)
 LINKED = ("board_config", "plant", "firmware_sim", "drivers", "hil_stub", "workbench", "studies", "shm_cli", "bench",
           "docs", "README.md")
-SOURCE_PATHS = ("board_config", "firmware_sim", "drivers", "workbench")
+SOURCE_PATHS = ("board_config", "firmware_sim", "drivers", "workbench", "studies")
 #: pytest exit codes that mean "the tests noticed": failed, interrupted (collection error), internal error, usage
 CAUGHT_CODES = {1, 2, 3, 4}
 NICENESS = 10
