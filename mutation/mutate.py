@@ -330,7 +330,10 @@ def tabulate(mods: list[Module], state: dict, fallback: bool) -> tuple[list[dict
                 row["survivors"].append(key)
                 survivors.append(f"### {key} ({status})\n\n```diff\n" + "\n".join(diff) + "\n```\n")
         considered = row["mutants"] - row["equivalent"] - row["not_checked"]
-        row["score"] = round(100.0 * row["caught"] / considered, 1) if considered else 100.0
+        # no mutant at all means mutmut did not run on the file (a wrong source path, a failing clean run): that is
+        # a failure of the check, never a 100 % score
+        row["score"] = round(100.0 * row["caught"] / considered, 1) if considered else (
+            100.0 if row["mutants"] else 0.0)
         rows.append(row)
     return rows, survivors, stale
 
