@@ -141,3 +141,34 @@ def test_explained_at_the_floor_or_a_tiny_share_of_a_large_excess():
     assert explained(lim2 * (1 - 1e-9), base2, n) and not explained(lim2 * (1 + 1e-6), base2, n)
     # a baseline already at the floor has no excess to share
     assert not explained(1.0 + tol + 0.01, 1.0, n) and not explained(1.0 + tol + 0.01, 0.5, n)
+
+
+def test_small_residuals_and_short_training_parts():
+    """RSS in σ² units can be below 1; one training sample (or none) still gives finite training scores."""
+    c = cand(0.1, train_rss=0.04, n_train=1)
+    score(c, 0.4, 0.02)
+    assert c.held_reduction == pytest.approx(0.75) and c.accepted
+    assert c.delta_bic_held == pytest.approx(1000 * math.log(4.0) - math.log(1000))
+    assert c.aic_train == pytest.approx(math.log(0.04) + 2) and c.bic_train == pytest.approx(math.log(0.04))
+    empty = cand(0.1, train_rss=0.04, n_train=0)
+    score(empty, 0.4, 0.02)
+    assert empty.aic_train == pytest.approx(math.log(0.04) + 2)
+
+
+def test_delta_bic_exactly_zero_is_not_accepted_and_a_small_positive_one_is():
+    same = cand(400.0, k=1)
+    score(same, 400.0, 0.0, k_ref=1)  # no extra parameter, no gain: ΔBIC = 0 exactly
+    assert same.delta_bic_held == 0.0 and same.held_reduction == 0.0 and not same.accepted
+    slight = cand(400.0 / math.exp(0.5 / 1000), k=1)
+    score(slight, 400.0, 0.0, k_ref=1)
+    assert 0.0 < slight.delta_bic_held < 1.0 and slight.accepted
+
+
+def test_explained_exactly_at_the_excess_share_is_explained():
+    n = 2000
+    held = 1.21
+    assert held > 1.0 + noise_tolerance(n)
+    base = math.sqrt((held ** 2 - 1.0) / EXCESS_SHARE_EXPLAINED + 1.0)
+    assert held ** 2 - 1.0 == EXCESS_SHARE_EXPLAINED * (base ** 2 - 1.0)  # exactly on the share (checked)
+    assert explained(held, base, n)
+    assert not explained(math.nextafter(held, 2.0), base, n)

@@ -287,3 +287,27 @@ def test_bias_statistic_exactly_on_the_band_passes(monkeypatch):
     monkeypatch.setattr(rt, "ndtri", lambda q: t)
     r = rt.bias_test(e)
     assert r.band == r.statistic and r.passed is True
+
+
+def test_single_precision_records_are_computed_in_double():
+    """A float32 record (a DAQ's native type) gives the double-precision statistics of the same values."""
+    from workbench.residual_tests import bias_test
+
+    a32 = RNG.standard_normal(600).astype(np.float32)
+    b32 = RNG.standard_normal(600).astype(np.float32) + np.float32(0.3)
+    lags = np.arange(-3, 4)
+    got = cross_correlation(a32, b32, lags)
+    want = cross_correlation(a32.astype(np.float64), b32.astype(np.float64), lags)
+    assert got == pytest.approx(want, abs=1e-9)  # (the float32 mean differs in its last bits; float32 sums: 1e-7)
+    e32 = (RNG.standard_normal(500) + 0.1).astype(np.float32)
+    one, other = bias_test(e32), bias_test(e32.astype(np.float64))
+    assert (one.statistic, one.p_value, float(one.r[0])) == (other.statistic, other.p_value, float(other.r[0]))
+
+
+def test_unit_energy_signals_and_whole_number_float_lags():
+    """Signals whose centred energies multiply to exactly 1 are not 'flat'; lags given as whole-number floats
+    (np.linspace) are read as integers."""
+    a = np.array([0.5, -0.5, 0.5, -0.5])
+    assert cross_correlation(a, a, np.array([0, 1])).tolist() == [1.0, -0.75]
+    x, y = RNG.standard_normal(100), RNG.standard_normal(100)
+    assert cross_correlation(x, y, np.linspace(0, 4, 5)).tolist() == cross_correlation(x, y, np.arange(5)).tolist()
