@@ -311,3 +311,9 @@ def test_unit_energy_signals_and_whole_number_float_lags():
     assert cross_correlation(a, a, np.array([0, 1])).tolist() == [1.0, -0.75]
     x, y = RNG.standard_normal(100), RNG.standard_normal(100)
     assert cross_correlation(x, y, np.linspace(0, 4, 5)).tolist() == cross_correlation(x, y, np.arange(5)).tolist()
+
+
+def test_an_overflowing_energy_gives_nan_not_a_silent_zero():
+    big = RNG.standard_normal(200) * 1e160  # Σa² overflows to inf
+    with np.errstate(over="ignore"):
+        assert np.isnan(cross_correlation(big, RNG.standard_normal(200), np.arange(3))).all()
