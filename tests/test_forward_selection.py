@@ -162,15 +162,13 @@ def test_what_a_candidate_touches():
 
 
 def test_alternative_starts_never_share_what_they_touch():
-    """A start touching the winner or an earlier start is skipped (the next one is still taken); the starts
-    accumulate what they touch."""
-    winner = fitted(60.0, "laser_sensor")
-    others = [fitted(61.0, "laser_sensor", "k3"),  # touches the winner: skipped
-              fitted(62.0, "k3"), fitted(63.0, "k3", "c1"),  # the second touches the first start: skipped
-              fitted(64.0, "c1"), fitted(65.0, "m3")]
-    assert [c.effect for c in fs.alternative_starts(winner, others, n=3)] == ["k3", "c1", "m3"]
-    others = [fitted(62.0, "k3"), fitted(63.0, "c1"), fitted(64.0, "k3", "m3"), fitted(65.0, "m1")]
-    assert [c.effect for c in fs.alternative_starts(winner, others, n=3)] == ["k3", "c1", "m1"]
+    """A start touching the winner or an earlier start is skipped and the next one is still taken; what the
+    winner touches stays excluded after starts are taken (the starts accumulate, they do not replace it)."""
+    winner = fitted(60.0, "electrical")  # touches R_ep and C_ep
+    others = [fitted(61.0, "k3"), fitted(62.0, "R_ep"), fitted(63.0, "m3"), fitted(64.0, "C_ep")]
+    assert [c.effect for c in fs.alternative_starts(winner, others, n=3)] == ["k3", "m3"]
+    others = [fitted(61.0, "R_ep"), fitted(62.0, "electrical"), fitted(63.0, "k3")]
+    assert [c.effect for c in fs.alternative_starts(fitted(60.0, "laser_sensor"), others, n=3)] == ["R_ep", "k3"]
 
 
 def test_strength_order_accepted_and_fitted_first():
