@@ -45,7 +45,7 @@ STATE = OUT / "state.json"
 #: linked into the work directory as they are (mutmut copies them into mutants/)
 LINKED = ("board_config", "plant", "firmware_sim", "drivers", "hil_stub", "workbench", "studies", "shm_cli", "bench",
           "docs", "README.md")
-SOURCE_PATHS = ("board_config", "firmware_sim", "drivers", "workbench")
+SOURCE_PATHS = ("board_config", "firmware_sim", "drivers", "workbench", "studies")
 #: pytest exit codes that mean "the tests noticed": failed, interrupted (collection error), internal error, usage
 CAUGHT_CODES = {1, 2, 3, 4}
 NICENESS = 10
@@ -330,7 +330,10 @@ def tabulate(mods: list[Module], state: dict, fallback: bool) -> tuple[list[dict
                 row["survivors"].append(key)
                 survivors.append(f"### {key} ({status})\n\n```diff\n" + "\n".join(diff) + "\n```\n")
         considered = row["mutants"] - row["equivalent"] - row["not_checked"]
-        row["score"] = round(100.0 * row["caught"] / considered, 1) if considered else 100.0
+        # no mutant at all means mutmut did not run on the file (a wrong source path, a failing clean run): that is
+        # a failure of the check, never a 100 % score
+        row["score"] = round(100.0 * row["caught"] / considered, 1) if considered else (
+            100.0 if row["mutants"] else 0.0)
         rows.append(row)
     return rows, survivors, stale
 

@@ -151,3 +151,90 @@ def test_the_verdict_says_how_much_each_term_explains():
     d.term_shares = {"piezo_creep": 0.2, "laser_sensor": 0.3}
     assert "overlap" in term_shares_words(d, pair)
     assert term_shares_words(SimpleNamespace(), pair) == ""
+
+
+def test_what_a_candidate_touches():
+    """Effects by name, independent parameters by member, tied groups by their own name (not their members)."""
+    assert fs._touches(spec("piezo_creep", "k3")) == {"piezo_creep", "k3"}
+    assert fs._touches(spec("electrical")) == {"R_ep", "C_ep"}
+    assert fs._touches(spec("stiffness")) == {"stiffness"}
+    assert fs._touches(spec("laser_sensor", "stiffness", "m3")) == {"laser_sensor", "stiffness", "m3"}
+
+
+def test_alternative_starts_never_share_what_they_touch():
+    """A start touching the winner or an earlier start is skipped and the next one is still taken; what the
+    winner touches stays excluded after starts are taken (the starts accumulate, they do not replace it)."""
+    winner = fitted(60.0, "electrical")  # touches R_ep and C_ep
+    others = [fitted(61.0, "k3"), fitted(62.0, "R_ep"), fitted(63.0, "m3"), fitted(64.0, "C_ep")]
+    assert [c.effect for c in fs.alternative_starts(winner, others, n=3)] == ["k3", "m3"]
+    others = [fitted(61.0, "R_ep"), fitted(62.0, "electrical"), fitted(63.0, "k3")]
+    assert [c.effect for c in fs.alternative_starts(fitted(60.0, "laser_sensor"), others, n=3)] == ["R_ep", "k3"]
+
+
+def test_strength_order_accepted_and_fitted_first():
+    acc_weak, acc_strong = fitted(50.0, "k3"), fitted(5.0, "c1")
+    rejected = fitted(4.0, "m3", accepted=False)
+    scr_good, scr_bad = screened("piezo_creep"), screened("laser_sensor")
+    scr_good.screen_train_rms_sigma, scr_bad.screen_train_rms_sigma = 20.0, 200.0
+    unstable = fitted(1.0, "d_ep")
+    unstable.stable = False
+    combo = fitted(0.5, "k3", "c1")
+    nospec = fitted(0.5, "m1")
+    nospec.spec = None
+    got = [c.effect for c in fs._strength_order([scr_bad, rejected, acc_weak, unstable, combo, scr_good, nospec,
+                                                 acc_strong])]
+    assert got == ["c1", "k3", "m3", "piezo_creep", "laser_sensor"]
+
+
+def test_at_noise_floor_boundary():
+    from workbench.candidate_fit import noise_tolerance
+
+    c = fitted(1.0, "k3")
+    limit = 1.0 + noise_tolerance(c.n_eff_held)
+    c.outcome.held_rms_sigma = limit
+    assert fs.at_noise_floor(c)
+    c.outcome.held_rms_sigma = math.nextafter(limit, 2.0)
+    assert not fs.at_noise_floor(c)
+    c.outcome.held_rms_sigma = 1.9  # far above the floor (tolerance ≈ 0.2 σ here)
+    assert not fs.at_noise_floor(c)
+
+
+def test_better_boundaries_and_rejected_sets():
+    """Exactly at the margins: a plain set within PREFER_PARAMETER_WITHIN (inclusive) wins either way round; a
+    challenger must be strictly better on ΔBIC and leave strictly less than 1/PREFER_PARAMETER_WITHIN of the energy;
+    a rejected or unfitted set never wins, and a rejected incumbent loses to any accepted challenger."""
+    eff = fitted(2.0, "thermal_drift")
+    plain = fitted(2.0, "k3")
+    plain.outcome.held_rss = PREFER_PARAMETER_WITHIN * eff.held_rss
+    assert fs.better(eff, plain) is plain and fs.better(plain, eff) is plain
+    plain.outcome.held_rss = math.nextafter(PREFER_PARAMETER_WITHIN * eff.held_rss, math.inf)
+    eff.delta_bic_held = plain.delta_bic_held + 1.0
+    # just outside the margin: the effect set competes on ΔBIC and energy, and wins here
+    assert fs.better(plain, eff) is eff and fs.better(eff, plain) is eff
+    # two plain sets (or two with effects): no preference, ΔBIC and the energy margin decide
+    p1, p2 = fitted(3.0, "k3"), fitted(1.0, "c1")
+    assert fs.better(p1, p2) is p2 and fs.better(p2, p1) is p2
+    p3 = fitted(3.0, "m3")
+    p3.outcome.held_rss = p1.held_rss / PREFER_PARAMETER_WITHIN * 1.0000001
+    assert fs.better(p3, p1) is p3 and fs.better(p1, p3) is p1  # within the margin: the incumbent stays
+    # equal ΔBIC is not better, even with less energy
+    a, b = fitted(3.0, "laser_sensor"), fitted(1.0, "piezo_creep")
+    b.delta_bic_held = a.delta_bic_held
+    assert fs.better(a, b) is a
+    # exactly the energy margin is not enough
+    c = fitted(1.0, "piezo_creep")
+    c.outcome.held_rss = a.held_rss / PREFER_PARAMETER_WITHIN
+    c.delta_bic_held = a.delta_bic_held + 1.0
+    assert c.held_rss * PREFER_PARAMETER_WITHIN == pytest.approx(a.held_rss)
+    if c.held_rss * PREFER_PARAMETER_WITHIN == a.held_rss:
+        assert fs.better(a, c) is a
+    # rejected / unfitted
+    rej = fitted(3.0, "laser_sensor", accepted=False)
+    assert fs.better(rej, fitted(5.0, "k3")).effect == "k3"
+    unfitted = screened("piezo_creep")
+    assert fs.better(unfitted, fitted(5.0, "k3")).effect == "k3"
+    assert fs.better(fitted(5.0, "k3"), unfitted).effect == "k3"
+    nospec = fitted(5.0, "k3")
+    nospec.spec = None  # a set whose spec is unknown is not "plain": a plain challenger within the margin wins
+    m3 = fitted(5.0, "m3")
+    assert fs.better(nospec, m3) is m3

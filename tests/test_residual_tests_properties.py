@@ -243,3 +243,77 @@ def test_effective_lags_count_uncorrelated_lags_fully():
     a = np.tile([1.0, 0.0, -1.0, 0.0], 100)
     assert effective_lags(a, np.array([1, 2])) == 2.0
     assert effective_lags(a, np.array([5])) == 1.0
+
+
+def test_bias_test_result_in_full():
+    """The bias test's whole result: key, symbol and title from TITLES, one lag 0 (integers), the mean as its value,
+    the two-sided normal band, the level, |t|, p, the verdict, what it points at and the note — and the
+    not-applicable result of a constant residual, with NaN statistic and p."""
+    from scipy.special import ndtr, ndtri
+
+    from workbench.residual_tests import TITLES, bias_test
+
+    e = np.array([1, 2, 3, 4, 6])  # integers: read as floats; mean 3.2, sd (ddof 1) √3.7
+    r = bias_test(e, level=0.05)
+    t = 3.2 / (math.sqrt(3.7) / math.sqrt(5))
+    assert (r.key, r.symbol, r.title) == ("bias", *TITLES["bias"])
+    assert r.lags.tolist() == [0] and r.lags.dtype.kind == "i" and r.worst_lag == 0
+    assert r.r.tolist() == [pytest.approx(3.2)]
+    assert r.band == pytest.approx(float(ndtri(0.975))) and r.level == 0.05
+    assert r.statistic == pytest.approx(t) and r.p_value == pytest.approx(2 * float(ndtr(-t)))
+    assert r.passed is False and r.points_at == POINTS_AT["bias"]
+    assert r.note == f"mean residual 3.2 (SI), t = {t:.3g}"
+    assert r.to_dict()["lags"] == [0]
+    # negative mean: |t| is the statistic
+    assert bias_test(-e, level=0.05).statistic == pytest.approx(t)
+    # two samples are enough for a standard deviation
+    two = bias_test(np.array([1.0, 2.0]))
+    assert two.passed is not None and two.statistic == pytest.approx(1.5 / (math.sqrt(0.5) / math.sqrt(2)))
+    for const in (np.full(10, 2.5), np.array([4.0])):
+        c = bias_test(const, level=0.05)
+        assert (c.key, c.symbol, c.title) == ("bias", *TITLES["bias"])
+        assert c.lags.tolist() == [0] and c.lags.dtype.kind == "i" and c.worst_lag == 0
+        assert c.r.tolist() == [float(const[0])] and c.band == pytest.approx(float(ndtri(0.975)))
+        assert c.level == 0.05 and math.isnan(c.statistic) and math.isnan(c.p_value) and c.passed is None
+        assert c.points_at == POINTS_AT["bias"] and c.note == "not applicable: the residual is constant"
+
+
+def test_bias_statistic_exactly_on_the_band_passes(monkeypatch):
+    """|t| equal to the band passes (the band is inclusive, like the correlation tests')."""
+    import workbench.residual_tests as rt
+
+    e = np.array([1.0, 2.0, 3.0, 4.0, 6.0])
+    t = rt.bias_test(e).statistic  # the band becomes exactly the statistic
+    monkeypatch.setattr(rt, "ndtri", lambda q: t)
+    r = rt.bias_test(e)
+    assert r.band == r.statistic and r.passed is True
+
+
+def test_single_precision_records_are_computed_in_double():
+    """A float32 record (a DAQ's native type) gives the double-precision statistics of the same values."""
+    from workbench.residual_tests import bias_test
+
+    a32 = RNG.standard_normal(600).astype(np.float32)
+    b32 = RNG.standard_normal(600).astype(np.float32) + np.float32(0.3)
+    lags = np.arange(-3, 4)
+    got = cross_correlation(a32, b32, lags)
+    want = cross_correlation(a32.astype(np.float64), b32.astype(np.float64), lags)
+    assert got == pytest.approx(want, abs=1e-9)  # (the float32 mean differs in its last bits; float32 sums: 1e-7)
+    e32 = (RNG.standard_normal(500) + 0.1).astype(np.float32)
+    one, other = bias_test(e32), bias_test(e32.astype(np.float64))
+    assert (one.statistic, one.p_value, float(one.r[0])) == (other.statistic, other.p_value, float(other.r[0]))
+
+
+def test_unit_energy_signals_and_whole_number_float_lags():
+    """Signals whose centred energies multiply to exactly 1 are not 'flat'; lags given as whole-number floats
+    (np.linspace) are read as integers."""
+    a = np.array([0.5, -0.5, 0.5, -0.5])
+    assert cross_correlation(a, a, np.array([0, 1])).tolist() == [1.0, -0.75]
+    x, y = RNG.standard_normal(100), RNG.standard_normal(100)
+    assert cross_correlation(x, y, np.linspace(0, 4, 5)).tolist() == cross_correlation(x, y, np.arange(5)).tolist()
+
+
+def test_an_overflowing_energy_gives_nan_not_a_silent_zero():
+    big = RNG.standard_normal(200) * 1e160  # Σa² overflows to inf
+    with np.errstate(over="ignore"):
+        assert np.isnan(cross_correlation(big, RNG.standard_normal(200), np.arange(3))).all()

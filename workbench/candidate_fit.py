@@ -169,9 +169,11 @@ def score(cand: CandidateResult, rss_ref: float, min_reduction: float, k_ref: in
     rho = min(max(o.rho1_held, 0.0), 0.99)
     n_eff = max(o.n_held * (1 - rho) / (1 + rho), k + 2.0)
     cand.n_eff_held = n_eff
-    cand.held_reduction = 1.0 - o.held_rss / rss_ref if rss_ref > 0 else float("nan")
-    ratio = rss_ref / max(o.held_rss, 1e-300)
-    cand.delta_bic_held = n_eff * math.log(ratio) - max(k, 0) * math.log(n_eff)
+    if rss_ref > 0:
+        cand.held_reduction = 1.0 - o.held_rss / rss_ref
+        cand.delta_bic_held = n_eff * math.log(rss_ref / max(o.held_rss, 1e-300)) - max(k, 0) * math.log(n_eff)
+    else:  # the reference leaves nothing on the held-out data: nothing to gain (was a math domain error)
+        cand.held_reduction, cand.delta_bic_held = float("nan"), -math.inf
     n = max(o.n_train, 1)
     ll = n * math.log(max(o.train_rss, 1e-300) / n)
     cand.aic_train = ll + 2 * len(cand.free)

@@ -151,6 +151,18 @@ def identifiability_lines(d: Any, cand: CandidateResult, base: ParameterSet) -> 
     return lines
 
 
+def verdict_kind(winner_kind: str | None, explained_by_winner: bool, base_held_sigma: float) -> str:
+    """The verdict's kind (docs/workbench.md, "Verdicts"): no accepted candidate → "nothing_missing" when the nominal
+    model is at the noise floor (held-out RMS ≤ :data:`AT_NOISE_FLOOR` σ), else "unexplained"; a winner that does not
+    bring the held-out error to the noise floor (:func:`explained`) → "partial"; otherwise by the winner's kind: a
+    re-estimation → "wrong_parameter", an effect → "missing", a set → "combination"."""
+    if winner_kind is None:
+        return "nothing_missing" if base_held_sigma <= AT_NOISE_FLOOR else "unexplained"
+    if not explained_by_winner:
+        return "partial"
+    return {"parameter": "wrong_parameter", "effect": "missing"}.get(winner_kind, "combination")
+
+
 def verdict_for(d: Any, base: ParameterSet, params_label: str) -> None:
     """Fill ``d.verdict``, ``d.message``, ``d.fit_command``, ``d.next_command``, ``d.identifiability``."""
     winner = d.winner
@@ -160,7 +172,8 @@ def verdict_for(d: Any, base: ParameterSet, params_label: str) -> None:
     discover = discover_command(d, params_label)
     if winner is None:
         best = next((c for c in ranking if c.stable and c.outcome is not None), None)
-        if base_held <= AT_NOISE_FLOOR:
+        verdict = verdict_kind(None, False, base_held)
+        if verdict == "nothing_missing":
             msg = (f"Nothing missing: the nominal model already explains the held-out data to the noise floor "
                    f"({base_held:.3g} σ RMS), and no candidate reduces the held-out error by the required margin")
             if best is not None:
@@ -171,7 +184,7 @@ def verdict_for(d: Any, base: ParameterSet, params_label: str) -> None:
                             "noise would tell")
             if failed_before:
                 msg += f". Residual tests that still fail: {', '.join(failed_before)}"
-            d.verdict, d.message = "nothing_missing", msg + "."
+            d.verdict, d.message = verdict, msg + "."
             return
         msg = (f"Not explained by the library: the nominal model misses the held-out data by {base_held:.3g} σ RMS, "
                "but no candidate effect or parameter re-estimation removes enough of it on held-out data")
@@ -182,7 +195,7 @@ def verdict_for(d: Any, base: ParameterSet, params_label: str) -> None:
         if failed_before:
             msg += f". Failed residual tests: {', '.join(failed_before)}"
         msg += f".\nLook for the missing term beyond the library:\n  {discover}"
-        d.verdict, d.message, d.next_command = "unexplained", msg, discover
+        d.verdict, d.message, d.next_command = verdict, msg, discover
         return
     d.fit_command = fit_command(d, winner, params_label)
     ok = explained(winner.held_rms_sigma, base_held, winner.n_eff_held)
@@ -193,11 +206,9 @@ def verdict_for(d: Any, base: ParameterSet, params_label: str) -> None:
     runner = next((c for c in ranking if c is not winner and c.accepted and c.members != winner.members), None)
     if kind == "parameter":
         head = f"{parameter_words(winner, base)} — re-estimate it. Re-estimating {winner.effect} {cut}"
-        verdict = "wrong_parameter"
     elif kind == "effect":
         head = (f"Missing effect: {winner.effect} — {winner.description}. Adding it {cut}" if ok else
                 f"Partly explained by {winner.effect} — {winner.description}. Adding it {cut}")
-        verdict = "missing"
     else:
         words = []
         for step in d.steps:
@@ -217,7 +228,6 @@ def verdict_for(d: Any, base: ParameterSet, params_label: str) -> None:
         shares = term_shares_words(d, winner)
         if shares:
             head += f". What each explains: {shares}"
-        verdict = "combination"
     msg = head
     if runner is not None and kind != "combination":
         msg += f"; runner-up {runner.effect} ({runner.held_rms_sigma:.3g} σ, ΔBIC {runner.delta_bic_held:.4g})"
@@ -243,5 +253,4 @@ def verdict_for(d: Any, base: ParameterSet, params_label: str) -> None:
                 "so this is at best part of the story. Where the nominal model fails: " + " | ".join(d.where_it_fails)
                 + f"\nLook for the rest beyond the library:\n  {discover}")
         d.next_command = discover
-        verdict = "partial"
-    d.verdict, d.message = verdict, msg
+    d.verdict, d.message = verdict_kind(kind, ok, base_held), msg

@@ -290,9 +290,8 @@ def better(a: CandidateResult, b: CandidateResult) -> CandidateResult:
         return a
     if a.outcome is None or not a.accepted:
         return b
+    # (a plain incumbent within the margin needs no rule of its own: the last rule already keeps it)
     a_plain, b_plain = a.spec is not None and not a.spec.effects, b.spec is not None and not b.spec.effects
-    if a_plain and not b_plain and a.held_rss <= PREFER_PARAMETER_WITHIN * b.held_rss:
-        return a
     if b_plain and not a_plain and b.held_rss <= PREFER_PARAMETER_WITHIN * a.held_rss:
         return b
     if b.delta_bic_held > a.delta_bic_held and b.held_rss * PREFER_PARAMETER_WITHIN < a.held_rss:
