@@ -103,7 +103,9 @@ class FitRange:
             s = np.arcsinh(v / self.linthresh)
         else:
             s = v
-        return (s - a) / (b - a)
+        # clipped again: on a narrow log range the rounding of log10 alone can land 1e-10 outside [0, 1], which an
+        # optimiser bounded to the unit box refuses as an infeasible start
+        return np.clip((s - a) / (b - a), 0.0, 1.0)
 
     def from_unit(self, u: float | np.ndarray) -> np.ndarray:
         """The value at unit-box coordinate ``u`` (clipped into [0, 1])."""
