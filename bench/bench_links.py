@@ -7,6 +7,11 @@ deadline, p50 / p99 / max) and deadline misses (a tick ending after the next dea
 (issue 6): zero deadline misses and p99 round trip < 5 ms over Modbus TCP and over the pty. The stub's own
 100 Hz loop reports its deadline misses and jitter too.
 
+Under load (issue 14): the three links again while one CPU-bound process per core runs at normal priority, the
+board and the stub at real-time priority where the machine allows it (``chrt -f 10``, as docs/real-rig.md
+recommends for a rig run); targets: zero deadline misses on Modbus TCP, the serial pty and Modbus RTU, TCP p99
+round trip < 2 ms.
+
 Baseline, measured in the same run: the in-process link (``drivers.sim_link.InProcessLink``) to the same kind of
 rig, unpaced — what an exchange costs with no transport at all; each link's median round trip is quoted as a
 ratio to it. Control, also in the same run: the same paced 100 Hz loop on the in-process link — the deadline misses
@@ -20,6 +25,7 @@ import gc
 import json
 import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -39,9 +45,9 @@ def _command(k: int) -> ActuatorCommand:
     return ActuatorCommand(seq=k, v_ch1=100.0 + v, v_ch2=100.0 - v, board_current=0.003)
 
 
-def _start_stub(summary: Path) -> tuple[subprocess.Popen, dict[str, str]]:
-    cmd = [sys.executable, "-m", "shm_cli.main", "hil", "serve", "--modbus-tcp", "127.0.0.1:0", "--serial", "pty",
-           "--modbus-rtu", "pty", "--clock", "realtime", "--hv", "present", "--status-every", "0",
+def _start_stub(summary: Path, prefix: tuple[str, ...] = ()) -> tuple[subprocess.Popen, dict[str, str]]:
+    cmd = [*prefix, sys.executable, "-m", "shm_cli.main", "hil", "serve", "--modbus-tcp", "127.0.0.1:0",
+           "--serial", "pty", "--modbus-rtu", "pty", "--clock", "realtime", "--hv", "present", "--status-every", "0",
            "--summary", str(summary)]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
                             env={**os.environ, "MFC_SHM_THREADS": "1"})
@@ -121,6 +127,86 @@ def _in_process_baseline(n: int) -> dict:
             "rtt_p99_ms": 1e3 * float(np.percentile(times, 99))}
 
 
+#: the real-time priority asked for under load (``chrt -f 10``, as docs/real-rig.md recommends for a rig run)
+RT_PRIORITY = 10
+
+
+def _cpu_hogs(n: int) -> list[subprocess.Popen]:
+    """``n`` CPU-bound processes at normal priority (one per core): the concurrent job of issue 14 point 4."""
+    return [subprocess.Popen([sys.executable, "-c", "while True: pass"], stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL) for _ in range(n)]
+
+
+def _stop(procs: list[subprocess.Popen]) -> None:
+    for pr in procs:
+        pr.kill()
+    for pr in procs:
+        pr.wait(timeout=10)
+
+
+def _chrt_prefix() -> tuple[str, ...]:
+    """``chrt -f RT_PRIORITY`` when this machine lets us use it (root or CAP_SYS_NICE), else nothing."""
+    chrt = shutil.which("chrt")
+    if chrt is None:
+        return ()
+    ok = subprocess.run([chrt, "-f", str(RT_PRIORITY), "true"], stdout=subprocess.DEVNULL,
+                        stderr=subprocess.DEVNULL).returncode == 0
+    return (chrt, "-f", str(RT_PRIORITY)) if ok else ()
+
+
+class _RealTimePriority:
+    """This process at SCHED_FIFO ``RT_PRIORITY`` for the block, best effort; the old policy restored after.
+    (The board's clock does not spin under a real-time policy: firmware_sim.scheduler.WallClock.)"""
+
+    def __enter__(self) -> bool:
+        self.old: tuple[int, os.sched_param] | None = None
+        try:
+            self.old = (os.sched_getscheduler(0), os.sched_getparam(0))
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(RT_PRIORITY))
+            return True
+        except (AttributeError, OSError):
+            self.old = None
+            return False
+
+    def __exit__(self, *exc: object) -> None:
+        if self.old is not None:
+            os.sched_setscheduler(0, self.old[0], self.old[1])
+
+
+def _under_load(seconds: float, seconds_rtu: float) -> dict:
+    """The links again with a CPU-bound process per core running (normal priority), the board and the stub at
+    real-time priority where the machine allows it (as a rig run would be: ``chrt -f 10``)."""
+    n_hogs = os.cpu_count() or 1
+    prefix = _chrt_prefix()
+    summary_path = Path(tempfile.mkstemp(prefix="shm-hil-bench-load-", suffix=".json")[1])
+    proc, urls = _start_stub(summary_path, prefix)
+    hogs = _cpu_hogs(n_hogs)
+    try:
+        time.sleep(1.0)  # let the load average see the hogs
+        load_start = os.getloadavg()[0]
+        with _RealTimePriority() as board_rt:
+            links = {"modbus_tcp": _paced_run(urls["modbus_tcp"], seconds),
+                     "serial_pty": _paced_run(urls["serial_pty"], seconds),
+                     "modbus_rtu_pty": _paced_run(urls["modbus_rtu"], seconds_rtu)}
+        load_end = os.getloadavg()[0]
+    finally:
+        _stop(hogs)
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait(timeout=5)
+        summary_path.unlink(missing_ok=True)
+    targets = {"modbus_tcp": {"zero_deadline_misses": links["modbus_tcp"]["deadline_misses"] == 0,
+                              "p99_rtt_below_2_ms": (links["modbus_tcp"]["rtt_p99_ms"] or math.inf) < 2.0},
+               "serial_pty": {"zero_deadline_misses": links["serial_pty"]["deadline_misses"] == 0},
+               "modbus_rtu_pty": {"zero_deadline_misses": links["modbus_rtu_pty"]["deadline_misses"] == 0}}
+    return {"cpu_hogs": n_hogs, "board_realtime_priority": board_rt, "stub_realtime_priority": bool(prefix),
+            "load_average_1min_start_end": [load_start, load_end], "links": links, "targets": targets,
+            "targets_met": all(all(t.values()) for t in targets.values())}
+
+
 def run(out_dir: Path, quick: bool) -> dict:
     load_before = os.getloadavg()
     seconds = 5.0 if quick else 60.0
@@ -167,6 +253,13 @@ def run(out_dir: Path, quick: bool) -> dict:
         "targets_met": all(all(t.values()) for t in targets.values()),
     }
     result["control_deadline_misses"] = control["deadline_misses"]
+    # issue 14 point 4: the same links with a CPU-bound job on every core
+    load = _under_load(seconds, seconds_rtu)
+    result["under_cpu_load"] = load
+    result["under_cpu_load_targets_met"] = load["targets_met"]
+    for name, res in load["links"].items():
+        result[f"under_load_{name}_rtt_p99_ms"] = res["rtt_p99_ms"]
+        result[f"under_load_{name}_deadline_misses"] = res["deadline_misses"]
     for name, res in links.items():  # flat keys for the bench runner's printout
         result[f"{name}_rtt_p99_ms"] = res["rtt_p99_ms"]
         result[f"{name}_deadline_misses"] = res["deadline_misses"]
