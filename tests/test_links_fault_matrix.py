@@ -218,16 +218,31 @@ def test_fault_matrix_lockstep(scen, clean_verdicts, kind: str, fault: str):
 @pytest.mark.parametrize("kind", LINKS)
 @pytest.mark.parametrize("fault", ["clean", "drop 1 %", "drop 5 %", "corrupt 1 %", "latency 2-5 ms"])
 def test_fault_matrix_realtime(scen, clean_verdicts, kind: str, fault: str):
-    """The same in real time (stub paced at 100 Hz, board on the wall clock): timing on a shared machine is not
-    deterministic, so only the documented SAFE rule and the verdicts are asserted; the table is printed."""
+    """The same in real time (stub paced at 100 Hz, board on the wall clock). Always: the documented SAFE rule, and
+    the clean MBIT verdicts when no SAFE interrupted them. When the run has what a rig run is documented to need —
+    real-time priority (``chrt -f 10``) and a machine not busier than its cores (docs/real-rig.md) — also what the
+    quiet-machine tables show run after run: the visit ends with the clean verdict wherever the fault rate leaves
+    time for it (a rig answering in 2-5 ms included), and lost replies cost about one exchange each (the pty paths
+    add a few stalls of their own from run to run: 26 lost -> 26 to 30 failed on serial)."""
+    from firmware_sim.scheduler import running_real_time
+
+    quiet_rt = running_real_time() and os.getloadavg()[0] < (os.cpu_count() or 1)
     result, cfg, lost, _late = run_case(scen, kind, fault, realtime=True)
     s = summarise(result)
-    check_safe_as_documented(result, cfg)
-    if s["safe"] == 0:
-        assert s["mbits"] == clean_verdicts["mbits"]
     line = (f"MATRIX realtime {kind:10s} {fault:15s} lost {lost:3d} failed {s['failed']:4d} SAFE {s['safe']} "
             f"misses {s['misses']} mbits {s['mbits']} verdicts {s['verdicts']} max_eps {s['max_eps']:.4f}")
     print("\n" + line)
     if os.environ.get("SHM_MATRIX_OUT"):  # the table from a -n 2 run (xdist workers' -s output is not shown)
         with open(os.environ["SHM_MATRIX_OUT"], "a", encoding="utf-8") as out:
-            out.write(f"{line} load {os.getloadavg()[0]:.1f}\n")
+            out.write(f"{line} load {os.getloadavg()[0]:.1f} {'rt' if quiet_rt else ''}\n")
+    check_safe_as_documented(result, cfg)
+    if s["safe"] == 0:
+        assert s["mbits"] == clean_verdicts["mbits"]
+    if quiet_rt:
+        if kind in FAULTS[fault][2] or fault == "latency 2-5 ms":
+            if kind == "modbus-rtu" and s["verdicts"][-1:] != clean_verdicts["verdicts"]:
+                # known, open (issue 12): the RTU pty pair (two ptys and a relay thread each way) stalls for two
+                # exchanges in a row in about one quiet run in three, SAFE interrupts the visit (docs/real-rig.md)
+                pytest.xfail(f"RTU pty-pair stall interrupted the visit: {s}")
+            assert s["verdicts"][-1:] == clean_verdicts["verdicts"], f"{kind}/{fault}: no visit completed ({s})"
+        assert s["failed"] <= 1.25 * lost + 20, f"{kind}/{fault}: {s['failed']} failed exchanges for {lost} lost"
