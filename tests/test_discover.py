@@ -195,3 +195,39 @@ def test_challenge_subset_drifting_laser_gain_on_mbit_b():
     assert r.counts and r.named and r.passed, r
     s = summarise([r])
     assert s["rate_both"] == 1.0 and not s["misses"]
+
+
+def test_emitted_effect_uses_the_named_seam_and_matches_the_dictionary_kernel(tmp_path):
+    """The file --emit writes reads p[P.name], bus[B.z3], y[Y.z3_meas] (the documented seam, not offsets) and
+    simulates exactly what the compiled dictionary (offsets form) does with the same coefficients: one term per
+    placement, a shaped form and the delay state included."""
+    from workbench.discovery_dictionary import Term
+    from workbench.effect_writer import emit_effect_source
+
+    terms = [Term("force_mass", 2, "zd3", "sign", 1e-3), Term("force_section", 0, "delta1", "dead", 2e-6),
+             Term("current", -1, "vc", "lin"), Term("drive", -1, "va", "delay", 2e-3),
+             Term("measurement", -1, "z3", "square")]
+    coefs = [-2e-4, 30.0, -1e-6, 0.8, 4.0]
+    shapes = {0: 1e-3, 1: 2e-6, 3: 2e-3}
+    values = {}
+    dict_values = {}
+    for k, (term, c) in enumerate(zip(terms, coefs)):
+        values[f"c_{term.key}"] = c
+        dict_values[f"a_{k:02d}"] = c
+        if k in shapes:
+            values[f"g_{term.key}"] = shapes[k]
+            dict_values[f"g_{k:02d}"] = shapes[k]
+    src = emit_effect_source(terms, values, effect_name="emitted_named")
+    assert "so, po" not in src and "po +" not in src and "B_Z" not in src
+    assert "p[P.c_" in src and "bus[B.zd3]" in src and "y[Y.z3_meas]" in src and "x[X.w_delay_0]" in src
+    emitted = tmp_path / "emitted.py"
+    emitted.write_text(src)
+    dictionary = tmp_path / "dictionary.py"
+    dictionary.write_text(dictionary_source(terms, class_name="Dict", effect_name="dict_offsets"))
+    spec = synth_test("sweep", duration_s=1.0)
+    a = synth_record(spec, truth_model("table2", [str(emitted)], values), noise={"z3": 0.0}, seed=1)
+    b = synth_record(spec, truth_model("table2", [str(dictionary)], dict_values), noise={"z3": 0.0}, seed=1)
+    nominal = synth_record(spec, truth_model("table2"), noise={"z3": 0.0}, seed=1)
+    za, zb, zn = (r.channels["z3"].values for r in (a, b, nominal))
+    assert np.max(np.abs(za - zn)) > 1e-6  # the terms act
+    np.testing.assert_allclose(za, zb, rtol=1e-9, atol=1e-12)

@@ -28,6 +28,7 @@ scaling.
 from __future__ import annotations
 
 import math
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
@@ -289,15 +290,44 @@ HEADER_IMPORTS = (
 )
 
 
-def hooks_source(slots: Sequence[TermSlot], guard: bool = False) -> str:
-    """The hook methods (class-body indentation) for ``slots``."""
+#: core slots of plant.layout as the generated code names them -> the slot-table name of the documented seam
+_LAYOUT_TO_TABLE = {"B_Z": ("B", "z"), "B_ZD": ("B", "zd"), "B_FM": ("B", "fm"), "B_S": ("B", "s"),
+                    "B_VC": ("B", "vc"), "X_DELTA": ("X", "delta"), "X_DDELTA": ("X", "ddelta"), "X_Q": ("X", "q")}
+_LAYOUT_SCALARS = {"B_VA_DEMAND": "B.va_demand", "B_VA": "B.va", "Y_Z3_MEAS": "Y.z3_meas"}
+
+
+def _named(code: str, parameter_names: Sequence[str], state_names: Sequence[str]) -> str:
+    """``code`` written against plant.layout and the offsets (``p[po + k]``, ``x[so + k]``) rewritten in the slot
+    tables of the documented seam: ``p[P.name]``, ``x[X.name]``, ``bus[B.z3]``, ``dx[X.q1 + i]``, ``y[Y.z3_meas]``."""
+    code = re.sub(r"p\[po \+ (\d+)\]", lambda m: f"p[P.{parameter_names[int(m.group(1))]}]", code)
+    code = re.sub(r"x\[so \+ (\d+)\]", lambda m: f"x[X.{state_names[int(m.group(1))]}]", code)
+
+    def block(m: re.Match[str]) -> str:
+        table, stem = _LAYOUT_TO_TABLE[m.group(1)]
+        index = m.group(2)
+        return f"{table}.{stem}{int(index) + 1}" if index.isdigit() else f"{table}.{stem}1 + {index}"
+
+    code = re.sub(r"\b(" + "|".join(_LAYOUT_TO_TABLE) + r") \+ (\w+)", block, code)
+    return re.sub(r"\b(" + "|".join(_LAYOUT_SCALARS) + r")\b", lambda m: _LAYOUT_SCALARS[m.group(1)], code)
+
+
+def hooks_source(slots: Sequence[TermSlot], guard: bool = False, *, parameter_names: Sequence[str] | None = None,
+                 state_names: Sequence[str] = ()) -> str:
+    """The hook methods (class-body indentation) for ``slots``: with ``parameter_names`` (every parameter of the
+    effect, in order) in the documented named seam (``rates(t, x, p, bus, dx, X, P, B)``, ``p[P.name]``,
+    ``bus[B.z3]``), else in the offsets form the compiled dictionary uses (``p[po + k]``)."""
     bodies = hook_bodies(slots, guard)
     parts = []
     for name, lines in bodies.items():
         if not lines:
             continue
-        sig = "t, x, p, bus, y, so, po, yo" if name == "output" else "t, x, p, bus, dx, so, po"
-        parts.append(f"    @staticmethod\n    def {name}({sig}):\n" + "\n".join(lines) + "\n")
+        if parameter_names is None:
+            sig = "t, x, p, bus, y, so, po, yo" if name == "output" else "t, x, p, bus, dx, so, po"
+            code = "\n".join(lines)
+        else:
+            sig = "t, x, p, bus, y, X, P, B, Y" if name == "output" else "t, x, p, bus, dx, X, P, B"
+            code = _named("\n".join(lines), parameter_names, state_names)
+        parts.append(f"    @staticmethod\n    def {name}({sig}):\n" + code + "\n")
     return "\n".join(parts)
 
 

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import datetime as _dt
 import math
-import re
 import textwrap
 from collections.abc import Mapping, Sequence
 
@@ -178,6 +177,7 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
     fit_ranges: list[str] = []
     neutral: list[str] = []
     discovered: dict[str, float] = {}
+    names: list[str] = []  # every parameter's name, in order
     n_states = 0
     formulas = []
     for term in terms:
@@ -186,6 +186,7 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
         c = _r(float(values.get(cname, 0.0)))
         span = max(abs(c), 1e-300)
         lo, hi = _r(min(0.0, -20 * span if c < 0 else -span)), _r(max(0.0, 20 * span if c > 0 else span))
+        names.append(cname)
         params.append(f"        Parameter({cname!r}, {term.unit!r}, 0.0, {lo!r}, {hi!r},\n"
                       f"                  {('coefficient of ' + term.key)!r}),")
         a, b = sorted((_r(c * 0.2), _r(c * 3.0)))
@@ -196,6 +197,7 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
         if gname is not None:
             g = _r(float(values.get(gname, term.shape)))
             shape_idx = len(params)
+            names.append(gname)
             unit = "s" if term.form == "delay" else SIGNALS[term.signal].unit
             params.append(f"        Parameter({gname!r}, {unit!r}, {g!r}, {_r(g / 20)!r}, {_r(g * 20)!r},\n"
                           f"                  {(FORMS[term.form].shape + ' of ' + term.key)!r}),")
@@ -224,14 +226,11 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
             f"Written {_dt.datetime.now(_dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}. Edit freely: it is an "
             "ordinary effect (docs/effects.md).", '"""']
     states = "".join(f"        StateSpec('w_delay_{k}', 'V', 1.0),\n" for k in range(n_states))
-    hooks = hooks_source(slots)
-    layout = sorted(n for n in ("B_FM", "B_S", "B_VA", "B_VA_DEMAND", "B_VC", "B_Z", "B_ZD", "X_DDELTA", "X_DELTA",
-                                "X_Q", "Y_Z3_MEAS") if re.search(rf"\b{n}\b", hooks))
+    hooks = hooks_source(slots, parameter_names=names, state_names=[f"w_delay_{k}" for k in range(n_states)])
     effect_names = "Parameter, PhysicalEffect" + (", StateSpec" if n_states else "")
     imports = (("import math\n\n" if "math." in hooks else "")
                + f"from plant.effect import {effect_names}\n"
-               "from plant.effects.library_support import FitRange\n"
-               f"from plant.layout import {', '.join(layout)}\n")
+               "from plant.effects.library_support import FitRange\n")
     body = (
         "\n".join(doc) + "\n\nfrom __future__ import annotations\n\n"
         + imports + "\n\n"
