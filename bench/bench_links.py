@@ -155,14 +155,16 @@ def _chrt_prefix() -> tuple[str, ...]:
 
 
 class _RealTimePriority:
-    """This process at SCHED_FIFO ``RT_PRIORITY`` for the block, best effort; the old policy restored after.
-    (The board's clock does not spin under a real-time policy: firmware_sim.scheduler.WallClock.)"""
+    """This process at SCHED_FIFO ``RT_PRIORITY + 1`` for the block, best effort; the old policy restored after.
+    One above the stub: on a real rig board and rig are two machines, here they share two cores, and at equal FIFO
+    priority the board could wait behind the stub's plant step. (The board's clock does not spin under a real-time
+    policy: firmware_sim.scheduler.WallClock.)"""
 
     def __enter__(self) -> bool:
         self.old: tuple[int, os.sched_param] | None = None
         try:
             self.old = (os.sched_getscheduler(0), os.sched_getparam(0))
-            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(RT_PRIORITY))
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(RT_PRIORITY + 1))
             return True
         except (AttributeError, OSError):
             self.old = None
