@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -44,8 +45,16 @@ def run(out_dir: Path, quick: bool) -> dict:
     from workbench.discovery_challenge import DiscoveryCaseResult, format_table, summarise
 
     todo = cases(quick)
-    with ProcessPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool:
-        results = [DiscoveryCaseResult(**r) for r in pool.map(_one, todo)]
+    results = []
+    progress = Path(out_dir) / "discovery_challenge_progress.jsonl"
+    with ProcessPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool, progress.open("w") as log:
+        for k, r in enumerate(pool.map(_one, todo), 1):  # in order; each case logged as it completes
+            results.append(DiscoveryCaseResult(**r))
+            log.write(json.dumps(r, default=float) + "\n")
+            log.flush()
+            print(f"   [{k}/{len(todo)}] {r['label']} {r['strength']} {r['kind']} {r['noise_m'] * 1e6:g} µm: "
+                  f"{r['verdict']} {'/'.join(r['found']) or '-'}, held-out {r['held_before']:.3g} → "
+                  f"{r['held_after']:.3g} σ, named {r['named']} ({r['wall_s']:.0f} s)", file=sys.stderr, flush=True)
     table = format_table(results)
     (out_dir / "discovery_challenge.txt").write_text(table + "\n")
     (out_dir / "discovery_challenge_cases.json").write_text(json.dumps([r.to_dict() for r in results], indent=1,

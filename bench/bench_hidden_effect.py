@@ -79,6 +79,7 @@ def run(out_dir: Path, quick: bool) -> dict:
     (Path(out_dir) / "hidden_effect_confusion.txt").write_text(matrix + "\n")
     keys = ("cases", "cases_above_noise", "library_cases_counted", "library_top1_rate", "parameter_cases_counted",
             "parameter_named_first_rate", "pair_cases_counted", "pair_both_found_rate",
+            "pair_all_cases", "pair_all_both_found_rate",
             "held_after_true_fit_within_1p5_sigma_rate", "held_after_winner_fit_within_1p5_sigma_rate",
             "null_cases", "null_nothing_missing_rate")
     out = {k: (round(summary[k], 4) if isinstance(summary[k], float) else summary[k]) for k in keys}

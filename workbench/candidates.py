@@ -364,8 +364,13 @@ def screen_effects(targets: Sequence[Target], effect_models: Mapping[str, Sequen
                    specs: Sequence[CandidateSpec], guesses: Mapping[str, Mapping[str, float]],
                    base_values: Mapping[str, float], n_design: int = 7, seed: int = 0,
                    threads: int | None = None, overrides: Mapping[str, float] | None = None) -> list[ScreenResult]:
-    """Screen effect candidates: the effect's guess and a Latin hypercube of ``n_design`` points, one batch each
-    (``overrides``: values of other parameters of the models, e.g. the current set's in forward selection)."""
+    """Screen effect candidates: the effect's guess and a Latin hypercube of ``n_design`` points, then as many
+    around the best of them (a zoom, unless the best is already at the noise floor), one batch each
+    (``overrides``: values of other parameters of the models, e.g. the current set's in forward selection).
+
+    The zoom is what finds a narrow basin: a root-clamp compliance that puts a mode where the record has it is a
+    window a few percent wide in the parameter, which the coarse design brackets but rarely hits (a 174 σ root
+    compliance on an MBIT.b step was screened out at 124 σ and never fitted)."""
     rng = np.random.default_rng(seed)
     out = []
     for spec in specs:
@@ -377,15 +382,34 @@ def screen_effects(targets: Sequence[Target], effect_models: Mapping[str, Sequen
         u_guess = np.array([float(fp.to_unit(g.get(fp.name, fp.from_unit(0.5)))) for fp in free])
         perms = np.column_stack([rng.permutation(n_design) for _ in range(k)])
         U = np.vstack([u_guess[None], (perms + rng.uniform(0.15, 0.85, size=(n_design, k))) / n_design])
-        sim = obj.simulate(U)
-        Rt = obj.residuals(sim, "train")
-        Rh = obj.residuals(sim, "held")
-        cost = np.array([rms(r) if ok else math.inf for r, ok in zip(Rt, sim.ok)])
+        U, Rt, Rh, cost = _screen_batch(obj, U)
         b = int(np.argmin(cost))
+        if k and np.isfinite(cost[b]) and cost[b] > SCREEN_ZOOM_ABOVE:
+            half = 1.5 / n_design ** (1.0 / k)
+            lo, hi = np.clip(U[b] - half, 0.0, 1.0), np.clip(U[b] + half, 0.0, 1.0)
+            perms = np.column_stack([rng.permutation(n_design) for _ in range(k)])
+            Uz = lo + (hi - lo) * (perms + rng.uniform(0.15, 0.85, size=(n_design, k))) / n_design
+            Uz, Rtz, Rhz, costz = _screen_batch(obj, Uz)
+            U, Rt, Rh, cost = np.vstack([U, Uz]), [*Rt, *Rtz], [*Rh, *Rhz], np.concatenate([cost, costz])
+            b = int(np.argmin(cost))
         start = obj.values(U[b]) if np.isfinite(cost[b]) else dict(g)
         out.append(ScreenResult(spec, float(cost[b]), rms(Rh[b]) if np.isfinite(cost[b]) else math.inf, start,
                                 n_sims=U.shape[0] * len(targets)))
     return out
+
+
+#: a screened effect whose best design point leaves more than this training RMS (σ) gets the zoom batch
+SCREEN_ZOOM_ABOVE = 1.05
+
+
+def _screen_batch(obj: TiedObjective, U: np.ndarray) -> tuple[np.ndarray, list[np.ndarray], list[np.ndarray],
+                                                                 np.ndarray]:
+    """(U, training residuals, held-out residuals, training RMS — inf where the simulation failed) of one batch."""
+    sim = obj.simulate(U)
+    Rt = obj.residuals(sim, "train")
+    Rh = obj.residuals(sim, "held")
+    cost = np.array([rms(r) if ok else math.inf for r, ok in zip(Rt, sim.ok)])
+    return U, list(Rt), list(Rh), cost
 
 
 def widen(fp: Parameter, at_upper: bool, cls: type[PhysicalEffect] | None, value: float) -> Parameter | None:
