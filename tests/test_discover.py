@@ -231,3 +231,19 @@ def test_emitted_effect_uses_the_named_seam_and_matches_the_dictionary_kernel(tm
     za, zb, zn = (r.channels["z3"].values for r in (a, b, nominal))
     assert np.max(np.abs(za - zn)) > 1e-6  # the terms act
     np.testing.assert_allclose(za, zb, rtol=1e-9, atol=1e-12)
+
+
+def test_twins_a_drive_delay_and_a_laser_lag_are_told_as_indistinguishable():
+    """On the tip reading alone a lag before the (nearly linear) structure and a lag in the laser look the same: the
+    discovery names one and says it cannot tell it from the other, with the record that would (patch voltage)."""
+    from workbench.discover import discover
+
+    rec = _sweep("DriveTransportDelay", {"T_delay": 2e-3}, seed=5, duration_s=3.0)
+    d = discover([rec], "table2", max_terms=1)
+    assert d.verdict == "found" and len(d.terms) == 1
+    t = d.terms[0]
+    keys = {t.term.key, *(tw["key"] for tw in t.twins)}
+    assert {"va_delay_va", "z3m_delay_z3"} <= keys
+    assert "cannot tell it from" in t.description and "patch voltage" in t.description
+    assert "cannot tell it from" in d.message
+    assert t.to_dict()["twins"] and t.to_dict()["description"] == t.description

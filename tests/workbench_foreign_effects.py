@@ -4,7 +4,8 @@
 Each is physics a rig engineer meets, written the way an engineer would write it (not as a copy of a dictionary
 term): dry friction at the tip, a transport delay on the drive (second-order Padé), a saturating laser, a quadratic
 laser, a clearance at the root, a one-sided stop at the tip, velocity-squared drag on mass 2 only, a laser gain that
-drifts, a polarisation-dependent (sign-asymmetric) drive gain. ``FOREIGN`` maps each to its challenge strengths and
+drifts, a polarisation-dependent (sign-asymmetric) drive gain, a low-pass filter in the laser's output. ``FOREIGN`` maps
+each to its challenge strengths and
 the words the discovery's description must contain.
 """
 
@@ -144,6 +145,24 @@ class PolarisedDrive(PhysicalEffect):
         bus[B_VA] = v * (1.0 + p[po] * 0.5 * (1.0 + math.tanh(v / 5.0)))
 
 
+class LaserLowPass(PhysicalEffect):
+    """The laser controller low-passes its reading (first-order, time constant τ): dw/dt = (z3 − w)/τ, z3_meas = w."""
+
+    name = "foreign_laser_low_pass"
+    parameters = (Parameter("tau_laser", "s", 0.0, 0.0, 0.05, "time constant of the laser's output filter"),)
+    states = (StateSpec("w_laser", "m", 1e-4),)
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        if p[po] > 0.0:
+            dx[so] += (bus[B_Z + 2] - x[so]) / p[po]
+
+    @staticmethod
+    def output(t, x, p, bus, y, so, po, yo):
+        if p[po] > 0.0:
+            y[Y_Z3_MEAS] += x[so] - bus[B_Z + 2]
+
+
 #: class name -> (strengths as truth values, words the description must contain (all, case-insensitive))
 FOREIGN: dict[str, tuple[tuple[dict[str, float], ...], tuple[str, ...]]] = {
     "TipDryFriction": (({"F_coulomb": 2e-4}, {"F_coulomb": 1e-3}), ("mass 3", "friction")),
@@ -155,4 +174,5 @@ FOREIGN: dict[str, tuple[tuple[dict[str, float], ...], tuple[str, ...]]] = {
     "Mass2Drag": (({"c_drag2": 0.5}, {"c_drag2": 3.0}), ("mass 2", "square of its velocity")),
     "DriftingLaserGain": (({"r_gain": 2e-3}, {"r_gain": 1e-2}), ("laser", "drift")),
     "PolarisedDrive": (({"a_pol": 0.05}, {"a_pol": 0.2}), ("drive", "sign")),
+    "LaserLowPass": (({"tau_laser": 5e-4}, {"tau_laser": 2e-3}), ("laser", "lag")),
 }

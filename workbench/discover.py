@@ -27,8 +27,9 @@ The result (:class:`Discovery`) names each kept term in words and units and carr
 
 from __future__ import annotations
 
+import math
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -46,7 +47,7 @@ from workbench.discover_dictionary_effect import (
 )
 from workbench.discover_results import DiscoverError, Discovery, FoundTerm, ScreenRow, describe_units
 from workbench.discover_search import SearchState, free_for, free_run_check, nonlinear_check, refine, refit_list
-from workbench.discovery_dictionary import build_dictionary, dictionary_parameter_names, dictionary_source
+from workbench.discovery_dictionary import Term, build_dictionary, dictionary_parameter_names, dictionary_source
 from workbench.effect_library import resolve_candidates
 from workbench.effect_writer import describe_term
 from workbench.fit_objective import Objective, rms
@@ -104,6 +105,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     outcome: FitOutcome | None = None
     screen_rows: list[ScreenRow] = []
     rounds: list[dict[str, Any]] = []
+    twins: dict[int, list[dict[str, Any]]] = {}
     timings["screen_s"] = 0.0
     timings["refit_s"] = 0.0
     for round_no in range(max_terms):
@@ -222,6 +224,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         if best is None:
             break
         h_new, k_new, out = best
+        twins[k_new] = _twins(terms[k_new], h_new, rows, tried, n_held, scales)
         gain = (current_held ** 2 - h_new ** 2) / max(current_held ** 2 - 1.0, 1e-12)
         say(f"  best refit: {terms[k_new].key}: held-out {current_held:.4g} σ → {h_new:.4g} σ "
             f"({100 * gain:.0f} % of the excess removed)")
@@ -244,7 +247,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         shape = state.values[gname] if gname else 0.0
         scale = scales.get(terms[k].signal, 1.0)
         found.append(FoundTerm(terms[k].with_shape(shape), coef, shape, scale,
-                               describe_term(terms[k], coef, shape, scale)))
+                               describe_term(terms[k], coef, shape, scale), twins.get(k, [])))
     if found and not stable:
         verdict = "not_found"
         msg = (f"The best terms ({', '.join(f.term.key for f in found)}) make the model diverge in free run "
@@ -252,11 +255,11 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         found = []
     elif found and explained(current_held, held_before, n_held):
         verdict = "found"
-        msg = ("Found: " + "; and ".join(f.words for f in found)
+        msg = ("Found: " + "; and ".join(f.description for f in found)
                + f". Held-out error {held_before:.4g} σ → {current_held:.4g} σ (noise floor 1 σ).")
     elif found:
         verdict = "partial"
-        msg = ("Partly found: " + "; and ".join(f.words for f in found)
+        msg = ("Partly found: " + "; and ".join(f.description for f in found)
                + f". Held-out error {held_before:.4g} σ → {current_held:.4g} σ — above the noise floor "
                f"(≤ {1 + noise_tolerance(n_held):.3g} σ): something else is missing too.")
     else:
@@ -273,6 +276,50 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
                      current_train if found else train_before, current_held if found else held_before,
                      screen_rows, len(terms), stable, note, [tg.name for tg in targets], outcome if found else None,
                      targets, n_sims, timings, rounds)
+
+
+#: at most this many twins are named per kept term
+MAX_TWINS = 2
+#: a twin's held-out RMS may exceed the chosen term's by this share (model tolerance) plus three standard
+#: deviations of the RMS of white noise over the held-out samples
+TWIN_MODEL_SHARE = 0.02
+
+
+def twin_tolerance(n_held: int) -> float:
+    """Factor on the chosen term's held-out RMS within which another term explains the records as well."""
+    return 1.0 + TWIN_MODEL_SHARE + 3.0 / math.sqrt(2.0 * max(n_held, 1))
+
+
+def _twins(chosen: Term, held: float, rows: Sequence[ScreenRow], tried: Sequence[dict[str, Any]], n_held: int,
+           scales: Mapping[str, float]) -> list[dict[str, Any]]:
+    """Other terms that explain the records as well as ``chosen`` (held-out RMS ``held``) within the noise
+    (:func:`twin_tolerance`): refitted ones by their refit, the rest by the screen
+    (linearised, or on the full model at the screened coefficient) — judged against the chosen term's own screen
+    value. Same-key terms (another shape of the same form) are not twins."""
+    tol = twin_tolerance(n_held)
+    refitted = {t["term"]: t["held_rms_sigma"] for t in tried}
+    mine = next((r.held_rms_sigma for r in rows if r.term.key == chosen.key), held)
+    out: list[dict[str, Any]] = []
+    seen = {chosen.key}
+    for r in rows:
+        key = r.term.key
+        if key in seen:
+            continue
+        seen.add(key)
+        if key in refitted:
+            h, how = refitted[key], "refitted"
+            ok = h <= max(held, 1.0) * tol
+        else:
+            h, how = r.held_rms_sigma, "screen"
+            ok = h <= max(mine, 1.0) * tol  # the screen against the chosen term's own screen value
+        if ok:
+            scale = scales.get(r.term.signal, 1.0)
+            out.append({"key": key, "placement": r.term.placement, "index": r.term.index, "signal": r.term.signal,
+                        "form": r.term.form, "held_rms_sigma": h, "judged_by": how,
+                        "words": describe_term(r.term, r.coef, r.term.shape, scale)})
+        if len(out) >= MAX_TWINS:
+            break
+    return out
 
 
 def load_emitted(path: str) -> type[PhysicalEffect]:

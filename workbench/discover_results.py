@@ -26,12 +26,45 @@ class FoundTerm:
     shape: float
     scale: float
     words: str
+    #: terms that explain these records as well, within the noise (key, words, held-out RMS σ, how it was judged)
+    twins: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def description(self) -> str:
+        """The words, and what the records cannot tell it from (with the test that would)."""
+        if not self.twins:
+            return self.words
+        return (self.words + ". These records cannot tell it from "
+                + "; or from ".join(t["words"] for t in self.twins) + " (" + separating_test(self.term, self.twins)
+                + ")")
 
     def to_dict(self) -> dict[str, Any]:
         return {"key": self.term.key, "placement": self.term.placement, "index": self.term.index,
                 "signal": self.term.signal, "form": self.term.form, "coefficient": self.coef,
                 "coefficient_unit": self.term.unit, "shape": self.shape if FORMS[self.term.form].shape else None,
-                "signal_scale": self.scale, "words": self.words}
+                "signal_scale": self.scale, "words": self.words, "twins": self.twins,
+                "description": self.description}
+
+
+def separating_test(term: Term, twins: Sequence[dict[str, Any]]) -> str:
+    """The record that would tell ``term`` from its ``twins``, in words."""
+    places = {term.placement, *(t["placement"] for t in twins)}
+    tests = []
+    if "drive" in places and "measurement" in places:
+        tests.append("record the patch voltage: a lag before the patches shows in it, a lag in the laser does not")
+    if len({(term.placement, term.index), *((t["placement"], t["index"]) for t in twins)}) > 1 and \
+            places <= {"force_mass", "force_section"}:
+        tests.append("a sweep through the modes tells the masses and sections apart")
+    shaped = ("pos", "neg", "square", "cube", "sat")
+    if (term.signal == "va" and term.form in shaped) or any(t["signal"] == "va" and t["form"] in shaped
+                                                             for t in twins):
+        tests.append("drive both signs and several amplitudes")
+    if {term.form, *(t["form"] for t in twins)} & {"sat", "cube", "pos", "neg", "square"} and \
+            places <= {"measurement", "force_mass", "force_section"} and len(places) > 1:
+        tests.append("a static calibration of the laser against a reference tells a sensor map from a force")
+    if not tests:
+        tests.append("a record that reaches larger amplitudes and sweeps through the modes would")
+    return "; ".join(tests)
 
 
 @dataclass
@@ -75,7 +108,7 @@ class Discovery:
             if gname:
                 values[gname] = ft.shape
         return emit_effect_source([ft.term for ft in self.terms], values, class_name=class_name,
-                                  effect_name=effect_name, words=[ft.words for ft in self.terms],
+                                  effect_name=effect_name, words=[ft.description for ft in self.terms],
                                   records=self.records, held_before=self.held_before, held_after=self.held_after)
 
     def to_dict(self) -> dict[str, Any]:

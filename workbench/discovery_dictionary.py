@@ -214,6 +214,8 @@ def build_dictionary(scales: Mapping[str, float], *, driven: bool = True) -> lis
     if ok("z3"):
         terms += [Term("measurement", -1, "z3", f) for f in ("lin", "square", "cube", "time")]
         terms.append(Term("measurement", -1, "z3", "sat", SAT_LEVEL * scales["z3"]))
+        # the reading late or low-passed (sensor filter, DAQ skew): a Padé delay of z3 in the measurement
+        terms += [Term("measurement", -1, "z3", "delay", tau) for tau in DELAYS_S]
     if ok("zd3"):
         terms.append(Term("measurement", -1, "zd3", "lin"))
     terms += [Term("measurement", -1, "one", "lin"), Term("measurement", -1, "one", "time")]

@@ -122,6 +122,12 @@ def describe_term(term: Term, coef: float, shape: float, scale: float) -> str:
             return f"a laser offset of {_si(c, 'm')}" + tail
         if term.signal == "zd3":
             return f"a laser lag of {_si(-c, 's')} (reading ≈ z3 − τ ż3)" + tail
+        if f == "delay":
+            kind = ("a delay" if abs(c - 1.0) < 0.25 else "a first-order low-pass" if abs(c - 0.5) < 0.15 else
+                    "a delay or low-pass")
+            return (f"a laser lag of {_si(c * g, 's')}: the reading follows the tip late ({kind} in the sensor "
+                    f"chain: the laser's filter or the acquisition's timing; Padé time constant {_si(g, 's')}, "
+                    f"{100 * c:.3g} % applied)" + tail)
         if f == "lin":
             return f"a laser gain error of {100 * c:+.3g} %" + tail
         if f == "square":
