@@ -4,9 +4,8 @@
 Each is physics a rig engineer meets, written the way an engineer would write it (not as a copy of a dictionary
 term): dry friction at the tip, a transport delay on the drive (second-order Padé), a saturating laser, a quadratic
 laser, a clearance at the root, a one-sided stop at the tip, velocity-squared drag on mass 2 only, a laser gain that
-drifts, a polarisation-dependent (sign-asymmetric) drive gain, a low-pass filter in the laser's output. ``FOREIGN`` maps
-each to its challenge strengths and
-the words the discovery's description must contain.
+drifts, a polarisation-dependent (sign-asymmetric) drive gain, a low-pass filter in the laser's output. ``FOREIGN``
+maps each to its challenge strengths and the words the discovery's description must contain.
 """
 
 from __future__ import annotations
