@@ -224,7 +224,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         if best is None:
             break
         h_new, k_new, out = best
-        twins[k_new] = _twins(terms[k_new], h_new, rows, tried, n_held, scales)
+        twins[k_new] = _twins(terms[k_new], h_new, rows, tried, n_held, scales, linearised=fast)
         gain = (current_held ** 2 - h_new ** 2) / max(current_held ** 2 - 1.0, 1e-12)
         say(f"  best refit: {terms[k_new].key}: held-out {current_held:.4g} σ → {h_new:.4g} σ "
             f"({100 * gain:.0f} % of the excess removed)")
@@ -291,11 +291,11 @@ def twin_tolerance(n_held: int) -> float:
 
 
 def _twins(chosen: Term, held: float, rows: Sequence[ScreenRow], tried: Sequence[dict[str, Any]], n_held: int,
-           scales: Mapping[str, float]) -> list[dict[str, Any]]:
+           scales: Mapping[str, float], linearised: bool) -> list[dict[str, Any]]:
     """Other terms that explain the records as well as ``chosen`` (held-out RMS ``held``) within the noise
-    (:func:`twin_tolerance`): refitted ones by their refit, the rest by the screen
-    (linearised, or on the full model at the screened coefficient) — judged against the chosen term's own screen
-    value. Same-key terms (another shape of the same form) are not twins."""
+    (:func:`twin_tolerance`): refitted ones by their refit; when the chosen term came from the linearised screen
+    (``linearised``: the fast path), the rest by that screen against the chosen term's own screen value. Same-key
+    terms (another shape of the same form) and the other Padé order of the same delay are not twins."""
     tol = twin_tolerance(n_held)
     refitted = {t["term"]: t["held_rms_sigma"] for t in tried}
     mine = next((r.held_rms_sigma for r in rows if r.term.key == chosen.key), held)
@@ -303,12 +303,16 @@ def _twins(chosen: Term, held: float, rows: Sequence[ScreenRow], tried: Sequence
     seen = {chosen.key}
     for r in rows:
         key = r.term.key
-        if key in seen:
+        same_delay = ((r.term.placement, r.term.signal) == (chosen.placement, chosen.signal)
+                      and {r.term.form, chosen.form} <= {"delay", "delay2"})  # the same delay, another Padé order
+        if key in seen or same_delay:
             continue
         seen.add(key)
         if key in refitted:
             h, how = refitted[key], "refitted"
             ok = h <= max(held, 1.0) * tol
+        elif not linearised:  # screened on the full model at a linearised coefficient: not comparable to a refit
+            continue
         else:
             h, how = r.held_rms_sigma, "screen"
             ok = h <= max(mine, 1.0) * tol  # the screen against the chosen term's own screen value

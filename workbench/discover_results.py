@@ -130,7 +130,7 @@ def describe_units(found: Sequence[FoundTerm]) -> list[str]:
     for f in found:
         line = f"{f.term.key}: coefficient {f.coef:.4g} {f.term.unit}"
         if FORMS[f.term.form].shape:
-            unit = "s" if f.term.form == "delay" else ("m/s" if f.term.signal.startswith(("zd", "dd")) else
+            unit = "s" if f.term.form in ("delay", "delay2") else ("m/s" if f.term.signal.startswith(("zd", "dd")) else
                                                         "V" if f.term.signal in ("va", "vc") else "m")
             line += f", {FORMS[f.term.form].shape} {f.shape:.4g} {unit}"
         out.append(line)

@@ -63,7 +63,24 @@ FORMS: dict[str, Form] = {
     "sat": Form("sat", "G * math.tanh(S / G) - S", 1, "saturation level"),
     "time": Form("time", "t * S", 1, "", per_second=True),
     "delay": Form("delay", "2.0 * (W - S)", 1, "delay"),
+    # second-order Padé of a pure delay T: y = s − T·w2 with w1'' T²/12 + w1' T/2 + w1 = s, w2 = w1' (phase within
+    # 2 % of e^{−iωT} up to ωT ≈ 2, where the first-order form is 20 % short)
+    "delay2": Form("delay2", "-G * V", 1, "delay"),
 }
+
+#: forms that carry states of their own (how many)
+STATE_FORMS = {"delay": 1, "delay2": 2}
+
+
+def n_form_states(form: str) -> int:
+    """How many states a term of ``form`` carries (its delay line)."""
+    return STATE_FORMS.get(form, 0)
+
+
+def state_spec_args(signal: str) -> tuple[str, float]:
+    """(unit, typical magnitude) of a delay state following ``signal`` (the integrator's error scale)."""
+    unit = SIGNALS[signal].unit
+    return unit, {"m": 1e-4, "m/s": 1e-2, "V": 1.0}.get(unit, 1.0)
 
 
 @dataclass(frozen=True)
@@ -162,7 +179,7 @@ def form_values(form: str, s: np.ndarray, g: float, t: np.ndarray, dt: float) ->
         return g * np.tanh(s / g) - s
     if form == "time":
         return t * s
-    if form == "delay":
+    if form in ("delay", "delay2"):
         return -g * np.gradient(s, dt) if s.size > 2 else np.zeros_like(s)
     raise KeyError(form)
 
@@ -206,7 +223,7 @@ def build_dictionary(scales: Mapping[str, float], *, driven: bool = True) -> lis
         terms += [Term("current", -1, "vc", "lin"), Term("current", -1, "vc", "absx"),
                   Term("current", -1, "vc", "cube")]
     if driven and ok("va"):
-        terms += [Term("drive", -1, "va", "delay", tau) for tau in DELAYS_S]
+        terms += [Term("drive", -1, "va", f, tau) for f in ("delay", "delay2") for tau in DELAYS_S]
         terms += [Term("drive", -1, "va", "pos", 0.01 * scales["va"]),
                   Term("drive", -1, "va", "neg", 0.01 * scales["va"])]
         terms += [Term("drive", -1, "va", "square"), Term("drive", -1, "va", "cube"),
@@ -215,7 +232,7 @@ def build_dictionary(scales: Mapping[str, float], *, driven: bool = True) -> lis
         terms += [Term("measurement", -1, "z3", f) for f in ("lin", "square", "cube", "time")]
         terms.append(Term("measurement", -1, "z3", "sat", SAT_LEVEL * scales["z3"]))
         # the reading late or low-passed (sensor filter, DAQ skew): a Padé delay of z3 in the measurement
-        terms += [Term("measurement", -1, "z3", "delay", tau) for tau in DELAYS_S]
+        terms += [Term("measurement", -1, "z3", f, tau) for f in ("delay", "delay2") for tau in DELAYS_S]
     if ok("zd3"):
         terms.append(Term("measurement", -1, "zd3", "lin"))
     terms += [Term("measurement", -1, "one", "lin"), Term("measurement", -1, "one", "time")]
@@ -246,7 +263,9 @@ def _value_code(slot: TermSlot) -> str:
     form = FORMS[term.form]
     g = f"p[po + {slot.shape_param}]" if slot.shape_param is not None else _lit(term.shape)
     s = SIGNALS[term.signal].code
-    expr = form.code.replace("G", g).replace("W", f"x[so + {slot.state}]" if slot.state is not None else "0.0")
+    w = f"x[so + {slot.state}]" if slot.state is not None else "0.0"
+    v = f"x[so + {slot.state + 1}]" if slot.state is not None and n_form_states(term.form) > 1 else "0.0"
+    expr = form.code.replace("G", g).replace("W", w).replace("V", v)
     expr = expr.replace("S", f"({s})")
     return f"p[po + {slot.coef}] * ({expr})"
 
@@ -258,7 +277,15 @@ def hook_bodies(slots: Sequence[TermSlot], guard: bool = False) -> dict[str, lis
     for slot in slots:
         term = slot.term
         value = _value_code(slot)
-        if slot.state is not None:  # the Padé delay's state: dw/dt = (s − w)/(τ/2)
+        if slot.state is not None and term.form == "delay2":  # w1' = w2, w2' = 12 (s − w1 − T w2 / 2) / T²
+            g = (f"max(p[po + {slot.shape_param}], 1e-4)" if slot.shape_param is not None
+                 else _lit(max(term.shape, 1e-4)))
+            s = SIGNALS[term.signal].code
+            w1, w2 = f"x[so + {slot.state}]", f"x[so + {slot.state + 1}]"
+            bodies["rates"].append(f"        dx[so + {slot.state}] += {w2}")
+            bodies["rates"].append(f"        dx[so + {slot.state + 1}] += 12.0 * (({s}) - {w1} - 0.5 * {g} * {w2}) / "
+                                   f"({g} * {g})")
+        elif slot.state is not None:  # the first-order Padé delay's state: dw/dt = (s − w)/(τ/2)
             g = f"p[po + {slot.shape_param}]" if slot.shape_param is not None else _lit(term.shape)
             s = SIGNALS[term.signal].code
             bodies["rates"].append(f"        dx[so + {slot.state}] += (({s}) - x[so + {slot.state}]) / "
@@ -347,6 +374,7 @@ def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDiction
     slots: list[TermSlot] = []
     params: list[str] = []  # source lines
     n_states = 0
+    specs: list[tuple[str, float]] = []  # (unit, scale) of each state
     for term, (cname, gname) in zip(terms, dictionary_parameter_names(terms)):
         ci = len(params)
         params.append(f"        Parameter({cname!r}, {term.unit!r}, 0.0, -math.inf, math.inf, {term.key!r}),")
@@ -355,10 +383,12 @@ def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDiction
             gi = len(params)
             params.append(f"        Parameter({gname!r}, 'SI', 1.0, 0.0, math.inf, 'shape of {term.key}'),")
         state = None
-        if term.form == "delay":
-            state, n_states = n_states, n_states + 1
+        if n_form_states(term.form):
+            state = n_states
+            n_states += n_form_states(term.form)
+            specs += [state_spec_args(term.signal)] * n_form_states(term.form)
         slots.append(TermSlot(term, ci, gi, state))
-    states = "\n".join(f"        StateSpec('w_{k}', 'V', 1.0)," for k in range(n_states))
+    states = "\n".join(f"        StateSpec('w_{k}', {u!r}, {sc!r})," for k, (u, sc) in enumerate(specs))
     return (
         '"""Generated by workbench.discovery_dictionary: every candidate term of shm discover (not for editing)."""\n\n'
         + HEADER_IMPORTS + "\n\n"
@@ -377,7 +407,7 @@ def scale_of(term: Term, scales: Mapping[str, float]) -> float:
     f = FORMS[term.form]
     if term.form in ("sign",):
         return 1.0
-    if term.form == "delay":
+    if term.form in ("delay", "delay2"):
         return max(term.shape * s * 2 * math.pi * 10.0, 1e-300)
     if term.form in ("pos", "neg", "dead", "sat"):
         return max(s - term.shape, 0.1 * s) if term.form != "sat" else 0.2 * s

@@ -15,7 +15,15 @@ import math
 import textwrap
 from collections.abc import Mapping, Sequence
 
-from workbench.discovery_dictionary import FORMS, SIGNALS, Term, TermSlot, hooks_source
+from workbench.discovery_dictionary import (
+    FORMS,
+    SIGNALS,
+    Term,
+    TermSlot,
+    hooks_source,
+    n_form_states,
+    state_spec_args,
+)
 
 
 def _si(x: float, unit: str) -> str:
@@ -92,7 +100,7 @@ def describe_term(term: Term, coef: float, shape: float, scale: float) -> str:
         return (f"a current into each patch growing with the {'square' if f == 'absx' else 'cube'} of the patch "
                 f"voltage ({_si(c * scale ** FORMS[f].power, 'A')} at {scale:.3g} V): a nonlinear leakage")
     if p == "drive":
-        if f == "delay":
+        if f in ("delay", "delay2"):
             return (f"a transport delay of {_si(c * g, 's')} on the drive: the patches see the commanded voltage "
                     "late (amplifier/controller latency)")
         if f in ("pos", "neg"):
@@ -122,9 +130,9 @@ def describe_term(term: Term, coef: float, shape: float, scale: float) -> str:
             return f"a laser offset of {_si(c, 'm')}" + tail
         if term.signal == "zd3":
             return f"a laser lag of {_si(-c, 's')} (reading ≈ z3 − τ ż3)" + tail
-        if f == "delay":
-            kind = ("a delay" if abs(c - 1.0) < 0.25 else "a first-order low-pass" if abs(c - 0.5) < 0.15 else
-                    "a delay or low-pass")
+        if f in ("delay", "delay2"):
+            kind = ("a delay" if abs(c - 1.0) < 0.25 else
+                    "a first-order low-pass" if abs(c - 0.5) < 0.15 and f == "delay" else "a delay or low-pass")
             return (f"a laser lag of {_si(c * g, 's')}: the reading follows the tip late ({kind} in the sensor "
                     f"chain: the laser's filter or the acquisition's timing; Padé time constant {_si(g, 's')}, "
                     f"{100 * c:.3g} % applied)" + tail)
@@ -159,6 +167,10 @@ def formula(term: Term, cname: str, gname: str | None) -> str:
     extra = ""
     if term.form == "delay":
         extra = f"   with dw/dt = ({s} − w)/({g}/2)  (first-order Padé delay of {g})"
+    elif term.form == "delay2":
+        expr = f"−{g} · w2"
+        extra = (f"   with dw1/dt = w2, dw2/dt = 12 ({s} − w1 − {g} w2 / 2) / {g}²  (second-order Padé delay of "
+                 f"{g})")
     return f"{target} += {cname} · {expr}{extra}"
 
 
@@ -168,7 +180,7 @@ def class_name_for(terms: Sequence[Term]) -> str:
             "drive": "Drive", "measurement": "Laser"}[t.placement]
     form = {"sign": "Friction", "absx": "Drag", "lin": "Linear", "cube": "Cubic", "square": "Quadratic",
             "pos": "ContactAbove", "neg": "ContactBelow", "dead": "DeadZone", "clip": "Clearance",
-            "sat": "Saturation", "time": "Drift", "delay": "Delay"}[t.form]
+            "sat": "Saturation", "time": "Drift", "delay": "Delay", "delay2": "Delay"}[t.form]
     return f"Discovered{base}{form}" + ("Plus" if len(terms) > 1 else "")
 
 
@@ -185,6 +197,7 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
     discovered: dict[str, float] = {}
     names: list[str] = []  # every parameter's name, in order
     n_states = 0
+    state_specs: list[tuple[str, float]] = []  # (unit, scale) of each state
     formulas = []
     for term in terms:
         cname, gname = parameter_names(term, free_shapes)
@@ -204,15 +217,17 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
             g = _r(float(values.get(gname, term.shape)))
             shape_idx = len(params)
             names.append(gname)
-            unit = "s" if term.form == "delay" else SIGNALS[term.signal].unit
+            unit = "s" if term.form in ("delay", "delay2") else SIGNALS[term.signal].unit
             params.append(f"        Parameter({gname!r}, {unit!r}, {g!r}, {_r(g / 20)!r}, {_r(g * 20)!r},\n"
                           f"                  {(FORMS[term.form].shape + ' of ' + term.key)!r}),")
             lo_g, hi_g = (_r(g / 10), _r(g * 2)) if term.form == "sign" else (_r(g / 4), _r(g * 4))
             fit_ranges.append(f"        {gname!r}: FitRange({lo_g!r}, {hi_g!r}, log=True),")
             discovered[gname] = g
         state = None
-        if term.form == "delay":
-            state, n_states = n_states, n_states + 1
+        if n_form_states(term.form):
+            state = n_states
+            n_states += n_form_states(term.form)
+            state_specs += [state_spec_args(term.signal)] * n_form_states(term.form)
         slots.append(TermSlot(term, k, shape_idx, state))
         formulas.append(formula(term, cname, gname))
     cls = class_name or class_name_for(terms)
@@ -231,7 +246,7 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
     doc += ["", "Coefficients default to 0 (the nominal model); `guess` starts a fit at the discovered values.",
             f"Written {_dt.datetime.now(_dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}. Edit freely: it is an "
             "ordinary effect (docs/effects.md).", '"""']
-    states = "".join(f"        StateSpec('w_delay_{k}', 'V', 1.0),\n" for k in range(n_states))
+    states = "".join(f"        StateSpec('w_delay_{k}', {u!r}, {sc!r}),\n" for k, (u, sc) in enumerate(state_specs))
     hooks = hooks_source(slots, parameter_names=names, state_names=[f"w_delay_{k}" for k in range(n_states)])
     effect_names = "Parameter, PhysicalEffect" + (", StateSpec" if n_states else "")
     imports = (("import math\n\n" if "math." in hooks else "")
