@@ -17,6 +17,7 @@ endpoint (:func:`hil_stub.truth.build_truth_rig`).
 from __future__ import annotations
 
 import contextlib
+import sys
 from typing import Any, TypeVar
 
 from drivers.link import RigEndpoint
@@ -26,6 +27,12 @@ from hil_stub.modbus_server import LoopThread, ModbusRigServer
 from hil_stub.rig_host import RigHost
 
 _Server = TypeVar("_Server", FrameServer, ModbusRigServer)
+
+#: GIL hand-over interval while a real-time service runs (s): the rig loop, the Modbus event loop, the serial servers
+#: and the pty relays share one interpreter — with a board in the same process too (the fault-matrix tests, the
+#: links benchmark) — and at Python's default 5 ms a reply could wait a whole tick behind a plant step or the
+#: board's model step
+SWITCH_INTERVAL_S = 5e-4
 
 
 class HilService:
@@ -41,6 +48,7 @@ class HilService:
         self.servers: list[FrameServer | ModbusRigServer] = []
         self._loop: LoopThread | None = None
         self._started = False
+        self._switch_interval: float | None = None
 
     @property
     def loop(self) -> LoopThread:
@@ -76,6 +84,9 @@ class HilService:
         if self._started:
             return
         self._started = True
+        if self.host.mode == "realtime" and self._switch_interval is None:
+            self._switch_interval = sys.getswitchinterval()
+            sys.setswitchinterval(min(self._switch_interval, SWITCH_INTERVAL_S))
         try:
             for srv in self.servers:
                 srv.start()
@@ -92,6 +103,9 @@ class HilService:
         if self._loop is not None:
             self._loop.close()
             self._loop = None
+        if self._switch_interval is not None:
+            sys.setswitchinterval(self._switch_interval)
+            self._switch_interval = None
         self._started = False
 
     def __enter__(self) -> HilService:

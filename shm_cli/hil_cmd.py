@@ -134,9 +134,6 @@ def cmd_serve(args: argparse.Namespace) -> int:
                        "--modbus-rtu pty|PATH")
     if args.duration is not None and not args.duration > 0:
         raise CliError(f"--duration {args.duration!r}: must be > 0 s")
-    # the rig loop, the Modbus event loop and the serial servers share one interpreter: hand the GIL over every
-    # 0.5 ms instead of 5 ms, so a reply never waits long behind a plant step
-    sys.setswitchinterval(5e-4)
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s: %(message)s", stream=sys.stderr)
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
     from board_config.scenario import load_scenario

@@ -107,3 +107,25 @@ def test_start_up_checks_are_silent(caplog):
         with pytest.raises(LinkError):
             link.exchange()
     assert caplog.text == "" and link.stats["timeouts"] == 1
+
+
+
+def test_realtime_service_hands_the_gil_over_often_and_restores_it():
+    """A real-time HIL service shares the interpreter with its servers, relays and (in tests) the board: while it
+    runs, the GIL switch interval is at most SWITCH_INTERVAL_S; afterwards it is what it was."""
+    import sys
+
+    from links_support import FakeRig
+
+    from hil_stub.service import SWITCH_INTERVAL_S, HilService
+
+    before = sys.getswitchinterval()
+    sys.setswitchinterval(0.005)
+    try:
+        with HilService(FakeRig(), mode="realtime"):
+            assert sys.getswitchinterval() <= SWITCH_INTERVAL_S + 1e-9
+        assert sys.getswitchinterval() == pytest.approx(0.005)
+        with HilService(FakeRig(), mode="lockstep"):
+            assert sys.getswitchinterval() == pytest.approx(0.005)
+    finally:
+        sys.setswitchinterval(before)
