@@ -23,7 +23,14 @@ def _one(args: tuple) -> dict:
     cls_name, values, words, strength, kind, noise, seed = args
     mod = load_effect_file(FOREIGN_FILE)
     case = DiscoveryCase(cls_name, getattr(mod, cls_name), values, tuple(words), strength)
-    return run_discovery_case(case, kind, noise, seed).to_dict()
+    try:
+        return run_discovery_case(case, kind, noise, seed).to_dict()
+    except Exception as exc:  # one case's failure is a result (a miss with the reason), not the end of the run
+        from workbench.discovery_challenge import DiscoveryCaseResult
+
+        nan = float("nan")
+        return DiscoveryCaseResult(cls_name, strength, kind, noise, seed, nan, True, "error", [], "", False, nan, nan,
+                                   nan, False, 0.0, note=f"{type(exc).__name__}: {exc}", values=dict(values)).to_dict()
 
 
 def cases(quick: bool) -> list[tuple]:

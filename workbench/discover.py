@@ -134,7 +134,14 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         del U
         n_sims += (len(cand) + 1) * len(targets)
         if not ok[0]:
-            raise DiscoverError("the current model fails to integrate on the records")
+            if round_no == 0:
+                raise DiscoverError("the current model fails to integrate on the records")
+            # the model with the kept terms integrated in the refit but not at the sensitivities' tighter tolerance
+            # (a stiff hard-form term): keep what was found, say why the search stopped
+            say(f"round {round_no + 1}: the model with the kept terms fails to integrate at rtol {SENS_RTOL:g}; "
+                "the search stops with what it kept")
+            rounds.append({"stopped": f"the model with the kept terms fails to integrate at rtol {SENS_RTOL:g}"})
+            break
         r_tr: list[np.ndarray] = []
         r_he: list[np.ndarray] = []
         X_tr: list[np.ndarray] = []

@@ -102,16 +102,21 @@ def nonlinear_check(rows: list[ScreenRow], terms: Sequence[Term], targets: Seque
 
 
 def refit_list(rows: list[ScreenRow], n_refit: int, n_siblings: int = 2) -> list[ScreenRow]:
-    """The best ``n_refit`` rows, then the best ``n_siblings`` *siblings* of the first: the same form acting on
-    another mass or section (a force on mass 3 and one in section 3 look alike on one sensor; the probe's coarse
-    coefficient can rank the wrong one first)."""
+    """The best ``n_refit`` rows, then the best ``n_siblings`` *siblings* of the first (all of them for a hard
+    form) and every sibling of each hard-form force among them: the same form acting on another mass or section (a
+    force on mass 3 and one in section 3 look alike on one sensor; the probe's coarse coefficient can rank the wrong
+    one first — strong tip friction on an MBIT.b step screened as friction in section 2, its mass-3 twin never
+    refitted)."""
     out = list(rows[:n_refit])
-    if rows and rows[0].term.placement in ("force_mass", "force_section"):
-        top = rows[0].term
-        sib = [r for r in rows[n_refit:] if r.term.form == top.form
-               and r.term.placement in ("force_mass", "force_section")]
+    forces = ("force_mass", "force_section")
+    leaders = [r.term for r in out[:1] if r.term.placement in forces]
+    leaders += [r.term for r in out[1:] if r.term.placement in forces and r.term.form in HARD_FORMS
+                and all(r.term.form != t.form for t in leaders)]
+    for top in leaders:
+        sib = [r for r in rows[n_refit:] if r.term.form == top.form and r.term.placement in forces
+               and r not in out]
         sib.sort(key=lambda r: r.term.index != top.index)  # the same mass/section number first (stable)
-        out += sib[:n_siblings]
+        out += sib if top.form in HARD_FORMS else sib[:n_siblings]  # a hard form: every sibling (≤ 5)
     return out
 
 
