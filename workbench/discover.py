@@ -46,7 +46,15 @@ from workbench.discover_dictionary_effect import (
     term_scale,
 )
 from workbench.discover_results import DiscoverError, Discovery, FoundTerm, ScreenRow, describe_units
-from workbench.discover_search import SearchState, free_for, free_run_check, nonlinear_check, refine, refit_list
+from workbench.discover_search import (
+    SearchState,
+    free_for,
+    free_run_check,
+    nonlinear_check,
+    other_delay_order,
+    refine,
+    refit_list,
+)
 from workbench.discovery_dictionary import Term, build_dictionary, dictionary_parameter_names, dictionary_source
 from workbench.effect_library import resolve_candidates
 from workbench.effect_writer import describe_term
@@ -197,12 +205,16 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         fast = bool(rows) and explained(rows[0].held_rms_sigma, held_before, n_held)
         if fast:
             t1 = time.perf_counter()
-            out = refit_row(rows[0])
+            # the best row, and for a delay the best row of its other Padé order (the linearised screen barely
+            # tells them apart; a strong delay needs the second order)
+            for row in [rows[0], *other_delay_order(rows, rows[0])]:
+                out = refit_row(row)
+                if out is not None and explained(out.held_rms_sigma, held_before, n_held):
+                    tried.append({"term": row.term.key, "held_rms_sigma": out.held_rms_sigma,
+                                  "train_rms_sigma": out.train_rms_sigma})
+                    if best is None or out.held_rms_sigma < best[0]:
+                        best = (out.held_rms_sigma, terms.index(row.term), out)
             timings["refit_s"] += time.perf_counter() - t1
-            if out is not None and explained(out.held_rms_sigma, held_before, n_held):
-                best = (out.held_rms_sigma, terms.index(rows[0].term), out)
-                tried.append({"term": rows[0].term.key, "held_rms_sigma": out.held_rms_sigma,
-                              "train_rms_sigma": out.train_rms_sigma})
         if best is None:
             rows, n_probes = nonlinear_check(rows, terms, targets, models, state.values, names, threads)
             n_sims += n_probes * len(targets)
@@ -224,7 +236,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
                           "train_rms_sigma": out.train_rms_sigma})
             if best is None or out.held_rms_sigma < best[0]:
                 best = (out.held_rms_sigma, k, out)
-            if explained(out.held_rms_sigma, held_before, n_held):
+            if out.held_rms_sigma <= 1.0 + noise_tolerance(n_held):  # at the noise floor: nothing can do better
                 break
         timings["refit_s"] += time.perf_counter() - t0
         rounds.append({"screened": [(r.term.key, r.held_rms_sigma) for r in rows[:n_refit]], "refitted": tried})

@@ -117,7 +117,19 @@ def refit_list(rows: list[ScreenRow], n_refit: int, n_siblings: int = 2) -> list
                and r not in out]
         sib.sort(key=lambda r: r.term.index != top.index)  # the same mass/section number first (stable)
         out += sib if top.form in HARD_FORMS else sib[:n_siblings]  # a hard form: every sibling (≤ 5)
+    for r in list(out):
+        out += [o for o in other_delay_order(rows, r) if o not in out]
     return out
+
+
+def other_delay_order(rows: Sequence[ScreenRow], row: ScreenRow) -> list[ScreenRow]:
+    """For a delay term, the best row of the same placement and signal with the other Padé order (else [])."""
+    pair = {"delay": "delay2", "delay2": "delay"}
+    if row.term.form not in pair:
+        return []
+    other = [r for r in rows if r.term.form == pair[row.term.form] and r.term.placement == row.term.placement
+             and r.term.signal == row.term.signal]
+    return other[:1]
 
 
 def free_for(terms: Sequence[Term], names: list[tuple[str, str | None]], idx: Sequence[int],
