@@ -185,7 +185,7 @@ def form_values(form: str, s: np.ndarray, g: float, t: np.ndarray, dt: float) ->
 
 
 #: fractions of a signal's scale (99th percentile of |signal| along the records) used as thresholds/widths
-THRESHOLDS = (0.3, 0.6)
+THRESHOLDS = (0.2, 0.35, 0.5, 0.65, 0.8)
 DEAD_ZONES = (0.15, 0.4)
 SAT_LEVEL = 0.6
 SIGN_WIDTH = 1e-3
