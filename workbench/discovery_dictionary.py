@@ -272,24 +272,31 @@ def _value_code(slot: TermSlot) -> str:
 
 def hook_bodies(slots: Sequence[TermSlot], guard: bool = False) -> dict[str, list[str]]:
     """Body lines (8-space indented) of the ``pre``, ``rates`` and ``output`` hooks for ``slots`` (``guard``: skip a
-    term whose coefficient is 0; a delay state still follows its signal)."""
+    term whose coefficient is 0 — its delay states too: they stay at 0, so the dictionary's many fast delay lines
+    (poles up to ~1 700 rad/s) do not limit the step of every simulation where they are off; switched on, a state
+    starts from 0 at t = 0 exactly as in the emitted effect)."""
     bodies: dict[str, list[str]] = {"pre": [], "rates": [], "output": []}
     for slot in slots:
         term = slot.term
         value = _value_code(slot)
+        state_lines = []
         if slot.state is not None and term.form == "delay2":  # w1' = w2, w2' = 12 (s − w1 − T w2 / 2) / T²
             g = (f"max(p[po + {slot.shape_param}], 1e-4)" if slot.shape_param is not None
                  else _lit(max(term.shape, 1e-4)))
             s = SIGNALS[term.signal].code
             w1, w2 = f"x[so + {slot.state}]", f"x[so + {slot.state + 1}]"
-            bodies["rates"].append(f"        dx[so + {slot.state}] += {w2}")
-            bodies["rates"].append(f"        dx[so + {slot.state + 1}] += 12.0 * (({s}) - {w1} - 0.5 * {g} * {w2}) / "
-                                   f"({g} * {g})")
+            state_lines = [f"dx[so + {slot.state}] += {w2}",
+                           f"dx[so + {slot.state + 1}] += 12.0 * (({s}) - {w1} - 0.5 * {g} * {w2}) / ({g} * {g})"]
         elif slot.state is not None:  # the first-order Padé delay's state: dw/dt = (s − w)/(τ/2)
             g = f"p[po + {slot.shape_param}]" if slot.shape_param is not None else _lit(term.shape)
             s = SIGNALS[term.signal].code
-            bodies["rates"].append(f"        dx[so + {slot.state}] += (({s}) - x[so + {slot.state}]) / "
-                                   f"(0.5 * max({g}, 1e-4))")
+            state_lines = [f"dx[so + {slot.state}] += (({s}) - x[so + {slot.state}]) / (0.5 * max({g}, 1e-4))"]
+        if state_lines:
+            if guard:
+                bodies["rates"].append(f"        if p[po + {slot.coef}] != 0.0:")
+                bodies["rates"].extend("            " + ln for ln in state_lines)
+            else:
+                bodies["rates"].extend("        " + ln for ln in state_lines)
         if term.placement == "force_mass":
             hook, lines = "rates", [f"bus[B_FM + {term.index}] += {value}"]
         elif term.placement == "force_section":
