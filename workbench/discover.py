@@ -205,9 +205,16 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         fast = bool(rows) and explained(rows[0].held_rms_sigma, held_before, n_held)
         if fast:
             t1 = time.perf_counter()
-            # the best row, and for a delay the best row of its other Padé order (the linearised screen barely
-            # tells them apart; a strong delay needs the second order)
-            for row in [rows[0], *other_delay_order(rows, rows[0])]:
+            # the best row, for a delay the best row of its other Padé order (the linearised screen barely tells
+            # them apart; a strong delay needs the second order), and the next rows that also explain the records on
+            # the screen: a term acting through the (hysteretic) structure is linearised less exactly than one in the
+            # measurement, so its refit, not its screen value, says whether it is a twin
+            also = [r for r in rows[1:1 + FAST_ALSO] if explained(r.held_rms_sigma, held_before, n_held)]
+            todo: list[ScreenRow] = []
+            for row in [rows[0], *other_delay_order(rows, rows[0]), *also]:
+                if all(row is not r for r in todo):
+                    todo.append(row)
+            for row in todo:
                 out = refit_row(row)
                 if out is not None and explained(out.held_rms_sigma, held_before, n_held):
                     tried.append({"term": row.term.key, "held_rms_sigma": out.held_rms_sigma,
@@ -317,6 +324,8 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
                      targets, n_sims, timings, rounds)
 
 
+#: on the fast path, up to this many further rows that also reach the noise floor on the screen are refitted too
+FAST_ALSO = 3
 #: at most this many twins are named per kept term
 MAX_TWINS = 2
 #: a twin's held-out RMS may exceed the chosen term's by this share (model tolerance) plus three standard
