@@ -8,7 +8,7 @@ import functools
 import sys
 from pathlib import Path
 
-from shm_cli.common import add_params_arg, dump_json, out_dir
+from shm_cli.common import add_params_arg, dump_json, even_int, out_dir
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -32,7 +32,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--refit", type=int, default=4, help="screened terms refitted per round (default 4)")
     p.add_argument("--holdout", choices=("blocks", "records"), default="blocks",
                    help="held-out data: alternate blocks of every record (default) or every second record")
-    p.add_argument("--blocks", type=int, default=10, help="blocks per record for --holdout blocks (even, default 10)")
+    p.add_argument("--blocks", type=even_int(2), default=10,
+                   help="blocks per record for --holdout blocks (even, default 10)")
     p.add_argument("--max-rate-hz", type=float, default=250.0,
                    help="sub-sample records to at most this rate (default 250 Hz)")
     p.add_argument("--json", action="store_true", help="print the result as one JSON document on stdout")

@@ -305,6 +305,8 @@ def _file_cases() -> list[Case]:
         else:
             cases.append(case(f"fit-{name}", ["fit", f"{{d}}/{name}", "--free", "k3", "--save", "{o}/x.toml"],
                               *needles))
+    for name in ("nan_value.csv", "bad_unit.csv", "corrupt.tdms", "time_backwards.csv"):
+        cases.append(case(f"discover-{name}", ["discover", f"{{d}}/{name}", "--out", "{o}"], *RECORDS[name][1]))
     for name in ("nan_value.csv", "truncated.csv", "bad_unit.csv", "corrupt.tdms", "time_backwards.csv"):
         cases.append(case(f"health-{name}", ["health", f"{{d}}/{name}", "--out", "{o}"],
                           *RECORDS[name][1]))
@@ -497,6 +499,16 @@ def _option_cases() -> list[Case]:
         c("compare-set", "compare {d}/good.csv --set k3=abc --out {o}", "k3", "abc"),
         c("compare-eq4", "compare {d}/good.csv --eq4 z3=x --out {o}", "--eq4"),
         c("compare-out-file", "compare {d}/good.csv --out {d}/a_file", "--out", "a_file"),
+        c("discover-max-terms", "discover {d}/good.csv --max-terms 0 --out {o}", "--max-terms", "0"),
+        c("discover-refit", "discover {d}/good.csv --refit -2 --out {o}", "--refit", "-2"),
+        c("discover-blocks-odd", "discover {d}/good.csv --blocks 3 --out {o}", "--blocks", "3"),
+        c("discover-rate", "discover {d}/good.csv --max-rate-hz -5 --out {o}", "--max-rate-hz", "-5"),
+        c("discover-add-unknown", "discover {d}/good.csv --add warp_drive --out {o}", "warp_drive"),
+        c("discover-emit-dir", "discover {d}/good.csv --emit {d} --out {o}", "--emit"),
+        c("discover-emit-not-py", "discover {d}/good.csv --emit {o}/effect.txt --out {o}", "--emit", ".py"),
+        c("discover-params", "discover {d}/good.csv --params {d}/nope.toml --out {o}", "nope.toml"),
+        c("discover-missing-record", "discover {d}/nope.csv --out {o}", "nope.csv"),
+        c("discover-out-file", "discover {d}/good.csv --out {d}/a_file", "--out", "a_file"),
         c("diagnose-blocks-odd", "diagnose {d}/good.csv --blocks 3 --out {o}", "--blocks", "3"),
         c("diagnose-blocks-zero", "diagnose {d}/good.csv --blocks 0 --out {o}", "--blocks", "0"),
         c("diagnose-fit-top", "diagnose {d}/good.csv --fit-top -1 --out {o}", "--fit-top", ">= 0"),

@@ -56,7 +56,7 @@ def test_the_corpus_is_large_and_covers_every_command() -> None:
     assert len(CASES) >= 200
     commands = {c.argv[0] for c in CASES if c.argv}
     assert commands >= {"run", "log", "synth", "model", "harvest", "campaign", "campaign-roc", "hil", "compare",
-                        "diagnose", "fit", "health", "calibrate"}
+                        "diagnose", "fit", "health", "calibrate", "discover"}
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
