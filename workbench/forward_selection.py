@@ -53,9 +53,7 @@ MAX_MEMBERS = 4
 #: candidates fitted together with the current set at each step: the best of the re-screen, then the strongest
 #: fitted alone
 POOL_RESCREENED = 3
-#: (four: a strong effect whose re-screen on top of the set ranks below re-estimations that mimic it — geometric
-#: stiffening behind d_ep on an MBIT.b step — is still fitted jointly if it was among the strongest alone)
-POOL_FITTED = 4
+POOL_FITTED = 2
 #: effects re-screened on top of a current set that holds an effect (each needs a new composition, compiled once
 #: per machine, ~5 s cold); on top of re-estimations alone, every effect is re-screened (same compositions as
 #: alone). As many as the library holds: a weak effect behind a strong one is screened out alone and ranks last by
