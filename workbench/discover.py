@@ -55,7 +55,13 @@ from workbench.discover_search import (
     refine,
     refit_list,
 )
-from workbench.discovery_dictionary import Term, build_dictionary, dictionary_parameter_names, dictionary_source
+from workbench.discovery_dictionary import (
+    DELAY_FORMS,
+    Term,
+    build_dictionary,
+    dictionary_parameter_names,
+    dictionary_source,
+)
 from workbench.effect_library import resolve_candidates
 from workbench.effect_writer import describe_term
 from workbench.fit_objective import Objective, rms
@@ -352,7 +358,7 @@ def _twins(chosen: Term, held: float, rows: Sequence[ScreenRow], tried: Sequence
     for r in rows:
         key = r.term.key
         same_delay = ((r.term.placement, r.term.signal) == (chosen.placement, chosen.signal)
-                      and {r.term.form, chosen.form} <= {"delay", "delay2"})  # the same delay, another Padé order
+                      and {r.term.form, chosen.form} <= set(DELAY_FORMS))  # the same delay, another Padé order
         if key in seen or same_delay:
             continue
         seen.add(key)

@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from workbench.discovery_dictionary import FORMS, Term
+from workbench.discovery_dictionary import DELAY_FORMS, FORMS, Term
 from workbench.effect_writer import emit_effect_source, parameter_names
 from workbench.fit_optimiser import FitOutcome
 from workbench.fit_targets import FitError, Target
@@ -55,11 +55,11 @@ def separating_test(term: Term, twins: Sequence[dict[str, Any]]) -> str:
     if len({(term.placement, term.index), *((t["placement"], t["index"]) for t in twins)}) > 1 and \
             places <= {"force_mass", "force_section"}:
         tests.append("a sweep through the modes tells the masses and sections apart")
-    shaped = ("pos", "neg", "square", "cube", "sat")
+    shaped = {"pos", "neg", "square", "cube", "sat"}  # forms whose shape a record's amplitude range decides
     if (term.signal == "va" and term.form in shaped) or any(t["signal"] == "va" and t["form"] in shaped
                                                              for t in twins):
         tests.append("drive both signs and several amplitudes")
-    if {term.form, *(t["form"] for t in twins)} & {"sat", "cube", "pos", "neg", "square"} and \
+    if {term.form, *(t["form"] for t in twins)} & shaped and \
             places <= {"measurement", "force_mass", "force_section"} and len(places) > 1:
         tests.append("a static calibration of the laser against a reference tells a sensor map from a force")
     if not tests:
@@ -130,7 +130,7 @@ def describe_units(found: Sequence[FoundTerm]) -> list[str]:
     for f in found:
         line = f"{f.term.key}: coefficient {f.coef:.4g} {f.term.unit}"
         if FORMS[f.term.form].shape:
-            unit = "s" if f.term.form in ("delay", "delay2") else ("m/s" if f.term.signal.startswith(("zd", "dd")) else
+            unit = "s" if f.term.form in DELAY_FORMS else ("m/s" if f.term.signal.startswith(("zd", "dd")) else
                                                         "V" if f.term.signal in ("va", "vc") else "m")
             line += f", {FORMS[f.term.form].shape} {f.shape:.4g} {unit}"
         out.append(line)

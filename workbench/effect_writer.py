@@ -16,13 +16,13 @@ import textwrap
 from collections.abc import Mapping, Sequence
 
 from workbench.discovery_dictionary import (
+    DELAY_FORMS,
     FORMS,
     SIGNALS,
     Term,
     TermSlot,
+    allocate_states,
     hooks_source,
-    n_form_states,
-    state_spec_args,
 )
 
 
@@ -100,7 +100,7 @@ def describe_term(term: Term, coef: float, shape: float, scale: float) -> str:
         return (f"a current into each patch growing with the {'square' if f == 'absx' else 'cube'} of the patch "
                 f"voltage ({_si(c * scale ** FORMS[f].power, 'A')} at {scale:.3g} V): a nonlinear leakage")
     if p == "drive":
-        if f in ("delay", "delay2"):
+        if f in DELAY_FORMS:
             return (f"a transport delay of {_si(c * g, 's')} on the drive: the patches see the commanded voltage "
                     "late (amplifier/controller latency)")
         if f in ("pos", "neg"):
@@ -130,7 +130,7 @@ def describe_term(term: Term, coef: float, shape: float, scale: float) -> str:
             return f"a laser offset of {_si(c, 'm')}" + tail
         if term.signal == "zd3":
             return f"a laser lag of {_si(-c, 's')} (reading ≈ z3 − τ ż3)" + tail
-        if f in ("delay", "delay2"):
+        if f in DELAY_FORMS:
             kind = ("a delay" if abs(c - 1.0) < 0.25 else
                     "a first-order low-pass" if abs(c - 0.5) < 0.15 and f == "delay" else "a delay or low-pass")
             return (f"a laser lag of {_si(c * g, 's')}: the reading follows the tip late ({kind} in the sensor "
@@ -196,7 +196,6 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
     neutral: list[str] = []
     discovered: dict[str, float] = {}
     names: list[str] = []  # every parameter's name, in order
-    n_states = 0
     state_specs: list[tuple[str, float]] = []  # (unit, scale) of each state
     formulas = []
     for term in terms:
@@ -217,18 +216,13 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
             g = _r(float(values.get(gname, term.shape)))
             shape_idx = len(params)
             names.append(gname)
-            unit = "s" if term.form in ("delay", "delay2") else SIGNALS[term.signal].unit
+            unit = "s" if term.form in DELAY_FORMS else SIGNALS[term.signal].unit
             params.append(f"        Parameter({gname!r}, {unit!r}, {g!r}, {_r(g / 20)!r}, {_r(g * 20)!r},\n"
                           f"                  {(FORMS[term.form].shape + ' of ' + term.key)!r}),")
             lo_g, hi_g = (_r(g / 10), _r(g * 2)) if term.form == "sign" else (_r(g / 4), _r(g * 4))
             fit_ranges.append(f"        {gname!r}: FitRange({lo_g!r}, {hi_g!r}, log=True),")
             discovered[gname] = g
-        state = None
-        if n_form_states(term.form):
-            state = n_states
-            n_states += n_form_states(term.form)
-            state_specs += [state_spec_args(term.signal)] * n_form_states(term.form)
-        slots.append(TermSlot(term, k, shape_idx, state))
+        slots.append(TermSlot(term, k, shape_idx, allocate_states(term, state_specs)))
         formulas.append(formula(term, cname, gname))
     cls = class_name or class_name_for(terms)
     what = "; ".join(words) if words else ", ".join(t.key for t in terms)
@@ -247,8 +241,8 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
             f"Written {_dt.datetime.now(_dt.UTC).strftime('%Y-%m-%d %H:%M UTC')}. Edit freely: it is an "
             "ordinary effect (docs/effects.md).", '"""']
     states = "".join(f"        StateSpec('w_delay_{k}', {u!r}, {sc!r}),\n" for k, (u, sc) in enumerate(state_specs))
-    hooks = hooks_source(slots, parameter_names=names, state_names=[f"w_delay_{k}" for k in range(n_states)])
-    effect_names = "Parameter, PhysicalEffect" + (", StateSpec" if n_states else "")
+    hooks = hooks_source(slots, parameter_names=names, state_names=[f"w_delay_{k}" for k in range(len(state_specs))])
+    effect_names = "Parameter, PhysicalEffect" + (", StateSpec" if state_specs else "")
     imports = (("import math\n\n" if "math." in hooks else "")
                + f"from plant.effect import {effect_names}\n"
                "from plant.effects.library_support import FitRange\n")
@@ -262,7 +256,7 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
         f"    origin = {('shm discover on ' + (', '.join(records) or 'records') + (': ' + score if score else ''))!r}\n"
         f"    signature = {('its absence leaves: ' + what)!r}\n"
         "    parameters = (\n" + "\n".join(params) + "\n    )\n"
-        + ("    states = (\n" + states + "    )\n" if n_states else "")
+        + ("    states = (\n" + states + "    )\n" if state_specs else "")
         + "    neutral = {" + ", ".join(neutral) + "}\n"
         "    fit_ranges = {\n" + "\n".join(fit_ranges) + "\n    }\n"
         f"    DISCOVERED = {discovered!r}\n\n"
