@@ -29,8 +29,11 @@ def _one(args: tuple) -> dict:
         from workbench.discovery_challenge import DiscoveryCaseResult
 
         nan = float("nan")
-        return DiscoveryCaseResult(cls_name, strength, kind, noise, seed, nan, True, "error", [], "", False, nan, nan,
-                                   nan, False, 0.0, note=f"{type(exc).__name__}: {exc}", values=dict(values)).to_dict()
+        return DiscoveryCaseResult(
+            label=cls_name, strength=strength, kind=kind, noise_m=noise, seed=seed, size_sigma=nan, counts=True,
+            verdict="error", found=[], description="", named=False, held_before=nan, held_discover=nan,
+            held_after=nan, passed=False, wall_s=0.0, note=f"{type(exc).__name__}: {exc}", values=dict(values),
+        ).to_dict()
 
 
 def cases(quick: bool) -> list[tuple]:

@@ -29,6 +29,7 @@ from board_config.parameter import Parameter, freed
 from plant import PhysicalEffect, PlantModel
 from workbench.effect_library import LIBRARY, effect_free_parameters
 from workbench.fit import Objective, SimBatch, Target, rms
+from workbench.fit_optimiser import zoom_design
 
 #: default search range of a re-estimated core parameter: a factor around its current value
 CORE_RANGE_FACTOR = 4.0
@@ -385,10 +386,7 @@ def screen_effects(targets: Sequence[Target], effect_models: Mapping[str, Sequen
         U, Rt, Rh, cost = _screen_batch(obj, U)
         b = int(np.argmin(cost))
         if k and np.isfinite(cost[b]) and cost[b] > SCREEN_ZOOM_ABOVE:
-            half = 1.5 / n_design ** (1.0 / k)
-            lo, hi = np.clip(U[b] - half, 0.0, 1.0), np.clip(U[b] + half, 0.0, 1.0)
-            perms = np.column_stack([rng.permutation(n_design) for _ in range(k)])
-            Uz = lo + (hi - lo) * (perms + rng.uniform(0.15, 0.85, size=(n_design, k))) / n_design
+            Uz = zoom_design(U[b], n_design, n_design, rng, jitter=(0.15, 0.85))
             Uz, Rtz, Rhz, costz = _screen_batch(obj, Uz)
             U, Rt, Rh, cost = np.vstack([U, Uz]), [*Rt, *Rtz], [*Rh, *Rhz], np.concatenate([cost, costz])
             b = int(np.argmin(cost))

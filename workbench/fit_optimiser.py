@@ -116,6 +116,18 @@ def train_residual_and_jacobian(obj: Objective, batched: bool = True
     return fun, jac
 
 
+def zoom_design(centre: np.ndarray, n_coarse: int, n: int, rng: np.random.Generator,
+                jitter: tuple[float, float]) -> np.ndarray:
+    """A Latin hypercube of ``n`` points (unit box) in a window around ``centre`` as wide as 3 cells of a coarse
+    design of ``n_coarse`` points (half-width 1.5 / n_coarse^(1/k)), clipped to the box; each point jittered
+    uniformly within ``jitter`` of its cell."""
+    k = centre.size
+    half = 1.5 / n_coarse ** (1.0 / k)
+    lo, hi = np.clip(centre - half, 0.0, 1.0), np.clip(centre + half, 0.0, 1.0)
+    perms = np.column_stack([rng.permutation(n) for _ in range(k)])
+    return lo + (hi - lo) * (perms + rng.uniform(*jitter, size=(n, k))) / n
+
+
 #: smallest default screening design (points of the Latin hypercube, the guess included): a strong nonlinear effect
 #: on a resonant sweep has a basin a few percent wide in its own parameter (geometric stiffening of 1 400 σ: κ within
 #: ~±30 % of the truth), which 12 points over a symlog range missed for one seed in four; 32 found it for every seed
@@ -155,12 +167,7 @@ def optimise(obj: Objective, guess: Mapping[str, float] | None = None, *, n_scre
         # zoom: a second, finer design around the best point (resonant records have narrow basins — a
         # stiffness or clamp compliance that puts a mode at the right time of a sweep — which a coarse design
         # brackets but rarely hits)
-        half = 1.5 / n_screen ** (1.0 / k)
-        centre = U0[order[0]]
-        lo, hi = np.clip(centre - half, 0, 1), np.clip(centre + half, 0, 1)
-        n_zoom = n_screen + 4
-        perms = np.column_stack([rng.permutation(n_zoom) for _ in range(k)])
-        Uz = lo + (hi - lo) * (perms + rng.uniform(0.2, 0.8, size=(n_zoom, k))) / n_zoom
+        Uz = zoom_design(U0[order[0]], n_screen, n_screen + 4, rng, jitter=(0.2, 0.8))
         simz = obj.simulate(Uz)
         costz = np.array([rms(r) for r in obj.residuals(simz, "train")])
         costz[~simz.ok] = np.inf
