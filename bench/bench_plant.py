@@ -2,8 +2,10 @@
 
 Every figure is a ratio against a baseline timed in the same run, on the same inputs and tolerances:
 
-* the integrator as it was before issue 14 (:mod:`bench.integrator_before`: elementary step-size control),
-  compiled from its source beside the current one — before/after batch time, steps and rejection rates;
+* the integrator as it was before issue 14 (:mod:`bench.integrator_before`: elementary step-size control,
+  member by member), compiled from its source beside the current one — before/after batch time, steps and
+  rejection rates; and the current integrator member by member (``lanes=False``) against the lane integrator
+  (groups of ``LANES`` members sharing a step, SIMD across members: what ``simulate`` uses for this batch);
 * numbalsoda (LSODA in Fortran, called from a numba ``prange`` loop on the same compiled right-hand side; the
   optional extra ``mfc-shm[bench]``, which needs gfortran) — skipped with the reason when it is not installed;
 * the floor: a bare Dormand–Prince step of this 12-state model (a minimal numba loop calling the same compiled
@@ -30,6 +32,7 @@ import plant.integrate as tableau
 from bench.integrator_before import INTEGRATOR_SOURCE_BEFORE
 from board_config import load_parameter_set
 from plant import PlantModel, sine_drive
+from plant.integrate import LANES
 from plant.reference import make_solve_ivp_rhs
 
 RTOL = 1e-6
@@ -230,6 +233,7 @@ def run(out_dir: Path, quick: bool) -> dict:
     # the batch: before (previous integrator) and after (current), same inputs, tolerances and threads
     runners: dict[str, Callable[[], Any]] = {
         "before": lambda: before.simulate(inp, dt_out=0.01, params=pb, rtol=RTOL),
+        "member_by_member": lambda: model.simulate(inp, dt_out=0.01, params=pb, rtol=RTOL, lanes=False),
         "after": lambda: model.simulate(inp, dt_out=0.01, params=pb, rtol=RTOL),
     }
     numbalsoda_skip = ""
@@ -247,11 +251,12 @@ def run(out_dir: Path, quick: bool) -> dict:
     batch_s = best["after"]
 
     # per attempted step, one thread, against the bare-step floor (same compiled right-hand side)
-    n_small = 10 if quick else 20
+    n_small = (1 if quick else 2) * LANES  # whole lane groups
     per_attempt: dict[str, float] = {}
     best1, last1 = _best_of({
         "before": lambda: before.simulate(inp, dt_out=0.01, params=pb[:n_small], threads=1),
-        "after": lambda: model.simulate(inp, dt_out=0.01, params=pb[:n_small], threads=1),
+        "member_by_member": lambda: model.simulate(inp, dt_out=0.01, params=pb[:n_small], threads=1, lanes=False),
+        "after": lambda: model.simulate(inp, dt_out=0.01, params=pb[:n_small], threads=1, lanes=True),
     }, 3 * repeats)  # short runs: more repetitions for a stable minimum on a shared machine
     for k in best1:
         per_attempt[k] = best1[k] / float(last1[k].n_steps.sum())
@@ -292,6 +297,10 @@ def run(out_dir: Path, quick: bool) -> dict:
         "batch_wall_s_before": best["before"],
         "batch_wall_s": batch_s,
         "batch_speedup_vs_before": best["before"] / batch_s,
+        "batch_speedup_target": 3.0,
+        "lanes": LANES,
+        "batch_wall_s_member_by_member": best["member_by_member"],
+        "lanes_speedup_vs_member_by_member": best["member_by_member"] / batch_s,
         # load-independent part of the speed-up: attempted steps before / after (same inputs and tolerances)
         "attempt_ratio_before_over_after": att_b / att_a,
         "attempted_steps_per_run_before": att_b,
@@ -302,6 +311,7 @@ def run(out_dir: Path, quick: bool) -> dict:
         "rejection_rate": rej_a,
         "us_per_attempt_before_1thread": per_attempt["before"] * 1e6,
         "us_per_attempt_1thread": per_attempt["after"] * 1e6,
+        "us_per_attempt_member_by_member_1thread": per_attempt["member_by_member"] * 1e6,
         "us_bare_dopri_step_1thread": bare_s * 1e6,
         "per_attempt_over_bare_step": per_attempt["after"] / bare_s,
         "batch_throughput_runs_per_s": throughput,
@@ -325,8 +335,9 @@ def run(out_dir: Path, quick: bool) -> dict:
 
         plt = pyplot()
 
-        labels = ["solve_ivp LSODA\n(one at a time)", "before\n(issue 14)", "mfc-shm batch"]
-        values = [1.0 / base_per_run, n_batch / best["before"], throughput]
+        labels = ["solve_ivp LSODA\n(one at a time)", "before\n(issue 14)", "member by\nmember",
+                  "mfc-shm batch\n(lanes)"]
+        values = [1.0 / base_per_run, n_batch / best["before"], n_batch / best["member_by_member"], throughput]
         if "numbalsoda" in best:
             labels.insert(1, "numbalsoda\n(prange)")
             values.insert(1, n_batch / best["numbalsoda"])

@@ -35,14 +35,15 @@ from plant import integrate
 from plant import layout as L
 from plant.composition import Composition, build_composition
 from plant.effect import EffectError, PhysicalEffect, hook_function, importable_by_path
-from plant.integrate import INTEGRATOR_SOURCE, TABLEAU_NAMES
+from plant.integrate import INTEGRATOR_SOURCE, LANE_INTEGRATOR_SOURCE, LANES, TABLEAU_NAMES
+from plant.lanes import OUTPUT_ROLES, LaneFormUnsupported, lane_hook_source
 
 HOOK_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], types.float64[::1],
                       types.float64[::1], types.int64, types.int64)
 OUT_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], types.float64[::1],
                      types.float64[::1], types.int64, types.int64, types.int64)
 PHASES = ("pre", "rates", "post")
-_GENERATOR_VERSION = "8"
+_GENERATOR_VERSION = "9"
 
 _LOADED: dict[str, ModuleType] = {}
 _LOCK = threading.Lock()
@@ -252,7 +253,81 @@ def generate_source(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int,
         if cls.output is not None:
             lines.append(f"    e{k}_output(t, x, p, bus, y, {_hook_call(comp, k, 'output')})")
     lines += ["", "", integrator_source]
+    lane_lines = _lane_section(classes, comp, n_states) if cacheable and integrator_source == INTEGRATOR_SOURCE \
+        else None
+    lines += lane_lines if lane_lines is not None else ["", "HAS_LANES = False", "LANES = 1"]
     return "\n".join(lines) + "\n"
+
+
+def _lane_section(classes: tuple[type[PhysicalEffect], ...], comp: Composition, n_states: int) -> list[str] | None:
+    """The lane-form kernels (:mod:`plant.lanes`): work-array layout, lane hooks, ``rhs_lanes``, ``out_lanes`` and
+    the lane integrator; None when a hook cannot be rewritten (the composition then integrates member by
+    member only)."""
+    n_params = L.N_CORE_PARAMS + len(comp.parameters)
+    n_outputs = L.N_CORE_OUTPUTS + len(comp.outputs)
+    rows = {"x": n_states, "p": n_params, "bus": L.N_BUS, "dx": n_states, "y": n_outputs, "u": L.N_INPUTS,
+            "atol": n_states, "xc": n_states, **{f"k{i}": n_states for i in range(1, 8)}, "xn": n_states,
+            "err": 1, "tot": 1, "alive": 1}
+    lines = ["", "", "# --- lane form (plant.lanes): LANES members per work array W, row r lane l at W[r * LANES + l]",
+             "HAS_LANES = True", f"LANES = {LANES}", f"N_PARAMS = {n_params}", f"N_OUTPUTS = {n_outputs}"]
+    offset = 0
+    for name, size in rows.items():
+        lines.append(f"_O_{name} = {offset}")
+        offset += size
+    lines.append(f"W_ROWS = {offset}")
+    calls: dict[str, list[str]] = {hook: [] for hook in (*PHASES, "output")}
+    for k, cls in enumerate(classes):
+        for hook in (*PHASES, "output"):
+            fn = hook_function(cls, hook)
+            if fn is None:
+                continue
+            try:
+                src, needed = lane_hook_source(fn, f"l{k}_{hook}", f"{k}_{hook}",
+                                               OUTPUT_ROLES if hook == "output" else ("x", "p", "bus", "dx"))
+            except LaneFormUnsupported:
+                return None
+            if needed:
+                lines.append(f"_HM{k}_{hook} = importlib.import_module({fn.__module__!r})")
+                lines += [f"{bound} = _HM{k}_{hook}.{name}" for bound, name in needed.items()]
+            lines += ["@numba.njit(cache=CACHE, nogil=True, error_model='numpy', inline='always')", src]
+            calls[hook].append(f"    l{k}_{hook}(t, W, {_hook_call(comp, k, hook)})")
+    lines += [
+        "",
+        "",
+        "@numba.njit(cache=CACHE, nogil=True, error_model='numpy')",
+        "def rhs_lanes(t, W):",
+        "    for i in range(_O_bus * LANES, (_O_dx + N_STATES) * LANES):",
+        "        W[i] = 0.0",
+        "    for l in range(LANES):",
+        f"        W[(_O_bus + {L.B_T}) * LANES + l] = t",
+        f"        W[(_O_bus + {L.B_U_V1}) * LANES + l] = W[(_O_u + {L.U_V_CH1}) * LANES + l]",
+        f"        W[(_O_bus + {L.B_U_V2}) * LANES + l] = W[(_O_u + {L.U_V_CH2}) * LANES + l]",
+        f"        W[(_O_bus + {L.B_Z0DD}) * LANES + l] = W[(_O_u + {L.U_Z0DD}) * LANES + l]",
+    ]
+    for phase in PHASES:
+        lines += calls[phase]
+    lines += [
+        "",
+        "",
+        "@numba.njit(cache=CACHE, nogil=True, error_model='numpy')",
+        "def out_lanes(t, W):",
+        "    rhs_lanes(t, W)",
+        "    for i in range(3):",
+        "        for l in range(LANES):",
+        f"            W[(_O_y + {L.Y_Z} + i) * LANES + l] = W[(_O_bus + {L.B_Z} + i) * LANES + l]",
+        f"            W[(_O_y + {L.Y_DELTA} + i) * LANES + l] = W[(_O_x + {L.X_DELTA} + i) * LANES + l]",
+        f"            W[(_O_y + {L.Y_Q} + i) * LANES + l] = W[(_O_x + {L.X_Q} + i) * LANES + l]",
+        f"            W[(_O_y + {L.Y_QH} + i) * LANES + l] = W[(_O_bus + {L.B_QH} + i) * LANES + l]",
+        f"            W[(_O_y + {L.Y_VPATCH} + i) * LANES + l] = W[(_O_bus + {L.B_VC} + i) * LANES + l]",
+        "    for l in range(LANES):",
+        f"        W[(_O_y + {L.Y_VSTORED}) * LANES + l] = W[(_O_bus + {L.B_VA}) * LANES + l]",
+        f"        W[(_O_y + {L.Y_Z3_MEAS}) * LANES + l] = W[(_O_bus + {L.B_Z} + 2) * LANES + l]",
+        *calls["output"],
+        "",
+        "",
+        LANE_INTEGRATOR_SOURCE,
+    ]
+    return lines
 
 
 def _diagnose_hooks(classes: tuple[type[PhysicalEffect], ...], comp: Composition) -> None:

@@ -276,12 +276,15 @@ class PlantModel:
         t_out: np.ndarray | None = None,
         max_steps: int = 50_000_000,
         threads: int | None = None,
+        lanes: bool | None = None,
     ) -> SimulationResult:
         """Integrate a batch. ``params`` is (batch, n_params) or (n_params,); ``x0`` likewise for states.
 
         The batch size is the largest of the parameter, initial-state and input batches (each 1 or B).
         Outputs are sampled every ``dt_out`` seconds from ``inputs.t0`` to ``t_end`` (default: the end of
-        the inputs), or at the given uniform-or-not ``t_out`` times.
+        the inputs), or at the given uniform-or-not ``t_out`` times. ``lanes``: the lane integrator on/off
+        (default: for batches of ``plant.stepper.LANE_MIN_BATCH`` members or more; see
+        :meth:`plant.stepper.Integrator.batch`).
         """
         p = self.p_nominal[None] if params is None else np.atleast_2d(np.asarray(params, dtype=float))
         if p.shape[1] != len(self.param_names):
@@ -314,7 +317,7 @@ class PlantModel:
         u = np.array(inputs.values, dtype=float, order="C")
         run = Integrator(self, rtol, atol, max_steps=max_steps).batch(
             xs0, p, u, inputs.t0, inputs.dt, t_out, h_max, record_states=record_states, record_bus=record_bus,
-            threads=threads or default_threads())
+            threads=threads or default_threads(), lanes=lanes)
         return SimulationResult(
             t=t_out, y=run.y, output_names=self.output_names, output_units=self.output_units, status=run.status,
             n_steps=run.n_steps, states=run.states, state_names=self.state_names, bus=run.bus,

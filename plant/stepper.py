@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -29,6 +29,11 @@ if TYPE_CHECKING:
 H_MIN = 1e-14
 #: attempted steps per trajectory and call before an integration stops with ``TOO_MANY_STEPS``
 MAX_STEPS = 50_000_000
+#: smallest batch integrated by the lane integrator (groups of ``LANES`` members sharing a step size, SIMD across
+#: members); smaller batches, and compositions whose hooks have no lane form, go member by member
+LANE_MIN_BATCH = 16
+#: work items per thread when a batch is split over threads (a thread that finishes early takes the next item)
+ITEMS_PER_THREAD = 4
 
 
 def default_threads() -> int:
@@ -50,6 +55,15 @@ class BatchRun:
     n_rejected: np.ndarray
 
 
+def work_items(batch: int, n_items: int, unit: int = 1) -> list[int]:
+    """Edges of at most ``n_items`` contiguous work items covering ``0 .. batch``, each a multiple of ``unit``
+    members (but the last), as even as that allows."""
+    n_units = -(-batch // unit)
+    n_items = max(1, min(n_items, n_units))
+    edges = [min(batch, unit * int(e)) for e in np.linspace(0, n_units, n_items + 1).round()]
+    return sorted(set(edges))
+
+
 class Integrator:
     """The compiled batch integrator of one composition, at relative tolerance ``rtol`` and absolute tolerances
     ``atol`` per state (default: the model's state scales × ``rtol``)."""
@@ -59,6 +73,8 @@ class Integrator:
         kernels = model.kernels()
         self._run = kernels.run_chunk
         self._run_stats = kernels.run_chunk_stats
+        self._run_lanes: Any = kernels.run_lanes if getattr(kernels, "HAS_LANES", False) else None
+        self.lanes = int(getattr(kernels, "LANES", 1))
         self.n_states = model.n_states
         self.n_outputs = model.n_outputs
         self.rtol = float(rtol)
@@ -69,12 +85,21 @@ class Integrator:
         self._nsteps = np.zeros(1, dtype=np.int64)
         self._no_bus = np.zeros((1, 1, 1))
 
+    def uses_lanes(self, batch: int, lanes: bool | None = None) -> bool:
+        """Whether a batch of ``batch`` members goes to the lane integrator (``lanes``: force on/off; None: when
+        the composition has a lane form and ``batch >= LANE_MIN_BATCH``)."""
+        if self._run_lanes is None or lanes is False:
+            return False
+        return bool(lanes) or batch >= LANE_MIN_BATCH
+
     def batch(self, x0: np.ndarray, p: np.ndarray, u: np.ndarray, u_t0: float, u_dt: float, t_out: np.ndarray,
-              h_max: float, *, record_states: bool = False, record_bus: bool = False, threads: int = 1) -> BatchRun:
+              h_max: float, *, record_states: bool = False, record_bus: bool = False, threads: int = 1,
+              lanes: bool | None = None) -> BatchRun:
         """Integrate ``batch = p.shape[0]`` trajectories (``x0`` (batch, n_states), ``p`` (batch, n_params), C
         order; inputs ``u`` (1 or batch, samples, 3) on the grid ``u_t0 + k u_dt``) to the output times ``t_out``
         (``t_out[0]`` is the start), split over ``threads`` threads. A failed member has its status set and NaN
-        outputs from where it stopped; nothing is raised (see :func:`failure_of`)."""
+        outputs from where it stopped; nothing is raised (see :func:`failure_of`). ``lanes`` selects the lane
+        integrator (:meth:`uses_lanes`): members in groups sharing a step size, at least as accurate as alone."""
         batch = p.shape[0]
         y = np.empty((batch, t_out.size, self.n_outputs))
         xs = np.empty((batch, t_out.size, self.n_states)) if record_states else np.empty((1, 1, 1))
@@ -82,16 +107,18 @@ class Integrator:
         status = np.zeros(batch, dtype=np.int64)
         nsteps = np.zeros(batch, dtype=np.int64)
         nrej = np.zeros(batch, dtype=np.int64)
-        run = self._run_stats
+        use_lanes = self.uses_lanes(batch, lanes)
+        run = self._run_lanes if use_lanes else self._run_stats
         args = (x0, p, u, float(u_t0), float(u_dt), t_out, self.rtol, self.atol, float(h_max), H_MIN,
                 self.max_steps, y, xs, bs, bool(record_states), bool(record_bus), status, nsteps, nrej)
-        n_threads = min(threads, batch)
+        unit = self.lanes if use_lanes else 1
+        n_threads = min(threads, -(-batch // unit))
         if n_threads <= 1:
             run(0, batch, *args)
         else:
-            edges = np.linspace(0, batch, n_threads + 1).astype(int)
+            edges = work_items(batch, n_threads * ITEMS_PER_THREAD, unit)
             with ThreadPoolExecutor(n_threads) as pool:
-                list(pool.map(lambda k: run(int(edges[k]), int(edges[k + 1]), *args), range(n_threads)))
+                list(pool.map(lambda k: run(int(edges[k]), int(edges[k + 1]), *args), range(len(edges) - 1)))
         return BatchRun(y, xs if record_states else None, bs if record_bus else None, status, nsteps, nrej)
 
     def interval(self, x0: np.ndarray, p: np.ndarray, u: np.ndarray, u_t0: float, u_dt: float, t_out: np.ndarray,

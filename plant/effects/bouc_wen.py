@@ -24,10 +24,18 @@ class BoucWenHysteresis(PhysicalEffect):
 
     @staticmethod
     def post(t, x, p, bus, dx, X, P, B):
-        n = p[P.n_h]
-        for i in range(3):
-            qd = dx[X_Q + i]
-            h = x[X_H + i]
-            ah = abs(h)
-            hn1 = 1.0 if n == 1.0 else ah ** (n - 1.0)
-            dx[X_H + i] += p[P.A_h] * qd - p[P.beta_h] * abs(qd) * hn1 * h - p[P.gamma_h] * qd * hn1 * ah
+        if p[P.n_h] == 1.0:
+            # n = 1 (the seed's value): |h|^(n-1) = 1 and no power is computed. A test of parameters alone, so the
+            # lane form (plant.lanes) runs this branch by itself when every member of a group has n = 1.
+            for i in range(3):
+                qd = dx[X_Q + i]
+                h = x[X_H + i]
+                dx[X_H + i] += p[P.A_h] * qd - p[P.beta_h] * abs(qd) * h - p[P.gamma_h] * qd * abs(h)
+        else:
+            n = p[P.n_h]
+            for i in range(3):
+                qd = dx[X_Q + i]
+                h = x[X_H + i]
+                ah = abs(h)
+                hn1 = ah ** (n - 1.0)
+                dx[X_H + i] += p[P.A_h] * qd - p[P.beta_h] * abs(qd) * hn1 * h - p[P.gamma_h] * qd * hn1 * ah

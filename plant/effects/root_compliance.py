@@ -57,19 +57,19 @@ class RootClampCompliance(PhysicalEffect):
 
     @staticmethod
     def post(t, x, p, bus, dx, X, P, B):
-        cr = p[P.clamp_compliance]
-        if cr <= 0.0:
+        if p[P.clamp_compliance] <= 0.0:  # a rigid clamp (a test of a parameter alone: see plant.lanes)
             dx[X.delta0] = 0.0
             dx[X.ddelta0] = 0.0
-            return
-        m0 = p[P.m_clamp]
-        k0 = 1.0 / cr
-        c0 = 2.0 * p[P.zeta_clamp] * math.sqrt(k0 * m0)
-        s0 = -k0 * x[X.delta0] - c0 * x[X.ddelta0]
-        a0 = (s0 - bus[B.s1]) / m0 - bus[B.z0dd]
-        dx[X.delta0] = x[X.ddelta0]
-        dx[X.ddelta0] = a0
-        dx[X.ddelta1] -= a0
+        else:
+            cr = p[P.clamp_compliance]
+            m0 = p[P.m_clamp]
+            k0 = 1.0 / cr
+            c0 = 2.0 * p[P.zeta_clamp] * math.sqrt(k0 * m0)
+            s0 = -k0 * x[X.delta0] - c0 * x[X.ddelta0]
+            a0 = (s0 - bus[B.s1]) / m0 - bus[B.z0dd]
+            dx[X.delta0] = x[X.ddelta0]
+            dx[X.ddelta0] = a0
+            dx[X.ddelta1] -= a0
 
     @classmethod
     def guess(cls, data: Mapping[str, Any] | None = None) -> dict[str, float]:
