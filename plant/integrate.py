@@ -84,6 +84,36 @@ _LOG_ERR_FLOOR = -9.210340371976182  # log(1e-4): the previous error enters the 
 
 
 INTEGRATOR_SOURCE = r'''
+@numba.njit(cache=CACHE, nogil=True, error_model="numpy", inline="always")
+def dense_weights(th):
+    # Dormand-Prince dense-output weights at theta = th (x(t + th h) = x + h sum_i q_i k_i; k2 has none)
+    th2 = th * th
+    th3 = th2 * th
+    th4 = th3 * th
+    return (th + _P12 * th2 + _P13 * th3 + _P14 * th4, _P32 * th2 + _P33 * th3 + _P34 * th4,
+            _P42 * th2 + _P43 * th3 + _P44 * th4, _P52 * th2 + _P53 * th3 + _P54 * th4,
+            _P62 * th2 + _P63 * th3 + _P64 * th4, _P72 * th2 + _P73 * th3 + _P74 * th4)
+
+
+@numba.njit(cache=CACHE, nogil=True, error_model="numpy", inline="always")
+def next_step(h, h_use, log_err, log_err_prev, pi_on, after_reject, last, h_max):
+    # the step after an accepted one: PI controller (Gustafsson; Hairer's DOPRI5) once a step has been rejected
+    # in this call; before that the elementary controller, which ramps up from the small initial step as fast as
+    # before (a rig or stepper restarts every tick: PI from the first step cost ~50 % more attempts per 10 ms)
+    if pi_on:
+        fac = _SAFE * np.exp(_PI_BETA * log_err_prev - _PI_ALPHA * log_err)
+    else:
+        fac = _SAFE * np.exp(-0.2 * log_err)
+    fac = min(_GROW_MAX, max(_GROW_MIN, fac))
+    if after_reject and fac > 1.0:
+        fac = 1.0
+    if last:
+        h = max(h, h_use * fac)
+    else:
+        h = h_use * fac
+    return min(h, h_max)
+
+
 @numba.njit(cache=CACHE, nogil=True, error_model="numpy")
 def input_at(u, bu, t, u_t0, u_dt, uvec):
     # unsigned indices: no negative-index wraparound test on each load (the sample index comes from a float,
@@ -222,15 +252,7 @@ def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
                     for k in range(n):
                         xo[k] = xn[k]
                 else:
-                    th2 = th * th
-                    th3 = th2 * th
-                    th4 = th3 * th
-                    q1 = th + _P12 * th2 + _P13 * th3 + _P14 * th4
-                    q3 = _P32 * th2 + _P33 * th3 + _P34 * th4
-                    q4 = _P42 * th2 + _P43 * th3 + _P44 * th4
-                    q5 = _P52 * th2 + _P53 * th3 + _P54 * th4
-                    q6 = _P62 * th2 + _P63 * th3 + _P64 * th4
-                    q7 = _P72 * th2 + _P73 * th3 + _P74 * th4
+                    q1, q3, q4, q5, q6, q7 = dense_weights(th)
                     for k in range(n):
                         xo[k] = x[k] + h_use * (q1 * k1[k] + q3 * k3[k] + q4 * k4[k] + q5 * k5[k] + q6 * k6[k]
                                                 + q7 * k7[k])
@@ -241,23 +263,9 @@ def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
             for k in range(n):
                 x[k] = xn[k]
                 k1[k] = k7[k]
-            # PI controller (Gustafsson; Hairer's DOPRI5) once a step has been rejected in this call; before
-            # that the elementary controller, which ramps up from the small initial step as fast as before (a
-            # rig or stepper restarts every tick: PI from the first step cost ~50 % more attempts per 10 ms)
-            if pi_on:
-                fac = _SAFE * np.exp(_PI_BETA * log_err_prev - _PI_ALPHA * log_err)
-            else:
-                fac = _SAFE * np.exp(-0.2 * log_err)
-            fac = min(_GROW_MAX, max(_GROW_MIN, fac))
-            if after_reject and fac > 1.0:
-                fac = 1.0
+            h = next_step(h, h_use, log_err, log_err_prev, pi_on, after_reject, last, h_max)
             after_reject = False
             log_err_prev = max(log_err, _LOG_ERR_FLOOR)
-            if last:
-                h = max(h, h_use * fac)
-            else:
-                h = h_use * fac
-            h = min(h, h_max)
         else:
             rejected += 1
             after_reject = True
@@ -504,15 +512,7 @@ def lane_group(b0, nl, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, ma
                     for i in range(n * LANES):
                         W[_O_x * LANES + i] = W[_O_xn * LANES + i]
                 else:
-                    th2 = th * th
-                    th3 = th2 * th
-                    th4 = th3 * th
-                    q1 = th + _P12 * th2 + _P13 * th3 + _P14 * th4
-                    q3 = _P32 * th2 + _P33 * th3 + _P34 * th4
-                    q4 = _P42 * th2 + _P43 * th3 + _P44 * th4
-                    q5 = _P52 * th2 + _P53 * th3 + _P54 * th4
-                    q6 = _P62 * th2 + _P63 * th3 + _P64 * th4
-                    q7 = _P72 * th2 + _P73 * th3 + _P74 * th4
+                    q1, q3, q4, q5, q6, q7 = dense_weights(th)
                     for i in range(n * LANES):
                         W[_O_x * LANES + i] = W[_O_xc * LANES + i] + h_use * (
                             q1 * W[_O_k1 * LANES + i] + q3 * W[_O_k3 * LANES + i] + q4 * W[_O_k4 * LANES + i]
@@ -523,20 +523,9 @@ def lane_group(b0, nl, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, ma
             for i in range(n * LANES):
                 W[_O_xc * LANES + i] = W[_O_xn * LANES + i]
                 W[_O_k1 * LANES + i] = W[_O_k7 * LANES + i]
-            if pi_on:
-                fac = _SAFE * np.exp(_PI_BETA * log_err_prev - _PI_ALPHA * log_err)
-            else:
-                fac = _SAFE * np.exp(-0.2 * log_err)
-            fac = min(_GROW_MAX, max(_GROW_MIN, fac))
-            if after_reject and fac > 1.0:
-                fac = 1.0
+            h = next_step(h, h_use, log_err, log_err_prev, pi_on, after_reject, last, h_max)
             after_reject = False
             log_err_prev = max(log_err, _LOG_ERR_FLOOR)
-            if last:
-                h = max(h, h_use * fac)
-            else:
-                h = h_use * fac
-            h = min(h, h_max)
         else:
             rejected += 1
             after_reject = True
