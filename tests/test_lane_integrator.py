@@ -106,20 +106,40 @@ def test_a_parameter_branch_that_differs_between_members(table2_model):
     assert _rel(alone["qh3"][0], alone["qh3"][1]) > 1e-3  # the branches really differ
 
 
-def test_a_failing_member_stops_alone(table2_model):
-    """Negative damping in one member: it stops with its status and NaN from where it stopped; the others of its
-    group finish and equal their member-by-member result."""
+def test_a_member_that_exhausts_the_step_budget_costs_its_group_a_rerun_alone(table2_model):
+    """Negative damping in one member: it crawls (tiny steps) until the step budget, which is per member, runs out.
+    Its group shared those steps, so every member of that group is integrated again alone: the crawling member stops
+    TOO_MANY_STEPS with NaN from where it stopped, the others finish exactly as the member-by-member integrator."""
     n = LANES
     p = _deviated(table2_model, n)
     p[3, table2_model.param_index("c3")] = -50.0
     inp = sine_drive(600.0, 1.0, 3.0)
     lanes = table2_model.simulate(inp, dt_out=0.01, params=p, max_steps=200_000, lanes=True)
     alone = table2_model.simulate(inp, dt_out=0.01, params=p, max_steps=200_000, lanes=False)
-    assert lanes.status[3] != IntegrationStatus.OK and alone.status[3] != IntegrationStatus.OK
+    assert lanes.status[3] == IntegrationStatus.TOO_MANY_STEPS == alone.status[3]
     stopped = np.flatnonzero(~np.isfinite(lanes["z3"][3]))
     assert stopped.size and np.all(~np.isfinite(lanes["z3"][3, stopped[0]:]))
     assert np.all(np.isfinite(lanes["z3"][3, :stopped[0]]))
     others = [b for b in range(n) if b != 3]
+    assert np.all(lanes.status[others] == IntegrationStatus.OK)
+    np.testing.assert_array_equal(lanes.y[others], alone.y[others])
+    np.testing.assert_array_equal(lanes.n_steps, alone.n_steps)
+
+
+def test_a_member_that_overflows_is_masked_and_the_group_goes_on(table2_model):
+    """A member started at 1e200 m overflows at once: it stops DIVERGED with NaN after its first output (as alone),
+    masked out of the group's error norm; the other members of its group finish with finite outputs that are as
+    accurate as alone."""
+    n = LANES
+    p = _deviated(table2_model, n)
+    x0 = np.zeros((n, table2_model.n_states))
+    x0[5, 0] = 1e200
+    inp = sine_drive(600.0, 1.0, 1.0)
+    lanes = table2_model.simulate(inp, dt_out=0.01, params=p, x0=x0, lanes=True)
+    alone = table2_model.simulate(inp, dt_out=0.01, params=p, x0=x0, lanes=False)
+    assert lanes.status[5] == IntegrationStatus.DIVERGED == alone.status[5]
+    assert np.isfinite(lanes["z3"][5, 0]) and np.all(np.isnan(lanes["z3"][5, 1:]))
+    others = [b for b in range(n) if b != 5]
     assert np.all(lanes.status[others] == IntegrationStatus.OK)
     exact = table2_model.simulate(inp, dt_out=0.01, params=p[others], rtol=1e-10, lanes=False)
     for i, b in enumerate(others):
