@@ -34,7 +34,7 @@ from numba import types
 from plant import integrate
 from plant import layout as L
 from plant.composition import Composition, build_composition
-from plant.effect import EffectError, PhysicalEffect, hook_function, importable_by_path
+from plant.effect import EffectError, PhysicalEffect, effect_source_file, hook_function, importable_by_path
 from plant.integrate import INTEGRATOR_SOURCE, LANE_INTEGRATOR_SOURCE, LANES, TABLEAU_NAMES
 from plant.lanes import OUTPUT_ROLES, LaneFormUnsupported, lane_hook_source
 
@@ -261,8 +261,12 @@ def generate_source(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int,
 
 def _lane_section(classes: tuple[type[PhysicalEffect], ...], comp: Composition, n_states: int) -> list[str] | None:
     """The lane-form kernels (:mod:`plant.lanes`): work-array layout, lane hooks, ``rhs_lanes``, ``out_lanes`` and
-    the lane integrator; None when a hook cannot be rewritten (the composition then integrates member by
-    member only)."""
+    the lane integrator; None when a hook cannot be rewritten, or when an effect comes from an effect file (the
+    composition then integrates member by member only). An effect file is usually a candidate tried once (a
+    discovered term, ``shm fit --add file.py``): its lane kernels would take ~8 s to compile, more than they save on
+    one fit (the discovery challenge's 80 refits took 840 s with them, 371 s without)."""
+    if any(effect_source_file(c.instance_of or c) for c in classes):
+        return None
     n_params = L.N_CORE_PARAMS + len(comp.parameters)
     n_outputs = L.N_CORE_OUTPUTS + len(comp.outputs)
     rows = {"x": n_states, "p": n_params, "bus": L.N_BUS, "dx": n_states, "y": n_outputs, "u": L.N_INPUTS,

@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import ast
 import itertools
+import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -144,6 +146,19 @@ def test_a_member_that_overflows_is_masked_and_the_group_goes_on(table2_model):
     exact = table2_model.simulate(inp, dt_out=0.01, params=p[others], rtol=1e-10, lanes=False)
     for i, b in enumerate(others):
         _assert_as_accurate(lanes["z3"][b], alone["z3"][b], exact["z3"][i])
+
+
+def test_library_compositions_have_lanes_but_an_effect_file_does_not(tmp_path):
+    """A composition with an effect loaded from a file (usually a candidate tried once: compiling its lane kernels
+    costs ~8 s, more than one fit saves) integrates member by member; the same effect from a package has lanes."""
+    text = (Path(__file__).parents[1] / "docs" / "effects.md").read_text()
+    block = re.search(r"```python\n# my_effects\.py\n(.*?)```", text, re.S)
+    assert block
+    path = tmp_path / "tip_support_file.py"
+    path.write_text(block.group(1))
+    model = PlantModel("table2", effects=[f"{path}:TipSupportSpring"])
+    assert not model.kernels().HAS_LANES and not Integrator(model).uses_lanes(1000)
+    assert PlantModel("table2", effects=["air_damping"]).kernels().HAS_LANES
 
 
 class _WholeArrayEffect(PhysicalEffect):
