@@ -36,7 +36,7 @@ from plant import layout as L
 from plant.composition import Composition, build_composition
 from plant.effect import EffectError, PhysicalEffect, effect_source_file, hook_function, importable_by_path
 from plant.integrate import INTEGRATOR_SOURCE, LANE_INTEGRATOR_SOURCE, LANES, TABLEAU_NAMES
-from plant.lanes import OUTPUT_ROLES, LaneFormUnsupported, lane_hook_source
+from plant.lanes import OUTPUT_ROLES, PHASE_ROLES, LaneFormUnsupported, lane_hook_source
 
 HOOK_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], types.float64[::1],
                       types.float64[::1], types.int64, types.int64)
@@ -175,6 +175,28 @@ def _hook_call(comp: Composition, k: int, hook: str) -> str:
     return ", ".join(f"_slots{k}_{kind}" for kind in kinds)
 
 
+#: the core outputs: (output slot, source array, source slot) for each section i = 0..2, then single channels
+_SECTION_OUTPUTS = ((L.Y_Z, "bus", f"{L.B_Z}"), (L.Y_DELTA, "x", f"{L.X_DELTA}"), (L.Y_Q, "x", f"{L.X_Q}"),
+                    (L.Y_QH, "bus", f"{L.B_QH}"), (L.Y_VPATCH, "bus", f"{L.B_VC}"))
+_SINGLE_OUTPUTS = ((L.Y_VSTORED, "bus", f"{L.B_VA}"), (L.Y_Z3_MEAS, "bus", f"{L.B_Z} + 2"))
+
+
+def _core_output_lines(lanes: bool) -> list[str]:
+    """Generated lines filling the core outputs from the states and the bus: ``out`` (``y[...] = bus[...]``) or
+    ``out_lanes`` (the same rows of the work array, every lane)."""
+    if not lanes:
+        return ["    for i in range(3):",
+                *(f"        y[{ys} + i] = {arr}[{src} + i]" for ys, arr, src in _SECTION_OUTPUTS),
+                *(f"    y[{ys}] = {arr}[{src}]" for ys, arr, src in _SINGLE_OUTPUTS)]
+    return ["    for i in range(3):",
+            "        for l in range(LANES):",
+            *(f"            W[(_O_y + {ys} + i) * LANES + l] = W[(_O_{arr} + {src} + i) * LANES + l]"
+              for ys, arr, src in _SECTION_OUTPUTS),
+            "    for l in range(LANES):",
+            *(f"        W[(_O_y + {ys}) * LANES + l] = W[(_O_{arr} + {src}) * LANES + l]"
+              for ys, arr, src in _SINGLE_OUTPUTS)]
+
+
 def generate_source(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int, ...], p_off: tuple[int, ...],
                     y_off: tuple[int, ...], n_states: int, cacheable: bool,
                     integrator_source: str = INTEGRATOR_SOURCE, composition: Composition | None = None) -> str:
@@ -240,14 +262,7 @@ def generate_source(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int,
         "@numba.njit(cache=CACHE, nogil=True, error_model='numpy')",
         "def out(t, x, p, u, bus, dx, y):",
         "    rhs(t, x, p, u, bus, dx)",
-        "    for i in range(3):",
-        f"        y[{L.Y_Z} + i] = bus[{L.B_Z} + i]",
-        f"        y[{L.Y_DELTA} + i] = x[{L.X_DELTA} + i]",
-        f"        y[{L.Y_Q} + i] = x[{L.X_Q} + i]",
-        f"        y[{L.Y_QH} + i] = bus[{L.B_QH} + i]",
-        f"        y[{L.Y_VPATCH} + i] = bus[{L.B_VC} + i]",
-        f"    y[{L.Y_VSTORED}] = bus[{L.B_VA}]",
-        f"    y[{L.Y_Z3_MEAS}] = bus[{L.B_Z} + 2]",
+        *_core_output_lines(lanes=False),
     ]
     for k, cls in enumerate(classes):
         if cls.output is not None:
@@ -287,7 +302,7 @@ def _lane_section(classes: tuple[type[PhysicalEffect], ...], comp: Composition, 
                 continue
             try:
                 src, needed = lane_hook_source(fn, f"l{k}_{hook}", f"{k}_{hook}",
-                                               OUTPUT_ROLES if hook == "output" else ("x", "p", "bus", "dx"))
+                                               OUTPUT_ROLES if hook == "output" else PHASE_ROLES)
             except LaneFormUnsupported:
                 return None
             if needed:
@@ -316,16 +331,7 @@ def _lane_section(classes: tuple[type[PhysicalEffect], ...], comp: Composition, 
         "@numba.njit(cache=CACHE, nogil=True, error_model='numpy')",
         "def out_lanes(t, W):",
         "    rhs_lanes(t, W)",
-        "    for i in range(3):",
-        "        for l in range(LANES):",
-        f"            W[(_O_y + {L.Y_Z} + i) * LANES + l] = W[(_O_bus + {L.B_Z} + i) * LANES + l]",
-        f"            W[(_O_y + {L.Y_DELTA} + i) * LANES + l] = W[(_O_x + {L.X_DELTA} + i) * LANES + l]",
-        f"            W[(_O_y + {L.Y_Q} + i) * LANES + l] = W[(_O_x + {L.X_Q} + i) * LANES + l]",
-        f"            W[(_O_y + {L.Y_QH} + i) * LANES + l] = W[(_O_bus + {L.B_QH} + i) * LANES + l]",
-        f"            W[(_O_y + {L.Y_VPATCH} + i) * LANES + l] = W[(_O_bus + {L.B_VC} + i) * LANES + l]",
-        "    for l in range(LANES):",
-        f"        W[(_O_y + {L.Y_VSTORED}) * LANES + l] = W[(_O_bus + {L.B_VA}) * LANES + l]",
-        f"        W[(_O_y + {L.Y_Z3_MEAS}) * LANES + l] = W[(_O_bus + {L.B_Z} + 2) * LANES + l]",
+        *_core_output_lines(lanes=True),
         *calls["output"],
         "",
         "",
