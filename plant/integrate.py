@@ -96,6 +96,14 @@ def dense_weights(th):
 
 
 @numba.njit(cache=CACHE, nogil=True, error_model="numpy", inline="always")
+def step_to_take(h, remaining):
+    # the step to attempt and whether it is the last: a step within 1e-9 of the end lands exactly on it
+    if h >= remaining * (1.0 - 1e-9):
+        return remaining, True
+    return h, False
+
+
+@numba.njit(cache=CACHE, nogil=True, error_model="numpy", inline="always")
 def next_step(h, h_use, log_err, log_err_prev, pi_on, after_reject, last, h_max):
     # the step after an accepted one: PI controller (Gustafsson; Hairer's DOPRI5) once a step has been rejected
     # in this call; before that the elementary controller, which ramps up from the small initial step as fast as
@@ -193,13 +201,7 @@ def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
     code = 0
     j = 1
     while j < nout:
-        remaining = t_end - t
-        last = False
-        if h >= remaining * (1.0 - 1e-9):
-            h_use = remaining
-            last = True
-        else:
-            h_use = h
+        h_use, last = step_to_take(h, t_end - t)
         for k in range(n):
             xt[k] = x[k] + h_use * _A21 * k1[k]
         input_at(u, bu, t + _C2 * h_use, u_t0, u_dt, uvec)
@@ -417,13 +419,7 @@ def lane_group(b0, nl, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, ma
     rejected = 0
     j = 1
     while j < nout and n_alive > 0:
-        remaining = t_end - t
-        last = False
-        if h >= remaining * (1.0 - 1e-9):
-            h_use = remaining
-            last = True
-        else:
-            h_use = h
+        h_use, last = step_to_take(h, t_end - t)
         for i in range(n * LANES):
             W[_O_x * LANES + i] = W[_O_xc * LANES + i] + h_use * _A21 * W[_O_k1 * LANES + i]
         lane_inputs(u, b0, nl, t + _C2 * h_use, u_t0, u_dt, W)
