@@ -21,6 +21,7 @@ from collections.abc import Callable
 
 from board_config.errors import InputError
 from drivers.link import ActuatorCommand, LinkError, RigEndpoint, RigSample, register_link_scheme
+from drivers.quiet_span import QuietSpan
 
 #: ``factory(url, **defaults)``: the rig of a ``sim`` URL (``defaults`` as given to :func:`drivers.open_link`)
 _RIG_FACTORY: Callable[..., RigEndpoint] | None = None
@@ -81,6 +82,19 @@ class InProcessLink:
         self.rig.apply(command)
         self.rig.advance(self.tick)
         return self.rig.sample()
+
+    def peek_quiet(self, command: ActuatorCommand, max_ticks: int) -> QuietSpan | None:
+        """The rig's quiet span (:mod:`drivers.quiet_span`) for the next exchanges, if it offers them: never while
+        the link is closed, a failure is injected or the rig advances by another step than one tick."""
+        peek = getattr(self.rig, "peek_quiet", None)
+        if peek is None or not self._open or self._fail_next > 0:
+            return None
+        return peek(command, max_ticks, self.tick)
+
+    def commit_quiet(self, span: QuietSpan, m: int) -> None:
+        """``m`` exchanges of the span's command, at once."""
+        self.rig.commit_quiet(span, m)  # type: ignore[attr-defined]
+        self.exchanges += m
 
 
 def _open_sim(url: str, **defaults: object) -> InProcessLink:

@@ -27,6 +27,8 @@ import math
 from collections.abc import Mapping
 from typing import NamedTuple
 
+import numpy as np
+
 from board_config import (
     MbitDefinition,
     MfcLimits,
@@ -39,10 +41,19 @@ from board_config import (
 from board_config.board import BoardConfig, load_board_config
 from board_config.errors import InputError
 from drivers.link import FLAG_LIMIT_REFUSED, FLAG_RIG_FAULT, FLAG_SENSOR_FAULT, ActuatorCommand, RigSample
+from drivers.quiet_span import QuietSpan
 from firmware_sim.events import BoardEvent
 from firmware_sim.maintenance import MaintenanceSequencer
 from firmware_sim.power_manager import PowerBudget, PowerLedger, PowerState, power_step
-from firmware_sim.regimes import Regime, RegimeState, RegimeTimers, TickInputs, Trigger
+from firmware_sim.regimes import (
+    Regime,
+    RegimeState,
+    RegimeTimers,
+    TickInputs,
+    Trigger,
+    quiet_sensing,
+    quiet_standby,
+)
 from firmware_sim.regimes import step as regime_step
 from firmware_sim.usage import UsageEpisode
 from plant import PlantModel
@@ -291,6 +302,96 @@ class Board:
                 "regime": regime.value, "v_battery_V": self._v_batt, "monitor_count": self.maintenance.monitor_count,
                 "charge_used_C": self.ledger.charge_used, "incidents_total": self.incidents}))
         return TickResult(ActuatorCommand(k & 0xFFFFFFFF, v1, v2, self._currents[regime]), events, regime)
+
+    # --- quiet spans: settled stand-by ticks at once ---------------------------------------------------------
+    def can_take_quiet(self) -> bool:
+        """Whether a quiet tick — a plausible, fresh sample, no HV, no flag, the battery above the brown-out voltage;
+        in stand-by also below both wake thresholds — changes nothing but counters (stand-by:
+        :func:`firmware_sim.regimes.quiet_standby`; sensing: :func:`firmware_sim.regimes.quiet_sensing` and the usage
+        episode): stand-by or sensing, nothing pending. The precondition of :meth:`take_quiet`."""
+        regime = self.state.regime
+        return (((regime is Regime.STANDBY_HARVEST and self.episode is None)
+                 or (regime is Regime.SENSING and self.episode is not None))
+                and not self._rearm and not self._limit_pending and not self._fault_key and not self._link_error
+                and not self.maintenance.active and self._clock_ref is not None and not self.power.brownout)
+
+    def quiet_command_current(self) -> float:
+        """The board current (A) the commands of a quiet stretch carry (its regime's; zero demand)."""
+        return self._currents[self.state.regime]
+
+    def take_quiet(self, k: int, span: QuietSpan) -> tuple[int, ActuatorCommand | None]:
+        """Ticks ``k, k + 1, ...`` with the samples of ``span`` (:mod:`drivers.quiet_span`), as many as are quiet:
+        the leading run of ticks :meth:`tick` would process without an event, a regime change or a telemetry record
+        (it stops before the next telemetry tick, before a check of the rig's clock that would report a mismatch,
+        and in sensing before the tick that ends or slices the usage episode). Returns how many ticks it took (0:
+        none; the caller ticks one by one) and the command after the last. Bit-identical to that many calls of
+        :meth:`tick`; call only when :meth:`can_take_quiet`."""
+        regime = self.state.regime
+        n = min(span.n, (-k) % self._telemetry_ticks)  # ticks before the next telemetry tick (0: tick k is one)
+        ep = self.episode
+        if regime is Regime.SENSING and ep is not None:  # before the tick that slices the episode (max_episode)
+            n = min(n, self._episode_ticks - 1 - ep.samples)
+        ref_k, ref_t = self._clock_ref  # type: ignore[misc]  # can_take_quiet: set
+        if n < 1 or span.seq0 == self._prev_seq or not ref_t <= float(span.t[0]):
+            return 0, None
+        lim = self._sample_limits
+        z3, vp, zdd, vb, t = span.z3[:n], span.v_patch[:n], span.z0dd[:n], span.v_battery[:n], span.t[:n]
+        avp, azdd = np.abs(vp), np.abs(zdd)
+        good = ((np.abs(z3) <= lim[0]) & (avp <= lim[1]) & (azdd <= lim[2]) & (vb >= 0.0) & (vb <= lim[3])
+                & np.isfinite(t) & (vb >= self.budget.brownout))
+        wake = (azdd >= self._wake_acc) | (avp >= self._wake_v)
+        quiet = good & ~wake if regime is Regime.STANDBY_HARVEST else good
+        m = n if bool(quiet.all()) else int(np.argmin(quiet))
+        # the rig's clock is checked at the first tick (tick - ref_k) * period >= _CLOCK_WINDOW: silently (a new
+        # reference) unless it finds a mismatch not yet reported, where the span stops
+        period = self.period
+        checks: list[tuple[int, float]] = []  # (tick, rig time) of the silent checks: the new references
+        while m > 0:
+            d = k - ref_k
+            c = max(0, int(_CLOCK_WINDOW / period) - d - 2)
+            while c < m and (d + c) * period < _CLOCK_WINDOW:
+                c += 1
+            if c >= m:
+                break
+            t_c = float(t[c])
+            board_dt = (d + c) * period
+            if not (0.5 * board_dt <= t_c - ref_t <= 2.0 * board_dt) and not self.clock_mismatch:
+                m = c
+                break
+            ref_k, ref_t = k + c, t_c
+            checks.append((ref_k, ref_t))
+        if m < 1:
+            return 0, None
+        if regime is Regime.STANDBY_HARVEST:
+            state = quiet_standby(self.state, self.timers, m)
+            if state is None:
+                return 0, None
+        else:  # sensing: up to the tick where quiet fires; the usage episode takes every sample
+            state, m = quiet_sensing(self.state, self.timers, wake[:m].tolist())
+            if m < 1:
+                return 0, None
+            assert ep is not None
+            add = ep.add
+            for kk, z, a in zip(range(k, k + m), z3[:m].tolist(), zdd[:m].tolist(), strict=True):
+                add(kk * period, z, a)
+        for tick_c, t_c in checks:
+            if tick_c < k + m:
+                self._clock_ref = (tick_c, t_c)
+        self.state = state
+        if self.visit_verdict and state.hv_off_run >= self.timers.hv_debounce:
+            self.visit_verdict = ""  # HV removed for hv_debounce (no event: see tick)
+        if self.power.below_run:
+            self.power = self.power._replace(below_run=0)
+        last = k + m - 1
+        self.ticks += m
+        self._prev_seq = (span.seq0 + m - 1) & 0xFFFFFFFF
+        self._stale = 0
+        self._fault_reason = ""
+        self._v_batt = float(vb[m - 1])
+        self.last_sample = span.sample(m - 1)
+        self.ledger.add_many(regime, vb[:m])
+        self.demand = (0.0, 0.0)
+        return m, ActuatorCommand(last & 0xFFFFFFFF, 0.0, 0.0, self._currents[regime])
 
     # --- helpers ------------------------------------------------------------------------------------
     def _close_fault(self, k: int, events: list[BoardEvent]) -> None:

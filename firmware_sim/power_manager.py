@@ -22,6 +22,8 @@ from __future__ import annotations
 import math
 from typing import NamedTuple
 
+import numpy as np
+
 from board_config.board import BoardConfig
 from firmware_sim.events import BoardEvent
 from firmware_sim.regimes import Regime
@@ -130,6 +132,22 @@ class PowerLedger:
                 self.v_first = v_battery
         if self.v_last == self.v_last:
             self.energy_used += self._charge_per_tick[regime] * self.v_last
+
+    def add_many(self, regime: Regime, v_battery: np.ndarray) -> None:
+        """``len(v_battery)`` calls of :meth:`add` with valid (positive) voltages, at once (bit-identical: the
+        energy is summed in the same order)."""
+        n = int(v_battery.shape[0])
+        if n == 0:
+            return
+        self.ticks[regime] += n
+        self.v_last = float(v_battery[-1])
+        self.v_min = min(self.v_min, float(v_battery.min()))
+        if self.v_first != self.v_first:
+            self.v_first = float(v_battery[0])
+        terms = np.empty(n + 1)
+        terms[0] = self.energy_used
+        np.multiply(self._charge_per_tick[regime], v_battery, out=terms[1:])
+        self.energy_used = float(np.add.accumulate(terms)[-1])  # sequential, as n calls of add
 
     @property
     def charge_used(self) -> float:

@@ -23,6 +23,7 @@ change against the table, and ``docs/board.md`` prints the table from this modul
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from enum import StrEnum
 from typing import NamedTuple
@@ -210,11 +211,55 @@ def step(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeTimers
     (``link_fail = 0``), ``quiet_run >= 1`` that the comparator was last below threshold (``wake_run = 0``),
     ``hv_off_run >= 1`` that HV was last absent (``hv_run = 0``).
     """
-    if (state.regime is Regime.STANDBY_HARVEST and inputs in _NOMINAL_INPUTS and state.overruns == 0
-            and state.quiet_run == timers.quiet and state.hv_off_run == timers.hv_debounce
-            and state.link_ok == max(timers.link_recovery, 1)):
+    if inputs in _NOMINAL_INPUTS and settled_standby(state, timers):
         return state, _STANDBY_OUT, ()
     return step_full(state, inputs, tick, timers)
+
+
+def settled_standby(state: RegimeState, timers: RegimeTimers) -> bool:
+    """Whether ``state`` is settled stand-by: an uneventful tick (a good sample, nothing above threshold, no
+    request; with or without energy to wake) leaves it exactly as it is (see :func:`step`)."""
+    return (state.regime is Regime.STANDBY_HARVEST and state.overruns == 0 and state.quiet_run == timers.quiet
+            and state.hv_off_run == timers.hv_debounce and state.link_ok == max(timers.link_recovery, 1))
+
+
+def quiet_standby(state: RegimeState, timers: RegimeTimers, m: int) -> RegimeState | None:
+    """The state after ``m >= 1`` uneventful ticks (a good sample, nothing above threshold, no HV, no request; with
+    or without energy to wake) from stand-by: no row of the table can fire (the fault counters fall to zero, the
+    wake and HV runs stay zero), no event is logged, and only the good runs count up to their saturation — the same
+    as ``m`` calls of :func:`step` (a test checks it). None outside stand-by."""
+    if state.regime is not Regime.STANDBY_HARVEST or m < 1 or timers.link_loss < 1 or timers.overrun < 1:
+        return None
+    return RegimeState(state.regime, state.entered_tick, 0, min(state.link_ok + m, max(timers.link_recovery, 1)), 0,
+                       0, min(state.quiet_run + m, timers.quiet), 0, min(state.hv_off_run + m, timers.hv_debounce),
+                       state.safe_causes)
+
+
+def quiet_sensing(state: RegimeState, timers: RegimeTimers, wake: Sequence[bool]) -> tuple[RegimeState, int]:
+    """SENSING over ticks with a good sample, no HV, no request and no brown-out, the comparator above threshold or
+    not (``wake``, one flag per tick): the state after the leading ticks before the one where ``quiet`` fires (that
+    tick is not taken) and how many were taken — the same as as many calls of :func:`step` (a test checks it);
+    nothing else can fire and no event is logged. ``(state, 0)`` outside SENSING."""
+    if state.regime is not Regime.SENSING or timers.link_loss < 1 or timers.overrun < 1:
+        return state, 0
+    link_ok_max = max(timers.link_recovery, 1)
+    wake_max = timers.wake_debounce + 1
+    quiet_max = timers.quiet
+    wake_run, quiet_run = state.wake_run, state.quiet_run
+    m = 0
+    for w in wake:
+        if w:
+            wr, qr = min(wake_run + 1, wake_max), 0
+        else:
+            wr, qr = 0, min(quiet_run + 1, quiet_max)
+        if qr >= quiet_max:
+            break
+        wake_run, quiet_run = wr, qr
+        m += 1
+    if m == 0:
+        return state, 0
+    return RegimeState(state.regime, state.entered_tick, 0, min(state.link_ok + m, link_ok_max), 0, wake_run,
+                       quiet_run, 0, min(state.hv_off_run + m, timers.hv_debounce), state.safe_causes), m
 
 
 def step_full(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeTimers

@@ -20,10 +20,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from drivers.link import ActuatorCommand, Link, LinkError
+from drivers.quiet_span import QuietSpan, QuietSpanSource
 from firmware_sim.board import Board
 from firmware_sim.events import BoardEvent, EventSink
 from firmware_sim.regimes import REGIME_CODES
-from firmware_sim.scheduler import Scheduler, TickStats
+from firmware_sim.scheduler import Scheduler, TickStats, VirtualClock
 
 #: trace columns (unit in the name)
 TRACE_COLUMNS: tuple[str, ...] = ("time_s", "regime_code", "z3_m", "z3_model_m", "z0dd_m_s2", "v_patch_V",
@@ -33,24 +34,41 @@ TRACE_COLUMNS: tuple[str, ...] = ("time_s", "regime_code", "z3_m", "z3_model_m",
 class Trace:
     """Per-tick record of what the board saw and did (``every`` keeps one tick in ``every``).
 
-    Rows are kept as tuples (one list append per tick: about 6x cheaper than writing a preallocated array row
-    element by element) and turned into an array when read (``data``, ``columns()``)."""
+    Rows of single ticks are kept as tuples (one list append per tick: about 6x cheaper than writing a preallocated
+    array row element by element), the rows of a quiet span as one array (:meth:`add_block`); both are turned into
+    one array, in tick order, when read (``data``, ``columns()``)."""
 
     def __init__(self, n_ticks: int, every: int = 1) -> None:
         self.every = max(1, int(every))
-        self.rows: list[tuple[float, ...]] = []
+        self.rows: list[tuple[float, ...]] = []  # single-tick rows since the last block (appended by the runner)
+        self._parts: list[np.ndarray | list[tuple[float, ...]]] = []  # everything before ``rows``, in order
+        self._count = 0  # rows in _parts
         self._array: np.ndarray | None = None
 
     @property
     def n(self) -> int:
-        return len(self.rows)
+        return self._count + len(self.rows)
+
+    def add_block(self, rows: np.ndarray) -> None:
+        """Append the rows of several ticks at once (shape (k, len(TRACE_COLUMNS))); ``rows`` is a new list after
+        this (re-read it before appending single rows)."""
+        if self.rows:
+            self._parts.append(self.rows)
+            self._count += len(self.rows)
+            self.rows = []
+        self._parts.append(rows)
+        self._count += rows.shape[0]
 
     @property
     def data(self) -> np.ndarray:
         """The rows so far, shape (n, len(TRACE_COLUMNS)) (NaN where a value did not exist)."""
         a = self._array
-        if a is None or a.shape[0] != len(self.rows):
-            a = self._array = np.array(self.rows, dtype=float).reshape(len(self.rows), len(TRACE_COLUMNS))
+        n = self.n
+        if a is None or a.shape[0] != n:
+            width = len(TRACE_COLUMNS)
+            parts = [p if isinstance(p, np.ndarray) else np.array(p, dtype=float).reshape(len(p), width)
+                     for p in (*self._parts, self.rows) if len(p)]
+            a = self._array = np.concatenate(parts) if parts else np.empty((0, width))
         return a
 
     def columns(self) -> dict[str, np.ndarray]:
@@ -78,7 +96,7 @@ class BoardRunner:
 
     def __init__(self, board: Board, link: Link, *, sink: EventSink | None = None, scheduler: Scheduler | None = None,
                  rearm_times: Sequence[float] = (), on_event: Callable[[BoardEvent], None] | None = None,
-                 trace_every: int | None = 1) -> None:
+                 trace_every: int | None = 1, quiet_spans: bool = True) -> None:
         self.board = board
         self.link = link
         self.sink = sink
@@ -91,6 +109,7 @@ class BoardRunner:
         self.rearm_times = sorted(float(t) for t in rearm_times)
         self.on_event = on_event
         self.trace_every = trace_every
+        self.quiet_spans = quiet_spans
         self.events: list[BoardEvent] = []
         self.command = ActuatorCommand(0, 0.0, 0.0, board.budget.current(board.regime))
         self.zero_sent = False  #: the run ended with a zero demand answered by the rig
@@ -142,15 +161,81 @@ class BoardRunner:
                     rows_append((kk * period, codes[res.regime], nan, z3m, nan, nan, nan, cmd.v_ch1, cmd.v_ch2,
                                  mcount, cmd.board_current, 0.0))
 
+        spans = self._quiet_span_source()
+
+        def block(k: int, left: int) -> int:
+            """Settled stand-by against an in-process rig: the quiet ticks from ``k`` on at once (drivers.quiet_span),
+            else the one tick ``k``."""
+            nonlocal rows_append
+            cmd = self.command
+            if (spans is not None and left > 1 and board.can_take_quiet() and cmd.v_ch1 == 0.0 and cmd.v_ch2 == 0.0
+                    and cmd.board_current == board.quiet_command_current()):
+                limit = left
+                if rearms:  # stop before the tick that hands the next re-arm to the board
+                    j = 0
+                    while j < limit and (k + 1 + j) * period < rearms[0] - 1e-12:
+                        j += 1
+                    limit = j
+                span = spans.peek_quiet(cmd, limit) if limit > 1 else None
+                if span is not None:
+                    m, command = board.take_quiet(k + 1, span)
+                    if m and command is not None:
+                        spans.commit_quiet(span, m)
+                        self.command = command
+                        if trace is not None:
+                            trace.add_block(self._trace_rows(k, m, every, period, codes[board.regime], cmd, command,
+                                                             span))
+                            rows_append = trace.rows.append
+                        return m
+            step(k, False)
+            return 1
+
         t0 = time.perf_counter()
         try:
-            stats = self.scheduler.run(n, step, progress=progress)
+            if spans is not None:
+                stats = self.scheduler.run_blocks(n, block, progress=progress)
+            else:
+                stats = self.scheduler.run(n, step, progress=progress)
         finally:  # every exit — the end, an exception, Ctrl-C / SIGTERM mid-tick — leaves the amplifier at 0 V
             self.zero_sent = self.command_zero()
         wall = time.perf_counter() - t0
         for ev in board.close(stats.ticks):
             emit(ev)
         return RunResult(stats.ticks, stats.ticks * period, wall, stats, self.events, trace)
+
+    def _quiet_span_source(self) -> QuietSpanSource | None:
+        """The link, if stand-by stretches may be exchanged in one call: virtual time, an in-process rig that offers
+        quiet spans, ``quiet_spans`` on. A paced run, and any serial or Modbus link, ticks one by one."""
+        sched = self.scheduler
+        if not self.quiet_spans or sched.paced or type(sched.clock) is not VirtualClock:
+            return None
+        link = self.link
+        return link if isinstance(link, QuietSpanSource) else None
+
+    @staticmethod
+    def _trace_rows(k: int, m: int, every: int, period: float, regime_code: int, first: ActuatorCommand,
+                    command: ActuatorCommand, span: QuietSpan) -> np.ndarray:
+        """The trace rows of the quiet ticks ``k + 1 .. k + m`` (exchanged with ``first``, then ``command``'s
+        demand), as the per-tick loop writes them."""
+        i0 = (-(k + 1)) % every
+        sel = slice(i0, m, every)
+        idx = np.arange(i0, m, every)
+        rows = np.empty((idx.shape[0], len(TRACE_COLUMNS)))
+        rows[:, 0] = (idx + (k + 1)) * period
+        rows[:, 1] = regime_code
+        rows[:, 2] = span.z3[sel]
+        rows[:, 3] = math.nan
+        rows[:, 4] = span.z0dd[sel]
+        rows[:, 5] = span.v_patch[sel]
+        rows[:, 6] = span.v_battery[sel]
+        rows[:, 7] = command.v_ch1
+        rows[:, 8] = command.v_ch2
+        rows[:, 9] = math.nan
+        rows[:, 10] = command.board_current
+        rows[:, 11] = 1.0
+        if i0 == 0 and rows.shape[0]:  # the first tick's row carries the command it was exchanged with
+            rows[0, 7], rows[0, 8], rows[0, 10] = first.v_ch1, first.v_ch2, first.board_current
+        return rows
 
     def command_zero(self, attempts: int = 3) -> bool:
         """Send a zero demand (both channels 0 V) through the link; True once the rig has answered it.

@@ -36,7 +36,8 @@ class RigCell:
         ocv_q = np.linspace(-0.05, 1.05, 2049) * self.spec.capacity
         self._ocv_q0 = float(ocv_q[0])
         self._ocv_h = float(ocv_q[1] - ocv_q[0])
-        self._ocv_list = np.asarray(self.spec.ocv(ocv_q), dtype=float).tolist()
+        self._ocv_array = np.asarray(self.spec.ocv(ocv_q), dtype=float)
+        self._ocv_list = self._ocv_array.tolist()
 
     @property
     def name(self) -> str:
@@ -55,6 +56,18 @@ class RigCell:
             return float(self.spec.ocv(qd))
         f = (qd - q0) / h - i
         return v[i] + (v[i + 1] - v[i]) * f
+
+    def ocv_many(self, qd: np.ndarray) -> np.ndarray | None:
+        """:meth:`ocv` of every element of ``qd`` (C), with the same arithmetic (bit-identical); None if one falls
+        outside the fine table."""
+        x = (qd - self._ocv_q0) / self._ocv_h
+        i = x.astype(np.int64)  # truncation, as int()
+        v = self._ocv_array
+        if qd.size == 0 or int(i.min()) < 0 or int(i.max()) >= v.size - 1:
+            return None
+        f = x - i
+        vi = v[i]
+        return vi + (v[i + 1] - vi) * f
 
     def discharge(self, i_load: float, dt: float) -> None:
         """Draw ``i_load`` (A) for ``dt`` (s) from the cell outside the plant."""

@@ -46,9 +46,12 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
+import numpy as np
+
 from board_config import MfcLimits, ParameterSet, load_mfc_limits
 from board_config.scenario import Scenario, load_scenario
 from drivers.link import ActuatorCommand, Link, RigSample, open_link
+from drivers.quiet_span import QuietSpan
 from drivers.sim_link import set_sim_rig_factory
 from hil_stub.amplifier import Amplifier
 from hil_stub.cell import RigCell
@@ -93,7 +96,7 @@ class SimulatedRig:
                  params: str | ParameterSet | None = None, deviations: Mapping[str, float] | None = None,
                  effects: Sequence[str] | None = None, effect_params: Mapping[str, float] | None = None,
                  coupling: str | None = None, battery_initial_voltage: float | None = None,
-                 tick: float = 0.01, lookahead_ticks: int = 50, rtol: float = 1e-6, flight_rtol: float = 1e-5,
+                 tick: float = 0.01, lookahead_ticks: int = 200, rtol: float = 1e-6, flight_rtol: float = 1e-5,
                  reduce_idle_bridge: bool = True, limits: MfcLimits | None = None,
                  hv_present: bool | None = None) -> None:
         s = RigSettings.resolve(scenario, seed=seed, params=params, deviations=deviations, effects=effects,
@@ -170,6 +173,63 @@ class SimulatedRig:
     def sample(self) -> RigSample:
         """The latest snapshot (repeatable: nothing advances)."""
         return self._sample
+
+    # --- quiet spans (drivers.quiet_span): stand-by stretches in one call -----------------------------------
+    def peek_quiet(self, command: ActuatorCommand, max_ticks: int, dt: float) -> QuietSpan | None:
+        """The samples the next exchanges (``apply(command)``, ``advance(dt)``, ``sample()``; 1 to ``max_ticks`` of
+        them) would return, if ``command`` is a zero demand at the board current already in force, ``dt`` is the rig
+        tick and nothing is scheduled to change (no HV, sensor fault, outage or load change; the plant inside its
+        current lookahead block; the sensor noise drawn ahead): bit-identical to the single exchanges. Nothing
+        advances; None when any condition fails."""
+        amp = self.amplifier
+        plant = self.plant
+        if (max_ticks < 1 or dt != self.tick or command.v_ch1 != 0.0 or command.v_ch2 != 0.0
+                or float(command.board_current) != amp.board_current or amp.refused_flag or amp.v_ch1 != 0.0
+                or amp.v_ch2 != 0.0 or amp.last_ch1 != 0.0 or amp.last_ch2 != 0.0):
+            return None
+        seg = self._seg if plant.t < self._seg.until else self._segment()
+        hv = self._hv_override if self._hv_override is not None else seg.hv_present
+        if hv or seg.sensor_fault is not None or seg.link_down:
+            return None
+        i_load = amp.board_current + seg.extra_load
+        truth = plant.peek_quiet(i_load, max_ticks)
+        if truth is None:
+            return None
+        z3, v_patch, v_battery, z0dd = truth
+        k0 = plant._k
+        t = np.arange(k0 + 1, k0 + 1 + z3.shape[0]) * plant.tick  # as plant.t = k * tick after each advance
+        n = int(np.searchsorted(t, seg.until, side="left"))  # every sample strictly before the segment's end
+        z3n, vpn, zddn = self.sensors.peek_noisy(z3[:n], v_patch[:n], z0dd[:n])
+        n = z3n.shape[0]
+        if n < 1:
+            return None
+        qd_after: np.ndarray | None = None
+        if v_battery is None:  # the cell outside the plant: discharged by the load tick by tick, read from its table
+            cell = self.cell
+            steps = np.full(n + 1, i_load * self.tick)
+            steps[0] = cell.qd
+            qd_after = np.add.accumulate(steps)[1:]  # sequential sums, as n calls of RigCell.discharge
+            ocv = cell.ocv_many(qd_after)
+            if ocv is None:
+                return None
+            vb = ocv - cell.r_int * i_load
+        else:
+            vb = v_battery[:n]
+        return QuietSpan((self.seq + 1) & 0xFFFFFFFF, t[:n], z3n, vpn, zddn, vb, qd_after)
+
+    def commit_quiet(self, span: QuietSpan, m: int) -> None:
+        """Advance as ``m`` exchanges of the span's command would have (``1 <= m <= span.n``)."""
+        if not 1 <= m <= span.n:
+            raise ValueError(f"commit_quiet: {m} ticks of a span of {span.n}")
+        amp = self.amplifier
+        amp._last_command_t = float(span.t[m - 2]) if m >= 2 else self.plant.t  # the last apply's time
+        amp._watchdog_open = False
+        qd = span.rig_state
+        self.plant.commit_quiet(m, float(qd[m - 1]) if qd is not None else None)
+        self.sensors.skip(m)
+        self.ticks += m
+        self.seq = (self.seq + m) & 0xFFFFFFFF
+        self._sample = span.sample(m - 1)
 
     # --- extras for operators, the HIL server and reports -------------------------------------------
     @property

@@ -287,35 +287,10 @@ class TruthPlant:
         assert cell is not None
         b = self._block
         steady = v1 == s1 and v2 == s2
-        if (b is not None and steady and b.j < b.n and b.composition is self.active and b.v_ch1 == v1
+        if not (b is not None and steady and b.j < b.n and b.composition is self.active and b.v_ch1 == v1
                 and b.v_ch2 == v2 and b.i_load == i_load):
-            b.j += 1
-        else:
-            n = self.lookahead_ticks if steady else 1
-            t0 = self._k * self.tick
-            u, u_dt = self._inputs(t0, n, s1, s2, v1, v2)
-            t_out = t0 + self.tick * np.arange(n + 1)
-            h_max = min(TRUTH_H_MAX, self.tick)
-            b = None
-            idle = self.idle
-            if want is self.flight and idle is not None:
-                # try the reduced model (bridge off); keep it only if the bridge stays far from conducting
-                if self.active is not idle:
-                    self._switch(idle)
-                y, xs = idle.integrate(self.state().copy(), t0, u, u_dt, t_out, h_max)
-                if float(np.max(np.abs(y[:, idle.i_vterm]))) < 0.5 * self._bridge_threshold(i_load):
-                    b = self._new_block(idle, v1, v2, i_load, t0, y, xs, n, u)
-                    self.reduced_blocks += 1
-                else:
-                    self._switch(self.flight)
-            if b is None:
-                model = self.active
-                x0 = self.state().copy()
-                model.set_load(i_load)
-                y, xs = model.integrate(x0, t0, u, u_dt, t_out, h_max)
-                b = self._new_block(model, v1, v2, i_load, t0, y, xs, n, u)
-            self._block = b
-            self.blocks += 1
+            b = self._start_block(s1, s2, v1, v2, i_load, want, self.lookahead_ticks if steady else 1)
+        b.j += 1
         self._k += 1
         self.t = self._k * self.tick
         j = b.j
@@ -330,11 +305,81 @@ class TruthPlant:
         if not self.active.has_battery:
             cell.discharge(i_load, self.tick)
 
+    def _start_block(self, s1: float, s2: float, v1: float, v2: float, i_load: float, want: TruthComposition,
+                     n: int) -> TruthBlock:
+        """Integrate the next ``n`` ticks from the current tick (the block's row 0) and make it the current block."""
+        t0 = self._k * self.tick
+        u, u_dt = self._inputs(t0, n, s1, s2, v1, v2)
+        t_out = t0 + self.tick * np.arange(n + 1)
+        h_max = min(TRUTH_H_MAX, self.tick)
+        b = None
+        idle = self.idle
+        if want is self.flight and idle is not None:
+            # try the reduced model (bridge off); keep it only if the bridge stays far from conducting
+            if self.active is not idle:
+                self._switch(idle)
+            y, xs = idle.integrate(self.state().copy(), t0, u, u_dt, t_out, h_max)
+            if float(np.max(np.abs(y[:, idle.i_vterm]))) < 0.5 * self._bridge_threshold(i_load):
+                b = self._new_block(idle, v1, v2, i_load, t0, y, xs, n, u)
+                self.reduced_blocks += 1
+            else:
+                self._switch(self.flight)
+        if b is None:
+            model = self.active
+            x0 = self.state().copy()
+            model.set_load(i_load)
+            y, xs = model.integrate(x0, t0, u, u_dt, t_out, h_max)
+            b = self._new_block(model, v1, v2, i_load, t0, y, xs, n, u)
+        self._block = b
+        self.blocks += 1
+        return b
+
+    # --- quiet spans (drivers.quiet_span) -------------------------------------------------------------------
+    def peek_quiet(self, i_load: float, max_ticks: int
+                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray] | None:
+        """Noise-free z3 as the laser sees it (m), terminal voltage (V), cell terminal voltage (V; None when the cell
+        is outside the plant) and base acceleration (m/s^2) at the next ``n <= max_ticks`` tick boundaries, if the next
+        ``n`` aligned advances with the amplifier off, no slew and load ``i_load`` (A) would each just serve the next
+        row of the current lookahead block; None otherwise. Nothing advances."""
+        b = self._block
+        if (b is None or self._offgrid or b.composition is not self.active or b.v_ch1 != 0.0 or b.v_ch2 != 0.0
+                or b.i_load != i_load or (self.active is not self.flight and self.active is not self.idle)):
+            return None
+        if b.j >= b.n:  # used up: the next advance would integrate the next block from here; do it now
+            b = self._start_block(0.0, 0.0, 0.0, 0.0, i_load, self.flight, self.lookahead_ticks)
+        n = min(max_ticks, b.n - b.j)
+        m = b.composition
+        rows = slice(b.j + 1, b.j + 1 + n)
+        y = b.y
+        return (y[rows, m.i_z3], y[rows, m.i_vterm], y[rows, m.i_vbat] if m.i_vbat >= 0 else None,
+                np.array(b.z0dd[rows]))
+
+    def commit_quiet(self, m: int, qd_after: float | None) -> None:
+        """Advance ``m`` ticks as :meth:`peek_quiet` described them; ``qd_after`` is the cell's discharged capacity
+        (C) after them when the cell is outside the plant (the caller summed the per-tick discharges)."""
+        b = self._block
+        assert b is not None and 1 <= m <= b.n - b.j
+        b.j += m
+        self._k += m
+        self.t = self._k * self.tick
+        j = b.j
+        self._y_rows = b.y
+        self._y_row = j
+        r = self.reading
+        r.z3 = b.z3[j]
+        r.v_patch = b.v_terminal[j]
+        vb = b.v_battery
+        r.v_battery = vb[j] if vb is not None else math.nan
+        r.z0dd = b.z0dd[j]
+        if not self.active.has_battery:
+            assert self.cell is not None and qd_after is not None
+            self.cell.qd = qd_after
+
     @staticmethod
     def _new_block(model: TruthComposition, v1: float, v2: float, i_load: float, t0: float, y: np.ndarray,
                    xs: np.ndarray, n: int, u: np.ndarray) -> TruthBlock:
         m = (u.shape[0] - 1) // n
-        return TruthBlock(model, v1, v2, i_load, t0, y, xs, n, 1, y[:, model.i_z3].tolist(),
+        return TruthBlock(model, v1, v2, i_load, t0, y, xs, n, 0, y[:, model.i_z3].tolist(),
                           y[:, model.i_vterm].tolist(), y[:, model.i_vbat].tolist() if model.i_vbat >= 0 else None,
                           u[::m, 2].tolist())
 
