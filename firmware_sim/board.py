@@ -51,7 +51,7 @@ from firmware_sim.regimes import (
     RegimeTimers,
     TickInputs,
     Trigger,
-    quiet_sensing,
+    quiet_awake,
     quiet_standby,
 )
 from firmware_sim.regimes import step as regime_step
@@ -305,13 +305,15 @@ class Board:
 
     # --- quiet spans: settled stand-by ticks at once ---------------------------------------------------------
     def can_take_quiet(self) -> bool:
-        """Whether a quiet tick — a plausible, fresh sample, no HV, no flag, the battery above the brown-out voltage;
-        in stand-by also below both wake thresholds — changes nothing but counters (stand-by:
-        :func:`firmware_sim.regimes.quiet_standby`; sensing: :func:`firmware_sim.regimes.quiet_sensing` and the usage
-        episode): stand-by or sensing, nothing pending. The precondition of :meth:`take_quiet`."""
+        """Whether a quiet tick — a plausible, fresh sample without a flag, the battery above the brown-out voltage,
+        HV present in maintenance and absent otherwise; in stand-by also below both wake thresholds — changes nothing
+        but counters (stand-by: :func:`firmware_sim.regimes.quiet_standby`; sensing, and maintenance after the visit's
+        verdict: :func:`firmware_sim.regimes.quiet_awake`; the usage episode in sensing): one of those regimes,
+        nothing pending. The precondition of :meth:`take_quiet`."""
         regime = self.state.regime
         return (((regime is Regime.STANDBY_HARVEST and self.episode is None)
-                 or (regime is Regime.SENSING and self.episode is not None))
+                 or (regime is Regime.SENSING and self.episode is not None)
+                 or (regime is Regime.MAINTENANCE and self.episode is None and bool(self.visit_verdict)))
                 and not self._rearm and not self._limit_pending and not self._fault_key and not self._link_error
                 and not self.maintenance.active and self._clock_ref is not None and not self.power.brownout)
 
@@ -332,7 +334,8 @@ class Board:
         if regime is Regime.SENSING and ep is not None:  # before the tick that slices the episode (max_episode)
             n = min(n, self._episode_ticks - 1 - ep.samples)
         ref_k, ref_t = self._clock_ref  # type: ignore[misc]  # can_take_quiet: set
-        if n < 1 or span.seq0 == self._prev_seq or not ref_t <= float(span.t[0]):
+        if (n < 1 or span.seq0 == self._prev_seq or not ref_t <= float(span.t[0])
+                or span.hv_present != (regime is Regime.MAINTENANCE)):
             return 0, None
         lim = self._sample_limits
         z3, vp, zdd, vb, t = span.z3[:n], span.v_patch[:n], span.z0dd[:n], span.v_battery[:n], span.t[:n]
@@ -366,14 +369,14 @@ class Board:
             state = quiet_standby(self.state, self.timers, m)
             if state is None:
                 return 0, None
-        else:  # sensing: up to the tick where quiet fires; the usage episode takes every sample
-            state, m = quiet_sensing(self.state, self.timers, wake[:m].tolist())
+        else:  # sensing up to the tick where quiet fires (the usage episode takes every sample); maintenance idle
+            state, m = quiet_awake(self.state, self.timers, wake[:m].tolist())
             if m < 1:
                 return 0, None
-            assert ep is not None
-            add = ep.add
-            for kk, z, a in zip(range(k, k + m), z3[:m].tolist(), zdd[:m].tolist(), strict=True):
-                add(kk * period, z, a)
+            if ep is not None:
+                add = ep.add
+                for kk, z, a in zip(range(k, k + m), z3[:m].tolist(), zdd[:m].tolist(), strict=True):
+                    add(kk * period, z, a)
         for tick_c, t_c in checks:
             if tick_c < k + m:
                 self._clock_ref = (tick_c, t_c)

@@ -235,16 +235,20 @@ def quiet_standby(state: RegimeState, timers: RegimeTimers, m: int) -> RegimeSta
                        state.safe_causes)
 
 
-def quiet_sensing(state: RegimeState, timers: RegimeTimers, wake: Sequence[bool]) -> tuple[RegimeState, int]:
-    """SENSING over ticks with a good sample, no HV, no request and no brown-out, the comparator above threshold or
-    not (``wake``, one flag per tick): the state after the leading ticks before the one where ``quiet`` fires (that
-    tick is not taken) and how many were taken — the same as as many calls of :func:`step` (a test checks it);
-    nothing else can fire and no event is logged. ``(state, 0)`` outside SENSING."""
-    if state.regime is not Regime.SENSING or timers.link_loss < 1 or timers.overrun < 1:
+def quiet_awake(state: RegimeState, timers: RegimeTimers, wake: Sequence[bool]) -> tuple[RegimeState, int]:
+    """SENSING without HV, or MAINTENANCE with HV present, over ticks with a good sample, no request and no
+    brown-out, the comparator above threshold or not (``wake``, one flag per tick): the state after the leading
+    ticks before one where a row fires — in SENSING ``quiet`` (that tick is not taken); in MAINTENANCE none can —
+    and how many were taken. The same as as many calls of :func:`step` (a test checks it); no event is logged.
+    ``(state, 0)`` in another regime."""
+    regime = state.regime
+    if regime is not Regime.SENSING and regime is not Regime.MAINTENANCE:
         return state, 0
-    link_ok_max = max(timers.link_recovery, 1)
+    if timers.link_loss < 1 or timers.overrun < 1:
+        return state, 0
     wake_max = timers.wake_debounce + 1
     quiet_max = timers.quiet
+    stops = regime is Regime.SENSING  # quiet fires there (in MAINTENANCE HV stays: hv_removed cannot)
     wake_run, quiet_run = state.wake_run, state.quiet_run
     m = 0
     for w in wake:
@@ -252,14 +256,19 @@ def quiet_sensing(state: RegimeState, timers: RegimeTimers, wake: Sequence[bool]
             wr, qr = min(wake_run + 1, wake_max), 0
         else:
             wr, qr = 0, min(quiet_run + 1, quiet_max)
-        if qr >= quiet_max:
+        if stops and qr >= quiet_max:
             break
         wake_run, quiet_run = wr, qr
         m += 1
     if m == 0:
         return state, 0
-    return RegimeState(state.regime, state.entered_tick, 0, min(state.link_ok + m, link_ok_max), 0, wake_run,
-                       quiet_run, 0, min(state.hv_off_run + m, timers.hv_debounce), state.safe_causes), m
+    link_ok = min(state.link_ok + m, max(timers.link_recovery, 1))
+    if stops:
+        hv_run, hv_off_run = 0, min(state.hv_off_run + m, timers.hv_debounce)
+    else:
+        hv_run, hv_off_run = min(state.hv_run + m, timers.hv_debounce + 1), 0
+    return RegimeState(regime, state.entered_tick, 0, link_ok, 0, wake_run, quiet_run, hv_run, hv_off_run,
+                       state.safe_causes), m
 
 
 def step_full(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeTimers

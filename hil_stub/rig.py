@@ -178,8 +178,8 @@ class SimulatedRig:
     def peek_quiet(self, command: ActuatorCommand, max_ticks: int, dt: float) -> QuietSpan | None:
         """The samples the next exchanges (``apply(command)``, ``advance(dt)``, ``sample()``; 1 to ``max_ticks`` of
         them) would return, if ``command`` is a zero demand at the board current already in force, ``dt`` is the rig
-        tick and nothing is scheduled to change (no HV, sensor fault, outage or load change; the plant inside its
-        current lookahead block; the sensor noise drawn ahead): bit-identical to the single exchanges. Nothing
+        tick and nothing is scheduled to change (HV presence, a sensor fault, an outage or a load; the plant inside
+        its current lookahead block; the sensor noise drawn ahead): bit-identical to the single exchanges. Nothing
         advances; None when any condition fails."""
         amp = self.amplifier
         plant = self.plant
@@ -188,11 +188,11 @@ class SimulatedRig:
                 or amp.v_ch2 != 0.0 or amp.last_ch1 != 0.0 or amp.last_ch2 != 0.0):
             return None
         seg = self._seg if plant.t < self._seg.until else self._segment()
-        hv = self._hv_override if self._hv_override is not None else seg.hv_present
-        if hv or seg.sensor_fault is not None or seg.link_down:
+        hv = bool(self._hv_override if self._hv_override is not None else seg.hv_present)
+        if seg.sensor_fault is not None or seg.link_down:
             return None
         i_load = amp.board_current + seg.extra_load
-        truth = plant.peek_quiet(i_load, max_ticks)
+        truth = plant.peek_quiet(hv, i_load, max_ticks)
         if truth is None:
             return None
         z3, v_patch, v_battery, z0dd = truth
@@ -215,7 +215,7 @@ class SimulatedRig:
             vb = ocv - cell.r_int * i_load
         else:
             vb = v_battery[:n]
-        return QuietSpan((self.seq + 1) & 0xFFFFFFFF, t[:n], z3n, vpn, zddn, vb, qd_after)
+        return QuietSpan((self.seq + 1) & 0xFFFFFFFF, t[:n], z3n, vpn, zddn, vb, hv, qd_after)
 
     def commit_quiet(self, span: QuietSpan, m: int) -> None:
         """Advance as ``m`` exchanges of the span's command would have (``1 <= m <= span.n``)."""

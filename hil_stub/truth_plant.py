@@ -335,18 +335,23 @@ class TruthPlant:
         return b
 
     # --- quiet spans (drivers.quiet_span) -------------------------------------------------------------------
-    def peek_quiet(self, i_load: float, max_ticks: int
+    def peek_quiet(self, hv_connected: bool, i_load: float, max_ticks: int
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None, np.ndarray] | None:
         """Noise-free z3 as the laser sees it (m), terminal voltage (V), cell terminal voltage (V; None when the cell
         is outside the plant) and base acceleration (m/s^2) at the next ``n <= max_ticks`` tick boundaries, if the next
-        ``n`` aligned advances with the amplifier off, no slew and load ``i_load`` (A) would each just serve the next
-        row of the current lookahead block; None otherwise. Nothing advances."""
+        ``n`` aligned advances with zero amplifier output (connected or not), no slew and load ``i_load`` (A) would
+        each just serve the next row of the current lookahead block; None otherwise. Nothing advances."""
         b = self._block
-        if (b is None or self._offgrid or b.composition is not self.active or b.v_ch1 != 0.0 or b.v_ch2 != 0.0
-                or b.i_load != i_load or (self.active is not self.flight and self.active is not self.idle)):
+        active = self.active
+        if hv_connected:
+            want, serves = self.amplifier, active is self.amplifier
+        else:
+            want, serves = self.flight, active is self.flight or active is self.idle
+        if (not serves or b is None or self._offgrid or b.composition is not active or b.v_ch1 != 0.0
+                or b.v_ch2 != 0.0 or b.i_load != i_load):
             return None
         if b.j >= b.n:  # used up: the next advance would integrate the next block from here; do it now
-            b = self._start_block(0.0, 0.0, 0.0, 0.0, i_load, self.flight, self.lookahead_ticks)
+            b = self._start_block(0.0, 0.0, 0.0, 0.0, i_load, want, self.lookahead_ticks)
         n = min(max_ticks, b.n - b.j)
         m = b.composition
         rows = slice(b.j + 1, b.j + 1 + n)
