@@ -249,6 +249,14 @@ def test_spans_only_in_virtual_time_against_a_rig_that_offers_them() -> None:
 
     assert BoardRunner(board, TickByTick())._quiet_span_source() is None
 
+    class Injector(InProcessLink):  # changes exchange: must see every tick, so no spans
+        def exchange(self, command):
+            return super().exchange(command)
+
+    inj = Injector(rig, tick=cfg.tick_period)
+    inj.open()
+    assert inj.peek_quiet(ActuatorCommand(0, 0.0, 0.0, 0.0), 10) is None
+
 
 def test_peek_advances_nothing_and_refuses_what_is_not_quiet() -> None:
     sc = load_scenario("default")

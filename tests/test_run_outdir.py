@@ -114,8 +114,9 @@ def test_a_signal_ends_a_run_cleanly_and_the_out_dir_is_locked_meanwhile(tmp_pat
                                                                          name) -> None:
     out = tmp_path / "run"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
+    # paced on the wall clock: in virtual time 5000 s of board time take ~3 s now and could end before the signal
     proc = subprocess.Popen([sys.executable, "-m", "shm_cli.main", "run", "--scenario", "default", "--duration-s",
-                             "5000", "--quiet", "--out", str(out)], env=env, stdout=subprocess.PIPE,
+                             "5000", "--realtime", "--quiet", "--out", str(out)], env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
         _wait_running(out / "usage.db", proc)
