@@ -290,8 +290,14 @@ class TruthPlant:
         if not (b is not None and steady and b.j < b.n and b.composition is self.active and b.v_ch1 == v1
                 and b.v_ch2 == v2 and b.i_load == i_load):
             b = self._start_block(s1, s2, v1, v2, i_load, want, self.lookahead_ticks if steady else 1)
-        b.j += 1
-        self._k += 1
+        self._serve(b, 1)
+        if not self.active.has_battery:
+            cell.discharge(i_load, self.tick)
+
+    def _serve(self, b: TruthBlock, m: int) -> None:
+        """Move ``m`` ticks on inside block ``b``: time, the outputs now and what the sensors see."""
+        b.j += m
+        self._k += m
         self.t = self._k * self.tick
         j = b.j
         self._y_rows = b.y  # the outputs now are row j of the block (no view made per tick; see ``outputs``)
@@ -302,8 +308,6 @@ class TruthPlant:
         vb = b.v_battery
         r.v_battery = vb[j] if vb is not None else math.nan
         r.z0dd = b.z0dd[j]
-        if not self.active.has_battery:
-            cell.discharge(i_load, self.tick)
 
     def _start_block(self, s1: float, s2: float, v1: float, v2: float, i_load: float, want: TruthComposition,
                      n: int) -> TruthBlock:
@@ -364,18 +368,7 @@ class TruthPlant:
         (C) after them when the cell is outside the plant (the caller summed the per-tick discharges)."""
         b = self._block
         assert b is not None and 1 <= m <= b.n - b.j
-        b.j += m
-        self._k += m
-        self.t = self._k * self.tick
-        j = b.j
-        self._y_rows = b.y
-        self._y_row = j
-        r = self.reading
-        r.z3 = b.z3[j]
-        r.v_patch = b.v_terminal[j]
-        vb = b.v_battery
-        r.v_battery = vb[j] if vb is not None else math.nan
-        r.z0dd = b.z0dd[j]
+        self._serve(b, m)
         if not self.active.has_battery:
             assert self.cell is not None and qd_after is not None
             self.cell.qd = qd_after
