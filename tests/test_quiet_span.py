@@ -1,10 +1,10 @@
 """Quiet spans (drivers.quiet_span): uneventful ticks exchanged and processed in one call must be bit-identical to
 tick by tick — events, trace, ledger, board and rig state — over every shipped scenario and over perturbed boards
-and seeds; and each closed form they use equals the per-tick function it replaces."""
+and seeds; the seams (which runs and links get spans, a peek advances nothing). The closed forms against the
+per-tick functions: tests/test_quiet_closed_forms.py."""
 
 from __future__ import annotations
 
-import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
@@ -15,19 +15,8 @@ from drivers.link import ActuatorCommand
 from drivers.quiet_span import QuietSpanSource
 from drivers.sim_link import InProcessLink
 from firmware_sim.board import Board
-from firmware_sim.power_manager import PowerBudget, PowerLedger
-from firmware_sim.regimes import (
-    Regime,
-    RegimeState,
-    RegimeTimers,
-    TickInputs,
-    quiet_awake,
-    quiet_standby,
-    step,
-)
 from firmware_sim.runner import BoardRunner
 from firmware_sim.scheduler import Scheduler, VirtualClock, WallClock
-from hil_stub.cell import RigCell
 from hil_stub.rig import SimulatedRig
 
 SCENARIOS = ("default", "maintenance", "degraded", "patch_leakage", "faults", "aging")
@@ -120,88 +109,6 @@ def test_perturbed_boards_and_seeds_stay_bit_identical(name, seed, wake_v, wake_
     a = _run(name, False, duration=400.0, seed=seed, overrides=over, trace_every=every)
     b = _run(name, True, duration=400.0, seed=seed, overrides=over, trace_every=every)
     _assert_identical(a, b)
-
-
-# --- the closed forms against the per-tick functions --------------------------------------------------------------
-TIMERS = st.builds(RegimeTimers, link_loss=st.integers(1, 6), overrun=st.integers(1, 6),
-                   wake_debounce=st.integers(1, 6), quiet=st.integers(1, 12), hv_debounce=st.integers(1, 8),
-                   link_recovery=st.integers(0, 6), period=st.just(0.01))
-
-
-def _state(data, regime: Regime, tm: RegimeTimers) -> RegimeState:
-    d = data.draw
-    return RegimeState(regime, d(st.integers(0, 100)), d(st.integers(0, tm.link_loss - 1)),
-                       d(st.integers(0, max(tm.link_recovery, 1))), d(st.integers(0, tm.overrun - 1)),
-                       d(st.integers(0, tm.wake_debounce - 1)) if regime is Regime.STANDBY_HARVEST
-                       else d(st.integers(0, tm.wake_debounce + 1)),
-                       d(st.integers(0, tm.quiet - 1)) if regime is Regime.SENSING else d(st.integers(0, tm.quiet)),
-                       d(st.integers(0, tm.hv_debounce - 1)) if regime is not Regime.MAINTENANCE
-                       else d(st.integers(0, tm.hv_debounce + 1)),
-                       d(st.integers(0, tm.hv_debounce - 1)) if regime is Regime.MAINTENANCE
-                       else d(st.integers(0, tm.hv_debounce)), ())
-
-
-@settings(max_examples=300, deadline=None)
-@given(tm=TIMERS, data=st.data(), m=st.integers(1, 40), energy=st.lists(st.booleans(), min_size=40, max_size=40))
-def test_quiet_standby_equals_repeated_steps(tm, data, m, energy) -> None:
-    s0 = _state(data, Regime.STANDBY_HARVEST, tm)
-    s = s0
-    for i in range(m):
-        s, out, ev = step(s, TickInputs(energy_ok=energy[i]), 100 + i, tm)
-        assert not out.changed and ev == ()
-    assert quiet_standby(s0, tm, m) == s
-
-
-@settings(max_examples=400, deadline=None)
-@given(tm=TIMERS, data=st.data(), regime=st.sampled_from([Regime.SENSING, Regime.MAINTENANCE]),
-       wake=st.lists(st.booleans(), min_size=0, max_size=40), energy=st.booleans())
-def test_quiet_awake_equals_repeated_steps_up_to_the_first_transition(tm, data, regime, wake, energy) -> None:
-    s0 = _state(data, regime, tm)
-    hv = regime is Regime.MAINTENANCE
-    got, m = quiet_awake(s0, tm, wake)
-    s = s0
-    taken = 0
-    for i, w in enumerate(wake):
-        nxt, out, ev = step(s, TickInputs(wake_signal=w, hv_present=hv, energy_ok=energy), 100 + i, tm)
-        if out.changed or ev:
-            break
-        s = nxt
-        taken += 1
-    assert m == taken
-    assert got == s
-    if regime is Regime.MAINTENANCE:
-        assert m == len(wake)  # nothing fires with HV present and good samples
-
-
-@settings(max_examples=200, deadline=None)
-@given(v=st.lists(st.floats(2.0, 3.3), min_size=1, max_size=60), e0=st.floats(0.0, 10.0),
-       regime=st.sampled_from(list(Regime)), first=st.booleans())
-def test_ledger_add_many_equals_add(v, e0, regime, first) -> None:
-    budget = PowerBudget(1e-6, 2e-3, 5e-3, 1e-4, 2.7, 2.2, 0.1, 5, 0.01)
-    a, b = PowerLedger(budget), PowerLedger(budget)
-    for led in (a, b):
-        led.energy_used = e0
-        if not first:
-            led.add(regime, 3.0)
-    for x in v:
-        a.add(regime, x)
-    b.add_many(regime, np.array(v))
-    assert (a.ticks, a.energy_used, a.v_first, a.v_last, a.v_min) == (b.ticks, b.energy_used, b.v_first, b.v_last,
-                                                                       b.v_min)
-
-
-@settings(max_examples=100, deadline=None)
-@given(q=st.lists(st.floats(-10.0, 900.0), min_size=1, max_size=50))
-def test_cell_ocv_many_equals_ocv(q) -> None:
-    cell = RigCell(10.0, 3.0, "test")
-    arr = np.array(q)
-    got = cell.ocv_many(arr)
-    lo, hi = cell._ocv_q0, cell._ocv_q0 + cell._ocv_h * (len(cell._ocv_list) - 1)
-    if got is None:
-        assert any(not (lo <= x < hi - cell._ocv_h) or int((x - lo) / cell._ocv_h) >= len(cell._ocv_list) - 1
-                   or int((x - lo) / cell._ocv_h) < 0 for x in q)
-    else:
-        assert got.tolist() == [cell.ocv(x) for x in q]
 
 
 # --- the seams ----------------------------------------------------------------------------------------------------
