@@ -163,9 +163,9 @@ class BoardRunner:
 
         spans = self._quiet_span_source()
 
-        def block(k: int, left: int) -> int:
-            """Settled stand-by against an in-process rig: the quiet ticks from ``k`` on at once (drivers.quiet_span),
-            else the one tick ``k``."""
+        def block(k: int, left: int) -> tuple[int, bool]:
+            """Against an in-process rig: the quiet ticks from ``k`` on at once (drivers.quiet_span), else the one
+            tick ``k``; never asks to stop (a scheduler wrapper may)."""
             nonlocal rows_append
             cmd = self.command
             if (spans is not None and left > 1 and board.can_take_quiet() and cmd.v_ch1 == 0.0 and cmd.v_ch2 == 0.0
@@ -186,9 +186,9 @@ class BoardRunner:
                             trace.add_block(self._trace_rows(k, m, every, period, codes[board.regime], cmd, command,
                                                              span))
                             rows_append = trace.rows.append
-                        return m
-            step(k, False)
-            return 1
+                        return m, False
+            step(k, False)  # the runner itself never stops early (its scheduler may: shm run's on a signal)
+            return 1, False
 
         t0 = time.perf_counter()
         try:
@@ -204,10 +204,13 @@ class BoardRunner:
         return RunResult(stats.ticks, stats.ticks * period, wall, stats, self.events, trace)
 
     def _quiet_span_source(self) -> QuietSpanSource | None:
-        """The link, if stand-by stretches may be exchanged in one call: virtual time, an in-process rig that offers
-        quiet spans, ``quiet_spans`` on. A paced run, and any serial or Modbus link, ticks one by one."""
+        """The link, if quiet stretches may be exchanged in one call: virtual time, a scheduler whose class defines
+        ``run_blocks`` (a wrapper that only forwards it, e.g. to add a stop condition to ``run``, would lose that
+        condition), an in-process rig that offers quiet spans, ``quiet_spans`` on. A paced run, and any serial or
+        Modbus link, ticks one by one."""
         sched = self.scheduler
-        if not self.quiet_spans or sched.paced or type(sched.clock) is not VirtualClock:
+        if (not self.quiet_spans or sched.paced or type(sched.clock) is not VirtualClock
+                or getattr(type(sched), "run_blocks", None) is None):  # a wrapper must define it, not forward it
             return None
         link = self.link
         return link if isinstance(link, QuietSpanSource) else None

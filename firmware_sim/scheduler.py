@@ -111,8 +111,8 @@ class TickStats:
 
 #: step(k, overran_previous) -> True to stop after this tick
 TickFunction = Callable[[int, bool], bool | None]
-#: block(k, ticks_left) -> ticks done from k on (1 .. ticks_left), virtual time only
-BlockFunction = Callable[[int, int], int]
+#: block(k, ticks_left) -> (ticks done from k on (1 .. ticks_left), stop after them), virtual time only
+BlockFunction = Callable[[int, int], tuple[int, bool]]
 
 
 class Scheduler:
@@ -160,9 +160,10 @@ class Scheduler:
 
     def run_blocks(self, n_ticks: int, block: BlockFunction, first_tick: int = 0,
                    progress: Callable[[int], None] | None = None) -> TickStats:
-        """Virtual time only: run ticks ``first_tick .. first_tick + n_ticks - 1`` as ``block(k, limit)`` calls, each
-        doing ticks ``k .. k + d - 1`` for the ``1 <= d <= limit`` it returns (``limit``: the ticks left). The same
-        ticks, in the same order, as :meth:`run` with a step per tick; ``progress(i)`` is called once per 256 ticks."""
+        """Virtual time only: run ticks ``first_tick .. first_tick + n_ticks - 1`` as ``block(k, left)`` calls, each
+        doing ticks ``k .. k + d - 1`` and returning ``(d, stop)`` for the ``1 <= d <= left`` it did (``left``: the
+        ticks left) and whether to stop after them. The same ticks, in the same order, as :meth:`run` with a step
+        per tick; ``progress(i)`` is called once per 256 ticks."""
         if self.paced or type(self.clock) is not VirtualClock:
             raise ValueError("run_blocks needs a virtual clock: a paced run ticks one deadline at a time")
         clock = self.clock
@@ -170,16 +171,18 @@ class Scheduler:
         start = clock.now()
         i = 0
         while i < n:
-            d = block(first_tick + i, n - i)
+            d, stop = block(first_tick + i, n - i)
             if not 1 <= d <= n - i:
                 raise ValueError(f"block at tick {first_tick + i} did {d} ticks (1..{n - i} allowed)")
             if progress is not None and ((i & 255) == 0 or (i >> 8) != ((i + d - 1) >> 8)):
                 progress(i)
             i += d
+            if stop:
+                break
         self.consecutive_misses = 0
-        if n:
-            clock.sleep_until(start + (n - 1) * self.period)
-        stats = TickStats(n, self.rate, False, 0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, float(clock.now() - start))
+        if i:
+            clock.sleep_until(start + (i - 1) * self.period)
+        stats = TickStats(i, self.rate, False, 0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, float(clock.now() - start))
         self.stats = stats
         return stats
 

@@ -239,7 +239,7 @@ class StopOnSignal:
 
 
 class StoppableScheduler:
-    """A scheduler whose run ends after the tick in which ``stop.requested`` became true."""
+    """A scheduler whose run ends after the tick (or quiet span) in which ``stop.requested`` became true."""
 
     def __init__(self, inner: Any, stop: StopOnSignal) -> None:
         self._inner = inner
@@ -258,6 +258,16 @@ class StoppableScheduler:
             return bool(step(k, overran)) or stop.requested
 
         return self._inner.run(n_ticks, guarded, first_tick=first_tick, progress=progress)
+
+    def run_blocks(self, n_ticks: int, block: Any, first_tick: int = 0, progress: Any = None) -> Any:
+        """Virtual time with quiet spans: ends after the block in which ``stop.requested`` became true."""
+        stop = self._stop
+
+        def guarded(k: int, left: int) -> tuple[int, bool]:
+            d, halt = block(k, left)
+            return d, bool(halt) or stop.requested
+
+        return self._inner.run_blocks(n_ticks, guarded, first_tick=first_tick, progress=progress)
 
 
 # --- the command --------------------------------------------------------------------------------------

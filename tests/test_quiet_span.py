@@ -118,19 +118,58 @@ def test_run_blocks_visits_every_tick_once_in_order_and_reports_progress() -> No
     prog: list[int] = []
     sizes = iter([1, 300, 5, 1, 250, 1000])
 
-    def block(k: int, left: int) -> int:
+    def block(k: int, left: int) -> tuple[int, bool]:
         d = min(next(sizes, 1), left)
         seen.extend(range(k, k + d))
-        return d
+        return d, False
 
     stats = sched.run_blocks(900, block, first_tick=7, progress=prog.append)
     assert seen == list(range(7, 907)) and stats.ticks == 900
     assert prog[0] == 0 and len(prog) >= 3
     with pytest.raises(ValueError, match="did 0 ticks"):
-        Scheduler(100.0).run_blocks(5, lambda k, left: 0)
+        Scheduler(100.0).run_blocks(5, lambda k, left: (0, False))
     with pytest.raises(ValueError, match="virtual clock"):
-        Scheduler(100.0, WallClock()).run_blocks(5, lambda k, left: 1)
+        Scheduler(100.0, WallClock()).run_blocks(5, lambda k, left: (1, False))
+    stopped = Scheduler(100.0).run_blocks(900, lambda k, left: (min(40, left), k >= 100))
+    assert stopped.ticks == 160  # the block that asked to stop (ticks 120..159) is done, nothing after it
     assert isinstance(Scheduler(100.0).clock, VirtualClock)
+
+
+def test_a_stop_request_ends_a_run_with_spans_after_the_current_span() -> None:
+    """``shm run`` wraps the scheduler to stop on SIGINT/SIGTERM: with spans the run still ends right after the
+    span in which the stop was requested (in the flight, spans are at most 200 ticks)."""
+    from shm_cli.run_cmd import StoppableScheduler
+
+    class Stop:
+        requested = False
+
+    stop = Stop()
+    sc = load_scenario("default")
+    cfg = load_board_config(overrides=sc.board_overrides, overrides_source=sc.source)
+    rig = SimulatedRig(sc, tick=cfg.tick_period)
+    link = InProcessLink(rig, tick=cfg.tick_period)
+    runner = BoardRunner(Board(cfg, nominal=sc.rig.params), link,
+                         scheduler=StoppableScheduler(Scheduler(cfg.tick_rate), stop))  # type: ignore[arg-type]
+    assert runner._quiet_span_source() is link
+
+    def progress(i: int) -> None:
+        if i >= 3000:
+            stop.requested = True
+
+    link.open()
+    res = runner.run(300.0, progress=progress)
+    assert 3000 <= res.ticks <= 4000, res.ticks  # of 30 000: stopped within a few spans
+
+    class Forwarding:  # forwards run_blocks through __getattr__: it would bypass its own run's conditions
+        def __init__(self, inner: Scheduler) -> None:
+            self._inner = inner
+
+        def __getattr__(self, name: str):
+            return getattr(self._inner, name)
+
+    fwd = BoardRunner(Board(cfg, nominal=sc.rig.params), link,
+                      scheduler=Forwarding(Scheduler(cfg.tick_rate)))  # type: ignore[arg-type]
+    assert fwd._quiet_span_source() is None
 
 
 def test_spans_only_in_virtual_time_against_a_rig_that_offers_them() -> None:
