@@ -108,15 +108,18 @@ def _wait_running(db: Path, proc: subprocess.Popen, limit_s: float = 120.0) -> N
     raise AssertionError("shm run did not start")
 
 
-@pytest.mark.parametrize(("sig", "code", "name"), [(signal.SIGTERM, 143, "SIGTERM"),
-                                                   (signal.SIGINT, 130, "SIGINT")])
-def test_a_signal_ends_a_run_cleanly_and_the_out_dir_is_locked_meanwhile(tmp_path: Path, capsys, sig, code,
-                                                                         name) -> None:
+@pytest.mark.parametrize(("sig", "code", "name", "clock"), [(signal.SIGTERM, 143, "SIGTERM", "realtime"),
+                                                           (signal.SIGINT, 130, "SIGINT", "realtime"),
+                                                           (signal.SIGTERM, 143, "SIGTERM", "virtual")])
+def test_a_signal_ends_a_run_cleanly_and_the_out_dir_is_locked_meanwhile(tmp_path: Path, capsys, sig, code, name,
+                                                                         clock) -> None:
     out = tmp_path / "run"
     env = dict(os.environ, PYTHONPATH=str(ROOT))
-    # paced on the wall clock: in virtual time 5000 s of board time take ~3 s now and could end before the signal
+    # paced on the wall clock, or in virtual time with quiet spans (the stop must end a run of spans too): 400 000 s
+    # of board time take well over a minute there (5000 s end in ~3 s, possibly before the signal)
+    duration, extra = ("5000", ["--realtime"]) if clock == "realtime" else ("400000", [])
     proc = subprocess.Popen([sys.executable, "-m", "shm_cli.main", "run", "--scenario", "default", "--duration-s",
-                             "5000", "--realtime", "--quiet", "--out", str(out)], env=env, stdout=subprocess.PIPE,
+                             duration, *extra, "--quiet", "--out", str(out)], env=env, stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:
         _wait_running(out / "usage.db", proc)
@@ -135,7 +138,7 @@ def test_a_signal_ends_a_run_cleanly_and_the_out_dir_is_locked_meanwhile(tmp_pat
     assert f"interrupted by {name}" in stderr
     assert [r[1] for r in _runs(out / "usage.db")] == ["interrupted"]
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["status"] == "interrupted" and 0 < summary["board_time_s"] < 5000
+    assert summary["status"] == "interrupted" and 0 < summary["board_time_s"] < float(duration)
     assert summary["verdict_as_expected"] is None  # a partial run is not judged against the scenario
     assert (out / "report.html").exists() and (out / "trace.npz").exists()
     assert "interrupted by" in (out / "timeline.txt").read_text()
