@@ -40,8 +40,10 @@ def _state(data, regime: Regime, tm: RegimeTimers) -> RegimeState:
         hv_run, hv_off_run = d(st.integers(1, hv_cap)), 0
     else:
         hv_run, hv_off_run = 0, d(st.integers(0, off_cap))
+    # outside SAFE the causes are () once reachable, but step carries whatever it is given: so must the closed forms
+    causes = d(st.sampled_from([(), ("link_lost",), ("sensor_fault", "overrun")]))
     return RegimeState(regime, d(st.integers(0, 100)), link_fail, link_ok, d(st.integers(0, tm.overrun - 1)),
-                       wake_run, quiet_run, hv_run, hv_off_run, ())
+                       wake_run, quiet_run, hv_run, hv_off_run, causes)
 
 
 @settings(max_examples=300, deadline=None)
