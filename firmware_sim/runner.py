@@ -171,9 +171,12 @@ class BoardRunner:
             if (spans is not None and left > 1 and board.can_take_quiet() and cmd.v_ch1 == 0.0 and cmd.v_ch2 == 0.0
                     and cmd.board_current == board.quiet_command_current()):
                 limit = left
-                if rearms:  # stop before the tick that hands the next re-arm to the board
-                    j = 0
-                    while j < limit and (k + 1 + j) * period < rearms[0] - 1e-12:
+                if rearms:  # stop before the tick that hands the next re-arm to the board (kk * period >= r)
+                    r = rearms[0] - 1e-12
+                    j = min(limit, max(0, int(r / period) - k - 2))  # a few ticks short of it, then exactly
+                    while j > 0 and (k + j) * period >= r:
+                        j -= 1
+                    while j < limit and (k + 1 + j) * period < r:
                         j += 1
                     limit = j
                 span = spans.peek_quiet(cmd, limit) if limit > 1 else None
