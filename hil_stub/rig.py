@@ -82,8 +82,8 @@ class SimulatedRig:
         Ticks integrated at once while nothing changes (1 = plain tick-by-tick stepping).
     rtol, flight_rtol:
         Relative tolerance of the truth plant with the amplifier connected (the MBITs: 1e-6) and in flight (the
-        harvesting or open-circuit terminal: 1e-5 — its z3 error in the default flight, ~1 µm at most against
-        solve_ivp at 1e-9, stays below the 2 µm laser noise).
+        harvesting or open-circuit terminal: 1e-5 — in the default flight its z3 differs from the same plant at 1e-6
+        by ~1 µm at most, below the 2 µm laser noise).
     reduce_idle_bridge:
         While the harvesting bridge cannot conduct (the largest patch voltage of a block stays below half the
         conduction threshold ``v_oc + 2 V_diode − R_bint i_board``), integrate the equivalent open-circuit terminal
