@@ -10,7 +10,9 @@ minus deadline, p50 / p99 / max) and deadline misses (a tick ending after the ne
 Under load (issue 14): the three links again while one CPU-bound process per core runs at normal priority, the
 board and the stub at real-time priority where the machine allows it (``chrt -f 10``, as docs/real-rig.md
 recommends for a rig run); targets: zero deadline misses on Modbus TCP, the serial pty and Modbus RTU, TCP p99
-round trip < 2 ms.
+round trip < 2 ms. Stall probes run meanwhile (one pinned process per CPU at a real-time priority above the board
+and the stub, sleeping 0.5 ms at a time): every sleep over 4 ms is a stretch in which that CPU ran nothing of ours
+(hypervisor, kernel); each link's missed ticks are counted with and without those that overlap one.
 
 Baseline, measured in the same run: the in-process link (``drivers.sim_link.InProcessLink``) to the same kind of
 rig, unpaced — what an exchange costs with no transport at all; each link's median round trip is quoted as a
@@ -78,6 +80,8 @@ def _paced_run(url: str, seconds: float, link=None) -> dict:
     link.open()
     n = round(seconds / TICK_S)
     rtt = np.full(n, np.nan)
+    t_start = np.full(n, np.nan)  # perf_counter at the start and end of each tick (machine-stall attribution)
+    t_end = np.full(n, np.nan)
     errors = 0
     k0 = 1_000_000  # distinct sequence numbers from the warm-up
     try:
@@ -89,13 +93,15 @@ def _paced_run(url: str, seconds: float, link=None) -> dict:
 
         def step(i: int, _overran: bool) -> None:
             nonlocal errors
-            t0 = time.perf_counter()
+            t0 = t_start[i] = time.perf_counter()
             try:
                 link.exchange(_command(k0 + i))
             except LinkError:
                 errors += 1
                 return
-            rtt[i] = time.perf_counter() - t0
+            finally:
+                t_end[i] = time.perf_counter()
+            rtt[i] = t_end[i] - t0
 
         stats = Scheduler(1.0 / TICK_S, WallClock()).run(n, step)
     finally:
@@ -109,7 +115,57 @@ def _paced_run(url: str, seconds: float, link=None) -> dict:
         "rtt_max_ms": 1e3 * float(ok.max()) if ok.size else None,
         "tick_jitter_p50_ms": 1e3 * stats.jitter_p50, "tick_jitter_p99_ms": 1e3 * stats.jitter_p99,
         "tick_jitter_max_ms": 1e3 * stats.jitter_max, "tick_busy_max_ms": 1e3 * stats.busy_max,
+        "_tick_windows": _missed_windows(t_start[: stats.ticks], t_end[: stats.ticks]),
     }
+
+
+def _missed_windows(t_start: np.ndarray, t_end: np.ndarray) -> list[tuple[float, float]]:
+    """(deadline, end) of each tick that ended after the next deadline (perf_counter s; deadlines from the first
+    tick's start, the scheduler's own count of misses is the authority)."""
+    if t_start.size == 0:
+        return []
+    deadline = t_start[0] + TICK_S * np.arange(t_start.size)
+    late = np.flatnonzero(t_end > deadline + TICK_S)
+    return [(float(deadline[i]), float(t_end[i])) for i in late]
+
+
+#: a process per CPU, pinned to it, at a real-time priority above the board and the stub: it sleeps 0.5 ms at a time
+#: and reports every sleep that took more than 4 ms — a stretch in which nothing of ours could run on that CPU
+_PROBE = (
+    "import os, sys, time\n"
+    "os.sched_setaffinity(0, {int(sys.argv[1])})\n"
+    "pc, sl, w = time.perf_counter, time.sleep, sys.stdout.write\n"
+    "while True:\n"
+    "    t0 = pc(); sl(0.0005); t1 = pc()\n"
+    "    if t1 - t0 > 0.004:\n"
+    "        w(f'{t0!r} {t1!r}\\n'); sys.stdout.flush()\n"
+)
+
+
+def _stall_probes(prefix: tuple[str, ...]) -> list[subprocess.Popen]:
+    chrt = (prefix[0], "-f", str(RT_PRIORITY + 2)) if prefix else ()
+    return [subprocess.Popen([*chrt, sys.executable, "-c", _PROBE, str(cpu)], stdout=subprocess.PIPE,
+                             stderr=subprocess.DEVNULL, text=True) for cpu in sorted(os.sched_getaffinity(0))]
+
+
+def _stalls(probes: list[subprocess.Popen]) -> list[tuple[float, float]]:
+    """The (start, end) perf_counter times of every stall the probes saw (they are stopped here)."""
+    _stop(probes)
+    out = []
+    for pr in probes:
+        assert pr.stdout is not None
+        for line in pr.stdout.read().split("\n"):
+            parts = line.split()
+            if len(parts) == 2:
+                out.append((float(parts[0]), float(parts[1])))
+    return sorted(out)
+
+
+def _attribute(res: dict, stalls: list[tuple[float, float]]) -> None:
+    """Count the link's missed ticks whose window (deadline .. end) overlaps a stall the probes saw."""
+    windows = res.pop("_tick_windows")
+    res["misses_during_machine_stalls"] = sum(
+        1 for a, b in windows if any(s0 < b and s1 > a for s0, s1 in stalls))
 
 
 def _in_process_baseline(n: int) -> dict:
@@ -183,6 +239,7 @@ def _under_load(seconds: float, seconds_rtu: float) -> dict:
     summary_path = Path(tempfile.mkstemp(prefix="shm-hil-bench-load-", suffix=".json")[1])
     proc, urls = _start_stub(summary_path, prefix)
     hogs = _cpu_hogs(n_hogs)
+    probes = _stall_probes(prefix)
     try:
         time.sleep(1.0)  # let the load average see the hogs
         load_start = os.getloadavg()[0]
@@ -192,6 +249,7 @@ def _under_load(seconds: float, seconds_rtu: float) -> dict:
                      "modbus_rtu_pty": _paced_run(urls["modbus_rtu"], seconds_rtu)}
         load_end = os.getloadavg()[0]
     finally:
+        stalls = _stalls(probes)
         _stop(hogs)
         proc.send_signal(signal.SIGINT)
         try:
@@ -200,13 +258,22 @@ def _under_load(seconds: float, seconds_rtu: float) -> dict:
             proc.kill()
             proc.wait(timeout=5)
         summary_path.unlink(missing_ok=True)
+    for res in links.values():
+        _attribute(res, stalls)
     targets = {"modbus_tcp": {"zero_deadline_misses": links["modbus_tcp"]["deadline_misses"] == 0,
                               "p99_rtt_below_2_ms": (links["modbus_tcp"]["rtt_p99_ms"] or math.inf) < 2.0},
                "serial_pty": {"zero_deadline_misses": links["serial_pty"]["deadline_misses"] == 0},
                "modbus_rtu_pty": {"zero_deadline_misses": links["modbus_rtu_pty"]["deadline_misses"] == 0}}
+    unexplained = sum(r["deadline_misses"] - r["misses_during_machine_stalls"] for r in links.values())
     return {"cpu_hogs": n_hogs, "board_realtime_priority": board_rt, "stub_realtime_priority": bool(prefix),
             "load_average_1min_start_end": [load_start, load_end], "links": links, "targets": targets,
-            "targets_met": all(all(t.values()) for t in targets.values())}
+            "targets_met": all(all(t.values()) for t in targets.values()),
+            "machine_stalls_over_4ms": len(stalls),
+            "machine_stall_max_ms": 1e3 * max((b - a for a, b in stalls), default=0.0),
+            "misses_outside_machine_stalls": unexplained,
+            "note": "stall probes: one process per CPU, pinned, at a real-time priority above the board and the "
+                    "stub, sleeping 0.5 ms at a time; a sleep over 4 ms is a stall of that CPU (hypervisor, "
+                    "kernel) in which nothing of ours could run. A miss whose tick overlaps one is the machine's."}
 
 
 def run(out_dir: Path, quick: bool) -> dict:
@@ -241,6 +308,8 @@ def run(out_dir: Path, quick: bool) -> dict:
     except (OSError, ValueError):
         stub = {}
     summary_path.unlink(missing_ok=True)
+    for res in (*links.values(), control):
+        res.pop("_tick_windows", None)
     for res in links.values():
         if res["rtt_p50_ms"] is not None:
             res["rtt_p50_vs_in_process"] = res["rtt_p50_ms"] / baseline["rtt_p50_ms"]
@@ -262,6 +331,9 @@ def run(out_dir: Path, quick: bool) -> dict:
     for name, res in load["links"].items():
         result[f"under_load_{name}_rtt_p99_ms"] = res["rtt_p99_ms"]
         result[f"under_load_{name}_deadline_misses"] = res["deadline_misses"]
+        result[f"under_load_{name}_misses_during_machine_stalls"] = res["misses_during_machine_stalls"]
+    result["under_load_machine_stalls_over_4ms"] = load["machine_stalls_over_4ms"]
+    result["under_load_misses_outside_machine_stalls"] = load["misses_outside_machine_stalls"]
     for name, res in links.items():  # flat keys for the bench runner's printout
         result[f"{name}_rtt_p99_ms"] = res["rtt_p99_ms"]
         result[f"{name}_deadline_misses"] = res["deadline_misses"]
