@@ -135,28 +135,10 @@ class Scheduler:
     def run(self, n_ticks: int, step: TickFunction, first_tick: int = 0,
             progress: Callable[[int], None] | None = None) -> TickStats:
         """Run ticks ``first_tick .. first_tick + n_ticks - 1`` (or until ``step`` returns True)."""
-        clock = self.clock
-        period = self.period
-        n = int(n_ticks)
-        start = clock.now()
-        done = 0
-        if not self.paced and type(clock) is VirtualClock:
-            # virtual time, nothing to measure: the tight loop (the clock jumps to the last deadline at the end)
-            for i in range(n):
-                stop = step(first_tick + i, False)
-                done = i + 1
-                if progress is not None and (i & 255) == 0:
-                    progress(i)
-                if stop:
-                    break
-            self.consecutive_misses = 0
-            if done:
-                clock.sleep_until(start + (done - 1) * period)
-            stats = TickStats(done, self.rate, False, 0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0,
-                              float(clock.now() - start))
-            self.stats = stats
-            return stats
-        return self._run_paced(n, step, first_tick, progress, start)
+        if not self.paced and type(self.clock) is VirtualClock:
+            # virtual time, nothing to measure: one tick per block (the clock jumps to the last deadline at the end)
+            return self.run_blocks(n_ticks, lambda k, _left: (1, bool(step(k, False))), first_tick, progress)
+        return self._run_paced(int(n_ticks), step, first_tick, progress)
 
     def run_blocks(self, n_ticks: int, block: BlockFunction, first_tick: int = 0,
                    progress: Callable[[int], None] | None = None) -> TickStats:
@@ -186,10 +168,11 @@ class Scheduler:
         self.stats = stats
         return stats
 
-    def _run_paced(self, n: int, step: TickFunction, first_tick: int, progress: Callable[[int], None] | None,
-                   start: float) -> TickStats:
+    def _run_paced(self, n: int, step: TickFunction, first_tick: int, progress: Callable[[int], None] | None
+                   ) -> TickStats:
         clock = self.clock
         period = self.period
+        start = clock.now()
         jitter = np.zeros(n if self.paced else 0)  # s, filled only when paced
         busy = np.zeros(n if self.paced else 0)
         misses = 0

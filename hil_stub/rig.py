@@ -158,7 +158,7 @@ class SimulatedRig:
         plant = self.plant
         amp.check_watchdog(plant.t)
         seg = self._seg if plant.t < self._seg.until else self._segment()
-        hv = self._hv_override if self._hv_override is not None else seg.hv_present
+        hv = self._hv(seg)
         if hv:
             v1, v2 = amp.v_ch1, amp.v_ch2
         else:
@@ -194,7 +194,7 @@ class SimulatedRig:
                 or amp.v_ch2 != 0.0 or amp.last_ch1 != 0.0 or amp.last_ch2 != 0.0):
             return None
         seg = self._seg if plant.t < self._seg.until else self._segment()
-        hv = bool(self._hv_override if self._hv_override is not None else seg.hv_present)
+        hv = self._hv(seg)
         if seg.sensor_fault is not None or seg.link_down:
             return None
         i_load = amp.board_current + seg.extra_load
@@ -312,9 +312,11 @@ class SimulatedRig:
 
     @property
     def hv_present(self) -> bool:
-        if self._hv_override is not None:
-            return self._hv_override
-        return self._segment().hv_present
+        return self._hv(self._segment())
+
+    def _hv(self, seg: Segment) -> bool:
+        """HV equipment present in segment ``seg``: the forced value if one is set, else the scenario's."""
+        return bool(self._hv_override) if self._hv_override is not None else seg.hv_present
 
     def set_hv_present(self, present: bool | None) -> None:
         """Force the HV-equipment presence (``None``: follow the scenario again)."""
@@ -366,7 +368,7 @@ class SimulatedRig:
         if vb != vb:  # the cell is not part of the active plant: the rig's own
             cell = self.cell
             vb = cell.ocv(cell.qd) - cell.r_int * (self.amplifier.board_current + seg.extra_load)
-        hv = self._hv_override if self._hv_override is not None else seg.hv_present
+        hv = self._hv(seg)
         return self.sensors.sample(self.seq, self.plant.t, reading, vb, seg.sensor_fault, hv,
                                    self.amplifier.refused_flag)
 
