@@ -54,8 +54,9 @@ from drivers.modbus_registers import (
     encode_input_block,
     initial_holding_block,
 )
+from hil_stub import protocol_ptymaster
 from hil_stub.faults import LinkFaults, ReplyFaulter
-from hil_stub.pty_port import PtyPair
+from hil_stub.pty_port import PtyPort
 from hil_stub.rig_host import Delivery, RigHost
 
 log = logging.getLogger("hil_stub.modbus_server")
@@ -167,8 +168,9 @@ class _SerialServer(ModbusSerialServer):
 
 class ModbusRigServer:
     """Serve the host's rig over Modbus TCP (``kind="tcp"``, ``where="HOST:PORT"``, port 0 = any free one) or
-    RTU (``kind="rtu"``, ``where`` = a serial device path, or ``"pty"`` for a built-in pty pair whose board
-    end is printed)."""
+    RTU (``kind="rtu"``, ``where`` = a serial device path, or ``"pty"`` for a built-in pty: the server serves
+    its master side directly (:mod:`hil_stub.protocol_ptymaster`), the board opens its slave side by the printed
+    path)."""
 
     def __init__(self, host: RigHost, kind: str, where: str, *, loop: LoopThread, unit: int = 1,
                  faults: LinkFaults | None = None, seed: int = 0, stream: int = 2, baudrate: int = 115200,
@@ -187,7 +189,7 @@ class ModbusRigServer:
         self.parity = parity
         self.stats: Counter[str] = Counter()
         self._server: ModbusTcpServer | ModbusSerialServer | None = None
-        self._pair: PtyPair | None = None
+        self._pty: PtyPort | None = None
         self._tcp_host = ""
         self.port = 0
         self.serial_path = ""
@@ -203,7 +205,7 @@ class ModbusRigServer:
                 raise InputError(f"--modbus-tcp {where!r}: expected HOST:PORT (PORT 0 picks a free port)")
             self._tcp_host, self.port = endpoint
         elif where == "pty":
-            self._pair = PtyPair(names=("modbus-rtu-rig", "modbus-rtu-board"))
+            self._pty = PtyPort(name="modbus-rtu-board")
         else:
             self.serial_path = where
 
@@ -218,9 +220,9 @@ class ModbusRigServer:
     def describe(self) -> str:
         if self.kind == "tcp":
             return f"Modbus TCP on {self._tcp_host}:{self.port} (unit {self.unit})"
-        if self._pair is not None:
-            return (f"Modbus RTU on a pty pair: rig end {self._pair.path_a}, board end {self._pair.path_b} "
-                    f"({self.baudrate} baud, parity {self.parity}, unit {self.unit})")
+        if self._pty is not None:
+            return (f"Modbus RTU on a pty: board end {self._pty.link} ({self.baudrate} baud, parity {self.parity}, "
+                    f"unit {self.unit})")
         return f"Modbus RTU on {self.serial_path} ({self.baudrate} baud, parity {self.parity}, unit {self.unit})"
 
     # ------------------------------------------------------------------------------------------ device
@@ -375,7 +377,12 @@ class ModbusRigServer:
                 raise OSError(f"{self.describe()}: cannot listen on {self._tcp_host}:{self.port}")
             self.port = listener.sockets[0].getsockname()[1]  # keep the same port across restarts
         else:
-            path = self._pair.path_a if self._pair is not None else self.serial_path
+            if self._pty is not None:
+                assert self._pty.master is not None
+                protocol_ptymaster.register()
+                path = protocol_ptymaster.url_for(self._pty.master)
+            else:
+                path = self.serial_path
             rtu = _SerialServer(device, framer=FramerType.RTU, port=path, baudrate=self.baudrate,
                                 parity=self.parity, trace_pdu=self._trace_pdu, trace_packet=self._trace_packet,
                                 reconnect_delay=0.2)
@@ -419,8 +426,8 @@ class ModbusRigServer:
 
     def start(self) -> None:
         """Start serving; ``OSError`` naming the endpoint if the port cannot be bound / the device opened."""
-        if self._pair is not None and not self._pair.a.is_open:
-            _, self.board_path = self._pair.open()
+        if self._pty is not None and not self._pty.is_open:
+            self.board_path = self._pty.open()
         try:
             self.loop.run(self._start())
         except (RuntimeError, OSError) as exc:  # pymodbus: "Could not start listen, please check address."
@@ -430,8 +437,8 @@ class ModbusRigServer:
         if not self.loop.loop.is_closed():
             with contextlib.suppress(Exception):
                 self.loop.run(self._stop())
-        if self._pair is not None:
-            self._pair.close()
+        if self._pty is not None:
+            self._pty.close()
 
     def restart(self) -> None:
         """Stop and start the server now (same port / path): a server restart seen from the board."""

@@ -4,9 +4,8 @@
 stable symlink (like ``/dev/serial/by-id/...``), so when the stub closes the pty ("the port vanishes") and
 later opens a new one, the board's reconnect finds it again under the same name.
 
-:class:`PtyPair` — two ptys whose masters are joined by a relay thread (what ``socat pty pty`` does): two
-openable device paths, one for a server that insists on opening a path itself (pymodbus' RTU server), one for
-the board.
+A server that insists on opening its port by URL (pymodbus' RTU server) serves the master through
+:mod:`hil_stub.protocol_ptymaster` — no second pty and relay between it and the board.
 
 A stub killed with SIGKILL cannot remove its links: each stub directory holds ``owner.pid``, and
 :func:`clean_stale_links` (run when the first pty of a process is created) removes the directories of stubs that
@@ -20,7 +19,6 @@ import errno
 import os
 import select
 import tempfile
-import threading
 import tty
 from pathlib import Path
 
@@ -101,11 +99,12 @@ def _make_link(target: str, link: Path) -> None:
 class PtyPort:
     """One pty with a stable symlink to its slave side."""
 
-    def __init__(self, link: str | Path | None = None) -> None:
+    def __init__(self, link: str | Path | None = None, name: str = "serial") -> None:
+        """``link``: the symlink's path; default ``name`` in a new ``shm-hil-*`` directory of the temp dir."""
         self._own_dir = link is None
         if link is None:
             _clean_once()
-            link = Path(tempfile.mkdtemp(prefix=PREFIX)) / "serial"
+            link = Path(tempfile.mkdtemp(prefix=PREFIX)) / name
         self.link = Path(link)
         self.master: int | None = None
         self._slave: int | None = None
@@ -165,64 +164,3 @@ class PtyPort:
         except BlockingIOError:
             n = 0
         self.dropped_bytes += len(data) - n
-
-
-class PtyPair:
-    """Two joined ptys: ``path_a`` and ``path_b`` behave like the two ends of a null-modem cable."""
-
-    def __init__(self, directory: str | Path | None = None, names: tuple[str, str] = ("rig", "board")) -> None:
-        self._own_dir = directory is None
-        if directory is None:
-            _clean_once()
-        d = Path(directory) if directory is not None else Path(tempfile.mkdtemp(prefix=PREFIX))
-        self.dir = d
-        self.a = PtyPort(d / names[0])
-        self.b = PtyPort(d / names[1])
-        self._stop = threading.Event()
-        self._thread: threading.Thread | None = None
-
-    @property
-    def path_a(self) -> str:
-        return str(self.a.link)
-
-    @property
-    def path_b(self) -> str:
-        return str(self.b.link)
-
-    def open(self) -> tuple[str, str]:
-        if self._own_dir:
-            self.dir.mkdir(parents=True, exist_ok=True)
-            _claim(self.dir)
-        self.a.open()
-        self.b.open()
-        self._stop.clear()
-        self._thread = threading.Thread(target=self._relay, name="pty-relay", daemon=True)
-        self._thread.start()
-        return self.path_a, self.path_b
-
-    def close(self) -> None:
-        self._stop.set()
-        if self._thread is not None:
-            self._thread.join(timeout=1.0)
-            self._thread = None
-        self.a.close()
-        self.b.close()
-        if self._own_dir:
-            with contextlib.suppress(OSError):
-                (self.dir / OWNER_FILE).unlink()
-                self.dir.rmdir()
-
-    def _relay(self) -> None:
-        ma, mb = self.a.master, self.b.master
-        assert ma is not None and mb is not None
-        while not self._stop.is_set():
-            try:
-                ready, _, _ = select.select([ma, mb], [], [], 0.05)
-                for fd in ready:
-                    try:
-                        data = os.read(fd, 4096)
-                    except BlockingIOError:
-                        continue
-                    (self.b if fd == ma else self.a).write(data)
-            except OSError:
-                return
