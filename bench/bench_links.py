@@ -1,5 +1,6 @@
 """Links under real-time load: the board's 100 Hz wall-clock scheduler exchanging with the HIL stub in another
-process, over Modbus TCP loopback and over a pty (framed serial), plus Modbus RTU on a pty pair.
+process, over Modbus TCP loopback and over a pty (framed serial), plus Modbus RTU on a pty
+(the stub serves its master side).
 
 Per link: 60 s at 100 Hz (``--quick``: 5 s; Modbus RTU 3 s) of an MBIT.a-like demand (600 V differential sine at
 0.1 Hz on a +100 V common mode); measured per tick: the exchange round trip (p50 / p99 / max), the tick jitter (start

@@ -82,6 +82,9 @@ _RTU_RIG_BUDGET_S = 0.002  # the rig's documented processing budget per RTU tran
 _RTU_MIN_RIG_S = 0.0005  # a line leaving the rig less than this (both transactions) does not fit a tick
 _MIN_READ_S = 5e-4  # a read is not started with less than this left of the exchange budget
 _RTU_RETRY_MIN_S = 1.5e-3  # RTU: the sample read is split into two attempts only if each gets at least this
+#: an exchange that ends more than this after its budget is counted (``over_budget``) and logged with where its time
+#: went: the budget is what keeps the board's tick, so an overrun needs explaining (a stalled process, a slow port)
+_OVER_BUDGET_SLACK_S = 5e-4
 
 
 class _RtuTransaction(TransactionManager):
@@ -289,6 +292,9 @@ class ModbusLink(ReconnectingLink):
         self.processing_budget = self.timeout / 2
         self.line_time = float(self.settings["line_time"])
         self.last_transaction_s = 0.0
+        #: the transactions of the last exchange: (what, start after the exchange's start, duration, budget), s
+        self.last_phases: list[tuple[str, float, float, float]] = []
+        self._exchange_t0 = 0.0
         self._check_due = False
         self._client: Any = None  # the pymodbus client, made at the first open and kept across reconnects
         self._down = True
@@ -405,6 +411,8 @@ class ModbusLink(ReconnectingLink):
             raise self._timed_out(f"{what}: no valid reply within {1e3 * budget:.1f} ms{context}") from exc
         except (OSError, ValueError) as exc:  # serial port vanished under pyserial, etc.
             raise self._link_down(f"{what}: {exc}") from exc
+        finally:
+            self.last_phases.append((what, t0 - self._exchange_t0, time.monotonic() - t0, budget))
         if rr is None:
             raise LinkError(f"{self.url}: {what}: no reply")
         self._timeouts_in_row = 0
@@ -449,10 +457,14 @@ class ModbusLink(ReconnectingLink):
             if left <= 0:
                 return rr
             self._set_timeout(left)
+            t0 = time.monotonic()
             try:
                 rr = transaction.sync_get_response(self.unit, tid)
             except Exception:  # asyncio.TimeoutError: nothing more within the budget
                 return rr
+            finally:
+                self.last_phases.append((f"past a stale reply, wait for FC{function_code:02d}",
+                                         t0 - self._exchange_t0, time.monotonic() - t0, left))
         return rr
 
     def _read_inputs(self, budget: float | None = None, context: str = "", deadline: float | None = None):
@@ -474,7 +486,24 @@ class ModbusLink(ReconnectingLink):
         return decode_input_block(regs)
 
     def exchange(self, command: ActuatorCommand) -> RigSample:
-        """Write ``command``, read the sample. Raises ``LinkError`` on any failure (see the module docstring)."""
+        """Write ``command``, read the sample. Raises ``LinkError`` on any failure (see the module docstring).
+
+        An exchange that ends more than 0.5 ms past its budget is counted (``stats["over_budget"]``) and logged with
+        its transactions (:attr:`last_phases`): when did each start, what did it take, what was it given."""
+        self._exchange_t0 = t0 = time.monotonic()
+        self.last_phases = []
+        try:
+            return self._exchange(command)
+        finally:
+            took = time.monotonic() - t0
+            if took > self.timeout + _OVER_BUDGET_SLACK_S:
+                self.stats["over_budget"] += 1
+                phases = "; ".join(f"{what} at {1e3 * start:.2f} ms took {1e3 * dur:.2f} of {1e3 * budget:.2f} ms"
+                                   for what, start, dur, budget in self.last_phases)
+                self._log.warn("over_budget", "%s: exchange took %.2f ms, over its %.2f ms budget: %s", self.url,
+                               1e3 * took, 1e3 * self.timeout, phases or "no transaction (reconnect)")
+
+    def _exchange(self, command: ActuatorCommand) -> RigSample:
         self._ensure_up()
         try:
             words = encode_command_block(command)
@@ -483,7 +512,9 @@ class ModbusLink(ReconnectingLink):
             raise LinkError(f"{self.url}: command not sendable: {exc}") from exc
         self.stats["requests"] += 1
         if self._timeouts_in_row:  # the reply that timed out may still arrive: drop its bytes, not the next reply
+            t0 = time.monotonic()
             self._flush_input()
+            self.last_phases.append(("flush input", t0 - self._exchange_t0, time.monotonic() - t0, 0.0))
         deadline = time.monotonic() + self.timeout  # one budget for both transactions
         # RTU: the write waits for its acknowledgement at most its share of the budget (half); a lost (or late)
         # acknowledgement is not the end of the exchange — the sample read follows, and its cmd_seq_applied tells

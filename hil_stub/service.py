@@ -28,10 +28,9 @@ from hil_stub.rig_host import RigHost
 
 _Server = TypeVar("_Server", FrameServer, ModbusRigServer)
 
-#: GIL hand-over interval while a real-time service runs (s): the rig loop, the Modbus event loop, the serial servers
-#: and the pty relays share one interpreter — with a board in the same process too (the fault-matrix tests, the
-#: links benchmark) — and at Python's default 5 ms a reply could wait a whole tick behind a plant step or the
-#: board's model step
+#: GIL hand-over interval while a real-time service runs (s): the rig loop, the Modbus event loop and the serial
+#: servers share one interpreter — with a board in the same process too (the fault-matrix tests) — and at Python's
+#: default 5 ms a reply could wait a whole tick behind a plant step or the board's model step
 SWITCH_INTERVAL_S = 5e-4
 
 

@@ -57,7 +57,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                "  --serial socket://H:P     listen on TCP for the board's socket://H:P\n"
                "  --serial /dev/ttyS1       a serial device (or one end of a socat pair)\n"
                "  --modbus-tcp H:P          Modbus TCP server (port 0: any free port)\n"
-               "  --modbus-rtu pty|PATH     Modbus RTU slave on a built-in pty pair or a serial device\n")
+               "  --modbus-rtu pty|PATH     Modbus RTU slave on a built-in pty or a serial device\n")
     g = s.add_argument_group("endpoints")
     g.add_argument("--serial", action="append", default=[], metavar="pty|URL", help="framed serial protocol endpoint")
     g.add_argument("--modbus-tcp", action="append", default=[], metavar="HOST:PORT", type=tcp_endpoint_arg,

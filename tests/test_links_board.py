@@ -1,6 +1,6 @@
 """The board firmware over real links: one URL swaps the rig.
 
-* Same seeded rig, same board: the MBIT verdicts over serial (pty), Modbus TCP and Modbus RTU (pty pair) equal the
+* Same seeded rig, same board: the MBIT verdicts over serial (pty), Modbus TCP and Modbus RTU (pty) equal the
   in-process verdicts — for a healthy laminate (PASS) and a degraded one (FAULT). The stub runs lock-step, the board
   in virtual time (the real-time pairing is what ``shm hil serve`` + ``shm run --realtime`` do; its latency figures
   come from ``bench/bench_links.py``).

@@ -1,4 +1,4 @@
-"""The fault matrix (issue 12, point 1): serial (pty), Modbus TCP and Modbus RTU (pty pair) against the HIL stub with
+"""The fault matrix (issue 12, point 1): serial (pty), Modbus TCP and Modbus RTU (pty) against the HIL stub with
 seeded wire faults — drop 1 % and 5 %, corrupt 1 %, sample latency 2–5 ms, one 3 s disconnect — and a short
 maintenance scenario (MBIT.b only, HV present 16 s), lock-step stub and the board in virtual time: deterministic, and
 cheap in CPU.
@@ -66,7 +66,7 @@ LINKS = ("serial", "modbus-tcp", "modbus-rtu")
 #: fault name -> (LinkFaults, URL timeout s or None for the link's default, links on which the fault rate leaves
 #: time for a visit to complete). Lost replies cost a timeout of wall time, so lock-step runs use a short one.
 #: Modbus RTU at 115200 baud leaves a rig on a real line 8.5 - 7.8 = 0.7 ms (docs/real-rig.md): a 2-5 ms rig is out
-#: of budget there (a pty pair has no line time).
+#: of budget there (a pty has no line time).
 FAULTS: dict[str, tuple[LinkFaults, float | None, tuple[str, ...]]] = {
     "clean": (LinkFaults(), 0.1, ("serial", "modbus-tcp", "modbus-rtu")),
     "drop 1 %": (LinkFaults(drop=0.01), 0.1, ("serial", "modbus-tcp", "modbus-rtu")),

@@ -1,4 +1,4 @@
-"""ModbusLink and the rig's Modbus server (pymodbus 3.16) over loopback TCP and a pty pair (RTU): round trips,
+"""ModbusLink and the rig's Modbus server (pymodbus 3.16) over loopback TCP and a pty (RTU): round trips,
 exception replies, unit-id silence, refused set-points, faults, a restarting server. Ports are always 0."""
 
 from __future__ import annotations
@@ -174,7 +174,7 @@ def test_wire_faults_give_only_link_errors():
     assert srv.stats["replies_dropped"] >= 5 and srv.stats["replies_corrupted"] >= 5
 
 
-def test_rtu_over_a_pty_pair():
+def test_rtu_over_a_pty():
     rig = FakeRig()
     with HilService(rig, mode="lockstep", plan=FaultPlan(link=LinkFaults(corrupt=0.0))) as hil:
         srv = hil.add_modbus_rtu("pty")
@@ -329,3 +329,35 @@ def test_one_budget_covers_both_transactions():
             assert "of the 45.0 ms exchange budget" in str(err.value) and "the command write took 3" in str(err.value)
         finally:
             tight.close()
+
+
+def test_an_exchange_past_its_budget_is_counted_and_says_where_its_time_went(tcp_lockstep, caplog):
+    """The budget is what keeps the board's tick: an exchange that overruns it (here a read call stalled in the board's
+    own process, as a descheduled process would be) is counted and logged with its transactions."""
+    import time
+
+    _hil, srv, _rig = tcp_lockstep
+    link = ModbusLink(srv.board_url + "&timeout=0.05")
+    link.open()
+    try:
+        link.exchange(cmd(1))
+        assert link.stats["over_budget"] == 0
+        assert [p[0] for p in link.last_phases] == ["write command (FC16)", "read sample (FC04)"]
+        assert all(0 <= start and 0 <= took <= budget for _, start, took, budget in link.last_phases)
+        real = link._client.read_input_registers
+
+        def stalled(*args, **kwargs):
+            time.sleep(0.08)
+            return real(*args, **kwargs)
+
+        link._client.read_input_registers = stalled
+        with caplog.at_level("WARNING", logger="drivers.modbus_link"):
+            link.exchange(cmd(2))
+        assert link.stats["over_budget"] == 1
+        (what, start, took, budget) = link.last_phases[-1]
+        assert start > 0
+        assert what == "read sample (FC04)" and took >= 0.08 and budget < 0.05
+        msg = next(r.getMessage() for r in caplog.records if "over its" in r.getMessage())
+        assert "over its 50.00 ms budget" in msg and "read sample (FC04) at" in msg and "write command (FC16)" in msg
+    finally:
+        link.close()

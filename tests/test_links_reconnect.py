@@ -111,7 +111,7 @@ def test_start_up_checks_are_silent(caplog):
 
 
 def test_realtime_service_hands_the_gil_over_often_and_restores_it():
-    """A real-time HIL service shares the interpreter with its servers, relays and (in tests) the board: while it
+    """A real-time HIL service shares the interpreter with its servers and (in tests) the board: while it
     runs, the GIL switch interval is at most SWITCH_INTERVAL_S; afterwards it is what it was."""
     import sys
 
