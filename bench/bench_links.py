@@ -175,11 +175,15 @@ def _attribute(res: dict, stalls: list[tuple[float, float]]) -> None:
         1 for a, b in windows if any(s0 < b and s1 > a for s0, s1 in stalls))
 
 
-def _in_process_baseline(n: int) -> dict:
+def _in_process_link():
     from drivers.sim_link import InProcessLink
     from hil_stub.truth import build_truth_rig
 
-    link = InProcessLink(build_truth_rig(None, hv_present=True))
+    return InProcessLink(build_truth_rig(None, hv_present=True))
+
+
+def _in_process_baseline(n: int) -> dict:
+    link = _in_process_link()
     link.open()
     times = np.empty(n)
     for k in range(n):
@@ -251,6 +255,8 @@ def _under_load(seconds: float, seconds_rtu: float) -> dict:
         time.sleep(1.0)  # let the load average see the hogs
         load_start = os.getloadavg()[0]
         with _RealTimePriority() as board_rt:
+            # control under the same load: the in-process link, the same pacing — what the machine alone costs
+            control = _paced_run("sim (in-process, paced, under load)", seconds, _in_process_link())
             links = {"modbus_tcp": _paced_run(urls["modbus_tcp"], seconds),
                      "serial_pty": _paced_run(urls["serial_pty"], seconds),
                      "modbus_rtu_pty": _paced_run(urls["modbus_rtu"], seconds_rtu)}
@@ -265,7 +271,7 @@ def _under_load(seconds: float, seconds_rtu: float) -> dict:
             proc.kill()
             proc.wait(timeout=5)
         summary_path.unlink(missing_ok=True)
-    for res in links.values():
+    for res in (*links.values(), control):
         _attribute(res, stalls)
     targets = {"modbus_tcp": {"zero_deadline_misses": links["modbus_tcp"]["deadline_misses"] == 0,
                               "p99_rtt_below_2_ms": (links["modbus_tcp"]["rtt_p99_ms"] or math.inf) < 2.0},
@@ -278,6 +284,7 @@ def _under_load(seconds: float, seconds_rtu: float) -> dict:
             "machine_stalls_over_2ms": len(stalls),
             "machine_stall_max_ms": 1e3 * max((b - a for a, b in stalls), default=0.0),
             "misses_outside_machine_stalls": unexplained,
+            "control_in_process": control,
             "note": "stall probes: one process per CPU, pinned, at a real-time priority above the board and the "
                     "stub, sleeping 0.5 ms at a time; a sleep over 2 ms is a stall of that CPU (hypervisor, "
                     "kernel) in which nothing of ours could run. A miss whose tick overlaps one is the machine's."}
@@ -290,10 +297,7 @@ def run(out_dir: Path, quick: bool) -> dict:
     baseline = _in_process_baseline(300 if quick else 2000)
     # control: the same paced loop on the in-process link (no transport, no second process): the deadline misses
     # and jitter the machine itself causes
-    from drivers.sim_link import InProcessLink
-    from hil_stub.truth import build_truth_rig
-
-    control_link = InProcessLink(build_truth_rig(None, hv_present=True))
+    control_link = _in_process_link()
     gc.collect()
     gc.freeze()  # as the stub does: no full collection of the long-lived heap (~0.1 s pause) during paced runs
     control = _paced_run("sim (in-process, paced)", seconds, control_link)
@@ -341,6 +345,9 @@ def run(out_dir: Path, quick: bool) -> dict:
         result[f"under_load_{name}_misses_during_machine_stalls"] = res["misses_during_machine_stalls"]
     result["under_load_machine_stalls_over_2ms"] = load["machine_stalls_over_2ms"]
     result["under_load_misses_outside_machine_stalls"] = load["misses_outside_machine_stalls"]
+    result["under_load_control_deadline_misses"] = load["control_in_process"]["deadline_misses"]
+    result["under_load_control_misses_during_machine_stalls"] = load["control_in_process"][
+        "misses_during_machine_stalls"]
     for name, res in links.items():  # flat keys for the bench runner's printout
         result[f"{name}_rtt_p99_ms"] = res["rtt_p99_ms"]
         result[f"{name}_deadline_misses"] = res["deadline_misses"]
