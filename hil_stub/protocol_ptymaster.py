@@ -38,6 +38,9 @@ def url_for(master_fd: int) -> str:
 class Serial(PosixSerial):
     """A pyserial port on a duplicate of an open pty master descriptor (see the module docstring)."""
 
+    is_open: bool  # set by pyserial (untyped there)
+    fd: int | None
+
     def open(self) -> None:
         if self._port is None:
             raise SerialException("Port must be configured before it can be used.")
