@@ -22,7 +22,9 @@ registers 0–7), FC 04 reads the sample block (input registers 0–21); the map
 On RTU the write waits at most half the budget for its acknowledgement; a lost or late acknowledgement is forgiven
 when the sample shows the command applied (``cmd_seq_applied``); the sample read is tried twice within the budget, and
 a sample showing an older command (the late reply to an earlier read: RTU has no transaction id) is read again once —
-so a lost reply costs at most one exchange, mostly none, and every exchange ends within its budget.
+so a lost reply costs at most one exchange, mostly none, and every exchange ends within its budget (an exchange
+that does not — the board's own process not running, a machine stall — is counted as ``over_budget`` and logged
+with its transactions' times).
 A command refused with exception 03 (outside the rig's limits) still returns the sample, with
 ``FLAG_LIMIT_REFUSED`` set, as the in-process link does; every other exception reply, a timeout, a reply of
 the wrong kind or a lost connection is a ``LinkError``. A lost connection is reopened with a back-off counted
