@@ -406,6 +406,10 @@ class ModbusLink(ReconnectingLink):
         c.comm_params.timeout_connect = seconds
         c.transaction.comm_params.timeout_connect = seconds
 
+    def _phase(self, what: str, t0: float, budget: float) -> None:
+        """Note one step of the exchange in :attr:`last_phases`: started at ``t0`` (monotonic s), ended now."""
+        self.last_phases.append((what, t0 - self._exchange_t0, time.monotonic() - t0, budget))
+
     def _call(self, what: str, fn, *args, budget: float | None = None, context: str = "", **kwargs):
         budget = self.timeout if budget is None else budget
         self._set_timeout(budget)
@@ -419,7 +423,7 @@ class ModbusLink(ReconnectingLink):
         except (OSError, ValueError) as exc:  # serial port vanished under pyserial, etc.
             raise self._link_down(f"{what}: {exc}") from exc
         finally:
-            self.last_phases.append((what, t0 - self._exchange_t0, time.monotonic() - t0, budget))
+            self._phase(what, t0, budget)
         if rr is None:
             raise LinkError(f"{self.url}: {what}: no reply")
         self._timeouts_in_row = 0
@@ -470,8 +474,7 @@ class ModbusLink(ReconnectingLink):
             except Exception:  # asyncio.TimeoutError: nothing more within the budget
                 return rr
             finally:
-                self.last_phases.append((f"past a stale reply, wait for FC{function_code:02d}",
-                                         t0 - self._exchange_t0, time.monotonic() - t0, left))
+                self._phase(f"past a stale reply, wait for FC{function_code:02d}", t0, left)
         return rr
 
     def _read_inputs(self, budget: float | None = None, context: str = "", deadline: float | None = None):
@@ -521,7 +524,7 @@ class ModbusLink(ReconnectingLink):
         if self._timeouts_in_row:  # the reply that timed out may still arrive: drop its bytes, not the next reply
             t0 = time.monotonic()
             self._flush_input()
-            self.last_phases.append(("flush input", t0 - self._exchange_t0, time.monotonic() - t0, 0.0))
+            self._phase("flush input", t0, 0.0)
         deadline = time.monotonic() + self.timeout  # one budget for both transactions
         # RTU: the write waits for its acknowledgement at most its share of the budget (half); a lost (or late)
         # acknowledgement is not the end of the exchange — the sample read follows, and its cmd_seq_applied tells
