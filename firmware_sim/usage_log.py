@@ -32,6 +32,10 @@ Schema (version 1; every time in s of board time, every voltage in V — units a
     telemetry(id INTEGER PRIMARY KEY, run_id INTEGER, tick INTEGER, time_s REAL, regime TEXT, v_battery_V REAL,
          monitor_count INTEGER, charge_used_C REAL, incidents_total INTEGER)
 
+Tables other parts of the project add to the same file (:data:`LINKED_TABLES`; schema in ``docs/health.md``):
+``mbit_records`` (each MBIT result's measurement record file) and ``life_visits`` (the visits of a life). The
+readers below (:func:`log_tables`, :func:`read_table`) list and read every table the file holds.
+
 ``rainflow_json``: ``[{"range_low_m", "range_high_m", "cycles"}, ...]``; ``exceedance_json``:
 ``[{"level_m", "time_s", "upcrossings"}, ...]``; ``clamp_json``: the MBIT generator's clamp report.
 """
@@ -101,6 +105,12 @@ KIND_TABLE: dict[str, str] = {
     "mbit_result": "mbit_results", "maintenance_verdict": "maintenance_verdicts", "telemetry": "telemetry",
 }
 LOG_TABLES: tuple[str, ...] = ("runs", *TABLE_COLUMNS)
+#: tables other parts of the project add to the same file: ``mbit_records`` links each MBIT result (and so the
+#: visit's verdict) to its measurement record, ``life_visits`` lists the visits of a life (both written by
+#: ``studies.health``: ``visit_records.py``, ``life.py``; schema in docs/health.md)
+LINKED_TABLES: tuple[str, ...] = ("mbit_records", "life_visits")
+#: every table a usage log may hold, in the order they are listed and exported
+KNOWN_TABLES: tuple[str, ...] = ("meta", *LOG_TABLES, *LINKED_TABLES)
 
 
 class LogError(RuntimeError):
@@ -142,7 +152,7 @@ def check_is_usage_log(path: str | Path) -> None:
             db.close()
     except sqlite3.DatabaseError as exc:
         raise ForeignLogError(f"{p}: not a readable SQLite database ({exc}); refusing to append to it") from None
-    ours = set(LOG_TABLES) | {"meta"}
+    ours = set(KNOWN_TABLES)
     if app_id != APPLICATION_ID and not (app_id == 0 and version is not None and tables <= ours):
         other = f"application_id {app_id:#x}" if app_id else f"tables {', '.join(sorted(tables - ours)) or 'none'}"
         raise ForeignLogError(f"{p}: an SQLite database of another application ({other}), not an mfc-shm usage "
@@ -274,21 +284,48 @@ def open_log_readonly(path: str | Path) -> sqlite3.Connection:
     return db
 
 
+def log_tables(db: sqlite3.Connection) -> list[str]:
+    """The tables this log holds: the known ones (:data:`KNOWN_TABLES`) in their order, then any other
+    (SQLite's own ``sqlite_*`` tables left out) by name."""
+    present = {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type='table'")
+               if not str(r[0]).startswith("sqlite_")}
+    return [t for t in KNOWN_TABLES if t in present] + sorted(present - set(KNOWN_TABLES))
+
+
+def table_columns(db: sqlite3.Connection, table: str) -> list[str]:
+    """The column names of ``table`` (which must be one of :func:`log_tables`)."""
+    return [str(r[1]) for r in db.execute(f'PRAGMA table_info("{table}")')]
+
+
 def read_table(db: sqlite3.Connection, table: str, run_id: int | None = None) -> tuple[list[str], list[tuple]]:
-    """Columns and rows of one log table (optionally one run), in insertion order."""
-    if table not in LOG_TABLES:
-        raise InputError(f"unknown log table {table!r} (tables: {', '.join(LOG_TABLES)})")
-    where = " WHERE run_id=?" if run_id is not None else ""
-    order = "run_id" if table == "runs" else "id"
-    cur = db.execute(f"SELECT * FROM {table}{where} ORDER BY {order}", (() if run_id is None else (run_id,)))
+    """Columns and rows of one log table in insertion order; with ``run_id``, only that run's rows when the table
+    has a ``run_id`` column (``meta`` has none: all of it). An unknown table is an :class:`InputError` listing the
+    tables of this log."""
+    tables = log_tables(db)
+    if table not in tables:
+        raise InputError(f"unknown log table {table!r} (tables in this log: {', '.join(tables)})")
+    where = " WHERE run_id=?" if run_id is not None and "run_id" in table_columns(db, table) else ""
+    cur = db.execute(f'SELECT * FROM "{table}"{where} ORDER BY rowid', ((run_id,) if where else ()))
     cols = [d[0] for d in cur.description]
     return cols, cur.fetchall()
 
 
+def count_rows(db: sqlite3.Connection, table: str, run_id: int | None = None) -> int:
+    """How many rows ``table`` holds (of run ``run_id`` when given and the table has a ``run_id`` column)."""
+    if table not in log_tables(db):
+        raise InputError(f"unknown log table {table!r}")
+    if run_id is not None and "run_id" in table_columns(db, table):
+        return int(db.execute(f'SELECT count(*) FROM "{table}" WHERE run_id=?', (run_id,)).fetchone()[0])
+    return int(db.execute(f'SELECT count(*) FROM "{table}"').fetchone()[0])
+
+
 def iter_records(db: sqlite3.Connection, run_id: int | None = None) -> Iterator[tuple[float, str, dict[str, Any]]]:
-    """Every stored record (except runs) as (time_s, table, row dict), ordered by time then table order."""
+    """Every stored record (except runs) as (time_s, table, row dict), ordered by time then table order: the
+    board's records and, when the log has it, ``mbit_records`` (each MBIT's record file, after its result)."""
     rows = []
-    for order, table in enumerate(TABLE_COLUMNS):
+    present = log_tables(db)
+    timed = [*TABLE_COLUMNS, *(t for t in LINKED_TABLES if t in present and "time_s" in table_columns(db, t))]
+    for order, table in enumerate(timed):
         cols, data = read_table(db, table, run_id)
         for r in data:
             d = dict(zip(cols, r))
