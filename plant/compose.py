@@ -31,7 +31,7 @@ from types import ModuleType
 import numba
 from numba import types
 
-from plant import integrate
+from plant import integrate, kernel_cache
 from plant import layout as L
 from plant.composition import Composition, build_composition
 from plant.effect import EffectError, PhysicalEffect, effect_source_file, hook_function, importable_by_path
@@ -385,6 +385,9 @@ def compose(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int, ...], p
                 for k, cls in enumerate(classes):
                     setattr(module, f"_EFF{k}", cls)
                 exec(compile(source, f"<composed plant {name}>", "exec"), module.__dict__)
+            # for compile announcements (attributes of the module object, not of its source: the cache key)
+            module.__dict__.update(EFFECT_NAMES=tuple(c.name for c in classes), ANNOUNCED=set())
+            announce_if_cold(module, "run_chunk")
             # force compilation now so that errors surface here, with names
             _warm_up(module, n_states)
         except EffectError:
@@ -395,6 +398,19 @@ def compose(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int, ...], p
                               f"{type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}") from exc
         _LOADED[key] = module
         return module
+
+
+def announce_if_cold(module: ModuleType, entry: str) -> None:
+    """Announce on stderr (:func:`plant.kernel_cache.announce_compile`) that calling ``entry`` of a composed
+    kernel module will compile it — not in numba's on-disk cache, nor compiled in this process; once per module
+    and entry. A warm start says nothing."""
+    seen: set[str] = module.__dict__.setdefault("ANNOUNCED", set())
+    if entry in seen:
+        return
+    seen.add(entry)
+    dispatcher = getattr(module, entry, None)
+    if dispatcher is not None and not kernel_cache.is_cached(dispatcher):
+        kernel_cache.announce_compile(module.__dict__.get("EFFECT_NAMES", ()), entry)
 
 
 def _load_file_module(name: str, source: str) -> ModuleType:

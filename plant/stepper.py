@@ -20,6 +20,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from plant import layout as L
+from plant.compose import announce_if_cold
 from plant.integrate import IntegrationFailed, IntegrationStatus
 
 if TYPE_CHECKING:
@@ -71,6 +72,7 @@ class Integrator:
     def __init__(self, model: PlantModel, rtol: float = 1e-6, atol: np.ndarray | None = None,
                  max_steps: int = MAX_STEPS) -> None:
         kernels = model.kernels()
+        self._kernels = kernels
         self._run = kernels.run_chunk
         self._run_stats = kernels.run_chunk_stats
         self._run_lanes: Any = kernels.run_lanes if getattr(kernels, "HAS_LANES", False) else None
@@ -108,6 +110,8 @@ class Integrator:
         nsteps = np.zeros(batch, dtype=np.int64)
         nrej = np.zeros(batch, dtype=np.int64)
         use_lanes = self.uses_lanes(batch, lanes)
+        if use_lanes:
+            announce_if_cold(self._kernels, "run_lanes")  # its first call compiles for tens of seconds
         run = self._run_lanes if use_lanes else self._run_stats
         args = (x0, p, u, float(u_t0), float(u_dt), t_out, self.rtol, self.atol, float(h_max), H_MIN,
                 self.max_steps, y, xs, bs, bool(record_states), bool(record_bus), status, nsteps, nrej)

@@ -49,9 +49,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_diagnose(args: argparse.Namespace) -> int:
-    from tqdm import tqdm
-
     from shm_cli.main import CliError
+    from shm_cli.progress import StageReporter
     from workbench.diagnose import diagnose
     from workbench.diagnose_report import overlay_figure, ranking_figure, write_html
     from workbench.fit import FitError
@@ -67,23 +66,15 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     out = out_dir(args.out)
     (out / "diagnosis.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
     records = [load_record(p) for p in args.records]
-    bar = tqdm(total=None, desc="candidates", unit="fit", file=sys.stderr, disable=None)
-
-    def progress(name, result) -> None:
-        if result is None:
-            bar.set_postfix_str(name)
-        else:
-            bar.update(1)
-
+    # progress on stderr: a bar per stage on a terminal, one line per stage in a log (shm_cli.progress)
     try:
-        d = diagnose(records, args.params, candidates, holdout=args.holdout, n_blocks=args.blocks,
-                     max_rate_Hz=args.max_rate_hz, min_reduction=args.min_reduction, workers=args.workers,
-                     seed=args.seed, progress=progress, fit_top=args.fit_top or None,
-                     combine=not args.no_combine, params_label=args.params)
+        with StageReporter("diagnose") as reporter:
+            d = diagnose(records, args.params, candidates, holdout=args.holdout, n_blocks=args.blocks,
+                         max_rate_Hz=args.max_rate_hz, min_reduction=args.min_reduction, workers=args.workers,
+                         seed=args.seed, fit_top=args.fit_top or None, combine=not args.no_combine,
+                         params_label=args.params, reporter=reporter)
     except FitError as exc:
         raise CliError(str(exc)) from None
-    finally:
-        bar.close()
     rows = []
     fitted = [c for c in d.ranking if c.outcome is not None]
     for rank, c in enumerate(fitted, start=1):

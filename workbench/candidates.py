@@ -19,7 +19,7 @@ design (the effect's own guess and a small Latin hypercube) screens the library 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -364,10 +364,12 @@ def _moved(name: str, value: float, s: float) -> float:
 def screen_effects(targets: Sequence[Target], effect_models: Mapping[str, Sequence[PlantModel]],
                    specs: Sequence[CandidateSpec], guesses: Mapping[str, Mapping[str, float]],
                    base_values: Mapping[str, float], n_design: int = 7, seed: int = 0,
-                   threads: int | None = None, overrides: Mapping[str, float] | None = None) -> list[ScreenResult]:
+                   threads: int | None = None, overrides: Mapping[str, float] | None = None,
+                   on_screened: Callable[[str], None] | None = None) -> list[ScreenResult]:
     """Screen effect candidates: the effect's guess and a Latin hypercube of ``n_design`` points, then as many
     around the best of them (a zoom, unless the best is already at the noise floor), one batch each
-    (``overrides``: values of other parameters of the models, e.g. the current set's in forward selection).
+    (``overrides``: values of other parameters of the models, e.g. the current set's in forward selection;
+    ``on_screened(label)``: called after each candidate, for progress).
 
     The zoom is what finds a narrow basin: a root-clamp compliance that puts a mode where the record has it is a
     window a few percent wide in the parameter, which the coarse design brackets but rarely hits (a 174 σ root
@@ -393,6 +395,8 @@ def screen_effects(targets: Sequence[Target], effect_models: Mapping[str, Sequen
         start = obj.values(U[b]) if np.isfinite(cost[b]) else dict(g)
         out.append(ScreenResult(spec, float(cost[b]), rms(Rh[b]) if np.isfinite(cost[b]) else math.inf, start,
                                 n_sims=U.shape[0] * len(targets)))
+        if on_screened is not None:
+            on_screened(spec.label)
     return out
 
 

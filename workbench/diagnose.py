@@ -66,6 +66,7 @@ from workbench.candidates import (
     screen_effects,
     screen_parameters,
 )
+from workbench.diagnose_progress import DiagnoseProgress, SilentProgress
 from workbench.effect_library import LIBRARY, resolve_candidates
 from workbench.fit import (
     DEFAULT_BLOCKS,
@@ -121,6 +122,12 @@ class Diagnosis:
     without_sigma: dict[str, float] = field(default_factory=dict)
     #: forward selection's paths tried (greedy first, then the beam's other starts and the swap), in words
     selection_paths: list[str] = field(default_factory=list)
+    #: the best set selection found, before the naming rule (``winner`` is what the verdict may name of it)
+    best_set: CandidateResult | None = None
+    #: the naming rule's numbers per member judged (:mod:`workbench.diagnose_rules`)
+    evidence: list[Any] = field(default_factory=list)
+    #: the discovery step run when the library and the parameters fall short (``shm diagnose`` fills it)
+    discover: dict[str, Any] = field(default_factory=dict)
 
     @property
     def ranked_names(self) -> list[str]:
@@ -149,6 +156,11 @@ class Diagnosis:
             "forward_selection": [c.to_dict() for c in self.steps],
             "term_shares": self.term_shares, "held_rms_sigma_without": self.without_sigma,
             "selection_paths": self.selection_paths,
+            "best_set": self.best_set.effect if self.best_set else None,
+            "best_set_held_rms_sigma": self.best_set.held_rms_sigma if self.best_set else None,
+            "members": [e.__dict__ | {"named": not why_not_named(e), "why_not_named": why_not_named(e)}
+                        for e in self.evidence],
+            "discover": self.discover,
             "baseline": {"params": self.params_name, "train_rms_sigma": self.baseline_train_rms_sigma,
                          "held_rms_sigma": self.baseline_held_rms_sigma,
                          "channels": [s.__dict__ | {"rms_sigma": s.rms_sigma} for s in self.baseline_channels]},
@@ -232,7 +244,7 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
              min_reduction: float = MIN_REDUCTION, workers: int = 1, max_nfev: int = 30, seed: int = 0,
              progress: Callable[[str, CandidateResult | None], None] | None = None,
              batched_jacobian: bool = True, fit_top: int | None = FIT_TOP, combine: bool = True,
-             params_label: str | None = None) -> Diagnosis:
+             params_label: str | None = None, reporter: DiagnoseProgress | None = None) -> Diagnosis:
     """Rank ``candidates`` (default: the library and every core-parameter re-estimation; names of effects, of
     core parameters or of parameter groups) by how much of the held-out residual each explains, combine, explain.
 
@@ -241,11 +253,14 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     integrator releases the GIL). ``batched_jacobian=False`` integrates the Jacobian's columns one at a time
     (the benchmark's baseline). ``progress(name, result)`` is called when a candidate starts (result None)
     and when it is done. ``params_label``: how the fit command names the parameter set (default its name).
+    ``reporter`` hears each stage start (:data:`workbench.diagnose_progress.STAGES`) and each unit of work done.
     """
     from workbench.diagnose_verdict import verdict_for
     from workbench.forward_selection import select_set
 
     t_start = time.perf_counter()
+    rep = reporter or SilentProgress()
+    rep.stage("nominal model", None, f"{len(records)} record(s)")
     base = load_parameter_set(params)
     classes, pcands = split_candidates(candidates)
     present = {e.name for e in base.effects}
@@ -277,18 +292,21 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     starts: dict[str, dict[str, float]] = {}
     screen_rms: dict[str, float] = {}
     if fit_top is not None and len(effect_specs) > fit_top:
+        rep.stage("screening effects", len(effect_specs))
         emodels = {s.label: spec_models(s, base, targets) for s in effect_specs}
         guesses = {}
         for s in effect_specs:
             free, _ = s.free_parameters(base_values)
             guesses[s.label] = spec_guess(s, data, free, base_values)
-        scr = screen_effects(targets, emodels, effect_specs, guesses, base_values, seed=seed)
+        scr = screen_effects(targets, emodels, effect_specs, guesses, base_values, seed=seed,
+                             on_screened=rep.advance)
         scr.sort(key=lambda r: r.train_rms_sigma)
         effect_specs = [r.spec for r in scr[:fit_top]]
         screened += scr[fit_top:]
         starts.update({r.spec.label: r.start for r in scr[:fit_top]})
         screen_rms.update({r.spec.label: r.train_rms_sigma for r in scr})
     if param_specs:
+        rep.stage("screening parameters", None, f"{len(param_specs)} candidates in one batch")
         scr = screen_parameters(targets, pcands, base_values, threads=None)
         scr.sort(key=lambda r: r.train_rms_sigma)
         top = len(scr) if fit_top is None else fit_top
@@ -312,9 +330,11 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         res.screen_train_rms_sigma = screen_rms.get(spec.label, float("nan"))
         if progress:
             progress(spec.label, res)
+        rep.advance(spec.label)
         return res
 
     todo = effect_specs + param_specs
+    rep.stage("fitting candidates", len(todo))
     t0 = time.perf_counter()
     if workers > 1:
         for spec in todo:  # compile (or load) every composition first, serially: the kernels cache is shared
@@ -341,6 +361,7 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     ranking = sorted(results, key=_rank_key) + [screened_out(s) for s in screened]
     winner = choose_winner(ranking)
     steps: list[CandidateResult] = []
+    drop_one_fits: list[CandidateResult] = []
     term_shares: dict[str, float] = {}
     without_sigma: dict[str, float] = {}
     paths: list[str] = []
@@ -348,19 +369,34 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     # forward selection whenever the winner leaves more than FORWARD_ABOVE σ, even when that is a tiny share of a
     # large residual ("explained" for the verdict): on a sweep a second effect can hide in the last 2 σ
     if winner is not None and combine and winner.held_rms_sigma > FORWARD_ABOVE:
+        rep.stage("combinations", None, f"forward selection from {winner.effect}")
         sel = select_set(winner, [c for c in ranking if c is not winner], base, targets, data, rss0_held,
                          min_reduction=min_reduction, threads=threads, max_nfev=max_nfev, seed=seed,
                          base_held=base_held)
         winner, steps = sel.final, sel.steps
         term_shares = sel.shares(rss0_held)
         without_sigma = {m: r.held_rms_sigma for m, r in sel.without.items() if m in winner.members}
+        drop_one_fits = list(sel.without.values())
         for label, final, wall in sel.tried:
             paths.append(f"from {label}: {final.effect} ({final.held_rms_sigma:.3g} σ, ΔBIC "
                          f"{final.delta_bic_held:.4g}, {wall:.3g} s)")
             timings[f"forward_selection_from_{label}_s"] = wall
     timings["forward_selection_s"] = time.perf_counter() - t0
+    rep.stage("residual tests", None, "and where the nominal model fails")
     t1 = time.perf_counter()
     tests_before = run_residual_tests(targets, base_sim)
+    best_set = winner
+    t1 = time.perf_counter()
+    if winner is not None:  # what the verdict may name of the best set (workbench.diagnose_rules)
+        judged = judge_winner(winner, base, targets, base_held, base_obj.residuals(base_sim, "all")[0],
+                              [*results, *steps, *drop_one_fits], data, rss0_held, min_reduction=min_reduction,
+                              threads=threads, max_nfev=max_nfev, seed=seed)
+        winner = judged.named
+        if winner is not best_set:
+            steps = [s for s in steps if winner is not None and set(s.members) <= set(winner.members)]
+            term_shares, without_sigma = judged.shares(rss0_held)
+    timings["naming_rule_s"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
     tests_after = run_residual_tests(targets, winner.outcome.sim) if winner and winner.outcome else []
     where = where_it_fails(targets, base_sim)
     timings["residual_tests_and_localisation_s"] = time.perf_counter() - t1
@@ -373,7 +409,11 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
                      "other candidates (and a re-estimation swapped for an effect); paths tried: " + "; ".join(paths))
     d = Diagnosis("", "", winner, ranking, base_train, base_held, channel_scores(targets, base_sim), where,
                   tests_before, tests_after, targets, base_sim, base.name, timings, notes, steps,
-                  term_shares=term_shares, without_sigma=without_sigma, selection_paths=paths)
+                  term_shares=term_shares, without_sigma=without_sigma, selection_paths=paths,
+                  best_set=best_set, evidence=judged.evidence if best_set is not None else [])
+    if best_set is not None:
+        d.identifiability_found = judged
+    rep.stage("verdict")
     t1 = time.perf_counter()
     verdict_for(d, base, params_label or (params if isinstance(params, str) else base.name))
     timings["verdict_s"] = time.perf_counter() - t1

@@ -1,0 +1,75 @@
+"""Whether a composed kernel is already compiled on disk, and the one announcement before a compile that is not.
+
+numba keeps each compiled function of a generated kernel module (:mod:`plant.compose`) in its on-disk cache
+(``NUMBA_CACHE_DIR``): an *index* file per function, listing the compiled signatures, beside the machine code.
+:func:`is_cached` reads that index (as numba itself does before compiling): a non-empty, current index means the
+next call loads machine code in a fraction of a second; otherwise the call compiles, which takes tens of seconds.
+
+Before such a compile, :func:`announce_compile` says so on stderr — "compiling the model for effects X, Y (first
+use, ~N s) …" — so that no command sits silent while numba works. A warm start prints nothing. The announcer can be
+swapped (:func:`set_announcer`) by a caller that owns the terminal (a progress bar writes it through itself).
+``make setup`` builds the shipped compositions ahead of time (:mod:`plant.warm`), so a fresh clone's first
+command is warm.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Sequence
+from typing import Any
+
+#: rough compile time (s) of a composition's entry points on one free core: the first entry point of a module
+#: (``run_chunk``: integrator, right-hand side, outputs) and the lane integrator (``run_lanes``); per effect beyond
+#: the nominal four, the hooks add a little. Measured on the development machine (numba 0.68): core run_chunk
+#: 6–13 s, run_lanes 18–36 s under load.
+ENTRY_BASE_S = {"run_chunk": 8.0, "run_lanes": 20.0}
+PER_EFFECT_S = {"run_chunk": 0.5, "run_lanes": 1.5}
+NOMINAL_COUNT = 4
+
+
+def _print_stderr(text: str) -> None:
+    print(text, file=sys.stderr, flush=True)
+
+
+_announcer: Callable[[str], None] = _print_stderr
+
+
+def set_announcer(fn: Callable[[str], None]) -> Callable[[str], None]:
+    """Route compile announcements to ``fn`` (one line of text each); returns the previous announcer."""
+    global _announcer
+    previous, _announcer = _announcer, fn
+    return previous
+
+
+def is_cached(dispatcher: Any) -> bool:
+    """True when ``dispatcher`` (a numba function) is compiled in this process or has a current entry in numba's
+    on-disk cache; False when calling it would compile (no cache, an empty or stale index)."""
+    if getattr(dispatcher, "signatures", None):
+        return True
+    cache = getattr(dispatcher, "_cache", None)
+    cache_file = getattr(cache, "_cache_file", None)
+    if cache_file is None:  # caching disabled (a composition compiled in memory): always compiles
+        return False
+    try:
+        return bool(cache_file._load_index())
+    except Exception:  # an unreadable index: numba will compile
+        return False
+
+
+def estimate_s(entry: str, n_effects: int) -> float:
+    """Rough compile time (s) of ``entry`` for a composition of ``n_effects`` effects (terminal included)."""
+    base = ENTRY_BASE_S.get(entry, ENTRY_BASE_S["run_chunk"])
+    per = PER_EFFECT_S.get(entry, PER_EFFECT_S["run_chunk"])
+    return base + per * max(0, n_effects - NOMINAL_COUNT - 1)
+
+
+def compile_message(effect_names: Sequence[str], entry: str, seconds: float) -> str:
+    """The announcement's text: which model, that it is the first use, and how long it will take."""
+    what = "the model" if entry == "run_chunk" else "the model's batch integrator (lanes)"
+    names = ", ".join(effect_names) if effect_names else "none"
+    return f"compiling {what} for effects {names} (first use, ~{seconds:.0f} s; cached afterwards) …"
+
+
+def announce_compile(effect_names: Sequence[str], entry: str = "run_chunk") -> None:
+    """Say, before it starts, that ``entry`` of the composition of ``effect_names`` is about to compile."""
+    _announcer(compile_message(effect_names, entry, estimate_s(entry, len(effect_names))))
