@@ -295,11 +295,19 @@ def available_scenarios() -> list[str]:
 
 
 def resolve_scenario_file(name_or_path: str | Path) -> Path:
+    """The scenario file of a shipped name (``aging``) or a path. A bare name that is also a directory here (a run's
+    ``--out aging``) still means the shipped scenario: a directory is never a scenario file."""
     text = str(name_or_path)
     candidate = Path(text)
+    shipped = SCENARIO_DIR / f"{text}.toml"
+    if candidate.is_dir():
+        name = text.rstrip("/")  # (a shell completes a directory's name with a slash)
+        if name and "/" not in name and (SCENARIO_DIR / f"{name}.toml").is_file():
+            return SCENARIO_DIR / f"{name}.toml"
+        raise ConfigError(text, "-", "is a directory, not a scenario file (give a .toml file or a shipped name: "
+                                     f"{', '.join(available_scenarios())})")
     if text.endswith(".toml") or "/" in text or candidate.exists():
         return candidate
-    shipped = SCENARIO_DIR / f"{text}.toml"
     if not shipped.exists():
         raise ConfigError(text, "-", f"unknown scenario (shipped: {', '.join(available_scenarios())}; "
                                      "or give a path to a .toml file)")

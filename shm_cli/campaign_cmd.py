@@ -44,7 +44,7 @@ def register(sub: argparse._SubParsersAction) -> None:
         "campaign", help="Monte-Carlo MBIT campaign: fault detection probability per deviation range (Fig. 11)",
         description="Simulate degraded laminates (uniform random deviations of k3, alpha_h, beta_h within each "
                     "range) through MBIT.a / MBIT.b, run the condition monitor (Eq. 11, Table 3) and report "
-                    "detected faults and fault probability per range with 95 %% Wilson intervals.")
+                    "detected faults and fault probability per range with 95 % Wilson intervals.")
     p.add_argument("--mbit", default="both", metavar="a|b|both",
                    help="which built-in test(s): a, b, both (default), all, or a comma list of keys in the MBIT file")
     p.add_argument("--ranges", default="0:50:10", metavar="SPEC",

@@ -59,8 +59,10 @@ def register(sub: argparse._SubParsersAction) -> None:
         description="Run the 100 Hz board firmware mock against a rig for one scenario: regime changes, usage "
                     "summaries, MBIT verdicts and incidents go to an SQLite log; a timeline is printed; plots and "
                     "an HTML summary are written to --out.")
+    from board_config.scenario import available_scenarios
+
     p.add_argument("--scenario", default="default", metavar="FILE|NAME",
-                   help="scenario TOML file or shipped name (default, maintenance, degraded, faults); "
+                   help=f"scenario TOML file or shipped name ({', '.join(available_scenarios())}); "
                         "format in docs/scenarios.md")
     p.add_argument("--link", default="sim", metavar="URL",
                    help="rig link: 'sim' (in-process simulated rig, default) or a hardware-link URL "
