@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -20,6 +20,7 @@ import numpy as np
 from board_config import load_monitor_settings
 from board_config.error_law import normalised_error
 from plant import PlantModel
+from workbench.frf_compare import PeakComparison, SweepFrf, sweep_frf, table_peaks
 from workbench.localisation import Localisation, localise, model_features
 from workbench.metrics import (
     ChannelMetrics,
@@ -35,6 +36,8 @@ from workbench.replay import (
     DEFAULT_INTERVAL_S,
     FrfReplay,
     Replay,
+    SimulationFailed,
+    model_output_for,
     replay,
     replay_frf,
 )
@@ -56,6 +59,8 @@ class CompareOptions:
     horizon_s: float = DEFAULT_HORIZON_S
     interval_s: float = DEFAULT_INTERVAL_S
     eq4_given: Mapping[str, tuple[float, float]] | None = None
+    #: frequency-domain view of a time record (H1 and coherence vs the model); None: for sweeps only
+    frf: bool | None = None
 
 
 @dataclass
@@ -82,6 +87,7 @@ class Comparison:
     features: list[tuple[float, str]]
     findings: dict[str, list[str]] = field(default_factory=dict)
     wall_s: dict[str, float] = field(default_factory=dict)
+    frf: dict[str, SweepFrf] | None = None  # the record in the frequency domain (a sweep, or on request)
 
     kind = "time"
 
@@ -110,6 +116,7 @@ class Comparison:
             "residual_tests": {ch: rt.to_dict() for ch, rt in self.tests.items()},
             "localisation": {ch: loc.to_dict() for ch, loc in self.localisation.items()},
             "model_features": [{"frequency_Hz": f, "label": lab} for f, lab in self.features],
+            **({"frequency_response": {ch: s.to_dict() for ch, s in self.frf.items()}} if self.frf else {}),
             "findings": self.findings, "wall_s": self.wall_s,
         }
 
@@ -125,6 +132,7 @@ class FrfComparison:
     features: list[tuple[float, str]]
     findings: dict[str, list[str]] = field(default_factory=dict)
     wall_s: dict[str, float] = field(default_factory=dict)
+    peaks: dict[str, PeakComparison] = field(default_factory=dict)  # resonances placed between the grid's points
 
     kind = "frf"
 
@@ -143,6 +151,7 @@ class FrfComparison:
                                for a, b, c, d in v] for ch, v in self.bad_bands.items()},
             "residual_tests": "not applicable to a frequency-response table (no time series)",
             "model_features": [{"frequency_Hz": f, "label": lab} for f, lab in self.features],
+            "peaks": {ch: pc.to_dict() for ch, pc in self.peaks.items()},
             "findings": self.findings, "wall_s": self.wall_s,
         }
 
@@ -194,8 +203,21 @@ def compare(model: PlantModel, record: Record | FrfRecord, options: CompareOptio
                             threshold_sigma=options.threshold_sigma, window_s=options.window_s, features=features)
         findings[ch] = _findings(ch, m, pred.get(ch), tests[ch], locs[ch])
     wall["analyse_s"] = time.perf_counter() - t1
+    frf = None
+    if options.frf or (options.frf is None and record.test == "sweep"):
+        t2 = time.perf_counter()
+        frf = sweep_frf(model, record.sample_rate_Hz, rep.drive_name, rep.drive_unit, rep.drive,
+                        {ch: (cr.model_output, cr.unit, cr.measured, cr.simulated) for ch, cr in rep.channels.items()},
+                        params)
+        for ch, sf in frf.items():
+            findings[ch].append(f"Frequency domain (H1 of {ch} against {rep.drive_name}): complex fit "
+                                f"{sf.fit_pct:.1f} % where the coherence is high "
+                                f"({sf.band_Hz[0]:.3g}–{sf.band_Hz[1]:.3g} Hz); " + sf.peaks.sentence(ch))
+            findings[ch].extend(sf.notes)
+        wall["frf_s"] = time.perf_counter() - t2
     wall["compare_s"] = time.perf_counter() - t0
-    return Comparison(record, rep, options, metrics, pred, tests, locs, eps, eps_src, features, findings, wall)
+    return Comparison(record, rep, options, metrics, pred, tests, locs, eps, eps_src, features, findings, wall,
+                      frf)
 
 
 def _findings(ch: str, m: ChannelMetrics, p: PredictionMetrics | None, rt: ResidualTests, loc: Localisation
@@ -236,9 +258,21 @@ def _compare_frf(model: PlantModel, record: FrfRecord, params: np.ndarray | None
     features = model_features(model, params)
     metrics, bad, findings = {}, {}, {}
     f = rep.frequency_Hz
+    t1 = time.perf_counter()
+    outputs = {n: model_output_for(model, record.path, n, ch.model_output) for n, ch in record.responses.items()}
+    try:
+        peaks = table_peaks(model, record, rep.modelled, outputs, params)
+    except FloatingPointError as exc:
+        raise SimulationFailed(f"{record.path}: {exc}") from None
+    t_peaks = time.perf_counter() - t1
     for ch in rep.measured:
         h, hm = rep.measured[ch], rep.modelled[ch]
         m = frf_metrics(ch, rep.units[ch], f, h, hm)
+        # the largest peak of each side placed between the grid's points, not the grid's largest sample
+        if peaks[ch].measured and peaks[ch].model:
+            top_m = max(peaks[ch].measured, key=lambda p: p.magnitude)
+            top_q = max(peaks[ch].model, key=lambda p: p.magnitude)
+            m = replace(m, peak_measured_Hz=top_m.peak_Hz, peak_model_Hz=top_q.peak_Hz)
         metrics[ch] = m
         with np.errstate(divide="ignore", invalid="ignore"):
             db = 20 * np.log10(np.abs(hm) / np.abs(h))
@@ -258,8 +292,8 @@ def _compare_frf(model: PlantModel, record: FrfRecord, params: np.ndarray | None
                 k += 1
         bad[ch] = bands
         lines = [f"{ch}: complex fit {m.fit_pct:.1f} %, amplitude error {m.amp_err_db_rms:.2f} dB RMS "
-                 f"(max {m.amp_err_db_max:.2f} dB), phase error {m.phase_err_deg_rms:.1f}° RMS; peak at "
-                 f"{m.peak_measured_Hz:.3g} Hz measured vs {m.peak_model_Hz:.3g} Hz model."]
+                 f"(max {m.amp_err_db_max:.2f} dB), phase error {m.phase_err_deg_rms:.1f}° RMS.",
+                 peaks[ch].sentence(ch)]
         if bands:
             lines.append(f"Outside ±{amp_tol_db:g} dB / ±{phase_tol_deg:g}°: " + "; ".join(
                 f"{a:.3g}–{b:.3g} Hz (max {c:.2f} dB, {d:.0f}°)" for a, b, c, d in bands[:6]) + ".")
@@ -268,4 +302,5 @@ def _compare_frf(model: PlantModel, record: FrfRecord, params: np.ndarray | None
         lines.append("Residual correlation tests do not apply to a frequency-response table (no time series).")
         findings[ch] = lines
     return FrfComparison(record, rep, metrics, bad, features, findings,
-                         {"stepped_sine_s": rep.wall_s["stepped_sine_s"], "compare_s": time.perf_counter() - t0})
+                         {"stepped_sine_s": rep.wall_s["stepped_sine_s"], "peaks_s": t_peaks,
+                          "compare_s": time.perf_counter() - t0}, peaks)
