@@ -13,6 +13,7 @@ from typing import Any
 import numpy as np
 
 from board_config.errors import InputError
+from reporting.uncertainty_text import format_percent_change
 from studies.health.estimate import DEFAULT_FREE, Visit, estimate_visits
 from studies.health.forecast import Forecast, forecast_trip, visit_of
 from studies.health.locate import SECTIONS, diagnose_first_name, locate_stiffness, location_sentence
@@ -136,7 +137,9 @@ def _locate(visits: list[Visit], ests: list[dict[str, Any]], trends: dict[str, T
             say(f"  {c['name']}: could not be fitted ({c['error']})")
         else:
             rel = f"{100 * c['relative']:+.2f} %" if "relative" in c else "effect"
-            say(f"  {c['name']} alone: {rel}, held-out rss {c['held_rss_sigma2']:.0f} σ² ({c['fit_wall_s']:.1f} s)")
+            bound = " AT ITS FIT BOUND (a limit, not an estimate)" if c.get("at_bound") else ""
+            say(f"  {c['name']} alone: {rel}{bound}, held-out rss {c['held_rss_sigma2']:.0f} σ² "
+                f"({c['fit_wall_s']:.1f} s)")
     return loc
 
 
@@ -150,6 +153,7 @@ def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, a
             "held_rms_sigma": e["held_rms_sigma"],
             "estimates": [{"name": x["name"], "value": x["value"], "stderr": x["stderr"], "unit": x["unit"],
                            "nominal": x["nominal"], "relative": x["value"] / x["nominal"] - 1.0,
+                           "at_bound": bool(x.get("at_bound", False)),
                            "verdict": _est_verdict(x)} for x in e["estimates"]],
         })
     trend_doc = {}
@@ -161,7 +165,7 @@ def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, a
                                                  for k, f in t.fits.items()},
                         "model_weights": t.weights,
                         "change_point_hours": t.best.tau if t.best.name == "change_point" and t.significant
-                        else None,
+                        else None, "change_point_note": t.change_point_note,
                         "current_relative": float(t.best.predict(np.array([hours[-1]]))[0])}
     f = fc.as_dict()
     start = hours[0]
@@ -223,13 +227,14 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
     parts = []
     for e in last["estimates"]:
         t = trends.get(e["name"])
-        se = 100 * (e["stderr"] or 0.0) / abs(e["nominal"])
+        rse = e["stderr"] / abs(e["nominal"]) if e["stderr"] is not None else None
         rate = ""
         if t is not None and t.significant:
             acc = {"exponential": ", accelerating", "power": _power_word(t),
                    "change_point": f", after a sudden change at about {t.best.tau or 0:g} h"}.get(t.best.name, "")
             rate = f", {100 * t.rate_per_100h(last['operating_hours']):+.2f} % per 100 h ({t.best.name}{acc})"
-        parts.append(f"{e['name']} {100 * e['relative']:+.2f} % (± {se:.2g} %){rate}")
+        bound = " — at its fit bound: a limit, not an estimate" if e.get("at_bound") else ""
+        parts.append(f"{e['name']} {format_percent_change(e['relative'], rse)}{bound}{rate}")
     how_much = f"at {last['operating_hours']:g} h: " + "; ".join(parts)
     loc = doc.get("location") or {}
     if loc.get("run") and loc.get("distinguishable") is not None:

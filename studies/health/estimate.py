@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from board_config.errors import InputError
+from reporting.uncertainty_text import format_percent_change
 from workbench.records import Record, record_from_arrays
 
 DEFAULT_FREE: tuple[str, ...] = ("k3", "alpha_h", "beta_h")
@@ -156,8 +157,8 @@ def estimate_visits(visits: Sequence[Visit], params: str, free: Sequence[str] = 
 def _line(v: Visit, res: dict[str, Any]) -> str:
     parts = []
     for e in res["estimates"]:
-        rel = 100 * (e["value"] / e["nominal"] - 1)
-        se = 100 * e["stderr"] / abs(e["nominal"]) if e["stderr"] is not None else float("nan")
-        parts.append(f"{e['name']} {rel:+.2f} % (± {se:.2g} %)")
+        se = e["stderr"] / abs(e["nominal"]) if e["stderr"] is not None else None
+        bound = " (at its fit bound)" if e.get("at_bound") else ""
+        parts.append(f"{e['name']} {format_percent_change(e['value'] / e['nominal'] - 1, se)}{bound}")
     return (f"  visit at {v.operating_hours:8.1f} h: " + ", ".join(parts)
             + f"; held-out rms {res['held_rms_sigma']:.2f} σ ({res['fit_wall_s']:.1f} s)")

@@ -176,7 +176,20 @@ def locate_stiffness(records: Sequence[Record], params: str, *, operating_hours:
                                    f"{corr_pair:+.3f})"})
     if best["name"] not in SECTIONS:
         location["better_explained_by"] = best["name"]
+    location["at_bound"] = [c["name"] for c in cands if c.get("at_bound")]
+    location["at_bound_note"] = at_bound_note(cands)
     return location
+
+
+def at_bound_note(cands: Sequence[dict[str, Any]]) -> str | None:
+    """Words for the candidates whose fit stopped at a bound of the parameter's range (None: none did): such a
+    value is where the fit was stopped, not an estimate, and its held-out score is that of a constrained fit."""
+    hit = [c for c in cands if c.get("at_bound")]
+    if not hit:
+        return None
+    parts = [f"{c['name']} alone at {100 * c['relative']:+.0f} %" if "relative" in c else c["name"] for c in hit]
+    return (f"{', '.join(parts)} stopped at the bound of the fit's range: a limit, not an estimate (that "
+            f"stiffness alone cannot explain the records)")
 
 
 def location_sentence(loc: dict[str, Any]) -> str:
@@ -193,6 +206,8 @@ def location_sentence(loc: dict[str, Any]) -> str:
         s += f"; shm diagnose on this visit names {loc['diagnose_named']} first"
     if loc.get("better_explained_by"):
         s += f"; note: {loc['better_explained_by']} (named by shm diagnose) explains the held-out data better still"
+    if loc.get("at_bound_note"):
+        s += f"; {loc['at_bound_note']}"
     return s
 
 

@@ -12,7 +12,11 @@ change point   y = a + b·h + Δ·[h ≥ τ]           k=4 (τ: midway between t
 =============  ================================  ===
 
 Weighted least squares with weights 1/(s_i² + σ_f²) (σ_f = 0.05 %: the repeatability floor a fit's formal error
-does not show), the residual scale estimated from the data. The model with the lowest AICc wins; a trend is
+does not show), the residual scale estimated from the data. The model with the lowest AICc wins — except that a
+*change point* (a sudden change claimed between two visits) must earn it: its AICc must be lower than every other
+candidate's by at least :data:`CHANGE_POINT_MIN_DELTA_AICC` (2), and its step must be significant on its own with
+the search over step positions accounted for (t-test, p < :data:`P_STEP` / number of positions searched); otherwise
+the best smooth law is chosen (a linear life scored a change point by ΔAICc 0.3 on the ``aging`` run). A trend is
 *significant* when the F-test of the chosen model against ``none`` gives p < 0.002 (0.5 % Bonferroni-split over the
 three monitor parameters; else "no significant trend").
 Forecasts draw coefficient vectors from each candidate's N(θ̂, cov) in proportion to the Akaike weights of the trend
@@ -32,6 +36,10 @@ from scipy.optimize import least_squares
 SIGMA_FLOOR = 5e-4
 P_SIGNIFICANT = 0.002  # ~0.5 % per parameter, Bonferroni over the three monitor parameters
 MODELS = ("none", "linear", "exponential", "power", "change_point")
+#: AICc margin a change point must beat every smooth candidate by before a sudden change is claimed (docs/health.md)
+CHANGE_POINT_MIN_DELTA_AICC = 2.0
+#: family-wise significance of the change point's step, split (Bonferroni) over the step positions searched
+P_STEP = 0.05
 
 
 @dataclass
@@ -132,6 +140,8 @@ class Trend:
     significant: bool
     p_value: float
     weights: dict[str, float] = field(default_factory=dict)
+    #: why a change point that fitted best was not claimed (None: it was not the best fit, or it was claimed)
+    change_point_note: str | None = None
 
     @property
     def model(self) -> str:
@@ -209,6 +219,11 @@ def fit_trend(parameter: str, hours: Sequence[float] | np.ndarray, y: Sequence[f
             fits["change_point"] = best_cp
     aicc = {k: f.aicc for k, f in fits.items()}
     best_name = min(aicc, key=lambda k: aicc[k])
+    cp_note = None
+    if best_name == "change_point":
+        cp_note = change_point_refusal(fits, n)
+        if cp_note is not None:
+            best_name = min((k for k in aicc if k != "change_point"), key=lambda k: aicc[k])
     best = fits[best_name]
     p = 1.0
     if best_name != "none" and "none" in fits:
@@ -228,4 +243,27 @@ def fit_trend(parameter: str, hours: Sequence[float] | np.ndarray, y: Sequence[f
         raw = {k: math.exp(-0.5 * (v - amin)) for k, v in trend_models.items()}
         tot = sum(raw.values())
         weights = {k: v / tot for k, v in raw.items() if v / tot > 1e-3}
-    return Trend(parameter, best, fits, significant, p, weights)
+    return Trend(parameter, best, fits, significant, p, weights, cp_note)
+
+
+def change_point_refusal(fits: dict[str, ModelFit], n: int) -> str | None:
+    """Why the best-fitting change point is not claimed (None: it earned it). See the module docstring."""
+    cp = fits["change_point"]
+    smooth = {k: f.aicc for k, f in fits.items() if k != "change_point" and math.isfinite(f.aicc)}
+    if not smooth:
+        return None
+    runner = min(smooth, key=lambda k: smooth[k])
+    margin = smooth[runner] - cp.aicc
+    if margin < CHANGE_POINT_MIN_DELTA_AICC:
+        return (f"a sudden change at {cp.tau:g} h fits better than {runner} by ΔAICc {margin:.1f} only (a margin of "
+                f"{CHANGE_POINT_MIN_DELTA_AICC:g} is required): not claimed")
+    var = float(cp.cov[2, 2])
+    positions = max(n - 2, 1)
+    if var > 0:
+        t = abs(float(cp.theta[2])) / math.sqrt(var)
+        p = float(2 * stats.t.sf(t, max(n - cp.k, 1)))
+        if p >= P_STEP / positions:
+            return (f"a sudden change at {cp.tau:g} h fits better than {runner} by ΔAICc {margin:.1f}, but its step "
+                    f"is not significant over the {positions} positions searched (p = {p:.2g} ≥ {P_STEP:g}/"
+                    f"{positions}): not claimed")
+    return None
