@@ -132,6 +132,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
     channels = [c.strip() for c in channels if c.strip()]
     _check_set_names(values, args.effect, CORE_PARAMETER_NAMES)
     model = truth_model(pset, effects=args.effect, values=values, terminal="open_circuit" if base else "amplifier")
+    _warn_neutral(model)
     out.parent.mkdir(parents=True, exist_ok=True)
     if args.test == "frf":
         nz = {"amp": 0.01, "phase": 0.5}
@@ -174,6 +175,19 @@ def cmd_synth(args: argparse.Namespace) -> int:
               + (f" + {', '.join(args.effect)}" if args.effect and not args.blind else "")
               + (" [blind]" if args.blind else "") + ")", file=sys.stderr)
     return 0
+
+
+def _warn_neutral(model) -> None:
+    """Say on stderr when an injected effect sits at its neutral values: the record is then the nominal plant's
+    while its header names the effect (the header also carries the values and ``truth_neutral_effects``)."""
+    from workbench.synth import neutral_effects
+
+    units = dict(zip(model.param_names, model.param_units))
+    for name, at in neutral_effects(model).items():
+        vals = ", ".join(f"{k} = {v:g} {units.get(k, '')}".rstrip() for k, v in at.items())
+        print(f"shm synth: warning: --effect {name} is at its neutral value ({vals}): the record equals the nominal "
+              f"plant's; give it a strength with --set {next(iter(at))}=VALUE (`shm effects show {name}` lists its "
+              "parameters and ranges)", file=sys.stderr)
 
 
 def _check_set_names(values: dict[str, float], effects: list[str], core: tuple[str, ...]) -> None:

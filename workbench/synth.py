@@ -247,8 +247,42 @@ def _provenance(model: PlantModel, effects: Sequence[Any], values: Mapping[str, 
         prov["truth"] = "hidden (blind record)"
     else:
         prov["truth_effects"] = [e if isinstance(e, str) else f"{e.__module__}:{e.__qualname__}" for e in effects]
-        prov["truth_values"] = {k: float(v) for k, v in (values or {}).items()}
+        # every added effect's parameters as simulated (its defaults too), then what was set
+        prov["truth_values"] = {**added_effect_values(model), **{k: float(v) for k, v in (values or {}).items()}}
+        neutral = neutral_effects(model)
+        if neutral:
+            prov["truth_neutral_effects"] = sorted(neutral)
+            prov["truth_note"] = (f"{', '.join(sorted(neutral))} at neutral values: this truth equals the nominal "
+                                  "plant (the record shows no effect)")
     return prov
+
+
+def added_effect_values(model: PlantModel) -> dict[str, float]:
+    """The value (SI) of every own parameter of the model's added effects (role ``"effect"``)."""
+    return {p.name: model.param_value(p.name) for cls in model.effects if cls.role == "effect"
+            for p in cls.own_parameters()}
+
+
+def neutral_effects(model: PlantModel) -> dict[str, dict[str, float]]:
+    """The model's added effects whose every own parameter sits at its declared neutral value (the class's
+    ``neutral`` table or the parameter's ``neutral``), with those values: each leaves the plant the nominal one.
+    An effect that declares no neutral value for a parameter is not judged (left out)."""
+    out: dict[str, dict[str, float]] = {}
+    for cls in model.effects:
+        pars = cls.own_parameters()
+        if cls.role != "effect" or not pars:
+            continue
+        table = getattr(cls, "neutral", None)
+        table = table if isinstance(table, Mapping) else {}
+        at: dict[str, float] = {}
+        for par in pars:
+            n = table.get(par.name, par.neutral)
+            if n is None or model.param_value(par.name) != float(n):
+                break
+            at[par.name] = float(n)
+        else:
+            out[cls.name] = at
+    return out
 
 
 def _noise_for(channels: Sequence[str], noise: Mapping[str, float] | None) -> dict[str, float]:
