@@ -21,6 +21,7 @@ BENCHMARKS: tuple[str, ...] = (
     "bench.bench_hidden_effect",
     "bench.bench_discover",
     "bench.bench_discovery_challenge",
+    "bench.bench_damage_challenge",
     "bench.bench_health",
 )
 
