@@ -44,3 +44,15 @@ def test_an_estimate_at_its_bound_is_said_in_how_much():
                   np.zeros(1), False)
     lv = levels(doc, trends, fc)
     assert "k3 +200 ± ? % — at its fit bound: a limit, not an estimate" in lv["how_much"]
+
+
+def test_a_fit_that_ended_next_to_its_bound_counts_as_at_the_bound():
+    """The aging run's localisation: k1 alone ended at +200.00 % of a +200 % bound with the optimiser's flag unset."""
+    from studies.health.estimate import stopped_at_bound
+    from workbench.fit_optimiser import ParameterEstimate
+
+    def est(value, flag=False):
+        return ParameterEstimate("k1", "N/m", "core", value, 0.1, 10.0, 60.0, flag)
+
+    assert stopped_at_bound(est(59.9999)) and stopped_at_bound(est(10.0001)) and stopped_at_bound(est(30.0, True))
+    assert not stopped_at_bound(est(59.9)) and not stopped_at_bound(est(30.0))

@@ -24,6 +24,20 @@ from reporting.uncertainty_text import format_percent_change
 from workbench.records import Record, record_from_arrays
 
 DEFAULT_FREE: tuple[str, ...] = ("k3", "alpha_h", "beta_h")
+#: share of a parameter's fit range within which an estimate counts as stopped at the bound (the optimiser's own
+#: flag needs 1e-6 in its internal coordinate: a fit that ends at +199.99 % of a +200 % bound escaped it)
+NEAR_BOUND_SHARE = 1e-4
+
+
+def stopped_at_bound(e: Any) -> bool:
+    """True when a fit's :class:`~workbench.fit_optimiser.ParameterEstimate` ended at (or next to) its range bound."""
+    if e.at_bound:
+        return True
+    lo, hi = float(e.lower), float(e.upper)
+    if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
+        return False
+    tol = NEAR_BOUND_SHARE * (hi - lo)
+    return bool(e.value - lo <= tol or hi - e.value <= tol)
 
 
 @dataclass
@@ -35,6 +49,10 @@ class Visit:
     visit: int | None = None
     verdict: str | None = None  # the board's verdict, when the log is at hand
     mbit_verdicts: dict[str, str] = field(default_factory=dict)
+    #: the truth when the source carries it (a simulated life or synthetic records): ``{"params": the truth's
+    #: nominal set, "relative": {name: deviation}}`` (a life's log) or ``{"params": ..., "values": {name: SI value}}``
+    #: (a synthetic record's header); see :mod:`.truth`
+    truth: dict[str, Any] | None = None
 
 
 @dataclass
@@ -98,7 +116,7 @@ def estimate_visit(records: Sequence[Record], params: str, free: Sequence[str] =
     for e in rep.outcome.estimates:
         nominal = float(model.param_value(e.name))
         out.append({"name": e.name, "value": float(e.value), "stderr": float(e.stderr) if math.isfinite(e.stderr)
-                    else None, "nominal": nominal, "unit": e.unit, "at_bound": bool(e.at_bound)})
+                    else None, "nominal": nominal, "unit": e.unit, "at_bound": stopped_at_bound(e)})
     return {"estimates": out, "held_rms_sigma": float(rep.outcome.held_rms_sigma),
             "train_rms_sigma": float(rep.outcome.train_rms_sigma), "fit_wall_s": float(rep.wall_s)}
 

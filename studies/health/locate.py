@@ -42,6 +42,8 @@ def _fit(recs: Sequence[Record], params: str, name: str, *, effect: bool, max_nf
 
 
 def _candidate(rep: Any, name: str, kind: str) -> dict[str, Any]:
+    from studies.health.estimate import stopped_at_bound
+
     o = rep.outcome
     est = next((e for e in o.estimates if e.name == name), None)
     out: dict[str, Any] = {"name": name, "kind": kind, "section": SECTIONS.get(name),
@@ -54,7 +56,7 @@ def _candidate(rep: Any, name: str, kind: str) -> dict[str, Any]:
         out.update({"value": float(est.value), "stderr": se, "nominal": nominal, "unit": est.unit,
                     "relative": float(est.value) / nominal - 1.0,
                     "relative_stderr": (se / abs(nominal)) if se is not None else None,
-                    "at_bound": bool(est.at_bound)})
+                    "at_bound": stopped_at_bound(est)})
     return out
 
 

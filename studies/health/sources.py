@@ -7,6 +7,7 @@ gives the board's verdict of each visit and MBIT (tables ``mbit_records`` and ``
 
 from __future__ import annotations
 
+import json
 import sqlite3
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,25 +26,29 @@ def _records_of_run(run_dir: Path) -> list[Path]:
     return files
 
 
-def _verdicts(db_path: Path) -> tuple[dict[float, str], dict[tuple[float, str], str]]:
+def _verdicts(db_path: Path) -> tuple[dict[float, str], dict[tuple[float, str], str], dict[float, dict]]:
+    """(visit verdicts, MBIT verdicts, the life's truth deviations) by operating hours, from a usage log."""
     visit_v: dict[float, str] = {}
     mbit_v: dict[tuple[float, str], str] = {}
+    truth: dict[float, dict] = {}
     if not db_path.exists():
-        return visit_v, mbit_v
+        return visit_v, mbit_v, truth
     try:
         db = sqlite3.connect(f"file:{db_path}?mode=ro", uri=True)
         names = {r[0] for r in db.execute("SELECT name FROM sqlite_master WHERE type='table'")}
         if "life_visits" in names:
-            for h, v in db.execute("SELECT operating_hours, verdict FROM life_visits"):
+            for h, v, tj in db.execute("SELECT operating_hours, verdict, truth_json FROM life_visits"):
                 visit_v[float(h)] = v
+                if tj:
+                    truth[float(h)] = json.loads(tj)
         if "mbit_records" in names:
             for h, m, v in db.execute("SELECT operating_hours, mbit, verdict FROM mbit_records"):
                 if h is not None:
                     mbit_v[(float(h), m)] = v
         db.close()
-    except sqlite3.DatabaseError as exc:
+    except (sqlite3.DatabaseError, json.JSONDecodeError) as exc:
         raise InputError(f"{db_path}: not a usage log ({exc})") from None
-    return visit_v, mbit_v
+    return visit_v, mbit_v, truth
 
 
 def load_visits(sources: Sequence[str | Path]) -> list[Visit]:
@@ -75,10 +80,12 @@ def load_visits(sources: Sequence[str | Path]) -> list[Visit]:
         groups.setdefault(float(h), []).append(rec)
     visit_v: dict[float, str] = {}
     mbit_v: dict[tuple[float, str], str] = {}
+    life_truth: dict[float, dict] = {}
     for db in dbs:
-        a, b = _verdicts(db)
+        a, b, c = _verdicts(db)
         visit_v.update(a)
         mbit_v.update(b)
+        life_truth.update(c)
     visits = []
     for i, h in enumerate(sorted(groups)):
         recs = groups[h]
@@ -91,5 +98,18 @@ def load_visits(sources: Sequence[str | Path]) -> list[Visit]:
         if verdict is None and mv:
             verdict = "FAULT" if "FAULT" in mv.values() else "PASS"
         vis = recs[0].meta.get("provenance", {}).get("visit")
-        visits.append(Visit(h, recs, int(vis) if vis is not None else i + 1, verdict, mv))
+        visits.append(Visit(h, recs, int(vis) if vis is not None else i + 1, verdict, mv,
+                            _truth_of(recs, life_truth.get(h))))
     return visits
+
+
+def _truth_of(recs: Sequence[Record], life_devs: dict | None) -> dict | None:
+    """The visit's truth: the life's deviations from its log, else a synthetic record's ``truth_values``."""
+    if life_devs is not None:
+        return {"params": str(recs[0].meta.get("params", "table2")), "relative": dict(life_devs)}
+    for r in recs:
+        prov = r.meta.get("provenance", {})
+        if "truth_values" in prov or prov.get("generator") == "shm synth":
+            return {"params": str(prov.get("truth_params", r.meta.get("params", "table2"))),
+                    "values": dict(prov.get("truth_values") or {})}
+    return None

@@ -1,0 +1,67 @@
+"""The truth of a life, when its records carry it: true parameter changes per visit and the true first FAULT.
+
+A simulated life (``shm run --scenario aging``) logs each visit's true deviations in ``usage.db``
+(``life_visits.truth_json``, relative to the rig's nominal set); a synthetic record (``shm synth``) carries the
+truth plant's values in its header (``provenance.truth_values``, SI, with ``truth_params`` its nominal set). Both
+are turned into relative changes against the *assessment's* nominal set, the quantity ``shm health`` estimates.
+
+The true first FAULT (the event a prognosis predicts) is the board's own first FAULT verdict when the log holds the
+board's verdicts; otherwise — synthetic records — the board's monitor applied to the true (k3, α_h, β_h) of each
+visit through the trip boundary (:mod:`.trip`), seen at the first visit where it trips.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from functools import cache
+from typing import Any
+
+import numpy as np
+
+from studies.health.estimate import Visit
+from studies.health.trip import HEALTH_PARAMS, TripBoundary
+
+
+@cache
+def _nominal(params: str, name: str) -> float:
+    return float(_model(params).param_value(name))
+
+
+@cache
+def _model(params: str) -> Any:
+    from plant import PlantModel
+
+    return PlantModel(params, terminal="amplifier")
+
+
+def truth_relative(visit: Visit, params: str, names: Sequence[str]) -> dict[str, float] | None:
+    """The visit's true relative change of each of ``names`` against ``params``' nominal values (None: no truth)."""
+    t = visit.truth
+    if t is None:
+        return None
+    out: dict[str, float] = {}
+    for n in names:
+        if "relative" in t:
+            value = _nominal(t["params"], n) * (1.0 + float(t["relative"].get(n, 0.0)))
+        else:
+            value = float(t["values"].get(n, _nominal(t["params"], n)))
+        out[n] = value / _nominal(params, n) - 1.0
+    return out
+
+
+def true_first_fault(visits: Sequence[Visit], params: str, boundary: TripBoundary | None) -> dict[str, Any] | None:
+    """``{"visit", "operating_hours", "source"}`` of the true first FAULT (None: not known, or never in these
+    visits — then ``{"operating_hours": None, ...}`` says which source was searched)."""
+    if any(v.verdict for v in visits):
+        first = next((v for v in visits if v.verdict == "FAULT"), None)
+        return {"visit": first.visit if first else None, "operating_hours": first.operating_hours if first else None,
+                "source": "the board's own verdicts (usage.db)"}
+    truths = [truth_relative(v, params, HEALTH_PARAMS) for v in visits]
+    if boundary is None or any(t is None for t in truths):
+        return None
+    devs = np.array([[t[n] for n in HEALTH_PARAMS] for t in truths if t is not None])
+    faults = boundary.fault(devs)
+    k = int(np.argmax(faults)) if faults.any() else None
+    return {"visit": visits[k].visit if k is not None else None,
+            "operating_hours": visits[k].operating_hours if k is not None else None,
+            "source": "the board's monitor (trip boundary) on the records' true k3, alpha_h, beta_h"}
