@@ -39,6 +39,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     g.add_argument("--interval-s", type=float, default=0.01, help="observer correction interval (s, default 0.01)")
     g.add_argument("--eq4", action="append", default=[], metavar="CH=E0,KERR",
                    help="given Eq. 4 constants for a channel, SI (default for z3: the paper's 0.75e-3,0.075)")
+    fq = g.add_mutually_exclusive_group()
+    fq.add_argument("--frf", action="store_true", default=None,
+                    help="also compare in the frequency domain: H1 and coherence of each channel against the drive, "
+                         "measured vs the model's free run, with the resonance peaks (default: on for sweep records)")
+    fq.add_argument("--no-frf", action="store_false", dest="frf", help="no frequency-domain panel, even for a sweep")
     p.add_argument("--json", action="store_true", help="also print the report's numbers as JSON on stdout")
     add_out_arg(p)
     p.set_defaults(func=cmd_compare)
@@ -79,7 +84,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     options = CompareOptions(skip_s=args.skip_s, level=args.level, max_lag=args.lags, decimate=args.decimate,
                              threshold_sigma=args.threshold_sigma, window_s=args.window_s,
                              predict=not args.no_predict, horizon_s=args.horizon_s, interval_s=args.interval_s,
-                             eq4_given=_eq4(args.eq4) or None)
+                             eq4_given=_eq4(args.eq4) or None, frf=args.frf)
     values = _assignments("--set", args.set_values)
     records = [load_record(Path(r)) for r in args.records]  # validate every file before any work
     comparisons = []

@@ -353,6 +353,10 @@ def write_figures(cmp: Comparison | FrfComparison, out: Path) -> dict[str, list[
         if ar:
             paths.append(ar)
         paths.append(correlation_figure(cmp, ch, out / f"{base}_correlation.png"))
+        if cmp.frf and ch in cmp.frf:  # the record in the frequency domain (a sweep): workbench.frf_figures
+            from workbench.frf_figures import sweep_frf_figure
+
+            paths.append(sweep_frf_figure(cmp.frf[ch], out / f"{base}_frf.png", cmp.record.name))
         figs[ch] = paths
     figs["_overlay"] = [overlay_figure(cmp, out / f"{slug}_overlay.png")]
     pred = prediction_figure(cmp, out / f"{slug}_prediction.png")
