@@ -4,7 +4,8 @@ units for SI quantities, and decimation of long traces that keeps their peaks.""
 from __future__ import annotations
 
 import warnings
-from collections.abc import Mapping
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any
 
@@ -30,15 +31,35 @@ def display_scale(unit: str) -> tuple[float, str]:
     return SI_DISPLAY.get(unit, (1.0, unit))
 
 
+#: callbacks ``(figure, path)`` run on every figure just before :func:`save_figure` writes it
+_BEFORE_SAVE: list[Callable[[Any, Path], None]] = []
+
+
+@contextmanager
+def observing_saved_figures(callback: Callable[[Any, Path], None]) -> Iterator[None]:
+    """Within the block, call ``callback(fig, path)`` with every figure :func:`save_figure` is about to write, laid
+    out as it will be saved (the figure tests check each one as a picture)."""
+    _BEFORE_SAVE.append(callback)
+    try:
+        yield
+    finally:
+        _BEFORE_SAVE.remove(callback)
+
+
 def save_figure(fig: Any, path: Path, dpi: float, *, tight: bool = False,
-                adjust: Mapping[str, float] | None = None) -> Path:
+                adjust: Mapping[str, float] | None = None, also: Sequence[Path] = ()) -> Path:
     """Save ``fig`` to ``path`` and close it. ``tight``: ``tight_layout`` first; ``adjust``: ``subplots_adjust``
-    margins instead (cheaper than tight_layout on long reports)."""
+    margins instead (cheaper than tight_layout on long reports); ``also``: further files (e.g. an SVG copy, its
+    format from the suffix, default dpi). Every figure a report writes goes through here."""
     if tight:
         fig.tight_layout()
     if adjust:
         fig.subplots_adjust(**adjust)
+    for callback in list(_BEFORE_SAVE):
+        callback(fig, Path(path))
     fig.savefig(path, dpi=dpi)
+    for extra in also:
+        fig.savefig(extra)
     pyplot().close(fig)
     return Path(path)
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from reporting.figures import minmax_envelope, pyplot
+from reporting.figures import minmax_envelope, pyplot, save_figure
 
 #: board regimes in the order of the trace's regime_code, and their shading
 REGIME_NAMES = ("STANDBY_HARVEST", "SENSING", "MAINTENANCE", "SAFE")
@@ -58,9 +58,7 @@ def overview_plot(path: Path, cols: dict[str, np.ndarray], summary: dict[str, An
     for ch in summary["regime_changes"]:
         for a in axes:
             a.axvline(ch["time_s"] * scale, color="k", lw=0.4, alpha=0.4)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, 110, tight=True)
 
 
 def maintenance_plot(path: Path, cols: dict[str, np.ndarray], summary: dict[str, Any], count_max: int) -> bool:
@@ -95,9 +93,7 @@ def maintenance_plot(path: Path, cols: dict[str, np.ndarray], summary: dict[str,
         ax.set_ylabel("fault counter")
         ax.set_xlabel(f"time from {r['label']} start (s)")
         ax.legend(fontsize=7)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, 110, tight=True)
     return True
 
 
@@ -127,7 +123,5 @@ def usage_plot(path: Path, summary: dict[str, Any]) -> bool:
     a2.set_xlabel("|z3| level (mm)")
     a2.set_ylabel("time at or above (s)")
     a2.set_title("Exceedance durations")
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, 110, tight=True)
     return True

@@ -7,16 +7,14 @@ from pathlib import Path
 
 import numpy as np
 
-from reporting.figures import pyplot
+from reporting.figures import pyplot, save_figure
 from studies.campaign import CampaignResult, RocTable
 from studies.campaign.paper import PAPER_FAULT_PROBABILITY
 
 
 def _save(fig, path: Path, svg: bool = True) -> list[Path]:
     paths = [path.with_suffix(".png"), *([path.with_suffix(".svg")] if svg else [])]
-    fig.savefig(paths[0], dpi=130)
-    if svg:
-        fig.savefig(paths[1])
+    save_figure(fig, paths[0], 130, also=paths[1:])
     return paths
 
 

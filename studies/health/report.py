@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 
 from board_config.json_values import to_jsonable
-from reporting.figures import pyplot
+from reporting.figures import pyplot, save_figure
 from reporting.html_page import img_tag
 from studies.health.assess import Assessment
 
@@ -74,8 +74,7 @@ def plot_parameters(a: Assessment, path: Path) -> None:
     ax.legend(fontsize=7)
     for ax in axes:
         ax.set_xlim(hours[0] - 10, h_end)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, 110)
 
 
 def write_health_outputs(a: Assessment, out: Path, text: str) -> dict[str, str]:
