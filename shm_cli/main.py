@@ -39,6 +39,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "shm_cli.run_cmd",
     "shm_cli.log_cmd",
     "shm_cli.synth_cmd",
+    "shm_cli.effects_cmd",
     "shm_cli.health_cmd",
     "shm_cli.compare_cmd",
     "shm_cli.diagnose_cmd",

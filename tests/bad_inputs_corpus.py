@@ -378,6 +378,16 @@ def _option_cases() -> list[Case]:
         c("log-db-csv", "log show --db {d}/good.csv", "good.csv", "not a usage log"),
         c("log-export-foreign", "log export --db {d}/foreign.db", "foreign.db", "not a usage log"),
         c("log-export-table", "log export --db {d}/foreign.db --table nope", "foreign.db"),
+        c("log-tables-and-table", "log show --db {d}/finished_run/usage.db --tables --table runs", "--tables",
+          "--table"),
+        # shm effects
+        c("effects-show-unknown", "effects show warp", "warp", "unknown effect"),
+        c("effects-show-missing-file", "effects show {d}/nope_effect.py", "nope_effect.py", "does not exist"),
+        c("effects-show-not-an-effect", "effects show os:path", "os:path", "not a PhysicalEffect"),
+        c("effects-show-csv-file", "effects show {d}/good.csv", "good.csv"),
+        c("effects-show-bad-prefix", ["effects", "show", "geometric_stiffening as 2x"], "2x"),
+        c("effects-show-empty", ["effects", "show", ""], "effect"),
+        c("effects-no-subcommand", "effects", "subcommand"),
         # shm synth
         c("synth-amp-1MV", "synth --test sine --amplitude 1e6 --out {o}/x.csv", "1e+06", "-500", "1500"),
         c("synth-amp-neg", "synth --test sine --amplitude -300 --out {o}/x.csv", "--amplitude", "-300"),

@@ -95,6 +95,7 @@ EXAMPLES: dict[tuple[str, ...], Callable[[Workspace], list]] = {
                          "--save", w.fresh("fit") / "fitted.toml"],
     ("calibrate",): lambda w: ["--free", "k3", "--out", w.fresh("calibrate")],
     ("health",): lambda w: [*w.visit_records(), "--workers", 1, "--out", w.fresh("health")],
+    ("effects", "show"): lambda w: ["geometric_stiffening"],
 }
 
 #: required options the builder knows how to fill, by destination
