@@ -8,7 +8,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from workbench.discovery_dictionary import DELAY_FORMS, FORMS, Term
-from workbench.effect_writer import emit_effect_source, parameter_names
+from workbench.effect_writer import emit_effect_source, parameter_names_for
 from workbench.fit_optimiser import FitOutcome
 from workbench.fit_targets import FitError, Target
 
@@ -102,8 +102,7 @@ class Discovery:
         if not self.terms:
             return None
         values: dict[str, float] = {}
-        for ft in self.terms:
-            cname, gname = parameter_names(ft.term)
+        for ft, (cname, gname) in zip(self.terms, parameter_names_for([ft.term for ft in self.terms])):
             values[cname] = ft.coef
             if gname:
                 values[gname] = ft.shape

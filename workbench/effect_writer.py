@@ -189,7 +189,7 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
                        held_before: float | None = None, held_after: float | None = None,
                        free_shapes: bool = True) -> str:
     """The Python source of a readable effect holding ``terms`` with the fitted ``values`` (by parameter name,
-    see :func:`parameter_names`)."""
+    see :func:`parameter_names_for`)."""
     slots: list[TermSlot] = []
     params: list[str] = []  # source lines
     fit_ranges: list[str] = []
@@ -198,16 +198,15 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
     names: list[str] = []  # every parameter's name, in order
     state_specs: list[tuple[str, float]] = []  # (unit, scale) of each state
     formulas = []
-    for term in terms:
-        cname, gname = parameter_names(term, free_shapes)
+    for term, (cname, gname) in zip(terms, parameter_names_for(terms, free_shapes)):
         k = len(params)
         c = _r(float(values.get(cname, 0.0)))
-        span = max(abs(c), 1e-300)
+        span = abs(c) if c != 0.0 else 1.0  # a coefficient of 0 (a term switched off): a unit range around it
         lo, hi = _r(min(0.0, -20 * span if c < 0 else -span)), _r(max(0.0, 20 * span if c > 0 else span))
         names.append(cname)
         params.append(f"        Parameter({cname!r}, {term.unit!r}, 0.0, {lo!r}, {hi!r},\n"
                       f"                  {('coefficient of ' + term.key)!r}),")
-        a, b = sorted((_r(c * 0.2), _r(c * 3.0)))
+        a, b = sorted((_r(c * 0.2), _r(c * 3.0))) if c != 0.0 else (-span, span)
         fit_ranges.append(f"        {cname!r}: FitRange({a!r}, {b!r}),")
         neutral.append(f"{cname!r}: 0.0")
         discovered[cname] = c
@@ -274,12 +273,24 @@ def _r(x: float) -> float:
     return float(f"{x:.6g}")
 
 
-def parameter_names(term: Term, free_shapes: bool = True) -> tuple[str, str | None]:
+def parameter_names(term: Term, free_shapes: bool = True, suffix: str = "") -> tuple[str, str | None]:
     """(coefficient name, shape name or None) of ``term`` in a refit/emitted effect."""
     g = None
     if free_shapes and FORMS[term.form].shape:
-        g = f"g_{term.key}"
-    return f"c_{term.key}", g
+        g = f"g_{term.key}{suffix}"
+    return f"c_{term.key}{suffix}", g
+
+
+def parameter_names_for(terms: Sequence[Term], free_shapes: bool = True) -> list[tuple[str, str | None]]:
+    """(coefficient name, shape name or None) of each of ``terms`` in one emitted effect: unique also when two terms
+    share a key (the same form at two thresholds — a stop found twice on MBIT.a gave two ``c_m3_neg_z3`` and a file
+    ``shm fit --add`` refused: "parameter declared twice"); the second of a key is ``c_<key>_2``, and so on."""
+    seen: dict[str, int] = {}
+    out = []
+    for term in terms:
+        seen[term.key] = seen.get(term.key, 0) + 1
+        out.append(parameter_names(term, free_shapes, "" if seen[term.key] == 1 else f"_{seen[term.key]}"))
+    return out
 
 
 def typical_force(term: Term, coef: float, scale: float) -> float:
