@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from reporting.figure_layout import few_ticks, hide_colliding_texts, legend_clear_of_data
 from reporting.figures import display_scale as _scale
 from reporting.figures import logspaced_max as _logspaced_max
 from reporting.figures import minmax_decimate as _env
@@ -20,11 +21,15 @@ from reporting.figures import save_figure
 from workbench.compare import Comparison, FrfComparison
 
 
-def _finish(fig, path: Path, **adjust: float) -> Path:
-    """Fixed margins instead of tight_layout (which costs more than the drawing on long reports)."""
+def _margins(**adjust: float) -> dict[str, float]:
     kw = {"left": 0.07, "right": 0.98, "top": 0.92, "bottom": 0.09, "hspace": 0.4, "wspace": 0.25}
     kw.update(adjust)
-    return save_figure(fig, path, 80, adjust=kw)
+    return kw
+
+
+def _finish(fig, path: Path, **adjust: float) -> Path:
+    """Fixed margins instead of tight_layout (which costs more than the drawing on long reports)."""
+    return save_figure(fig, path, 80, adjust=_margins(**adjust))
 
 
 def _slug(text: str) -> str:
@@ -61,7 +66,7 @@ def _plot_overlay(ax, cmp: Comparison, ch: str, with_windows: bool = True) -> No
             ax.axvspan(w.start_s, w.end_s, color="tab:orange", alpha=0.15, lw=0)
     ax.set_ylabel(f"{ch} ({su})")
     ax.set_xlabel("time (s)")
-    ax.legend(loc="best", fontsize=7)
+    legend_clear_of_data(ax, fontsize=7)
     ax.set_title(f"{ch}: measured vs model" + ("  (orange: flagged windows)" if with_windows else ""), fontsize=9)
 
 
@@ -82,7 +87,7 @@ def _plot_residual(ax, cmp: Comparison, ch: str, legend: bool = True) -> None:
         from matplotlib.patches import Patch
 
         handles = [Patch(color=c, alpha=0.35, label=lab) for lab, c in colours.items()][:8]
-        ax.legend(handles=handles + ax.get_legend_handles_labels()[0], fontsize=6, loc="best", ncol=2)
+        legend_clear_of_data(ax, handles=handles + ax.get_legend_handles_labels()[0], fontsize=6, ncol=2)
     ax.set_ylabel(f"residual ({su})")
     ax.set_xlabel("time (s)")
     ax.set_title(f"{ch}: residual (measured − model), shaded by test regime", fontsize=9)
@@ -96,16 +101,19 @@ def _plot_spectrum(ax, cmp: Comparison, ch: str) -> None:
     ax.loglog(*_logspaced_max(f, np.maximum(loc.spectrum_resid[1:], 1e-300) * s * s), color="k", lw=0.8,
               label="residual")
     ax.axhline(loc.noise_psd * s * s, color="tab:blue", ls=":", lw=1, label="noise floor")
-    for b in loc.bands:
+    share_labels = []
+    for b in sorted(loc.bands, key=lambda b: -b.share):
         if b.f_hi_Hz > 0:
             ax.axvspan(b.f_lo_Hz, b.f_hi_Hz, color="tab:orange", alpha=0.3, lw=0)
-            ax.text(np.sqrt(b.f_lo_Hz * b.f_hi_Hz), loc.noise_psd * s * s, f"{b.share * 100:.0f}%", fontsize=7,
-                    ha="center", va="bottom", color="tab:orange", fontweight="bold")
+            share_labels.append(ax.text(np.sqrt(b.f_lo_Hz * b.f_hi_Hz), loc.noise_psd * s * s,
+                                        f"{b.share * 100:.0f}%", fontsize=7, ha="center", va="bottom",
+                                        color="tab:orange", fontweight="bold"))
+    feature_labels = []
     for fr, lab in cmp.features:
         if f.size and f[0] <= fr <= f[-1]:
             ax.axvline(fr, color="tab:green", lw=0.8, alpha=0.7)
-            ax.text(fr, ax.get_ylim()[0], lab.split(" (")[0], rotation=90, fontsize=6, color="tab:green",
-                    va="bottom", ha="right")
+            feature_labels.append(ax.text(fr, ax.get_ylim()[0], lab.split(" (")[0], rotation=90, fontsize=6,
+                                          color="tab:green", va="bottom", ha="right"))
     import matplotlib.ticker as mticker
 
     for axis in (ax.xaxis, ax.yaxis):  # plain decade labels, no minor ticks: mathtext costs more than the plot
@@ -113,7 +121,9 @@ def _plot_spectrum(ax, cmp: Comparison, ch: str) -> None:
         axis.set_minor_locator(mticker.NullLocator())
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel(f"PSD ({su}²/Hz)")
-    ax.legend(fontsize=6, loc="lower left")
+    leg = ax.legend(fontsize=6, loc="lower left")
+    # labels that would run into the legend or each other are left out: the largest bands' shares first
+    hide_colliding_texts([leg, *share_labels, *feature_labels])
     offset = [b for b in loc.bands if b.f_hi_Hz == 0]
     ax.set_title("residual spectrum; orange: error-carrying bands" + (
         f" (+ offset {offset[0].share * 100:.0f}%)" if offset else ""), fontsize=9)
@@ -188,6 +198,8 @@ def _plot_eps(ax, cmp: Comparison, ch: str) -> None:
 def summary_figure(cmp: Comparison, ch: str, path: Path) -> Path:
     plt = _pyplot()
     fig, axes = plt.subplots(3, 2, figsize=(14, 10.5))
+    margins = {"top": 0.93, "bottom": 0.06, "left": 0.06, "hspace": 0.35}
+    fig.subplots_adjust(**_margins(**margins))  # the final layout first: legends and labels are placed on it
     _plot_overlay(axes[0, 0], cmp, ch)
     _plot_residual(axes[0, 1], cmp, ch, legend=True)
     _plot_spectrum(axes[1, 0], cmp, ch)
@@ -197,13 +209,14 @@ def summary_figure(cmp: Comparison, ch: str, path: Path) -> Path:
     verdict = cmp.verdicts()[ch]
     fig.suptitle(f"{cmp.record.name} ({cmp.record.test}) vs {cmp.replay.model_label}: {ch} — {verdict.upper()}",
                  fontsize=12, color="tab:green" if verdict == "adequate" else "tab:red")
-    return _finish(fig, path, top=0.93, bottom=0.06, left=0.06, hspace=0.35)
+    return _finish(fig, path, **margins)
 
 
 def overlay_figure(cmp: Comparison, path: Path) -> Path:
     plt = _pyplot()
     chans = list(cmp.replay.channels)
     fig, axes = plt.subplots(len(chans) + 1, 1, figsize=(12, 2.6 * (len(chans) + 1)), sharex=True, squeeze=False)
+    fig.subplots_adjust(**_margins())
     rep = cmp.replay
     ax0 = axes[0, 0]
     ax0.plot(*_env(rep.t, rep.drive), color="tab:purple", lw=0.8)
@@ -255,6 +268,8 @@ def amplitude_rate_figure(cmp: Comparison, ch: str, path: Path) -> Path | None:
     plt = _pyplot()
     s, su = _scale(cmp.replay.channels[ch].unit)
     fig, axes = plt.subplots(1, 3, figsize=(15, 4))
+    margins = {"bottom": 0.15, "top": 0.9}  # room below for tick labels and the axis label of a 4-inch figure
+    fig.subplots_adjust(**_margins(**margins))
     _plot_vs_drive(axes[0], cmp, ch)
     axes[1].plot(ar.rate_centres, ar.e_by_rate * s, "-o", ms=3, color="k")
     axes[1].set_xlabel(f"d{ar.drive}/dt ({ar.unit}/s)")
@@ -267,7 +282,8 @@ def amplitude_rate_figure(cmp: Comparison, ch: str, path: Path) -> Path | None:
     axes[2].set_title("residual vs measured response (stiffening: an odd curve)", fontsize=9)
     for ax in axes:
         ax.axhline(0, color="0.6", lw=0.8)
-    return _finish(fig, path)
+        few_ticks(ax.xaxis)
+    return _finish(fig, path, **margins)
 
 
 def correlation_figure(cmp: Comparison, ch: str, path: Path) -> Path:
@@ -294,6 +310,7 @@ def correlation_figure(cmp: Comparison, ch: str, path: Path) -> Path:
 def residual_figure(cmp: Comparison, ch: str, path: Path) -> Path:
     plt = _pyplot()
     fig, axes = plt.subplots(2, 1, figsize=(13, 6), sharex=True)
+    fig.subplots_adjust(**_margins())
     _plot_residual(axes[0], cmp, ch)
     _plot_eps(axes[1], cmp, ch)
     return _finish(fig, path)
@@ -302,6 +319,7 @@ def residual_figure(cmp: Comparison, ch: str, path: Path) -> Path:
 def spectrum_figure(cmp: Comparison, ch: str, path: Path) -> Path:
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(11, 4.5))
+    fig.subplots_adjust(**_margins())
     _plot_spectrum(ax, cmp, ch)
     return _finish(fig, path)
 

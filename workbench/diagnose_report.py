@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from reporting.figure_layout import count_axis, legend_clear_of_data
 from reporting.figures import display_scale, pyplot, save_figure
 from reporting.html_page import img_tag, table
 from workbench.fit import FitHistoryPoint, SimBatch, Target
@@ -58,12 +59,12 @@ def overlay_figure(targets: Sequence[Target], before: SimBatch, after: SimBatch 
             axr.plot(tg.t, e1, color="tab:blue", lw=0.7, label=label_after)
         ax.set_ylabel(f"{tg.channels[j]} ({su})")
         ax.set_title(f"{tg.name} ({tg.record.test}) — grey: held-out blocks", fontsize=9)
-        ax.legend(fontsize=7, loc="upper right")
         axr.set_ylabel("residual (σ)")
         axr.axhline(0, color="0.5", lw=0.5)
-        axr.legend(fontsize=7, loc="upper right")
     axes[-1, 0].set_xlabel("time (s)")
     fig.tight_layout()
+    for ax in axes[:, 0]:  # on the final layout: head-room above the data for each legend
+        legend_clear_of_data(ax, fontsize=7)
     return _save(fig, path)
 
 
@@ -78,11 +79,6 @@ def ranking_figure(diagnosis: Any, path: Path) -> Path:
     y = np.arange(len(names))[::-1]
     vals_plot = [v if np.isfinite(v) else 0.0 for v in vals]
     ax.barh(y, vals_plot, color=colours)
-    for yi, c in zip(y[1:], ranking):
-        txt = (f"{100 * c.held_reduction:+.1f} %, ΔBIC {c.delta_bic_held:.3g}" if c.stable else
-               f"rejected: {c.rejection[:50]}")
-        ax.text(max(vals_plot) * 0.01 + (c.held_rms_sigma if np.isfinite(c.held_rms_sigma) else 0), yi, " " + txt,
-                va="center", fontsize=7)
     ax.axvline(1.0, color="k", ls=":", lw=1, label="noise floor (1 σ)")
     ax.set_yticks(y, names)
     ax.set_xscale("log")
@@ -90,12 +86,26 @@ def ranking_figure(diagnosis: Any, path: Path) -> Path:
     # automatic log limits span a hair (1.003 .. 1.005 σ) and the labels run far outside the axes, which made
     # tight_layout give up (a UserWarning) and the figure unreadable
     positive = [v for v in vals_plot if v > 0] or [1.0]
-    ax.set_xlim(min(min(positive), 1.0) / 1.5, max(max(positive), 1.0) * 30.0)
+    left = min(min(positive), 1.0) / 1.5
+    ax.set_xlim(left, max(max(positive), 1.0) * 30.0)
+    for yi, c in zip(y[1:], ranking):
+        ax.text(max(c.held_rms_sigma if np.isfinite(c.held_rms_sigma) else 0.0, left) * 1.03, yi,
+                " " + _ranking_label(c), va="center", fontsize=7)
     ax.set_xlabel("held-out residual RMS (σ)")
     ax.set_title("Which effect is missing? (green: accepted, orange: not enough, red: unstable)", fontsize=9)
     ax.legend(fontsize=7, loc="lower right")
     fig.tight_layout()
     return _save(fig, path)
+
+
+def _ranking_label(c: Any) -> str:
+    """What a ranking bar says: the held-out reduction and ΔBIC of a scored candidate, else why it has none
+    (screened out, rejected) — never a nan or inf."""
+    scored = c.stable and np.isfinite(c.held_reduction) and np.isfinite(c.delta_bic_held)
+    if scored:
+        return f"{100 * c.held_reduction:+.1f} %, ΔBIC {c.delta_bic_held:.3g}"
+    why = c.rejection or getattr(c, "status", "") or "not scored"
+    return why[:60] if why.startswith("screened out") else f"rejected: {why[:50]}"
 
 
 class ProgressPlot:
@@ -130,6 +140,7 @@ class ProgressPlot:
             ax.plot([0], [self.held_before], "s", color="tab:orange",
                     label=f"held-out before: {self.held_before:.3g} σ")
         ax.set_yscale("log")
+        count_axis(ax.xaxis)
         ax.set_xlabel("iteration")
         ax.set_ylabel("residual RMS (σ)")
         ax.set_title("Error falling while the fit runs", fontsize=9)

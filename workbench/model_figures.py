@@ -9,6 +9,7 @@ from typing import Any
 
 import numpy as np
 
+from reporting.figure_layout import count_axis
 from reporting.figures import pyplot, save_figure
 
 #: the frequency responses ``shm model frf`` draws: file stem -> (axis label, title); amplitudes in the label's unit
@@ -55,14 +56,18 @@ def calibration_figure(path: Path, history: Sequence[float], rows: Sequence[dict
     plt = pyplot()
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
     a1.semilogy(history)
+    count_axis(a1.xaxis)
     a1.set_xlabel("model evaluation")
     a1.set_ylabel("weighted cost")
     a1.set_title("calibration: the error falling")
     a1.grid(True, alpha=0.3)
     names = [r["claim"] for r in rows]
-    a2.barh(names, [100 * r["rel_error_start"] for r in rows], alpha=0.5, label=start_name)
-    a2.barh(names, [100 * r["rel_error_calibrated"] for r in rows], alpha=0.8, label=name)
+    y = np.arange(len(names))[::-1]  # first claim on top; each claim's two bars side by side
+    a2.barh(y + 0.2, [100 * r["rel_error_start"] for r in rows], height=0.4, color="tab:gray", label=start_name)
+    a2.barh(y - 0.2, [100 * r["rel_error_calibrated"] for r in rows], height=0.4, color="tab:blue", label=name)
+    a2.set_yticks(y, names)
+    a2.axvline(0.0, color="k", lw=0.6)
     a2.set_xscale("symlog", linthresh=1.0)
     a2.set_xlabel("relative error against the paper (%)")
-    a2.legend()
+    a2.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     return save_figure(fig, path, 110, tight=True)

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
+from reporting.figure_layout import hide_colliding_texts
 from reporting.figures import pyplot, save_figure
 from studies.campaign import CampaignResult, RocTable
 from studies.campaign.paper import PAPER_FAULT_PROBABILITY
@@ -32,10 +33,10 @@ def fig11(result: CampaignResult, path: Path) -> list[Path]:
         det = [s.n_detected for s in rows]
         n = [s.n_valid for s in rows]
         ax = axes[0, col]
-        ax.bar(x, n, color="0.85", edgecolor="0.6", label="runs")
-        ax.bar(x, det, color="tab:blue", label="detected BIT faults")
+        ax.bar(x - 0.2, n, width=0.4, color="0.85", edgecolor="0.6", label="runs")
+        ax.bar(x + 0.2, det, width=0.4, color="tab:blue", label="detected BIT faults")
         for xi, d in zip(x, det):
-            ax.text(xi, d, str(d), ha="center", va="bottom", fontsize=8)
+            ax.text(xi + 0.2, d, str(d), ha="center", va="bottom", fontsize=8)
         ax.set_ylabel("number of runs")
         ax.set_title(f"({'abcdefgh'[col]}) {result.mbits[key].label}")
         ax.legend(fontsize=8, loc="upper left")
@@ -110,6 +111,7 @@ def roc(tables: list[RocTable], path: Path, mark: tuple[float, int] | None = Non
     Bottom: both probabilities against eps_th (solid: detection, dashed: false alarm) — where to set the threshold."""
     plt = pyplot()
     fig, axes = plt.subplots(2, len(tables), figsize=(5.6 * len(tables), 8.8), squeeze=False)
+    eps_labels: list[list] = []
     for col, tab in enumerate(tables):
         ax, ax2 = axes[0, col], axes[1, col]
         pfa, pd = tab.p_false_alarm, tab.p_detection
@@ -126,9 +128,9 @@ def roc(tables: list[RocTable], path: Path, mark: tuple[float, int] | None = Non
                         label=f"Table 3 (eps_th {mark[0]:g}, count_max {mark[1]})")
             ax2.axvline(mark[0], color="r", lw=0.8, ls=":", label=f"Table 3 eps_th = {mark[0]:g}")
         j = len(tab.count_max) // 2
-        for i in range(0, tab.eps_th.size, max(1, tab.eps_th.size // 6)):
-            ax.annotate(f"{tab.eps_th[i]:.3g}", (100 * pfa[i, j], 100 * pd[i, j]), fontsize=6,
-                        textcoords="offset points", xytext=(3, -8))
+        eps_labels.append([ax.annotate(f"{tab.eps_th[i]:.3g}", (100 * pfa[i, j], 100 * pd[i, j]), fontsize=6,
+                                       textcoords="offset points", xytext=(3, -8))
+                           for i in range(0, tab.eps_th.size, max(1, tab.eps_th.size // 6))])
         ax.set_xlim(-2, 102)
         ax.set_ylim(-2, 102)
         ax.set_xlabel(f"false-alarm probability (%): units within {100 * tab.healthy_max:g} % (n={tab.n_healthy})")
@@ -142,6 +144,8 @@ def roc(tables: list[RocTable], path: Path, mark: tuple[float, int] | None = Non
         ax2.grid(alpha=0.3)
         ax2.legend(fontsize=7, loc="center right")
     fig.tight_layout()
+    for col, labels in enumerate(eps_labels):  # points that coincide (few runs) would stack their labels
+        hide_colliding_texts([axes[0, col].get_legend(), *labels])
     out = _save(fig, path, svg=False)
     plt.close(fig)
     return out

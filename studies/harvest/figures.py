@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from board_config.physical_constants import G0
+from reporting.figure_layout import few_ticks, legend_clear_of_data
 from reporting.figures import pyplot, save_figure
 from studies.harvest.outputs import format_duration
 from studies.harvest.setup import PAPER_CLAIM_S
@@ -34,13 +35,13 @@ def plot_charge_curve(run: Any, path: Path) -> Path:
     ax.set_xlabel("time (min)")
     ax.set_ylabel("cell voltage (V)")
     ax.set_title(f"{s.coupling}: {s.accel / G0:g} g, {s.freq:g} Hz, R_bint {s.r_int:g} ohm")
-    ax.legend(fontsize=7, loc="lower right")
     ax.grid(alpha=0.3)
     ax = axes[1]
     ax.plot(run.tail["t_s"], run.tail["v_stored_V"], lw=0.8)
     ax.set_xlabel("time (s)")
     ax.set_ylabel("patch terminal voltage v_a (V)")
     ax.set_title(f"last seconds: peak {run.chunks['va_peak_V'][-1]:.3g} V")
+    few_ticks(ax.xaxis)  # "596.0 596.5 ..." in a narrow panel ran together
     ax.grid(alpha=0.3)
     if has_proj:
         c = run.projection.curve
@@ -50,4 +51,6 @@ def plot_charge_curve(run: Any, path: Path) -> Path:
         ax.set_ylabel("cycle-mean charging current (mA)")
         ax.set_title(f"projection: full after {format_duration(run.projection.t_full_s)}")
         ax.grid(alpha=0.3)
+    fig.tight_layout()
+    legend_clear_of_data(axes[0], fontsize=7, loc="upper left")  # on the final layout, above the charge curve
     return save_figure(fig, path, 120, tight=True)
