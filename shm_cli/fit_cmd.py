@@ -12,13 +12,15 @@ from shm_cli.common import Decorations, add_params_arg, dump_json, even_int, out
 
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
-        "fit", help="add physical effects, refit their parameters on records, save a parameter set",
+        "fit", help="add physical effects, refit their parameters on records, report the fit, save a parameter set",
         description="Add one or more physical effects (library names, see `shm diagnose`, or your own "
                     "pkg.mod:Class or FILE.py) to the model, fit their parameters (and any --free ones) on the "
                     "training part of the records with least squares, and show the error falling per iteration "
-                    "(terminal and fit_progress.png). Prints a before/after table on training and held-out data, "
-                    "parameter estimates with standard errors, and writes a parameter set (TOML with [[effects]]) that "
-                    "`shm run` and the board's monitor load at once.")
+                    "(terminal and fit_progress.png). Prints a before/after table on training and held-out data and "
+                    "a fit report as lmfit prints it (chi-square, reduced chi-square, AIC, BIC; estimates with "
+                    "standard errors; correlations; warnings for parameters at a bound, not identifiable or "
+                    "strongly correlated), also in fit.json; with --save, writes a parameter set (TOML with "
+                    "[[effects]]) that `shm run` and the board's monitor load at once.")
     p.add_argument("records", nargs="+", metavar="RECORD", help="time records (.csv or .tdms; docs/records.md)")
     add_params_arg(p)
     p.add_argument("--add", action="append", default=[], metavar="EFFECT",
@@ -27,8 +29,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--free", action="append", default=[], metavar="PARAM[:LO:HI]",
                    help="also fit this parameter (core, e.g. k3, or an effect's), optionally with its range in SI "
                         "units (repeatable)")
-    p.add_argument("--save", required=True, metavar="NAME.toml", type=output_file_arg,
-                   help="write the fitted parameter set here (its name is the file's stem)")
+    p.add_argument("--save", default=None, metavar="NAME.toml", type=output_file_arg,
+                   help="write the fitted parameter set here (its name is the file's stem); without it the fit is "
+                        "evaluated and reported, nothing is saved")
     p.add_argument("--holdout", choices=("blocks", "records"), default="blocks",
                    help="held-out data: alternate blocks of every record (default) or every second record")
     p.add_argument("--blocks", type=even_int(2), default=10,
@@ -38,7 +41,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--max-nfev", type=int, default=40, help="optimiser evaluations per start (default 40)")
     p.add_argument("--seed", type=seed_int, default=0, help="seed of the multi-start design")
     p.add_argument("--out", default=None, metavar="DIR",
-                   help="directory for fit.json, fit_progress.png, fit_overlay.png, fit.html (default: beside --save)")
+                   help="directory for fit.json, fit_progress.png, fit_overlay.png, fit.html (default: beside --save, "
+                        "else the current directory)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     p.set_defaults(func=cmd_fit)
 
@@ -54,16 +58,21 @@ def cmd_fit(args: argparse.Namespace) -> int:
     from shm_cli.main import CliError
     from workbench.diagnose_report import ProgressPlot, overlay_figure, write_html
     from workbench.fit import FitError, fit_records
+    from workbench.fit_report import fit_statistics, fit_warnings, format_report, report_dict
 
-    save = Path(args.save)
-    if save.suffix.lower() != ".toml":
+    save = Path(args.save) if args.save is not None else None
+    if save is not None and save.suffix.lower() != ".toml":
         raise CliError(f"--save must name a .toml file, got '{args.save}'")
     if not args.add and not args.free:
         raise CliError("nothing to fit: give --add EFFECT and/or --free PARAM")
     if args.max_rate_hz <= 0 or args.max_nfev < 1:
         raise CliError("--max-rate-hz must be > 0 and --max-nfev >= 1")
-    out = out_dir(args.out) if args.out else out_dir(save.parent if str(save.parent) else ".",
-                                                     option="--save (its directory)")
+    if args.out:
+        out = out_dir(args.out)
+    elif save is not None:
+        out = out_dir(save.parent if str(save.parent) else ".", option="--save (its directory)")
+    else:
+        out = out_dir(".", option="--out (default: the current directory)")
     (out / "fit.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
     records = _load_records(args.records)
     base = load_parameter_set(args.params)
@@ -85,7 +94,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
     print(f"fitting {', '.join(args.add) or '-'}" + (f" + free {', '.join(args.free)}" if args.free else "")
           + f" on {len(records)} record(s), parameter set {base.name}", file=sys.stderr)
     try:
-        rep = fit_records(records, base, add=args.add, free=args.free, save_name=save.stem, holdout=args.holdout,
+        rep = fit_records(records, base, add=args.add, free=args.free,
+                          save_name=save.stem if save is not None else f"{base.name}_fitted", holdout=args.holdout,
                           n_blocks=args.blocks, max_rate_Hz=args.max_rate_hz, max_nfev=args.max_nfev,
                           seed=args.seed, on_iteration=on_iteration, on_baseline=on_baseline)
     except FitError as exc:
@@ -93,19 +103,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     o = rep.outcome
     # --json: stdout carries the JSON document only; the tables and notes go to stderr
     say = functools.partial(print, file=sys.stderr) if args.json else print
-    try:
-        pset = rep.parameter_set
-    except FitError as exc:
-        raise CliError(str(exc)) from None
-    # the results first (the saved set, fit.json), then the figures and the report: a plotting failure never
-    # loses them
-    tmp = save.with_suffix(".toml.tmp")
-    tmp.write_text(pset.to_toml(), encoding="utf-8")
-    tmp.replace(save)
-    # check that the file loads as it will in `shm run` / the monitor
-    from plant import PlantModel
-
-    PlantModel(load_parameter_set(save))
+    pset = _save_set(rep, save) if save is not None else None
     rows = []
     for b, a in zip(rep.before, rep.after):
         rows.append([b.record, b.channel, b.part, f"{b.rms:.4g} {b.unit}", f"{b.rms_sigma:.3g}",
@@ -117,19 +115,17 @@ def cmd_fit(args: argparse.Namespace) -> int:
         say("  " + "  ".join(str(x).ljust(w) for x, w in zip(r, widths)))
     say(f"\ntraining: {rep.before_train_rms_sigma:.4g} σ → {o.train_rms_sigma:.4g} σ;  held-out: "
         f"{rep.before_held_rms_sigma:.4g} σ → {o.held_rms_sigma:.4g} σ")
-    say("estimates (± standard error from the Jacobian):")
-    for e in o.estimates:
-        say(f"  {e.describe()}")
-    if len(o.estimates) > 1:
-        names = [e.name for e in o.estimates]
-        strong = [(names[i], names[j], o.correlation[i, j]) for i in range(len(names)) for j in range(i)
-                  if abs(o.correlation[i, j]) > 0.9]
-        for first, second, c in strong:
-            say(f"  note: {first} and {second} are strongly correlated ({c:+.3f}): the data barely separate them")
+    # the fit report as lmfit prints it (statistics, variables, correlations, warnings): on the terminal's stderr
+    print("\n" + format_report(o), file=sys.stderr)
     for n in rep.notes:
-        say(f"  note: {n}")
-    say(f"saved parameter set '{pset.name}' to {save} (load it with --params {save})")
-    summary = rep.summary() | {"saved": str(save), "figures": []}
+        if "ended at a bound" not in n:  # [[Warnings]] says it
+            say(f"  note: {n}")
+    if pset is not None:
+        say(f"saved parameter set '{pset.name}' to {save} (load it with --params {save})")
+    else:
+        say("no parameter set saved (give --save NAME.toml to keep the fitted values)")
+    summary = rep.summary() | {"fit_report": report_dict(o), "saved": str(save) if save is not None else None,
+                               "figures": []}
     (out / "fit.json").write_text(dump_json(summary), encoding="utf-8")
 
     def progress_figure():
@@ -149,11 +145,48 @@ def cmd_fit(args: argparse.Namespace) -> int:
     deco.attempt("fit.html", lambda: write_html(
         out / "fit.html", f"shm fit: {base.name} + {', '.join(rep.added) or 'refit'}", verdict,
         [("Before / after", header, rows),
-         ("Estimates", ["parameter", "value", "std. error", "unit", "effect"],
-          [[e.name, f"{e.value:.5g}", f"{e.stderr:.3g}", e.unit, e.owner] for e in o.estimates])],
-        figures, rep.notes))
+         ("Fit statistics", ["quantity", "value"], _statistics_rows(fit_statistics(o))),
+         ("Estimates", ["parameter", "value", "std. error", "relative", "unit", "range", "effect"],
+          [[e.name, f"{e.value:.5g}", f"{e.stderr:.3g}",
+            f"{100 * e.stderr / abs(e.value):.2f} %" if e.value else "—", e.unit,
+            f"[{e.lower:.4g}, {e.upper:.4g}]" + (" at a bound" if e.at_bound else ""), e.owner]
+           for e in o.estimates]),
+         ("Correlations of the estimates", ["", *[e.name for e in o.estimates]],
+          [[a.name, *[f"{o.correlation[i, j]:+.3f}" for j in range(len(o.estimates))]]
+           for i, a in enumerate(o.estimates)])],
+        figures, [w.message for w in fit_warnings(o.estimates, o.correlation)]
+        + [n for n in rep.notes if "ended at a bound" not in n]))
     summary = summary | {"figures": [str(f) for f in figures]} | ({"failed": deco.failed} if deco.failed else {})
     (out / "fit.json").write_text(dump_json(summary), encoding="utf-8")
     if args.json:
         print(dump_json(summary))
     return 0 if deco.ok else 1
+
+
+def _save_set(rep, save: Path):
+    """Write the fitted parameter set to ``save`` (atomically) and check that it loads as `shm run` will load it."""
+    from board_config import load_parameter_set
+    from plant import PlantModel
+    from shm_cli.main import CliError
+    from workbench.fit import FitError
+
+    try:
+        pset = rep.parameter_set
+    except FitError as exc:
+        raise CliError(str(exc)) from None
+    # the results first (the saved set, fit.json), then the figures and the report: a plotting failure never
+    # loses them
+    tmp = save.with_suffix(".toml.tmp")
+    tmp.write_text(pset.to_toml(), encoding="utf-8")
+    tmp.replace(save)
+    PlantModel(load_parameter_set(save))
+    return pset
+
+
+def _statistics_rows(s) -> list[list[str]]:
+    return [["# data points (training samples × channels)", f"{s.n_data}"], ["# variables", f"{s.n_variables}"],
+            ["chi-square (Σ r², r in noise σ)", f"{s.chi_square:.6g}"],
+            ["reduced chi-square (≈ 1 at the noise floor)", f"{s.reduced_chi_square:.6g}"],
+            ["Akaike info crit", f"{s.aic:.6g}"], ["Bayesian info crit", f"{s.bic:.6g}"],
+            ["held-out χ²/N", f"{s.held_out_reduced_chi_square:.6g} ({s.held_out_n} samples)"],
+            ["residual lag-1 autocorrelation", f"{s.residual_lag1:.3f}"]]
