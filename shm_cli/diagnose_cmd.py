@@ -43,6 +43,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="held-out residual-energy reduction a candidate must reach to be accepted (default 0.02)")
     p.add_argument("--workers", type=int, default=1, help="candidates fitted concurrently (threads; default 1)")
     p.add_argument("--seed", type=seed_int, default=0, help="seed of the multi-start design")
+    p.add_argument("--no-discover", action="store_true",
+                   help="when the library and the parameters fall short (more than 1.5 σ held out), do not run the "
+                        "discovery step (shm discover) and only print its command")
     p.add_argument("--json", action="store_true", help="print the diagnosis as JSON on stdout")
     add_out_arg(p)
     p.set_defaults(func=cmd_diagnose)
@@ -72,7 +75,9 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
             d = diagnose(records, args.params, candidates, holdout=args.holdout, n_blocks=args.blocks,
                          max_rate_Hz=args.max_rate_hz, min_reduction=args.min_reduction, workers=args.workers,
                          seed=args.seed, fit_top=args.fit_top or None, combine=not args.no_combine,
-                         params_label=args.params, reporter=reporter)
+                         params_label=args.params, reporter=reporter,
+                         emit_dir=None if args.no_discover else out,
+                         on_discover=lambda m: reporter.write(f"diagnose: discover: {m}"))
     except FitError as exc:
         raise CliError(str(exc)) from None
     rows = []
@@ -97,6 +102,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
             + ", ".join(f"{c.effect} {c.screen_train_rms_sigma:.3g}" for c in screened))
     if len(d.steps) > 1:
         say("  forward selection: " + " → ".join(f"{c.effect} ({c.held_rms_sigma:.3g} σ)" for c in d.steps))
+    if args.no_discover and d.verdict in ("partial", "unexplained"):
+        d.discover["reason"] = "--no-discover"
     say()
     say(d.message)
     for n in d.notes:

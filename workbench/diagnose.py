@@ -36,6 +36,7 @@ import time
 from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -66,7 +67,10 @@ from workbench.candidates import (
     screen_effects,
     screen_parameters,
 )
+from workbench.diagnose_discovery import discovery_section, discovery_step
+from workbench.diagnose_evidence import Judgement, judge_winner
 from workbench.diagnose_progress import DiagnoseProgress, SilentProgress
+from workbench.diagnose_rules import why_not_named
 from workbench.effect_library import LIBRARY, resolve_candidates
 from workbench.fit import (
     DEFAULT_BLOCKS,
@@ -128,6 +132,7 @@ class Diagnosis:
     evidence: list[Any] = field(default_factory=list)
     #: the discovery step run when the library and the parameters fall short (``shm diagnose`` fills it)
     discover: dict[str, Any] = field(default_factory=dict)
+    judgement: Judgement | None = None
 
     @property
     def ranked_names(self) -> list[str]:
@@ -244,7 +249,8 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
              min_reduction: float = MIN_REDUCTION, workers: int = 1, max_nfev: int = 30, seed: int = 0,
              progress: Callable[[str, CandidateResult | None], None] | None = None,
              batched_jacobian: bool = True, fit_top: int | None = FIT_TOP, combine: bool = True,
-             params_label: str | None = None, reporter: DiagnoseProgress | None = None) -> Diagnosis:
+             params_label: str | None = None, reporter: DiagnoseProgress | None = None,
+             emit_dir: str | Path | None = None, on_discover: Callable[[str], None] | None = None) -> Diagnosis:
     """Rank ``candidates`` (default: the library and every core-parameter re-estimation; names of effects, of
     core parameters or of parameter groups) by how much of the held-out residual each explains, combine, explain.
 
@@ -253,6 +259,9 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     integrator releases the GIL). ``batched_jacobian=False`` integrates the Jacobian's columns one at a time
     (the benchmark's baseline). ``progress(name, result)`` is called when a candidate starts (result None)
     and when it is done. ``params_label``: how the fit command names the parameter set (default its name).
+    ``emit_dir``: when the library and the parameters fall short, run the discovery step
+    (:mod:`workbench.diagnose_discovery`) and write what it finds there as an effect file (None: no discovery;
+    ``on_discover(message)`` hears its progress).
     ``reporter`` hears each stage start (:data:`workbench.diagnose_progress.STAGES`) and each unit of work done.
     """
     from workbench.diagnose_verdict import verdict_for
@@ -382,10 +391,8 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
                          f"{final.delta_bic_held:.4g}, {wall:.3g} s)")
             timings[f"forward_selection_from_{label}_s"] = wall
     timings["forward_selection_s"] = time.perf_counter() - t0
-    rep.stage("residual tests", None, "and where the nominal model fails")
-    t1 = time.perf_counter()
-    tests_before = run_residual_tests(targets, base_sim)
     best_set = winner
+    judged: Judgement | None = None
     t1 = time.perf_counter()
     if winner is not None:  # what the verdict may name of the best set (workbench.diagnose_rules)
         judged = judge_winner(winner, base, targets, base_held, base_obj.residuals(base_sim, "all")[0],
@@ -396,7 +403,9 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
             steps = [s for s in steps if winner is not None and set(s.members) <= set(winner.members)]
             term_shares, without_sigma = judged.shares(rss0_held)
     timings["naming_rule_s"] = time.perf_counter() - t1
+    rep.stage("residual tests", None, "and where the nominal model fails")
     t1 = time.perf_counter()
+    tests_before = run_residual_tests(targets, base_sim)
     tests_after = run_residual_tests(targets, winner.outcome.sim) if winner and winner.outcome else []
     where = where_it_fails(targets, base_sim)
     timings["residual_tests_and_localisation_s"] = time.perf_counter() - t1
@@ -404,19 +413,26 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     if any("estimated" in s for tg in targets for s in tg.sigma_source):
         notes.append("the noise level was estimated from the data (no noise_std in the record metadata): "
                      "errors quoted in σ are only as good as that estimate")
+    if judged is not None:
+        notes += [f"not named in the verdict: {e.name} — {why_not_named(e)}" for e in judged.evidence
+                  if why_not_named(e)]
     if len(paths) > 1:
         notes.append("the greedy forward selection fell short of the noise floor, so it was started again from "
                      "other candidates (and a re-estimation swapped for an effect); paths tried: " + "; ".join(paths))
     d = Diagnosis("", "", winner, ranking, base_train, base_held, channel_scores(targets, base_sim), where,
                   tests_before, tests_after, targets, base_sim, base.name, timings, notes, steps,
                   term_shares=term_shares, without_sigma=without_sigma, selection_paths=paths,
-                  best_set=best_set, evidence=judged.evidence if best_set is not None else [])
-    if best_set is not None:
-        d.identifiability_found = judged
+                  best_set=best_set, evidence=judged.evidence if judged else [], judgement=judged)
     rep.stage("verdict")
     t1 = time.perf_counter()
-    verdict_for(d, base, params_label or (params if isinstance(params, str) else base.name))
+    label = params_label or (params if isinstance(params, str) else base.name)
+    verdict_for(d, base, label)
     timings["verdict_s"] = time.perf_counter() - t1
+    if emit_dir is not None:
+        discovery_step(d, records, base, label, emit_dir, holdout=holdout, n_blocks=n_blocks,
+                       max_rate_Hz=max_rate_Hz, on_progress=on_discover)
+    else:
+        d.discover = discovery_section(None, ran=False, reason="not asked (no directory for an effect file)")
     timings["total_s"] = time.perf_counter() - t_start
     return d
 

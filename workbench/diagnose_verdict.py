@@ -9,7 +9,8 @@ from collections.abc import Sequence
 from typing import Any
 
 from board_config import ParameterSet
-from workbench.candidate_fit import AT_NOISE_FLOOR, CandidateResult, explained
+from workbench.candidate_fit import AT_NOISE_FLOOR, CandidateResult
+from workbench.diagnose_rules import CURE_AT_MOST_SIGMA, excess_share, head_kind
 from workbench.residual_tests import ResidualTests
 
 #: how parameter values are shown: SI unit -> (factor, shown unit)
@@ -17,8 +18,18 @@ _SHOW = {"kg": (1e3, "g"), "F": (1e6, "µF"), "m/V": (1e6, "µm/V"), "ohm": (1.0
 
 
 def show(value: float, unit: str) -> str:
-    f, u = _SHOW.get(unit, (1.0, unit))
+    f, u = _SHOW.get(unit, (1.0, "" if unit == "1" else unit))
     return f"{value * f:.4g} {u}".strip()
+
+
+def percent_change(rel: float) -> str:
+    """'+50 %', '-5 %', '+0.38 %' (a change below 1 % keeps two digits: never a '+0 %' that hides it)."""
+    return f"{100 * rel:+.2g} %" if abs(rel) < 0.01 else f"{100 * rel:+.0f} %"
+
+
+def records_arg(d: Any) -> str:
+    """The diagnosed records as shell arguments."""
+    return _records_arg(d)
 
 
 def _failed_names(tests: Sequence[ResidualTests]) -> list[str]:
@@ -52,8 +63,9 @@ def discover_command(d: Any, params_label: str) -> str:
     return f"shm discover {_records_arg(d)} --params {shlex.quote(params_label)} --emit my_effect.py --out discover"
 
 
-def parameter_words(cand: CandidateResult, base: ParameterSet) -> str:
-    """'m3 is wrong: 2.09 g instead of 1.39 g (+50 %)' (or a group scaled together, or a pair)."""
+def parameter_words(cand: CandidateResult, base: ParameterSet, wrong: bool = True) -> str:
+    """'m3 is wrong: 2.09 g instead of 1.39 g (+50 %)' (or a group scaled together, or a pair); with ``wrong``
+    False, 'm3 re-estimated: 2.09 g instead of 1.39 g (+50 %)' (a part of the story, not its cure)."""
     o = cand.outcome
     spec = cand.spec
     assert o is not None and spec is not None
@@ -64,15 +76,16 @@ def parameter_words(cand: CandidateResult, base: ParameterSet) -> str:
             s = est[pc.scale_name].value
             changes = ", ".join(f"{n} {show(base.values[n], _unit(n))} → {show(base.values[n] * s, _unit(n))}"
                                 for n in pc.members)
-            phrases.append(f"{pc.description} are off by the same factor: ×{s:.3g} ({100 * (s - 1):+.0f} %; "
+            phrases.append(f"{pc.description} are off by the same factor: ×{s:.3g} ({percent_change(s - 1)}; "
                            f"{changes})")
             continue
         bits = []
         for n in pc.members:
             e = est[n]
             old = float(base.values[n])
-            rel = f" ({100 * (e.value / old - 1):+.0f} %)" if old != 0 else ""
-            bits.append(f"{n} is wrong: {show(e.value, e.unit)} instead of {show(old, e.unit)}{rel}")
+            rel = f" ({percent_change(e.value / old - 1)})" if old != 0 else ""
+            bits.append(f"{n} {'is wrong' if wrong else 're-estimated'}: {show(e.value, e.unit)} instead of "
+                        f"{show(old, e.unit)}{rel}")
         phrases.append("; ".join(bits))
     return "; ".join(phrases)
 
@@ -83,14 +96,14 @@ def _unit(name: str) -> str:
     return CORE_SCHEMA[name].unit
 
 
-def _effect_words(cand: CandidateResult) -> str:
+def _effect_words(cand: CandidateResult, missing: bool = True) -> str:
     if cand.spec is None or not cand.spec.effects or cand.outcome is None:
         return cand.effect
     est = {e.name: e for e in cand.outcome.estimates}
     out = []
     for cls in cand.spec.effects:
         vals = ", ".join(est[p.name].describe() for p in cls.own_parameters() if p.name in est)
-        out.append(f"{cls.name} is missing ({cls.description}; {vals})")
+        out.append(f"{cls.name} {'is missing' if missing else 'added'} ({cls.description}; {vals})")
     return "; ".join(out)
 
 
@@ -111,6 +124,7 @@ def term_shares_words(d: Any, cand: CandidateResult) -> str:
 
 
 def identifiability_lines(d: Any, cand: CandidateResult, base: ParameterSet) -> list[str]:
+    """What the records cannot tell apart about ``cand`` (the confusions the naming rule measured are reused)."""
     from workbench.identifiability import confusions
 
     lines = []
@@ -132,10 +146,15 @@ def identifiability_lines(d: Any, cand: CandidateResult, base: ParameterSet) -> 
         for n in pc.members:
             about.append(n)
             fitted[n] = float(base.values[n]) * est[pc.scale_name] if pc.tied else est[n]
-    try:
-        conf, closest = confusions(d.targets, base, fitted, about)
-    except (ValueError, KeyError) as exc:  # a short or odd record: say so rather than fail the diagnosis
-        return [*lines, f"identifiability not assessed ({exc})"]
+    judged = getattr(d, "judgement", None)
+    if judged is not None and all(a in judged.closest for a in about):
+        conf = [c for c in judged.confusions if c.a in about and c.b not in about]
+        closest = judged.closest
+    else:
+        try:
+            conf, closest = confusions(d.targets, base, fitted, about)
+        except (ValueError, KeyError) as exc:  # a short or odd record: say so rather than fail the diagnosis
+            return [*lines, f"identifiability not assessed ({exc})"]
     for c in conf:
         best_kind, best_rho, best_se = c.separating[0]
         tail = (f"a {best_kind} test separates them ({c.a} to ±{100 * best_se:.2g} % with both free, ρ = "
@@ -152,89 +171,128 @@ def identifiability_lines(d: Any, cand: CandidateResult, base: ParameterSet) -> 
 
 
 def verdict_kind(winner_kind: str | None, explained_by_winner: bool, base_held_sigma: float) -> str:
-    """The verdict's kind (docs/workbench.md, "Verdicts"): no accepted candidate → "nothing_missing" when the nominal
-    model is at the noise floor (held-out RMS ≤ :data:`AT_NOISE_FLOOR` σ), else "unexplained"; a winner that does not
-    bring the held-out error to the noise floor (:func:`explained`) → "partial"; otherwise by the winner's kind: a
-    re-estimation → "wrong_parameter", an effect → "missing", a set → "combination"."""
-    if winner_kind is None:
-        return "nothing_missing" if base_held_sigma <= AT_NOISE_FLOOR else "unexplained"
-    if not explained_by_winner:
-        return "partial"
-    return {"parameter": "wrong_parameter", "effect": "missing"}.get(winner_kind, "combination")
+    """The verdict's kind (docs/workbench.md, "Verdicts") from the kind of the set the verdict may name and whether
+    it reaches the noise floor: :func:`workbench.diagnose_rules.head_kind`."""
+    kinds = ([] if winner_kind is None else ["parameter", "effect"] if winner_kind == "combination"
+             else [winner_kind])
+    return head_kind(kinds, 1.0 if explained_by_winner else math.inf, base_held_sigma, AT_NOISE_FLOOR)
+
+
+def member_kinds(cand: CandidateResult | None) -> list[str]:
+    """The kinds of ``cand``'s members, in order ("parameter" or "effect")."""
+    if cand is None or cand.spec is None:
+        return [] if cand is None else [cand.kind]
+    return ["effect"] * len(cand.spec.effects) + ["parameter"] * len(cand.spec.params)
+
+
+def percent_share(share: float) -> str:
+    """'62 %', '99.9 %' (never rounded up to a whole 100 % that was not reached)."""
+    if share >= 0.995 and share < 1.0:
+        return f"{math.floor(share * 1000) / 10:.1f} %"
+    return f"{100 * share:.0f} %"
+
+
+def part_words(cand: CandidateResult, base: ParameterSet) -> str:
+    """What a set changes, as a part of the story: 'k1 re-estimated: … (−5 %); geometric_stiffening added (…)'."""
+    parts = []
+    spec = cand.spec
+    if spec is not None and spec.params:
+        from workbench.candidates import CandidateSpec
+
+        sub = CandidateResult(cand.effect, "", "", "", cand.free, cand.outcome, spec=CandidateSpec(params=spec.params))
+        parts.append(parameter_words(sub, base, wrong=False))
+    if spec is not None and spec.effects:
+        parts.append(_effect_words(cand, missing=False))
+    return "; ".join(parts) or cand.effect
+
+
+def _nothing_missing(d: Any, failed_before: Sequence[str]) -> str:
+    base_held = d.baseline_held_rms_sigma
+    best = next((c for c in d.ranking if c.stable and c.outcome is not None), None)
+    msg = (f"Nothing missing: the nominal model already explains the held-out data to the noise floor "
+           f"({base_held:.3g} σ RMS), and no candidate reduces the held-out error by the required margin")
+    if best is not None and best.held_reduction > 0 and best.delta_bic_held > 10:
+        msg += (f". Note: the best candidate is significant on the held-out data (ΔBIC {best.delta_bic_held:.3g}) "
+                "but changes too little to matter here; a longer record or less noise would tell")
+    if failed_before:
+        msg += f". Residual tests that still fail: {', '.join(failed_before)}"
+    return msg + "."
+
+
+def _unexplained(d: Any, failed_before: Sequence[str]) -> str:
+    msg = (f"The library and the core parameters explain none of the excess over the noise that these records can "
+           f"attribute: the nominal model misses the held-out data by {d.baseline_held_rms_sigma:.3g} σ RMS, and no "
+           "candidate effect or parameter re-estimation removes enough of it on held-out data while being "
+           "identifiable, away from its bounds, changing the prediction by more than the noise and costing more "
+           "than the noise when removed")
+    msg += ". Where it fails: " + " | ".join(d.where_it_fails)
+    if failed_before:
+        msg += f". Failed residual tests: {', '.join(failed_before)}"
+    return msg + "."
+
+
+def _cure_head(d: Any, winner: CandidateResult, base: ParameterSet, kind: str, cut: str) -> str:
+    if kind == "wrong_parameter":
+        return f"{parameter_words(winner, base)} — re-estimate it. Re-estimating {winner.effect} {cut}"
+    if kind == "missing":
+        return f"Missing effect: {winner.effect} — {winner.description}. Adding it {cut}"
+    words = [f"{step.effect} alone: {step.held_rms_sigma:.3g} σ" for step in d.steps]
+    parts = []
+    spec = winner.spec
+    if spec is not None and spec.params:
+        from workbench.candidates import CandidateSpec
+
+        sub = CandidateResult(winner.effect, "", "", "", winner.free, winner.outcome,
+                              spec=CandidateSpec(params=spec.params))
+        parts.append(parameter_words(sub, base))
+    if spec is not None and spec.effects:
+        parts.append(_effect_words(winner))
+    head = (f"{'Two' if len(winner.members) == 2 else 'Several'} things at once: {'; and '.join(parts)}. "
+            f"Together they {cut.replace('cuts', 'cut', 1)}")
+    if words:
+        head += f"; found step by step ({', '.join(words)})"
+    shares = term_shares_words(d, winner)
+    if shares:
+        head += f". What each explains: {shares}"
+    return head
 
 
 def verdict_for(d: Any, base: ParameterSet, params_label: str) -> None:
-    """Fill ``d.verdict``, ``d.message``, ``d.fit_command``, ``d.next_command``, ``d.identifiability``."""
+    """Fill ``d.verdict``, ``d.message``, ``d.fit_command``, ``d.next_command``, ``d.identifiability``.
+
+    ``d.winner`` is what the verdict may name (the members of the best set that pass the naming rule, fitted
+    together: :mod:`workbench.diagnose_evidence`); its first sentence follows
+    :func:`workbench.diagnose_rules.head_kind`: a cure only when the named set reaches
+    :data:`~workbench.diagnose_rules.CURE_AT_MOST_SIGMA` held out, otherwise the share of the excess over the noise
+    that the library and the core parameters explain."""
     winner = d.winner
     base_held = d.baseline_held_rms_sigma
-    ranking = d.ranking
     failed_before = _failed_names(d.tests_before)
     discover = discover_command(d, params_label)
-    if winner is None:
-        best = next((c for c in ranking if c.stable and c.outcome is not None), None)
-        verdict = verdict_kind(None, False, base_held)
-        if verdict == "nothing_missing":
-            msg = (f"Nothing missing: the nominal model already explains the held-out data to the noise floor "
-                   f"({base_held:.3g} σ RMS), and no candidate reduces the held-out error by the required margin")
-            if best is not None:
-                msg += f" (best: {best.effect}, {100 * best.held_reduction:+.2g} % of the held-out residual energy)"
-                if best.delta_bic_held > 10 and best.held_reduction > 0:
-                    msg += (f". Note: {best.effect} is significant on the held-out data "
-                            f"(ΔBIC {best.delta_bic_held:.3g}) but too small to matter here; a longer record or less "
-                            "noise would tell")
-            if failed_before:
-                msg += f". Residual tests that still fail: {', '.join(failed_before)}"
-            d.verdict, d.message = verdict, msg + "."
+    held = winner.held_rms_sigma if winner is not None else base_held
+    kind = head_kind(member_kinds(winner), held, base_held, AT_NOISE_FLOOR)
+    if kind == "nothing_missing" or winner is None:
+        if kind == "nothing_missing":
+            d.verdict, d.message = kind, _nothing_missing(d, failed_before)
             return
-        msg = (f"Not explained by the library: the nominal model misses the held-out data by {base_held:.3g} σ RMS, "
-               "but no candidate effect or parameter re-estimation removes enough of it on held-out data")
-        if best is not None:
-            msg += (f" (best: {best.effect}, {100 * best.held_reduction:.3g} % of the residual energy, "
-                    f"ΔBIC {best.delta_bic_held:.3g})")
-        msg += ". Where it fails: " + " | ".join(d.where_it_fails)
-        if failed_before:
-            msg += f". Failed residual tests: {', '.join(failed_before)}"
-        msg += f".\nLook for the missing term beyond the library:\n  {discover}"
-        d.verdict, d.message, d.next_command = verdict, msg, discover
+        d.verdict, d.next_command = kind, discover
+        d.message = _unexplained(d, failed_before) + f"\nLook for the missing term beyond the library:\n  {discover}"
         return
     d.fit_command = fit_command(d, winner, params_label)
-    ok = explained(winner.held_rms_sigma, base_held, winner.n_eff_held)
-    kind = winner.kind
     cut = (f"cuts the held-out residual from {base_held:.3g} σ to {winner.held_rms_sigma:.3g} σ RMS "
            f"({100 * winner.held_reduction:.3g} % of the residual energy; ΔBIC {winner.delta_bic_held:.4g} against "
            "the nominal model)")
-    runner = next((c for c in ranking if c is not winner and c.accepted and c.members != winner.members), None)
-    if kind == "parameter":
-        head = f"{parameter_words(winner, base)} — re-estimate it. Re-estimating {winner.effect} {cut}"
-    elif kind == "effect":
-        head = (f"Missing effect: {winner.effect} — {winner.description}. Adding it {cut}" if ok else
-                f"Partly explained by {winner.effect} — {winner.description}. Adding it {cut}")
+    if kind == "partial":
+        share = excess_share(base_held, winner.held_rms_sigma)
+        msg = (f"The library and the core parameters explain only {percent_share(share)} of the excess over the "
+               f"noise: the most they reach with members these records show ({part_words(winner, base)}) "
+               f"{cut.replace('cuts', 'cut', 1)} — above the {CURE_AT_MOST_SIGMA:g} σ a cure must reach")
     else:
-        words = []
-        for step in d.steps:
-            words.append(f"{step.effect} alone: {step.held_rms_sigma:.3g} σ")
-        parts = []
-        spec = winner.spec
-        if spec is not None and spec.params:
-            from workbench.candidates import CandidateSpec
-
-            sub = CandidateResult(winner.effect, "", "", "", winner.free, winner.outcome,
-                                  spec=CandidateSpec(params=spec.params))
-            parts.append(parameter_words(sub, base))
-        if spec is not None and spec.effects:
-            parts.append(_effect_words(winner))
-        head = (f"{'Two' if len(winner.members) == 2 else 'Several'} things at once: {'; and '.join(parts)}. "
-                f"Together they {cut.replace('cuts', 'cut', 1)}; found step by step ({', '.join(words)})")
-        shares = term_shares_words(d, winner)
-        if shares:
-            head += f". What each explains: {shares}"
-    msg = head
-    if runner is not None and kind != "combination":
-        msg += f"; runner-up {runner.effect} ({runner.held_rms_sigma:.3g} σ, ΔBIC {runner.delta_bic_held:.4g})"
+        msg = _cure_head(d, winner, base, kind, cut)
     msg += f". Fitted: {winner.estimates_text()}."
     if winner.widened:
         msg += f" Range widened after the fit ended at a bound: {'; '.join(winner.widened)}."
-    if kind == "effect" and winner.signature:
+    if kind == "missing" and winner.signature:
         msg += f" Its signature: {winner.signature}"
     if failed_before:
         after = _failed_names(d.tests_after)
@@ -247,10 +305,10 @@ def verdict_for(d: Any, base: ParameterSet, params_label: str) -> None:
     d.identifiability = identifiability_lines(d, winner, base)
     if d.identifiability:
         msg += " Identifiability: " + "; ".join(d.identifiability) + "."
-    msg += f"\nFit it:\n  {d.fit_command}"
-    if not ok:
-        msg += (f"\nThe fitted model is still {winner.held_rms_sigma:.3g} σ from the held-out data (noise floor 1 σ), "
-                "so this is at best part of the story. Where the nominal model fails: " + " | ".join(d.where_it_fails)
-                + f"\nLook for the rest beyond the library:\n  {discover}")
+    if kind == "partial":
+        msg += (f"\nThat part alone:\n  {d.fit_command}\nWhere the nominal model fails: "
+                + " | ".join(d.where_it_fails) + f"\nLook for the rest beyond the library:\n  {discover}")
         d.next_command = discover
-    d.verdict, d.message = verdict_kind(kind, ok, base_held), msg
+    else:
+        msg += f"\nFit it:\n  {d.fit_command}"
+    d.verdict, d.message = kind, msg
