@@ -17,6 +17,13 @@ Two clock modes:
     in-process link's order (``drivers.sim_link.InProcessLink``). The board then runs in virtual time against
     a rig across a real port, so a run over a link is reproducible and comparable with the in-process link.
 
+A new board run — its command counter (the board's tick, ``ActuatorCommand.seq``) starts again below the last one
+seen; a link that reconnects in the middle of a run keeps counting up — is counted (``board_runs``). In lockstep mode,
+with a ``restart`` factory (``shm hil serve`` gives one), the rig then starts again as it was built: the scenario
+plays from t = 0 for every board run, as the in-process link does, so consecutive board runs against one served stub
+each get their maintenance visit and verdict. A real-time rig plays its scenario once, on the wall clock; a new board
+run is logged as an incident saying so.
+
 Rig-side checks, independent of the board: every command is checked against Table 1 limits
 (``board_config.load_mfc_limits``) before it reaches the rig; a refused one is counted, the last valid output
 stays applied, and samples carry ``FLAG_LIMIT_REFUSED`` until the next accepted command. Commands are
@@ -114,7 +121,8 @@ class RigHost:
     def __init__(self, endpoint: RigEndpoint, *, dt: float = 0.01, mode: str = "realtime",
                  limits: MfcLimits | None = None, start: str = "first-command",
                  clock: Callable[[], float] = time.perf_counter, keep_lateness: bool = False,
-                 on_tick: Callable[[Snapshot], None] | None = None) -> None:
+                 on_tick: Callable[[Snapshot], None] | None = None,
+                 restart: Callable[[], RigEndpoint] | None = None) -> None:
         if mode not in ("realtime", "lockstep"):
             raise InputError(f"rig clock mode {mode!r}: allowed realtime, lockstep")
         if start not in ("first-command", "now"):
@@ -145,6 +153,10 @@ class RigHost:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._link_down_fn = getattr(endpoint, "link_down", None)
+        self._restart = restart
+        self._last_seq: int | None = None
+        self.board_runs = 0  #: board runs seen (a command counter that started again counts a new one)
+        self.restarts = 0  #: times the lockstep rig started again for a new board run
         self._snapshot = self._make_snapshot()
 
     # ------------------------------------------------------------------------------------------ snapshot
@@ -185,6 +197,7 @@ class RigHost:
     def submit(self, command: ActuatorCommand, source: str = "") -> Delivery:
         """A command from a server. In lockstep mode this advances the rig one tick (also when undelivered)."""
         self.commands += 1
+        self._note_board_run(command.seq & 0xFFFFFFFF, source)
         if not self._clock_running:
             self._clock_running = True
         if self.link_down():
@@ -207,6 +220,47 @@ class RigHost:
             with self._lock:
                 self._step_locked()
         return Delivery.REFUSED if why is not None else Delivery.ACCEPTED
+
+    # ------------------------------------------------------------------------------------------ board runs
+    def _note_board_run(self, seq: int, source: str) -> None:
+        """Count a new board run when the command counter starts again; restart a lockstep rig for it."""
+        last, self._last_seq = self._last_seq, seq
+        if last is None:
+            self.board_runs = 1
+            return
+        if seq >= last or (last >= 0xFFFF0000 and seq < 0x10000):  # the same run (or its counter wrapping)
+            return
+        self.board_runs += 1
+        where = f" on {source}" if source else ""
+        if self.mode == "lockstep" and self._restart is not None:
+            if self._tick > 0:
+                self._start_again(f"board run {self.board_runs}{where} (its command counter started again at {seq})")
+            return
+        self.incident(f"board run {self.board_runs}{where}: its command counter started again ({last} -> {seq}); "
+                      f"the {self.mode} rig plays its scenario on at t = {self._snapshot.sample.t:.2f} s (a real-time "
+                      "rig plays it once: restart `shm hil serve`, or serve with --clock lockstep)")
+
+    def _start_again(self, why: str) -> None:
+        """The rig as it was built (a fresh endpoint from the ``restart`` factory) for a new board run."""
+        assert self._restart is not None
+        try:
+            endpoint = self._restart()
+        except Exception as exc:  # keep serving the old rig rather than fail the board's exchange
+            self.incident(f"{why}: could not start the rig again ({exc!r}); it plays on at t = "
+                          f"{self._snapshot.sample.t:.2f} s")
+            return
+        with self._lock:
+            with self._mail_lock:
+                self._pending = None
+            self.endpoint = endpoint
+            self._link_down_fn = getattr(endpoint, "link_down", None)
+            self._applied = ActuatorCommand(seq=0)
+            self._refused_flag = False
+            self.accepted_seq = 0
+            self._tick = 0
+            self._snapshot = self._make_snapshot()
+        self.restarts += 1
+        log.info("%s: the rig starts again from t = 0", why)
 
     # ------------------------------------------------------------------------------------------ ticking
     def _step_locked(self, deliver: bool = True) -> None:

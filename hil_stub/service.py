@@ -9,6 +9,10 @@
         ...
     print(hil.summary())
 
+With ``restart`` (a factory of fresh endpoints, e.g. ``lambda: build_truth_rig(...)``) a lockstep service starts
+the rig again for every new board run (:class:`~hil_stub.rig_host.RigHost`): the next rig is built in the background
+while the current one serves, so the swap costs the board's first exchange nothing.
+
 Sensor faults of the plan wrap the endpoint (:class:`~hil_stub.faults.SensorFaultRig`); wire faults go to every
 server, each with its own seeded random stream; truth changes (deviations, effects) must already be in the
 endpoint (:func:`hil_stub.truth.build_truth_rig`).
@@ -18,6 +22,8 @@ from __future__ import annotations
 
 import contextlib
 import sys
+from collections.abc import Callable
+from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, TypeVar
 
 from drivers.link import RigEndpoint
@@ -38,16 +44,44 @@ class HilService:
     """A rig host plus its servers (see the module docstring)."""
 
     def __init__(self, endpoint: RigEndpoint, *, mode: str = "realtime", dt: float = 0.01,
-                 plan: FaultPlan | None = None, start: str = "first-command", keep_lateness: bool = False) -> None:
+                 plan: FaultPlan | None = None, start: str = "first-command", keep_lateness: bool = False,
+                 restart: Callable[[], RigEndpoint] | None = None) -> None:
         self.plan = plan or FaultPlan()
-        if self.plan.sensors.active:
-            endpoint = SensorFaultRig(endpoint, self.plan.sensors, self.plan.seed)
-        self.endpoint = endpoint
-        self.host = RigHost(endpoint, dt=dt, mode=mode, start=start, keep_lateness=keep_lateness)
+        self.endpoint = self._with_faults(endpoint)
+        self._build = restart if mode == "lockstep" else None
+        self._builder: ThreadPoolExecutor | None = None
+        self._spare: Future | None = None
+        self.host = RigHost(self.endpoint, dt=dt, mode=mode, start=start, keep_lateness=keep_lateness,
+                            restart=self._next_rig if self._build is not None else None)
         self.servers: list[FrameServer | ModbusRigServer] = []
         self._loop: LoopThread | None = None
         self._started = False
         self._switch_interval: float | None = None
+
+    def _with_faults(self, endpoint: RigEndpoint) -> RigEndpoint:
+        if self.plan.sensors.active:  # a fresh wrapper: its noise stream starts again from the plan's seed
+            return SensorFaultRig(endpoint, self.plan.sensors, self.plan.seed)
+        return endpoint
+
+    def _build_spare(self) -> None:
+        """Start building the rig the next board run will get (in the background)."""
+        if self._build is None:
+            return
+        if self._builder is None:
+            self._builder = ThreadPoolExecutor(max_workers=1, thread_name_prefix="rig-spare")
+        self._spare = self._builder.submit(self._build)
+
+    def _next_rig(self) -> RigEndpoint:
+        """A rig as built at the start, for a new board run (the spare, then the next spare is started)."""
+        spare, self._spare = self._spare, None
+        if spare is None:
+            assert self._build is not None
+            fresh = self._build()
+        else:
+            fresh = spare.result()
+        self._build_spare()
+        self.endpoint = self._with_faults(fresh)
+        return self.endpoint
 
     @property
     def loop(self) -> LoopThread:
@@ -90,12 +124,17 @@ class HilService:
             for srv in self.servers:
                 srv.start()
             self.host.start()
+            self._build_spare()
         except Exception:
             self.stop()
             raise
 
     def stop(self) -> None:
         self.host.stop()
+        if self._builder is not None:
+            self._builder.shutdown(wait=False, cancel_futures=True)
+            self._builder = None
+            self._spare = None
         for srv in self.servers:
             with contextlib.suppress(Exception):
                 srv.stop()
@@ -121,6 +160,7 @@ class HilService:
         return {
             "mode": h.mode, "tick_s": h.dt, "rig_time_s": snap.sample.t, "rig_ticks": snap.tick,
             "commands": h.commands, "refused": h.refused_count, "undelivered": h.undelivered,
+            "board_runs": h.board_runs, "rig_restarts": h.restarts,
             "incidents": h.incident_count, "pacing": h.pacing.summary() if h.mode == "realtime" else None,
             "servers": {srv.describe(): {**dict(srv.stats), **srv.faulter.counts()} for srv in self.servers},
             "faults": self.plan.describe(),

@@ -78,7 +78,8 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="HV equipment presence: follow the scenario (default), or force it")
     r.add_argument("--clock", choices=("realtime", "lockstep"), default="realtime",
                    help="realtime: 100 Hz wall-clock loop (run the board with --realtime); lockstep: one tick per "
-                        "board command (run the board in virtual time)")
+                        "board command (run the board in virtual time); every new board run starts the lockstep rig "
+                        "again from t = 0, a real-time rig plays its scenario once")
     r.add_argument("--start", choices=("first-command", "now"), default="first-command",
                    help="when rig time starts (default: at the board's first command)")
     r.add_argument("--duration", type=positive_float, default=None, metavar="S",
@@ -136,6 +137,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
         raise CliError(f"--duration {args.duration!r}: must be > 0 s")
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s: %(message)s", stream=sys.stderr)
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+    # at once, before the imports and the truth plant's kernels (a cold cache compiles them: announced by the plant)
+    print(f"shm hil: building the rig ({'scenario ' + args.scenario if args.scenario else 'bench rig'}); the "
+          f"endpoints open when it is ready …", file=sys.stderr, flush=True)
     from board_config.scenario import load_scenario
     from hil_stub.service import HilService
     from hil_stub.truth import build_truth_rig
@@ -145,9 +149,13 @@ def cmd_serve(args: argparse.Namespace) -> int:
     plan = fault_plan(args, seed)
     hv = {"scenario": None, "present": True, "absent": False}[args.hv]
     # real time: integrate tick by tick (an idle rig would otherwise integrate 50 ticks in one go, a ~0.1 s step)
-    rig = build_truth_rig(scenario, seed=seed, params=args.params, truth=plan.truth, hv_present=hv,
-                          lookahead_ticks=1 if args.clock == "realtime" else None)
-    service = HilService(rig, mode=args.clock, plan=plan, start=args.start)
+    def build():
+        return build_truth_rig(scenario, seed=seed, params=args.params, truth=plan.truth, hv_present=hv,
+                               lookahead_ticks=1 if args.clock == "realtime" else None)
+
+    rig = build()
+    # lockstep: every board run gets the rig from t = 0 (docs/real-rig.md); a real-time rig plays its scenario once
+    service = HilService(rig, mode=args.clock, plan=plan, start=args.start, restart=build)
     for where in args.serial:
         service.add_serial(where, baudrate=args.baud)
     for where in args.modbus_tcp:
@@ -174,7 +182,9 @@ def cmd_serve(args: argparse.Namespace) -> int:
         print(f"shm hil: rig {desc['params']}"
               + (f", scenario {desc['scenario']}" if desc["scenario"] else ", no scenario (bench rig)")
               + f", seed {seed}; clock {args.clock} at {1 / service.host.dt:g} Hz"
-              + (", rig time starts at the board's first command" if args.start == "first-command" else ""),
+              + (", rig time starts at the board's first command" if args.start == "first-command" else "")
+              + ("; every board run starts the rig again from t = 0" if args.clock == "lockstep" else
+                 "; the scenario plays once (one board run per stub run)"),
               flush=True)
         for srv in service.servers:
             print(f"  {srv.describe()}", flush=True)

@@ -259,7 +259,9 @@ def test_shm_hil_serve_end_to_end(tmp_path):
     import json
 
     s = json.loads(summary.read_text())
-    assert s["commands"] == 20 and s["rig_ticks"] == 20 and "noise on z3: sigma 1e-06 m" in s["faults"]
+    assert s["commands"] == 20 and "noise on z3: sigma 1e-06 m" in s["faults"]
+    # the second link's commands count from 1 again: a new board run, for which the lockstep rig starts again
+    assert s["board_runs"] == 2 and s["rig_restarts"] == 1 and s["rig_ticks"] == 10
 
 
 def test_shm_hil_serve_rejects_bad_input():
