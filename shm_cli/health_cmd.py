@@ -49,6 +49,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--locate-visits", type=int, default=1, metavar="N",
                    help="place the stiffness loss on the last N visits, not only the latest (location.history; "
                         "about 6 s of CPU per visit; default 1)")
+    p.add_argument("--evaluate", action="store_true",
+                   help="score the prognosis on a life whose truth is known (the board's verdicts in a run's "
+                        "usage.db, or true parameters in synthetic records): the forecast rebuilt as of every visit "
+                        "before the true first FAULT, alpha-lambda accuracy, prognostic horizon, relative accuracy "
+                        "(ProgPy / Saxena et al.) and a remaining-life-vs-time plot with its alpha-lambda cone")
+    p.add_argument("--alpha", type=float, default=0.2,
+                   help="--evaluate: the alpha of alpha-lambda and the prognostic horizon (share of the true "
+                        "remaining life; default 0.2)")
+    p.add_argument("--lambda", dest="lambdas", type=float, action="append", default=None, metavar="LAMBDA",
+                   help="--evaluate: a lambda point in [0, 1) (repeatable; default 0.25, 0.5, 0.75)")
     p.add_argument("--seed", type=seed_int, default=1, help="seed of the forecast's Monte Carlo (default 1)")
     p.add_argument("--json", action="store_true", help="print one JSON document (also written to DIR/health.json)")
     add_out_arg(p, default="out/health")
@@ -58,7 +68,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 def cmd_health(args: argparse.Namespace) -> int:
     from shm_cli.main import CliError
     from studies.health.assess import assess_health
-    from studies.health.report import four_levels_text, health_json, write_health_outputs
+    from studies.health.evaluate import LAMBDAS
+    from studies.health.report import evaluation_text, four_levels_text, health_json, write_health_outputs
 
     if args.as_of is not None and not args.as_of >= 0:
         raise CliError(f"--as-of must be a number of hours >= 0, got {args.as_of!r}")
@@ -68,15 +79,23 @@ def cmd_health(args: argparse.Namespace) -> int:
         raise CliError(f"--locate-visits must be >= 1, got {args.locate_visits}")
     if args.workers is not None and args.workers < 1:
         raise CliError(f"--workers must be >= 1, got {args.workers}")
+    if not 0 < args.alpha < 1:
+        raise CliError(f"--alpha must be in (0, 1), got {args.alpha}")
+    bad = [x for x in (args.lambdas or []) if not 0 <= x < 1]
+    if bad:
+        raise CliError(f"--lambda must be in [0, 1), got {bad[0]}")
     out = out_dir(args.out)
     log = (lambda s: print(s, file=sys.stderr, flush=True)) if args.json else (lambda s: print(s, flush=True))
     t0 = time.perf_counter()
     result = assess_health(args.sources, params=args.params, as_of=args.as_of, free=args.free or None,
                            workers=args.workers, seed=args.seed, progress=log, dask_scheduler=args.dask_scheduler,
                            locate=args.locate, locate_diagnose=args.locate_diagnose,
-                           locate_visits=args.locate_visits)
+                           locate_visits=args.locate_visits, evaluate=args.evaluate, alpha=args.alpha,
+                           lambdas=tuple(args.lambdas) if args.lambdas else LAMBDAS)
     result.doc["wall_s"] = time.perf_counter() - t0
     text = four_levels_text(result)
+    if result.doc.get("evaluation"):
+        text += "\n" + evaluation_text(result.doc["evaluation"])
     failed = write_health_outputs(result, out, text)
     for artefact, why in failed.items():
         print(f"shm health: could not write {artefact} ({why})", file=sys.stderr)

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -15,11 +15,13 @@ import numpy as np
 from board_config.errors import InputError
 from reporting.uncertainty_text import format_percent_change
 from studies.health.estimate import DEFAULT_FREE, Visit, estimate_visits
+from studies.health.evaluate import ALPHA, LAMBDAS, MIN_VISITS, evaluate_sweep, sweep_predictions
 from studies.health.forecast import Forecast, forecast_trip, visit_of
 from studies.health.locate import SECTIONS, diagnose_first_name, locate_stiffness, location_sentence
 from studies.health.sources import load_visits
 from studies.health.trend import Trend, fit_trend
 from studies.health.trip import HEALTH_PARAMS, trip_boundary
+from studies.health.truth import true_first_fault, truth_document
 
 #: where a health parameter lives on the laminate (the lumped model's own map; docs/model.md)
 LOCATION = {
@@ -37,16 +39,21 @@ class Assessment:
     trends: dict[str, Trend]
     forecast: Forecast
     boundary: Any
+    #: the forecast rebuilt as of each visit (:func:`.evaluate.sweep_predictions`; with trip samples)
+    sweep: list[dict[str, Any]] = field(default_factory=list)
 
 
 def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: float | None = None,
                   free: Sequence[str] | None = None, workers: int | None = None, seed: int = 1,
                   progress: Callable[[str], None] | None = None, dask_scheduler: str | None = None,
-                  locate: str = "auto", locate_diagnose: bool = False, locate_visits: int = 1) -> Assessment:
+                  locate: str = "auto", locate_diagnose: bool = False, locate_visits: int = 1,
+                  evaluate: bool = False, alpha: float = ALPHA, lambdas: Sequence[float] = LAMBDAS) -> Assessment:
     """``locate``: "auto" (place a stiffness loss in its section when the latest visit shows one — a stiffness
     changed or trending, or a health fit leaving 1.5 × the first visit's held-out residual), "always" or "never";
     ``locate_diagnose`` adds what ``shm diagnose`` names first on the latest visit to the candidates;
-    ``locate_visits`` > 1 also places the loss on that many visits before the latest (``location_history``)."""
+    ``locate_visits`` > 1 also places the loss on that many visits before the latest (``location_history``);
+    ``evaluate`` scores the prognosis against the truth's first FAULT over every visit before it, whatever
+    ``as_of`` (:mod:`.evaluate`; the sources must carry the truth: the board's verdicts or true parameters)."""
     say = progress or (lambda s: None)
     if locate not in ("auto", "always", "never"):
         raise InputError(f"--locate must be auto, always or never, got {locate!r}")
@@ -55,6 +62,8 @@ def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: floa
     if unknown:
         raise InputError(f"--free {unknown[0]!r}: shm health re-estimates the monitor's health parameters "
                          f"({', '.join(HEALTH_PARAMS)})")
+    if locate_visits < 1:
+        raise InputError(f"--locate-visits must be >= 1, got {locate_visits}")
     all_visits = load_visits(sources)
     visits = [v for v in all_visits if as_of is None or v.operating_hours <= as_of + 1e-9]
     if len(visits) < 2:
@@ -65,23 +74,44 @@ def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: floa
     say(f"shm health: {len(visits)} visits ({visits[0].operating_hours:g} … {visits[-1].operating_hours:g} h"
         + (f", as of {as_of:g} h; {len(all_visits) - len(visits)} later visits not used" if as_of is not None else "")
         + f"), re-estimating {', '.join(free)} with params {params}")
-    ests = estimate_visits(visits, params, free, workers=workers, progress=say, dask_scheduler=dask_scheduler)
-    hours = [v.operating_hours for v in visits]
-    trends: dict[str, Trend] = {}
-    for name in free:
-        y, s = [], []
-        for e in ests:
-            est = next(x for x in e["estimates"] if x["name"] == name)
-            y.append(est["value"] / est["nominal"] - 1.0)
-            s.append(est["stderr"] / abs(est["nominal"]) if est["stderr"] is not None else None)
-        trends[name] = fit_trend(name, hours, y, s)
     say("trip boundary of the board's monitor (campaign machinery; computed once per parameter set, then cached)")
     boundary = trip_boundary(params)
+    truth_ff = true_first_fault(all_visits, params, boundary)
+    extra: list[Visit] = []
+    if evaluate:
+        t_eol = _evaluation_truth(truth_ff, all_visits)
+        extra = [v for v in all_visits if v.operating_hours > visits[-1].operating_hours and v.operating_hours < t_eol]
+        if extra:
+            say(f"--evaluate: also re-estimating the {len(extra)} visits after the as-of time up to the true first "
+                f"FAULT at {t_eol:g} h")
+    ests_all = estimate_visits([*visits, *extra], params, free, workers=workers, progress=say,
+                               dask_scheduler=dask_scheduler)
+    return assess_estimates(visits, all_visits, extra, ests_all, params=params, free=free, boundary=boundary,
+                            truth_ff=truth_ff, as_of=as_of, seed=seed, say=say, locate=locate,
+                            locate_diagnose=locate_diagnose, locate_visits=locate_visits, evaluate=evaluate,
+                            alpha=alpha, lambdas=lambdas)
+
+
+def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[Visit],
+                     ests_all: list[dict[str, Any]], *, params: str, free: Sequence[str], boundary: Any,
+                     truth_ff: dict[str, Any] | None, as_of: float | None, seed: int, say: Callable[[str], None],
+                     locate: str = "never", locate_diagnose: bool = False, locate_visits: int = 1,
+                     evaluate: bool = False, alpha: float = ALPHA, lambdas: Sequence[float] = LAMBDAS
+                     ) -> Assessment:
+    """The assessment from the visits' estimates (``ests_all``: ``visits`` then ``extra``, the visits after the
+    as-of time that only --evaluate uses): trends, forecast, the forecast as of every visit, location, truth."""
+    ests = ests_all[: len(visits)]
+    hours = [v.operating_hours for v in visits]
+    rel, rel_se = _series(ests, free)
+    trends = {name: fit_trend(name, hours, rel[name], rel_se[name]) for name in free}
     interval = float(np.median(np.diff(hours))) if len(hours) > 1 else 100.0
     current = {n: trends[n].best.predict(np.array([hours[-1]]))[0] for n in free}
     fc = forecast_trip(trends, boundary, hours[-1], interval, current=current, seed=seed)
-    if locate_visits < 1:
-        raise InputError(f"--locate-visits must be >= 1, got {locate_visits}")
+    swept = [*visits, *extra]
+    say(f"remaining life against time: the forecast rebuilt as of each visit from the {MIN_VISITS}th on "
+        f"({max(len(swept) - MIN_VISITS + 1, 0)} forecasts)")
+    s_rel, s_se = _series(ests_all, free)
+    sweep = sweep_predictions([v.operating_hours for v in swept], s_rel, s_se, boundary, interval, seed=seed)
     location = _locate(visits, ests, trends, params, locate, locate_diagnose, say)
     history = []
     if location.get("run") and locate_visits > 1:
@@ -93,7 +123,43 @@ def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: floa
                                               "reason")})
         location["history"] = [*history, {k: location[k] for k in history[0]}] if history else []
     doc = _document(visits, all_visits, ests, trends, fc, hours, interval, as_of, params, free, location)
-    return Assessment(doc, visits, ests, trends, fc, boundary)
+    doc["remaining_life"] = [{k: v for k, v in p.items() if k != "samples"} for p in sweep]
+    doc["truth"] = truth_document(visits, params, free, truth_ff)
+    doc["evaluation"] = (evaluate_sweep(sweep, truth_ff["operating_hours"], alpha=alpha, lambdas=lambdas)
+                         | {"truth_source": truth_ff["source"], "true_first_fault_visit": truth_ff["visit"]}
+                         if evaluate and truth_ff is not None else None)
+    return Assessment(doc, visits, ests, trends, fc, boundary, sweep)
+
+
+def _series(ests: list[dict[str, Any]], free: Sequence[str]) -> tuple[dict[str, list[float]],
+                                                                      dict[str, list[float | None]]]:
+    """Relative change and its standard error of each free parameter, visit by visit."""
+    rel: dict[str, list[float]] = {n: [] for n in free}
+    se: dict[str, list[float | None]] = {n: [] for n in free}
+    for e in ests:
+        for name in free:
+            est = next(x for x in e["estimates"] if x["name"] == name)
+            rel[name].append(est["value"] / est["nominal"] - 1.0)
+            se[name].append(est["stderr"] / abs(est["nominal"]) if est["stderr"] is not None else None)
+    return rel, se
+
+
+def _evaluation_truth(truth_ff: dict[str, Any] | None, all_visits: Sequence[Visit]) -> float:
+    """The true first FAULT's hours for --evaluate, or a one-line InputError saying what is missing."""
+    if truth_ff is None:
+        raise InputError("--evaluate needs a life whose truth is known: these sources carry neither the board's "
+                         "verdicts (a run directory of shm run or its usage.db) nor true parameters (the "
+                         "provenance.truth_values of a shm synth record)")
+    if truth_ff["operating_hours"] is None:
+        raise InputError(f"--evaluate: no FAULT in the {len(all_visits)} visits (up to "
+                         f"{all_visits[-1].operating_hours:g} h; truth from {truth_ff['source']}): a prognosis is "
+                         "scored against the first FAULT")
+    t_eol = float(truth_ff["operating_hours"])
+    if sum(v.operating_hours < t_eol for v in all_visits) < MIN_VISITS:
+        raise InputError(f"--evaluate: the first FAULT is at {t_eol:g} h, after only "
+                         f"{sum(v.operating_hours < t_eol for v in all_visits)} visits; a prediction needs "
+                         f"{MIN_VISITS} visits before it")
+    return t_eol
 
 
 def _locate_trigger(ests: list[dict[str, Any]], trends: dict[str, Trend]) -> str | None:

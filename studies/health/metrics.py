@@ -59,3 +59,38 @@ def interval_covers(interval: Sequence[float | None] | None, truth: float) -> bo
         return False
     lo, hi = interval[0], interval[1] if interval[1] is not None else np.inf
     return lo <= truth <= hi
+
+
+def relative_accuracy(samples: np.ndarray, t: float, t_eol: float) -> float | None:
+    """Relative accuracy of one prediction made at ``t`` (Saxena et al. 2010; ProgPy's ``relative_accuracy``):
+    1 − |RUL* − RUL| / RUL*, RUL* = t_EOL − t the true remaining life, RUL the prediction's central tendency —
+    here the *median* of the ToE samples minus t (paths that never trip within the horizon make the mean infinite).
+    None when RUL* ≤ 0 or the median is beyond the horizon."""
+    s = np.asarray(samples, float)
+    r_true = t_eol - t
+    if s.size == 0 or r_true <= 0:
+        return None
+    med = float(np.median(s))
+    if not np.isfinite(med):
+        return None
+    return 1.0 - abs(r_true - (med - t)) / r_true
+
+
+def alpha_lambda_point(times: Sequence[float], samples: Sequence[np.ndarray], t_eol: float, *, lam: float,
+                       alpha: float = 0.2, beta: float = 0.5) -> dict[str, float | bool | None]:
+    """ProgPy's α-λ at one λ point: t_λ = t_P + λ·(t_EOL − t_P) (t_P the first prediction), judged on the first
+    prediction made at or after t_λ (ProgPy's ``alpha_lambda``: "at this time or the next prediction following"),
+    before t_EOL. Returns ``lambda``, ``t_lambda_hours``, ``prediction_hours`` (None: no prediction there), ``ok``
+    (None without one) and that prediction's ``relative_accuracy``."""
+    out: dict[str, float | bool | None] = {"lambda": lam, "t_lambda_hours": None, "prediction_hours": None,
+                                           "ok": None, "relative_accuracy": None}
+    if not times:
+        return out
+    t_lam = times[0] + lam * (t_eol - times[0])
+    out["t_lambda_hours"] = t_lam
+    idx = next((i for i, t in enumerate(times) if t >= t_lam - 1e-9 and t < t_eol), None)
+    if idx is None:
+        return out
+    out.update({"prediction_hours": times[idx], "ok": within_alpha(samples[idx], times[idx], t_eol, alpha, beta),
+                "relative_accuracy": relative_accuracy(samples[idx], times[idx], t_eol)})
+    return out

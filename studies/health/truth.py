@@ -65,3 +65,17 @@ def true_first_fault(visits: Sequence[Visit], params: str, boundary: TripBoundar
     return {"visit": visits[k].visit if k is not None else None,
             "operating_hours": visits[k].operating_hours if k is not None else None,
             "source": "the board's monitor (trip boundary) on the records' true k3, alpha_h, beta_h"}
+
+
+def truth_document(visits: Sequence[Visit], params: str, names: Sequence[str],
+                   first_fault: dict[str, Any] | None) -> dict[str, Any] | None:
+    """``truth`` of health.json: the true relative changes at the visits used and the true first FAULT (None when
+    the sources carry no truth at all)."""
+    rows = []
+    for v in visits:
+        t = truth_relative(v, params, names)
+        if t is not None:
+            rows.append({"operating_hours": v.operating_hours, "relative": t})
+    if not rows and first_fault is None:
+        return None
+    return {"visits": rows, "first_fault": first_fault}

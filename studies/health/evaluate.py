@@ -1,0 +1,110 @@
+"""Remaining life against time, and how good the prognosis was on a life whose truth is known.
+
+:func:`sweep_predictions` moves the as-of time over the visits: at every visit from the :data:`MIN_VISITS`-th on,
+trends and forecast are rebuilt from the visits up to it (the per-visit estimates are made once; they do not depend
+on the as-of time) — the remaining-life-against-time curve of the page. :func:`evaluate_sweep` scores those
+predictions against the true first FAULT with the prognostics metrics of ProgPy / Saxena et al. (2010)
+(:mod:`.metrics`): α-λ accuracy at λ points, prognostic horizon, relative accuracy, and the coverage of the 90 %
+interval. As in the prognosis challenge (:mod:`.challenge`), a predicted trip time counts where the board would see
+it — at the first visit at or after it — and the truth is the hours of the first FAULT visit; only predictions with a
+significant trend are a date (the others give a lower bound) and enter the scores.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+import numpy as np
+
+from studies.health.forecast import forecast_trip
+from studies.health.metrics import (
+    alpha_lambda_point,
+    interval_covers,
+    prognostic_horizon,
+    relative_accuracy,
+    within_alpha,
+)
+from studies.health.trend import fit_trend
+from studies.health.trip import TripBoundary
+
+#: visits a prediction needs (as the challenge: the 3-parameter trend laws are fitted from 5, linear from 3)
+MIN_VISITS = 4
+ALPHA = 0.2
+BETA = 0.5
+LAMBDAS: tuple[float, ...] = (0.25, 0.5, 0.75)
+#: Monte Carlo size of each swept forecast (the page's main forecast uses forecast.N_PATHS)
+SWEEP_PATHS = 600
+SWEEP_GRID = 600
+
+
+def seen_at_visits(samples: np.ndarray, start: float, interval: float) -> np.ndarray:
+    """Trip samples moved to the visit at which the board would see them (h; inf beyond the horizon)."""
+    s = np.asarray(samples, float)
+    out = np.full(s.shape, np.inf)
+    fin = np.isfinite(s)
+    out[fin] = start + interval * np.ceil((s[fin] - start) / interval - 1e-9)
+    return out
+
+
+def _quantiles(x: np.ndarray, qs: Sequence[float]) -> list[float | None]:
+    with np.errstate(invalid="ignore"):
+        q = np.quantile(x, qs)
+    return [float(v) if np.isfinite(v) else None for v in q]
+
+
+def sweep_predictions(hours: Sequence[float], rel: Mapping[str, Sequence[float]],
+                      rel_se: Mapping[str, Sequence[float | None]], boundary: TripBoundary, interval: float, *,
+                      seed: int = 1, until_hours: float | None = None, n_paths: int = SWEEP_PATHS,
+                      n_grid: int = SWEEP_GRID) -> list[dict[str, Any]]:
+    """One prediction per visit from the :data:`MIN_VISITS`-th (as of its hours; before ``until_hours`` when
+    given). Each: ``as_of_hours``, ``visits_used``, ``significant``, ``trip_hours_median`` and
+    ``trip_interval_90`` (seen at visits; None beyond the horizon), ``rul_median_hours``, ``rul_interval_90``,
+    ``lower_bound_hours`` (no trend) and ``samples`` (numpy, seen trip hours; not JSON)."""
+    h = np.asarray(hours, float)
+    out = []
+    for j in range(MIN_VISITS - 1, h.size):
+        t = float(h[j])
+        if until_hours is not None and t >= until_hours - 1e-9:
+            break
+        trends = {n: fit_trend(n, h[: j + 1], list(rel[n])[: j + 1], list(rel_se[n])[: j + 1]) for n in rel}
+        fc = forecast_trip(trends, boundary, t, interval, seed=seed + j, n_paths=n_paths, n_grid=n_grid)
+        seen = seen_at_visits(fc.trip_samples, float(h[0]), interval)
+        med, lo, hi = _quantiles(seen, [0.5, 0.05, 0.95])
+        p = {"as_of_hours": t, "visits_used": j + 1, "significant": fc.significant, "trip_hours_median": med,
+             "trip_interval_90": [lo, hi], "lower_bound_hours": fc.lower_bound_hours,
+             "rul_median_hours": None if med is None else med - t,
+             "rul_interval_90": [None if lo is None else lo - t, None if hi is None else hi - t], "samples": seen}
+        out.append(p)
+    return out
+
+
+def evaluate_sweep(preds: Sequence[dict[str, Any]], t_eol: float, *, alpha: float = ALPHA, beta: float = BETA,
+                   lambdas: Sequence[float] = LAMBDAS) -> dict[str, Any]:
+    """The scores of the predictions made before ``t_eol`` (h, the true first FAULT visit) — JSON-ready."""
+    before = [p for p in preds if p["as_of_hours"] < t_eol - 1e-9]
+    dated = [p for p in before if p["significant"]]
+    times = [p["as_of_hours"] for p in dated]
+    samples = [p["samples"] for p in dated]
+    rows = []
+    for p in before:
+        rows.append({k: v for k, v in p.items() if k != "samples"} | {
+            "rul_true_hours": t_eol - p["as_of_hours"],
+            "within_alpha": within_alpha(p["samples"], p["as_of_hours"], t_eol, alpha, beta) if p["significant"]
+            else None,
+            "relative_accuracy": relative_accuracy(p["samples"], p["as_of_hours"], t_eol) if p["significant"]
+            else None,
+            "covered": interval_covers(p["trip_interval_90"], t_eol) if p["significant"] else None})
+    ras = [r["relative_accuracy"] for r in rows if r["relative_accuracy"] is not None]
+    covered = [r["covered"] for r in rows if r["covered"] is not None]
+    points = [alpha_lambda_point(times, samples, t_eol, lam=lam, alpha=alpha, beta=beta) for lam in lambdas]
+    return {
+        "alpha": alpha, "beta": beta, "lambdas": list(lambdas), "true_first_fault_hours": t_eol,
+        "predictions": rows, "dated_predictions": len(dated), "first_prediction_hours": times[0] if times else None,
+        "alpha_lambda": points,
+        "alpha_lambda_all_met": all(pt["ok"] for pt in points) if points and all(pt["ok"] is not None
+                                                                                  for pt in points) else None,
+        "prognostic_horizon_hours": prognostic_horizon(times, samples, t_eol, alpha=alpha, beta=beta),
+        "relative_accuracy_mean": float(np.mean(ras)) if ras else None,
+        "coverage_90": (sum(covered) / len(covered)) if covered else None,
+    }
