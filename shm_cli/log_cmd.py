@@ -141,6 +141,8 @@ def _print_table(db, table: str, run: int | None, limit: int) -> None:
 
 
 def _cell(v) -> str:
+    if v is None:
+        return "-"
     if isinstance(v, float):
         return f"{v:.6g}"
     return str(v)
