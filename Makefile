@@ -20,7 +20,8 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-# Debian packages used by the integration tests (a real Modbus master, pty pairs).
+# Debian packages used by the integration tests (a real Modbus master, pty pairs) and headless Chromium (the HTML
+# reports are screenshot in tests/test_figures_legible.py).
 # Never fatal: the tests that need them skip with the reason printed.
 system-packages:
 	@if ! command -v mbpoll >/dev/null 2>&1 || ! command -v socat >/dev/null 2>&1; then \
@@ -28,6 +29,12 @@ system-packages:
 	    (apt-get update -qq >/dev/null 2>&1; DEBIAN_FRONTEND=noninteractive apt-get install -y -qq mbpoll socat >/dev/null 2>&1) \
 	      || echo "note: could not install mbpoll/socat; the tests that need them will be skipped"; \
 	  else echo "note: mbpoll/socat missing and apt-get not usable; the tests that need them will be skipped"; fi; \
+	fi
+	@if ! command -v chromium >/dev/null 2>&1; then \
+	  if [ "$$(id -u)" = "0" ] && command -v apt-get >/dev/null 2>&1; then \
+	    (apt-get update -qq >/dev/null 2>&1; DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null 2>&1) \
+	      || echo "note: could not install chromium; the HTML report screenshots will be skipped"; \
+	  else echo "note: chromium missing and apt-get not usable; the HTML report screenshots will be skipped"; fi; \
 	fi
 
 run: setup
