@@ -1,0 +1,222 @@
+"""Figures checked as pictures (issue 27.4): every figure the CLI writes is rendered and checked for overlapping
+text, text cut off, a legend over the data, nan/inf printed and fractional ticks on a count axis
+(:mod:`reporting.figure_legibility`); every HTML report is opened in headless Chromium and must show its images.
+
+One module fixture runs each figure-writing command once on tiny inputs, with a hook on
+:func:`reporting.figures.save_figure` (the one place figures are saved) that checks each figure just before it is
+written. A PNG in an output folder that did not pass the hook fails too: no figure escapes the check.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+import subprocess
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from reporting.figure_legibility import Finding, check_figure, describe
+from reporting.figures import observing_saved_figures
+from shm_cli.main import main
+
+pytestmark = pytest.mark.slow
+
+SHORT_RUN = """
+[scenario]
+name = "figures-short"
+seed = 2
+expect_verdict = "PASS"
+
+[rig]
+params = "table2"
+
+[board.sensing]
+quiet_period = { value = 1.0, unit = "s" }
+
+[board.maintenance]
+settle = { value = 0.2, unit = "s" }
+hv_debounce = { value = 0.1, unit = "s" }
+
+[[phase]]
+kind = "flight"
+duration = { value = 3.0, unit = "s" }
+vibration_rms = { value = 0.5, unit = "m/s^2" }
+
+[[phase]]
+kind = "maintenance"
+duration = { value = 24.5, unit = "s" }
+
+[[phase]]
+kind = "ground"
+duration = { value = 0.5, unit = "s" }
+
+[[event]]
+kind = "gust"
+at = { value = 0.5, unit = "s" }
+peak = { value = 12.0, unit = "m/s^2" }
+duration = { value = 0.5, unit = "s" }
+"""
+
+
+@dataclass
+class Drawn:
+    """What the hook saw: every saved figure's findings (a live figure is saved and checked several times), by
+    command, and the output folder of each command."""
+
+    findings: dict[str, list[tuple[Path, list[Finding]]]] = field(default_factory=dict)
+    outputs: dict[str, Path] = field(default_factory=dict)
+    exit_codes: dict[str, int] = field(default_factory=dict)
+
+
+def _synth(tmp: Path, name: str, *args: str) -> Path:
+    path = tmp / name
+    assert main(["synth", "--params", "table2", "--seed", "7", "--out", str(path), *args]) == 0
+    return path
+
+
+def _commands(tmp: Path) -> dict[str, list[str]]:
+    """The figure-writing commands on tiny inputs: command -> argv (its --out is tmp/command)."""
+    stiffening = ("--effect", "geometric_stiffening", "--set", "kappa_nl=2e4", "--noise", "z3=2e-6")
+    stiff = _synth(tmp, "stiff.csv", "--test", "mbit-b", *stiffening)
+    loop = _synth(tmp, "loop.csv", "--test", "mbit-a", *stiffening)  # its residual trough sat under the legend
+    sweep = _synth(tmp, "sweep.csv", "--test", "sweep", *stiffening)
+    frf = _synth(tmp, "frf.csv", "--test", "frf", "--f0-hz", "5", "--f1-hz", "30", "--n-freqs", "8")
+    visits = [str(_synth(tmp, f"visit{h}.csv", "--test", "mbit-b", "--deviation", f"k3={-0.0001 * h:g}",
+                         "--operating-hours", str(h))) for h in (0, 150, 300, 450)]
+    scenario = tmp / "short.toml"
+    scenario.write_text(SHORT_RUN)
+    return {
+        "compare": ["compare", str(loop), str(sweep), str(frf), "--params", "table2"],
+        "diagnose": ["diagnose", str(stiff), "--params", "table2", "--candidates",
+                     "geometric_stiffening,dielectric_leakage,piezo_creep,k3,m3", "--fit-top", "1"],
+        "fit": ["fit", str(stiff), "--params", "table2", "--add", "geometric_stiffening",
+                "--save", str(tmp / "fitted.toml")],
+        "calibrate": ["calibrate", "--params", "table2", "--free", "k3", "--save", str(tmp / "cal.toml")],
+        "model frf": ["model", "frf", "--points", "200"],
+        "model step": ["model", "step", "--duration-s", "0.5"],
+        "model loop": ["model", "loop", "--freq-hz", "0.5", "--cycles", "1"],
+        "harvest": ["harvest", "--params", "table2"],
+        "campaign": ["campaign", "--mbit", "both", "--ranges", "0:20:10", "--n", "2", "--seed", "3", "--workers", "1",
+                     "--no-progress"],
+        "campaign-roc": ["campaign-roc", "--from", str(tmp / "campaign"), "--eps-th", "0.1:0.3:0.1", "--count-max",
+                         "100,200"],
+        "health": ["health", *visits, "--params", "table2", "--workers", "1", "--locate", "never"],
+        "run": ["run", "--scenario", str(scenario), "--timeline-every-s", "0", "--quiet"],
+    }
+
+
+@pytest.fixture(scope="module")
+def drawn(tmp_path_factory: pytest.TempPathFactory) -> Drawn:
+    tmp = tmp_path_factory.mktemp("figures")
+    result = Drawn()
+    current: list[str] = [""]
+
+    def check(fig: Any, path: Path) -> None:
+        try:
+            found = check_figure(fig)
+        except Exception as exc:  # the commands catch a figure's failure: keep it as a finding instead
+            found = [Finding("checker failed", f"{type(exc).__name__}: {exc}")]
+        result.findings.setdefault(current[0], []).append((path, found))
+
+    commands = _commands(tmp)
+    with observing_saved_figures(check):
+        for name, argv in commands.items():
+            current[0] = name
+            out = tmp / name.replace(" ", "_")
+            result.outputs[name] = out
+            result.exit_codes[name] = main([*argv, "--out", str(out)])
+    return result
+
+
+COMMANDS = ("compare", "diagnose", "fit", "calibrate", "model frf", "model step", "model loop", "harvest",
+            "campaign", "campaign-roc", "health", "run")
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_every_figure_reads(drawn: Drawn, command: str) -> None:
+    """The command's figures: no overlapping or cut-off text, no legend over the data, no nan/inf, whole-number
+    ticks on count axes; and every PNG it wrote passed the check."""
+    assert drawn.exit_codes[command] == 0, command
+    seen = drawn.findings.get(command, [])
+    written = {p.resolve() for p in drawn.outputs[command].rglob("*.png")}
+    checked = {p.resolve() for p, _ in seen}
+    assert written, f"{command} wrote no figure"
+    assert written <= checked, f"figures written without reporting.figures.save_figure: {sorted(written - checked)}"
+    bad = [describe(p.name, f) for p, f in seen if f]
+    assert not bad, "\n".join(bad)
+
+
+# ------------------------------------------------------------------------------------------------------------------
+# the HTML reports in headless Chromium (Debian's ``chromium``; ``make system-packages`` installs it)
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+needs_chromium = pytest.mark.skipif(CHROMIUM is None, reason="chromium not installed (make system-packages as root "
+                                                             "installs it): the HTML reports are not screenshot")
+#: after the page's load event, each <img>'s (complete, naturalWidth, naturalHeight) onto <body data-images>
+_PROBE = ("<script>window.addEventListener('load', () => document.body.setAttribute('data-images', JSON.stringify("
+          "Array.from(document.images).map(i => [i.complete, i.naturalWidth, i.naturalHeight]))));</script>")
+
+
+def _chromium(args: list[str], tmp: Path) -> str:
+    r = subprocess.run([str(CHROMIUM), "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                        "--hide-scrollbars", f"--user-data-dir={tmp / 'profile'}", *args],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr[-2000:]
+    return r.stdout
+
+
+def image_sizes(page: Path, tmp: Path) -> list[tuple[bool, int, int]]:
+    """(complete, naturalWidth, naturalHeight) of every <img> of ``page`` as Chromium decoded it."""
+    text = page.read_text(encoding="utf-8")
+    probe = tmp / f"probe_{page.stem}.html"
+    probe.write_text(text.replace("</body>", _PROBE + "</body>") if "</body>" in text else text + _PROBE,
+                     encoding="utf-8")
+    dom = _chromium(["--dump-dom", probe.as_uri()], tmp)
+    m = re.search(r'data-images="([^"]*)"', dom)
+    assert m, f"{page.name}: the page's load event never came (no data-images in the DOM)"
+    return [tuple(x) for x in json.loads(m.group(1).replace("&quot;", '"'))]
+
+
+def drawn_share(page: Path, tmp: Path) -> float:
+    """Share of a 1280×2400 screenshot's pixels that differ from its most common colour (the background)."""
+    shot = tmp / f"shot_{page.stem}.png"
+    _chromium([f"--screenshot={shot}", "--window-size=1280,2400", page.as_uri()], tmp)
+    px = (imread(shot)[..., :3] * 255).astype(np.uint8).reshape(-1, 3)
+    _, counts = np.unique(px, axis=0, return_counts=True)
+    return 1.0 - counts.max() / px.shape[0]
+
+
+REPORTS = (("compare", "report.html"), ("diagnose", "diagnosis.html"), ("fit", "fit.html"), ("health", "report.html"),
+           ("run", "report.html"))
+
+
+@needs_chromium
+@pytest.mark.parametrize(("command", "page"), REPORTS)
+def test_html_report_renders_with_its_images(drawn: Drawn, command: str, page: str,
+                                             tmp_path: Path) -> None:
+    """The report opens in Chromium, every <img> decodes (naturalWidth > 0) and the screenshot is not blank."""
+    path = drawn.outputs[command] / page
+    n_tags = path.read_text(encoding="utf-8").count("<img")
+    sizes = image_sizes(path, tmp_path)
+    assert n_tags > 0 and len(sizes) == n_tags, (n_tags, sizes)
+    broken = [i for i, (complete, w, h) in enumerate(sizes) if not (complete and w > 0 and h > 0)]
+    assert not broken, f"{page} of {command}: images {broken} do not decode ({sizes})"
+    assert drawn_share(path, tmp_path) > 0.05, f"{page} of {command}: the screenshot is (nearly) blank"
+
+
+@needs_chromium
+def test_the_html_probes_see_a_broken_image_and_a_blank_page(tmp_path: Path) -> None:
+    """The two probes can fail: a corrupt embedded PNG does not decode, an empty page screenshots blank."""
+    page = tmp_path / "broken.html"
+    page.write_text("<!DOCTYPE html><html><body><h1>report</h1><img src='data:image/png;base64,iVBORw0KGgoAAAA'>"
+                    "</body></html>")
+    assert [w for _, w, _ in image_sizes(page, tmp_path)] == [0]
+    blank = tmp_path / "blank.html"
+    blank.write_text("<!DOCTYPE html><html><body></body></html>")
+    assert drawn_share(blank, tmp_path) < 0.001
