@@ -99,7 +99,7 @@ def test_one_command_finds_free_play_and_says_how_to_fit_it(tmp_path, capsys):
     assert "Found beyond the library" in cap.err  # the text goes to stderr
     # the command it prints works: the emitted effect refits to the noise floor
     capsys.readouterr()
-    argv = disc["fit_command"].split()[1:] + ["--json"]
+    argv = [*disc["fit_command"].split()[1:], "--json"]
     argv[argv.index("--out") + 1] = str(tmp_path / "fit")
     argv[argv.index("--save") + 1] = str(tmp_path / "refit.toml")
     assert main(argv) == 0

@@ -177,5 +177,5 @@ def test_nothing_named_on_a_record_the_model_misses_is_unexplained(no_identifiab
     d = _diagnosis(None, 8.6)
     dv.verdict_for(d, load_parameter_set("table2"), "table2")
     assert d.verdict == "unexplained"
-    assert d.message.startswith("The library and the core parameters explain none of the excess over the noise")
+    assert d.message.startswith("Not explained by the library and the core parameters: the nominal model misses")
     assert "shm discover" in d.next_command

@@ -220,8 +220,8 @@ def _nothing_missing(d: Any, failed_before: Sequence[str]) -> str:
 
 
 def _unexplained(d: Any, failed_before: Sequence[str]) -> str:
-    msg = (f"The library and the core parameters explain none of the excess over the noise that these records can "
-           f"attribute: the nominal model misses the held-out data by {d.baseline_held_rms_sigma:.3g} σ RMS, and no "
+    msg = (f"Not explained by the library and the core parameters: the nominal model misses the held-out data by "
+           f"{d.baseline_held_rms_sigma:.3g} σ RMS, and no "
            "candidate effect or parameter re-estimation removes enough of it on held-out data while being "
            "identifiable, away from its bounds, changing the prediction by more than the noise and costing more "
            "than the noise when removed")
