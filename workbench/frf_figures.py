@@ -44,6 +44,12 @@ def sweep_frf_figure(sf: SweepFrf, path: Path, title: str) -> Path:
     co.semilogx(f[k], em.coherence[k], color="k", lw=0.9, label="measured γ²")
     co.axhline(COHERENT, color="tab:orange", ls=":", lw=1, label=f"threshold {COHERENT:g}")
     co.set_ylim(0, 1.05)
+    import matplotlib.ticker as mticker
+
+    # plain 1-2-5 labels on the shared log axis, none on the minor ticks (a narrow band's minor labels collide)
+    co.xaxis.set_major_locator(mticker.LogLocator(subs=(1.0, 2.0, 5.0)))
+    co.xaxis.set_major_formatter(mticker.FormatStrFormatter("%g"))
+    co.xaxis.set_minor_formatter(mticker.NullFormatter())
     am.set_ylabel(f"|{sf.channel}| / {sf.drive} ({unit})")
     ph.set_ylabel("phase (deg)")
     co.set_ylabel("coherence γ²")
