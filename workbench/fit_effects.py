@@ -23,6 +23,7 @@ from workbench.effect_library import (
     guess_values,
     resolve_candidates,
 )
+from workbench.fit_bootstrap import MODEL_EXPLAINS_SIGMA, N_REPLICATES, apply_bootstrap
 from workbench.fit_objective import Objective, SimBatch, rms
 from workbench.fit_optimiser import FitHistoryPoint, FitOutcome, optimise
 from workbench.fit_parameter_set import fitted_parameter_set
@@ -56,6 +57,9 @@ class FitReport:
     baseline_sim: SimBatch
     wall_s: float
     notes: list[str] = field(default_factory=list)
+    #: how the estimates' intervals were found: "jacobian", or "block bootstrap" when the fitted model leaves more
+    #: than the noise (held-out > MODEL_EXPLAINS_SIGMA; see workbench.fit_bootstrap)
+    interval_method: str = "jacobian"
 
     @property
     def parameter_set(self) -> ParameterSet:
@@ -84,6 +88,8 @@ class FitReport:
             "wall_s": self.wall_s,
             "parameter_set": self.save_name,
             "notes": self.notes,
+            "interval_method": self.interval_method,
+            "model_explains_record": bool(o.held_rms_sigma <= MODEL_EXPLAINS_SIGMA),
         }
 
 
@@ -111,12 +117,15 @@ def fit_records(records: Sequence[Record], params: ParameterSet | str = "table2"
                 save_name: str = "fitted", holdout: str = "blocks", n_blocks: int = DEFAULT_BLOCKS,
                 max_rate_Hz: float = DEFAULT_MAX_RATE_HZ, max_nfev: int = 40, seed: int = 0,
                 on_iteration: Callable[[FitHistoryPoint], None] | None = None,
-                on_baseline: Callable[[float, float], None] | None = None) -> FitReport:
+                on_baseline: Callable[[float, float], None] | None = None,
+                bootstrap_replicates: int = N_REPLICATES) -> FitReport:
     """Add ``add`` to the model, fit their parameters (and ``free`` ones: ``name`` or ``name:lower:upper``)
     on the training part of ``records``, and score before/after on training and held-out data.
 
     ``on_baseline(train_rms_sigma, held_rms_sigma)`` is called once the starting model has been scored,
-    ``on_iteration(point)`` at every optimiser iteration (the live display of ``shm fit``)."""
+    ``on_iteration(point)`` at every optimiser iteration (the live display of ``shm fit``). When the fitted model
+    leaves more than the noise (held-out > 1.5 σ) the intervals come from a block bootstrap of
+    ``bootstrap_replicates`` replicates (:mod:`workbench.fit_bootstrap`; 0: the Jacobian's, whatever the fit)."""
     t0 = time.perf_counter()
     base = load_parameter_set(params)
     try:
@@ -171,6 +180,13 @@ def fit_records(records: Sequence[Record], params: ParameterSet | str = "table2"
         raise FitError(f"the fitted model fails to integrate on the records ({outcome.message})")
     after = channel_scores(targets, outcome.sim)
     notes = []
+    interval_method = "jacobian"
+    if outcome.held_rms_sigma > MODEL_EXPLAINS_SIGMA and bootstrap_replicates > 0 and outcome.estimates:
+        boot = apply_bootstrap(obj, outcome, n_replicates=bootstrap_replicates, seed=seed)
+        interval_method = "block bootstrap"
+        notes.append(f"the model does not explain the record yet (held-out {outcome.held_rms_sigma:.3g} σ > "
+                     f"{MODEL_EXPLAINS_SIGMA} σ): the intervals come from a {boot.describe()}, not from the "
+                     "Jacobian, which assumes what is left is noise")
     for e in outcome.estimates:
         if e.at_bound:
             notes.append(f"{e.name} ended at a bound of its range [{e.lower:g}, {e.upper:g}] {e.unit}: widen it "
@@ -179,7 +195,7 @@ def fit_records(records: Sequence[Record], params: ParameterSet | str = "table2"
         added=[c.name for c in classes], free=free_params, outcome=outcome, before=before, after=after,
         before_train_rms_sigma=before_train, before_held_rms_sigma=before_held,
         base_set=base, model=models[0], save_name=save_name, targets=targets, baseline_sim=base_sim,
-        wall_s=time.perf_counter() - t0, notes=notes)
+        wall_s=time.perf_counter() - t0, notes=notes, interval_method=interval_method)
 
 
 def guess_data(target: Target, base_sim: SimBatch, model: PlantModel) -> dict[str, Any]:

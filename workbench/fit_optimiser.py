@@ -43,10 +43,24 @@ class ParameterEstimate:
     lower: float
     upper: float
     at_bound: bool
+    #: how the 95 % interval [interval_low, interval_high] was found: "jacobian" (value ± 1.96 stderr) or
+    #: "block bootstrap" (the model leaves more than the noise: see workbench.fit_bootstrap)
+    interval_method: str = "jacobian"
+    interval_low: float = math.nan
+    interval_high: float = math.nan
+    stderr_jacobian: float = math.nan  # the Jacobian's standard error when the bootstrap replaced it
+
+    def __post_init__(self) -> None:
+        if math.isnan(self.interval_low) and math.isnan(self.interval_high):
+            self.interval_low = self.value - 1.96 * self.stderr
+            self.interval_high = self.value + 1.96 * self.stderr
 
     def describe(self) -> str:
         se = "not identifiable" if not math.isfinite(self.stderr) else f"± {self.stderr:.3g}"
-        return f"{self.name} = {self.value:.4g} {se} {self.unit}" + (" (at its range bound)" if self.at_bound else "")
+        how = ("" if self.interval_method == "jacobian" or not math.isfinite(self.stderr) else
+               f" (95 % from the {self.interval_method}: [{self.interval_low:.4g}, {self.interval_high:.4g}])")
+        return (f"{self.name} = {self.value:.4g} {se} {self.unit}{how}"
+                + (" (at its range bound)" if self.at_bound else ""))
 
 
 @dataclass
