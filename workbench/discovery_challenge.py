@@ -14,6 +14,16 @@ case on one test kind, noise level and seed and reports:
 
 Targets (issue 11): the emitted effect brings held-out error to ≤ 1.5 σ in ≥ 80 % of the counted cases, and the
 description names the right signal and condition.
+
+**The damage challenge** (issue 26 point 5; :func:`run_damage_case`, ``python -m bench --only damage_challenge``):
+damage written by hand outside the project (``tests/workbench_foreign_damage.py``: breathing cracks, a stiffness drop
+and a damping rise at an instant, a patch weaker in one polarity, root free play) is hidden in a record and
+:func:`workbench.diagnose.diagnose` — the one command a user types — runs on it. Only the FIRST SENTENCE of its
+verdict is scored (:func:`first_sentence`): it must name the right physics (:class:`PhysicsCheck`: the section and the
+kind; for a time event also the instant, quoted in seconds within 2 % of the record) AND the fix it proposes must
+reach ≤ 1.5 σ held out (:func:`fix_held_sigma`: the emitted effect file the verdict tells the user to ``--add``,
+refitted by the fit engine; else the named candidate's own held-out error). The scorer is pure and unit-tested
+(``tests/test_damage_challenge.py``).
 """
 
 from __future__ import annotations
@@ -109,7 +119,7 @@ def run_discovery_case(case: DiscoveryCase, kind: str, noise: float, seed: int, 
             path = Path(tmp) / "discovered_case.py"
             path.write_text(src, encoding="utf-8")
             try:
-                rep = fit_records([rec], "table2", add=[str(path)], max_nfev=20)
+                rep = fit_records([rec], "table2", add=[str(path)], max_nfev=20, bootstrap_replicates=0)
                 held_after = rep.outcome.held_rms_sigma
             except FitError as exc:
                 note = f"refit failed: {exc}"
@@ -281,8 +291,8 @@ def fix_held_sigma(d: Any, rec: Any, workdir: str | Path | None, *, max_nfev: in
     path = emitted_file(d.message, workdir)
     if path is not None:
         try:
-            return f"emitted {path.name}", fit_records([rec], "table2", add=[str(path)],
-                                                      max_nfev=max_nfev).outcome.held_rms_sigma, ""
+            return f"emitted {path.name}", fit_records([rec], "table2", add=[str(path)], max_nfev=max_nfev,
+                                                      bootstrap_replicates=0).outcome.held_rms_sigma, ""
         except FitError as exc:
             return f"emitted {path.name}", float("nan"), f"refit failed: {exc}"
     if d.winner is not None:
