@@ -160,8 +160,13 @@ def _run_life_locked(args: argparse.Namespace, scenario: Any, seed: int, params:
         + (f"at visit {first} ({summary['first_fault_operating_hours']:g} h)" if first else "never"))
     (out / "timeline.txt").write_text("\n".join(lines) + "\n")
     (out / "summary.json").write_text(dump_json(summary))
+    from studies.health.life_report import write_life_report
+
+    failed = write_life_report(summary, out, str(args.out))
+    for artefact, why in failed.items():
+        print(f"shm run: could not write {artefact} ({why})", file=sys.stderr)
     if args.json:
         print(dump_json(summary))
     elif not args.quiet:
-        print(f"results in {out}/ (usage.db, records/, life.json, timeline.txt)")
-    return 0
+        print(f"results in {out}/ (usage.db, records/, life.json, timeline.txt, report.html, life.png)")
+    return 1 if failed else 0

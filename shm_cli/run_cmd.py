@@ -48,7 +48,7 @@ EXIT_SIGTERM = 143
 #: files a run writes into --out (removed by --force before a new run, so that two runs' files never mix)
 RUN_OUTPUTS: tuple[str, ...] = ("usage.db", "usage.db-wal", "usage.db-shm", "timeline.txt", "trace.csv",
                                 "trace.npz", "summary.json", "report.html", "overview.png", "maintenance.png",
-                                "usage.png", "records", "life.json")
+                                "usage.png", "records", "life.json", "life.png")
 #: bytes of memory per board tick kept for the whole run (the per-tick trace, the wall-clock tick statistics)
 BYTES_PER_TICK = 8 * 16
 

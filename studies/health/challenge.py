@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from board_config.scenario import LifeLaw
+from studies.health.evaluate import seen_at_visits
 from studies.health.forecast import forecast_trip, visit_of
 from studies.health.laws import deviations_at
 from studies.health.metrics import alpha_lambda, interval_covers, prognostic_horizon
@@ -235,7 +236,7 @@ def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold
         trends = {p: fit_trend(p, hh, y[p][: j + 1], s[p][: j + 1]) for p in HEALTH_PARAMS}
         fc = forecast_trip(trends, boundary, float(hh[-1]), life.interval, seed=life.seed + j, n_paths=n_paths,
                            n_grid=n_grid)
-        seen = _seen_at_visits(fc.trip_samples, hours[0], life.interval)
+        seen = seen_at_visits(fc.trip_samples, hours[0], life.interval)
         preds.append({"as_of_visit": j, "hours": float(hh[-1]), "significant": fc.significant,
                       "interval_visits": _interval_visits(fc.trip_samples, hours[0], life.interval),
                       "samples_seen": seen})
@@ -267,15 +268,6 @@ def _bracket(hours: np.ndarray, t: float | None) -> int | None:
     return int(np.searchsorted(hours, t, side="right"))
 
 
-def _seen_at_visits(samples: np.ndarray, start: float, interval: float) -> np.ndarray:
-    """Trip samples moved to the visit at which the board would see them (h; inf beyond the horizon)."""
-    s = np.asarray(samples, float)
-    out = np.full(s.shape, np.inf)
-    fin = np.isfinite(s)
-    out[fin] = start + interval * np.ceil((s[fin] - start) / interval - 1e-9)
-    return out
-
-
 def _interval_visits(samples: np.ndarray, start: float, interval: float) -> list[int | None]:
     with np.errstate(invalid="ignore"):
         q05, q95 = np.quantile(samples, [0.05, 0.95])
@@ -298,7 +290,7 @@ def _baseline_prediction(hh: np.ndarray, f1_rel: np.ndarray, thr: float, life: C
     trips = np.where(hit, grid[np.argmax(cross, axis=1)], np.inf)
     return {"as_of_visit": j, "hours": float(hh[-1]), "significant": tr.significant,
             "interval_visits": _interval_visits(trips, 0.0, life.interval),
-            "samples_seen": _seen_at_visits(trips, 0.0, life.interval)}
+            "samples_seen": seen_at_visits(trips, 0.0, life.interval)}
 
 
 def _score(preds: list[dict[str, Any]], life: ChallengeLife, k_true: int | None, hours: np.ndarray
