@@ -206,18 +206,27 @@ def compare(model: PlantModel, record: Record | FrfRecord, options: CompareOptio
     frf = None
     if options.frf or (options.frf is None and record.test == "sweep"):
         t2 = time.perf_counter()
-        frf = sweep_frf(model, record.sample_rate_Hz, rep.drive_name, rep.drive_unit, rep.drive,
-                        {ch: (cr.model_output, cr.unit, cr.measured, cr.simulated) for ch, cr in rep.channels.items()},
-                        params)
-        for ch, sf in frf.items():
-            findings[ch].append(f"Frequency domain (H1 of {ch} against {rep.drive_name}): complex fit "
-                                f"{sf.fit_pct:.1f} % where the coherence is high "
-                                f"({sf.band_Hz[0]:.3g}–{sf.band_Hz[1]:.3g} Hz); " + sf.peaks.sentence(ch))
+        try:
+            frf = sweep_frf(model, record.sample_rate_Hz, rep.drive_name, rep.drive_unit, rep.drive,
+                            {ch: (cr.model_output, cr.unit, cr.measured, cr.simulated)
+                             for ch, cr in rep.channels.items()}, params)
+        except ValueError as exc:  # too short for a spectral estimate: said, not failed
+            for ch in rep.channels:
+                findings[ch].append(f"No frequency response of {ch}: {exc}.")
+        for ch, sf in (frf or {}).items():
+            findings[ch].append(_frf_finding(ch, rep.drive_name, sf))
             findings[ch].extend(sf.notes)
         wall["frf_s"] = time.perf_counter() - t2
     wall["compare_s"] = time.perf_counter() - t0
     return Comparison(record, rep, options, metrics, pred, tests, locs, eps, eps_src, features, findings, wall,
                       frf)
+
+
+def _frf_finding(ch: str, drive: str, sf: SweepFrf) -> str:
+    if sf.band_Hz[0] != sf.band_Hz[0]:  # no coherent band (NaN)
+        return f"Frequency domain (H1 of {ch} against {drive}): no frequency where the coherence is high."
+    return (f"Frequency domain (H1 of {ch} against {drive}): complex fit {sf.fit_pct:.1f} % where the coherence is "
+            f"high ({sf.band_Hz[0]:.3g}–{sf.band_Hz[1]:.3g} Hz); " + sf.peaks.sentence(ch))
 
 
 def _findings(ch: str, m: ChannelMetrics, p: PredictionMetrics | None, rt: ResidualTests, loc: Localisation
