@@ -152,5 +152,9 @@ def test_two_board_runs_against_one_served_lockstep_stub_both_get_their_verdict(
     assert serve.returncode == 0, err
     for k, s in enumerate(runs, start=1):
         assert s["verdict_as_expected"] is True, f"run {k}: {s}"
+        assert [m["label"] for m in s["mbit_results"]] == ["MBIT.a", "MBIT.b"], f"run {k}: {s['mbit_results']}"
+    # the same rig from t = 0 for both: the same run, number for number
+    assert runs[1]["mbit_results"] == runs[0]["mbit_results"]
+    assert runs[1]["ticks"] == runs[0]["ticks"] and runs[1]["regime_changes"] == runs[0]["regime_changes"]
     hil = json.loads(summary.read_text())
     assert hil["board_runs"] == 2 and hil["rig_restarts"] == 1
