@@ -116,7 +116,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     say(f"\ntraining: {rep.before_train_rms_sigma:.4g} σ → {o.train_rms_sigma:.4g} σ;  held-out: "
         f"{rep.before_held_rms_sigma:.4g} σ → {o.held_rms_sigma:.4g} σ")
     # the fit report as lmfit prints it (statistics, variables, correlations, warnings): on the terminal's stderr
-    print("\n" + format_report(o), file=sys.stderr)
+    print("\n" + format_report(o, rep.initial), file=sys.stderr)
     for n in rep.notes:
         if "ended at a bound" not in n:  # [[Warnings]] says it
             say(f"  note: {n}")
@@ -124,8 +124,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
         say(f"saved parameter set '{pset.name}' to {save} (load it with --params {save})")
     else:
         say("no parameter set saved (give --save NAME.toml to keep the fitted values)")
-    summary = rep.summary() | {"fit_report": report_dict(o), "saved": str(save) if save is not None else None,
-                               "figures": []}
+    summary = rep.summary() | {"fit_report": report_dict(o, rep.initial),
+                               "saved": str(save) if save is not None else None, "figures": []}
     (out / "fit.json").write_text(dump_json(summary), encoding="utf-8")
 
     def progress_figure():

@@ -78,6 +78,8 @@ def test_shm_fit_without_save_reports_the_fit_in_the_terminal_and_fit_json(
     stats = rep["fit_report"]["statistics"]
     assert stats["n_variables"] == 2 and 0.7 < stats["reduced_chi_square"] < 1.5  # at the noise floor
     assert rep["fit_report"]["correlation_matrix"]["parameters"] == ["k3", "m3"]
+    k3 = rep["fit_report"]["variables"][0]
+    assert k3["init"] == pytest.approx(21.28) and "(init = 21.28)" in cap.err  # started at the set's value
     (w,) = [w for w in rep["fit_report"]["warnings"] if w["kind"] == "correlated"]
     assert w["parameters"] == ["k3", "m3"]  # a step cannot tell stiffness from mass
     assert "Fit statistics" in (out / "fit.html").read_text()

@@ -60,6 +60,8 @@ class FitReport:
     #: how the estimates' intervals were found: "jacobian", or "block bootstrap" when the fitted model leaves more
     #: than the noise (held-out > MODEL_EXPLAINS_SIGMA; see workbench.fit_bootstrap)
     interval_method: str = "jacobian"
+    #: the starting values of the free parameters (the effects' own guesses, else the set's values) — lmfit's init
+    initial: dict[str, float] = field(default_factory=dict)
 
     @property
     def parameter_set(self) -> ParameterSet:
@@ -195,7 +197,8 @@ def fit_records(records: Sequence[Record], params: ParameterSet | str = "table2"
         added=[c.name for c in classes], free=free_params, outcome=outcome, before=before, after=after,
         before_train_rms_sigma=before_train, before_held_rms_sigma=before_held,
         base_set=base, model=models[0], save_name=save_name, targets=targets, baseline_sim=base_sim,
-        wall_s=time.perf_counter() - t0, notes=notes, interval_method=interval_method)
+        wall_s=time.perf_counter() - t0, notes=notes, interval_method=interval_method,
+        initial={fp.name: float(guess[fp.name]) for fp in free_params})
 
 
 def guess_data(target: Target, base_sim: SimBatch, model: PlantModel) -> dict[str, Any]:
