@@ -127,10 +127,7 @@ def fit_warnings(estimates: Sequence[ParameterEstimate], corr: np.ndarray) -> li
 
 def _interval(e: ParameterEstimate) -> tuple[str, float, float]:
     """(method, low, high) of the estimate's 95 % interval (value ± 1.96 s.e. unless the fit says otherwise)."""
-    method = str(getattr(e, "interval_method", "jacobian"))
-    low = float(getattr(e, "interval_low", e.value - 1.96 * e.stderr))
-    high = float(getattr(e, "interval_high", e.value + 1.96 * e.stderr))
-    return method, low, high
+    return e.interval_method, float(e.interval_low), float(e.interval_high)
 
 
 def _sig(x: float, digits: int = 5) -> str:
