@@ -322,7 +322,7 @@ def _integer_data(ax: Any, which: int) -> bool:
     if not values:
         return False
     v = np.concatenate(values)
-    return bool(v.size >= 2 and np.ptp(v) > 0 and np.all(np.abs(v - np.round(v)) < 1e-9))
+    return bool(v.size >= 3 and np.ptp(v) > 0 and np.all(np.abs(v - np.round(v)) < 1e-9))
 
 
 def tick_findings(fig: Any) -> list[Finding]:

@@ -21,11 +21,114 @@ import numpy as np
 import pytest
 from matplotlib.image import imread
 
+from reporting.figure_layout import count_axis, few_ticks, hide_colliding_texts, legend_clear_of_data
 from reporting.figure_legibility import Finding, check_figure, describe
-from reporting.figures import observing_saved_figures
+from reporting.figures import observing_saved_figures, pyplot
 from shm_cli.main import main
 
-pytestmark = pytest.mark.slow
+# ------------------------------------------------------------------------------------------------------------------
+# the checker on figures with one known fault each (fast), and the placement helpers that clear them
+
+
+def _kinds(fig: Any) -> set[str]:
+    found = {f.kind for f in check_figure(fig)}
+    pyplot().close(fig)
+    return found
+
+
+def _axes(figsize: tuple[float, float] = (5, 3)) -> tuple[Any, Any]:
+    fig, ax = pyplot().subplots(figsize=figsize)
+    return fig, ax
+
+
+def test_a_plain_figure_has_no_findings() -> None:
+    fig, ax = _axes()
+    ax.plot(np.linspace(0, 1, 50), np.linspace(0, 1, 50) ** 2, label="data")
+    ax.set_xlabel("time (s)")
+    ax.set_title("plain")
+    ax.legend(loc="upper left")
+    fig.tight_layout()
+    assert _kinds(fig) == set()
+
+
+def test_overlapping_and_crowded_texts_are_found_and_named() -> None:
+    fig, ax = _axes()
+    ax.plot([0, 1], [0, 1])
+    ax.text(0.5, 0.5, "first label")
+    ax.text(0.5, 0.5, "second label")
+    found = check_figure(fig)
+    assert any(f.kind == "text overlap" and "'first label'" in f.detail and "'second label'" in f.detail
+               for f in found)
+    pyplot().close(fig)
+    fig, ax = _axes((3, 2))  # "596.0596.5...": long tick labels in a narrow panel
+    t = np.linspace(596, 600, 400)
+    ax.plot(t, np.sin(t))
+    ax.set_xticks(np.arange(596, 600.01, 0.5))
+    fig.tight_layout()
+    assert "text overlap" in _kinds(fig)
+    fig, ax = _axes((3, 2))
+    ax.plot(t, np.sin(t))
+    few_ticks(ax.xaxis, 4)
+    fig.tight_layout()
+    assert _kinds(fig) == set()
+
+
+def test_text_outside_the_figure_and_non_finite_numbers_are_found() -> None:
+    fig, ax = _axes()
+    ax.plot([0, 1], [0, 1])
+    fig.text(0.98, 0.5, "a long note running off the edge")
+    ax.text(0.2, 0.2, "+nan %, ΔBIC -inf")
+    assert _kinds(fig) == {"text outside the figure", "non-finite number"}
+
+
+def test_a_legend_over_the_data_is_found_and_head_room_clears_it() -> None:
+    t = np.linspace(0, 1, 200)
+    fig, ax = _axes()
+    ax.plot(t, t, label="rising to the top right corner")
+    ax.legend(loc="upper right")
+    assert _kinds(fig) == {"legend covers data"}
+    fig, ax = _axes()
+    ax.plot(t, t, label="rising to the top right corner")
+    fig.tight_layout()
+    legend_clear_of_data(ax)
+    assert _kinds(fig) == set()
+
+
+def test_bars_over_bars_are_found_and_side_by_side_bars_pass() -> None:
+    y = np.arange(3)
+    fig, ax = _axes()
+    ax.barh(y, [1, 2, 3], label="before")
+    ax.barh(y, [2, 1, 1], label="after")
+    assert _kinds(fig) == {"bars hide each other"}
+    fig, ax = _axes()
+    ax.barh(y + 0.2, [1, 2, 3], height=0.4, label="before")
+    ax.barh(y - 0.2, [2, 1, 1], height=0.4, label="after")
+    assert _kinds(fig) == set()
+
+
+def test_fractional_ticks_on_a_count_axis_are_found_and_integer_ticks_pass() -> None:
+    fig, ax = _axes()
+    ax.plot([0, 1, 2], [3.0, 2.0, 1.5], "o-")
+    ax.set_xlabel("iteration")
+    fig.tight_layout()
+    assert _kinds(fig) == {"fractional ticks on a count axis"}
+    fig, ax = _axes()
+    ax.plot([0, 1, 2], [3.0, 2.0, 1.5], "o-")
+    count_axis(ax.xaxis)
+    assert _kinds(fig) == set()
+
+
+def test_colliding_labels_are_hidden_most_important_kept() -> None:
+    fig, ax = _axes()
+    ax.plot([0, 1], [0, 1])
+    big, small, apart = ax.text(0.5, 0.5, "58%"), ax.text(0.5, 0.5, "26%"), ax.text(0.1, 0.9, "16%")
+    fig.canvas.draw()
+    assert hide_colliding_texts([big, small, apart]) == [big, apart] and not small.get_visible()
+    assert _kinds(fig) == set()
+
+
+# ------------------------------------------------------------------------------------------------------------------
+# every figure the CLI writes (slow: one module fixture runs each command once)
 
 SHORT_RUN = """
 [scenario]
@@ -138,6 +241,7 @@ COMMANDS = ("compare", "diagnose", "fit", "calibrate", "model frf", "model step"
             "campaign", "campaign-roc", "health", "run")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command", COMMANDS)
 def test_every_figure_reads(drawn: Drawn, command: str) -> None:
     """The command's figures: no overlapping or cut-off text, no legend over the data, no nan/inf, whole-number
@@ -196,6 +300,7 @@ REPORTS = (("compare", "report.html"), ("diagnose", "diagnosis.html"), ("fit", "
            ("run", "report.html"))
 
 
+@pytest.mark.slow
 @needs_chromium
 @pytest.mark.parametrize(("command", "page"), REPORTS)
 def test_html_report_renders_with_its_images(drawn: Drawn, command: str, page: str,
@@ -210,6 +315,7 @@ def test_html_report_renders_with_its_images(drawn: Drawn, command: str, page: s
     assert drawn_share(path, tmp_path) > 0.05, f"{page} of {command}: the screenshot is (nearly) blank"
 
 
+@pytest.mark.slow
 @needs_chromium
 def test_the_html_probes_see_a_broken_image_and_a_blank_page(tmp_path: Path) -> None:
     """The two probes can fail: a corrupt embedded PNG does not decode, an empty page screenshots blank."""
