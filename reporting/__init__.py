@@ -5,6 +5,9 @@ studies' figures).
 
 This layer sits below the workbench and the studies and imports only numpy, matplotlib and ``board_config``.
 
-Modules: :mod:`.figures` (pyplot on Agg, saving, SI display units, min/max decimation of long traces),
-:mod:`.html_page` (embedded images, tables, the page).
+Modules: :mod:`.figures` (pyplot on Agg, saving — the one place a figure is written, with a hook the tests use —
+SI display units, min/max decimation of long traces), :mod:`.figure_layout` (legends above the data, colliding
+labels left out, integer and thinned ticks), :mod:`.figure_legibility` (a figure checked as a picture: overlapping
+text, legend over data, bars over bars, nan/inf, fractional count ticks), :mod:`.html_page` (embedded images,
+tables, the page).
 """
