@@ -74,6 +74,8 @@ def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: floa
     say(f"shm health: {len(visits)} visits ({visits[0].operating_hours:g} … {visits[-1].operating_hours:g} h"
         + (f", as of {as_of:g} h; {len(all_visits) - len(visits)} later visits not used" if as_of is not None else "")
         + f"), re-estimating {', '.join(free)} with params {params}")
+    if evaluate and not any(v.verdict for v in all_visits) and any(v.truth is None for v in all_visits):
+        _evaluation_truth(None, all_visits)  # the one-line error, before any long computation
     say("trip boundary of the board's monitor (campaign machinery; computed once per parameter set, then cached)")
     boundary = trip_boundary(params)
     truth_ff = true_first_fault(all_visits, params, boundary)
