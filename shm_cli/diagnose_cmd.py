@@ -54,6 +54,11 @@ def register(sub: argparse._SubParsersAction) -> None:
 def cmd_diagnose(args: argparse.Namespace) -> int:
     from shm_cli.main import CliError
     from shm_cli.progress import StageReporter
+
+    # progress on stderr: a bar per stage on a terminal, one line per stage in a log (shm_cli.progress); the first at
+    # once, before the imports and the records (seconds on a loaded machine)
+    reporter = StageReporter("diagnose")
+    reporter.stage("loading", None, f"{len(args.records)} record(s)")
     from workbench.diagnose import diagnose
     from workbench.diagnose_report import overlay_figure, ranking_figure, write_html
     from workbench.fit import FitError
@@ -69,9 +74,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     out = out_dir(args.out)
     (out / "diagnosis.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
     records = [load_record(p) for p in args.records]
-    # progress on stderr: a bar per stage on a terminal, one line per stage in a log (shm_cli.progress)
     try:
-        with StageReporter("diagnose") as reporter:
+        with reporter:
             d = diagnose(records, args.params, candidates, holdout=args.holdout, n_blocks=args.blocks,
                          max_rate_Hz=args.max_rate_hz, min_reduction=args.min_reduction, workers=args.workers,
                          seed=args.seed, fit_top=args.fit_top or None, combine=not args.no_combine,
@@ -109,6 +113,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     for n in d.notes:
         say(f"note: {n}")
     # the numbers first (diagnosis.json), then the figures and the report: a plotting failure never loses them
+    reporter.stage("writing the report", None, "diagnosis.json, ranking.png, overlay.png, diagnosis.html")
     result = d.to_dict() | {"figures": []}
     (out / "diagnosis.json").write_text(dump_json(result), encoding="utf-8")
     deco = Decorations("diagnose", args)
@@ -122,6 +127,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         [*d.notes, *("Where the nominal model fails: " + w for w in d.where_it_fails)]))
     result = d.to_dict() | {"figures": [str(f) for f in figures]} | ({"failed": deco.failed} if deco.failed else {})
     (out / "diagnosis.json").write_text(dump_json(result), encoding="utf-8")
+    reporter.close()
     print(f"report: {out / 'diagnosis.html'}", file=sys.stderr)
     if args.json:
         print(dump_json(result))

@@ -101,11 +101,13 @@ class StageReporter:
     def _start_ticker(self) -> None:
         if self._ticker is not None:
             return
+        self._stop = threading.Event()
         self._ticker = threading.Thread(target=self._tick, name="progress-ticker", daemon=True)
         self._ticker.start()
 
     def _tick(self) -> None:
-        while not self._stop.wait(TICK_S):
+        stop = self._stop
+        while not stop.wait(TICK_S):
             with self._lock:
                 if self._bar is not None:
                     self._bar.refresh()
