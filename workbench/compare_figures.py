@@ -344,6 +344,10 @@ def bode_figure(cmp: FrfComparison, path: Path) -> Path:
             if f[0] <= fr <= f[-1]:
                 for ax in (a, p):
                     ax.axvline(fr, color="tab:green", lw=0.8, alpha=0.6)
+        if ch in cmp.peaks:  # resonances placed between the table's points (workbench.frf_peaks)
+            from workbench.frf_figures import mark_resonances
+
+            mark_resonances(a, cmp.peaks[ch])
         a.set_ylabel(f"|{ch}| / {rep.record.drive} ({rep.units[ch]})")
         a.legend(fontsize=7)
         dunit = "m/s²" if rep.record.drive == "z0dd" else "V"

@@ -1,15 +1,27 @@
 """The frequency-domain panel of a time record in ``shm compare`` (a sweep): H1 measured vs the model's, coherence,
-and the resonance peaks of both (see :mod:`workbench.frf_compare`)."""
+and the resonance peaks of both (see :mod:`workbench.frf_compare`); the resonance markers an FRF table's Bode
+figure also draws."""
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from reporting.figures import display_scale, pyplot, save_figure
-from workbench.frf_compare import SweepFrf
+from workbench.frf_compare import PeakComparison, SweepFrf
 from workbench.frf_estimate import COHERENT
+
+
+def mark_resonances(ax: Any, peaks: PeakComparison, scale: float = 1.0) -> None:
+    """Mark each resonance of ``peaks`` a little above its fitted maximum on a magnitude axis: ▼ measured,
+    ▽ model (labelled once each for the legend)."""
+    for found, colour, who in ((peaks.measured, "k", "measured"), (peaks.model, "tab:red", "model")):
+        for i, p in enumerate(found):
+            ax.plot([p.peak_Hz], [p.magnitude * scale * 1.25], marker="v", ms=7, ls="none",
+                    mfc=colour if who == "measured" else "none", mec=colour,
+                    label=f"{who} resonance{'s' if len(found) > 1 else ''}" if i == 0 else None)
 
 
 def sweep_frf_figure(sf: SweepFrf, path: Path, title: str) -> Path:
@@ -33,12 +45,7 @@ def sweep_frf_figure(sf: SweepFrf, path: Path, title: str) -> Path:
     if sf.linear is not None:
         am.loglog(f[k], np.abs(sf.linear[k]) * scale, color="tab:blue", lw=0.8, alpha=0.7,
                   label="model linearised at rest")
-    for peaks, marker, colour, who in ((sf.peaks.measured, "v", "k", "measured"),
-                                       (sf.peaks.model, "v", "tab:red", "model")):
-        for i, p in enumerate(peaks):
-            am.plot([p.peak_Hz], [p.magnitude * scale * 1.25], marker=marker, ms=7, ls="none",
-                    mfc=colour if who == "measured" else "none", mec=colour,
-                    label=f"{who} resonances" if i == 0 else None)
+    mark_resonances(am, sf.peaks, scale)
     ph.semilogx(f[good], np.degrees(np.unwrap(np.angle(em.h1[good]))), "k.", ms=2.5)
     ph.semilogx(f[k], np.degrees(np.unwrap(np.angle(es.h1[k]))), color="tab:red", ls="--", lw=1.2)
     co.semilogx(f[k], em.coherence[k], color="k", lw=0.9, label="measured γ²")
