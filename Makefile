@@ -12,13 +12,21 @@ export PYTHONHASHSEED := 0
 
 .PHONY: setup system-packages run test test-fast test-realtime lint typecheck bench bench-extra mutate clean fuzz
 
-setup: $(STAMP) system-packages
+KERNELS := $(NUMBA_CACHE_DIR)/.shipped-kernels
+setup: $(STAMP) system-packages $(KERNELS)
 
 $(STAMP): pyproject.toml
 	$(PY) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
 	$(BIN)/pip install --quiet -e '.[dev]'
 	touch $(STAMP)
+
+# The shipped compositions' compiled kernels, built once per machine into NUMBA_CACHE_DIR (plant/warm.py: tens of
+# seconds each, printed as they go), so that a fresh clone's first command loads machine code instead of compiling.
+# Again when the plant, a shipped parameter set or scenario changes (plant.warm skips what is cached).
+$(KERNELS): $(STAMP) $(wildcard plant/*.py plant/effects/*.py board_config/params/*.toml board_config/scenarios/*.toml)
+	$(BIN)/python -m plant.warm
+	@mkdir -p "$(@D)" && touch "$@"
 
 # Debian packages used by the integration tests (a real Modbus master, pty pairs) and headless Chromium (the HTML
 # reports are screenshot in tests/test_figures_legible.py).

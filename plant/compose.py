@@ -45,6 +45,10 @@ OUT_SIG = types.void(types.float64, types.float64[::1], types.float64[::1], type
 PHASES = ("pre", "rates", "post")
 _GENERATOR_VERSION = "9"
 
+#: the compiled entry points of a kernel module: member by member (``run_chunk``; ``run_chunk_stats`` counts steps),
+#: the lane integrator (``run_lanes``, batches of 16 or more) and the Python-callable right-hand side and outputs
+KERNEL_ENTRIES = ("run_chunk", "run_chunk_stats", "run_lanes", "rhs", "out")
+
 _LOADED: dict[str, ModuleType] = {}
 _LOCK = threading.Lock()
 
@@ -368,11 +372,7 @@ def compose(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int, ...], p
             composition: Composition | None = None) -> ModuleType:
     """The compiled kernel module of a composition (``rhs``, ``out``, ``run_chunk``), built or loaded."""
     comp = composition if composition is not None else build_composition(classes)
-    cacheable = all(importable_by_path(c.instance_of or c) for c in classes)
-    source = generate_source(classes, s_off, p_off, y_off, n_states, cacheable, integrator_source, comp)
-    fingerprint = "|".join([_GENERATOR_VERSION, numba.__version__, source,
-                            *(_source_fingerprint(c) for c in classes)])
-    key = hashlib.sha256(fingerprint.encode()).hexdigest()[:20]
+    cacheable, source, key = _source_and_key(classes, s_off, p_off, y_off, n_states, integrator_source, comp)
     with _LOCK:
         if key in _LOADED:
             return _LOADED[key]
@@ -386,7 +386,7 @@ def compose(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int, ...], p
                     setattr(module, f"_EFF{k}", cls)
                 exec(compile(source, f"<composed plant {name}>", "exec"), module.__dict__)
             # for compile announcements (attributes of the module object, not of its source: the cache key)
-            module.__dict__.update(EFFECT_NAMES=tuple(c.name for c in classes), ANNOUNCED=set())
+            module.__dict__.update(EFFECT_CLASSES=tuple(classes), ANNOUNCED=set())
             announce_if_cold(module, "run_chunk")
             # force compilation now so that errors surface here, with names
             _warm_up(module, n_states)
@@ -400,6 +400,35 @@ def compose(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int, ...], p
         return module
 
 
+def _source_and_key(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int, ...], p_off: tuple[int, ...],
+                    y_off: tuple[int, ...], n_states: int, integrator_source: str, comp: Composition
+                    ) -> tuple[bool, str, str]:
+    """(whether the composition can be cached on disk, its generated source, its cache key)."""
+    cacheable = all(importable_by_path(c.instance_of or c) for c in classes)
+    source = generate_source(classes, s_off, p_off, y_off, n_states, cacheable, integrator_source, comp)
+    fingerprint = "|".join([_GENERATOR_VERSION, numba.__version__, source,
+                            *(_source_fingerprint(c) for c in classes)])
+    return cacheable, source, hashlib.sha256(fingerprint.encode()).hexdigest()[:20]
+
+
+def uncached_entries(classes: tuple[type[PhysicalEffect], ...], s_off: tuple[int, ...], p_off: tuple[int, ...],
+                     y_off: tuple[int, ...], n_states: int, entries: tuple[str, ...],
+                     composition: Composition | None = None) -> list[str]:
+    """Which of a composition's kernel ``entries`` (``run_chunk``, ``run_lanes``, ...) a first call would compile:
+    neither compiled in this process nor in numba's on-disk cache (:func:`plant.kernel_cache.is_cached`). Reads
+    the cache's index only — compiles and loads no machine code; a composition compiled in memory (not cacheable)
+    has them all to compile. An entry the module does not have (no lane form) is left out."""
+    comp = composition if composition is not None else build_composition(classes)
+    cacheable, source, key = _source_and_key(classes, s_off, p_off, y_off, n_states, INTEGRATOR_SOURCE, comp)
+    with _LOCK:
+        module = _LOADED.get(key)
+        if module is None:
+            if not cacheable:
+                return list(entries)
+            module = _load_file_module(f"_mfc_shm_kernel_{key}", source)
+    return [e for e in entries if hasattr(module, e) and not kernel_cache.is_cached(getattr(module, e))]
+
+
 def announce_if_cold(module: ModuleType, entry: str) -> None:
     """Announce on stderr (:func:`plant.kernel_cache.announce_compile`) that calling ``entry`` of a composed
     kernel module will compile it — not in numba's on-disk cache, nor compiled in this process; once per module
@@ -410,7 +439,7 @@ def announce_if_cold(module: ModuleType, entry: str) -> None:
     seen.add(entry)
     dispatcher = getattr(module, entry, None)
     if dispatcher is not None and not kernel_cache.is_cached(dispatcher):
-        kernel_cache.announce_compile(module.__dict__.get("EFFECT_NAMES", ()), entry)
+        kernel_cache.announce_compile(module.__dict__.get("EFFECT_CLASSES", ()), entry)
 
 
 def _load_file_module(name: str, source: str) -> ModuleType:

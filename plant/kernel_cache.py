@@ -18,13 +18,12 @@ import sys
 from collections.abc import Callable, Sequence
 from typing import Any
 
-#: rough compile time (s) of a composition's entry points on one free core: the first entry point of a module
-#: (``run_chunk``: integrator, right-hand side, outputs) and the lane integrator (``run_lanes``); per effect beyond
-#: the nominal four, the hooks add a little. Measured on the development machine (numba 0.68): core run_chunk
-#: 6–13 s, run_lanes 18–36 s under load.
-ENTRY_BASE_S = {"run_chunk": 8.0, "run_lanes": 20.0}
-PER_EFFECT_S = {"run_chunk": 0.5, "run_lanes": 1.5}
-NOMINAL_COUNT = 4
+#: rough compile time (s) of a composition's entry points: the first entry point of a module (``run_chunk``:
+#: integrator, right-hand side, outputs) and the lane integrator (``run_lanes``); each effect beyond the nominal
+#: ones adds its hooks. Measured with numba 0.68 on the shared 2-core development machine at load 5-8: run_chunk
+#: 9-17 s, run_lanes 30-50 s (about half that on an idle core).
+ENTRY_BASE_S = {"run_chunk": 12.0, "run_lanes": 40.0}
+PER_EFFECT_S = {"run_chunk": 1.0, "run_lanes": 3.0}
 
 
 def _print_stderr(text: str) -> None:
@@ -56,20 +55,34 @@ def is_cached(dispatcher: Any) -> bool:
         return False
 
 
-def estimate_s(entry: str, n_effects: int) -> float:
-    """Rough compile time (s) of ``entry`` for a composition of ``n_effects`` effects (terminal included)."""
+def estimate_s(entry: str, n_extra: int) -> float:
+    """Rough compile time (s) of ``entry`` for the nominal model with ``n_extra`` more effects."""
     base = ENTRY_BASE_S.get(entry, ENTRY_BASE_S["run_chunk"])
     per = PER_EFFECT_S.get(entry, PER_EFFECT_S["run_chunk"])
-    return base + per * max(0, n_effects - NOMINAL_COUNT - 1)
+    return base + per * max(0, n_extra)
 
 
-def compile_message(effect_names: Sequence[str], entry: str, seconds: float) -> str:
+def composition_words(classes: Sequence[Any]) -> tuple[str, int]:
+    """(the composition in words — its effects beyond the core, the core when it is not the nominal one, its
+    terminal —, how many effects beyond the core) for effect classes with ``name`` and ``role``."""
+    from plant.effects import NOMINAL_EFFECTS
+
+    core = [c.name for c in classes if c.role == "core"]
+    extra = [c.name for c in classes if c.role == "effect"]
+    terminal = [c.name for c in classes if c.role == "terminal"]
+    parts = [] if tuple(core) == NOMINAL_EFFECTS else [f"core {', '.join(core) or 'none'}"]
+    parts += [f"{', '.join(terminal)} terminal"] if terminal else []
+    what = f"the model for effects {', '.join(extra)}" if extra else "the nominal model"
+    return f"{what} ({'; '.join(parts)})" if parts else what, len(extra)
+
+
+def compile_message(words: str, entry: str, seconds: float) -> str:
     """The announcement's text: which model, that it is the first use, and how long it will take."""
-    what = "the model" if entry == "run_chunk" else "the model's batch integrator (lanes)"
-    names = ", ".join(effect_names) if effect_names else "none"
-    return f"compiling {what} for effects {names} (first use, ~{seconds:.0f} s; cached afterwards) …"
+    part = "" if entry == "run_chunk" else " — its batch integrator (lanes)"
+    return f"compiling {words}{part} (first use, ~{seconds:.0f} s; cached afterwards) …"
 
 
-def announce_compile(effect_names: Sequence[str], entry: str = "run_chunk") -> None:
-    """Say, before it starts, that ``entry`` of the composition of ``effect_names`` is about to compile."""
-    _announcer(compile_message(effect_names, entry, estimate_s(entry, len(effect_names))))
+def announce_compile(classes: Sequence[Any], entry: str = "run_chunk") -> None:
+    """Say, before it starts, that ``entry`` of the composition of effect ``classes`` is about to compile."""
+    words, n_extra = composition_words(classes)
+    _announcer(compile_message(words, entry, estimate_s(entry, n_extra)))

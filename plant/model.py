@@ -20,7 +20,7 @@ from board_config import (
     load_parameter_set,
 )
 from plant import layout as L
-from plant.compose import compose
+from plant.compose import KERNEL_ENTRIES, compose, uncached_entries
 from plant.composition import build_composition
 from plant.effect import EffectError, Parameter, PhysicalEffect, resolve_effect
 from plant.effects import NOMINAL_EFFECTS
@@ -195,6 +195,13 @@ class PlantModel:
                                               integrator_source=self._integrator_source,
                                               composition=self.composition)
         return self._kernel_module
+
+    def uncached_kernels(self, entries: tuple[str, ...] = KERNEL_ENTRIES) -> list[str]:
+        """Which compiled entry points of this composition a first call would compile (not in numba's on-disk
+        cache): :func:`plant.compose.uncached_entries`; compiles nothing."""
+        s_off, p_off, y_off = self._offsets
+        return uncached_entries(self.effects, s_off, p_off, y_off, self.n_states, entries,
+                                composition=self.composition)
 
     def with_integrator_source(self, source: str) -> PlantModel:
         """The same model with another batch-integrator source (same ``run_chunk``/``run_chunk_stats``
