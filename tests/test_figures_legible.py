@@ -127,6 +127,20 @@ def test_colliding_labels_are_hidden_most_important_kept() -> None:
     assert _kinds(fig) == set()
 
 
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("board_config", "plant", "firmware_sim", "drivers", "hil_stub", "reporting", "workbench", "studies",
+            "shm_cli")
+
+
+def test_figures_are_written_only_by_save_figure() -> None:
+    """``savefig`` is called in one place, ``reporting.figures.save_figure``, whose hook the figure tests use: a
+    figure saved any other way would escape the check."""
+    callers = [f"{p.relative_to(ROOT)}:{i}" for pkg in PACKAGES for p in sorted((ROOT / pkg).rglob("*.py"))
+               for i, line in enumerate(p.read_text(encoding="utf-8").splitlines(), start=1)
+               if re.search(r"\.savefig\(|imsave\(|print_png\(", line)]
+    assert callers and all(c.startswith("reporting/figures.py:") for c in callers), callers
+
+
 # ------------------------------------------------------------------------------------------------------------------
 # every figure the CLI writes (slow: one module fixture runs each command once)
 
