@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from reporting.uncertainty_text import format_percent_change
 from workbench.records import Record
 
 SECTIONS: dict[str, int] = {"k1": 1, "k2": 2, "k3": 3}
@@ -199,9 +200,8 @@ def location_sentence(loc: dict[str, Any]) -> str:
     if loc.get("distinguishable") is None:
         s = f"no stiffness loss to place ({loc['reason']})"
     elif loc["distinguishable"]:
-        se = 100 * (loc.get("relative_stderr") or 0.0)
-        s = (f"stiffness loss in section {loc['section']} ({loc['parameter']} {100 * loc['relative']:+.0f} % "
-             f"± {se:.1g} %): {loc['reason']}")
+        s = (f"stiffness loss in section {loc['section']} ({loc['parameter']} "
+             f"{format_percent_change(loc['relative'], loc.get('relative_stderr'))}): {loc['reason']}")
     else:
         s = f"{loc['reason']}; to separate them: {loc['separating_test']}"
     if loc.get("diagnose_named"):
