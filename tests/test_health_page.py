@@ -137,3 +137,18 @@ def test_the_board_verdicts_are_the_truth_when_the_log_has_them():
     visits, _ = _life(verdicts=True)
     ff = true_first_fault(visits, "table2", None)
     assert ff == {"visit": 11, "operating_hours": 1000.0, "source": "the board's own verdicts (usage.db)"}
+
+
+def test_a_stable_laminate_gets_a_page_with_a_lower_bound(tmp_path):
+    visits, ests = _life(n=6, alpha_rate=0.0)
+    for v, e in zip(visits, ests):  # nothing changes: the truth is nominal, the estimates scatter around it
+        v.truth["relative"] = {n: 0.0 for n in NOMINAL}
+        for x in e["estimates"]:
+            x["value"] = NOMINAL[x["name"]] * (1 + np.random.default_rng(int(v.operating_hours)).normal(0, 3e-4))
+    b = _boundary()
+    a = assess_estimates(visits, visits, [], ests, params="table2", free=("k3", "alpha_h", "beta_h"), boundary=b,
+                         truth_ff=true_first_fault(visits, "table2", b), as_of=None, seed=1, say=lambda s: None)
+    assert write_health_outputs(a, tmp_path, four_levels_text(a)) == {}
+    page = (tmp_path / "report.html").read_text()
+    assert "no date: no FAULT before" in page and "<h3>DETECTED?</h3><div class='answer'>no</div>" in page
+    assert "no trend: not before" in page  # the remaining-life table
