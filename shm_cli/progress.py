@@ -10,6 +10,7 @@ through the bar (``tqdm.write``) so they do not garble it.
 
 from __future__ import annotations
 
+import os
 import sys
 import threading
 import time
@@ -17,6 +18,16 @@ from typing import Any, TextIO
 
 #: seconds between redraws of a terminal bar (its elapsed-time field)
 TICK_S = 1.0
+
+
+def _terminal_sized(stream: TextIO) -> bool:
+    """Whether the terminal reports its size (the bar then follows it); a pty nobody sized (0 columns, 0 rows) would
+    get an empty, hidden bar, so it gets a fixed 100 x 24."""
+    try:
+        size = os.get_terminal_size(stream.fileno())
+    except (OSError, ValueError, AttributeError):
+        return False
+    return size.columns > 0 and size.lines > 0
 
 
 class StageReporter:
@@ -46,10 +57,13 @@ class StageReporter:
         with self._lock:
             if self._bar is not None:
                 self._bar.close()
-            self._bar = tqdm(total=total, desc=f"{self.command}: {name}", unit="", file=self.stream,
-                             leave=False, dynamic_ncols=True, mininterval=0.2,
-                             bar_format=None if total is not None else "{desc} {elapsed} {postfix}")
-            if detail:
+            sized = _terminal_sized(self.stream)
+            counted = total is not None
+            desc = f"{self.command}: {name}" + ("" if counted or not detail else f" ({detail})")
+            self._bar = tqdm(total=total, desc=desc, unit="", file=self.stream, leave=False, dynamic_ncols=sized,
+                             ncols=None if sized else 100, nrows=None if sized else 24, mininterval=0.2,
+                             bar_format=None if counted else "{desc} … {elapsed}")
+            if counted and detail:
                 self._bar.set_postfix_str(detail, refresh=True)
         self._start_ticker()
 
