@@ -58,7 +58,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     from shm_cli.main import CliError
     from workbench.diagnose_report import ProgressPlot, overlay_figure, write_html
     from workbench.fit import FitError, fit_records
-    from workbench.fit_report import fit_statistics, fit_warnings, format_report, report_dict
+    from workbench.fit_report import fit_warnings, other_notes, report_dict
 
     save = Path(args.save) if args.save is not None else None
     if save is not None and save.suffix.lower() != ".toml":
@@ -67,12 +67,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
         raise CliError("nothing to fit: give --add EFFECT and/or --free PARAM")
     if args.max_rate_hz <= 0 or args.max_nfev < 1:
         raise CliError("--max-rate-hz must be > 0 and --max-nfev >= 1")
-    if args.out:
-        out = out_dir(args.out)
-    elif save is not None:
-        out = out_dir(save.parent if str(save.parent) else ".", option="--save (its directory)")
-    else:
-        out = out_dir(".", option="--out (default: the current directory)")
+    out = _output_dir(args.out, save)
     (out / "fit.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
     records = _load_records(args.records)
     base = load_parameter_set(args.params)
@@ -104,22 +99,9 @@ def cmd_fit(args: argparse.Namespace) -> int:
     # --json: stdout carries the JSON document only; the tables and notes go to stderr
     say = functools.partial(print, file=sys.stderr) if args.json else print
     pset = _save_set(rep, save) if save is not None else None
-    rows = []
-    for b, a in zip(rep.before, rep.after):
-        rows.append([b.record, b.channel, b.part, f"{b.rms:.4g} {b.unit}", f"{b.rms_sigma:.3g}",
-                     f"{a.rms:.4g} {a.unit}", f"{a.rms_sigma:.3g}", f"{b.fit_pct:.2f} → {a.fit_pct:.2f}"])
-    header = ["record", "channel", "part", "RMS before", "before (σ)", "RMS after", "after (σ)", "fit %"]
-    say("\nbefore / after (residual RMS; σ = noise level of the channel):")
-    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
-    for r in [header, *rows]:
-        say("  " + "  ".join(str(x).ljust(w) for x, w in zip(r, widths)))
-    say(f"\ntraining: {rep.before_train_rms_sigma:.4g} σ → {o.train_rms_sigma:.4g} σ;  held-out: "
-        f"{rep.before_held_rms_sigma:.4g} σ → {o.held_rms_sigma:.4g} σ")
-    # the fit report as lmfit prints it (statistics, variables, correlations, warnings): on the terminal's stderr
-    print("\n" + format_report(o, rep.initial), file=sys.stderr)
-    for n in rep.notes:
-        if "ended at a bound" not in n:  # [[Warnings]] says it
-            say(f"  note: {n}")
+    header, rows = _before_after(rep)
+    notes = other_notes(rep.notes, o.estimates)  # what [[Warnings]] does not already say
+    _print_results(say, rep, header, rows, notes)
     if pset is not None:
         say(f"saved parameter set '{pset.name}' to {save} (load it with --params {save})")
     else:
@@ -144,18 +126,8 @@ def cmd_fit(args: argparse.Namespace) -> int:
                f"{o.train_rms_sigma:.4g} σ, held-out {rep.before_held_rms_sigma:.4g} σ → {o.held_rms_sigma:.4g} σ.")
     deco.attempt("fit.html", lambda: write_html(
         out / "fit.html", f"shm fit: {base.name} + {', '.join(rep.added) or 'refit'}", verdict,
-        [("Before / after", header, rows),
-         ("Fit statistics", ["quantity", "value"], _statistics_rows(fit_statistics(o))),
-         ("Estimates", ["parameter", "value", "std. error", "relative", "unit", "range", "effect"],
-          [[e.name, f"{e.value:.5g}", f"{e.stderr:.3g}",
-            f"{100 * e.stderr / abs(e.value):.2f} %" if e.value else "—", e.unit,
-            f"[{e.lower:.4g}, {e.upper:.4g}]" + (" at a bound" if e.at_bound else ""), e.owner]
-           for e in o.estimates]),
-         ("Correlations of the estimates", ["", *[e.name for e in o.estimates]],
-          [[a.name, *[f"{o.correlation[i, j]:+.3f}" for j in range(len(o.estimates))]]
-           for i, a in enumerate(o.estimates)])],
-        figures, [w.message for w in fit_warnings(o.estimates, o.correlation)]
-        + [n for n in rep.notes if "ended at a bound" not in n]))
+        [("Before / after", header, rows), *_report_tables(o)],
+        figures, [w.message for w in fit_warnings(o.estimates, o.correlation)] + notes))
     summary = summary | {"figures": [str(f) for f in figures]} | ({"failed": deco.failed} if deco.failed else {})
     (out / "fit.json").write_text(dump_json(summary), encoding="utf-8")
     if args.json:
@@ -181,6 +153,55 @@ def _save_set(rep, save: Path):
     tmp.replace(save)
     PlantModel(load_parameter_set(save))
     return pset
+
+
+def _print_results(say, rep, header: list[str], rows: list[list[str]], notes: list[str]) -> None:
+    """The before/after table and the error change (``say``), then the fit report as lmfit prints it (statistics,
+    variables, correlations, warnings; always on stderr) and the notes."""
+    from workbench.fit_report import format_report
+
+    o = rep.outcome
+    say("\nbefore / after (residual RMS; σ = noise level of the channel):")
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
+    for r in [header, *rows]:
+        say("  " + "  ".join(str(x).ljust(w) for x, w in zip(r, widths)))
+    say(f"\ntraining: {rep.before_train_rms_sigma:.4g} σ → {o.train_rms_sigma:.4g} σ;  held-out: "
+        f"{rep.before_held_rms_sigma:.4g} σ → {o.held_rms_sigma:.4g} σ")
+    print("\n" + format_report(o, rep.initial), file=sys.stderr, flush=True)
+    for n in notes:
+        say(f"  note: {n}")
+
+
+def _output_dir(out: str | None, save: Path | None) -> Path:
+    """--out, else beside --save, else the current directory (created if missing)."""
+    if out:
+        return out_dir(out)
+    if save is not None:
+        return out_dir(save.parent if str(save.parent) else ".", option="--save (its directory)")
+    return out_dir(".", option="--out (default: the current directory)")
+
+
+def _before_after(rep) -> tuple[list[str], list[list[str]]]:
+    header = ["record", "channel", "part", "RMS before", "before (σ)", "RMS after", "after (σ)", "fit %"]
+    rows = [[b.record, b.channel, b.part, f"{b.rms:.4g} {b.unit}", f"{b.rms_sigma:.3g}", f"{a.rms:.4g} {a.unit}",
+             f"{a.rms_sigma:.3g}", f"{b.fit_pct:.2f} → {a.fit_pct:.2f}"] for b, a in zip(rep.before, rep.after)]
+    return header, rows
+
+
+def _report_tables(o) -> list[tuple[str, list[str], list[list[str]]]]:
+    """fit.html's tables of the fit report: statistics, estimates, the correlation matrix."""
+    from workbench.fit_report import fit_statistics
+
+    names = [e.name for e in o.estimates]
+    return [
+        ("Fit statistics", ["quantity", "value"], _statistics_rows(fit_statistics(o))),
+        ("Estimates", ["parameter", "value", "std. error", "relative", "unit", "range", "effect"],
+         [[e.name, f"{e.value:.5g}", f"{e.stderr:.3g}", f"{100 * e.stderr / abs(e.value):.2f} %" if e.value else "—",
+           e.unit, f"[{e.lower:.4g}, {e.upper:.4g}]" + (" at a bound" if e.at_bound else ""), e.owner]
+          for e in o.estimates]),
+        ("Correlations of the estimates", ["", *names],
+         [[n, *[f"{o.correlation[i, j]:+.3f}" for j in range(len(names))]] for i, n in enumerate(names)]),
+    ]
 
 
 def _statistics_rows(s) -> list[list[str]]:

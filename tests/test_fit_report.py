@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from workbench.fit_optimiser import FitOutcome, ParameterEstimate
-from workbench.fit_report import fit_statistics, fit_warnings, format_report, report_dict
+from workbench.fit_report import fit_statistics, fit_warnings, format_report, other_notes, report_dict
 
 
 def _outcome(estimates: list[ParameterEstimate], corr: np.ndarray, rss: float = 420.0, n: int = 400
@@ -52,6 +52,8 @@ def test_warnings_name_bounds_unidentifiable_poorly_determined_and_correlated_pa
         assert part in text, part
     assert "C(b, c)" not in text  # below lmfit's 0.1
     assert text.index("C(a, b)") < text.index("C(a, c)")  # strongest first
+    assert other_notes(["a ended at a bound of its range [1, 100] N/m: widen it", "the model does not explain"],
+                       ests) == ["the model does not explain"]  # said once, under [[Warnings]]
     d = report_dict(_outcome(ests, corr))
     json.dumps(d, allow_nan=True)
     assert d["correlation_matrix"]["parameters"] == ["a", "b", "c", "d"]

@@ -125,6 +125,12 @@ def fit_warnings(estimates: Sequence[ParameterEstimate], corr: np.ndarray) -> li
     return out
 
 
+def other_notes(notes: Sequence[str], estimates: Sequence[ParameterEstimate]) -> list[str]:
+    """The fit's notes without those [[Warnings]] already gives (a parameter that ended at a bound)."""
+    said = tuple(f"{e.name} ended at a bound" for e in estimates if e.at_bound)
+    return [n for n in notes if not n.startswith(said)] if said else list(notes)
+
+
 def _interval(e: ParameterEstimate) -> tuple[str, float, float]:
     """(method, low, high) of the estimate's 95 % interval (value ± 1.96 s.e. unless the fit says otherwise)."""
     return e.interval_method, float(e.interval_low), float(e.interval_high)
