@@ -4,6 +4,7 @@ reads 15.77 Hz measured vs 17.07 Hz model, not "16.5 Hz vs 16.5 Hz" (the 30-poin
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import numpy as np
@@ -30,6 +31,14 @@ def test_a_mode_between_coarse_grid_points_is_placed_within_half_a_percent(fn: f
         assert p.damping_ratio == pytest.approx(0.05, rel=0.2)
         assert p.grid_Hz in f and p.spacing_Hz == pytest.approx(grid_spacing(f, int(np.flatnonzero(f == p.grid_Hz)[0])))
         assert "rational fit" in p.method
+
+
+def test_a_peak_without_the_phase_of_a_mode_falls_back_to_a_parabola_and_says_so() -> None:
+    f = np.geomspace(1, 100, 30)
+    bump = np.exp(-((np.log(f) - np.log(17.3)) ** 2) / 0.05) + 0.01  # zero phase: no resonance
+    (p,) = find_peaks(f, bump.astype(complex))
+    assert p.method.startswith("parabola") and math.isnan(p.damping_ratio)
+    assert p.frequency_Hz == pytest.approx(17.3, rel=0.01) and p.magnitude == pytest.approx(1.01, rel=0.02)
 
 
 def test_local_maxima_ignore_ripples_and_order_by_height() -> None:

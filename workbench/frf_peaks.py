@@ -11,8 +11,9 @@ with real a0, a1 (the mode: ωn = √a0, ζ = a1 / (2√a0)) and complex numerat
 a smooth background from the other modes and poles). The fit is linear in the unknowns once multiplied out (Levy),
 re-weighted by the previous denominator (Sanathanan–Koerner, a few passes) so the errors are those of H itself.
 Because amplitude *and* phase enter, three to five points around the maximum suffice to place the mode well
-inside a grid cell. When the fit is not a stable mode inside the window, a parabola in log-magnitude over
-log-frequency through the three points around the maximum is used instead, and the peak says so.
+inside a grid cell. When the fit is not a stable, damped mode inside the window that reproduces the points (relative
+error ≤ :data:`MAX_FIT_ERROR`), a parabola in log-magnitude over log-frequency through the three points around the
+maximum is used instead, and the peak says so.
 
 Pure logic: arrays in, :class:`FrfPeak` out (frequencies in Hz, magnitudes in the response's SI unit).
 """
@@ -32,6 +33,10 @@ SK_PASSES = 4
 #: a local maximum counts as a peak when it stands this factor above the lowest point between it and any higher
 #: maximum (or the end of the grid) on both sides
 MIN_PROMINENCE = 1.2
+#: the local fit counts only when it reproduces the window's complex response this well (relative RMS) ...
+MAX_FIT_ERROR = 0.1
+#: ... with at least this damping ratio (a "mode" with none is a fit to a peak without a phase swing)
+MIN_DAMPING = 1e-3
 
 
 @dataclass(frozen=True)
@@ -132,8 +137,11 @@ def fit_one_mode(f: np.ndarray, h: np.ndarray) -> tuple[float, float, np.ndarray
         return None
     wn = math.sqrt(a0)
     zeta = a1 / (2 * wn)
-    if not zeta < 0.5:
+    if not MIN_DAMPING <= zeta < 0.5:
         return None
+    fitted = sum(bk * s ** k for k, bk in enumerate(b)) / (s ** 2 + a1 * s + a0)
+    if float(np.linalg.norm(fitted - h)) > MAX_FIT_ERROR * float(np.linalg.norm(h)):
+        return None  # the points are not one mode and a smooth background (a peak without the phase of one)
     return wn * w0, zeta, b
 
 
