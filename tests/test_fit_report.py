@@ -60,6 +60,16 @@ def test_warnings_name_bounds_unidentifiable_poorly_determined_and_correlated_pa
     assert [w["kind"] for w in d["warnings"]].count("correlated") == 1
 
 
+def test_an_interval_from_the_bootstrap_is_shown_with_its_method() -> None:
+    e = _est("c3", 0.0385, 0.00067)
+    e.interval_method, e.interval_low, e.interval_high = "block bootstrap", 0.0371, 0.0399
+    text = format_report(_outcome([e, _est("m2", 4.0, 0.1)], np.array([[1.0, 0.54], [0.54, 1.0]])))
+    assert "c3: 0.0385 +/- 0.00067 (1.74%) N/m  [1, 100] 95 % [0.0371, 0.0399]" in text
+    assert "from the block bootstrap" in text and "from the Jacobian)" in text  # the correlations' source
+    plain = format_report(_outcome([_est("k3", 20.0, 0.1)], np.eye(1)))
+    assert "95 %" not in plain and "standard errors from the Jacobian" in plain
+
+
 @pytest.mark.slow
 def test_shm_fit_without_save_reports_the_fit_in_the_terminal_and_fit_json(
         tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -160,7 +160,8 @@ def report_dict(outcome: FitOutcome, initial: Mapping[str, float] | None = None)
     return {
         "statistics": asdict(stats),
         "variables": variable_rows(outcome.estimates, initial),
-        "correlation_matrix": {"parameters": names, "matrix": np.asarray(outcome.correlation).tolist()},
+        "correlation_matrix": {"parameters": names, "matrix": np.asarray(outcome.correlation).tolist(),
+                               "source": "the Jacobian at the optimum"},
         "correlations": [{"a": a, "b": b, "correlation": c}
                          for a, b, c in correlated_pairs(names, outcome.correlation)],
         "warnings": [asdict(w) | {"parameters": list(w.parameters)}
@@ -198,13 +199,16 @@ def format_report(outcome: FitOutcome, initial: Mapping[str, float] | None = Non
             interval = f" 95 % [{_sig(lo)}, {_sig(hi)}]"
         lines.append(f"    {(r['name'] + ':').ljust(width)} {_sig(r['value'])} {se}{init} {r['unit']}"
                      f"  [{_sig(r['lower'], 4)}, {_sig(r['upper'], 4)}]{interval}{bound}")
-    how = ", ".join(sorted(methods)) if methods else "the Jacobian at the optimum (inflated for the residual's lag-1 " \
-                                                     "autocorrelation)"
-    lines.append(f"    (standard errors from {how})")
+    if methods:
+        lines.append(f"    (standard errors and 95 % intervals from the {', '.join(sorted(methods))})")
+    else:
+        lines.append("    (standard errors from the Jacobian at the optimum, inflated for the residual's lag-1 "
+                     "autocorrelation)")
     names = [e.name for e in outcome.estimates]
     pairs = correlated_pairs(names, outcome.correlation)
     if len(names) > 1:
-        lines.append(f"[[Correlations]] (unreported correlations are < {MIN_CORRELATION:.3f})")
+        source = "; from the Jacobian" if methods else ""  # a bootstrap replaces the errors, not the correlations
+        lines.append(f"[[Correlations]] (unreported correlations are < {MIN_CORRELATION:.3f}{source})")
         w = max(len(f"C({a}, {b})") for a, b, _ in pairs) if pairs else 0
         lines.extend(f"    {f'C({a}, {b})'.ljust(w)} = {c:+.4f}" for a, b, c in pairs)
         lines.append("[[Correlation matrix]]")
