@@ -261,22 +261,35 @@ def legend_findings(fig: Any, renderer: Any) -> list[Finding]:
                 if share > MAX_LEGEND_COVER:
                     found.append(f"{name} legend covers {100 * share:.0f} % of {what}")
             for cont in ax.containers:
-                if not isinstance(cont, BarContainer):
-                    continue
-                for k, bar in enumerate(cont.patches):
-                    bb = bar.get_window_extent(renderer)
-                    bx = np.array(bb.extents)
-                    ax_e = np.array(ax.bbox.extents)
-                    bx = np.r_[np.maximum(bx[:2], ax_e[:2]), np.minimum(bx[2:], ax_e[2:])]
-                    area = max(bx[2] - bx[0], 0) * max(bx[3] - bx[1], 0)
-                    if area <= 0:
-                        continue
-                    w = max(min(bx[2], ext[2]) - max(bx[0], ext[0]), 0)
-                    h = max(min(bx[3], ext[3]) - max(bx[1], ext[1]), 0)
-                    if w * h / area > MAX_BAR_COVER:
-                        found.append(f"{name} legend covers {100 * w * h / area:.0f} % of bar {k + 1} "
-                                     f"({_short(cont.get_label() or '')!r})")
+                if isinstance(cont, BarContainer):
+                    found += _bars_under_legend(name, ax, cont, ext, renderer)
     return _listed("legend covers data", found)
+
+
+def _bars_under_legend(name: str, ax: Any, cont: Any, ext: np.ndarray, renderer: Any) -> list[str]:
+    """Bars of ``cont`` whose value end (the top of an upright bar, the far end of a lying one) the legend box
+    ``ext`` covers, or more than :data:`MAX_BAR_COVER` of whose shown area it covers."""
+    found = []
+    x0, y0, x1, y1 = ext
+    ax_e = np.array(ax.bbox.extents)
+    lying = getattr(cont, "orientation", "vertical") == "horizontal"
+    for k, bar in enumerate(cont.patches):
+        bx = np.array(bar.get_window_extent(renderer).extents)
+        bx = np.r_[np.maximum(bx[:2], ax_e[:2]), np.minimum(bx[2:], ax_e[2:])]
+        area = max(bx[2] - bx[0], 0) * max(bx[3] - bx[1], 0)
+        if area <= 0:
+            continue
+        w = max(min(bx[2], x1) - max(bx[0], x0), 0)
+        h = max(min(bx[3], y1) - max(bx[1], y0), 0)
+        bx_, by_, bw, bh = bar.get_x(), bar.get_y(), bar.get_width(), bar.get_height()
+        end = (bx_ + bw, by_ + bh / 2) if lying else (bx_ + bw / 2, by_ + bh)
+        with np.errstate(all="ignore"):
+            ex, ey = ax.transData.transform(end)
+        end_hidden = bool(x0 <= ex <= x1 and y0 <= ey <= y1 and ax_e[0] <= ex <= ax_e[2] and ax_e[1] <= ey <= ax_e[3])
+        if end_hidden or w * h / area > MAX_BAR_COVER:
+            what = "the value end" if end_hidden else f"{100 * w * h / area:.0f} %"
+            found.append(f"{name} legend covers {what} of bar {k + 1} ({_short(cont.get_label() or '')!r})")
+    return found
 
 
 def _bar_extents(ax: Any, renderer: Any) -> list[tuple[int, int, str, np.ndarray]]:

@@ -104,6 +104,10 @@ def test_bars_over_bars_are_found_and_side_by_side_bars_pass() -> None:
     ax.barh(y + 0.2, [1, 2, 3], height=0.4, label="before")
     ax.barh(y - 0.2, [2, 1, 1], height=0.4, label="after")
     assert _kinds(fig) == set()
+    fig, ax = _axes()  # the tallest bar's top under the legend
+    ax.bar(y, [1, 2, 3], label="counts")
+    ax.legend(loc="upper right")
+    assert _kinds(fig) == {"legend covers data"}
 
 
 def test_fractional_ticks_on_a_count_axis_are_found_and_integer_ticks_pass() -> None:
@@ -219,7 +223,7 @@ def _commands(tmp: Path) -> dict[str, list[str]]:
         "model step": ["model", "step", "--duration-s", "0.5"],
         "model loop": ["model", "loop", "--freq-hz", "0.5", "--cycles", "1"],
         "harvest": ["harvest", "--params", "table2"],
-        "campaign": ["campaign", "--mbit", "both", "--ranges", "0:20:10", "--n", "2", "--seed", "3", "--workers", "1",
+        "campaign": ["campaign", "--mbit", "both", "--ranges", "0:50:10", "--n", "3", "--seed", "1", "--workers", "1",
                      "--no-progress"],
         "campaign-roc": ["campaign-roc", "--from", str(tmp / "campaign"), "--eps-th", "0.1:0.3:0.1", "--count-max",
                          "100,200"],

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from reporting.figure_layout import hide_colliding_texts
+from reporting.figure_layout import hide_colliding_texts, legend_clear_of_data
 from reporting.figures import pyplot, save_figure
 from studies.campaign import CampaignResult, RocTable
 from studies.campaign.paper import PAPER_FAULT_PROBABILITY
@@ -39,7 +39,6 @@ def fig11(result: CampaignResult, path: Path) -> list[Path]:
             ax.text(xi + 0.2, d, str(d), ha="center", va="bottom", fontsize=8)
         ax.set_ylabel("number of runs")
         ax.set_title(f"({'abcdefgh'[col]}) {result.mbits[key].label}")
-        ax.legend(fontsize=8, loc="upper left")
         ax = axes[1, col]
         p = np.array([s.probability for s in rows])
         lo = np.array([s.interval[0] for s in rows])
@@ -66,6 +65,8 @@ def fig11(result: CampaignResult, path: Path) -> list[Path]:
                  f"(eps_th={result.spec.monitor.eps_th:g}, count_max={result.spec.monitor.count_max}, "
                  f"seed {result.spec.seed})", fontsize=10)
     fig.tight_layout()
+    for ax in axes[0]:  # on the final layout: head-room above the bars and their counts
+        legend_clear_of_data(ax, fontsize=8, loc="upper left")
     out = _save(fig, path)
     plt.close(fig)
     return out
@@ -98,9 +99,9 @@ def error_traces(result: CampaignResult, path: Path) -> list[Path]:
         axes[0, col].set_ylabel("normalised error eps (Eq. 11)")
         axes[1, col].set_ylabel("fault counter")
         axes[1, col].set_xlabel("time (s)")
-        axes[0, col].legend(fontsize=7, ncol=2)
-        axes[1, col].legend(fontsize=7)
     fig.tight_layout()
+    for ax in axes.ravel():  # on the final layout: head-room above the traces
+        legend_clear_of_data(ax, fontsize=7, ncol=2)
     out = _save(fig, path, svg=False)
     plt.close(fig)
     return out
@@ -142,7 +143,7 @@ def roc(tables: list[RocTable], path: Path, mark: tuple[float, int] | None = Non
         ax2.set_ylabel("probability (%): detection solid, false alarm dashed")
         ax2.set_ylim(-2, 102)
         ax2.grid(alpha=0.3)
-        ax2.legend(fontsize=7, loc="center right")
+        ax2.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)  # beside the curves
     fig.tight_layout()
     for col, labels in enumerate(eps_labels):  # points that coincide (few runs) would stack their labels
         hide_colliding_texts([axes[0, col].get_legend(), *labels])
