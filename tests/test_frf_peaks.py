@@ -83,4 +83,4 @@ def test_compare_of_the_k3_minus_20_percent_table_finds_both_resonances(tmp_path
     assert rec["metrics"]["z3"]["peak_measured_Hz"] == pytest.approx(truth, rel=0.01)
     assert rec["metrics"]["z3"]["peak_model_Hz"] == pytest.approx(model, rel=0.01)
     finding = rec["findings"]["z3"][1]
-    assert "15.7" in finding and "17.07" in finding and "spaced 2.62 Hz" in finding  # the grid's resolution
+    assert "15.7" in finding and "17.07" in finding and "grid spacing 2.62 Hz" in finding  # the grid's resolution

@@ -58,7 +58,8 @@ class PeakComparison:
             else:
                 shift = 100.0 * (p.frequency_Hz / q.frequency_Hz - 1.0)
                 parts.append(f"resonance at {p.describe()} measured vs {q.describe()} model ({shift:+.1f} %)")
-        return f"{channel}: " + "; ".join(parts) + f" — {self.how_measured}; {self.how_model}."
+        how = f"{self.how_measured}; {self.how_model}."
+        return f"{channel}: " + "; ".join(parts) + ". " + how[:1].upper() + how[1:]
 
     def to_dict(self) -> dict[str, Any]:
         return {"measured": [p.to_dict() for p in self.measured], "model": [p.to_dict() for p in self.model],
@@ -71,9 +72,9 @@ class PeakComparison:
 def _resolution_text(peaks: Sequence[FrfPeak], what: str) -> str:
     if not peaks:
         return what
-    cells = ", ".join(f"{p.spacing_Hz:.3g} Hz ({100 * p.spacing_Hz / p.grid_Hz:.0f} %) at {p.grid_Hz:.3g} Hz"
-                      for p in peaks)
-    return f"{what}, {peaks[0].method.split(' to ')[0]} between grid points spaced {cells}"
+    cells = "; ".join(f"grid spacing {p.spacing_Hz:.3g} Hz ({100 * p.spacing_Hz / p.grid_Hz:.0f} %) at "
+                      f"{p.grid_Hz:.3g} Hz, by a {p.method}" for p in sorted(peaks, key=lambda q: q.frequency_Hz))
+    return f"{what}: {cells}"
 
 
 def fine_model_response(model: PlantModel, record: FrfRecord, output: str, f: np.ndarray, h: np.ndarray,
@@ -107,7 +108,7 @@ def table_peaks(model: PlantModel, record: FrfRecord, modelled: Mapping[str, np.
         ff, hh = fine_model_response(model, record, outputs[ch], f, modelled[ch], params)
         mod = find_peaks(ff, hh)
         out[ch] = PeakComparison(
-            meas, mod, _resolution_text(meas, f"measured peaks from the table ({f.size} frequencies)"),
+            meas, mod, _resolution_text(meas, f"measured peaks placed between the table's {f.size} frequencies"),
             f"model evaluated at {FINE_POINTS} more frequencies around each of its peaks")
     return out
 
