@@ -71,7 +71,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
 
     from shm_cli.synth_cmd import _assignments
     from workbench.compare import CompareOptions, compare
-    from workbench.records import load_record
+    from workbench.records import gap_notes, load_record
     from workbench.replay import SimulationFailed
     from workbench.report import report_json, write_report
 
@@ -87,6 +87,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
                              eq4_given=_eq4(args.eq4) or None, frf=args.frf)
     values = _assignments("--set", args.set_values)
     records = [load_record(Path(r)) for r in args.records]  # validate every file before any work
+    for note in gap_notes(records):  # lost samples are left out, said once (docs/records.md)
+        print(f"shm compare: {note}", file=sys.stderr)
     comparisons = []
     failures = []
     for rec in tqdm(records, desc="compare", unit="record", file=sys.stderr, disable=len(records) < 2):

@@ -62,7 +62,7 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     from workbench.diagnose import diagnose
     from workbench.diagnose_report import overlay_figure, ranking_figure, write_html
     from workbench.fit import FitError
-    from workbench.records import load_record
+    from workbench.records import gap_notes, load_record
 
     if args.workers < 1 or args.max_rate_hz <= 0 or not 0 <= args.min_reduction < 1 or args.fit_top < 0:
         raise CliError("--workers must be >= 1, --max-rate-hz > 0, --min-reduction in [0, 1) and --fit-top >= 0")
@@ -74,6 +74,8 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
     out = out_dir(args.out)
     (out / "diagnosis.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
     records = [load_record(p) for p in args.records]
+    for note in gap_notes(records):  # lost samples are left out, said once (docs/records.md)
+        print(f"shm diagnose: {note}", file=sys.stderr)
     try:
         with reporter:
             d = diagnose(records, args.params, candidates, holdout=args.holdout, n_blocks=args.blocks,

@@ -45,7 +45,7 @@ def cmd_discover(args: argparse.Namespace) -> int:
     from shm_cli.main import CliError
     from workbench.discover import describe_units, discover
     from workbench.fit import FitError
-    from workbench.records import load_record
+    from workbench.records import gap_notes, load_record
 
     if args.emit is not None and Path(args.emit).suffix != ".py":
         raise CliError(f"--emit must name a .py file, got '{args.emit}'")
@@ -59,6 +59,8 @@ def cmd_discover(args: argparse.Namespace) -> int:
         raise CliError(f"--max-rate-hz must be > 0, got {args.max_rate_hz}")
     out = out_dir(args.out)
     records = [load_record(p) for p in args.records]
+    for note in gap_notes(records):  # lost samples are left out, said once (docs/records.md)
+        print(f"shm discover: {note}", file=sys.stderr)
     base = load_parameter_set(args.params)
     say = functools.partial(print, file=sys.stderr) if args.json else print
     progress = functools.partial(print, file=sys.stderr, flush=True)

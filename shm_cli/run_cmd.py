@@ -22,6 +22,7 @@ not the expected one or the run could not complete (the rig's integration failed
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import shutil
 import signal
@@ -40,7 +41,6 @@ from shm_cli.common import (
     nonnegative_float,
     out_dir,
 )
-from studies.board_run.summary import build_summary, closing_line, write_traces
 from studies.board_run.timeline import format_event
 
 EXIT_SIGINT = 130
@@ -366,6 +366,7 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
 
     status = "failed"
     log = None
+    failed: dict[str, str] = {}  # step of the run -> why it failed (the run then exits 1, its results written)
     try:
         log = UsageLog(db_path, synchronous=args.log_sync.upper())
         run_id = log.start_run(scenario=scenario.name, seed=seed, link_url=args.link, params=params,
@@ -379,7 +380,13 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
 
         def on_event(ev) -> None:
             printer(ev)
-            recorder(ev)
+            try:  # a record that cannot be written is a failed step of the run, never the end of the board's run
+                recorder(ev)
+            except Exception as exc:
+                why = f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+                if "the visit records" not in failed:
+                    print(f"shm run: could not write a visit record ({why}); the run goes on", file=sys.stderr)
+                failed.setdefault("the visit records", why)
 
         runner = BoardRunner(board, link, sink=log, scheduler=scheduler,
                              rearm_times=[e.at for e in scenario.events_of("rearm")], on_event=on_event)
@@ -414,29 +421,16 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
         if bar is not None:
             bar.close()
 
-    summary = build_summary(args.link, scenario, seed, params, cfg, board, result, rig, setup_s, paced, db_path,
-                            run_id)
-    summary["status"] = status
-    if status == "interrupted":
-        summary["interrupted_by"] = stopper.name
-        printer.add_line(f"{result.duration_s:9.2f} s    interrupted by {stopper.name}: the board closed, the log "
-                         "and this report cover the part that ran")
-    printer.add_line(closing_line(summary))
-    (out / "timeline.txt").write_text("\n".join(printer.lines) + "\n")
-    write_traces(out, result.trace)
-    # the numbers first (usage.db is written; summary.json, traces), then the figures and report.html: a plotting
-    # failure never loses them, and summary.json says which figures exist
-    summary["figures"] = []
-    (out / "summary.json").write_text(dump_json(summary))
-    from studies.board_run.report import write_plots_and_report
-
+    with contextlib.suppress(Exception):
+        recorder.close()
     deco = Decorations("run", args)
-    figures = deco.attempt("the figures and report.html",
-                           lambda: write_plots_and_report(out, summary, result, printer.lines)) or []
-    summary["figures"] = figures
-    if deco.failed:
-        summary["failed"] = deco.failed
-    (out / "summary.json").write_text(dump_json(summary))
+    deco.failed.update(failed)
+    from studies.board_run.outputs import RunContext, write_run_outputs
+
+    ctx = RunContext(args.link, scenario, seed, params, cfg, board, result, rig, setup_s, paced, db_path, run_id)
+    summary = write_run_outputs(ctx, status, stopper.name if status == "interrupted" else None, printer, out, link,
+                                deco, dump_json)
+    figures = summary["figures"]
     if args.json:
         print(dump_json(summary))
     elif not args.quiet:
@@ -453,6 +447,9 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
         print(f"shm run: the final maintenance verdict is not the one scenario '{scenario.name}' expects "
               f"(expected {summary['expected_verdict']}): exit 1", file=sys.stderr)
         return 1
+    if not deco.ok:
+        print(f"shm run: the run's results are in {out}/, but these steps failed: {'; '.join(deco.failed)}: exit 1",
+              file=sys.stderr)
     return 0 if status == "finished" and deco.ok else 1
 
 

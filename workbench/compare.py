@@ -202,6 +202,8 @@ def compare(model: PlantModel, record: Record | FrfRecord, options: CompareOptio
                             segments=record.segments, noise_std=cr.noise_std, eps=eps[ch][skip],
                             threshold_sigma=options.threshold_sigma, window_s=options.window_s, features=features)
         findings[ch] = _findings(ch, m, pred.get(ch), tests[ch], locs[ch])
+        if record.gaps:  # lost samples (docs/records.md): left out of the comparison, and said
+            findings[ch].append(record.gap_note() + ".")
     wall["analyse_s"] = time.perf_counter() - t1
     frf = None
     if options.frf or (options.frf is None and record.test == "sweep"):

@@ -3,14 +3,24 @@
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from dataclasses import replace
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 
+from plant.layout import N_INPUTS, U_V_CH1, U_V_CH2, U_Z0DD
 from workbench.record_metadata import check_meta
-from workbench.record_types import INPUT_QUANTITIES, KNOWN_QUANTITY_UNITS, Channel, Record, RecordError, Segment
+from workbench.record_types import (
+    INPUT_QUANTITIES,
+    KNOWN_QUANTITY_UNITS,
+    Channel,
+    Gap,
+    Record,
+    RecordError,
+    Segment,
+)
 from workbench.units import Unit, known_units, split_column
 
 
@@ -38,23 +48,54 @@ def parse_columns(file: Path, names: Sequence[str], line: int | None) -> list[tu
     return out
 
 
+def _lost_cells(file: Path, data: np.ndarray, meta: dict[str, Any], lost: np.ndarray | None,
+                colnames: list[str], locate: Callable[[int], str], timed: bool) -> np.ndarray:
+    """The cells marked as lost samples (``lost``: the reader's empty cells; with ``missing = "nan"`` every NaN);
+    any other non-finite value is an error, and so is a lost time."""
+    mark = np.zeros(data.shape, bool) if lost is None else np.asarray(lost, bool)
+    if meta.get("missing") == "nan":
+        mark = mark | np.isnan(data)
+    bad = ~np.isfinite(data) & ~mark
+    if bad.any():
+        k, j = np.argwhere(bad)[0]
+        hint = ("" if "missing" in meta else "; if the logger lost this sample, say so in the metadata: "
+                "missing = \"nan\" (docs/records.md, Lost samples)")
+        raise RecordError(file, f"value {float(data[k, j])!r} is not finite (NaN/Inf are not allowed; cut the stretch "
+                                f"out or split the record{hint})", where=locate(int(k)), column=colnames[j])
+    if timed and mark[:, 0].any():
+        k = int(np.flatnonzero(mark[:, 0])[0])
+        raise RecordError(file, "the time of a row is missing (a lost sample keeps its time; only measured values "
+                                "may be empty)", where=locate(k), column=colnames[0])
+    return mark
+
+
+def _gaps(t: np.ndarray, rows_lost: np.ndarray) -> tuple[Gap, ...]:
+    """Runs of lost rows as :class:`Gap` (times in s)."""
+    idx = np.flatnonzero(rows_lost)
+    if idx.size == 0:
+        return ()
+    breaks = np.flatnonzero(np.diff(idx) > 1)
+    starts = np.concatenate([[0], breaks + 1])
+    ends = np.concatenate([breaks, [idx.size - 1]])
+    return tuple(Gap(float(t[idx[a]]), float(t[idx[b]]), int(b - a + 1)) for a, b in zip(starts, ends))
+
+
 def build_record(file: Path, columns: Sequence[str], data: np.ndarray, meta: dict[str, Any],
-                 locate: Callable[[int], str], time_si: np.ndarray | None = None) -> Record:
+                 locate: Callable[[int], str], time_si: np.ndarray | None = None,
+                 lost: np.ndarray | None = None) -> Record:
     """Validate and assemble. ``data[:, j]`` holds column ``columns[j]`` as written (not yet SI).
 
     ``locate(k)`` names sample ``k`` for messages (a file line for CSV, a sample index for TDMS). When
-    ``time_si`` is given (TDMS waveform timing) there is no time column in ``columns``.
+    ``time_si`` is given (TDMS waveform timing) there is no time column in ``columns``. ``lost`` marks the
+    cells the reader found empty (lost samples; with ``missing = "nan"`` NaN cells are lost too): their rows are
+    left out of the record and listed in :attr:`Record.gaps`.
     """
     check_meta(file, meta)
     header_line = None
     parsed = parse_columns(file, columns, header_line)
     colnames = list(columns)
-    # NaN / Inf
-    bad = ~np.isfinite(data)
-    if bad.any():
-        k, j = np.argwhere(bad)[0]
-        raise RecordError(file, f"value {float(data[k, j])!r} is not finite (NaN/Inf are not allowed; cut the stretch "
-                                "out or split the record)", where=locate(int(k)), column=colnames[j])
+    mark = _lost_cells(file, data, meta, lost, colnames, locate, time_si is None)
+    rows_lost: np.ndarray = np.asarray(mark.any(axis=1), bool)
     if time_si is None:
         if not parsed or parsed[0][0] != "time":
             raise RecordError(file, f"the first column must be the time, e.g. 'time_s' (got '{colnames[0]}')",
@@ -66,8 +107,9 @@ def build_record(file: Path, columns: Sequence[str], data: np.ndarray, meta: dic
         first = 0
         if t.size != data.shape[0]:
             raise RecordError(file, f"time track has {t.size} samples but the channels have {data.shape[0]}")
-    if t.size < 2:
-        raise RecordError(file, f"needs at least 2 samples, found {t.size}")
+    if t.size - int(np.count_nonzero(rows_lost)) < 2:
+        raise RecordError(file, f"needs at least 2 samples, found {t.size - int(np.count_nonzero(rows_lost))}"
+                          + (f" ({int(np.count_nonzero(rows_lost))} lost)" if rows_lost.any() else ""))
     d = np.diff(t)
     if np.any(d <= 0):
         k = int(np.flatnonzero(d <= 0)[0]) + 1
@@ -129,8 +171,29 @@ def build_record(file: Path, columns: Sequence[str], data: np.ndarray, meta: dic
         )
     segments = tuple(Segment(float(s["start_s"]), float(s["end_s"]), s["label"]) for s in meta.get("segments", []))
     test = meta.get("test", "other")
-    return Record(
+    rec = Record(
         path=str(file), test=test, t=np.ascontiguousarray(t, dtype=float), channels=MappingProxyType(channels),
         inputs=tuple(by_col[c][0] for c in inputs_cols), outputs=tuple(by_col[c][0] for c in outputs_cols),
         segments=segments, terminal=meta.get("terminal"), meta=MappingProxyType(dict(meta)),
     )
+    return _without_lost_rows(rec, rows_lost) if rows_lost.any() else rec
+
+
+def _without_lost_rows(rec: Record, rows_lost: np.ndarray) -> Record:
+    """``rec`` with its lost rows left out, their stretches in ``gaps`` and the full input track kept (an input
+    cell lost itself is interpolated in the track from its neighbours)."""
+    keep = ~rows_lost
+    full_t = rec.t
+    u_all = np.zeros((full_t.size, N_INPUTS))
+    for name in rec.inputs:
+        v = rec.channels[name].values
+        ok = np.isfinite(v)
+        rec_v = v if ok.all() else np.interp(full_t, full_t[ok], v[ok])
+        if name == "va":
+            u_all[:, U_V_CH1] += rec_v
+            u_all[:, U_V_CH2] -= rec_v
+        else:
+            u_all[:, {"v_ch1": U_V_CH1, "v_ch2": U_V_CH2, "z0dd": U_Z0DD}[name]] += rec_v
+    chans = {n: replace(c, values=np.ascontiguousarray(c.values[keep])) for n, c in rec.channels.items()}
+    return replace(rec, t=np.ascontiguousarray(full_t[keep]), channels=MappingProxyType(chans),
+                   gaps=_gaps(full_t, rows_lost), input_track=(full_t, u_all))

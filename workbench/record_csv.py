@@ -24,8 +24,9 @@ def _parse_header(path: Path, lines: Sequence[str]) -> dict[str, Any]:
         raise RecordError(path, f"header is not valid TOML (each metadata line starts with '#'): {exc}") from None
 
 
-def _read_csv_table(path: Path) -> tuple[dict[str, Any], list[str], np.ndarray, int, list[str]]:
-    """Header metadata, column names, data (as written), the file line number of the first data row."""
+def _read_csv_table(path: Path) -> tuple[dict[str, Any], list[str], np.ndarray, int, list[str], np.ndarray | None]:
+    """Header metadata, column names, data (as written), the file line number of the first data row, the header
+    lines and (with ``missing = "empty"``) the mask of empty cells (lost samples)."""
     try:
         text = path.read_text(encoding="utf-8-sig")  # a byte-order mark (Excel, Windows tools) is read past
     except FileNotFoundError:
@@ -62,6 +63,9 @@ def _read_csv_table(path: Path) -> tuple[dict[str, Any], list[str], np.ndarray, 
     if sep != ",":  # ';' or tab separators: a comma inside a field is a decimal comma
         body = [row.replace(",", ".") for row in body]
     ncol = len(columns)
+    lost = None
+    if meta.get("missing") == "empty" and any(_has_empty_cell(row, sep) for row in body):
+        body, lost = _mark_empty_cells(body, sep, ncol)
     try:
         data = np.loadtxt(io.StringIO("\n".join(body)), delimiter=sep, ndmin=2, dtype=float, comments=None)
         if data.shape[1] != ncol:
@@ -69,7 +73,30 @@ def _read_csv_table(path: Path) -> tuple[dict[str, Any], list[str], np.ndarray, 
     except ValueError:
         _diagnose_rows(path, columns, body, first_line, sep)
         raise RecordError(path, "cannot parse the data rows", line=first_line) from None
-    return meta, columns, data, first_line, lines[:n_head]
+    if lost is not None:
+        data[lost] = np.nan
+    return meta, columns, data, first_line, lines[:n_head], lost
+
+
+def _has_empty_cell(row: str, sep: str) -> bool:
+    fields = row.split(sep)
+    return any(not f.strip() for f in fields) and bool(row.strip())
+
+
+def _mark_empty_cells(body: list[str], sep: str, ncol: int) -> tuple[list[str], np.ndarray]:
+    """Rows with each empty cell (a lost sample) filled with 0 for the parser, and the mask of those cells. A row
+    with another number of fields is left as it is (the parser names it)."""
+    mask = np.zeros((len(body), ncol), bool)
+    out = list(body)
+    for i, row in enumerate(body):
+        fields = row.split(sep)
+        if len(fields) != ncol or not row.strip():
+            continue
+        empty = [not f.strip() for f in fields]
+        if any(empty):
+            mask[i] = empty
+            out[i] = sep.join("0" if e else f for f, e in zip(fields, empty))
+    return out, mask
 
 
 def _separator(column_line: str) -> str:
@@ -106,22 +133,26 @@ def _diagnose_rows(path: Path, columns: list[str], body: list[str], first_line: 
             try:
                 float(f)
             except ValueError:
-                raise RecordError(path, f"'{f.strip()}' is not a number" if f.strip() else "empty field",
-                                  line=line, column=columns[j]) from None
+                raise RecordError(path, f"'{f.strip()}' is not a number" if f.strip() else
+                                  "empty field (a lost sample? mark lost samples with missing = \"empty\" in the "
+                                  "header: docs/records.md, Lost samples)", line=line, column=columns[j]) from None
 
 
 def load_csv_record(path: str | Path) -> Record | FrfRecord:
     path = Path(path)
-    meta, columns, data, first_line, _ = _read_csv_table(path)
+    meta, columns, data, first_line, _, lost = _read_csv_table(path)
     if meta.get("format") == FRF_FORMAT or meta.get("test") == "frf" or (columns and columns[0].startswith(
             "frequency_")):
         return build_frf(path, columns, data, meta, lambda k: f"line {first_line + k}")
-    return build_record(path, columns, data, meta, lambda k: f"line {first_line + k}")
+    return build_record(path, columns, data, meta, lambda k: f"line {first_line + k}", lost=lost)
 
 
 def write_csv_record(path: str | Path, time_s: np.ndarray, columns: Mapping[str, np.ndarray],
                      meta: Mapping[str, Any]) -> Path:
-    """Write a time record: ``columns`` maps column names with units (``z3_m``) to values *in those units*."""
+    """Write a time record: ``columns`` maps column names with units (``z3_m``) to values *in those units*.
+
+    With ``meta["missing"] = "empty"`` a NaN value (a lost sample) is written as an empty cell; with ``"nan"``
+    as ``nan``."""
     path = Path(path)
     head = meta_to_toml({"format": FORMAT, **meta})
     names = ["time_s", *columns]
@@ -129,5 +160,9 @@ def write_csv_record(path: str | Path, time_s: np.ndarray, columns: Mapping[str,
     with path.open("w", encoding="utf-8") as fh:
         fh.write("".join(f"# {ln}\n" for ln in head.splitlines()))
         fh.write(",".join(names) + "\n")
-        np.savetxt(fh, data, delimiter=",", fmt="%.10g")
+        if meta.get("missing") == "empty" and np.isnan(data).any():
+            for row in data:
+                fh.write(",".join("" if v != v else f"{v:.10g}" for v in row) + "\n")
+        else:
+            np.savetxt(fh, data, delimiter=",", fmt="%.10g")
     return path

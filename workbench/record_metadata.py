@@ -29,7 +29,11 @@ META_KEYS = {
     "tdms": "TDMS import: group, channels (TDMS channel name -> column name with unit)",
     "provenance": "free-form table (how the record was made)",
     "notes": "free-form table",
+    "missing": "how lost samples are marked: 'empty' (an empty cell, CSV) or 'nan' (a NaN value, as LabVIEW "
+               "writes a gap); without it an empty cell or a NaN is an error",
 }
+#: values of the ``missing`` key (docs/records.md, "Lost samples")
+MISSING_MARKS = ("empty", "nan")
 _CHANNEL_KEYS = {"model_output", "sensor", "position_m", "noise_std", "description"}
 
 
@@ -85,6 +89,9 @@ def check_meta(file: Path, meta: Mapping[str, Any]) -> None:
     if "terminal" in meta and meta["terminal"] not in TERMINALS:
         raise RecordError(file, f"unknown terminal {meta['terminal']!r} (allowed: {', '.join(TERMINALS)})",
                           key="terminal")
+    if "missing" in meta and meta["missing"] not in MISSING_MARKS:
+        raise RecordError(file, f"unknown mark {meta['missing']!r} for lost samples (allowed: "
+                                f"{', '.join(MISSING_MARKS)})", key="missing")
     if "operating_hours" in meta:
         oh = meta["operating_hours"]
         if isinstance(oh, bool) or not isinstance(oh, (int, float)) or not math.isfinite(oh) or oh < 0:

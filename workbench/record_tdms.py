@@ -124,18 +124,25 @@ def load_tdms_record(path: str | Path) -> Record:
 
 
 def write_tdms_record(record: Record, path: str | Path, group: str = "Measurements") -> Path:
-    """Write a record as a cRIO-style TDMS file: one group, waveform timing, ``unit_string`` per channel."""
+    """Write a record as a cRIO-style TDMS file: one group, waveform timing, ``unit_string`` per channel; lost
+    samples as NaN with the file property ``missing = "nan"``."""
     from nptdms import ChannelObject, GroupObject, RootObject, TdmsWriter
+
+    from workbench.records import full_rows
 
     path = Path(path)
     props = {k: v for k, v in record.meta.items() if isinstance(v, (str, int, float)) and not isinstance(v, bool)}
     props["inputs"] = ",".join(record.channels[n].column for n in record.inputs)
+    t, si = full_rows(record)  # lost samples as NaN, the LabVIEW way of a gap (marked: missing = "nan")
+    if record.gaps:
+        props["missing"] = "nan"
     objs: list[Any] = [RootObject(properties=props), GroupObject(group)]
+    dt = float(np.median(np.diff(t)))
     for ch in record.channels.values():
         qty = ch.name
-        objs.append(ChannelObject(group, qty, ch.unit.from_si(ch.values), properties={
-            "unit_string": ch.unit.token.replace("_s2", "/s^2"), "wf_increment": record.dt,
-            "wf_start_offset": float(record.t[0])}))
+        objs.append(ChannelObject(group, qty, ch.unit.from_si(si[qty]), properties={
+            "unit_string": ch.unit.token.replace("_s2", "/s^2"), "wf_increment": dt,
+            "wf_start_offset": float(t[0])}))
     with TdmsWriter(str(path)) as w:
         w.write_segment(objs)
     return path

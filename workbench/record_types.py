@@ -85,8 +85,24 @@ class Segment:
 
 
 @dataclass(frozen=True)
+class Gap:
+    """A stretch of lost samples (docs/records.md, "Lost samples"): ``n_samples`` rows from ``start_s`` to
+    ``end_s`` (both inclusive, s) whose measured values are missing; they are left out of the record."""
+
+    start_s: float
+    end_s: float
+    n_samples: int
+
+
+@dataclass(frozen=True)
 class Record:
-    """A time-domain measurement record (SI units inside)."""
+    """A time-domain measurement record (SI units inside).
+
+    ``gaps``: stretches of lost samples left out of ``t`` and the channels (an empty cell in a CSV record written
+    with ``missing = "empty"``, a NaN with ``missing = "nan"``). ``input_track``: when rows were left out, the
+    record's full time base (s) and the model inputs ``(samples, 3)`` at every row, so that the inputs the rig
+    received at a lost sample still drive the model (:meth:`input_signals`).
+    """
 
     path: str
     test: str
@@ -97,8 +113,25 @@ class Record:
     segments: tuple[Segment, ...] = ()
     terminal: str | None = None
     meta: Mapping[str, Any] = field(default_factory=dict)
+    gaps: tuple[Gap, ...] = ()
+    input_track: tuple[np.ndarray, np.ndarray] | None = None
 
     kind = "time"
+
+    @property
+    def lost_samples(self) -> int:
+        """How many rows were lost (left out of the record)."""
+        return sum(g.n_samples for g in self.gaps)
+
+    def gap_note(self) -> str:
+        """One sentence for a report: how many samples were lost and where ('' when none were)."""
+        if not self.gaps:
+            return ""
+        where = ", ".join(f"{g.start_s:.6g} s" if g.n_samples == 1 else f"{g.start_s:.6g}-{g.end_s:.6g} s"
+                          for g in self.gaps[:5])
+        more = f" and {len(self.gaps) - 5} more" if len(self.gaps) > 5 else ""
+        return (f"{self.name}: {self.lost_samples} lost sample(s) in {len(self.gaps)} gap(s) (at {where}{more}) "
+                "left out; the model is driven through them by the record's inputs")
 
     def __getitem__(self, name: str) -> np.ndarray:
         try:
@@ -145,7 +178,15 @@ class Record:
         return u
 
     def input_signals(self) -> InputSignals:
-        """The inputs as :class:`plant.InputSignals` on a uniform grid (linearly resampled if the log jitters)."""
+        """The inputs as :class:`plant.InputSignals` on a uniform grid (linearly resampled if the log jitters).
+
+        A record with lost samples is driven by its full input track (the rows left out included)."""
+        if self.input_track is not None:
+            t_all, u_all = self.input_track
+            d = np.diff(t_all)
+            dt = float(np.median(d))
+            if np.max(np.abs(d - dt)) <= 1e-3 * dt:
+                return InputSignals(float(t_all[0]), dt, u_all)
         u = self.input_matrix()
         if self.uniform:
             return InputSignals(float(self.t[0]), self.dt, u)
@@ -177,7 +218,14 @@ class Record:
         chans = {n: replace(c, values=c.values[k]) for n, c in self.channels.items()}
         segs = tuple(Segment(max(s.start_s, start_s), min(s.end_s, end_s), s.label) for s in self.segments
                      if s.end_s > start_s and s.start_s < end_s)
-        return replace(self, t=self.t[k], channels=MappingProxyType(chans), segments=segs)
+        gaps = tuple(g for g in self.gaps if start_s <= g.start_s and g.end_s < end_s)
+        track = None
+        if self.input_track is not None and gaps:
+            t_all, u_all = self.input_track
+            keep = (t_all >= self.t[k][0]) & (t_all <= self.t[k][-1])
+            track = (t_all[keep], u_all[keep])
+        return replace(self, t=self.t[k], channels=MappingProxyType(chans), segments=segs, gaps=gaps,
+                       input_track=track)
 
 
 @dataclass(frozen=True)

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from plant.layout import INPUT_NAMES
+from plant.layout import INPUT_NAMES, U_V_CH1, U_V_CH2, U_Z0DD
 from workbench.record_columns import build_record
 from workbench.record_csv import load_csv_record, write_csv_record
 from workbench.record_frf import write_frf_table
@@ -49,6 +49,7 @@ from workbench.record_types import (
     Channel,
     FrfChannel,
     FrfRecord,
+    Gap,
     Record,
     RecordError,
     Segment,
@@ -71,10 +72,34 @@ def load_record(path: str | Path) -> Record | FrfRecord:
 def record_from_arrays(time_s: np.ndarray, columns: Mapping[str, np.ndarray], meta: Mapping[str, Any],
                        path: str = "<memory>") -> Record:
     """Build (and validate) a record in memory; ``columns`` maps column names with units to values in those
-    units, exactly as they would appear in the file."""
+    units, exactly as they would appear in the file. With ``meta["missing"]`` set (``"empty"`` or ``"nan"``) a
+    NaN marks a lost sample (docs/records.md, "Lost samples"); without it a NaN is an error."""
     names = ["time_s", *columns]
     data = np.column_stack([np.asarray(time_s, float)] + [np.asarray(v, float) for v in columns.values()])
-    return build_record(Path(path), names, data, {"format": FORMAT, **meta}, lambda k: f"sample {k}")
+    lost = np.isnan(data) if "missing" in meta else None
+    return build_record(Path(path), names, data, {"format": FORMAT, **meta}, lambda k: f"sample {k}", lost=lost)
+
+
+def gap_notes(records) -> list[str]:
+    """One sentence per record that lost samples (``Record.gap_note``), for the commands to show."""
+    return [r.gap_note() for r in records if getattr(r, "gaps", ())]
+
+
+def full_rows(record: Record) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The record's time (s) and channels (SI) on every row, the lost samples included as NaN (the inputs at a
+    lost row from the record's input track). For a record without gaps: its own arrays."""
+    if not record.gaps or record.input_track is None:
+        return record.t, {n: ch.values for n, ch in record.channels.items()}
+    t_all, u_all = record.input_track
+    at = np.searchsorted(t_all, record.t)
+    cols: dict[str, np.ndarray] = {}
+    for n, ch in record.channels.items():
+        v = np.full(t_all.size, np.nan)
+        v[at] = ch.values
+        if ch.role == "input" and n in ("v_ch1", "v_ch2", "z0dd"):
+            v = u_all[:, {"v_ch1": U_V_CH1, "v_ch2": U_V_CH2, "z0dd": U_Z0DD}[n]].copy()
+        cols[n] = v
+    return t_all, cols
 
 
 def write_record(record: Record, path: str | Path) -> Path:
@@ -82,10 +107,13 @@ def write_record(record: Record, path: str | Path) -> Path:
     path = Path(path)
     if path.suffix.lower() == ".tdms":
         return write_tdms_record(record, path)
-    cols = {ch.column: ch.unit.from_si(ch.values) for ch in record.channels.values()}
+    t, si = full_rows(record)
+    cols = {ch.column: ch.unit.from_si(si[n]) for n, ch in record.channels.items()}
     meta = {k: v for k, v in record.meta.items() if k != "format"}
+    if record.gaps and "missing" not in meta:
+        meta["missing"] = "empty"
     meta["inputs"] = [record.channels[n].column for n in record.inputs]
-    return write_csv_record(path, record.t, cols, meta)
+    return write_csv_record(path, t, cols, meta)
 
 
 __all__ = [
@@ -99,9 +127,12 @@ __all__ = [
     "Channel",
     "FrfChannel",
     "FrfRecord",
+    "Gap",
     "Record",
     "RecordError",
     "Segment",
+    "full_rows",
+    "gap_notes",
     "load_csv_record",
     "load_record",
     "load_tdms_record",

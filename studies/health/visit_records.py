@@ -11,6 +11,10 @@ Header keys: ``test`` (``mbit-a``/``mbit-b``), ``sample_rate_Hz`` (the tick rate
 (laser noise σ), ``[[segments]]`` (settle, the MBIT) and ``[provenance]`` (``generator = "board"``, scenario, run id,
 visit number, board time of the first row, MBIT label).
 
+A tick whose sample the link lost (or whose sample the board could not trust) keeps its row — time and the
+commanded channels — with an empty ``z3_m`` cell; the header says ``missing = "empty"`` (docs/records.md, "Lost
+samples"), so every reader leaves that row out of the comparison instead of refusing the record.
+
 Storage: one row per tick of the MBIT and of its preceding settle — MBIT.a 22 s = 2 201 rows ≈ 95 kB, MBIT.b 5 s =
 501 rows ≈ 22 kB with the shipped ``mbit.toml``: about 120 kB per visit, bounded by the fixed MBIT sequence (a visit
 never writes more, however long HV stays connected).
@@ -53,6 +57,7 @@ def mbit_record(event: BoardEvent, *, visit: int, operating_hours: float | None,
         "test": d["test"], "description": f"{d['label']} as the board ran it (visit {visit})",
         "sample_rate_Hz": float(d["rate_Hz"]), "terminal": "amplifier", "inputs": ["v_ch1_V", "v_ch2_V"],
         "params": params, "channels": {"z3_m": {"sensor": "laser (tip)", "noise_std": float(z3_noise_m)}},
+        "missing": "empty",  # a sample the link lost is an empty z3 cell (docs/records.md, Lost samples)
         "provenance": {"generator": "board", "scenario": scenario, "visit": int(visit), "mbit": d["mbit"],
                        "label": d["label"], "board_time_s": float(rows[0, 0] + time_offset_s)},
     }
