@@ -113,6 +113,7 @@ class BoardRunner:
         self.events: list[BoardEvent] = []
         self.command = ActuatorCommand(0, 0.0, 0.0, board.budget.current(board.regime))
         self.zero_sent = False  #: the run ended with a zero demand answered by the rig
+        self.lost_exchanges = 0  #: ticks whose exchange failed (no sample: a lost reply, a link down)
 
     def _emit(self, ev: BoardEvent) -> None:
         if self.sink is not None:
@@ -143,6 +144,7 @@ class BoardRunner:
             except LinkError as exc:
                 sample = None
                 err = str(exc) or type(exc).__name__
+                self.lost_exchanges += 1
             kk = k + 1
             if rearms and kk * period >= rearms[0] - 1e-12:
                 rearms.pop(0)

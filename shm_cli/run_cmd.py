@@ -429,7 +429,7 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
 
     ctx = RunContext(args.link, scenario, seed, params, cfg, board, result, rig, setup_s, paced, db_path, run_id)
     summary = write_run_outputs(ctx, status, stopper.name if status == "interrupted" else None, printer, out, link,
-                                deco, dump_json)
+                                deco, dump_json, runner.lost_exchanges)
     figures = summary["figures"]
     if args.json:
         print(dump_json(summary))

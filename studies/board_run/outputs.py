@@ -42,18 +42,20 @@ def _minimal_summary(ctx: RunContext) -> dict[str, Any]:
             "board_time_s": ctx.result.duration_s, "expected_verdict": None, "verdict_as_expected": None}
 
 
-def link_stats(link: Any) -> dict[str, Any]:
-    """What the link counted: its incident counters and ``lost_exchanges`` (ticks that got no sample)."""
+def link_stats(link: Any, lost_exchanges: int | None = None) -> dict[str, Any]:
+    """What the link counted (its incident counters) and ``lost_exchanges``: the board ticks that got no sample (a
+    lost or late reply, the link down), as the board's runner counted them."""
     stats = dict(getattr(link, "stats", {}) or {})
-    if "requests" in stats:
-        stats["lost_exchanges"] = int(stats["requests"]) - int(stats.get("replies", 0))
-    elif hasattr(link, "failures"):
-        stats.update(exchanges=int(getattr(link, "exchanges", 0)), lost_exchanges=int(link.failures))
+    if hasattr(link, "failures"):
+        stats.update(exchanges=int(getattr(link, "exchanges", 0)), failures=int(link.failures))
+    if lost_exchanges is not None:
+        stats["lost_exchanges"] = int(lost_exchanges)
     return {k: (int(v) if isinstance(v, int | float) and float(v).is_integer() else v) for k, v in stats.items()}
 
 
 def write_run_outputs(ctx: RunContext, status: str, interrupted_by: str | None, printer: Any, out: Path, link: Any,
-                      deco: Any, dump_json: Callable[[Any], str]) -> dict[str, Any]:
+                      deco: Any, dump_json: Callable[[Any], str], lost_exchanges: int | None = None
+                      ) -> dict[str, Any]:
     """Write the run's outputs into ``out`` (see the module docstring) and return the summary.
 
     ``printer`` keeps the timeline lines (``add_line``, ``lines``); ``deco.attempt(step, fn)`` runs a step and
@@ -63,7 +65,7 @@ def write_run_outputs(ctx: RunContext, status: str, interrupted_by: str | None, 
         ctx.link_url, ctx.scenario, ctx.seed, ctx.params, ctx.cfg, ctx.board, result, ctx.rig, ctx.setup_s,
         ctx.paced, ctx.db_path, ctx.run_id)) or _minimal_summary(ctx)
     summary["status"] = status
-    summary["link_stats"] = link_stats(link)
+    summary["link_stats"] = link_stats(link, lost_exchanges)
     if interrupted_by is not None:
         summary["interrupted_by"] = interrupted_by
         printer.add_line(f"{result.duration_s:9.2f} s    interrupted by {interrupted_by}: the board closed, the log "
