@@ -23,6 +23,7 @@ BENCHMARKS: tuple[str, ...] = (
     "bench.bench_discovery_challenge",
     "bench.bench_damage_challenge",
     "bench.bench_health",
+    "bench.bench_coldstart",
 )
 
 

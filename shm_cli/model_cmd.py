@@ -108,11 +108,15 @@ def model_summary(params: str) -> dict:
 
 
 def cmd_info(args: argparse.Namespace) -> int:
+    if not args.json:  # the first line at once: the model may take a while (a first use compiles it, announced)
+        from board_config import load_parameter_set
+
+        params = load_parameter_set(args.params)
+        print(f"parameter set: {params.name}  ({params.source})", flush=True)
     s = model_summary(args.params)
     if args.json:
         print(dump_json(s))
         return 0
-    print(f"parameter set: {s['parameter_set']}  ({s['source']})")
     print(f"effects: {', '.join(s['effects'])}")
     print("bending modes:")
     for i, m in enumerate(s["modes"], 1):

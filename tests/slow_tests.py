@@ -117,6 +117,9 @@ SLOW_TESTS: frozenset[str] = frozenset({
     "test_monitor_counter.py::test_streaming_equals_vectorised_equals_flow_chart",  # 8 s
     "test_monitor_counter.py::test_table3_steps_are_exactly_plus2_minus1_or_zero_at_floor",  # 2 s
     "test_monitor_properties.py::test_chunked_and_streamed_end_in_the_flow_charts_state",  # 3 s
+    "test_no_silence.py::test_diagnose_reports_its_stages_and_compiles_on_a_short_record",  # cold compiles: minutes
+    "test_no_silence.py::test_hil_serve_says_what_it_builds_before_its_port_opens",  # cold compiles: ~1 min
+    "test_no_silence.py::test_model_info_announces_its_cold_compile_and_is_never_silent",  # cold compiles: ~1 min
     "test_parameter.py::test_a_freed_parameter_stays_inside_its_range",  # 2 s
     "test_parameter.py::test_deviation_round_trip_and_bounds",  # 4 s
     "test_plant_model.py::test_accuracy_against_solve_ivp_rtol_1e9",  # 68 s
