@@ -184,6 +184,48 @@ peak = { value = 12.0, unit = "m/s^2" }
 duration = { value = 0.5, unit = "s" }
 """
 
+#: a short life (docs/scenarios.md [life]): 8 visits 200 h apart, the monitor's first FAULT at about 1200 h, so that
+#: shm health --evaluate has the visits before it to score
+SHORT_LIFE = """
+[scenario]
+name = "figures-life"
+seed = 1
+
+[rig]
+params = "table2"
+battery_initial_voltage = { value = 3.0, unit = "V" }
+
+[life]
+visits = { value = 8, unit = "1" }
+visit_interval = { value = 200, unit = "h" }
+first_visit = { value = 0, unit = "h" }
+flights_between_visits = { value = 2, unit = "1" }
+
+[[life.law]]
+parameter = "k3"
+kind = "linear"
+rate = { value = -2.0e-4, unit = "1/h" }
+
+[[life.law]]
+parameter = "alpha_h"
+kind = "power"
+amplitude = { value = 0.15, unit = "1" }
+reference = { value = 1200, unit = "h" }
+exponent = { value = 1.5, unit = "1" }
+
+[[phase]]
+kind = "ground"
+duration = { value = 1, unit = "s" }
+
+[[phase]]
+kind = "maintenance"
+duration = { value = 30, unit = "s" }
+
+[[phase]]
+kind = "ground"
+duration = { value = 1, unit = "s" }
+"""
+
 
 @dataclass
 class Drawn:
@@ -208,10 +250,10 @@ def _commands(tmp: Path) -> dict[str, list[str]]:
     loop = _synth(tmp, "loop.csv", "--test", "mbit-a", *stiffening)  # its residual trough sat under the legend
     sweep = _synth(tmp, "sweep.csv", "--test", "sweep", *stiffening)
     frf = _synth(tmp, "frf.csv", "--test", "frf", "--f0-hz", "5", "--f1-hz", "30", "--n-freqs", "8")
-    visits = [str(_synth(tmp, f"visit{h}.csv", "--test", "mbit-b", "--deviation", f"k3={-0.0001 * h:g}",
-                         "--operating-hours", str(h))) for h in (0, 150, 300, 450)]
     scenario = tmp / "short.toml"
     scenario.write_text(SHORT_RUN)
+    life = tmp / "life.toml"
+    life.write_text(SHORT_LIFE)
     return {
         "compare": ["compare", str(loop), str(sweep), str(frf), "--params", "table2"],
         "diagnose": ["diagnose", str(stiff), "--params", "table2", "--candidates",
@@ -227,8 +269,10 @@ def _commands(tmp: Path) -> dict[str, list[str]]:
                      "--no-progress"],
         "campaign-roc": ["campaign-roc", "--from", str(tmp / "campaign"), "--eps-th", "0.1:0.3:0.1", "--count-max",
                          "100,200"],
-        "health": ["health", *visits, "--params", "table2", "--workers", "1", "--locate", "never"],
         "run": ["run", "--scenario", str(scenario), "--timeline-every-s", "0", "--quiet"],
+        "run life": ["run", "--scenario", str(life), "--quiet"],
+        "health": ["health", str(tmp / "run_life"), "--params", "table2", "--evaluate", "--workers", "1",
+                   "--locate", "never"],
     }
 
 
@@ -256,7 +300,7 @@ def drawn(tmp_path_factory: pytest.TempPathFactory) -> Drawn:
 
 
 COMMANDS = ("compare", "diagnose", "fit", "calibrate", "model frf", "model step", "model loop", "harvest",
-            "campaign", "campaign-roc", "health", "run")
+            "campaign", "campaign-roc", "run", "run life", "health")
 
 
 @pytest.mark.slow
@@ -315,7 +359,7 @@ def drawn_share(page: Path, tmp: Path) -> float:
 
 
 REPORTS = (("compare", "report.html"), ("diagnose", "diagnosis.html"), ("fit", "fit.html"), ("health", "report.html"),
-           ("run", "report.html"))
+           ("run", "report.html"), ("run life", "report.html"))
 
 
 @pytest.mark.slow
