@@ -122,7 +122,7 @@ DAMAGE: dict[str, tuple[tuple[dict[str, float], ...], tuple[tuple[str, ...], ...
                          (("section 1", "c1", "root"), ("damping", "c1", "dissipat"), _EVENT)),
     "NegativePolarityPatch": (({"b_neg": 0.15}, {"b_neg": 0.3}),
                               (("d_ep", "drive", "patch", "authority", "piezo"),
-                               ("negative", "polarity", "sign", "polaris", "one-sided"))),
+                               ("negative", "polarity", "'s sign", "sign of", "polaris", "one-sided"))),
     "RootFreePlay": (({"f_play": 0.3, "g_root": 3e-5}, {"f_play": 0.6, "g_root": 5e-5}),
                      (("section 1", "k1", "root"), ("free play", "clearance", "play", "dead zone", "gap", "loose"))),
 }
