@@ -14,11 +14,15 @@ Options (URL query):
               so that an exchange given up at its budget leaves the board 1.5 ms of its 10 ms tick — a line too
               slow for a 10 ms tick, below 115200 baud, keeps 8 ms + twice its line time)
     handshake 1 (default) reads the rig's identity (holding 8-13) at open and refuses a mismatch; 0 skips it
+    fc23      1 (default): one FC 23 per tick when the rig announces map version 2 at the handshake; 0: always
+              FC 16 + FC 04
     baud, parity, stopbits   RTU line settings (default 115200, N, 1)
     reopen    consecutive timeouts after which the connection is closed and reopened (default 25)
 
-One :meth:`ModbusLink.exchange` per tick is two transactions: FC 16 writes the command block (holding
-registers 0–7), FC 04 reads the sample block (input registers 0–21); the map is :mod:`drivers.modbus_registers`.
+One :meth:`ModbusLink.exchange` per tick is one FC 23 (write holding 0–7, read the sample mirror holding 100–121;
+:mod:`drivers.modbus_fc23`) when the rig announced map version 2 at the handshake, else two transactions: FC 16
+writes the command block (holding registers 0–7), FC 04 reads the sample block (input registers 0–21); the map is
+:mod:`drivers.modbus_registers`.
 On RTU the write waits at most half the budget for its acknowledgement; a lost or late acknowledgement is forgiven
 when the sample shows the command applied (``cmd_seq_applied``); the sample read is tried twice within the budget, and
 a sample showing an older command (the late reply to an earlier read: RTU has no transaction id) is read again once —
@@ -57,12 +61,14 @@ from pymodbus.transaction import TransactionManager
 from board_config.errors import InputError
 from board_config.url_options import UrlOptions, split_url_query
 from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, LinkError, RigSample
+from drivers.modbus_fc23 import Fc23Unserved, exchange_fc23, fc23_announced
 from drivers.modbus_registers import (
     BY_NAME,
     COMMAND_START,
     INPUT_COUNT,
     INPUT_START,
-    MAP_VERSION,
+    SUPPORTED_MAP_VERSIONS,
+    InputBlock,
     ModbusExceptionCode,
     decode_input_block,
     decode_value,
@@ -71,8 +77,8 @@ from drivers.modbus_registers import (
 from drivers.reconnecting_link import ReconnectingLink
 
 log = logging.getLogger("drivers.modbus_link")
-_KNOWN = {"tcp": {"unit", "timeout", "reopen", "handshake"},
-          "rtu": {"unit", "timeout", "reopen", "baud", "parity", "stopbits", "handshake"}}
+_KNOWN = {"tcp": {"unit", "timeout", "reopen", "handshake", "fc23"},
+          "rtu": {"unit", "timeout", "reopen", "baud", "parity", "stopbits", "handshake", "fc23"}}
 # RTU bytes on the line per exchange: FC16 request 1+1+2+2+1+16+2 = 25, its reply 8, FC04 request 8, its reply 49
 _RTU_EXCHANGE_BYTES = 90
 _TICK_S = 0.01  # the board's tick ([tick] rate = 100 Hz)
@@ -225,7 +231,8 @@ def parse_modbus_url(url: str) -> dict[str, Any]:
     settings: dict[str, Any] = {"kind": kind, **target,
                                    "unit": opts.integer("unit", 1, 1, 247),
                                    "reopen": opts.integer("reopen", 25, 1, 1e9),
-                                   "handshake": opts.flag("handshake", True)}
+                                   "handshake": opts.flag("handshake", True),
+                                   "fc23": opts.flag("fc23", True)}
     if kind == "rtu":
         baud = opts.integer("baud", 115200, 300, 4_000_000)
         parity = opts.choice("parity", "N", ("N", "E", "O"))
@@ -264,8 +271,9 @@ def rig_identity_problem(words: list[int], tick: float = 0.01) -> str:
 
     limits = load_mfc_limits()
     version = words[0]
-    if version != MAP_VERSION:
-        return f"map_version is {version}, this board speaks register map version {MAP_VERSION}"
+    if version not in SUPPORTED_MAP_VERSIONS:
+        return (f"map_version is {version}, this board speaks register map versions "
+                f"{', '.join(map(str, SUPPORTED_MAP_VERSIONS))}")
     lo = decode_value(BY_NAME["v_limit_min"], words[2:4])
     hi = decode_value(BY_NAME["v_limit_max"], words[4:6])
     if (lo, hi) != (limits.voltage_min, limits.voltage_max):
@@ -295,8 +303,8 @@ class ModbusLink(ReconnectingLink):
         if pm.level == logging.NOTSET:  # pymodbus logs every timeout itself; this link logs them rate-limited
             pm.setLevel(logging.CRITICAL)
         self.unit = int(self.settings["unit"])
-        #: request-to-reply time one transaction may take (s): half the exchange budget (two transactions per tick)
-        self.processing_budget = self.timeout / 2
+        #: one FC 23 per tick (the rig announced map version 2 at the handshake; ``fc23=0`` in the URL: never)
+        self.fc23 = False
         self.line_time = float(self.settings["line_time"])
         self.last_transaction_s = 0.0
         #: the transactions of the last exchange: (what, start after the exchange's start, duration, budget), s
@@ -306,6 +314,13 @@ class ModbusLink(ReconnectingLink):
         self._client: Any = None  # the pymodbus client, made at the first open and kept across reconnects
         self._down = True
         self.last_exception_code: int | None = None
+        self.map_version = 0  #: the map version the rig announced at the handshake (0: not read)
+
+    @property
+    def processing_budget(self) -> float:
+        """Request-to-reply time one transaction may take (s): the whole exchange budget with FC 23 (one transaction
+        per tick), half of it with FC 16 + FC 04."""
+        return self.timeout if self.fc23 else self.timeout / 2
 
     # ------------------------------------------------------------------------------------------ lifecycle
     def _make_client(self):
@@ -355,6 +370,8 @@ class ModbusLink(ReconnectingLink):
         problem = rig_identity_problem(list(rr.registers))
         if problem:
             raise RigMismatchError(f"{self.url}: rig refused: {problem} (docs/registers.md)")
+        self.fc23 = bool(self.settings["fc23"]) and fc23_announced(list(rr.registers))
+        self.map_version = int(rr.registers[0])  # the version the rig announced (1 or 2)
 
     def close(self) -> None:
         client, self._client = self._client, None
@@ -530,6 +547,16 @@ class ModbusLink(ReconnectingLink):
         # acknowledgement is not the end of the exchange — the sample read follows, and its cmd_seq_applied tells
         # whether the command was applied (a late acknowledgement is skipped by its function code)
         rtu = self.settings["kind"] == "rtu"
+        if self.fc23:  # map version 2: one transaction per tick (drivers.modbus_fc23)
+            try:
+                block, refused = exchange_fc23(self, words, command.seq, deadline)
+                return self._finish(command, block, refused)
+            except Fc23Unserved as exc:
+                self.fc23 = False
+                self.stats["fc23_fallback"] += 1
+                self._log.warn("fc23_fallback", "%s", exc)
+                if deadline - time.monotonic() < 2 * _MIN_READ_S:
+                    raise LinkError(f"{exc}; no time left in this tick") from None
         ack_lost = False
         try:
             rr = self._call("write command (FC16)", self._client.write_registers, COMMAND_START, words,
@@ -592,6 +619,10 @@ class ModbusLink(ReconnectingLink):
                 raise LinkError(f"{self.url}: the command write was not acknowledged and the rig reports command seq "
                                 f"{block.cmd_seq_applied} applied, not {command.seq}{context}")
             self.stats["ack_lost_but_applied"] += 1  # the sample shows the command applied: the exchange stands
+        return self._finish(command, block, refused)
+
+    def _finish(self, command: ActuatorCommand, block: InputBlock, refused: bool) -> RigSample:
+        """The sample of an answered exchange (after a reconnect: then the identity check)."""
         self.stats["replies"] += 1
         sample = block.sample
         if self._check_due:  # after a reconnect: the first good exchange is followed by the identity check

@@ -32,7 +32,12 @@ from drivers.link import FLAG_SENSOR_FAULT, ActuatorCommand, RigSample
 
 Table = Literal["input", "holding", "coil", "discrete"]
 DType = Literal["float32", "float64", "uint32", "uint16", "int16", "bit"]
-MAP_VERSION = 1
+#: the version a rig of this map announces (holding 8): 2 = version 1 + the sample mirror (holding 100-121) and
+#: FC 23; the board drives version 1 rigs too, with FC 16 + FC 04 per tick
+MAP_VERSION = 2
+#: the map versions the board can drive; FC 23 from this version on
+SUPPORTED_MAP_VERSIONS = (1, 2)
+FC23_MAP_VERSION = 2
 
 _WORDS = {"float32": 2, "float64": 4, "uint32": 2, "uint16": 1, "int16": 1, "bit": 1}
 _STRUCT = {"float32": ">f", "float64": ">d", "uint32": ">I", "uint16": ">H", "int16": ">h"}
@@ -126,6 +131,10 @@ INPUT_START, INPUT_END = _span("input")  # 0, 22
 HOLDING_START, HOLDING_END = _span("holding")  # 0, 14
 COMMAND_START, COMMAND_END = 0, 8  # holding block the board writes each tick
 INPUT_COUNT = INPUT_END - INPUT_START
+#: map version 2: holding registers MIRROR_START .. MIRROR_START + INPUT_COUNT - 1 hold the sample block again (input
+#: registers 0-21, same layout, read-only), so that one FC 23 writes the command (holding 0-7) and reads the sample
+MIRROR_START = 100
+MIRROR_END = MIRROR_START + INPUT_COUNT
 HOLDING_COUNT = HOLDING_END - HOLDING_START
 DISCRETE_COUNT = _span("discrete")[1]
 COIL_COUNT = _span("coil")[1]
@@ -250,10 +259,11 @@ def decode_command_block(words: list[int] | tuple[int, ...]) -> ActuatorCommand:
                            board_current=_get(words, COMMAND_START, "board_current"))
 
 
-def initial_holding_block(v_min: float = -500.0, v_max: float = 1500.0, tick: float = 0.01) -> list[int]:
-    """Holding registers at power-up: zero command, the rig's limits (V) and tick (s)."""
+def initial_holding_block(v_min: float = -500.0, v_max: float = 1500.0, tick: float = 0.01,
+                          map_version: int = MAP_VERSION) -> list[int]:
+    """Holding registers at power-up: zero command, the map version, the rig's limits (V) and tick (s)."""
     b = [0] * HOLDING_COUNT
-    _put(b, HOLDING_START, "map_version", MAP_VERSION)
+    _put(b, HOLDING_START, "map_version", map_version)
     _put(b, HOLDING_START, "rig_tick", tick)
     _put(b, HOLDING_START, "v_limit_min", v_min)
     _put(b, HOLDING_START, "v_limit_max", v_max)
@@ -330,6 +340,10 @@ def markdown_table() -> str:
             out.append(f"| {span} | {r.address + 1} | `{r.name}` | {r.dtype} | {r.words} | {r.unit} | {scale} | "
                        f"{'R/W' if r.writable else 'R'} | {rng} | {r.description} |")
         out.append("")
+        if table == "holding":
+            out += [f"Map version 2 adds the **sample mirror**: holding {MIRROR_START}–{MIRROR_END - 1} (mbpoll -r "
+                    f"{MIRROR_START + 1}) hold input registers {INPUT_START}–{INPUT_END - 1} again, same layout, "
+                    "read-only (FC 03 or the read part of FC 23; writes refused with exception 02).", ""]
     return "\n".join(out)
 
 

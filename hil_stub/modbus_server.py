@@ -44,10 +44,13 @@ from drivers.modbus_registers import (
     COMMAND_END,
     COMMAND_START,
     DISCRETE_COUNT,
+    FC23_MAP_VERSION,
     HOLDING_COUNT,
     HOLDING_START,
     INPUT_COUNT,
     INPUT_START,
+    MAP_VERSION,
+    MIRROR_START,
     ModbusExceptionCode,
     check_holding_write,
     decode_command_block,
@@ -102,8 +105,10 @@ def _bits(*values: bool) -> int:
     return sum(1 << i for i, v in enumerate(values) if v)
 
 
-#: function codes pymodbus decodes itself (its own checks and answers apply); anything else is ILLEGAL FUNCTION
-_PYMODBUS_FUNCTIONS = frozenset({1, 2, 3, 4, 5, 6, 7, 8, 11, 12, 15, 16, 17, 20, 21, 22, 23, 24, 43})
+#: the function codes the map serves (docs/registers.md); pymodbus decodes these, every other one is answered with
+#: ILLEGAL FUNCTION (pymodbus would also decode e.g. FC 21 "write file record" and answer it from a datastore that
+#: has no files)
+_SERVED_FUNCTIONS = frozenset({1, 2, 3, 4, 5, 6, 15, 16, 22, 23})
 
 
 def check_request_pdu(pdu: bytes) -> int | None:
@@ -116,8 +121,17 @@ def check_request_pdu(pdu: bytes) -> int | None:
     if not pdu:
         return None
     fc = pdu[0]
-    if fc not in _PYMODBUS_FUNCTIONS:
+    if fc not in _SERVED_FUNCTIONS:
         return 0x01
+    if fc == 22:
+        return None if len(pdu) == 7 else 0x03
+    if fc == 23:
+        if len(pdu) < 10:
+            return 0x03
+        (_ra, r_qty, _wa, w_qty, nbytes) = struct.unpack(">HHHHB", pdu[1:10])
+        if not 1 <= r_qty <= 125 or not 1 <= w_qty <= 121 or nbytes != 2 * w_qty or len(pdu) != 10 + nbytes:
+            return 0x03
+        return None
     if fc in (1, 2, 3, 4, 5, 6):
         if len(pdu) != 5:
             return 0x03
@@ -174,7 +188,7 @@ class ModbusRigServer:
 
     def __init__(self, host: RigHost, kind: str, where: str, *, loop: LoopThread, unit: int = 1,
                  faults: LinkFaults | None = None, seed: int = 0, stream: int = 2, baudrate: int = 115200,
-                 parity: str = "N") -> None:
+                 parity: str = "N", map_version: int = MAP_VERSION) -> None:
         if kind not in ("tcp", "rtu"):
             raise ValueError(f"Modbus server kind {kind!r}: allowed tcp, rtu")
         if not 1 <= unit <= 247:
@@ -194,10 +208,15 @@ class ModbusRigServer:
         self.port = 0
         self.serial_path = ""
         self.board_path = ""
-        self._holding = initial_holding_block(host.limits.voltage_min, host.limits.voltage_max, host.dt)
+        #: 2 (default): the sample mirror and FC 23 are served; 1: the map without them (FC 23 -> exception 02 on
+        #: the mirror), as a rig written for map version 1
+        self.map_version = int(map_version)
+        self._holding = initial_holding_block(host.limits.voltage_min, host.limits.voltage_max, host.dt,
+                                              self.map_version)
         self._watch_task: asyncio.Task | None = None
         self._disconnect_done = False
         self._silence = False
+        self._fc23_silence = False  # the write part of an FC 23 found the rig's link down: its reply is withheld
         self._wire = "send"
         if kind == "tcp":
             endpoint = split_host_port(where)
@@ -236,7 +255,9 @@ class ModbusRigServer:
                 [SimData(0, values=[False], datatype=DataType.BITS, readonly=True)],
                 [SimData(0, values=[False] * DISCRETE_COUNT, datatype=DataType.BITS, readonly=True)],
                 [SimData(HOLDING_START, values=holding_rw, datatype=DataType.REGISTERS),
-                 SimData(lim_start, values=holding_ro, datatype=DataType.REGISTERS, readonly=True)],
+                 SimData(lim_start, values=holding_ro, datatype=DataType.REGISTERS, readonly=True)]
+                + ([SimData(MIRROR_START, values=[0] * INPUT_COUNT, datatype=DataType.REGISTERS, readonly=True)]
+                   if self.map_version >= FC23_MAP_VERSION else []),
                 [SimData(INPUT_START, values=[0] * INPUT_COUNT, datatype=DataType.REGISTERS, readonly=True)],
             ),
             action=self._action,
@@ -246,12 +267,24 @@ class ModbusRigServer:
                       registers: list[int], set_values: list[int] | list[bool] | None) -> ExcCodes | None:
         host = self.host
         silence = False
+        sample_read = function_code == 0x04
         if function_code == 0x04:
             snap = host.snapshot
             off = INPUT_START - start_address
             registers[off: off + INPUT_COUNT] = encode_input_block(snap.sample, snap.cmd_seq_applied,
                                                                    snap.refused_count)
             self.stats["reads"] += 1
+        elif function_code in (0x03, 0x17) and set_values is None and address + count > MIRROR_START:
+            # a read of the sample mirror (map version 2): FC 03, or the read part of FC 23 after its write
+            snap = host.snapshot
+            off = MIRROR_START - start_address
+            registers[off: off + INPUT_COUNT] = encode_input_block(snap.sample, snap.cmd_seq_applied,
+                                                                   snap.refused_count)
+            self.stats["reads"] += 1
+            self.stats["fc23_exchanges" if function_code == 0x17 else "mirror_reads"] += 1
+            sample_read = True
+        elif function_code == 0x17 and set_values is None:
+            pass  # the read part of FC 23 outside the mirror: the holding block as it is
         elif function_code == 0x02:
             s = host.snapshot.sample
             registers[0] = _bits(s.hv_present, bool(s.flags & 1), bool(s.flags & 2), bool(s.flags & 4))
@@ -261,7 +294,9 @@ class ModbusRigServer:
             self.stats["exception_02"] += 1
             host.incident(f"{self.describe()}: coil write refused with exception 02 (read-only)")
             return ExcCodes.ILLEGAL_ADDRESS
-        elif function_code in (0x06, 0x10) and set_values is not None:
+        elif function_code in (0x06, 0x10, 0x16, 0x17) and set_values is not None:
+            # FC 22 (mask write) and the write part of FC 23 are checked like FC 06 / FC 16: whole values, writable
+            # entries, finite demands inside Table 1
             off = HOLDING_START - start_address
             current = registers[off: off + HOLDING_COUNT]
             values = [int(v) for v in set_values]
@@ -296,7 +331,12 @@ class ModbusRigServer:
             silence = True
         # --latency-ms delays the sample of each exchange (the FC04 reply), as on the serial link: the rig's
         # response time per board tick; acknowledgements of the command write are not delayed
-        delay = self.faulter.faults.processing_s + (self.faulter.draw_delay() if function_code == 0x04 else 0.0)
+        if function_code == 0x17:
+            if set_values is not None:  # the write part of FC 23: its read part follows (delay, silence there)
+                self._fc23_silence = silence
+                return None
+            silence, self._fc23_silence = silence or self._fc23_silence, False
+        delay = self.faulter.faults.processing_s + (self.faulter.draw_delay() if sample_read else 0.0)
         if delay > 0:
             await asyncio.sleep(delay)
         # from here to the reply's trace_packet nothing awaits: the flag belongs to this reply

@@ -27,6 +27,7 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, TypeVar
 
 from drivers.link import RigEndpoint
+from drivers.modbus_registers import MAP_VERSION
 from hil_stub.faults import FaultPlan, SensorFaultRig
 from hil_stub.frame_server import FrameServer
 from hil_stub.modbus_server import LoopThread, ModbusRigServer
@@ -102,15 +103,18 @@ class HilService:
                           link_path=link_path, baudrate=baudrate)
         return self._add(srv)
 
-    def add_modbus_tcp(self, address: str = "127.0.0.1:0", *, unit: int = 1) -> ModbusRigServer:
+    def add_modbus_tcp(self, address: str = "127.0.0.1:0", *, unit: int = 1,
+                       map_version: int = MAP_VERSION) -> ModbusRigServer:
+        """Serve the rig over Modbus TCP; ``map_version=1`` serves the map without the sample mirror and FC 23."""
         srv = ModbusRigServer(self.host, "tcp", address, loop=self.loop, unit=unit, faults=self.plan.link,
-                              seed=self.plan.seed, stream=len(self.servers) + 1)
+                              seed=self.plan.seed, stream=len(self.servers) + 1, map_version=map_version)
         return self._add(srv)
 
     def add_modbus_rtu(self, path: str = "pty", *, unit: int = 1, baudrate: int = 115200,
-                       parity: str = "N") -> ModbusRigServer:
+                       parity: str = "N", map_version: int = MAP_VERSION) -> ModbusRigServer:
         srv = ModbusRigServer(self.host, "rtu", path, loop=self.loop, unit=unit, faults=self.plan.link,
-                              seed=self.plan.seed, stream=len(self.servers) + 1, baudrate=baudrate, parity=parity)
+                              seed=self.plan.seed, stream=len(self.servers) + 1, baudrate=baudrate, parity=parity,
+                              map_version=map_version)
         return self._add(srv)
 
     def start(self) -> None:

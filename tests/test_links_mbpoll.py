@@ -12,7 +12,7 @@ import pytest
 from links_support import FakeRig, missing_tools, wait_for
 
 from drivers.link import FLAG_LIMIT_REFUSED
-from drivers.modbus_registers import INPUT_COUNT, encode_input_block, float32_to_registers
+from drivers.modbus_registers import INPUT_COUNT, MIRROR_START, encode_input_block, float32_to_registers
 from hil_stub.service import HilService
 
 pytestmark = [pytest.mark.integration,
@@ -117,3 +117,18 @@ def test_mbpoll_over_rtu_through_a_socat_pty_pair(socat_pair):
         assert rc != 0 and "Illegal data address" in out
         rc, _, out = mbpoll(target, "-t", "4:float", "-B", "-r", "1", values=("1501",))
         assert rc != 0 and "Illegal data value" in out
+
+
+def test_mbpoll_reads_the_sample_mirror_of_map_version_2_over_tcp(tcp_rig):
+    """The sample mirror (holding 100-121, what FC 23 reads) is the input block again; FC 03 reads it, a write to
+    it is refused (issue 29, point 3)."""
+    hil, _, target = tcp_rig
+    rc, vals, out = mbpoll(target, "-t", "4", "-r", str(MIRROR_START + 1), "-c", str(INPUT_COUNT))
+    assert rc == 0, out
+    snap = hil.host.snapshot
+    assert [int(vals[MIRROR_START + 1 + i]) for i in range(INPUT_COUNT)] == encode_input_block(
+        snap.sample, snap.cmd_seq_applied, snap.refused_count)
+    rc, vals, out = mbpoll(target, "-t", "4", "-r", "9", "-c", "1")  # map_version
+    assert rc == 0 and int(vals[9]) == 2, out
+    rc, _, out = mbpoll(target, "-t", "4", "-r", str(MIRROR_START + 1), values=("1",))
+    assert rc != 0 and "Illegal data address" in out

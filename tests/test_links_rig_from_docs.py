@@ -314,8 +314,8 @@ def test_the_board_refuses_a_modbus_rig_with_the_wrong_word_order():
         link = open_link(f"modbus-tcp://127.0.0.1:{server.port}?unit=1")
         with pytest.raises(LinkError, match="word order"):
             link.open()
-        server.holding[8] = 2  # another map version
-        with pytest.raises(LinkError, match="map_version is 2"):
+        server.holding[8] = 3  # a map version this board does not know
+        with pytest.raises(LinkError, match="map_version is 3"):
             open_link(f"modbus-tcp://127.0.0.1:{server.port}?unit=1").open()
     finally:
         server.close()

@@ -38,7 +38,7 @@ def test_a_modbus_rig_slower_than_its_budget_is_reported_and_bounded():
     plan = FaultPlan(link=LinkFaults(processing_s=0.0045), seed=1)  # 4.5 ms per transaction: 9 ms per exchange
     with HilService(FakeRig(), mode="realtime", plan=plan) as hil:
         srv = hil.add_modbus_tcp("127.0.0.1:0")
-        link = open_link(srv.board_url)
+        link = open_link(srv.board_url + "&fc23=0")  # two transactions per tick (FC 16 + FC 04)
         link.open()  # the start-up reads have their own budget: a slow rig still connects
         try:
             errors = exchange_errors(link, range(1, 31))
