@@ -179,3 +179,57 @@ def test_nothing_named_on_a_record_the_model_misses_is_unexplained(no_identifiab
     assert d.verdict == "unexplained"
     assert d.message.startswith("Not explained by the library and the core parameters: the nominal model misses")
     assert "shm discover" in d.next_command
+
+
+# --- judge: members that fail are dropped, the rest refitted and judged again (no simulation) ---------------------
+
+def _set(names, stderr=1.0):
+    from workbench.candidate_fit import CandidateResult
+    from workbench.candidates import CandidateSpec, parameter_candidate
+    from workbench.fit_optimiser import ParameterEstimate
+
+    spec = CandidateSpec(params=tuple(parameter_candidate(n) for n in names))
+    est = [ParameterEstimate(n, "1", "core", 1.0, stderr, 0.0, 2.0, False) for n in names]
+    outcome = SimpleNamespace(estimates=est, values={n: 1.0 for n in names})
+    c = CandidateResult(" + ".join(names), "", "", "", [], outcome, spec=spec)  # type: ignore[arg-type]
+    c.accepted = c.stable = True
+    return c
+
+
+def _judge(monkeypatch, best, passing, stderr_after=1.0):
+    """Judge ``best`` where the members in ``passing`` pass the rule (drop cost = their index + 1 σ)."""
+    import workbench.diagnose_evidence as de
+
+    def evidence_of(cand, *args, **kw):
+        ok = cand.outcome.estimates[0].stderr != math.inf
+        return [MemberEvidence(m, "parameter", ok, False, 5.0, 1.0 + i if m in passing else 0.0, 0.2,
+                               "" if ok else "no finite standard error")
+                for i, m in enumerate(cand.spec.members)]
+
+    monkeypatch.setattr(de, "evidence_of", evidence_of)
+    fits = []
+
+    def fit(spec, start):
+        fits.append(spec.members)
+        return _set(spec.members, stderr_after)
+
+    return de.judge(best, None, [], 10.0, None, fit), fits
+
+
+def test_judge_refits_what_passes(monkeypatch):
+    j, fits = _judge(monkeypatch, _set(["k1", "m3", "beta_h"]), {"k1", "m3"})
+    assert fits == [("k1", "m3")] and j.named is not None and j.named.members == ("k1", "m3")
+    assert {e.name for e in j.evidence} == {"k1", "m3", "beta_h"}  # the member left out keeps its evidence
+
+
+def test_judge_names_nothing_when_nothing_passes(monkeypatch):
+    j, fits = _judge(monkeypatch, _set(["k1", "m3"]), set())
+    assert j.named is None and fits == []
+
+
+def test_a_singular_set_loses_its_cheapest_member_first(monkeypatch):
+    # every standard error infinite (the set's information matrix singular): not "nothing identifiable" but
+    # "this set is not": the member whose removal costs least goes, the rest is refitted and judged
+    j, fits = _judge(monkeypatch, _set(["k1", "m3", "c2"], stderr=math.inf), {"k1", "m3", "c2"})
+    assert fits == [("m3", "c2")]
+    assert j.named is not None and j.named.members == ("m3", "c2")

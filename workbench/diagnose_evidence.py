@@ -27,8 +27,8 @@ from workbench.diagnose_rules import MAX_REL_SE, MemberEvidence, nameable
 from workbench.fit import Objective, Target, rms
 from workbench.fit_optimiser import ParameterEstimate
 
-#: rounds of "drop the members that fail, refit the rest, judge again"
-MAX_ROUNDS = 3
+#: rounds of "drop the members that fail, refit the rest, judge again" (a set of four can lose one a round)
+MAX_ROUNDS = 4
 
 
 @dataclass
@@ -57,6 +57,13 @@ class Judgement:
         shares = {m: min(max((w * w - held * held) * n / removed, 0.0), 1.0) if removed > 0 else 0.0
                   for m, w in without_sigma.items() if math.isfinite(w)}
         return shares, without_sigma
+
+
+def singular(cand: CandidateResult) -> bool:
+    """Whether the fit of ``cand`` could not assign any parameter a finite standard error (its information matrix
+    is singular as a whole: :func:`workbench.fit_optimiser` then marks every estimate "not identifiable")."""
+    o = cand.outcome
+    return o is not None and bool(o.estimates) and not any(math.isfinite(e.stderr) for e in o.estimates)
 
 
 def neutral_values(cls: type[PhysicalEffect]) -> dict[str, float]:
@@ -220,6 +227,11 @@ def judge(best: CandidateResult, base: ParameterSet, targets: Sequence[Target], 
         if len(keep) == len(ev):
             j.named = cand
             break
+        if not keep and len(ev) > 1 and singular(cand):
+            # the set's covariance is singular (every standard error infinite): the set is not identifiable, its
+            # members may be — drop the one whose removal costs least and judge the rest refitted
+            cheapest = min(ev, key=lambda e: e.drop_cost_sigma)
+            keep = [e.name for e in ev if e is not cheapest]
         if not keep:
             break
         sub = CandidateSpec(tuple(c for c in cand.spec.effects if c.name in keep),
