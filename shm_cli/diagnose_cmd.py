@@ -19,10 +19,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "reduction with a BIC penalty per free parameter. A re-estimation that explains as well as an "
                     "effect wins (no new physics). When the best leaves more than 1.5 σ, forward selection adds "
                     "the next best. Candidates whose free run diverges, goes flat or ends at its bounds lose their "
-                    "claim. Prints the verdict in words ('m3 is wrong: ... — re-estimate it', 'missing effect', "
-                    "a combination, or 'partly / not explained' with the shm discover command to run next), the "
-                    "shm fit command, and which parameters the records cannot tell apart. Writes diagnosis.json, "
-                    "ranking.png, overlay.png and diagnosis.html.")
+                    "claim. A verdict names a member only when it is identifiable on the records, not at a bound, "
+                    "changes the prediction by more than the noise and costs more than the noise when removed; it "
+                    "says 'm3 is wrong: ... — re-estimate it', 'missing effect' or a combination only when that "
+                    "reaches 1.5 σ held out, else the share of the excess over the noise the library explains. "
+                    "Then, when the library falls short, it runs the discovery step (shm discover) itself, writes "
+                    "what it finds inside --out (discovered.py, never over an existing file) and ends with one "
+                    "verdict: what was found in words and formula and the shm fit --add command (--no-discover: "
+                    "print the shm discover command instead). Writes diagnosis.json, ranking.png, overlay.png and "
+                    "diagnosis.html.")
     p.add_argument("records", nargs="+", metavar="RECORD", help="time records (.csv or .tdms; docs/records.md)")
     add_params_arg(p)
     p.add_argument("--candidates", action="append", default=None, metavar="NAME[,NAME...]",
