@@ -1,0 +1,64 @@
+"""The compile announcement's words, its routing, the cold-cache check that compiles nothing, and the shipped
+compositions ``make setup`` builds (plant.kernel_cache, plant.compose.uncached_entries, plant.warm; issue 27.1)."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+from plant import PlantModel
+from plant.compose import KERNEL_ENTRIES
+from plant.effect import library_effects
+from plant.kernel_cache import announce_compile, compile_message, composition_words, set_announcer
+from plant.warm import MEMBER_ENTRIES, NO_HYSTERESIS, shipped_compositions
+
+
+def test_the_announcement_names_the_effects_and_terminal_and_says_it_is_a_first_use():
+    assert composition_words(PlantModel("table2").effects) == ("the nominal model (amplifier terminal)", 0)
+    words, n = composition_words(PlantModel("table2", effects=["dielectric_leakage", "piezo_creep"],
+                                            terminal="open_circuit").effects)
+    assert (words, n) == ("the model for effects dielectric_leakage, piezo_creep (open_circuit terminal)", 2)
+    words, _ = composition_words(PlantModel("table2", terminal="harvest_paper", core=NO_HYSTERESIS).effects)
+    assert words == "the nominal model (core laminate, patch_rc, piezo_coupling; harvest_paper terminal)"
+    text = compile_message(words, "run_lanes", 41.6)
+    assert text.startswith("compiling the nominal model") and "batch integrator (lanes)" in text
+    assert "(first use, ~42 s; cached afterwards)" in text and text.endswith("…")
+
+
+def test_the_announcement_goes_where_the_caller_routes_it():
+    heard: list[str] = []
+    previous = set_announcer(heard.append)
+    try:
+        announce_compile(PlantModel("table2", effects=["air_damping"]).effects)
+    finally:
+        assert set_announcer(previous) == heard.append
+    assert len(heard) == 1 and heard[0].startswith("compiling the model for effects air_damping (amplifier terminal)")
+
+
+def test_a_cold_cache_lists_every_entry_to_compile_without_compiling(tmp_path):
+    code = ("import json, time; t = time.perf_counter(); from plant import PlantModel; "
+            "m = PlantModel('table2'); u = m.uncached_kernels(); "
+            "print(json.dumps([u, time.perf_counter() - t, m._kernel_module is None]))")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"))
+    env.pop("MFC_SHM_KERNEL_DIR", None)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    entries, seconds, not_built = json.loads(out.stdout)
+    assert entries == list(KERNEL_ENTRIES) and not_built
+    assert seconds < 8  # reading the index; a compile takes tens of seconds
+    assert "compiling" not in out.stderr
+
+
+def test_setup_builds_the_nominal_models_the_library_and_the_scenarios_once_each():
+    comps = shipped_compositions()
+    keys = [c.model().effect_names for c in comps]
+    assert len(keys) == len(set(keys))  # one entry per composition (parameter values are not in a kernel)
+    by = {k: c for k, c in zip(keys, comps)}
+    nominal = ("laminate", "patch_rc", "bouc_wen", "piezo_coupling")
+    assert by[(*nominal, "amplifier")].entries == KERNEL_ENTRIES  # fits and diagnose integrate batches in lanes
+    assert by[(*NO_HYSTERESIS, "harvest_paper")].entries == MEMBER_ENTRIES
+    for name in library_effects():
+        assert "run_lanes" in by[(*nominal, "amplifier", name)].entries
+        assert (*nominal, "open_circuit", name) in by
+    assert (*nominal, "harvest_coupled", "dielectric_leakage") in by  # the patch_leakage scenario's rig in flight
