@@ -15,6 +15,7 @@ BENCHMARKS: tuple[str, ...] = (
     "bench.bench_campaign",
     "bench.bench_harvest",
     "bench.bench_links",
+    "bench.bench_stub_latency",
     "bench.bench_board",
     "bench.bench_compare",
     "bench.bench_diagnose",

@@ -26,7 +26,8 @@ import contextlib
 import logging
 import struct
 import threading
-from collections import Counter
+import time
+from collections import Counter, deque
 from concurrent.futures import Future
 from typing import Any
 
@@ -217,6 +218,10 @@ class ModbusRigServer:
         self._disconnect_done = False
         self._silence = False
         self._fc23_silence = False  # the write part of an FC 23 found the rig's link down: its reply is withheld
+        #: seconds from a request's bytes arriving to its reply leaving, the last 100 000 (exchanges that send no
+        #: reply are not counted): the stub's own answer time, without the network or the client's scheduling
+        self.service_times: deque[float] = deque(maxlen=100_000)
+        self._received_at: float | None = None
         self._wire = "send"
         if kind == "tcp":
             endpoint = split_host_port(where)
@@ -356,7 +361,11 @@ class ModbusRigServer:
 
     def _trace_packet(self, sending: bool, data: bytes) -> bytes:
         if not sending:
+            self._received_at = time.perf_counter()
             return data
+        if self._received_at is not None:  # the stub's own answer time: request bytes in -> reply bytes out
+            self.service_times.append(time.perf_counter() - self._received_at)
+            self._received_at = None
         silence, self._silence = self._silence, False
         wire, self._wire = self._wire, "send"
         if silence:
@@ -402,6 +411,17 @@ class ModbusRigServer:
         self.host.incident(f"{self.describe()}: malformed request (function {data[7 if self.kind == 'tcp' else 1]}) "
                            f"answered with exception {code:02d}")
         return end
+
+    def service_time_summary(self) -> dict[str, float | int]:
+        """p50 / p99 / max (ms) of :attr:`service_times` and their count."""
+        times = sorted(self.service_times)
+        if not times:
+            return {"n": 0}
+
+        def pct(q: float) -> float:
+            return 1e3 * times[min(len(times) - 1, int(q * len(times)))]
+
+        return {"n": len(times), "p50_ms": pct(0.5), "p99_ms": pct(0.99), "max_ms": 1e3 * times[-1]}
 
     # ------------------------------------------------------------------------------------------ lifecycle
     async def _start(self) -> None:

@@ -166,6 +166,9 @@ class HilService:
             "commands": h.commands, "refused": h.refused_count, "undelivered": h.undelivered,
             "board_runs": h.board_runs, "rig_restarts": h.restarts,
             "incidents": h.incident_count, "pacing": h.pacing.summary() if h.mode == "realtime" else None,
-            "servers": {srv.describe(): {**dict(srv.stats), **srv.faulter.counts()} for srv in self.servers},
+            "servers": {srv.describe(): {**dict(srv.stats), **srv.faulter.counts(),
+                                         **({"answer_time": srv.service_time_summary()}
+                                            if hasattr(srv, "service_time_summary") else {})}
+                        for srv in self.servers},
             "faults": self.plan.describe(),
         }

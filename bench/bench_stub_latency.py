@@ -1,0 +1,205 @@
+"""The HIL stub alone: how fast `shm hil serve` answers one Modbus TCP transaction (issue 29, point 2).
+
+`shm hil serve --modbus-tcp 127.0.0.1:0 --clock realtime` runs as its own process at normal priority; this process
+sends it, 100 times a second, what a board sends: one FC 23 (write the command block, read the sample mirror) per
+tick, and every 10th tick the FC 16 + FC 04 pair of a map version 1 board instead. A bare socket client (no
+pymodbus on this side) times each transaction from the request's send to the reply's last byte: the stub's answer
+time plus loopback and this process's own wake-up. Two phases of the same length: idle, then with one CPU-bound
+process per core at normal priority beside it (the desk of issue 29). Reported per phase and function: p50, p99,
+max (ms), the transactions and the lost ones (no reply within 50 ms); and the stub's own answer time (request bytes
+in to reply bytes out, measured inside the stub: ``answer_time`` of its ``--summary``), which leaves out the
+network and this process's scheduling. Each phase runs against a fresh stub. Target: p99 <= 1.5 ms per transaction
+under load. On a shared machine other processes' CPU use shows up directly in p99 and max: the load average before each
+phase is recorded with the result.
+
+``--quick``: 3 s per phase (a smoke run, not for quoting); full: 30 s per phase.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import socket
+import struct
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from drivers.link import ActuatorCommand
+from drivers.modbus_registers import COMMAND_START, INPUT_COUNT, INPUT_START, MIRROR_START, encode_command_block
+
+TICK_S = 0.01
+_REPLY_TIMEOUT_S = 0.05
+
+
+def _command(k: int) -> ActuatorCommand:
+    v = 600.0 * math.sin(2 * math.pi * 0.1 * k * TICK_S)  # MBIT.a-like: 600 V differential sine at 0.1 Hz
+    return ActuatorCommand(seq=k, v_ch1=100.0 + v, v_ch2=100.0 - v, board_current=0.003)
+
+
+def start_stub(extra: tuple[str, ...] = ()) -> tuple[subprocess.Popen, int]:
+    """`shm hil serve` on a free loopback port (realtime clock, HV present); its process and port."""
+    cmd = [sys.executable, "-m", "shm_cli.main", "hil", "serve", "--modbus-tcp", "127.0.0.1:0", "--clock",
+           "realtime", "--hv", "present", "--status-every", "0", *extra]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                            env={**os.environ, "MFC_SHM_THREADS": "1"})
+    assert proc.stdout is not None
+    deadline = time.monotonic() + 120.0  # a first run may compile the plant kernels
+    while time.monotonic() < deadline:
+        line = proc.stdout.readline()
+        if not line:
+            break
+        if "board: --link modbus-tcp://" in line:
+            port = int(line.split("modbus-tcp://", 1)[1].split("?", 1)[0].rsplit(":", 1)[1])
+            return proc, port
+    proc.kill()
+    raise RuntimeError("the HIL stub did not come up")
+
+
+class RawModbusTcp:
+    """A minimal blocking Modbus TCP client (unit 1) that times each transaction."""
+
+    def __init__(self, port: int) -> None:
+        self.sock = socket.create_connection(("127.0.0.1", port), timeout=2.0)
+        self.sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        self.sock.settimeout(_REPLY_TIMEOUT_S)
+        self.tid = 0
+        self.buf = b""
+
+    def transact(self, pdu: bytes) -> tuple[float, bytes | None]:
+        """(request-to-reply seconds, reply PDU or None when lost); stale replies (other tids) are skipped."""
+        self.tid = (self.tid + 1) & 0xFFFF
+        t0 = time.perf_counter()
+        self.sock.sendall(struct.pack(">HHHB", self.tid, 0, len(pdu) + 1, 1) + pdu)
+        try:
+            while True:
+                while len(self.buf) < 7 or len(self.buf) < 6 + struct.unpack(">H", self.buf[4:6])[0]:
+                    chunk = self.sock.recv(4096)
+                    if not chunk:
+                        raise ConnectionError("the stub closed the connection")
+                    self.buf += chunk
+                length = struct.unpack(">H", self.buf[4:6])[0]
+                frame, self.buf = self.buf[:6 + length], self.buf[6 + length:]
+                if struct.unpack(">H", frame[:2])[0] == self.tid:
+                    return time.perf_counter() - t0, frame[7:]
+        except TimeoutError:
+            self.buf = b""
+            return time.perf_counter() - t0, None
+
+    def close(self) -> None:
+        self.sock.close()
+
+
+def _fc23(words: list[int]) -> bytes:
+    return struct.pack(">BHHHHB", 23, MIRROR_START, INPUT_COUNT, COMMAND_START, len(words), 2 * len(words)) + \
+        b"".join(struct.pack(">H", w) for w in words)
+
+
+def _fc16(words: list[int]) -> bytes:
+    return struct.pack(">BHHB", 16, COMMAND_START, len(words), 2 * len(words)) + \
+        b"".join(struct.pack(">H", w) for w in words)
+
+
+_FC04 = struct.pack(">BHH", 4, INPUT_START, INPUT_COUNT)
+
+
+def paced_transactions(port: int, seconds: float, first_seq: int = 1) -> dict[str, list[float]]:
+    """At 100 Hz for ``seconds``: FC 23 per tick, FC 16 + FC 04 every 10th tick. Times (s) per function; a lost
+    reply is recorded as NaN."""
+    client = RawModbusTcp(port)
+    times: dict[str, list[float]] = {"fc23": [], "fc16": [], "fc04": []}
+    n = round(seconds / TICK_S)
+    t_next = time.perf_counter()
+    try:
+        for i in range(n):
+            k = first_seq + i
+            words = encode_command_block(_command(k))
+            if i % 10 == 9:
+                for name, pdu in (("fc16", _fc16(words)), ("fc04", _FC04)):
+                    took, reply = client.transact(pdu)
+                    times[name].append(took if reply is not None and reply[0] & 0x80 == 0 else math.nan)
+            else:
+                took, reply = client.transact(_fc23(words))
+                times["fc23"].append(took if reply is not None and reply[0] & 0x80 == 0 else math.nan)
+            t_next += TICK_S
+            delay = t_next - time.perf_counter()
+            if delay > 0:
+                time.sleep(delay)
+            elif delay < -0.1:  # this process was stalled: do not race to catch up
+                t_next = time.perf_counter()
+    finally:
+        client.close()
+    return times
+
+
+def latency_stats(times: list[float]) -> dict[str, float | int]:
+    """p50 / p99 / max (ms) of the answered transactions, their count and the lost ones."""
+    a = np.asarray(times, float)
+    ok = a[np.isfinite(a)]
+    if ok.size == 0:
+        return {"n": int(a.size), "lost": int(a.size)}
+    return {"n": int(a.size), "lost": int(a.size - ok.size), "p50_ms": float(np.percentile(ok, 50) * 1e3),
+            "p99_ms": float(np.percentile(ok, 99) * 1e3), "max_ms": float(ok.max() * 1e3)}
+
+
+def _cpu_hogs(n: int) -> list[subprocess.Popen]:
+    return [subprocess.Popen([sys.executable, "-c", "while True: pass"], stdout=subprocess.DEVNULL,
+                             stderr=subprocess.DEVNULL) for _ in range(n)]
+
+
+def _phase(port: int, seconds: float, first_seq: int) -> dict:
+    load = os.getloadavg()[0]
+    times = paced_transactions(port, seconds, first_seq)
+    return {"load_avg_1min_before": load, **{name: latency_stats(t) for name, t in times.items()}}
+
+
+def _stub_phase(seconds: float, summary: Path, n_hogs: int) -> dict:
+    """A fresh stub, warmed up, then ``seconds`` of paced transactions with ``n_hogs`` CPU hogs beside it; the
+    client's times and the stub's own answer times (request bytes in -> reply out, from its --summary)."""
+    stub, port = start_stub(("--summary", str(summary)))
+    hogs: list[subprocess.Popen] = []
+    try:
+        paced_transactions(port, 0.5)  # warm-up: connection, first ticks, kernels
+        hogs = _cpu_hogs(n_hogs)
+        if hogs:
+            time.sleep(1.0)
+        res = _phase(port, seconds, 1000)
+    finally:
+        for h in hogs:
+            h.kill()
+        for h in hogs:
+            h.wait(timeout=10)
+        stub.terminate()
+        try:
+            stub.wait(timeout=20)
+        except subprocess.TimeoutExpired:
+            stub.kill()
+    try:
+        servers = json.loads(summary.read_text())["servers"]
+        res["stub_answer_time"] = next(iter(servers.values())).get("answer_time", {})
+    except (OSError, ValueError, StopIteration):
+        res["stub_answer_time"] = {}
+    return res
+
+
+def run(out_dir: Path, quick: bool) -> dict:
+    seconds = 3.0 if quick else 30.0
+    n_hogs = os.cpu_count() or 1
+    idle = _stub_phase(seconds, out_dir / "stub_latency_idle.json", 0)
+    loaded = _stub_phase(seconds, out_dir / "stub_latency_loaded.json", n_hogs)
+    res: dict = {"seconds_per_phase": seconds, "cpu_hogs": n_hogs, "idle": idle, "under_load": loaded}
+    for phase in ("idle", "under_load"):
+        for name in ("fc23", "fc16", "fc04"):
+            st = res[phase][name]
+            res[f"{phase}_{name}_p50_ms"] = round(st.get("p50_ms", math.nan), 3)
+            res[f"{phase}_{name}_p99_ms"] = round(st.get("p99_ms", math.nan), 3)
+        st = res[phase]["stub_answer_time"]
+        res[f"{phase}_stub_answer_p50_ms"] = round(st.get("p50_ms", math.nan), 3)
+        res[f"{phase}_stub_answer_p99_ms"] = round(st.get("p99_ms", math.nan), 3)
+    res["target_p99_ms"] = 1.5
+    res["under_load_fc23_p99_within_target"] = bool(res["under_load_fc23_p99_ms"] <= 1.5)
+    return res
