@@ -22,6 +22,7 @@ with the environment variable ``SHM_DEBUG=1``, an unexpected exception prints it
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib
 import os
 import sys
@@ -114,6 +115,27 @@ def report_bug(what: str, exc: BaseException, debug: bool) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    if argv is None:  # the shm command itself (not a call from Python): exit without the interpreter's last sweep
+        try:
+            return _main(None)
+        finally:
+            skip_final_collection()
+    return _main(argv)
+
+
+def skip_final_collection() -> None:
+    """Leave the objects alive now out of the interpreter's final garbage collection at exit (``gc.freeze``): after
+    a command that compiled or loaded plant kernels, that sweep over numba's and LLVM's object graph kept the shell
+    waiting 1-3 s after the last line (issue 27.1). Files and databases are closed by the commands themselves."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except (OSError, ValueError):  # a closed pipe or stream: the exit's own flush reports it as before
+            pass
+    gc.freeze()
+
+
+def _main(argv: Sequence[str] | None) -> int:
     argv, debug_flag = _split_debug(list(sys.argv[1:] if argv is None else argv))
     parser = build_parser()
     try:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.output_timing import cold_env, run_timed, unexplained_silences
+from bench.output_timing import LIMIT_S, cold_env, exit_tail_s, run_timed, unexplained_silences
 
 SHM = [sys.executable, "-m", "shm_cli.main"]
 
@@ -25,6 +25,8 @@ pytestmark = pytest.mark.slow
 def _check(run, what: str) -> None:
     silences = unexplained_silences(run)
     assert not silences, f"{what} went silent:\n" + "\n".join(silences) + "\n--- output ---\n" + run.text()
+    # and the shell gets its prompt back soon after the last line (the interpreter's teardown after a compile)
+    assert exit_tail_s(run) <= LIMIT_S, f"{what}: {exit_tail_s(run):.1f} s from its last line to its exit"
 
 
 def _compiles(run) -> list[str]:
