@@ -13,7 +13,6 @@ from __future__ import annotations
 import os
 import sys
 import threading
-import time
 from typing import Any, TextIO
 
 #: seconds between redraws of a terminal bar (its elapsed-time field)
@@ -41,7 +40,6 @@ class StageReporter:
         self._lock = threading.Lock()
         self._stop = threading.Event()
         self._ticker: threading.Thread | None = None
-        self._t0 = time.monotonic()
         self._restore_announcer: Any = None
 
     # --- DiagnoseProgress ------------------------------------------------------------------------------------
