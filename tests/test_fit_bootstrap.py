@@ -6,6 +6,7 @@ the report says the model does not explain the record yet."""
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from types import SimpleNamespace
 
@@ -153,3 +154,28 @@ def test_right_model_intervals_cover_the_truth_on_ar1_laser_noise():
         assert rep.interval_method == "jacobian"
         inside += [e.interval_low <= truth[e.name] <= e.interval_high for e in rep.outcome.estimates]
     assert np.mean(inside) >= 0.9
+
+
+@pytest.mark.slow
+def test_cli_fit_says_the_model_does_not_explain_the_record_and_the_interval_method(tmp_path, capsys):
+    """``shm fit --json`` on a record the fitted model cannot explain (k3 freed; the truth also has drag on mass
+    2): fit.json and stdout name the interval method, say the model does not explain the record, and the text
+    report's note says so."""
+    from shm_cli.main import main
+    from workbench.records import write_record
+
+    foreign = load_effect_file("tests/workbench_foreign_effects.py")
+    truth = truth_model("table2", [foreign.Mass2Drag], {"k3": 21.28 * 0.8, "c_drag2": 3.0})
+    path = write_record(synth_record(synth_test("mbit-b"), truth, noise={"z3": NOISE}, seed=3), tmp_path / "d.csv")
+    code = main(["fit", str(path), "--params", "table2", "--free", "k3:10:40", "--out", str(tmp_path / "fit"),
+                 "--json"])
+    out, err = capsys.readouterr()
+    assert code == 0
+    summary = json.loads(out)
+    assert summary["held_rms_sigma"]["after"] > 1.5
+    assert summary["interval_method"] == "block bootstrap" and summary["model_explains_record"] is False
+    (est,) = summary["estimates"]
+    assert est["interval_method"] == "block bootstrap" and est["interval_low"] < est["value"] < est["interval_high"]
+    assert "does not explain the record yet" in err
+    saved = json.loads((tmp_path / "fit" / "fit.json").read_text())
+    assert saved["interval_method"] == "block bootstrap"
