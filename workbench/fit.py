@@ -17,7 +17,9 @@ The discipline is that of the nonlinear system-identification benchmarks: parame
   points — the compiled integrator runs the batch members in parallel threads.
 * **Uncertainty.** Standard errors from the Jacobian at the optimum, ``cov = s² (JᵀJ)⁻¹`` with
   s² = RSS/(N − k), inflated by (1 + ρ₁)/(1 − ρ₁) for the lag-1 autocorrelation ρ₁ of the training residual;
-  the correlation matrix flags parameters the data cannot separate.
+  the correlation matrix flags parameters the data cannot separate. When the fitted model leaves more than the
+  noise (held-out > 1.5 σ) the intervals come from a moving-block bootstrap over the record instead
+  (:mod:`workbench.fit_bootstrap`), and the report says the model does not explain the record yet.
 
 :func:`fit_records` is the entry point used by ``shm fit``; :mod:`workbench.diagnose` builds on the same
 :class:`Objective`.
@@ -27,6 +29,7 @@ This module is the fit's public face; the code lives in one module per stage:
 * :mod:`workbench.fit_targets` — records cut into training/held-out parts, σ levels, the per-record model factory;
 * :mod:`workbench.fit_objective` — the batched objective (weighted residuals of parameter rows);
 * :mod:`workbench.fit_optimiser` — multi-start least squares, the batched Jacobian, estimates and uncertainty;
+* :mod:`workbench.fit_bootstrap` — block-bootstrap intervals when the fitted model does not explain the record;
 * :mod:`workbench.fit_scores` — per-channel scoreboards;
 * :mod:`workbench.fit_parameter_set` — the fitted parameter set (``[[effects]]``);
 * :mod:`workbench.fit_effects` — ``shm fit`` itself (:func:`fit_records`, :class:`FitReport`).
