@@ -158,7 +158,8 @@ def encode_value(reg: Register, value: float) -> list[int]:
         fmt = _STRUCT[reg.dtype]
         lo, hi = {">I": (0, 2**32 - 1), ">H": (0, 2**16 - 1), ">h": (-(2**15), 2**15 - 1)}[fmt]
         x = float(value) / reg.scale if math.isfinite(float(value)) else 0.0
-        raw = struct.pack(fmt, int(min(max(round(x), lo), hi)))
+        n = (hi if x > 0 else lo) if math.isinf(x) else int(min(max(round(x), lo), hi))  # huge values saturate
+        raw = struct.pack(fmt, n)
     return [int.from_bytes(raw[i : i + 2], "big") for i in range(0, len(raw), 2)]
 
 
@@ -201,8 +202,39 @@ def status_word(sample: RigSample) -> int:
     return (sample.flags & STATUS_FLAGS_MASK) | (STATUS_HV_PRESENT if sample.hv_present else 0)
 
 
+_BLOCK = struct.Struct(">IdffffIHHhhhH")  # the input block's 22 registers in map order (checked at import)
+_F32_MAX = 3.4028234663852886e38
+
+
+def _f(x: float) -> float:
+    """A float register's value: non-finite -> 0, float32 range saturated (as :func:`encode_value`)."""
+    return max(min(x, _F32_MAX), -_F32_MAX) if math.isfinite(x) else 0.0
+
+
+def _i(x: float, scale: float, lo: int, hi: int) -> int:
+    """A scaled integer register's value (as :func:`encode_value`): rounded, saturated, non-finite -> 0."""
+    if not math.isfinite(x):
+        return 0
+    y = x / scale  # may overflow to +-inf for a huge finite x: saturated like any out-of-range value
+    return (hi if y > 0 else lo) if math.isinf(y) else int(min(max(round(y), lo), hi))
+
+
 def encode_input_block(sample: RigSample, cmd_seq_applied: int = 0, refused_count: int = 0) -> list[int]:
-    """Input registers INPUT_START..INPUT_END-1 for ``sample`` (non-finite values must be sanitised first)."""
+    """Input registers INPUT_START..INPUT_END-1 for ``sample`` (non-finite values must be sanitised first).
+
+    One ``struct.pack`` of the whole block (a request of the stub encodes it; the per-register
+    :func:`encode_input_block_by_register` is ~10x slower and gives the same registers: a test holds them equal)."""
+    t = float(sample.t)
+    raw = _BLOCK.pack(sample.seq & 0xFFFFFFFF, t if math.isfinite(t) else 0.0, _f(sample.z3), _f(sample.v_patch),
+                      _f(sample.z0dd), _f(sample.v_battery), cmd_seq_applied & 0xFFFFFFFF, status_word(sample),
+                      refused_count & 0xFFFF, _i(sample.z3, 1e-5, -32768, 32767),
+                      _i(sample.v_patch, 0.1, -32768, 32767), _i(sample.z0dd, 0.01, -32768, 32767),
+                      _i(sample.v_battery, 1e-3, 0, 65535))
+    return list(struct.unpack(">22H", raw))
+
+
+def encode_input_block_by_register(sample: RigSample, cmd_seq_applied: int = 0, refused_count: int = 0) -> list[int]:
+    """:func:`encode_input_block` register by register through :data:`REGISTER_MAP` (the reference)."""
     b = [0] * INPUT_COUNT
     _put(b, INPUT_START, "rig_seq", sample.seq & 0xFFFFFFFF)
     _put(b, INPUT_START, "t", sample.t)
