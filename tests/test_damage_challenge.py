@@ -5,6 +5,7 @@ through ``workbench.diagnose.diagnose`` (the full challenge: ``python -m bench -
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
@@ -25,7 +26,7 @@ from workbench.discovery_challenge import (
     times_quoted_s,
 )
 
-DAMAGE_FILE = "tests/workbench_foreign_damage.py"
+DAMAGE_FILE = Path(__file__).parent / "workbench_foreign_damage.py"
 CRACK = PhysicsCheck((("section 2", "k2"), ("crack", "one-sided", "only for")))
 EVENT = PhysicsCheck((("section 2", "k2"), ("stiff", "softer"), ("at t", "instant")), t_event_s=3.3,
                      t_tolerance_s=0.12)

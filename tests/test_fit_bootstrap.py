@@ -8,6 +8,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -22,6 +23,7 @@ from workbench.fit_bootstrap import block_length, block_weights, bootstrap_refit
 from workbench.synth import synth_record, synth_test, truth_model
 
 NOISE = 2e-6
+FOREIGN_FILE = Path(__file__).parent / "workbench_foreign_effects.py"
 
 
 @settings(max_examples=40, deadline=None)
@@ -98,7 +100,7 @@ def test_misspecified_fit_gets_a_bootstrap_interval_several_times_wider():
     """Truth: dry friction at the tip AND velocity-squared drag on mass 2; fitted: the friction alone. The
     Jacobian's interval of the friction force misses the truth by several standard errors; the bootstrap's is
     several times wider, and the report says the model does not explain the record yet."""
-    foreign = load_effect_file("tests/workbench_foreign_effects.py")
+    foreign = load_effect_file(FOREIGN_FILE)
     truth = truth_model("table2", [foreign.TipDryFriction, foreign.Mass2Drag], {"F_coulomb": 1e-3, "c_drag2": 3.0})
     rec = synth_record(synth_test("mbit-b"), truth, noise={"z3": NOISE}, seed=3)
     rep = fit_records([rec], "table2", add=[SmoothTipFriction], max_nfev=20)
@@ -164,7 +166,7 @@ def test_cli_fit_says_the_model_does_not_explain_the_record_and_the_interval_met
     from shm_cli.main import main
     from workbench.records import write_record
 
-    foreign = load_effect_file("tests/workbench_foreign_effects.py")
+    foreign = load_effect_file(FOREIGN_FILE)
     truth = truth_model("table2", [foreign.Mass2Drag], {"k3": 21.28 * 0.8, "c_drag2": 3.0})
     path = write_record(synth_record(synth_test("mbit-b"), truth, noise={"z3": NOISE}, seed=3), tmp_path / "d.csv")
     code = main(["fit", str(path), "--params", "table2", "--free", "k3:10:40", "--out", str(tmp_path / "fit"),
