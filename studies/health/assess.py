@@ -229,7 +229,7 @@ def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, a
         trend_doc[n] = {"model": t.model, "best_fit_model": t.best.name, "significant": t.significant,
                         "p_value": t.p_value, "rate": t.rate_per_100h(hours[-1]) / 100.0,
                         "rate_unit": "relative deviation per hour", "rate_per_100h_pct": 100 * t.rate_per_100h(
-                            hours[-1]), "aicc": {k: (f.aicc if math.isfinite(f.aicc) else None)
+                            hours[-1]), "information_criterion": {k: (f.ic if math.isfinite(f.ic) else None)
                                                  for k, f in t.fits.items()},
                         "model_weights": t.weights,
                         "change_point_hours": t.best.tau if t.best.name == "change_point" and t.significant

@@ -215,8 +215,9 @@ def health_page(doc: dict[str, Any], figures: dict[str, Path], files: Sequence[s
     ev = doc.get("evaluation")
     body = ["<main>", "<h1>Laminate health over time</h1>", f"<p class='sub'>{html.escape(sub)}</p>", _cards(doc),
             "<h2>Each parameter against operating hours</h2>",
-            "<p class='note'>Visit estimates with ±2 standard errors, the trend law chosen on the evidence (AICc) "
-            "with its 90 % band, the truth where the records carry it; on α_h the board monitor's trip limits."
+            "<p class='note'>Visit estimates with ±2 standard errors, the trend law chosen on the evidence (AIC "
+            "on the visits' own errors) with its 90 % band, the truth where the records carry it; on α_h the board "
+            "monitor's trip limits."
             "</p>", fig("health.png"), _trend_table(doc),
             "<h2>When will the board's monitor say FAULT?</h2>", fig("forecast.png"), _forecast_table(doc),
             "<h2>Remaining life against time</h2>",
