@@ -2,7 +2,8 @@
 
 `shm hil serve --modbus-tcp 127.0.0.1:0 --clock realtime` runs as its own process at normal priority; this process
 sends it, 100 times a second, what a board sends: one FC 23 (write the command block, read the sample mirror) per
-tick, and every 10th tick the FC 16 + FC 04 pair of a map version 1 board instead. A bare socket client (no
+tick, and every 10th tick the FC 16 + FC 04 pair of a map version 1 board instead; then the same over Modbus RTU on
+the stub's pty (no line time: what is measured is the stub and the pty, not a baud rate). A bare socket client (no
 pymodbus on this side) times each transaction from the request's send to the reply's last byte: the stub's answer
 time plus loopback and this process's own wake-up. Two phases of the same length: idle, then with one CPU-bound
 process per core at normal priority beside it (the desk of issue 29). Reported per phase and function: p50, p99,
@@ -26,6 +27,7 @@ import subprocess
 import sys
 import time
 from pathlib import Path
+from typing import ClassVar
 
 import numpy as np
 
@@ -41,10 +43,12 @@ def _command(k: int) -> ActuatorCommand:
     return ActuatorCommand(seq=k, v_ch1=100.0 + v, v_ch2=100.0 - v, board_current=0.003)
 
 
-def start_stub(extra: tuple[str, ...] = ()) -> tuple[subprocess.Popen, int]:
-    """`shm hil serve` on a free loopback port (realtime clock, HV present); its process and port."""
-    cmd = [sys.executable, "-m", "shm_cli.main", "hil", "serve", "--modbus-tcp", "127.0.0.1:0", "--clock",
-           "realtime", "--hv", "present", "--status-every", "0", *extra]
+def start_stub(extra: tuple[str, ...] = (), rtu: bool = False) -> tuple[subprocess.Popen, int | str]:
+    """`shm hil serve` (realtime clock, HV present) on a free loopback port, or with ``rtu`` on a pty; its process
+    and the port (TCP) or the board end's path (RTU)."""
+    endpoint = ["--modbus-rtu", "pty"] if rtu else ["--modbus-tcp", "127.0.0.1:0"]
+    cmd = [sys.executable, "-m", "shm_cli.main", "hil", "serve", *endpoint, "--clock", "realtime", "--hv", "present",
+           "--status-every", "0", *extra]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
                             env={**os.environ, "MFC_SHM_THREADS": "1"})
     assert proc.stdout is not None
@@ -54,8 +58,9 @@ def start_stub(extra: tuple[str, ...] = ()) -> tuple[subprocess.Popen, int]:
         if not line:
             break
         if "board: --link modbus-tcp://" in line:
-            port = int(line.split("modbus-tcp://", 1)[1].split("?", 1)[0].rsplit(":", 1)[1])
-            return proc, port
+            return proc, int(line.split("modbus-tcp://", 1)[1].split("?", 1)[0].rsplit(":", 1)[1])
+        if "board: --link modbus-rtu:" in line:
+            return proc, line.split("modbus-rtu:", 1)[1].split("?", 1)[0].strip()
     proc.kill()
     raise RuntimeError("the HIL stub did not come up")
 
@@ -94,6 +99,56 @@ class RawModbusTcp:
         self.sock.close()
 
 
+def _crc16(frame: bytes) -> bytes:
+    """Modbus RTU CRC (polynomial 0xA001), low byte first."""
+    crc = 0xFFFF
+    for b in frame:
+        crc ^= b
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return struct.pack("<H", crc)
+
+
+class RawModbusRtu:
+    """A minimal Modbus RTU master (unit 1) on a pty's board end that times each transaction (no line time: a pty
+    moves bytes at once)."""
+
+    _REPLY_LEN: ClassVar[dict[int, int]] = {4: 5 + 2 * INPUT_COUNT, 23: 5 + 2 * INPUT_COUNT, 16: 8}
+
+    def __init__(self, path: str) -> None:
+        import termios
+        import tty
+
+        self.fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
+        tty.setraw(self.fd)
+        termios.tcflush(self.fd, termios.TCIOFLUSH)
+
+    def transact(self, pdu: bytes) -> tuple[float, bytes | None]:
+        import select
+
+        frame = bytes([1]) + pdu
+        frame += _crc16(frame)
+        want = self._REPLY_LEN.get(pdu[0], 5)
+        t0 = time.perf_counter()
+        os.write(self.fd, frame)
+        buf = b""
+        deadline = t0 + _REPLY_TIMEOUT_S
+        while True:
+            if len(buf) >= 2 and buf[1] & 0x80:
+                want = 5  # an exception reply
+            if len(buf) >= want:
+                took = time.perf_counter() - t0
+                ok = buf[want - 2: want] == _crc16(buf[: want - 2])
+                return took, (buf[1:want - 2] if ok else None)
+            left = deadline - time.perf_counter()
+            if left <= 0 or not select.select([self.fd], [], [], left)[0]:
+                return time.perf_counter() - t0, None
+            buf += os.read(self.fd, 256)
+
+    def close(self) -> None:
+        os.close(self.fd)
+
+
 def _fc23(words: list[int]) -> bytes:
     return struct.pack(">BHHHHB", 23, MIRROR_START, INPUT_COUNT, COMMAND_START, len(words), 2 * len(words)) + \
         b"".join(struct.pack(">H", w) for w in words)
@@ -107,10 +162,10 @@ def _fc16(words: list[int]) -> bytes:
 _FC04 = struct.pack(">BHH", 4, INPUT_START, INPUT_COUNT)
 
 
-def paced_transactions(port: int, seconds: float, first_seq: int = 1) -> dict[str, list[float]]:
-    """At 100 Hz for ``seconds``: FC 23 per tick, FC 16 + FC 04 every 10th tick. Times (s) per function; a lost
-    reply is recorded as NaN."""
-    client = RawModbusTcp(port)
+def paced_transactions(where: int | str, seconds: float, first_seq: int = 1) -> dict[str, list[float]]:
+    """At 100 Hz for ``seconds``: FC 23 per tick, FC 16 + FC 04 every 10th tick, over TCP (``where`` a port) or RTU
+    (a pty path). Times (s) per function; a lost reply is recorded as NaN."""
+    client: RawModbusTcp | RawModbusRtu = RawModbusTcp(where) if isinstance(where, int) else RawModbusRtu(where)
     times: dict[str, list[float]] = {"fc23": [], "fc16": [], "fc04": []}
     n = round(seconds / TICK_S)
     t_next = time.perf_counter()
@@ -151,16 +206,16 @@ def _cpu_hogs(n: int) -> list[subprocess.Popen]:
                              stderr=subprocess.DEVNULL) for _ in range(n)]
 
 
-def _phase(port: int, seconds: float, first_seq: int) -> dict:
+def _phase(port: int | str, seconds: float, first_seq: int) -> dict:
     load = os.getloadavg()[0]
     times = paced_transactions(port, seconds, first_seq)
     return {"load_avg_1min_before": load, **{name: latency_stats(t) for name, t in times.items()}}
 
 
-def _stub_phase(seconds: float, summary: Path, n_hogs: int) -> dict:
+def _stub_phase(seconds: float, summary: Path, n_hogs: int, rtu: bool = False) -> dict:
     """A fresh stub, warmed up, then ``seconds`` of paced transactions with ``n_hogs`` CPU hogs beside it; the
     client's times and the stub's own answer times (request bytes in -> reply out, from its --summary)."""
-    stub, port = start_stub(("--summary", str(summary)))
+    stub, port = start_stub(("--summary", str(summary)), rtu=rtu)
     hogs: list[subprocess.Popen] = []
     try:
         paced_transactions(port, 0.5)  # warm-up: connection, first ticks, kernels
@@ -191,8 +246,11 @@ def run(out_dir: Path, quick: bool) -> dict:
     n_hogs = os.cpu_count() or 1
     idle = _stub_phase(seconds, out_dir / "stub_latency_idle.json", 0)
     loaded = _stub_phase(seconds, out_dir / "stub_latency_loaded.json", n_hogs)
-    res: dict = {"seconds_per_phase": seconds, "cpu_hogs": n_hogs, "idle": idle, "under_load": loaded}
-    for phase in ("idle", "under_load"):
+    rtu_idle = _stub_phase(seconds, out_dir / "stub_latency_rtu_idle.json", 0, rtu=True)
+    rtu_loaded = _stub_phase(seconds, out_dir / "stub_latency_rtu_loaded.json", n_hogs, rtu=True)
+    res: dict = {"seconds_per_phase": seconds, "cpu_hogs": n_hogs, "idle": idle, "under_load": loaded,
+                 "rtu_idle": rtu_idle, "rtu_under_load": rtu_loaded}
+    for phase in ("idle", "under_load", "rtu_idle", "rtu_under_load"):
         for name in ("fc23", "fc16", "fc04"):
             st = res[phase][name]
             res[f"{phase}_{name}_p50_ms"] = round(st.get("p50_ms", math.nan), 3)
