@@ -61,6 +61,7 @@ class MaintenanceSequencer:
         self._i_z3 = nominal.output_names.index("z3")
         self.monitor = ConditionMonitor(monitor)
         self._ref: list[float] = []  # nominal z3 (m) after each step call of the visit
+        self._ref_cache: list[float] | None = None  # the same for every visit: computed once (prepare())
         self._calls = 0
         self.active = False
         self.results: list[dict] = []
@@ -89,7 +90,7 @@ class MaintenanceSequencer:
     # --- lifecycle ----------------------------------------------------------------------------------
     def start(self, tick: int) -> list[BoardEvent]:
         """Begin a visit at ``tick``: nominal model at rest, first settle period, zero demand."""
-        self._ref = self._reference()
+        self._ref = self.prepare()
         self._calls = 0
         self._sse = [0.0] * len(self.lags)
         self.lag = self.lags[0]
@@ -226,6 +227,15 @@ class MaintenanceSequencer:
                 rows.append(np.column_stack([seq.v_ch1, seq.v_ch2]))
         rows.append(np.zeros((1, 2)))  # the zero demand after the last MBIT
         return np.vstack(rows)
+
+    def prepare(self) -> list[float]:
+        """The visit's nominal reference (:meth:`_reference`), computed at the first call and kept: it depends only
+        on the planned sequence and the nominal model, so every visit has the same. A paced run calls this before
+        its first tick (:class:`firmware_sim.runner.BoardRunner`), so that a visit's first tick does no model run
+        (tens of ms on a loaded machine: several missed tick deadlines in a row, and SAFE for an overrun)."""
+        if self._ref_cache is None:
+            self._ref_cache = self._reference()
+        return self._ref_cache
 
     def _reference(self) -> list[float]:
         """The nominal model's z3 (m) after every step call of a visit, computed once at its start.

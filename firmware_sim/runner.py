@@ -106,6 +106,9 @@ class BoardRunner:
                              f"{board.cfg.tick_rate:g} Hz")
         if self.scheduler.paced:  # paced on the wall clock: the rig may be a real-time one (one tick of link delay)
             board.set_realtime_rig(True)
+            # the visit's nominal reference now, not in the tick that starts a visit (tens of ms on a loaded
+            # machine: missed deadlines in a row, SAFE for an overrun)
+            board.maintenance.prepare()
         self.rearm_times = sorted(float(t) for t in rearm_times)
         self.on_event = on_event
         self.trace_every = trace_every
