@@ -42,6 +42,7 @@ def signal_scales(targets: Sequence[Target]) -> tuple[dict[str, float], dict[str
         sig.setdefault("va", []).append(bus[:, L.B_VA_DEMAND])
         sig.setdefault("one", []).append(np.ones(tg.t.size))
     scales = {k: float(np.percentile(np.abs(np.concatenate(v)), 99)) for k, v in sig.items()}
+    scales["t"] = max(float(tg.t[-1]) for tg in targets)  # the longest record's duration (s): the time gates' span
     return scales, sig
 
 
@@ -66,11 +67,11 @@ def reference_magnitudes(model: PlantModel, scales: dict[str, float]) -> dict[st
     z3 = max(scales.get("z3", 0.0), 1e-9)
     va = max(scales.get("va", 0.0), scales.get("vc", 0.0), 1e-3)
     return {"force_mass": EPS_REL * k3 * z3, "force_section": EPS_REL * k3 * z3, "current": EPS_REL * va / r,
-            "drive": EPS_REL * va, "measurement": EPS_REL * z3}
+            "drive": EPS_REL * va, "measurement": EPS_REL * z3, "damage": EPS_REL}
 
 
 def term_scale(term: Term, sig: dict[str, list[np.ndarray]], targets: Sequence[Target]) -> float:
-    """RMS of the form's value along the records (for the sensitivity step)."""
+    """RMS of the form's value along the records (for the sensitivity step; a damage term's gate)."""
     vals = []
     for s, tg in zip(sig[term.signal], targets):
         dt = float(np.median(np.diff(tg.t))) if tg.t.size > 1 else 1.0

@@ -7,7 +7,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-from workbench.discovery_dictionary import DELAY_FORMS, FORMS, Term
+from workbench.discovery_dictionary import ALL_FORMS, DELAY_FORMS, Term
+from workbench.discovery_gates import TIME_GATES
 from workbench.effect_writer import emit_effect_source, parameter_names_for
 from workbench.fit_optimiser import FitOutcome
 from workbench.fit_targets import FitError, Target
@@ -41,7 +42,7 @@ class FoundTerm:
     def to_dict(self) -> dict[str, Any]:
         return {"key": self.term.key, "placement": self.term.placement, "index": self.term.index,
                 "signal": self.term.signal, "form": self.term.form, "coefficient": self.coef,
-                "coefficient_unit": self.term.unit, "shape": self.shape if FORMS[self.term.form].shape else None,
+                "coefficient_unit": self.term.unit, "shape": self.shape if ALL_FORMS[self.term.form].shape else None,
                 "signal_scale": self.scale, "words": self.words, "twins": self.twins,
                 "description": self.description}
 
@@ -128,9 +129,9 @@ def describe_units(found: Sequence[FoundTerm]) -> list[str]:
     out = []
     for f in found:
         line = f"{f.term.key}: coefficient {f.coef:.4g} {f.term.unit}"
-        if FORMS[f.term.form].shape:
-            unit = "s" if f.term.form in DELAY_FORMS else ("m/s" if f.term.signal.startswith(("zd", "dd")) else
-                                                        "V" if f.term.signal in ("va", "vc") else "m")
-            line += f", {FORMS[f.term.form].shape} {f.shape:.4g} {unit}"
+        if ALL_FORMS[f.term.form].shape:
+            unit = ("s" if f.term.form in (*DELAY_FORMS, *TIME_GATES) else
+                    "m/s" if f.term.signal.startswith(("zd", "dd")) else "V" if f.term.signal in ("va", "vc") else "m")
+            line += f", {ALL_FORMS[f.term.form].shape} {f.shape:.4g} {unit}"
         out.append(line)
     return out

@@ -11,6 +11,7 @@ placement           what the term adds                                          
 ``current``         a current into every patch charge (``dx[X_Q + i]``, A)         A / signal^n
 ``drive``           a change of the voltage the patches see (``bus[B_VA]``, V)     V / signal^n
 ``measurement``     a change of what the tip laser reports (``y[Y_Z3_MEAS]``, m)   m / signal^n
+``damage``          a core parameter's own term switched by a gate                 1 (relative)
 ==================  ============================================================  ===============
 
 Each term is ``coefficient × form(signal)`` with one of the forms of :data:`FORMS` — linear, sign (dry friction,
@@ -18,6 +19,12 @@ smoothed by a width well below the signal's scale), |x|·x, x², x³, one-sided 
 clipped (a clearance), saturating, time-weighted (a drifting gain) and delayed (a first-order Padé delay, one extra
 state). Thresholds, widths and delays (the term's *shape*) are set from the signal's scale along the records, at a
 few fractions each; the refit frees them.
+
+*Damage terms* (placement ``damage``, :mod:`workbench.discovery_gates`) are a family, not a list: every core
+parameter's own contribution (k_i·δ_i, c_i·δ̇_i, the masses' inertia, d_ep's coupling, α_h, β_h, R_ep, C_ep) times
+a switching gate (the sign of the section's deflection or rate, beyond a gap, the sign of the drive or the patch
+voltage, a step at an instant t0 inside the record, a ramp from t0); the coefficient is the parameter's relative
+change while the gate is open, the gate's signal is the term's ``signal`` and its gap or onset time its ``shape``.
 
 :func:`build_dictionary` lists the terms for a model and records; :func:`effect_source` writes the Python source of
 a :class:`~plant.PhysicalEffect` holding a given set of terms (the whole dictionary for the sensitivity batch, or
@@ -27,15 +34,29 @@ scaling.
 
 from __future__ import annotations
 
-import math
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
 
-#: placements and the unit of what they add
-PLACEMENT_UNIT = {"force_mass": "N", "force_section": "N", "current": "A", "drive": "V", "measurement": "m"}
+from workbench.discovery_gates import (
+    CONTRIBUTIONS,
+    GAP_AT,
+    GATED_BY,
+    GATES,
+    RAMP_AT,
+    STEP_AT,
+    contribution_lines,
+    gate_values,
+    gate_width,
+    onsets,
+    param_label,
+)
+
+#: placements and the unit of what they add (a damage term's coefficient is a relative change)
+PLACEMENT_UNIT = {"force_mass": "N", "force_section": "N", "current": "A", "drive": "V", "measurement": "m",
+                  "damage": "1"}
 
 
 @dataclass(frozen=True)
@@ -67,6 +88,11 @@ FORMS: dict[str, Form] = {
     # 2 % of e^{−iωT} up to ωT ≈ 2, where the first-order form is 20 % short)
     "delay2": Form("delay2", "-G * V", 1, "delay"),
 }
+
+#: the gates of the damage terms as forms (code in S, G and the fixed width H; no power of the signal)
+GATE_FORMS: dict[str, Form] = {g.name: Form(g.name, g.code, 0, g.shape, g.per_second) for g in GATES.values()}
+#: every form a term may have
+ALL_FORMS: dict[str, Form] = {**FORMS, **GATE_FORMS}
 
 #: forms that carry states of their own (how many): the delay lines, first- and second-order Padé
 STATE_FORMS = {"delay": 1, "delay2": 2}
@@ -115,7 +141,7 @@ def _signals() -> dict[str, Signal]:
                                        f"deformation rate of section {j + 1}")
     out["vc"] = Signal("vc", "bus[B_VC + i]", "V", "patch voltage")
     out["va"] = Signal("va", "bus[B_VA_DEMAND]", "V", "drive voltage")
-    out["one"] = Signal("one", "1.0", "1", "constant")
+    out["one"] = Signal("one", "1.0", "1", "constant (a time gate's signal)")
     return out
 
 
@@ -125,16 +151,24 @@ SIGNALS = _signals()
 @dataclass(frozen=True)
 class Term:
     """One candidate correction: ``coefficient × form(signal)`` added at ``placement`` (mass/section ``index``,
-    0-based; -1 when it does not apply). ``shape`` is the form's constant (SI, the signal's unit; for a delay, s)."""
+    0-based; -1 when it does not apply). ``shape`` is the form's constant (SI, the signal's unit; for a delay, s).
+    A damage term (placement ``damage``) is ``coefficient × contribution(param) × gate(signal)``, the gate being
+    its form; ``shape_range`` is where the refit may move its shape (an onset time: linear), None for a factor
+    of four either way."""
 
     placement: str
     index: int
     signal: str
     form: str
     shape: float = 0.0
+    param: str = ""
+    shape_range: tuple[float, float] | None = None
 
     @property
     def key(self) -> str:
+        if self.placement == "damage":
+            gate = "t" if self.signal == "one" else self.signal
+            return f"{param_label(self.param, self.index)}_{self.form[3:]}_{gate}"
         where = {"force_mass": f"m{self.index + 1}", "force_section": f"s{self.index + 1}", "current": "q",
                  "drive": "va", "measurement": "z3m"}[self.placement]
         return f"{where}_{self.form}_{self.signal}"
@@ -142,6 +176,8 @@ class Term:
     @property
     def unit(self) -> str:
         """Unit of the coefficient."""
+        if self.placement == "damage":
+            return "1/s" if ALL_FORMS[self.form].per_second else "1"
         sig = SIGNALS[self.signal].unit
         f = FORMS[self.form]
         base = PLACEMENT_UNIT[self.placement]
@@ -193,6 +229,8 @@ def form_values(form: str, s: np.ndarray, g: float, t: np.ndarray, dt: float) ->
         return t * s
     if form in DELAY_FORMS:
         return -g * np.gradient(s, dt) if s.size > 2 else np.zeros_like(s)
+    if form in GATE_FORMS:
+        return gate_values(form, s, g, t, "m")  # a sign gate's width (by unit) does not change its RMS
     raise KeyError(form)
 
 
@@ -248,6 +286,36 @@ def build_dictionary(scales: Mapping[str, float], *, driven: bool = True) -> lis
     if ok("zd3"):
         terms.append(Term("measurement", -1, "zd3", "lin"))
     terms += [Term("measurement", -1, "one", "lin"), Term("measurement", -1, "one", "time")]
+    return terms + damage_terms(scales, driven=driven)
+
+
+def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Term]:
+    """Every core parameter's contribution crossed with the gates it meets (:data:`~workbench.discovery_gates.
+    GATED_BY`): sign gates on the section's own deflection or rate, on the drive (when ``driven``) or the patch
+    voltage; gaps at :data:`~workbench.discovery_gates.GAP_AT` of the deflection's scale; steps and ramps at onsets
+    spanning the record (``scales["t"]``, the longest record's duration; no time gates without it)."""
+    terms: list[Term] = []
+
+    def ok(sig: str) -> bool:
+        return scales.get(sig, 0.0) > 0.0
+
+    duration = scales.get("t", 0.0)
+    for param, con in CONTRIBUTIONS.items():
+        for index in (range(3) if con.per != "patch" else (-1,)):
+            for what in GATED_BY[param]:
+                sig = {"own_delta": f"delta{index + 1}", "own_ddelta": f"ddelta{index + 1}",
+                       "gap": f"delta{index + 1}"}.get(what, what)
+                if what == "time":
+                    if duration > 0:
+                        terms += [Term("damage", index, "one", "on_step", t0, param, rng)
+                                  for t0, rng in onsets(duration, STEP_AT)]
+                        terms += [Term("damage", index, "one", "on_ramp", t0, param, rng)
+                                  for t0, rng in onsets(duration, RAMP_AT)]
+                elif what == "gap":
+                    if ok(sig):
+                        terms += [Term("damage", index, sig, "on_gap", f * scales[sig], param) for f in GAP_AT]
+                elif ok(sig) and (driven or sig != "va"):
+                    terms += [Term("damage", index, sig, g, 0.0, param) for g in ("on_pos", "on_neg")]
     return terms
 
 
@@ -272,12 +340,13 @@ def _lit(v: float) -> str:
 
 def _value_code(slot: TermSlot) -> str:
     term = slot.term
-    form = FORMS[term.form]
+    form = ALL_FORMS[term.form]
     g = f"p[po + {slot.shape_param}]" if slot.shape_param is not None else _lit(term.shape)
     s = SIGNALS[term.signal].code
     w = f"x[so + {slot.state}]" if slot.state is not None else "0.0"
     v = f"x[so + {slot.state + 1}]" if slot.state is not None and n_form_states(term.form) > 1 else "0.0"
-    expr = form.code.replace("G", g).replace("W", w).replace("V", v)
+    h = _lit(gate_width(term.form, SIGNALS[term.signal].unit)) if term.form in GATE_FORMS else "0.0"
+    expr = form.code.replace("G", g).replace("W", w).replace("V", v).replace("H", h)
     expr = expr.replace("S", f"({s})")
     return f"p[po + {slot.coef}] * ({expr})"
 
@@ -287,7 +356,7 @@ def hook_bodies(slots: Sequence[TermSlot], guard: bool = False) -> dict[str, lis
     term whose coefficient is 0 — its delay states too: they stay at 0, so the dictionary's many fast delay lines
     (poles up to ~1 700 rad/s) do not limit the step of every simulation where they are off; switched on, a state
     starts from 0 at t = 0 exactly as in the emitted effect)."""
-    bodies: dict[str, list[str]] = {"pre": [], "rates": [], "output": []}
+    bodies: dict[str, list[str]] = {"pre": [], "rates": [], "post": [], "output": []}
     for slot in slots:
         term = slot.term
         value = _value_code(slot)
@@ -309,6 +378,14 @@ def hook_bodies(slots: Sequence[TermSlot], guard: bool = False) -> dict[str, lis
                 bodies["rates"].extend("            " + ln for ln in state_lines)
             else:
                 bodies["rates"].extend("        " + ln for ln in state_lines)
+        if term.placement == "damage":
+            for hook, lines in contribution_lines(term.param, term.index, value).items():
+                if guard:
+                    bodies[hook].append(f"        if p[po + {slot.coef}] != 0.0:")
+                    bodies[hook].extend("            " + ln for ln in lines)
+                else:
+                    bodies[hook].extend("        " + ln for ln in lines)
+            continue
         if term.placement == "force_mass":
             hook, lines = "rates", [f"bus[B_FM + {term.index}] += {value}"]
         elif term.placement == "force_section":
@@ -333,15 +410,20 @@ HEADER_IMPORTS = (
     "import math\n\n"
     "from plant.effect import Parameter, PhysicalEffect, StateSpec\n"
     "from plant.layout import (\n"
-    "    B_FM, B_S, B_VA, B_VA_DEMAND, B_VC, B_Z, B_ZD, X_DDELTA, X_DELTA, X_Q, Y_Z3_MEAS,\n"
+    "    B_FM, B_IR, B_QH, B_S, B_VA, B_VA_DEMAND, B_VC, B_Z, B_Z0DD, B_ZD, P_ALPHA_H, P_BETA_H, P_C, P_C_EP, P_D_EP,\n"
+    "    P_K, P_N_H, P_R_EP, X_DDELTA, X_DELTA, X_H, X_Q, Y_Z3_MEAS,\n"
     ")\n"
 )
 
 
 #: core slots of plant.layout as the generated code names them -> the slot-table name of the documented seam
 _LAYOUT_TO_TABLE = {"B_Z": ("B", "z"), "B_ZD": ("B", "zd"), "B_FM": ("B", "fm"), "B_S": ("B", "s"),
-                    "B_VC": ("B", "vc"), "X_DELTA": ("X", "delta"), "X_DDELTA": ("X", "ddelta"), "X_Q": ("X", "q")}
-_LAYOUT_SCALARS = {"B_VA_DEMAND": "B.va_demand", "B_VA": "B.va", "Y_Z3_MEAS": "Y.z3_meas"}
+                    "B_VC": ("B", "vc"), "X_DELTA": ("X", "delta"), "X_DDELTA": ("X", "ddelta"), "X_Q": ("X", "q"),
+                    "B_QH": ("B", "qh"), "B_IR": ("B", "ir"), "X_H": ("X", "hq"), "P_K": ("P", "k"),
+                    "P_C": ("P", "c")}
+_LAYOUT_SCALARS = {"B_VA_DEMAND": "B.va_demand", "B_VA": "B.va", "Y_Z3_MEAS": "Y.z3_meas", "B_Z0DD": "B.z0dd",
+                   "P_D_EP": "P.d_ep", "P_C_EP": "P.C_ep", "P_R_EP": "P.R_ep", "P_ALPHA_H": "P.alpha_h",
+                   "P_BETA_H": "P.beta_h", "P_N_H": "P.n_h"}
 
 
 def _named(code: str, parameter_names: Sequence[str], state_names: Sequence[str]) -> str:
@@ -381,7 +463,7 @@ def hooks_source(slots: Sequence[TermSlot], guard: bool = False, *, parameter_na
 
 def dictionary_parameter_names(terms: Sequence[Term]) -> list[tuple[str, str | None]]:
     """(coefficient name, shape name or None) of every term in the dictionary effect, in order."""
-    return [(f"a_{k:02d}", f"g_{k:02d}" if FORMS[t.form].shape else None) for k, t in enumerate(terms)]
+    return [(f"a_{k:02d}", f"g_{k:02d}" if ALL_FORMS[t.form].shape else None) for k, t in enumerate(terms)]
 
 
 def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDictionary",
@@ -412,18 +494,3 @@ def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDiction
         + ("    states = (\n" + states + "\n    )\n" if specs else "")
         + "\n" + hooks_source(slots, guard=True)
     )
-
-
-def scale_of(term: Term, scales: Mapping[str, float]) -> float:
-    """A typical magnitude of the form's value (its unit: the signal's unit to the form's power)."""
-    s = scales.get(term.signal, 1.0) if term.signal != "one" else 1.0
-    f = FORMS[term.form]
-    if term.form in ("sign",):
-        return 1.0
-    if term.form in DELAY_FORMS:
-        return max(term.shape * s * 2 * math.pi * 10.0, 1e-300)
-    if term.form in ("pos", "neg", "dead", "sat"):
-        return max(s - term.shape, 0.1 * s) if term.form != "sat" else 0.2 * s
-    if term.form == "clip":
-        return term.shape
-    return s ** f.power if f.power else 1.0

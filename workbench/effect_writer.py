@@ -16,6 +16,7 @@ import textwrap
 from collections.abc import Mapping, Sequence
 
 from workbench.discovery_dictionary import (
+    ALL_FORMS,
     DELAY_FORMS,
     FORMS,
     SIGNALS,
@@ -24,6 +25,7 @@ from workbench.discovery_dictionary import (
     allocate_states,
     hooks_source,
 )
+from workbench.discovery_gates import TIME_GATES, class_stem, damage_formula, describe_damage
 
 
 def _si(x: float, unit: str) -> str:
@@ -44,10 +46,12 @@ def _mass(j: int) -> str:
     return f"mass {j + 1}" + (" (the tip)" if j == 2 else " (the root)" if j == 0 else "")
 
 
-def describe_term(term: Term, coef: float, shape: float, scale: float) -> str:
+def describe_term(term: Term, coef: float, shape: float, scale: float, shape_se: float | None = None) -> str:
     """One sentence: what the fitted term is, in words, numbers and units (``scale``: the signal's 99th percentile
-    of |value| along the records, SI)."""
+    of |value| along the records, SI; ``shape_se``: the shape's standard error, said with an onset time)."""
     c, g = float(coef), float(shape)
+    if term.placement == "damage":
+        return describe_damage(term.param, term.index, term.form, term.signal, c, g, shape_se)
     sig = SIGNALS[term.signal]
     u = sig.unit
     j = term.index
@@ -154,6 +158,8 @@ def describe_term(term: Term, coef: float, shape: float, scale: float) -> str:
 
 def formula(term: Term, cname: str, gname: str | None) -> str:
     """The term as a formula in words-free notation (for the docstring)."""
+    if term.placement == "damage":
+        return damage_formula(term.param, term.index, term.form, term.signal, cname, gname)
     s = {"one": "1"}.get(term.signal, term.signal)
     code = FORMS[term.form].code
     g = gname or "g"
@@ -176,6 +182,8 @@ def formula(term: Term, cname: str, gname: str | None) -> str:
 
 def class_name_for(terms: Sequence[Term]) -> str:
     t = terms[0]
+    if t.placement == "damage":
+        return f"Discovered{class_stem(t.param, t.index, t.form)}" + ("Plus" if len(terms) > 1 else "")
     base = {"force_mass": f"Mass{t.index + 1}", "force_section": f"Section{t.index + 1}", "current": "Patch",
             "drive": "Drive", "measurement": "Laser"}[t.placement]
     form = {"sign": "Friction", "absx": "Drag", "lin": "Linear", "cube": "Cubic", "square": "Quadratic",
@@ -215,11 +223,8 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
             g = _r(float(values.get(gname, term.shape)))
             shape_idx = len(params)
             names.append(gname)
-            unit = "s" if term.form in DELAY_FORMS else SIGNALS[term.signal].unit
-            params.append(f"        Parameter({gname!r}, {unit!r}, {g!r}, {_r(g / 20)!r}, {_r(g * 20)!r},\n"
-                          f"                  {(FORMS[term.form].shape + ' of ' + term.key)!r}),")
-            lo_g, hi_g = (_r(g / 10), _r(g * 2)) if term.form == "sign" else (_r(g / 4), _r(g * 4))
-            fit_ranges.append(f"        {gname!r}: FitRange({lo_g!r}, {hi_g!r}, log=True),")
+            params.append(_shape_parameter(term, gname, g))
+            fit_ranges.append(f"        {gname!r}: {_shape_fit_range(term, g)},")
             discovered[gname] = g
         slots.append(TermSlot(term, k, shape_idx, allocate_states(term, state_specs)))
         formulas.append(formula(term, cname, gname))
@@ -273,10 +278,35 @@ def _r(x: float) -> float:
     return float(f"{x:.6g}")
 
 
+def _shape_parameter(term: Term, gname: str, g: float) -> str:
+    """The source line of a term's shape parameter: bounds a factor of 20 either way, an onset time from 0 to
+    ten times its refit range past it."""
+    if term.form in TIME_GATES:
+        lo, hi = term.shape_range or (0.0, max(g, 1.0))
+        bounds = (0.0, _r(max(g, hi) + 10 * (hi - lo)))
+        unit = "s"
+    else:
+        bounds = (_r(g / 20), _r(g * 20))
+        unit = "s" if term.form in DELAY_FORMS else SIGNALS[term.signal].unit
+    return (f"        Parameter({gname!r}, {unit!r}, {g!r}, {bounds[0]!r}, {bounds[1]!r},\n"
+            f"                  {(ALL_FORMS[term.form].shape + ' of ' + term.key)!r}),")
+
+
+def _shape_fit_range(term: Term, g: float) -> str:
+    """The ``FitRange`` a refit of the emitted file searches a shape over: around the discovered value, an onset time
+    linearly (a quarter of its term's refit range either way, within the record), a gap or delay in log."""
+    if term.form in TIME_GATES:
+        lo, hi = term.shape_range or (0.0, max(2 * g, 1.0))
+        half = max(0.25 * (hi - lo), 1e-3)
+        return f"FitRange({_r(max(g - half, 0.0))!r}, {_r(g + half)!r})"
+    lo_g, hi_g = (_r(g / 10), _r(g * 2)) if term.form == "sign" else (_r(g / 4), _r(g * 4))
+    return f"FitRange({lo_g!r}, {hi_g!r}, log=True)"
+
+
 def parameter_names(term: Term, free_shapes: bool = True, suffix: str = "") -> tuple[str, str | None]:
     """(coefficient name, shape name or None) of ``term`` in a refit/emitted effect."""
     g = None
-    if free_shapes and FORMS[term.form].shape:
+    if free_shapes and ALL_FORMS[term.form].shape:
         g = f"g_{term.key}{suffix}"
     return f"c_{term.key}{suffix}", g
 
@@ -295,5 +325,5 @@ def parameter_names_for(terms: Sequence[Term], free_shapes: bool = True) -> list
 
 def typical_force(term: Term, coef: float, scale: float) -> float:
     """|coefficient × form| at the signal's scale (SI of the placement), for ranking words by size."""
-    f = FORMS[term.form]
+    f = ALL_FORMS[term.form]
     return abs(coef) * (scale ** f.power if f.power else 1.0) if math.isfinite(coef) else float("nan")
