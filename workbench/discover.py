@@ -51,6 +51,7 @@ from workbench.discover_search import (
     free_for,
     free_run_check,
     nonlinear_check,
+    onset_scan,
     other_delay_order,
     refine,
     refit_list,
@@ -62,6 +63,7 @@ from workbench.discovery_dictionary import (
     dictionary_parameter_names,
     dictionary_source,
 )
+from workbench.discovery_gates import TIME_GATES
 from workbench.effect_library import resolve_candidates
 from workbench.effect_writer import describe_term
 from workbench.fit_objective import Objective, rms
@@ -101,6 +103,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     models = [dict_build(tg.record) for tg in targets]
     timings["dictionary_s"] = time.perf_counter() - t0
     state = SearchState({}, [])
+    stderr: dict[str, float] = {}  # standard errors of the kept terms' parameters, from the refit that kept them
     for k, (cname, gname) in enumerate(names):
         state.values[cname] = 0.0
         if gname is not None:
@@ -187,6 +190,10 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
             k = terms.index(row.term)
             start = dict(state.values)
             start[names[k][0]] = row.coef
+            if row.term.form in TIME_GATES:  # an onset time: start the refit from a scan over its range
+                scan, n_probes = onset_scan(row, names[k], targets, models, state.values, threads)
+                start.update(scan)
+                n_sims += n_probes * len(targets)
             free = free_for(terms, names, [*state.kept, k], start, k)
             robj = Objective(targets, models, free, base_values=state.values, threads=threads)
             out = refine(robj, start, max_nfev)
@@ -264,6 +271,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
             break
         state.kept.append(k_new)
         state.values.update(out.values)
+        stderr.update({e.name: e.stderr for e in out.estimates})
         current_train, current_held = out.train_rms_sigma, h_new
         outcome = out
     # --- backward step: a later term alone may explain more than the set its first pick led to (a strong stop at
@@ -283,6 +291,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
                                             "set_held_rms_sigma": current_held}})
                 state.kept = [k]
                 state.values = start | alone.values
+                stderr.update({e.name: e.stderr for e in alone.estimates})
                 current_train, current_held, outcome = alone.train_rms_sigma, alone.held_rms_sigma, alone
                 break
         timings["refit_s"] += time.perf_counter() - t0
@@ -299,7 +308,8 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         shape = state.values[gname] if gname else 0.0
         scale = scales.get(terms[k].signal, 1.0)
         found.append(FoundTerm(terms[k].with_shape(shape), coef, shape, scale,
-                               describe_term(terms[k], coef, shape, scale), twins.get(k, [])))
+                               describe_term(terms[k], coef, shape, scale, stderr.get(gname) if gname else None),
+                               twins.get(k, [])))
     if found and not stable:
         verdict = "not_found"
         msg = (f"The best terms ({', '.join(f.term.key for f in found)}) make the model diverge in free run "
