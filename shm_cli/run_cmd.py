@@ -367,16 +367,26 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
     status = "failed"
     log = None
     failed: dict[str, str] = {}  # step of the run -> why it failed (the run then exits 1, its results written)
+    recorder: Any = None
     try:
         log = UsageLog(db_path, synchronous=args.log_sync.upper())
         run_id = log.start_run(scenario=scenario.name, seed=seed, link_url=args.link, params=params,
                                board_config=cfg.as_dict(), rig=rig.describe() if rig is not None else {})
         from studies.health.visit_records import VisitRecordWriter  # every completed MBIT -> records/ (issue 17)
 
-        recorder = VisitRecordWriter(out, db_path, params=params, z3_noise_m=scenario.rig.z3_noise,
-                                     scenario=scenario.name, run_id=run_id)
-        if args.append:  # the earlier runs' visit records stay: number this run's visits after theirs
-            recorder.visit = _last_visit_number(out / "records")
+        def make_recorder() -> VisitRecordWriter:
+            rec = VisitRecordWriter(out, db_path, params=params, z3_noise_m=scenario.rig.z3_noise,
+                                    scenario=scenario.name, run_id=run_id)
+            if args.append:  # the earlier runs' visit records stay: number this run's visits after theirs
+                rec.visit = _last_visit_number(out / "records")
+            return rec
+
+        if paced:  # a record written inside a tick is missed deadlines in a row: written beside the ticks
+            from studies.board_run.background_records import BackgroundRecorder
+
+            recorder = BackgroundRecorder(make_recorder)
+        else:
+            recorder = make_recorder()
 
         def on_event(ev) -> None:
             printer(ev)
@@ -413,6 +423,9 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
         status = "interrupted"
         raise
     finally:
+        if recorder is not None:  # every record written (a paced run's: waited for) before anything else
+            with contextlib.suppress(Exception):
+                recorder.close()
         if log is not None:
             try:
                 log.close(status)
@@ -421,8 +434,8 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
         if bar is not None:
             bar.close()
 
-    with contextlib.suppress(Exception):
-        recorder.close()
+    if getattr(recorder, "failure", None):
+        failed.setdefault("the visit records", recorder.failure)
     deco = Decorations("run", args)
     deco.failed.update(failed)
     from studies.board_run.outputs import RunContext, write_run_outputs
