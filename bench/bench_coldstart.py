@@ -60,11 +60,17 @@ def _record(path: Path, env: dict[str, str]) -> Path:
 
 def run(out_dir: Path, quick: bool) -> dict:
     root = Path(tempfile.mkdtemp(prefix="bench_coldstart_"))
+
+    def env(cache: Path) -> dict[str, str]:
+        # the generated kernel sources in one place for every variant: numba files a module's cache under a name
+        # derived from the source's directory, so a copied cache is found only with the sources where they were
+        return cold_env(cache, MFC_SHM_KERNEL_DIR=str(root / "kernel_sources"))
+
     try:
-        record = _record(root / "stiff.csv", cold_env(root / "synth_cache"))
+        record = _record(root / "stiff.csv", env(root / "synth_cache"))
         setup_cache = root / "setup_cache"
         t0 = time.perf_counter()
-        warm = subprocess.run([sys.executable, "-m", "plant.warm", "--jobs", "2"], env=cold_env(setup_cache),
+        warm = subprocess.run([sys.executable, "-m", "plant.warm", "--jobs", "2"], env=env(setup_cache),
                               capture_output=True, text=True)
         setup_s = time.perf_counter() - t0
         (out_dir / "coldstart_setup.txt").write_text(warm.stdout + warm.stderr)
@@ -77,7 +83,7 @@ def run(out_dir: Path, quick: bool) -> dict:
             argv = _commands(record, work)[name]
             row = {}
             for label, cache in (("cold", cold_cache), ("after_setup", after_cache), ("warm", cold_cache)):
-                timed = run_timed(argv, cold_env(cache), timeout_s=1200, cwd=root)
+                timed = run_timed(argv, env(cache), timeout_s=1200, cwd=root)
                 row[label] = _summary(timed)
                 (out_dir / f"coldstart_{name}_{label}.txt").write_text(timed.text())
             result[name] = row
