@@ -6,6 +6,7 @@ Public surface (import from here): :class:`PlantModel`, :class:`InputSignals`, :
 :func:`resolve_effect`, :func:`registered_effects`.
 """
 
+from plant import kernel_cache as _kernel_cache  # noqa: F401, I001  (first: numba's cache directory, kernel_cache)
 from plant import effects as _builtin_effects  # noqa: F401  (registers the built-in effects)
 from plant.effect import (
     EffectError,

@@ -14,9 +14,28 @@ command is warm.
 
 from __future__ import annotations
 
+import os
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
+
+#: numba's on-disk cache when the environment names none: the Makefile's default, so that the kernels ``make setup``
+#: compiled serve a later ``shm`` typed in a shell that never exported ``NUMBA_CACHE_DIR`` (numba would otherwise
+#: cache beside the generated modules, in another directory, and compile again)
+DEFAULT_CACHE_DIR = os.path.join(os.path.expanduser("~"), ".cache", "mfc-shm", "numba")
+
+
+def use_default_cache_dir() -> None:
+    """Point numba at :data:`DEFAULT_CACHE_DIR` unless ``NUMBA_CACHE_DIR`` is set (before or after numba loaded)."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return
+    os.environ["NUMBA_CACHE_DIR"] = DEFAULT_CACHE_DIR
+    config = getattr(sys.modules.get("numba"), "config", None)
+    if config is not None and not getattr(config, "CACHE_DIR", ""):
+        config.CACHE_DIR = DEFAULT_CACHE_DIR
+
+
+use_default_cache_dir()  # at import: plant imports this module before anything that loads numba
 
 #: rough compile time (s) of a composition's entry points: the first entry point of a module (``run_chunk``:
 #: integrator, right-hand side, outputs) and the lane integrator (``run_lanes``); each effect beyond the nominal

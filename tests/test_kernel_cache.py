@@ -62,3 +62,13 @@ def test_setup_builds_the_nominal_models_the_library_and_the_scenarios_once_each
         assert "run_lanes" in by[(*nominal, "amplifier", name)].entries
         assert (*nominal, "open_circuit", name) in by
     assert (*nominal, "harvest_coupled", "dielectric_leakage") in by  # the patch_leakage scenario's rig in flight
+
+
+def test_a_shell_without_numba_cache_dir_uses_the_cache_make_setup_filled(tmp_path):
+    # make exports NUMBA_CACHE_DIR=~/.cache/mfc-shm/numba; a later `shm` typed in a plain shell must find the same
+    code = "import plant, numba; from plant.compose import kernel_dir; print(numba.config.CACHE_DIR, kernel_dir())"
+    env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CACHE_DIR", "MFC_SHM_KERNEL_DIR")}
+    env["HOME"] = str(tmp_path)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
+    want = tmp_path / ".cache" / "mfc-shm" / "numba"
+    assert out.stdout.split() == [str(want), str(want / "kernels")]
