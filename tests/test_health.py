@@ -104,7 +104,7 @@ def test_prognosis_challenge_fast_subset():
     right visits, and the feature-only baseline is scored on the same lives."""
     from studies.health.challenge import challenge_lives, run_challenge
 
-    res = run_challenge(challenge_lives(full=False), workers=2)
+    res = run_challenge(challenge_lives("smoke"), workers=2)
     s = res.summary
     assert s["physics"]["lives_scored"] == 1 and s["physics"]["predictions"] >= 2
     assert s["physics"]["coverage"] >= 0.85

@@ -34,106 +34,20 @@ from typing import Any
 
 import numpy as np
 
-from board_config.scenario import LifeLaw
+from studies.health.challenge_lives import ChallengeLife, challenge_lives, reference_life
+from studies.health.estimate import DEFAULT_FREE
 from studies.health.evaluate import seen_at_visits
+from studies.health.follow import Followed, effect_limits, find_and_follow, series, trends_upto
 from studies.health.forecast import forecast_trip, visit_of
-from studies.health.laws import deviations_at
 from studies.health.metrics import alpha_lambda, interval_covers, prognostic_horizon
 from studies.health.trend import fit_trend
-from studies.health.trip import HEALTH_PARAMS, fault_batch, trip_boundary
+from studies.health.trip import HEALTH_PARAMS, fault_batch_values, trip_boundary
+
+__all__ = ["ChallengeLife", "challenge_lives", "reference_life", "run_challenge", "run_life_challenge"]
 
 RATE_HZ = 100.0
 SETTLE_S = 2.0
 MIN_VISITS = 4
-
-
-@dataclass(frozen=True)
-class ChallengeLife:
-    name: str
-    laws: tuple[LifeLaw, ...]
-    visits: int = 16
-    interval: float = 100.0  # h
-    noise_m: float = 2e-6  # laser noise, 1 sigma
-    kind: str = "trend"  # trend | stable | sudden
-    step_hours: float | None = None  # sudden damage: when (h)
-    step_parameter: str | None = None
-    seed: int = 0
-
-    def hours(self) -> np.ndarray:
-        return self.interval * np.arange(self.visits)
-
-
-def _lin(p: str, rate: float) -> LifeLaw:
-    return LifeLaw(p, "linear", rate=rate)
-
-
-def _pow(p: str, amp: float, ref: float, m: float) -> LifeLaw:
-    return LifeLaw(p, "power", amplitude=amp, reference=ref, exponent=m)
-
-
-def _exp(p: str, amp: float, tau: float) -> LifeLaw:
-    return LifeLaw(p, "exponential", amplitude=amp, time_constant=tau)
-
-
-def _step(p: str, size: float, at: float) -> LifeLaw:
-    return LifeLaw(p, "step", size=size, at=at)
-
-
-def _const(p: str, v: float) -> LifeLaw:
-    return LifeLaw(p, "constant", value=v)
-
-
-def reference_life() -> ChallengeLife:
-    """The shipped ``aging`` scenario's laws (the baseline's alarm threshold is calibrated on it)."""
-    return ChallengeLife("aging", (_lin("k3", -2e-4), _pow("alpha_h", 0.15, 1200, 1.5), _lin("beta_h", -1e-4)),
-                         visits=16, interval=100.0, seed=1)
-
-
-def challenge_lives(full: bool = True) -> list[ChallengeLife]:
-    """The challenge's lives: ``full=False`` is the fast subset of ``make test``."""
-    fast = [
-        ChallengeLife("linear-alpha-fast", (_lin("alpha_h", 2.5e-4), _lin("k3", -1e-4)), visits=8, interval=100.0,
-                      seed=11),
-        ChallengeLife("stable-fast", (_const("k3", -0.03),), visits=5, kind="stable", seed=12),
-        ChallengeLife("sudden-k3-fast", (_step("k3", -0.15, 330.0),), visits=7, kind="sudden", step_hours=330.0,
-                      step_parameter="k3", seed=13),
-    ]
-    if not full:
-        return fast
-    lives = [reference_life()]
-    i = 100
-    for m, ref in ((1.2, 1000.0), (2.0, 1400.0), (1.5, 900.0)):
-        for noise in (2e-6, 5e-6):
-            i += 1
-            lives.append(ChallengeLife(f"power-m{m:g}-ref{ref:g}-n{noise * 1e6:g}um",
-                                       (_pow("alpha_h", 0.15, ref, m), _lin("k3", -1.5e-4)), visits=16,
-                                       interval=100.0, noise_m=noise, seed=i))
-    for rate, interval in ((1.2e-4, 100.0), (2.5e-4, 50.0), (0.6e-4, 200.0)):
-        i += 1
-        lives.append(ChallengeLife(f"linear-{rate * 100:g}per100h-every{interval:g}h",
-                                   (_lin("alpha_h", rate), _lin("beta_h", -1e-4)), visits=18, interval=interval,
-                                   noise_m=5e-6, seed=i))
-    for tau in (500.0, 700.0):
-        i += 1
-        lives.append(ChallengeLife(f"exponential-tau{tau:g}", (_exp("alpha_h", 0.02, tau), _lin("k3", -1e-4)),
-                                   visits=18, interval=100.0, noise_m=2e-6, seed=i))
-    i += 1
-    lives.append(ChallengeLife("decreasing-alpha", (_lin("alpha_h", -1.0e-4), _lin("k3", -2e-4)), visits=16,
-                               interval=100.0, noise_m=2e-6, seed=i))
-    for rep in (1, 2):
-        for noise in (2e-6, 5e-6, 10e-6):
-            for c in (-0.03, 0.0, 0.02):
-                i += 1
-                lives.append(ChallengeLife(f"stable-k3{c:+g}-n{noise * 1e6:g}um-{rep}",
-                                           (_const("k3", c), _const("beta_h", -c)), visits=10, interval=100.0,
-                                           noise_m=noise, kind="stable", seed=i))
-    for p, size, at in (("k3", -0.15, 450.0), ("k3", -0.10, 730.0), ("alpha_h", 0.05, 520.0),
-                        ("beta_h", -0.2, 360.0), ("alpha_h", -0.04, 610.0)):
-        i += 1
-        lives.append(ChallengeLife(f"sudden-{p}{size:+g}-at{at:g}h", (_step(p, size, at),), visits=10,
-                                   interval=100.0, noise_m=2e-6, kind="sudden", step_hours=at, step_parameter=p,
-                                   seed=i))
-    return lives
 
 
 # --- simulation of a life's visits ---------------------------------------------------------------------------
@@ -152,19 +66,40 @@ def visit_commands() -> np.ndarray:
     return np.vstack([np.zeros((1, 2)), *rows])
 
 
-def simulate_visit_records(life: ChallengeLife, params: str, devs: list[dict[str, float]]):
-    """One joined visit record per visit (truth deviations ``devs``), with the life's laser noise."""
+def truth_columns(params: str, devs: Sequence[dict[str, float]], effect_values: Sequence[dict[str, float]]
+                  ) -> dict[str, np.ndarray]:
+    """SI parameter columns of the truth plants: the monitor's parameters from their deviations, the added
+    effects' parameters as they are."""
+    from plant import PlantModel
+
+    model = PlantModel(params, terminal="amplifier")
+    cols = {p: np.array([model.param_value(p) * (1 + d.get(p, 0.0)) for d in devs]) for p in HEALTH_PARAMS}
+    for name in sorted({k for e in effect_values for k in e}):
+        cols[name] = np.array([e.get(name, 0.0) for e in effect_values])
+    return cols
+
+
+def truth_faults(life: ChallengeLife, params: str, devs: Sequence[dict[str, float]],
+                 effect_values: Sequence[dict[str, float]]) -> np.ndarray:
+    """The board monitor's verdict on each visit's truth plant (campaign machinery)."""
+    return fault_batch_values(params, truth_columns(params, devs, effect_values), life.effects)
+
+
+def simulate_visit_records(life: ChallengeLife, params: str, devs: list[dict[str, float]],
+                           effect_values: Sequence[dict[str, float]] | None = None):
+    """One joined visit record per visit (truth deviations ``devs``, the added effects' parameter values), with
+    the life's laser noise."""
     from plant import InputSignals, PlantModel
     from workbench.records import record_from_arrays
 
-    model = PlantModel(params, terminal="amplifier")
+    effect_values = effect_values if effect_values is not None else [{} for _ in devs]
+    model = PlantModel(params, terminal="amplifier", effects=list(life.effects))
     cmds = visit_commands()
     n = cmds.shape[0]
     t = np.arange(n) / RATE_HZ
     u = np.zeros((1, n, 3))
     u[0, :, 0:2] = cmds
-    nominal = {p: model.param_value(p) for p in HEALTH_PARAMS}
-    cols = {p: np.array([nominal[p] * (1 + d.get(p, 0.0)) for d in devs]) for p in HEALTH_PARAMS}
+    cols = truth_columns(params, devs, effect_values)
     res = model.simulate(InputSignals(0.0, 1.0 / RATE_HZ, u), t_out=t, params=model.param_batch(n=len(devs), **cols),
                          rtol=1e-6, h_max=5e-3, threads=1)
     res.raise_on_failure(f"{life.name}: truth simulation failed: ")
@@ -213,29 +148,39 @@ def first_natural_frequency(record: Any) -> float:
 def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold: float | None = None,
                        n_paths: int = 400, n_grid: int = 500) -> dict[str, Any]:
     """Simulate, estimate, predict sequentially and score one life (a plain dict; picklable)."""
+    from plant import PlantModel
     from studies.health.estimate import estimate_visit
 
     t0 = time.perf_counter()
     hours = life.hours()
-    devs = [deviations_at(life.laws, float(h)) for h in hours]
-    truth = np.array([[d.get(p, 0.0) for p in HEALTH_PARAMS] for d in devs])
-    faults = fault_batch(params, truth)
+    truth = [life.truth_at(float(h)) for h in hours]
+    devs, eff_values = [d for d, _ in truth], [e for _, e in truth]
+    faults = truth_faults(life, params, devs, eff_values)
     k_true = int(np.argmax(faults)) if faults.any() else None
-    recs = simulate_visit_records(life, params, devs)
+    recs = simulate_visit_records(life, params, devs, eff_values)
     ests = [estimate_visit([r], params) for r in recs]
     f1 = np.array([first_natural_frequency(r) for r in recs])
-    rel = {p: [next(e for e in x["estimates"] if e["name"] == p) for x in ests] for p in HEALTH_PARAMS}
-    y = {p: np.array([e["value"] / e["nominal"] - 1 for e in rel[p]]) for p in HEALTH_PARAMS}
-    s = {p: np.array([(e["stderr"] or 0.0) / abs(e["nominal"]) for e in rel[p]]) for p in HEALTH_PARAMS}
+    model = PlantModel(params, terminal="amplifier")
+    nominal = {p: model.param_value(p) for p in model.param_names}
+    y, s = series(ests, DEFAULT_FREE, nominal)
     boundary = trip_boundary(params)
+    followed = Followed()
+    limits: dict[str, float] = {}
     preds = []
     base_preds = []
     last = life.visits if k_true is None else k_true  # predictions only before the first FAULT
     for j in range(MIN_VISITS - 1, last):
         hh = hours[: j + 1]
-        trends = {p: fit_trend(p, hh, y[p][: j + 1], s[p][: j + 1]) for p in HEALTH_PARAMS}
+        if followed.diagnosed_visit is None:  # diagnose once: at the first visit whose default fit shows excess
+            followed = find_and_follow(ests[: j + 1], lambda i: [recs[i]], params, lambda eff, free, base: [
+                estimate_visit([r], params, free, eff, base) for r in recs])
+            if followed.switched:
+                assert followed.estimates is not None
+                y, s = series(followed.estimates, followed.free, nominal)
+                limits = effect_limits(params, followed.free)
+        trends = trends_upto(hours, y, s, j + 1)
         fc = forecast_trip(trends, boundary, float(hh[-1]), life.interval, seed=life.seed + j, n_paths=n_paths,
-                           n_grid=n_grid)
+                           n_grid=n_grid, effect_limits=limits)
         seen = seen_at_visits(fc.trip_samples, hours[0], life.interval)
         preds.append({"as_of_visit": j, "hours": float(hh[-1]), "significant": fc.significant,
                       "interval_visits": _interval_visits(fc.trip_samples, hours[0], life.interval),
@@ -248,11 +193,14 @@ def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold
                            "f1_Hz": f1.tolist(), "wall_s": 0.0}
     out["physics"] = _score(preds, life, k_true, hours)
     out["baseline"] = _score(base_preds, life, k_true, hours) if f1_threshold is not None else None
+    out["followed"] = followed.as_dict([float(h) for h in hours])
+    out["group"] = life.group
+    out["effects"] = list(life.effects)
     # final-visit verdicts: stable and sudden lives
-    final = {p: fit_trend(p, hours, y[p], s[p]) for p in HEALTH_PARAMS}
+    final = trends_upto(hours, y, s, len(hours))
     out["final_significant"] = {p: t.significant for p, t in final.items()}
     out["final_models"] = {p: t.model for p, t in final.items()}
-    if life.kind == "sudden" and life.step_parameter is not None:
+    if life.kind == "sudden" and life.step_parameter is not None and life.step_parameter in final:
         t = final[life.step_parameter]
         ok = t.model == "change_point" and t.best.tau is not None and \
             _bracket(hours, life.step_hours) == _bracket(hours, t.best.tau)
@@ -314,9 +262,8 @@ def f1_alarm_threshold(params: str = "table2") -> float:
     """The baseline's alarm: relative f1 change of the reference life at its first FAULT (truth, noise-free)."""
     life = reference_life()
     hours = life.hours()
-    devs = [deviations_at(life.laws, float(h)) for h in hours]
-    truth = np.array([[d.get(p, 0.0) for p in HEALTH_PARAMS] for d in devs])
-    k = int(np.argmax(fault_batch(params, truth)))
+    devs = [life.truth_at(float(h))[0] for h in hours]
+    k = int(np.argmax(truth_faults(life, params, devs, [{} for _ in devs])))
     recs = simulate_visit_records(ChallengeLife("ref", life.laws, life.visits, life.interval, 0.0, seed=0), params,
                                   devs)
     return first_natural_frequency(recs[k]) / first_natural_frequency(recs[0]) - 1.0

@@ -100,9 +100,12 @@ def join_visit_records(records: Sequence[Record]) -> Record:
                               path="+".join(r.name for r in recs))
 
 
-def estimate_visit(records: Sequence[Record], params: str, free: Sequence[str] = DEFAULT_FREE
-                   ) -> dict[str, Any]:
-    """Fit the free parameters on one visit; plain dict (picklable) with ``estimates`` and fit quality."""
+def estimate_visit(records: Sequence[Record], params: str, free: Sequence[str] = DEFAULT_FREE,
+                   add: Sequence[str] = (), base: dict[str, float] | None = None) -> dict[str, Any]:
+    """Fit the free parameters on one visit; plain dict (picklable) with ``estimates`` and fit quality.
+    ``add``: effects added to the model (their parameters may be in ``free``; their nominal is the effect's
+    default, usually 0); ``base``: core values (SI) replacing the set's (the first visit's fitted set)."""
+    from board_config import load_parameter_set
     from plant import PlantModel
     from workbench.fit import fit_records
 
@@ -110,8 +113,9 @@ def estimate_visit(records: Sequence[Record], params: str, free: Sequence[str] =
     # the board's records of a visit are consecutive ticks: joined, they start at rest; other records (shm synth,
     # a rig's logs) each start at rest and are fitted as they are
     recs = [join_visit_records(records)] if board else list(records)
-    rep = fit_records(recs, params, free=list(free), max_nfev=30)
-    model = PlantModel(params, terminal="amplifier")
+    pset = load_parameter_set(params).with_values(None, **base) if base else load_parameter_set(params)
+    rep = fit_records(recs, pset, add=list(add), free=list(free), max_nfev=30)
+    model = PlantModel(pset, terminal="amplifier", effects=list(add))
     out = []
     for e in rep.outcome.estimates:
         nominal = float(model.param_value(e.name))
@@ -121,7 +125,8 @@ def estimate_visit(records: Sequence[Record], params: str, free: Sequence[str] =
             "train_rms_sigma": float(rep.outcome.train_rms_sigma), "fit_wall_s": float(rep.wall_s)}
 
 
-def _estimate_job(paths: list[str], params: str, free: tuple[str, ...]) -> dict[str, Any]:
+def _estimate_job(paths: list[str], params: str, free: tuple[str, ...], add: tuple[str, ...] = (),
+                  base: dict[str, float] | None = None) -> dict[str, Any]:
     from workbench.records import load_record
 
     records = []
@@ -130,12 +135,13 @@ def _estimate_job(paths: list[str], params: str, free: tuple[str, ...]) -> dict[
         if not isinstance(rec, Record):
             raise InputError(f"{p}: a frequency-response table cannot be used for per-visit re-estimation")
         records.append(rec)
-    return estimate_visit(records, params, free)
+    return estimate_visit(records, params, free, add, base)
 
 
 def estimate_visits(visits: Sequence[Visit], params: str, free: Sequence[str] = DEFAULT_FREE,
                     workers: int | None = None, progress: Callable[[str], None] | None = None,
-                    dask_scheduler: str | None = None) -> list[dict[str, Any]]:
+                    dask_scheduler: str | None = None, add: Sequence[str] = (),
+                    base: dict[str, float] | None = None) -> list[dict[str, Any]]:
     """Every visit's estimates, in visit order (process pool of ``workers``; 1 = in this process; or the Dask
     cluster at ``dask_scheduler``, as ``shm campaign --dask-scheduler``: the records are read by the workers, so
     they need the same file system)."""
@@ -149,7 +155,7 @@ def estimate_visits(visits: Sequence[Visit], params: str, free: Sequence[str] = 
         client = connect_dask(dask_scheduler)
         try:
             with client.get_executor() as pool:
-                futs = [pool.submit(_estimate_job, p, params, free) for p in paths]
+                futs = [pool.submit(_estimate_job, p, params, free, tuple(add), base) for p in paths]
                 for v, f in zip(visits, futs):
                     results.append(f.result())
                     if progress:
@@ -159,12 +165,12 @@ def estimate_visits(visits: Sequence[Visit], params: str, free: Sequence[str] = 
         return results
     if n <= 1 or len(visits) <= 1:
         for v in visits:
-            results.append(estimate_visit(v.records, params, free))
+            results.append(estimate_visit(v.records, params, free, add, base))
             if progress:
                 progress(_line(v, results[-1]))
         return results
     with ProcessPoolExecutor(max_workers=n) as pool:
-        futs = [pool.submit(_estimate_job, p, params, free) for p in paths]
+        futs = [pool.submit(_estimate_job, p, params, free, tuple(add), base) for p in paths]
         for v, f in zip(visits, futs):
             results.append(f.result())
             if progress:
@@ -175,6 +181,10 @@ def estimate_visits(visits: Sequence[Visit], params: str, free: Sequence[str] = 
 def _line(v: Visit, res: dict[str, Any]) -> str:
     parts = []
     for e in res["estimates"]:
+        if e["nominal"] == 0.0:  # an added effect's parameter: in its own unit
+            se_s = f" ± {e['stderr']:.2g}" if e["stderr"] is not None else ""
+            parts.append(f"{e['name']} {e['value']:.3g}{se_s} {e['unit']}")
+            continue
         se = e["stderr"] / abs(e["nominal"]) if e["stderr"] is not None else None
         bound = " (at its fit bound)" if e.get("at_bound") else ""
         parts.append(f"{e['name']} {format_percent_change(e['value'] / e['nominal'] - 1, se)}{bound}")

@@ -24,6 +24,8 @@ N_PATHS = 2000
 N_GRID = 1500
 #: uncertainty of the monitor's trip limit in alpha_h (relative deviation, 1 sigma)
 BOUNDARY_SIGMA = 0.003
+#: relative uncertainty of an added effect's trip limit (1 sigma)
+EFFECT_LIMIT_SHARE = 0.03
 
 
 @dataclass
@@ -59,8 +61,12 @@ def _first_trip(grid: np.ndarray, faults: np.ndarray) -> np.ndarray:
 
 def forecast_trip(trends: Mapping[str, Trend], boundary: TripBoundary, last_hours: float, visit_interval: float,
                   *, current: Mapping[str, float] | None = None, seed: int = 1, horizon_factor: float = 4.0,
-                  n_paths: int = N_PATHS, n_grid: int = N_GRID) -> Forecast:
-    """The forecast from per-parameter trends (relative deviations) through the monitor's trip boundary."""
+                  n_paths: int = N_PATHS, n_grid: int = N_GRID,
+                  effect_limits: Mapping[str, float] | None = None) -> Forecast:
+    """The forecast from per-parameter trends (relative deviations) through the monitor's trip boundary.
+    ``effect_limits``: an added effect's parameter (trended in its own unit, e.g. G_leak in S) → the value at which
+    the monitor trips (:func:`.trip.effect_trip_limit`); a path also trips when it reaches that value (known to
+    :data:`EFFECT_LIMIT_SHARE` of itself, 1 σ)."""
     rng = np.random.default_rng(seed)
     horizon = last_hours + max(horizon_factor * max(last_hours, visit_interval), 20 * visit_interval)
     grid = np.linspace(last_hours, horizon, n_grid)
@@ -68,19 +74,20 @@ def forecast_trip(trends: Mapping[str, Trend], boundary: TripBoundary, last_hour
     devs = np.zeros((n_paths, grid.size, 3))
     for j, name in enumerate(HEALTH_PARAMS):
         t = trends.get(name)
-        if t is None:
+        if t is not None:
+            devs[:, :, j] = _parameter_paths(t, significant, grid, n_paths, rng)
+    effect_trip = np.zeros((n_paths, grid.size), bool)
+    for name, limit in (effect_limits or {}).items():
+        t = trends.get(name)
+        if t is None or not math.isfinite(limit):
             continue
-        if significant and t.significant:
-            devs[:, :, j] = t.sample_paths(grid, n_paths, rng)
-        else:
-            f = t.fits.get("linear") if not significant else t.fits.get("none")
-            f = f if f is not None else t.fits["none"]
-            devs[:, :, j] = _paths_of(f, grid, n_paths, rng)
+        lim = limit * (1.0 + rng.normal(0.0, EFFECT_LIMIT_SHARE, n_paths))
+        effect_trip |= _parameter_paths(t, significant, grid, n_paths, rng) >= lim[:, None]
     # the trip limit itself is known to about BOUNDARY_SIGMA in alpha_h (noise-dependent counter near the limit,
     # the board's visit history against the campaign's MBITs from rest): each path gets its own limit offset
     shift = rng.normal(0.0, BOUNDARY_SIGMA, n_paths)
     devs[:, :, 1] -= shift[:, None]
-    faults = boundary.fault(devs)
+    faults = boundary.fault(devs) | effect_trip
     trips = _first_trip(grid, faults)
     already = False
     if current is not None:
@@ -101,6 +108,16 @@ def forecast_trip(trends: Mapping[str, Trend], boundary: TripBoundary, last_hour
     return Forecast(trip, [float(q05), float(q95) if math.isfinite(q95) else None], (trip - last_hours) if trip
                     is not None else None, p_next, None, last_hours, next_visit, horizon, already, grid, p_fault,
                     trips, True)
+
+
+def _parameter_paths(t: Trend, significant: bool, grid: np.ndarray, n_paths: int, rng: np.random.Generator
+                     ) -> np.ndarray:
+    """Future paths of one parameter: its trend laws when significant; else, when another parameter trends, its
+    constant; with no trend anywhere, its linear fit (the lower bound's extrapolation)."""
+    if significant and t.significant:
+        return t.sample_paths(grid, n_paths, rng)
+    f = t.fits.get("linear") if not significant else t.fits.get("none")
+    return _paths_of(f if f is not None else t.fits["none"], grid, n_paths, rng)
 
 
 def visit_of(hours: float | None, schedule_start: float, interval: float) -> int | None:

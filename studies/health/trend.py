@@ -244,12 +244,14 @@ def _psd(c: np.ndarray) -> np.ndarray:
 
 
 def fit_trend(parameter: str, hours: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray,
-              stderr: Sequence[float | None] | np.ndarray) -> Trend:
-    """Choose the trend of one parameter (see the module docstring)."""
+              stderr: Sequence[float | None] | np.ndarray, *, floor: float = SIGMA_FLOOR) -> Trend:
+    """Choose the trend of one parameter (see the module docstring). ``floor``: the repeatability floor σ_f in the
+    unit of ``y`` (default: 0.05 % for relative deviations; an effect's parameter trended in its own unit has its
+    own)."""
     h = np.asarray(hours, float)
     yv = np.asarray(y, float)
     s = np.array([v if v is not None and math.isfinite(v) else 0.0 for v in stderr], float)
-    var0 = s ** 2 + SIGMA_FLOOR ** 2
+    var0 = s ** 2 + floor ** 2
     n = h.size
     fits: dict[str, ModelFit] = {}
     for name in ("none", "linear", "exponential", "power"):

@@ -34,6 +34,59 @@ def _cache_dir() -> Path:
     return Path(base) / "health"
 
 
+def fault_batch_values(params: str, columns: dict[str, np.ndarray], effects: tuple[str, ...] = (), seed: int = 1
+                       ) -> np.ndarray:
+    """The board monitor's verdict (True = FAULT) for truth plants given by parameter ``columns`` (SI values by
+    name, core parameters or the parameters of the added ``effects``; the rest nominal), through the campaign's MBIT
+    simulation and monitor. The monitor's own model is the nominal ``params`` (it knows no added effect)."""
+    from firmware_sim.condition_monitor import evaluate, normalised_error
+    from plant import PlantModel
+    from studies.campaign.build import build_spec
+    from studies.campaign.worker import mbit_sequence, nominal_prediction
+
+    spec = build_spec(params, mbits="both", ranges="0:10:10", n_runs=1, seed=seed, noise_std=NOISE_STD_M)
+    model = PlantModel(params, effects=list(effects))
+    n = len(next(iter(columns.values())))
+    batch = model.param_batch(n=n, **{k: np.asarray(v, float) for k, v in columns.items()})
+    rng = np.random.default_rng(seed)
+    fault = np.zeros(n, bool)
+    for defn in spec.mbits:
+        t, z3_model = nominal_prediction(spec, defn)
+        res = model.simulate(mbit_sequence(defn).to_inputs(), dt_out=1.0 / spec.monitor.f_mon, params=batch,
+                             rtol=spec.rtol, threads=2)
+        z3 = np.array(res["z3_meas"], dtype=float) + rng.normal(0.0, NOISE_STD_M, (n, t.size))
+        eps = normalised_error(z3_model[None, :], z3, spec.monitor.e0z, spec.monitor.kerr_z)
+        fault |= evaluate(eps, spec.monitor, t).detected & (res.status == 0)
+    return fault
+
+
+def effect_trip_limit(params: str, effect: str, parameter: str, upper: float, *, use_cache: bool = True) -> float:
+    """The value of an added effect's ``parameter`` (SI, from 0 up to ``upper``) at which the monitor first trips,
+    the laminate otherwise nominal (12 halvings; inf when ``upper`` does not trip). Cached like the boundary."""
+    key = hashlib.sha256((_key(params) + effect + parameter + repr(upper)).encode()).hexdigest()[:16]
+    path = _cache_dir() / f"trip-effect-{key}.json"
+    if use_cache and path.exists():
+        v = json.loads(path.read_text())["limit"]
+        return float("inf") if v is None else float(v)
+    lo, hi = 0.0, float(upper)
+    limit = float("inf")
+    if fault_batch_values(params, {parameter: np.array([hi])}, (effect,))[0]:
+        for _ in range(N_HALVINGS):
+            mid = 0.5 * (lo + hi)
+            if fault_batch_values(params, {parameter: np.array([mid])}, (effect,))[0]:
+                hi = mid
+            else:
+                lo = mid
+        limit = 0.5 * (lo + hi)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(json.dumps({"limit": None if not np.isfinite(limit) else limit, "effect": effect,
+                                    "parameter": parameter, "params": params}))
+    except OSError:
+        pass
+    return limit
+
+
 def fault_batch(params: str, devs: np.ndarray, seed: int = 1) -> np.ndarray:
     """The board monitor's verdict (True = FAULT by MBIT.a or MBIT.b) for each row of relative deviations
     ``devs`` (n, 3) of (k3, α_h, β_h), through the campaign worker's simulation and monitor."""

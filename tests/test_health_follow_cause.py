@@ -1,0 +1,76 @@
+"""Find what changes, then trend it (issue 28, point 1): when the default re-estimation leaves more than the noise
+or runs to a bound, diagnose names the cause on that visit and health re-estimates and trends that set — an
+effect's own parameter (G_leak) as much as a core parameter."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from studies.health.cause import excess_trigger, reestimation_set
+from studies.health.estimate import DEFAULT_FREE
+from studies.health.follow import Followed, find_and_follow, follow_set, series, trends_upto, why_sentence
+
+
+def _est(held: float, bound: tuple[str, ...] = (), **rel: float) -> dict:
+    nominal = {"k3": 100.0, "alpha_h": 0.5, "beta_h": 2.0}
+    return {"held_rms_sigma": held, "estimates": [
+        {"name": n, "value": nominal[n] * (1 + rel.get(n, 0.0)), "stderr": 1e-4 * nominal[n], "nominal": nominal[n],
+         "unit": "1", "at_bound": n in bound} for n in DEFAULT_FREE]}
+
+
+def test_excess_is_the_latest_visit_beyond_the_noise_or_at_a_bound():
+    assert excess_trigger([_est(1.0), _est(1.1), _est(1.4)]) is None
+    i, why = excess_trigger([_est(1.0), _est(2.0), _est(1.2)])
+    assert i == 1 and "held-out" in why
+    # a board visit leaves 1.8 sigma at entry: 1.5 x that is the bar, not 1.5 sigma
+    assert excess_trigger([_est(1.8), _est(2.6)]) is None
+    i, why = excess_trigger([_est(1.0), _est(1.0, bound=("k3",))])
+    assert i == 1 and "k3" in why and "bound" in why
+
+
+def test_an_effect_is_followed_by_its_own_parameter():
+    assert reestimation_set(["dielectric_leakage"]) == (("dielectric_leakage",), ("G_leak",))
+    assert follow_set(["dielectric_leakage"]) == (("dielectric_leakage",), ("G_leak",))
+    # a section the default set does not free replaces k3 (which stands for any section); hysteresis stays
+    assert follow_set(["k2"]) == ((), ("k2", "alpha_h", "beta_h"))
+    # what the default set covers keeps the default set
+    assert follow_set(["alpha_h", "k3"]) is None and follow_set([]) is None
+
+
+def test_find_and_follow_diagnoses_once_and_reestimates_the_named_set(monkeypatch):
+    calls = []
+
+    def fake_diagnose(records, params, base, candidates=()):
+        calls.append((records, base))
+        return {"named": ["dielectric_leakage"], "verdict": "missing", "message": "Missing effect", "wall_s": 0.1}
+
+    monkeypatch.setattr("studies.health.follow.diagnose_visit", fake_diagnose)
+    ests = [_est(1.0, k3=0.01), _est(1.1), _est(9.0, k3=0.3)]
+    got = []
+
+    def reestimate(effects, free, base):
+        got.append((effects, free, base))
+        return [{"held_rms_sigma": 1.0, "estimates": [{"name": "G_leak", "value": 1e-4 * i, "stderr": 1e-8,
+                                                       "nominal": 0.0, "unit": "S"}]} for i in range(3)]
+
+    f = find_and_follow(ests, lambda i: [f"record {i}"], "table2", reestimate)
+    assert f.switched and f.free == ("G_leak",) and f.diagnosed_visit == 2
+    assert calls == [(["record 2"], {"k3": 101.0, "alpha_h": 0.5, "beta_h": 2.0})]  # the first visit's fitted set
+    assert got[0][:2] == (("dielectric_leakage",), ("G_leak",))
+    text = why_sentence(f, [0.0, 100.0, 200.0])
+    assert "at 200 h" in text and "G_leak" in text and "dielectric_leakage" in text
+    assert f.estimates is not None
+    y, s = series(f.estimates, f.free, {})
+    assert np.allclose(y["G_leak"], [0.0, 1e-4, 2e-4])  # in its own unit, not relative to a nominal of 0
+    t = trends_upto([0.0, 100.0, 200.0], y, s, 3)["G_leak"]
+    assert t.significant and t.rate_per_100h(200.0) == pytest.approx(1e-4, rel=1e-3)
+
+
+def test_without_excess_nothing_is_diagnosed(monkeypatch):
+    def boom(*a, **k):
+        raise AssertionError("diagnose must not run")
+
+    monkeypatch.setattr("studies.health.follow.diagnose_visit", boom)
+    f = find_and_follow([_est(1.0), _est(1.2)], lambda i: [], "table2", boom)
+    assert f == Followed() and "default fit explained each visit" in why_sentence(f, [0.0, 100.0])
