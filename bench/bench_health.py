@@ -53,7 +53,8 @@ def run(out_dir: Path, quick: bool) -> dict:
                   "levels": a.doc["levels"]}
 
     t0 = time.perf_counter()
-    ch = run_challenge(challenge_lives("smoke" if quick else "full"), workers=2, progress=lambda s: print(s, flush=True))
+    ch = run_challenge(challenge_lives("smoke" if quick else "full"), workers=2,
+                       progress=lambda s: print(s, flush=True))
     challenge_wall = time.perf_counter() - t0
     import json
 

@@ -8,10 +8,11 @@ change of theirs can explain: a leaking patch drove k3 to +200 % on the test liv
 :func:`workbench.diagnose.diagnose` runs **once**, on the latest visit that shows it, against the first visit's
 fitted set as the base (entry into service, not the nominal table), with the candidates limited to the section
 stiffnesses, the hysteresis parameters and the library effect the patches grow in service, their leakage
-(:data:`CANDIDATES`; ≈ 2 s per diagnosis). What it names becomes the re-estimation set (:func:`reestimation_set`): a core parameter is
-freed, an effect is added with its own parameters freed (G_leak for dielectric leakage). Each visit is then
-re-estimated with that set and each freed parameter trended — an effect's parameter in its own unit (it has no
-nominal value to be relative to), a core parameter relative to the base.
+(:data:`CANDIDATES`; ≈ 2 s per diagnosis). What it names becomes the re-estimation set
+(:func:`reestimation_set`): a core parameter is freed, an effect is added with its own parameters freed (G_leak
+for dielectric leakage). Each visit is then re-estimated with that set and each freed parameter trended — an
+effect's parameter in its own unit (it has no nominal value to be relative to), a core parameter relative to the
+nominal set (the monitor's trip boundary is in those terms).
 """
 
 from __future__ import annotations
