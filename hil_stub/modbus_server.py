@@ -161,6 +161,9 @@ class _CheckingHandler(ServerRequestHandler):
     def callback_data(self, data: bytes, addr: tuple | None = None) -> int:
         rig: ModbusRigServer | None = getattr(self.server, "rig", None)
         if rig is not None:
+            stale = rig.stale_request_bytes(data)
+            if stale:  # answer the newest request; the ones before it, its master has given up on
+                return stale + self.callback_data(data[stale:], addr)
             used = rig.precheck(self, data)
             if used:
                 return used
@@ -380,6 +383,26 @@ class ModbusRigServer:
             data = self.faulter.flip_bit(data, 0, 2 if self.kind == "tcp" else None)
         self.stats["replies"] += 1
         return data
+
+    def stale_request_bytes(self, data: bytes) -> int:
+        """TCP: the bytes of the complete requests that arrived together *before* the last complete one (0: one
+        request or fewer). pymodbus would answer the first of them and drop the rest with its buffer; a board sends
+        its next request only after giving up on the previous one (a reply too late for its tick), so the newest is
+        the one worth answering — the others are counted (``stale_requests_skipped``) and not served."""
+        if self.kind != "tcp":
+            return 0
+        frames: list[int] = []  # start offsets of complete MBAP frames
+        off = 0
+        while len(data) - off >= 8:
+            (_tid, pid, length) = struct.unpack(">HHH", data[off: off + 6])
+            if pid != 0 or not 2 <= length <= 254 or off + 6 + length > len(data):
+                break
+            frames.append(off)
+            off += 6 + length
+        if len(frames) < 2:
+            return 0
+        self.stats["stale_requests_skipped"] += len(frames) - 1
+        return frames[-1]
 
     def precheck(self, handler: ServerRequestHandler, data: bytes) -> int:
         """Answer a malformed request (see :func:`check_request_pdu`) before pymodbus does; return the bytes used

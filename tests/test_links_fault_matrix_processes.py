@@ -37,7 +37,8 @@ LATE_KEYS = ("stale_or_unexpected", "stale_skipped", "flushed_reads", "bad_reply
 def _serve(scen: Path, kind: str, fault: str, summary: Path) -> tuple[subprocess.Popen, str]:
     cmd = [sys.executable, "-m", "shm_cli.main", "hil", "serve", *ENDPOINT[kind], "--clock", "realtime",
            "--scenario", str(scen), "--seed", "3", *FAULT[fault], "--status-every", "0", "--summary", str(summary)]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, cwd=ROOT)
+    with (summary.parent / "stub.err").open("w") as err:  # the stub's incidents, kept for a failing case
+        proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err, text=True, cwd=ROOT)
     assert proc.stdout is not None
     for _ in range(30):
         line = proc.stdout.readline()

@@ -140,3 +140,27 @@ def test_a_version_1_rig_has_no_mirror():
         srv = hil.add_modbus_tcp("127.0.0.1:0", map_version=1)
         good = encode_command_block(cmd(5, 300.0, 0.0))
         assert _raw(srv.port, _fc23(MIRROR_START, INPUT_COUNT, 0, good)) == bytes([23 | 0x80, 2])
+
+
+def test_of_requests_arriving_together_the_stub_answers_the_newest():
+    """A board that gave up on a late reply sends its next request; when the stub, descheduled, reads both at once,
+    it answers the newest (pymodbus alone answered the first — which the board had given up on — and dropped the
+    other, costing a second exchange)."""
+    rig = FakeRig()
+    with HilService(rig, mode="realtime") as hil:
+        srv = hil.add_modbus_tcp("127.0.0.1:0")
+
+        def mbap(tid: int, k: int) -> bytes:
+            pdu = _fc23(MIRROR_START, INPUT_COUNT, 0, encode_command_block(cmd(k)))
+            return struct.pack(">HHHB", tid, 0, len(pdu) + 1, 1) + pdu
+
+        with socket.create_connection(("127.0.0.1", srv.port), timeout=1.0) as s:
+            s.sendall(mbap(11, 1) + mbap(12, 2))
+            head = s.recv(7)
+            assert struct.unpack(">H", head[:2])[0] == 12
+            body = s.recv(256)
+            block = decode_input_block(list(struct.unpack(f">{INPUT_COUNT}H", body[2:2 + 2 * INPUT_COUNT])))
+            assert block.cmd_seq_applied == 2
+            s.sendall(mbap(13, 3))  # and the next one is answered as usual
+            assert struct.unpack(">H", s.recv(7)[:2])[0] == 13
+        assert srv.stats["stale_requests_skipped"] == 1
