@@ -1,6 +1,6 @@
 """``shm health``: from the board's visit records to severity, location and remaining life (issue 17).
 
-    shm health SOURCE... --params P [--as-of HOURS] [--free NAME ...] [--locate auto|always|never]
+    shm health SOURCE... --params P [--as-of HOURS] [--free NAME ...] [--follow auto|never] [--locate auto|always|never]
                [--locate-diagnose] [--workers N] [--json] --out DIR
 
 A SOURCE is a run directory of ``shm run`` (its ``records/`` and ``usage.db``), its ``usage.db``, or record files
@@ -43,6 +43,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="where? place a stiffness loss in its section by freeing k1, k2, k3 one at a time on the "
                         "latest visit and scoring them on held-out data (auto: when a stiffness changed or trends, "
                         "or the health fit leaves excess residual; default auto)")
+    p.add_argument("--follow", choices=("auto", "never"), default="auto",
+                   help="what changes? when a visit's default fit leaves more than the noise or runs to a bound, "
+                        "ask shm diagnose on the latest such visit which parameters or effects changed and "
+                        "re-estimate and trend those on every visit (auto, default) or never")
     p.add_argument("--locate-diagnose", action="store_true",
                    help="also run shm diagnose on the latest visit and add what it names first to the candidates "
                         "(slower)")
@@ -91,7 +95,7 @@ def cmd_health(args: argparse.Namespace) -> int:
                            workers=args.workers, seed=args.seed, progress=log, dask_scheduler=args.dask_scheduler,
                            locate=args.locate, locate_diagnose=args.locate_diagnose,
                            locate_visits=args.locate_visits, evaluate=args.evaluate, alpha=args.alpha,
-                           lambdas=tuple(args.lambdas) if args.lambdas else LAMBDAS)
+                           lambdas=tuple(args.lambdas) if args.lambdas else LAMBDAS, follow=args.follow)
     result.doc["wall_s"] = time.perf_counter() - t0
     text = four_levels_text(result)
     if result.doc.get("evaluation"):

@@ -14,15 +14,20 @@ import numpy as np
 
 from board_config.errors import InputError
 from reporting.uncertainty_text import format_percent_change
+from studies.health.cause import effect_of
 from studies.health.estimate import DEFAULT_FREE, Visit, estimate_visits
 from studies.health.evaluate import ALPHA, LAMBDAS, MIN_VISITS, evaluate_sweep, sweep_predictions
+from studies.health.follow import Followed, effect_limits, find_and_follow, series, trends_upto
 from studies.health.forecast import Forecast, forecast_trip, visit_of
 from studies.health.locate import SECTIONS, diagnose_first_name, locate_stiffness, location_sentence
 from studies.health.sources import load_visits
-from studies.health.trend import Trend, fit_trend
+from studies.health.trend import Trend
 from studies.health.trip import HEALTH_PARAMS, trip_boundary
 from studies.health.truth import true_first_fault, truth_document
 
+#: what an added effect is, in words (the Where? level)
+EFFECT_WORDS = {"dielectric_leakage": "their dielectric leaks (dielectric_leakage: a conductance G_leak in parallel "
+                                      "with each patch couple)"}
 #: where a health parameter lives on the laminate (the lumped model's own map; docs/model.md)
 LOCATION = {
     "k3": "a bending stiffness (fitted as k3, the tip section's, which stands for any section here)",
@@ -41,20 +46,30 @@ class Assessment:
     boundary: Any
     #: the forecast rebuilt as of each visit (:func:`.evaluate.sweep_predictions`; with trip samples)
     sweep: list[dict[str, Any]] = field(default_factory=list)
+    #: each visit's estimates of the set diagnose named (None: the default set was followed)
+    followed_estimates: list[dict[str, Any]] | None = None
+    #: the monitor's trip limit of each followed effect parameter (SI)
+    effect_limits: dict[str, float] = field(default_factory=dict)
 
 
 def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: float | None = None,
                   free: Sequence[str] | None = None, workers: int | None = None, seed: int = 1,
                   progress: Callable[[str], None] | None = None, dask_scheduler: str | None = None,
                   locate: str = "auto", locate_diagnose: bool = False, locate_visits: int = 1,
-                  evaluate: bool = False, alpha: float = ALPHA, lambdas: Sequence[float] = LAMBDAS) -> Assessment:
-    """``locate``: "auto" (place a stiffness loss in its section when the latest visit shows one — a stiffness
-    changed or trending, or a health fit leaving 1.5 × the first visit's held-out residual), "always" or "never";
+                  evaluate: bool = False, alpha: float = ALPHA, lambdas: Sequence[float] = LAMBDAS,
+                  follow: str = "auto") -> Assessment:
+    """``follow``: "auto" (when a visit's default fit leaves more than the noise or runs to a bound, ask shm
+    diagnose on the latest such visit what changed and re-estimate and trend that set on every visit,
+    :mod:`.follow`) or "never"; ``locate``: "auto" (place a stiffness loss in its section when the latest visit
+    shows one — a stiffness changed or trending, or a health fit leaving 1.5 × the first visit's held-out
+    residual), "always" or "never";
     ``locate_diagnose`` adds what ``shm diagnose`` names first on the latest visit to the candidates;
     ``locate_visits`` > 1 also places the loss on that many visits before the latest (``location_history``);
     ``evaluate`` scores the prognosis against the truth's first FAULT over every visit before it, whatever
     ``as_of`` (:mod:`.evaluate`; the sources must carry the truth: the board's verdicts or true parameters)."""
     say = progress or (lambda s: None)
+    if follow not in ("auto", "never"):
+        raise InputError(f"--follow must be auto or never, got {follow!r}")
     if locate not in ("auto", "always", "never"):
         raise InputError(f"--locate must be auto, always or never, got {locate!r}")
     free = tuple(free) if free else DEFAULT_FREE
@@ -88,32 +103,45 @@ def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: floa
                 f"FAULT at {t_eol:g} h")
     ests_all = estimate_visits([*visits, *extra], params, free, workers=workers, progress=say,
                                dask_scheduler=dask_scheduler)
+    followed = Followed()
+    if follow == "auto":
+        followed = find_and_follow(ests_all[: len(visits)], lambda i: visits[i].records, params,
+                                   lambda eff, fr, base: estimate_visits(
+                                       [*visits, *extra], params, fr, workers=workers, progress=say,
+                                       dask_scheduler=dask_scheduler, add=eff, base=base), say)
     return assess_estimates(visits, all_visits, extra, ests_all, params=params, free=free, boundary=boundary,
                             truth_ff=truth_ff, as_of=as_of, seed=seed, say=say, locate=locate,
                             locate_diagnose=locate_diagnose, locate_visits=locate_visits, evaluate=evaluate,
-                            alpha=alpha, lambdas=lambdas)
+                            alpha=alpha, lambdas=lambdas, followed=followed)
 
 
 def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[Visit],
                      ests_all: list[dict[str, Any]], *, params: str, free: Sequence[str], boundary: Any,
                      truth_ff: dict[str, Any] | None, as_of: float | None, seed: int, say: Callable[[str], None],
                      locate: str = "never", locate_diagnose: bool = False, locate_visits: int = 1,
-                     evaluate: bool = False, alpha: float = ALPHA, lambdas: Sequence[float] = LAMBDAS
-                     ) -> Assessment:
+                     evaluate: bool = False, alpha: float = ALPHA, lambdas: Sequence[float] = LAMBDAS,
+                     followed: Followed | None = None) -> Assessment:
     """The assessment from the visits' estimates (``ests_all``: ``visits`` then ``extra``, the visits after the
-    as-of time that only --evaluate uses): trends, forecast, the forecast as of every visit, location, truth."""
+    as-of time that only --evaluate uses): trends, forecast, the forecast as of every visit, location, truth.
+    ``followed``: the set diagnose named and its estimates (:mod:`.follow`): then that set is trended."""
+    followed = followed or Followed()
     ests = ests_all[: len(visits)]
     hours = [v.operating_hours for v in visits]
-    rel, rel_se = _series(ests, free)
-    trends = {name: fit_trend(name, hours, rel[name], rel_se[name]) for name in free}
+    nominal = _nominal_values(params)
+    t_ests = followed.estimates if followed.estimates is not None else ests_all
+    t_free = followed.free if followed.switched else tuple(free)
+    limits = effect_limits(params, t_free)
+    y_all, s_all = series(t_ests, t_free, nominal)
+    trends = trends_upto(hours, y_all, s_all, len(hours))
     interval = float(np.median(np.diff(hours))) if len(hours) > 1 else 100.0
-    current = {n: trends[n].best.predict(np.array([hours[-1]]))[0] for n in free}
-    fc = forecast_trip(trends, boundary, hours[-1], interval, current=current, seed=seed)
+    current = {n: trends[n].best.predict(np.array([hours[-1]]))[0] for n in t_free if n in HEALTH_PARAMS}
+    fc = forecast_trip(trends, boundary, hours[-1], interval, current=current, seed=seed, effect_limits=limits)
     swept = [*visits, *extra]
     say(f"remaining life against time: the forecast rebuilt as of each visit from the {MIN_VISITS}th on "
         f"({max(len(swept) - MIN_VISITS + 1, 0)} forecasts)")
-    s_rel, s_se = _series(ests_all, free)
-    sweep = sweep_predictions([v.operating_hours for v in swept], s_rel, s_se, boundary, interval, seed=seed)
+    sweep = sweep_predictions([v.operating_hours for v in swept], {n: list(v) for n, v in y_all.items()},
+                              {n: list(v) for n, v in s_all.items()}, boundary, interval, seed=seed,
+                              effect_limits=limits)
     location = _locate(visits, ests, trends, params, locate, locate_diagnose, say)
     history = []
     if location.get("run") and locate_visits > 1:
@@ -125,25 +153,26 @@ def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[V
                                               "reason")})
         location["history"] = [*history, {k: location[k] for k in history[0]}] if history else []
     doc = _document(visits, all_visits, ests, trends, fc, hours, interval, as_of, params, free, location)
+    doc["followed"] = followed.as_dict(hours) | {"effect_trip_limits": limits}
+    if followed.estimates is not None:
+        for vd, fe in zip(doc["visits"], followed.estimates):
+            vd["followed_estimates"] = fe["estimates"]
+            vd["followed_held_rms_sigma"] = fe["held_rms_sigma"]
+    doc["levels"] = levels(doc, trends, fc)
     doc["remaining_life"] = [{k: v for k, v in p.items() if k != "samples"} for p in sweep]
     doc["truth"] = truth_document(visits, params, free, truth_ff)
     doc["evaluation"] = (evaluate_sweep(sweep, truth_ff["operating_hours"], alpha=alpha, lambdas=lambdas)
                          | {"truth_source": truth_ff["source"], "true_first_fault_visit": truth_ff["visit"]}
                          if evaluate and truth_ff is not None else None)
-    return Assessment(doc, visits, ests, trends, fc, boundary, sweep)
+    return Assessment(doc, visits, ests, trends, fc, boundary, sweep, followed.estimates, limits)
 
 
-def _series(ests: list[dict[str, Any]], free: Sequence[str]) -> tuple[dict[str, list[float]],
-                                                                      dict[str, list[float | None]]]:
-    """Relative change and its standard error of each free parameter, visit by visit."""
-    rel: dict[str, list[float]] = {n: [] for n in free}
-    se: dict[str, list[float | None]] = {n: [] for n in free}
-    for e in ests:
-        for name in free:
-            est = next(x for x in e["estimates"] if x["name"] == name)
-            rel[name].append(est["value"] / est["nominal"] - 1.0)
-            se[name].append(est["stderr"] / abs(est["nominal"]) if est["stderr"] is not None else None)
-    return rel, se
+def _nominal_values(params: str) -> dict[str, float]:
+    """The nominal set's core values (SI): what relative changes are relative to."""
+    from plant import PlantModel
+
+    model = PlantModel(params, terminal="amplifier")
+    return {p: float(model.param_value(p)) for p in model.param_names}
 
 
 def _evaluation_truth(truth_ff: dict[str, Any] | None, all_visits: Sequence[Visit]) -> float:
@@ -228,7 +257,8 @@ def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, a
     for n, t in trends.items():
         trend_doc[n] = {"model": t.model, "best_fit_model": t.best.name, "significant": t.significant,
                         "p_value": t.p_value, "rate": t.rate_per_100h(hours[-1]) / 100.0,
-                        "rate_unit": "relative deviation per hour", "rate_per_100h_pct": 100 * t.rate_per_100h(
+                        "rate_unit": "relative deviation per hour" if effect_of(n) is None else
+                        f"{_unit_of(n)} per hour", "rate_per_100h_pct": 100 * t.rate_per_100h(
                             hours[-1]), "information_criterion": {k: (f.ic if math.isfinite(f.ic) else None)
                                                  for k, f in t.fits.items()},
                         "model_weights": t.weights,
@@ -304,6 +334,18 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
         bound = " — at its fit bound: a limit, not an estimate" if e.get("at_bound") else ""
         parts.append(f"{e['name']} {format_percent_change(e['relative'], rse)}{bound}{rate}")
     how_much = f"at {last['operating_hours']:g} h: " + "; ".join(parts)
+    fol = doc.get("followed") or {}
+    if fol.get("switched"):
+        how_much = (f"at {last['operating_hours']:g} h: " + _followed_how_much(doc, trends)
+                    + f" (the default set's estimates moved too — {'; '.join(parts)} — with "
+                    f"{last['held_rms_sigma']:.2f} σ held-out residual left: not the cause)")
+        if any(trends[n].significant for n in fol["free"] if n in trends):
+            detected = (f"yes — {', '.join(fol['free'])} changed since entry into service (significant trend; "
+                        f"shm diagnose named {', '.join(fol['named'])} at {fol['diagnosed_visit_hours']:g} h)"
+                        + board)
+        loc = doc.get("location") or {}
+        where = _cause_place(fol) + ("; " + location_sentence(loc) if loc.get("run") and loc.get("distinguishable")
+                                     else "")
     loc = doc.get("location") or {}
     if loc.get("run") and loc.get("distinguishable") is not None:
         alts = sorted((c for c in loc["candidates"] if c.get("section") in (loc.get("possible_sections") or [])
@@ -351,3 +393,41 @@ def _power_word(t: Trend) -> str:
     m = float(t.best.theta[2])
     return f", accelerating (exponent {m:.2f})" if m > 1.05 else (f", decelerating (exponent {m:.2f})" if m < 0.95
                                                                   else "")
+
+
+def _unit_of(name: str) -> str:
+    eff = effect_of(name)
+    if eff is None:
+        return "1"
+    from plant.effect import resolve_effect
+
+    return next((p.unit for p in resolve_effect(eff).parameters if p.name == name), "1")
+
+
+def _cause_place(fol: dict[str, Any]) -> str:
+    """Where the followed cause lives, in words."""
+    parts = [f"the patches: {EFFECT_WORDS.get(e, e)}" for e in fol.get("effects") or []]
+    parts += [f"{n}: {LOCATION.get(n, n)}" for n in fol["free"] if effect_of(n) is None]
+    return "; ".join(parts)
+
+
+def _followed_how_much(doc: dict[str, Any], trends: dict[str, Trend]) -> str:
+    """The followed parameters at the last visit, their rate and, for an effect, the monitor's trip limit."""
+    last = doc["visits"][-1]
+    fol = doc["followed"]
+    out = []
+    for n in fol["free"]:
+        est = next((x for x in last.get("followed_estimates") or [] if x["name"] == n), None)
+        t = trends.get(n)
+        if est is None or t is None:
+            continue
+        rate = (f", {t.rate_per_100h(last['operating_hours']) / 100.0:+.3g} {_unit_of(n)} per h ({t.best.name})"
+                if t.significant else ", no significant trend")
+        if effect_of(n) is not None:
+            se = f" ± {est['stderr']:.2g}" if est["stderr"] is not None else ""
+            lim = (fol.get("effect_trip_limits") or {}).get(n)
+            lim_s = f"; the monitor trips at {n} ≈ {lim:.3g} {_unit_of(n)}" if lim and math.isfinite(lim) else ""
+            out.append(f"{n} {est['value']:.3g}{se} {_unit_of(n)}{rate}{lim_s}")
+        else:
+            out.append(f"{n} {format_percent_change(est['value'] / est['nominal'] - 1.0, None)}{rate}")
+    return "; ".join(out)

@@ -279,9 +279,9 @@ class ChallengeResult:
 
 
 def summarise(lives: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    def agg(key: str) -> dict[str, Any]:
+    def agg(key: str, group: str | None = None) -> dict[str, Any]:
         tr = [x[key] for x in lives if x["kind"] == "trend" and x[key] is not None and
-              x[key].get("coverage") is not None]
+              x[key].get("coverage") is not None and (group is None or x.get("group") == group)]
         n_pred = sum(t["predictions"] for t in tr)
         n_cov = sum(t["covered"] for t in tr)
         al = [t["alpha_lambda"] for t in tr if t["alpha_lambda"] is not None]
@@ -304,7 +304,21 @@ def summarise(lives: Sequence[dict[str, Any]]) -> dict[str, Any]:
         "sudden_lives": len(sudden),
         "trend_lives_without_fault": [x["life"] for x in lives if x["kind"] == "trend" and
                                       x["true_first_fault_visit"] is None],
+        "by_group": {g: {"physics": agg("physics", g), "baseline": agg("baseline", g)
+                         if all(x["baseline"] is not None for x in lives) else None}
+                     for g in sorted({x.get("group", "core") for x in lives if x["kind"] == "trend"})},
+        "effect_cause_followed": _cause_followed(lives),
     }
+
+
+def _cause_followed(lives: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
+    """Lives where an added effect degrades: the share whose re-estimated set became that effect's parameters."""
+    eff = [x for x in lives if x.get("effects")]
+    if not eff:
+        return None
+    right = [x["life"] for x in eff if x["followed"]["switched"] and set(x["followed"]["effects"]) == set(x["effects"])]
+    return {"lives": len(eff), "followed_to_the_effect": len(right) / len(eff),
+            "not_followed": [x["life"] for x in eff if x["life"] not in right]}
 
 
 def run_challenge(lives: Sequence[ChallengeLife], params: str = "table2", workers: int | None = None,
@@ -341,6 +355,9 @@ def _life_line(x: dict[str, Any]) -> str:
     if x["kind"] == "sudden":
         extra = f"step placed: {x.get('step_placed')} (tau {x.get('step_tau_h')})"
     fault = x["true_first_fault_visit"]  # 0-based index; printed as the visit number (1 = entry into service)
+    fol = x.get("followed") or {}
+    if fol.get("switched"):
+        extra += f" [followed: {', '.join(fol['free'])} from {fol['diagnosed_visit_hours']:g} h]"
     return (f"  {x['life']:<34} first FAULT visit {fault + 1 if fault is not None else '-':>4}  {cov}{al} {extra}"
             f"  ({x['wall_s']:.1f} s)")
 

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from studies.health.follow import floor_of
 from studies.health.forecast import forecast_trip
 from studies.health.metrics import (
     alpha_lambda_point,
@@ -56,7 +57,8 @@ def _quantiles(x: np.ndarray, qs: Sequence[float]) -> list[float | None]:
 def sweep_predictions(hours: Sequence[float], rel: Mapping[str, Sequence[float]],
                       rel_se: Mapping[str, Sequence[float | None]], boundary: TripBoundary, interval: float, *,
                       seed: int = 1, until_hours: float | None = None, n_paths: int = SWEEP_PATHS,
-                      n_grid: int = SWEEP_GRID) -> list[dict[str, Any]]:
+                      n_grid: int = SWEEP_GRID, effect_limits: Mapping[str, float] | None = None
+                      ) -> list[dict[str, Any]]:
     """One prediction per visit from the :data:`MIN_VISITS`-th (as of its hours; before ``until_hours`` when
     given). Each: ``as_of_hours``, ``visits_used``, ``significant``, ``trip_hours_median`` and
     ``trip_interval_90`` (seen at visits; None beyond the horizon), ``rul_median_hours``, ``rul_interval_90``,
@@ -67,8 +69,10 @@ def sweep_predictions(hours: Sequence[float], rel: Mapping[str, Sequence[float]]
         t = float(h[j])
         if until_hours is not None and t >= until_hours - 1e-9:
             break
-        trends = {n: fit_trend(n, h[: j + 1], list(rel[n])[: j + 1], list(rel_se[n])[: j + 1]) for n in rel}
-        fc = forecast_trip(trends, boundary, t, interval, seed=seed + j, n_paths=n_paths, n_grid=n_grid)
+        trends = {n: fit_trend(n, h[: j + 1], list(rel[n])[: j + 1], list(rel_se[n])[: j + 1], floor=floor_of(n))
+                  for n in rel}
+        fc = forecast_trip(trends, boundary, t, interval, seed=seed + j, n_paths=n_paths, n_grid=n_grid,
+                           effect_limits=effect_limits)
         seen = seen_at_visits(fc.trip_samples, float(h[0]), interval)
         med, lo, hi = _quantiles(seen, [0.5, 0.05, 0.95])
         p = {"as_of_hours": t, "visits_used": j + 1, "significant": fc.significant, "trip_hours_median": med,

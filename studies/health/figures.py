@@ -29,7 +29,7 @@ def _h_end(a: Any, hours: np.ndarray) -> float:
 
 def _truth_series(a: Any, name: str) -> tuple[np.ndarray, np.ndarray] | None:
     rows = (a.doc.get("truth") or {}).get("visits") or []
-    if not rows:
+    if not rows or any(name not in r["relative"] for r in rows):
         return None
     return (np.array([r["operating_hours"] for r in rows]), np.array([100 * r["relative"][name] for r in rows]))
 
@@ -46,13 +46,20 @@ def plot_parameters(a: Any, path: Path) -> None:
     rng = np.random.default_rng(0)
     for ax, n in zip(axes[:, 0], names):
         t = a.trends[n]
-        y = [next(x for x in e["estimates"] if x["name"] == n) for e in a.estimates]
-        rel = np.array([100 * (x["value"] / x["nominal"] - 1) for x in y])
-        se = np.array([100 * (x["stderr"] or 0) / abs(x["nominal"]) for x in y])
+        src = a.estimates if any(x["name"] == n for x in a.estimates[0]["estimates"]) else a.followed_estimates
+        y = [next(x for x in e["estimates"] if x["name"] == n) for e in src]
+        own = y[0]["nominal"] == 0.0  # an added effect's parameter: in its own unit, trended as such
+        scale = 1.0 if own else 100.0
+        rel = np.array([x["value"] if own else 100 * (x["value"] / x["nominal"] - 1) for x in y])
+        se = np.array([scale * (x["stderr"] or 0) / (1.0 if own else abs(x["nominal"])) for x in y])
         ax.errorbar(hours, rel, yerr=2 * se, fmt="o", ms=4, color="k", label="visit estimate (±2 s.e.)", zorder=3)
         med, lo, hi = t.band(hh, rng)
-        ax.plot(hh, 100 * med, color="C0", label=f"trend: {t.model}" + ("" if t.significant else " (not significant)"))
-        ax.fill_between(hh, 100 * lo, 100 * hi, color="C0", alpha=0.2, label="90 % band")
+        ax.plot(hh, scale * med, color="C0", label=f"trend: {t.model}" + ("" if t.significant else
+                                                                          " (not significant)"))
+        ax.fill_between(hh, scale * lo, scale * hi, color="C0", alpha=0.2, label="90 % band")
+        limit = (getattr(a, "effect_limits", None) or {}).get(n)
+        if own and limit is not None and np.isfinite(limit):
+            ax.axhline(limit, color="r", ls="--", label="monitor trip limit")
         truth = _truth_series(a, n)
         if truth is not None:
             ax.plot(*truth, "s--", color="C2", ms=3, lw=1, label="truth (from the records)", zorder=2)
@@ -64,7 +71,7 @@ def plot_parameters(a: Any, path: Path) -> None:
             ax.plot(hh, 100 * lo_l, "r--")
             ax.set_ylim(min(-12, rel.min() - 2), max(20, min(100 * float(np.max(hi)), 60) + 2))
         ax.axvline(hours[-1], color="0.6", ls=":", lw=1)
-        ax.set_ylabel("change (%)")
+        ax.set_ylabel(f"{n} ({y[0]['unit']})" if own else "change (%)")
         ax.set_title(LABEL.get(n, n), fontsize=9, loc="left")
         ax.grid(alpha=0.3)
         ax.set_xlim(hours[0] - 10, h_end)

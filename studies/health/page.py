@@ -93,15 +93,25 @@ def _trend_table(doc: dict[str, Any]) -> str:
     truth_rows = (doc.get("truth") or {}).get("visits") or []
     truth_last = truth_rows[-1]["relative"] if truth_rows else None
     rows = []
-    for e in last["estimates"]:
-        t = doc["trend"][e["name"]]
-        se = e["stderr"] / abs(e["nominal"]) if e["stderr"] is not None else None
+    for e in last.get("followed_estimates") or last["estimates"]:
+        t = doc["trend"].get(e["name"])
+        if t is None:
+            continue
         law = t["model"] + (f" (step at {t['change_point_hours']:g} h)" if t.get("change_point_hours") else "")
-        rows.append([html.escape(e["name"]), f"<span class='num'>{_pct(e['relative'], se)}</span>"
+        if e["nominal"] == 0.0:  # an added effect's parameter, in its own unit
+            se_s = f" ± {e['stderr']:.2g}" if e["stderr"] is not None else ""
+            value = f"{e['value']:.3g}{se_s} {e['unit']}"
+            rate = f"{100 * t['rate']:+.3g} {e['unit']}" if t["significant"] else "—"
+            truth = ""
+        else:
+            se = e["stderr"] / abs(e["nominal"]) if e["stderr"] is not None else None
+            value = _pct(e["value"] / e["nominal"] - 1.0, se)
+            rate = f"{t['rate_per_100h_pct']:+.2f} %" if t["significant"] else "—"
+            truth = _truth_pct(truth_last[e["name"]]) if truth_last and e["name"] in truth_last else ""
+        rows.append([html.escape(e["name"]), f"<span class='num'>{html.escape(value)}</span>"
                      + (" <span class='bad'>at its fit bound</span>" if e.get("at_bound") else ""),
-                     _truth_pct(truth_last[e["name"]]) if truth_last else "", html.escape(law),
-                     f"{t['rate_per_100h_pct']:+.2f} %" if t["significant"] else "—",
-                     f"{t['p_value']:.2g}", html.escape(t.get("change_point_note") or "")])
+                     truth, html.escape(law), rate, f"{t['p_value']:.2g}",
+                     html.escape(t.get("change_point_note") or "")])
     head = ["parameter", f"change at {last['operating_hours']:g} h", "truth" if truth_last else "", "trend law",
             "per 100 h", "p (vs no trend)", "note"]
     return table(head, rows, raw=True)
@@ -213,7 +223,11 @@ def health_page(doc: dict[str, Any], figures: dict[str, Path], files: Sequence[s
             f"<p class='note'>({name} could not be drawn)</p>"
 
     ev = doc.get("evaluation")
-    body = ["<main>", "<h1>Laminate health over time</h1>", f"<p class='sub'>{html.escape(sub)}</p>", _cards(doc),
+    fol = doc.get("followed") or {}
+    followed = (f"<p class='note'><b>What was re-estimated, and why:</b> {html.escape(fol['why'])}</p>"
+                if fol.get("why") else "")
+    body = ["<main>", "<h1>Laminate health over time</h1>", f"<p class='sub'>{html.escape(sub)}</p>", followed,
+            _cards(doc),
             "<h2>Each parameter against operating hours</h2>",
             "<p class='note'>Visit estimates with ±2 standard errors, the trend law chosen on the evidence (AIC "
             "on the visits' own errors) with its 90 % band, the truth where the records carry it; on α_h the board "

@@ -15,7 +15,9 @@ from studies.health.page import health_page
 
 def four_levels_text(a: Assessment) -> str:
     lv = a.doc["levels"]
+    fol = a.doc.get("followed") or {}
     return "\n".join([
+        *([f"FOLLOWED   {fol['why']}"] if fol.get("why") else []),
         f"DETECTED?  {lv['detected']}",
         f"WHERE?     {lv['where']}",
         f"HOW MUCH?  {lv['how_much']}",
