@@ -52,6 +52,8 @@ def test_samples_lost_in_an_mbit_are_gaps_and_the_run_keeps_its_result(tmp_path,
     summary = json.loads((out / "summary.json").read_text())
     assert summary["maintenance_verdicts"][-1]["verdict"] == "PASS"
     assert summary["link_stats"]["lost_exchanges"] >= 40
+    closing = (out / "timeline.txt").read_text().splitlines()[-1]
+    assert f"exchanges without a sample {summary['link_stats']['lost_exchanges']};" in closing
     rec_a = out / "records" / "visit-001_mbit-a.csv"
     text = rec_a.read_text()
     assert '# missing = "empty"' in text

@@ -12,15 +12,18 @@ from reporting.csv_columns import write_csv
 
 
 def closing_line(s: dict[str, Any]) -> str:
-    """The timeline's last line: ticks, time, final regime, verdict (against the expected one), battery."""
+    """The timeline's last line: ticks, time, final regime, verdict (against the expected one), incidents, the
+    exchanges that got no sample (when any: ``link_stats.lost_exchanges``), battery."""
     v = s["maintenance_verdicts"]
     verdict = v[-1]["verdict"] if v else "no maintenance verdict"
     exp = s["expected_verdict"]
     as_expected = "as expected" if s["verdict_as_expected"] else "NOT AS EXPECTED: exit 1"
     check = "" if exp is None else f" (expected {exp}: {as_expected})"
+    lost = s.get("link_stats", {}).get("lost_exchanges")
+    link = f"; exchanges without a sample {lost}" if lost else ""
     return (f"end: {s['ticks']} ticks = {s['board_time_s']:.1f} s board time in {s['wall_s']:.2f} s wall "
             f"({s['realtime_factor']:.1f}x real time); final regime {s['final_regime']}; verdict {verdict}{check}; "
-            f"incidents {s['incidents']}; battery {s['battery_last_V']:.3f} V")
+            f"incidents {s['incidents']}{link}; battery {s['battery_last_V']:.3f} V")
 
 
 def build_summary(link: str, scenario, seed, params, cfg, board, result, rig, setup_s, paced, db_path, run_id
