@@ -61,7 +61,7 @@ def test_find_and_follow_diagnoses_once_and_reestimates_the_named_set(monkeypatc
     text = why_sentence(f, [0.0, 100.0, 200.0])
     assert "at 200 h" in text and "G_leak" in text and "dielectric_leakage" in text
     assert f.estimates is not None
-    y, s = series(f.estimates, f.free, {})
+    y, s = series(f.estimates, f.free)
     assert np.allclose(y["G_leak"], [0.0, 1e-4, 2e-4])  # in its own unit, not relative to a nominal of 0
     t = trends_upto([0.0, 100.0, 200.0], y, s, 3)["G_leak"]
     assert t.significant and t.rate_per_100h(200.0) == pytest.approx(1e-4, rel=1e-3)

@@ -127,11 +127,10 @@ def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[V
     followed = followed or Followed()
     ests = ests_all[: len(visits)]
     hours = [v.operating_hours for v in visits]
-    nominal = _nominal_values(params)
     t_ests = followed.estimates if followed.estimates is not None else ests_all
     t_free = followed.free if followed.switched else tuple(free)
     limits = effect_limits(params, t_free)
-    y_all, s_all = series(t_ests, t_free, nominal)
+    y_all, s_all = series(t_ests, t_free)
     trends = trends_upto(hours, y_all, s_all, len(hours))
     interval = float(np.median(np.diff(hours))) if len(hours) > 1 else 100.0
     current = {n: trends[n].best.predict(np.array([hours[-1]]))[0] for n in t_free if n in HEALTH_PARAMS}
@@ -165,14 +164,6 @@ def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[V
                          | {"truth_source": truth_ff["source"], "true_first_fault_visit": truth_ff["visit"]}
                          if evaluate and truth_ff is not None else None)
     return Assessment(doc, visits, ests, trends, fc, boundary, sweep, followed.estimates, limits)
-
-
-def _nominal_values(params: str) -> dict[str, float]:
-    """The nominal set's core values (SI): what relative changes are relative to."""
-    from plant import PlantModel
-
-    model = PlantModel(params, terminal="amplifier")
-    return {p: float(model.param_value(p)) for p in model.param_names}
 
 
 def _evaluation_truth(truth_ff: dict[str, Any] | None, all_visits: Sequence[Visit]) -> float:

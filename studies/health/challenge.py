@@ -148,7 +148,6 @@ def first_natural_frequency(record: Any) -> float:
 def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold: float | None = None,
                        n_paths: int = 400, n_grid: int = 500) -> dict[str, Any]:
     """Simulate, estimate, predict sequentially and score one life (a plain dict; picklable)."""
-    from plant import PlantModel
     from studies.health.estimate import estimate_visit
 
     t0 = time.perf_counter()
@@ -160,9 +159,7 @@ def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold
     recs = simulate_visit_records(life, params, devs, eff_values)
     ests = [estimate_visit([r], params) for r in recs]
     f1 = np.array([first_natural_frequency(r) for r in recs])
-    model = PlantModel(params, terminal="amplifier")
-    nominal = {p: model.param_value(p) for p in model.param_names}
-    y, s = series(ests, DEFAULT_FREE, nominal)
+    y, s = series(ests, DEFAULT_FREE)
     boundary = trip_boundary(params)
     followed = Followed()
     limits: dict[str, float] = {}
@@ -176,7 +173,7 @@ def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold
                 estimate_visit([r], params, free, eff, base) for r in recs])
             if followed.switched:
                 assert followed.estimates is not None
-                y, s = series(followed.estimates, followed.free, nominal)
+                y, s = series(followed.estimates, followed.free)
                 limits = effect_limits(params, followed.free)
         trends = trends_upto(hours, y, s, j + 1)
         fc = forecast_trip(trends, boundary, float(hh[-1]), life.interval, seed=life.seed + j, n_paths=n_paths,

@@ -115,7 +115,8 @@ def estimate_visit(records: Sequence[Record], params: str, free: Sequence[str] =
     recs = [join_visit_records(records)] if board else list(records)
     pset = load_parameter_set(params).with_values(None, **base) if base else load_parameter_set(params)
     rep = fit_records(recs, pset, add=list(add), free=list(free), max_nfev=30)
-    model = PlantModel(pset, terminal="amplifier", effects=list(add))
+    # relative changes are against the parameter set's nominal values, not the base (the monitor's terms)
+    model = PlantModel(params, terminal="amplifier", effects=list(add))
     out = []
     for e in rep.outcome.estimates:
         nominal = float(model.param_value(e.name))

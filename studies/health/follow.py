@@ -110,10 +110,10 @@ def find_and_follow(ests: Sequence[dict[str, Any]], records_of: Callable[[int], 
     return out
 
 
-def series(ests: Sequence[dict[str, Any]], names: Sequence[str], nominal: Mapping[str, float]
-           ) -> tuple[dict[str, np.ndarray], dict[str, np.ndarray]]:
-    """Per parameter: the visits' values and standard errors — relative change from ``nominal`` for a core
-    parameter, the value itself (SI) for an added effect's."""
+def series(ests: Sequence[dict[str, Any]], names: Sequence[str]) -> tuple[dict[str, np.ndarray],
+                                                                          dict[str, np.ndarray]]:
+    """Per parameter: the visits' values and standard errors — relative change from the estimate's nominal value
+    (the parameter set's) for a core parameter, the value itself (SI) for an added effect's."""
     y: dict[str, list[float]] = {n: [] for n in names}
     s: dict[str, list[float]] = {n: [] for n in names}
     for e in ests:
@@ -124,8 +124,8 @@ def series(ests: Sequence[dict[str, Any]], names: Sequence[str], nominal: Mappin
                 y[n].append(float(x["value"]))
                 s[n].append(float(se))
             else:
-                y[n].append(float(x["value"]) / nominal[n] - 1.0)
-                s[n].append(float(se) / abs(nominal[n]))
+                y[n].append(float(x["value"]) / x["nominal"] - 1.0)
+                s[n].append(float(se) / abs(x["nominal"]))
     return {n: np.array(v) for n, v in y.items()}, {n: np.array(v) for n, v in s.items()}
 
 
