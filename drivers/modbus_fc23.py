@@ -49,6 +49,10 @@ def exchange_fc23(link: ModbusLink, words: list[int], seq: int, deadline: float)
 
     rtu = link.settings["kind"] == "rtu"
     left = deadline - time.monotonic()
+    if left < _MIN_READ_S:  # the process was descheduled past its budget before the request went out
+        link.stats["timeouts"] += 1
+        raise LinkError(f"{link.url}: no time left for the FC23 transaction ({1e3 * left:.1f} ms of the "
+                        f"{1e3 * link.timeout:.1f} ms exchange budget)")
     try:
         rr = link._call("write command, read sample (FC23)", link._client.readwrite_registers,
                         read_address=MIRROR_START, read_count=INPUT_COUNT, write_address=COMMAND_START, values=words,

@@ -389,6 +389,7 @@ class ModbusLink(ReconnectingLink):
     def _open_transport(self) -> None:
         if self._client is None:
             self._client = self._make_client()
+        self._set_timeout(self.timeout)  # the connect's own budget, whatever the last transaction left there
         try:
             ok = self._client.connect()
         except Exception as exc:
@@ -418,7 +419,11 @@ class ModbusLink(ReconnectingLink):
 
     # ------------------------------------------------------------------------------------------ exchange
     def _set_timeout(self, seconds: float) -> None:
-        # pymodbus 3.16 reads the reply timeout from two copies of its settings (client and transaction manager)
+        # pymodbus 3.16 reads the reply timeout from two copies of its settings (client and transaction manager).
+        # Never below 0.1 ms: a budget computed as "what is left" is negative when the process was descheduled past
+        # its deadline, and pymodbus then reports a negative select() timeout as "connection unexpectedly closed"
+        # and cannot connect again (its connect uses the same setting) — a lost link for the rest of the run
+        seconds = max(float(seconds), 1e-4)
         c = self._client
         c.comm_params.timeout_connect = seconds
         c.transaction.comm_params.timeout_connect = seconds

@@ -164,3 +164,28 @@ def test_of_requests_arriving_together_the_stub_answers_the_newest():
             s.sendall(mbap(13, 3))  # and the next one is answered as usual
             assert struct.unpack(">H", s.recv(7)[:2])[0] == 13
         assert srv.stats["stale_requests_skipped"] == 1
+
+
+def test_a_deadline_already_past_never_loses_the_link():
+    """Under load the board's process can be descheduled past an exchange's deadline before its request goes out;
+    the budget left is then negative. pymodbus took a negative timeout for a closed connection and could not connect
+    again (its connect uses the same setting): the link was lost for the rest of the run. Now that exchange fails
+    alone and the next one works; a reconnect always gets the link's own budget."""
+    import time
+
+    from drivers.link import LinkError
+    from drivers.modbus_fc23 import exchange_fc23
+
+    with HilService(FakeRig(), mode="lockstep") as hil:
+        srv = hil.add_modbus_tcp("127.0.0.1:0")
+        with open_link(srv.board_url + "&timeout=0.5") as link:
+            assert link.exchange(cmd(1)).t == pytest.approx(0.01)
+            with pytest.raises(LinkError, match="no time left"):
+                exchange_fc23(link, encode_command_block(cmd(2)), 2, time.monotonic() - 0.003)
+            link._set_timeout(-0.003)  # what a late "what is left" budget used to leave in pymodbus' settings
+            assert link.exchange(cmd(3)).t == pytest.approx(0.02)
+            assert link.stats["link_down"] == 0
+            link._drop_transport()
+            link._set_timeout(-0.003)
+            link._open_transport()  # a reconnect: its own budget, not the negative one
+            assert link.exchange(cmd(4)).t == pytest.approx(0.03)
