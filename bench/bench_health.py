@@ -4,8 +4,9 @@ and the prognosis challenge with ProgPy's metrics against the feature-only basel
 Reported: the life's wall time on the process pool (2 workers) and, as the same-run baseline, the wall time of the
 first four visits in one process (extrapolated to 24); the health assessment's wall time as of a few visits before the
 board's first FAULT and whether its 90 % interval holds that visit; the challenge's summary (coverage, α-λ,
-prognostic horizon, stable lives, sudden damage, baseline side by side) and its wall time. ``--quick`` runs the fast
-subset of the challenge.
+prognostic horizon, stable lives, sudden damage, baseline side by side, by group: core, effect, few-visits,
+out-of-family) and its wall time. ``--quick`` runs the smoke size of the challenge; the environment variable
+``MFC_SHM_HEALTH_CHALLENGE_PER_GROUP=N`` keeps the first N lives of each group (a reduced run).
 """
 
 from __future__ import annotations
@@ -53,8 +54,9 @@ def run(out_dir: Path, quick: bool) -> dict:
                   "levels": a.doc["levels"]}
 
     t0 = time.perf_counter()
-    ch = run_challenge(challenge_lives("smoke" if quick else "full"), workers=2,
-                       progress=lambda s: print(s, flush=True))
+    per_group = os.environ.get("MFC_SHM_HEALTH_CHALLENGE_PER_GROUP")  # a reduced run: that many lives per group
+    lives = challenge_lives("smoke" if quick else "full", per_group=int(per_group) if per_group else None)
+    ch = run_challenge(lives, workers=2, progress=lambda s: print(s, flush=True))
     challenge_wall = time.perf_counter() - t0
     import json
 

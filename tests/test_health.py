@@ -99,14 +99,17 @@ def test_done_when_aging_run_then_health_forecast_holds_the_first_fault(tmp_path
 
 
 def test_prognosis_challenge_fast_subset():
-    """The challenge's fast subset (a linear life that trips, a stable life, a sudden damage): the physics-based
-    forecast holds the true first FAULT visit, the stable laminate shows no trend, the step is placed between the
-    right visits, and the feature-only baseline is scored on the same lives."""
+    """The challenge's smoke size (a linear life that trips, a stable life, a sudden damage, a patch whose leakage
+    grows): the physics-based forecast holds the true first FAULT visit, the stable laminate shows no trend, the
+    step is placed between the right visits, the leakage is followed to its cause (G_leak re-estimated and trended),
+    and the feature-only baseline is scored on the same lives."""
     from studies.health.challenge import challenge_lives, run_challenge
 
     res = run_challenge(challenge_lives("smoke"), workers=2)
     s = res.summary
-    assert s["physics"]["lives_scored"] == 1 and s["physics"]["predictions"] >= 2
+    assert s["effect_cause_followed"]["followed_to_the_effect"] == 1.0
+    assert s["by_group"]["effect"]["physics"]["coverage"] >= 0.85
+    assert s["physics"]["lives_scored"] == 2 and s["physics"]["predictions"] >= 4
     assert s["physics"]["coverage"] >= 0.85
     assert s["stable_no_trend"] == 1.0 and s["sudden_placed"] == 1.0
     assert s["baseline"] is not None and s["baseline"]["predictions"] >= 1

@@ -74,3 +74,32 @@ def test_without_excess_nothing_is_diagnosed(monkeypatch):
     monkeypatch.setattr("studies.health.follow.diagnose_visit", boom)
     f = find_and_follow([_est(1.0), _est(1.2)], lambda i: [], "table2", boom)
     assert f == Followed() and "default fit explained each visit" in why_sentence(f, [0.0, 100.0])
+
+
+@pytest.mark.slow
+def test_docs_leakage_recipe_is_followed_to_the_leak(tmp_path):
+    """docs/health.md's recipe ("following the cause"): five synthetic visits of a leaking patch; shm health names
+    the leakage, trends G_leak and forecasts the trip the truth reaches at 1850 h (0.74 mS at 0.4 µS/h)."""
+    import json
+    import os
+    import re
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    doc = Path(__file__).resolve().parents[1] / "docs" / "health.md"
+    text = doc.read_text()
+    section = text[text.index("### What changes: following the cause"):]
+    recipe = re.search(r"```sh\n(.*?)```", section, re.S)
+    assert recipe is not None
+    env = dict(os.environ, PATH=str(Path(sys.executable).parent) + os.pathsep + os.environ.get("PATH", ""))
+    (tmp_path / "records").mkdir()
+    res = subprocess.run(["bash", "-e", "-c", recipe.group(1)], cwd=tmp_path, env=env, capture_output=True,
+                         text=True, timeout=900)
+    assert res.returncode == 0, res.stderr[-2000:]
+    h = json.loads((tmp_path / "out" / "health.json").read_text())
+    assert h["followed"]["switched"] and h["followed"]["named"] == ["dielectric_leakage"]
+    assert h["followed"]["free"] == ["G_leak"] and h["trend"]["G_leak"]["significant"]
+    lo, hi = h["forecast"]["trip_interval_90"]
+    assert lo <= 1850.0 <= hi
+    assert "FOLLOWED" in res.stdout and "dielectric_leakage" in res.stdout
