@@ -69,3 +69,32 @@ def test_a_clean_record_names_nothing():
     first = _rule_holds(d)
     assert d.verdict == "nothing_missing" and d.found == ()
     assert first.startswith("Nothing missing"), first
+
+
+def test_a_set_singular_in_its_own_units_is_judged_on_the_records():
+    """The fit judges its information matrix in the parameters' units: κ = 5·10⁴ m⁻² beside G = 5·10⁻⁵ S looks
+    singular (both standard errors infinite) although each is pinned to 0.1 %; measured directly on the records
+    (normalised sensitivities, both free) both are identifiable, so the pair is named (it was 'partial' with the
+    stiffening dropped)."""
+    import numpy as np
+
+    from board_config import load_parameter_set
+    from workbench.candidate_fit import fit_spec
+    from workbench.candidates import CandidateSpec
+    from workbench.diagnose_evidence import direct_stderr, not_identifiable_because
+    from workbench.effect_library import resolve_candidates
+    from workbench.fit import Objective, guess_data, model_factory, prepare_targets
+
+    rec = _record(["geometric_stiffening", "dielectric_leakage"], {"kappa_nl": 5e4, "G_leak": 5e-5}, seed=2)
+    base = load_parameter_set("table2")
+    targets = prepare_targets([rec], model_factory(base, []))
+    o = Objective(targets, [t.model for t in targets], [])
+    sim = o.simulate(np.zeros((1, 0)), keep_full=True)
+    r = o.residuals(sim, "held")[0]
+    spec = CandidateSpec(effects=tuple(resolve_candidates(["geometric_stiffening", "dielectric_leakage"])))
+    c = fit_spec(spec, base, targets, guess_data(targets[0], sim, targets[0].model), float(r @ r),
+                 start={"kappa_nl": 5e4, "G_leak": 5e-5})
+    se = direct_stderr(c, base, targets, ["kappa_nl", "G_leak"])
+    assert se["kappa_nl"] < 0.01 * 5e4 and se["G_leak"] < 0.01 * 5e-5
+    for member in ("geometric_stiffening", "dielectric_leakage"):
+        assert not_identifiable_because(c, member, {}, se) == ""

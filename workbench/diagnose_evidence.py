@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -102,10 +102,13 @@ def core_values(cand: CandidateResult, base: ParameterSet) -> dict[str, float]:
 
 
 def not_identifiable_because(cand: CandidateResult, member: str,
-                             confused: Mapping[str, tuple[str, float, float]]) -> str:
-    """'' when ``member`` of the fitted ``cand`` is identifiable on the records, else why not."""
+                             confused: Mapping[str, tuple[str, float, float]],
+                             stderr: Mapping[str, float] | None = None) -> str:
+    """'' when ``member`` of the fitted ``cand`` is identifiable on the records, else why not. ``stderr``: standard
+    errors measured directly (:func:`direct_stderr`) for estimates the fit left without one."""
     assert cand.spec is not None
-    est = member_estimates(cand, member)
+    est = [replace(e, stderr=stderr[e.name]) if stderr and e.name in stderr and not math.isfinite(e.stderr) else e
+           for e in member_estimates(cand, member)]
     bad = [e.name for e in est if not math.isfinite(e.stderr)]
     if bad:
         return f"{', '.join(bad)}: no finite standard error"
@@ -125,6 +128,48 @@ def not_identifiable_because(cand: CandidateResult, member: str,
     if strengths and not any(abs(e.value - neutral[e.name]) > 2.0 * e.stderr for e in strengths):
         return "within two standard errors of absent (" + ", ".join(e.describe() for e in strengths) + ")"
     return ""
+
+
+#: relative step of the direct sensitivities of parameters the fit left without a standard error
+DIRECT_STEP = 0.01
+
+
+def direct_stderr(cand: CandidateResult, base: ParameterSet, targets: Sequence[Target],
+                  names: Sequence[str]) -> dict[str, float]:
+    """Standard errors of the estimates of the fitted ``cand``, measured on the records when its fit left some
+    without one: the fit judges its information matrix in the parameters' own units, where a set of a stiffness
+    (5·10⁴ m⁻²) and a conductance (5·10⁻⁵ S) looks singular although each is pinned. Here one simulation per
+    parameter stepped by :data:`DIRECT_STEP` of its value gives the training residual's sensitivity to ln(value),
+    the columns are normalised, and the joint covariance s² (JᵀJ)⁻¹ (s: the training RMS, at least 1 σ) gives each
+    one's standard error with the others free; a direction the records do not see gets ∞. Only ``names`` are
+    returned (every estimate of the set is stepped: the others are free too)."""
+    assert cand.spec is not None and cand.outcome is not None
+    models = spec_models(cand.spec, base, targets)
+    values = core_values(cand, base)
+    obj = Objective(targets, models, [], base_values=values)
+    r0 = obj.residuals(obj.simulate(np.zeros((1, 0))), "train")[0]
+    s = max(float(cand.outcome.train_rms_sigma), 1.0)
+    est = [e.name for e in cand.outcome.estimates if e.name in values]
+    cols, steps = [], []
+    for n in est:
+        v = values[n]
+        h = DIRECT_STEP * abs(v) if v != 0 else DIRECT_STEP
+        o = Objective(targets, models, [], base_values={**values, n: v + h})
+        sim = o.simulate(np.zeros((1, 0)))
+        cols.append((o.residuals(sim, "train")[0] - r0) / h if sim.ok.all() else np.zeros_like(r0))
+        steps.append(h)
+    if not cols:
+        return {}
+    J = np.array(cols).T  # (samples, k), per unit of each parameter
+    norm = np.linalg.norm(J, axis=0)
+    se = np.full(len(est), math.inf)
+    seen = norm > 0
+    if seen.any():
+        Jn = J[:, seen] / norm[seen]
+        info = Jn.T @ Jn
+        if np.linalg.cond(info) < 1e12:
+            se[seen] = s * np.sqrt(np.diag(np.linalg.inv(info))) / norm[seen]
+    return {n: float(x) for n, x in zip(est, se) if n in names}
 
 
 def prediction_changes(cand: CandidateResult, base: ParameterSet, targets: Sequence[Target],
@@ -173,6 +218,8 @@ def evidence_of(cand: CandidateResult, base: ParameterSet, targets: Sequence[Tar
     (the set without one member) started from ``start``."""
     assert cand.spec is not None and cand.outcome is not None
     changes = prediction_changes(cand, base, targets, base_residual_all)
+    missing = [e.name for e in cand.outcome.estimates if not math.isfinite(e.stderr)]
+    direct = direct_stderr(cand, base, targets, missing) if missing else {}
     tol = noise_tolerance(cand.n_eff_held)
     out = []
     for member in cand.spec.members:
@@ -181,7 +228,7 @@ def evidence_of(cand: CandidateResult, base: ParameterSet, targets: Sequence[Tar
         else:
             r = drop_one(without(cand.spec, member), cand)
             held_without = r.held_rms_sigma if r.outcome is not None and r.stable else math.inf
-        why = not_identifiable_because(cand, member, confused)
+        why = not_identifiable_because(cand, member, confused, direct)
         kind = "parameter" if any(p.name == member for p in cand.spec.params) else "effect"
         out.append(MemberEvidence(member, kind, not why, any(e.at_bound for e in member_estimates(cand, member))
                                   or cand.status != "fitted", changes[member],
