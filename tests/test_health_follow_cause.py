@@ -103,3 +103,23 @@ def test_docs_leakage_recipe_is_followed_to_the_leak(tmp_path):
     lo, hi = h["forecast"]["trip_interval_90"]
     assert lo <= 1850.0 <= hi
     assert "FOLLOWED" in res.stdout and "dielectric_leakage" in res.stdout
+
+
+def test_an_effect_parameter_trips_at_its_own_limit():
+    """G_leak rising 0.4 µS/h, five precise visits: the forecast trips where the trend reaches the monitor's limit
+    for G_leak (0.74 mS: 1850 h), not on the α_h boundary (no α_h trend at all)."""
+    from studies.health.forecast import forecast_trip
+    from studies.health.trend import fit_trend
+    from studies.health.trip import TripBoundary
+
+    boundary = TripBoundary(np.array([-0.6, 0.3]), np.array([-0.6, 0.6]), np.full((2, 2), -0.093),
+                            np.full((2, 2), 0.148), "synthetic")
+    h = np.arange(5) * 200.0
+    g = 4e-7 * h + np.random.default_rng(1).normal(0.0, 1e-8, 5)
+    t = fit_trend("G_leak", h, g, np.full(5, 1e-8), floor=1e-7)
+    fc = forecast_trip({"G_leak": t}, boundary, 800.0, 200.0, effect_limits={"G_leak": 7.4e-4})
+    assert fc.significant and fc.trip_interval_90 is not None
+    lo, hi = fc.trip_interval_90
+    assert lo <= 1850.0 <= hi and abs(fc.trip_operating_hours - 1850.0) < 60.0
+    no_limit = forecast_trip({"G_leak": t}, boundary, 800.0, 200.0)
+    assert no_limit.trip_operating_hours is None  # without its limit the effect never trips the α_h boundary
