@@ -31,6 +31,10 @@ the χ² drop against ``none`` is tested on χ²(k − 1); when the visits scatt
 estimated from the residuals (n − k degrees of freedom). p < 0.002 (0.5 % Bonferroni-split over the three monitor
 parameters) is a trend; else "no significant trend".
 
+**Hedge.** When the chosen law needs scatter beyond the errors (it does not fit them) and six visits or more are at
+hand, :data:`RECENT_SHARE` of the paths follow the line through the latest :data:`RECENT_VISITS` visits — a law
+outside the candidates (a two-stage wear past its knee) is then not extrapolated by the candidates alone.
+
 **Model averaging.** Forecasts draw coefficient vectors from every admitted law in proportion to its Akaike weight
 exp(−ΔAIC/2) — and, for a law whose scatter τ² was estimated, from a multivariate t with n − p degrees of freedom
 (the scale itself is uncertain) — so the interval carries the doubt about which law holds.
@@ -55,6 +59,10 @@ MIN_VISITS_FOR = {"none": 1, "linear": 3, "exponential": 4, "power": 4, "change_
 CHANGE_POINT_MIN_DELTA_AICC = 2.0
 #: family-wise significance of the change point's step, split (Bonferroni) over the step positions searched
 P_STEP = 0.05
+#: the hedge against a law outside the candidates: this share of the forecast's paths follows the line through the
+#: latest RECENT_VISITS visits (a two-stage wear after its knee, a logistic before its inflection)
+RECENT_SHARE = 0.2
+RECENT_VISITS = 4
 _H_SCALE = 1000.0  # h: power-law coefficients are per 1000 h (conditioning)
 
 
@@ -186,6 +194,8 @@ class Trend:
     weights: dict[str, float] = field(default_factory=dict)
     #: why a change point that fitted best was not claimed (None: it was not the best fit, or it was claimed)
     change_point_note: str | None = None
+    #: the line through the latest :data:`RECENT_VISITS` visits (None: too few visits for a separate window)
+    recent: ModelFit | None = None
 
     @property
     def model(self) -> str:
@@ -201,8 +211,15 @@ class Trend:
         return float((m.predict(np.array([h + d]))[0] - m.predict(np.array([h - d]))[0]) / (2 * d) * 100)
 
     def sample_paths(self, h: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
-        """(n, len(h)) sampled mean paths (coefficient uncertainty, model averaging over the trend laws)."""
-        return sample_mixture(self.fits, self.weights, h, n, rng)
+        """(n, len(h)) sampled mean paths (coefficient uncertainty, model averaging over the trend laws; a share
+        :data:`RECENT_SHARE` from the line through the latest visits when there is one)."""
+        if self.recent is None or RECENT_SHARE <= 0:
+            return sample_mixture(self.fits, self.weights, h, n, rng)
+        n_recent = round(RECENT_SHARE * n)
+        out = np.empty((n, h.size))
+        out[: n - n_recent] = sample_mixture(self.fits, self.weights, h, n - n_recent, rng)
+        out[n - n_recent:] = _paths_of(self.recent, h, n_recent, rng)
+        return out
 
     def band(self, h: np.ndarray, rng: np.random.Generator, n: int = 400, q: float = 0.9) -> tuple[np.ndarray, ...]:
         """(median, low, high) of the mean path at ``h`` (band q)."""
@@ -277,7 +294,10 @@ def fit_trend(parameter: str, hours: Sequence[float] | np.ndarray, y: Sequence[f
     best = fits[best_name]
     p = trend_p_value(best, h, yv, var0) if best_name != "none" else 1.0
     significant = best_name != "none" and p < P_SIGNIFICANT
-    return Trend(parameter, best, fits, significant, p, akaike_weights(fits), cp_note)
+    recent = None
+    if significant and n >= RECENT_VISITS + 2 and best_name != "change_point" and best.scatter2 > 0:
+        recent = _wls("linear", h[-RECENT_VISITS:], yv[-RECENT_VISITS:], var0[-RECENT_VISITS:])
+    return Trend(parameter, best, fits, significant, p, akaike_weights(fits), cp_note, recent)
 
 
 def akaike_weights(fits: dict[str, ModelFit]) -> dict[str, float]:
