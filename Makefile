@@ -21,11 +21,13 @@ $(STAMP): pyproject.toml
 	$(BIN)/pip install --quiet -e '.[dev]'
 	touch $(STAMP)
 
-# The shipped compositions' compiled kernels, built once per machine into NUMBA_CACHE_DIR (plant/warm.py: tens of
-# seconds each, printed as they go), so that a fresh clone's first command loads machine code instead of compiling.
-# Again when the plant, a shipped parameter set or scenario changes (plant.warm skips what is cached).
-$(KERNELS): $(STAMP) $(wildcard plant/*.py plant/effects/*.py board_config/params/*.toml board_config/scenarios/*.toml)
-	$(BIN)/python -m plant.warm
+# The shipped compositions' compiled kernels, built once per machine into NUMBA_CACHE_DIR (workbench/warm.py over
+# plant/warm.py: tens of seconds each, shm discover's dictionary minutes, printed as they go), so that a fresh clone's
+# first command loads machine code instead of compiling. Again when the plant, the discover dictionary, a shipped
+# parameter set or scenario changes (it skips what is cached).
+$(KERNELS): $(STAMP) $(wildcard plant/*.py plant/effects/*.py workbench/discover*.py board_config/params/*.toml \
+                                board_config/scenarios/*.toml)
+	$(BIN)/python -m workbench.warm
 	@mkdir -p "$(@D)" && touch "$@"
 
 # Debian packages used by the integration tests (a real Modbus master, pty pairs) and headless Chromium (the HTML

@@ -1,10 +1,10 @@
 """Cold start benchmark (issue 27.1): ``shm model info``, ``shm diagnose``, ``shm discover`` and ``shm run`` on a
-fresh clone's empty numba cache, after ``make setup``'s kernel step (:mod:`plant.warm`), and warm (run again).
+fresh clone's empty numba cache, after ``make setup``'s kernel step (:mod:`workbench.warm`), and warm (run again).
 
 Each command runs in a subprocess (:mod:`bench.output_timing`) three times:
 
 * **cold** — ``NUMBA_CACHE_DIR`` an empty directory: every kernel it needs compiles on first use;
-* **after setup** — a copy of a cache that only ``python -m plant.warm`` filled (what a fresh clone has after
+* **after setup** — a copy of a cache that only ``python -m workbench.warm`` filled (what a fresh clone has after
   ``make setup``): what the set-up step leaves to compile shows here;
 * **warm** — again on the cold run's cache: every kernel loaded.
 
@@ -36,7 +36,7 @@ def _commands(record: Path, work: Path) -> dict[str, list[str]]:
         "diagnose": [*SHM, "diagnose", str(record), "--candidates", "geometric_stiffening,dielectric_leakage,k3",
                      "--out", str(work / "diagnose")],
         "discover": [*SHM, "discover", str(record), "--max-terms", "1", "--out", str(work / "discover")],
-        "run": [*SHM, "run", "--scenario", "patch_leakage", "--duration-s", "30", "--force", "--quiet",
+        "run": [*SHM, "run", "--scenario", "patch_leakage", "--duration-s", "30", "--force",
                 "--out", str(work / "run")],
     }
 
@@ -70,11 +70,11 @@ def run(out_dir: Path, quick: bool) -> dict:
         record = _record(root / "stiff.csv", env(root / "synth_cache"))
         setup_cache = root / "setup_cache"
         t0 = time.perf_counter()
-        warm = subprocess.run([sys.executable, "-m", "plant.warm", "--jobs", "2"], env=env(setup_cache),
+        warm = subprocess.run([sys.executable, "-m", "workbench.warm", "--jobs", "2"], env=env(setup_cache),
                               capture_output=True, text=True)
         setup_s = time.perf_counter() - t0
         (out_dir / "coldstart_setup.txt").write_text(warm.stdout + warm.stderr)
-        result: dict[str, Any] = {"setup_plant_warm_s": round(setup_s, 1), "setup_exit": warm.returncode}
+        result: dict[str, Any] = {"setup_warm_s": round(setup_s, 1), "setup_exit": warm.returncode}
         names = ["model_info", "run"] if quick else ["model_info", "diagnose", "discover", "run"]
         for name in names:
             cold_cache, work = root / f"cold_{name}", root / f"work_{name}"

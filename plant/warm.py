@@ -24,7 +24,7 @@ import argparse
 import os
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import dataclass, replace
 
@@ -55,7 +55,7 @@ class ShippedComposition:
     @property
     def label(self) -> str:
         core = "" if self.core == NOMINAL_EFFECTS else " (no hysteresis)"
-        what = " + ".join(self.effects) if self.effects else "nominal"
+        what = " + ".join(os.path.basename(e) for e in self.effects) if self.effects else "nominal"
         lanes = ", lanes" if "run_lanes" in self.entries else ""
         return f"{self.params}: {what}{core}, {self.terminal}{lanes}"
 
@@ -109,7 +109,9 @@ def build(comp: ShippedComposition) -> tuple[str, list[str], float]:
     return comp.label, todo, time.perf_counter() - t0
 
 
-def main(argv: Sequence[str] | None = None) -> int:
+def main(argv: Sequence[str] | None = None,
+         extra: Callable[[], list[ShippedComposition]] | None = None) -> int:
+    """The command line; ``extra`` adds the compositions of a layer above the plant (:mod:`workbench.warm`)."""
     ap = argparse.ArgumentParser(prog="python -m plant.warm",
                                  description="Compile the shipped compositions' kernels into numba's cache "
                                              "(NUMBA_CACHE_DIR) so that the first command on a fresh clone is warm.")
@@ -121,7 +123,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if args.jobs < 1:
         ap.error("--jobs must be >= 1")
     t0 = time.perf_counter()
-    comps = shipped_compositions()
+    comps = shipped_compositions() + (extra() if extra is not None else [])
     todo = []
     for c in comps:
         missing = c.model().uncached_kernels(c.entries)

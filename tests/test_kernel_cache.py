@@ -72,3 +72,23 @@ def test_a_shell_without_numba_cache_dir_uses_the_cache_make_setup_filled(tmp_pa
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, check=True)
     want = tmp_path / ".cache" / "mfc-shm" / "numba"
     assert out.stdout.split() == [str(want), str(want / "kernels")]
+
+
+def test_setup_builds_the_kernel_a_first_shm_discover_loads():
+    # the dictionary's source depends on the terms' structure only: built from any record's scales, discover composes
+    # the kernel module that workbench.warm compiled (same cache key, hence the same generated module)
+    from workbench.discover_dictionary_effect import generated_effect
+    from workbench.discovery_dictionary import build_dictionary, dictionary_source
+    from workbench.warm import discover_compositions
+
+    comps = discover_compositions()
+    assert [c.terminal for c in comps] == ["amplifier", "open_circuit"]
+    before = {n for n in sys.modules if n.startswith("_mfc_shm_kernel_")}
+    comps[0].model().uncached_kernels(comps[0].entries)
+    warmed = {n for n in sys.modules if n.startswith("_mfc_shm_kernel_")} - before
+    scales = {"z1": 9e-4, "zd1": 0.016, "delta1": 9e-4, "ddelta1": 0.016, "z2": 2e-3, "zd2": 0.04, "delta2": 1e-3,
+              "ddelta2": 0.028, "z3": 3.4e-3, "zd3": 0.11, "delta3": 1.5e-3, "ddelta3": 0.088, "vc": 300.0,
+              "va": 300.0, "one": 1.0, "t": 2.0}  # a 2 s MBIT.b record's
+    cls = generated_effect(dictionary_source(build_dictionary(scales, driven=True)), "dictionary_driven")
+    PlantModel("table2", effects=[cls], terminal="amplifier").uncached_kernels(comps[0].entries)
+    assert len(warmed) == 1 and {n for n in sys.modules if n.startswith("_mfc_shm_kernel_")} - before == warmed

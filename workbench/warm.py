@@ -1,0 +1,41 @@
+"""``make setup``'s kernel step: the plant's shipped compositions (:mod:`plant.warm`) and ``shm discover``'s
+dictionary, compiled once per machine into numba's cache: ``python -m workbench.warm [--jobs N] [--list]``.
+
+``shm discover`` composes the nominal model with one generated effect holding every candidate term
+(:func:`workbench.discovery_dictionary.dictionary_source`). Its source depends only on the terms' structure — which
+signals the records move and whether the patches are driven — not on the record's values, so the kernel compiled
+here is the one a first ``shm discover`` loads: the driven dictionary with the amplifier terminal and the free one
+with the open circuit. It is the largest kernel of all (200+ terms: minutes to compile on a loaded machine, once).
+"""
+
+from __future__ import annotations
+
+import inspect
+import sys
+from collections.abc import Sequence
+
+from plant.warm import ShippedComposition
+from plant.warm import main as plant_main
+from workbench.discover_dictionary_effect import generated_effect
+from workbench.discovery_dictionary import build_dictionary, dictionary_source
+
+#: the signals a record's scales name (workbench.discover_dictionary_effect.signal_scales), all moving
+SIGNALS = (*(f"{s}{j}" for s in ("z", "zd", "delta", "ddelta") for j in (1, 2, 3)), "vc", "va", "one", "t")
+
+
+def discover_compositions() -> list[ShippedComposition]:
+    """The dictionary effect of ``shm discover`` (driven and free) on the nominal model, as discover composes it."""
+    out = []
+    for driven, terminal in ((True, "amplifier"), (False, "open_circuit")):
+        terms = build_dictionary(dict.fromkeys(SIGNALS, 1.0), driven=driven)
+        cls = generated_effect(dictionary_source(terms), "dictionary_" + ("driven" if driven else "open"))
+        out.append(ShippedComposition("table2", (f"{inspect.getfile(cls)}:{cls.__name__}",), terminal))
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    return plant_main(argv, extra=discover_compositions)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
