@@ -14,6 +14,7 @@ command is warm.
 
 from __future__ import annotations
 
+import inspect
 import os
 import sys
 from collections.abc import Callable, Sequence
@@ -43,6 +44,9 @@ use_default_cache_dir()  # at import: plant imports this module before anything 
 #: 9-17 s, run_lanes 30-50 s (about half that on an idle core).
 ENTRY_BASE_S = {"run_chunk": 12.0, "run_lanes": 40.0}
 PER_EFFECT_S = {"run_chunk": 1.0, "run_lanes": 3.0}
+#: and per 1000 characters of an extra effect's hook source beyond the first (shm discover's dictionary, ~40 000
+#: characters of generated hooks, compiled for ~290 s at load 8)
+PER_HOOK_KCHAR_S = 6.0
 
 
 def _print_stderr(text: str) -> None:
@@ -74,11 +78,30 @@ def is_cached(dispatcher: Any) -> bool:
         return False
 
 
-def estimate_s(entry: str, n_extra: int) -> float:
-    """Rough compile time (s) of ``entry`` for the nominal model with ``n_extra`` more effects."""
+def estimate_s(entry: str, n_extra: int, hook_chars: int = 0) -> float:
+    """Rough compile time (s) of ``entry`` for the nominal model with ``n_extra`` more effects whose hooks have
+    ``hook_chars`` characters of source in all."""
     base = ENTRY_BASE_S.get(entry, ENTRY_BASE_S["run_chunk"])
     per = PER_EFFECT_S.get(entry, PER_EFFECT_S["run_chunk"])
-    return base + per * max(0, n_extra)
+    bulk = max(0.0, hook_chars / 1000 - n_extra) * PER_HOOK_KCHAR_S
+    return base + per * max(0, n_extra) + bulk
+
+
+def hook_chars(classes: Sequence[Any]) -> int:
+    """Characters of hook source of the extra effects (role ``effect``) in ``classes``; 0 where it is unknown."""
+    from plant.effect import hook_function
+
+    n = 0
+    for cls in classes:
+        if getattr(cls, "role", "") != "effect":
+            continue
+        for hook in ("pre", "rates", "post", "output"):
+            fn = hook_function(cls, hook)
+            try:
+                n += len(inspect.getsource(fn)) if fn is not None else 0
+            except (OSError, TypeError):
+                continue
+    return n
 
 
 def composition_words(classes: Sequence[Any]) -> tuple[str, int]:
@@ -104,4 +127,4 @@ def compile_message(words: str, entry: str, seconds: float) -> str:
 def announce_compile(classes: Sequence[Any], entry: str = "run_chunk") -> None:
     """Say, before it starts, that ``entry`` of the composition of effect ``classes`` is about to compile."""
     words, n_extra = composition_words(classes)
-    _announcer(compile_message(words, entry, estimate_s(entry, n_extra)))
+    _announcer(compile_message(words, entry, estimate_s(entry, n_extra, hook_chars(classes))))
