@@ -10,7 +10,7 @@ import math
 from types import SimpleNamespace
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from workbench.diagnose_rules import (
@@ -27,6 +27,8 @@ from workbench.diagnose_rules import (
 
 sigma = st.floats(min_value=0.0, max_value=1e4, allow_nan=False)
 signed = st.floats(min_value=-1e3, max_value=1e3, allow_nan=False)
+#: property tests run on a shared, loaded machine: no deadline, and slow input generation is not a failure
+loaded = settings(deadline=None, suppress_health_check=[HealthCheck.too_slow])
 maybe_nan = st.one_of(st.floats(min_value=-1e3, max_value=1e4), st.just(math.nan), st.just(math.inf))
 
 
@@ -37,18 +39,21 @@ def members(draw):
                           draw(maybe_nan), draw(maybe_nan), draw(st.floats(min_value=0.0, max_value=2.0)))
 
 
+@loaded
 @given(members())
 def test_a_member_whose_removal_costs_no_more_than_the_noise_is_never_named(m):
     if m.drop_cost_sigma <= m.tolerance_sigma or math.isnan(m.drop_cost_sigma):
         assert not nameable(m) and m.name not in named([m])
 
 
+@loaded
 @given(members())
 def test_a_member_that_changes_the_prediction_by_no_more_than_the_noise_is_never_named(m):
     if not m.change_sigma > CHANGE_ABOVE_SIGMA:
         assert not nameable(m)
 
 
+@loaded
 @given(members())
 def test_not_identifiable_or_at_a_bound_is_never_named(m):
     if not m.identifiable or m.at_bound:
@@ -56,6 +61,7 @@ def test_not_identifiable_or_at_a_bound_is_never_named(m):
         assert why_not_named(m)  # and the reason is said
 
 
+@loaded
 @given(members())
 def test_a_member_passing_all_four_rules_is_named(m):
     passes = (m.identifiable and not m.at_bound and m.change_sigma > CHANGE_ABOVE_SIGMA
@@ -64,12 +70,14 @@ def test_a_member_passing_all_four_rules_is_named(m):
     assert (why_not_named(m) == "") == passes
 
 
+@loaded
 @given(st.lists(members(), max_size=5))
 def test_named_keeps_the_order_and_only_passing_members(ms):
     out = named(ms)
     assert out == [m.name for m in ms if nameable(m)]
 
 
+@loaded
 @given(st.lists(st.sampled_from(["parameter", "effect"]), max_size=4), maybe_nan, sigma)
 def test_a_cure_is_claimed_only_at_the_noise_floor(kinds, held, base):
     kind = head_kind(kinds, held, base)
@@ -81,6 +89,7 @@ def test_a_cure_is_claimed_only_at_the_noise_floor(kinds, held, base):
         assert kinds == ["parameter"]
 
 
+@loaded
 @given(sigma, sigma)
 def test_the_share_of_the_excess_is_a_share(base, held):
     s = excess_share(base, held)
@@ -91,6 +100,7 @@ def test_the_share_of_the_excess_is_a_share(base, held):
         assert s == 0.0
 
 
+@loaded
 @given(st.floats(min_value=1.01, max_value=1e4), st.floats(min_value=0.0, max_value=1e4),
        st.floats(min_value=0.0, max_value=1e4))
 def test_the_share_falls_as_more_is_left(base, a, b):
@@ -146,7 +156,7 @@ def no_identifiability(monkeypatch):
     monkeypatch.setattr(dv, "_records_arg", lambda d: "rec.csv")
 
 
-@settings(deadline=None, max_examples=60)
+@settings(deadline=None, max_examples=60, suppress_health_check=[HealthCheck.too_slow])
 @given(st.floats(min_value=0.9, max_value=400.0), st.floats(min_value=0.95, max_value=1.05))
 def test_re_estimate_it_only_when_the_re_estimation_alone_reaches_the_floor(held, factor):
     import workbench.diagnose_verdict as dv
