@@ -123,3 +123,15 @@ def test_an_effect_parameter_trips_at_its_own_limit():
     assert lo <= 1850.0 <= hi and abs(fc.trip_operating_hours - 1850.0) < 60.0
     no_limit = forecast_trip({"G_leak": t}, boundary, 800.0, 200.0)
     assert no_limit.trip_operating_hours is None  # without its limit the effect never trips the α_h boundary
+
+
+def test_the_followed_section_and_the_localisation_are_compared():
+    """A k2 loss followed by its own stiffness: the page says whether the localisation's possible sections hold
+    it (sections 1 and 2 cannot be told apart with the MBITs) or not."""
+    from studies.health.assess import _cause_place, _section_agreement
+
+    fol = {"free": ["k2", "alpha_h", "beta_h"], "effects": [], "switched": True}
+    assert "section 2" in _cause_place(fol)
+    assert "they agree" in _section_agreement(fol, {"possible_sections": [1, 2], "section": None})
+    assert "disagree" in _section_agreement(fol, {"possible_sections": [3], "section": 3})
+    assert _section_agreement({"free": ["G_leak"]}, {"possible_sections": [3]}) == ""

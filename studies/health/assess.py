@@ -34,6 +34,9 @@ LOCATION = {
     "alpha_h": "the MFC patches' hysteresis (Bouc-Wen linearity factor α_h)",
     "beta_h": "the MFC patches' hysteresis (Bouc-Wen shape factor β_h)",
 }
+#: a section stiffness named by shm diagnose and followed (§3 of docs/health.md)
+SECTION_WORDS = {"k1": "the bending stiffness of section 1 (root)", "k2": "the bending stiffness of section 2",
+                 "k3": "the bending stiffness of section 3 (tip)"}
 
 
 @dataclass
@@ -335,8 +338,8 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
                         f"shm diagnose named {', '.join(fol['named'])} at {fol['diagnosed_visit_hours']:g} h)"
                         + board)
         loc = doc.get("location") or {}
-        where = _cause_place(fol) + ("; " + location_sentence(loc) if loc.get("run") and loc.get("distinguishable")
-                                     else "")
+        where = _cause_place(fol) + ("; " + location_sentence(loc) + _section_agreement(fol, loc)
+                                     if loc.get("run") and loc.get("distinguishable") is not None else "")
     loc = doc.get("location") or {}
     if loc.get("run") and loc.get("distinguishable") is not None:
         alts = sorted((c for c in loc["candidates"] if c.get("section") in (loc.get("possible_sections") or [])
@@ -398,7 +401,8 @@ def _unit_of(name: str) -> str:
 def _cause_place(fol: dict[str, Any]) -> str:
     """Where the followed cause lives, in words."""
     parts = [f"the patches: {EFFECT_WORDS.get(e, e)}" for e in fol.get("effects") or []]
-    parts += [f"{n}: {LOCATION.get(n, n)}" for n in fol["free"] if effect_of(n) is None]
+    parts += [f"{n}: {SECTION_WORDS.get(n) if fol.get('switched') and n in SECTION_WORDS else LOCATION.get(n, n)}"
+              for n in fol["free"] if effect_of(n) is None]
     return "; ".join(parts)
 
 
@@ -422,3 +426,15 @@ def _followed_how_much(doc: dict[str, Any], trends: dict[str, Trend]) -> str:
         else:
             out.append(f"{n} {format_percent_change(est['value'] / est['nominal'] - 1.0, None)}{rate}")
     return "; ".join(out)
+
+
+def _section_agreement(fol: dict[str, Any], loc: dict[str, Any]) -> str:
+    """Whether the followed section stiffness is among the sections the localisation leaves possible."""
+    followed = [SECTIONS[n] for n in fol["free"] if n in SECTIONS]
+    possible = loc.get("possible_sections") or ([loc["section"]] if loc.get("section") else [])
+    if not followed or not possible:
+        return ""
+    if all(sec in possible for sec in followed):
+        return f" — the trended section ({', '.join(str(x) for x in followed)}) is among them: they agree"
+    return (f" — but the trended section ({', '.join(str(x) for x in followed)}) is not among them: the "
+            "localisation and shm diagnose disagree; read both")

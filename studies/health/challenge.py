@@ -73,7 +73,8 @@ def truth_columns(params: str, devs: Sequence[dict[str, float]], effect_values: 
     from plant import PlantModel
 
     model = PlantModel(params, terminal="amplifier")
-    cols = {p: np.array([model.param_value(p) * (1 + d.get(p, 0.0)) for d in devs]) for p in HEALTH_PARAMS}
+    names = dict.fromkeys([*HEALTH_PARAMS, *sorted({k for d in devs for k in d})])  # a section stiffness too
+    cols = {p: np.array([model.param_value(p) * (1 + d.get(p, 0.0)) for d in devs]) for p in names}
     for name in sorted({k for e in effect_values for k in e}):
         cols[name] = np.array([e.get(name, 0.0) for e in effect_values])
     return cols

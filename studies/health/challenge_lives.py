@@ -3,7 +3,8 @@
 Groups (``ChallengeLife.group``): ``core`` (the monitor's parameters degrade along the candidate laws: linear, power,
 exponential), ``effect`` (an added effect degrades — the patches' leakage conductance G_leak rising linearly, the
 laminate itself nominal), ``few-visits`` (visits every 400 h: four or five visits before the first FAULT),
-``out-of-family`` (a law none of the candidate trend laws is: a logistic, a two-stage wear), ``stable`` and
+``out-of-family`` (a law none of the candidate trend laws is: a logistic, a two-stage wear), ``other-section``
+(a section-2 stiffness loss beside an α_h drift: the default set's k3 is not where it happens), ``stable`` and
 ``sudden``. :func:`challenge_lives` builds them at a chosen size: ``"smoke"`` (one life per kind that ``make test``
 affords), ``"full"`` (the bench), or the full set cut to ``per_group`` lives of each group.
 """
@@ -122,6 +123,8 @@ def _new_lives() -> list[ChallengeLife]:
         _leakage("leakage-3.5e-7Sph-every200h", 3.5e-7, 200.0, 13, seed=303),
         _leakage("leakage-1e-6Sph-every100h", 1e-6, 100.0, 10, seed=304),
     ]
+    lives.append(ChallengeLife("k2-loss-with-alpha-power", (_lin("k2", -1.5e-4), _pow("alpha_h", 0.15, 1300.0, 1.5)),
+                               visits=15, interval=100.0, noise_m=2e-6, seed=305, group="other-section"))
     i = 310
     for name, laws, visits in (
             ("few-power-m1.6-every400h", (_pow("alpha_h", 0.15, 1900.0, 1.6),), 7),
