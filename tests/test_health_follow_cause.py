@@ -135,3 +135,20 @@ def test_the_followed_section_and_the_localisation_are_compared():
     assert "they agree" in _section_agreement(fol, {"possible_sections": [1, 2], "section": None})
     assert "disagree" in _section_agreement(fol, {"possible_sections": [3], "section": 3})
     assert _section_agreement({"free": ["G_leak"]}, {"possible_sections": [3]}) == ""
+
+
+def test_a_second_diagnosis_when_the_set_in_use_leaves_growing_residual():
+    """The challenge's sequential prognosis diagnoses at the first excess and again (at most three times) when the
+    set in use leaves 1.5 × the residual it left at the visit last diagnosed: a k2 loss growing beside an α_h drift
+    was named "alpha_h" at 300 h and would have been trended as k3 for good."""
+    from studies.health.challenge import needs_diagnosis
+
+    ests = [_est(h) for h in (1.0, 2.0, 2.5, 3.5)]
+    assert needs_diagnosis(Followed(), ests, 1, 0)
+    kept = Followed(diagnosed_visit=1, named=["alpha_h"])
+    assert not needs_diagnosis(kept, ests, 2, 1)  # 2.5 < 1.5 x 2.0
+    assert needs_diagnosis(kept, ests, 3, 1)  # 3.5 > 3.0
+    assert not needs_diagnosis(kept, ests, 3, 3)  # the cap
+    switched = Followed(diagnosed_visit=1, named=["dielectric_leakage"], free=("G_leak",),
+                        estimates=[_est(1.0) for _ in range(4)])
+    assert not needs_diagnosis(switched, ests, 3, 1)  # the followed set explains the visits

@@ -48,6 +48,9 @@ __all__ = ["ChallengeLife", "challenge_lives", "reference_life", "run_challenge"
 RATE_HZ = 100.0
 SETTLE_S = 2.0
 MIN_VISITS = 4
+#: diagnoses per life at most, and the growth of the held-out residual (the set in use) that calls for another
+MAX_DIAGNOSES = 3
+REDIAGNOSE_GROWTH = 1.5
 
 
 # --- simulation of a life's visits ---------------------------------------------------------------------------
@@ -163,15 +166,19 @@ def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold
     y, s = series(ests, DEFAULT_FREE)
     boundary = trip_boundary(params)
     followed = Followed()
+    diagnoses = 0
     limits: dict[str, float] = {}
     preds = []
     base_preds = []
     last = life.visits if k_true is None else k_true  # predictions only before the first FAULT
     for j in range(MIN_VISITS - 1, last):
         hh = hours[: j + 1]
-        if followed.diagnosed_visit is None:  # diagnose once: at the first visit whose default fit shows excess
-            followed = find_and_follow(ests[: j + 1], lambda i: [recs[i]], params, lambda eff, free, base: [
+        if needs_diagnosis(followed, ests, j, diagnoses):
+            f = find_and_follow(ests[: j + 1], lambda i: [recs[i]], params, lambda eff, free, base: [
                 estimate_visit([r], params, free, eff, base) for r in recs])
+            diagnoses += f.diagnosed_visit is not None
+            if f.diagnosed_visit is not None and (f.switched or not followed.switched):
+                followed = f
             if followed.switched:
                 assert followed.estimates is not None
                 y, s = series(followed.estimates, followed.free)
@@ -206,6 +213,18 @@ def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold
         out["step_tau_h"] = t.best.tau
     out["wall_s"] = time.perf_counter() - t0
     return out
+
+
+def needs_diagnosis(followed: Followed, ests: Sequence[dict[str, Any]], j: int, done: int) -> bool:
+    """As of visit ``j``: diagnose when no diagnosis ran yet, or — at most :data:`MAX_DIAGNOSES` times — when the
+    set in use leaves :data:`REDIAGNOSE_GROWTH` × the held-out residual it left at the visit last diagnosed (a
+    second cause growing, or the first one outgrowing what was named)."""
+    if followed.diagnosed_visit is None:
+        return True
+    if done >= MAX_DIAGNOSES:
+        return False
+    in_use = followed.estimates if followed.estimates is not None else ests
+    return bool(in_use[j]["held_rms_sigma"] > REDIAGNOSE_GROWTH * in_use[followed.diagnosed_visit]["held_rms_sigma"])
 
 
 def _bracket(hours: np.ndarray, t: float | None) -> int | None:
