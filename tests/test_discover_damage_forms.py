@@ -9,6 +9,7 @@ import itertools
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from workbench.discovery_dictionary import GATE_FORMS, Term, build_dictionary, dictionary_source
 from workbench.discovery_gates import describe_damage, gate_values, gate_width, onsets
@@ -87,3 +88,47 @@ def test_emitted_damage_file_reads_the_core_parameters_by_name(tmp_path):
     assert cls.__name__ == "DiscoveredSection2StiffnessEventPlus"
     assert cls.fit_ranges["g_k2_step_t"].lower < 20.0 < cls.fit_ranges["g_k2_step_t"].upper
     assert "lost 20 % of its stiffness at t = 20 s" in describe_term(terms[0], -0.2, 20.0, 1.0)
+
+
+CASES = {
+    "event": ("Section2StiffnessEvent", {"loss_k2": 0.25, "t_event": 4.0}, "k2_step_t",
+              ("section 2 lost", "of its stiffness at t = ")),
+    "crack": ("Section2BreathingCrack", {"open_loss": 0.25}, "k2_pos_delta2",
+              ("a breathing crack in section 2 that opens for δ2 > 0",)),
+    "polarity": ("PatchWeakNegative", {"neg_loss": 0.3}, "d_ep_neg_va",
+                 ("a patch whose authority d_ep is", "lower for negative drive")),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_discover_names_damage_written_outside_it_and_its_file_refits(case, tmp_path):
+    """A 6 s sweep whose truth is damage written outside the dictionary (hard switches): discover names the damage
+    form, the relative change within 3 points and the instant within 20 ms, and the emitted file refits with
+    `shm fit --add` to the noise floor."""
+    import json
+
+    from shm_cli.main import main
+    from workbench.discover import discover
+    from workbench.records import write_record
+    from workbench.synth import synth_record, synth_test, truth_model
+
+    cls, values, key, words = CASES[case]
+    rec = synth_record(synth_test("sweep", duration_s=6.0), truth_model("table2", [f"{DAMAGE}:{cls}"], values),
+                       noise={"z3": 2e-6}, seed=11)
+    d = discover([rec], "table2", max_terms=1)
+    assert d.verdict == "found", d.message
+    found = d.terms[0]
+    assert found.term.key == key, d.message
+    assert all(w in found.words for w in words), found.words
+    truth = -next(v for k, v in values.items() if k != "t_event")
+    assert found.coef == pytest.approx(truth, abs=0.03)
+    if "t_event" in values:
+        assert found.shape == pytest.approx(values["t_event"], abs=0.02)
+    path, emitted = tmp_path / "rec.csv", tmp_path / "damage_found.py"
+    write_record(rec, path)
+    emitted.write_text(d.effect_source(effect_name="damage_found") or "")
+    assert main(["fit", str(path), "--params", "table2", "--add", str(emitted), "--save", str(tmp_path / "r.toml"),
+                 "--out", str(tmp_path / "fit"), "--json"]) == 0
+    fit = json.loads((tmp_path / "fit" / "fit.json").read_text())
+    assert fit["held_rms_sigma"]["after"] <= 1.5

@@ -48,13 +48,16 @@ from workbench.discover_dictionary_effect import (
 from workbench.discover_results import DiscoverError, Discovery, FoundTerm, ScreenRow, describe_units
 from workbench.discover_search import (
     SearchState,
+    change_point,
     free_for,
     free_run_check,
     nonlinear_check,
+    onset_probe,
     onset_scan,
     other_delay_order,
     refine,
     refit_list,
+    with_onsets,
 )
 from workbench.discovery_dictionary import (
     DELAY_FORMS,
@@ -128,6 +131,8 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     for round_no in range(max_terms):
         if explained(current_held, held_before, n_held) and round_no > 0:
             break
+        if held_before <= 1.0 + noise_tolerance(n_held):  # at the noise floor: among 200 terms one fits noise
+            break
         # --- sensitivities: one batch, member k+1 switches term k on with eps_k
         t0 = time.perf_counter()
         cand = [k for k in range(len(terms)) if k not in state.kept]
@@ -190,8 +195,9 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
             k = terms.index(row.term)
             start = dict(state.values)
             start[names[k][0]] = row.coef
-            if row.term.form in TIME_GATES:  # an onset time: start the refit from a scan over its range
-                scan, n_probes = onset_scan(row, names[k], targets, models, state.values, threads)
+            if row.term.form in TIME_GATES:  # an onset time: start the refit from a scan around its onset
+                scan, n_probes = onset_scan(row, names[k], targets, models, state.values, (0.0, scales["t"]),
+                                            threads)
                 start.update(scan)
                 n_sims += n_probes * len(targets)
             free = free_for(terms, names, [*state.kept, k], start, k)
@@ -235,7 +241,14 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
                     if best is None or out.held_rms_sigma < best[0]:
                         best = (out.held_rms_sigma, terms.index(row.term), out)
             timings["refit_s"] += time.perf_counter() - t1
+        onset_rows: list[ScreenRow] = []
         if best is None:
+            # a damage event: where the residual changes its level, every time-gated key probed there
+            t_hat = max((change_point(tg.t, (tg.measured - y[0]) / tg.sigma[:, None]) for tg, y in zip(targets, ys)),
+                        key=lambda cp: cp[1])[0]
+            onset_rows, n_probes = onset_probe(rows, dict(zip(terms, names)), targets, models, state.values, t_hat,
+                                               scales["t"], threads)
+            n_sims += n_probes * len(targets)
             rows, n_probes = nonlinear_check(rows, terms, targets, models, state.values, names, threads)
             n_sims += n_probes * len(targets)
         timings["screen_s"] += time.perf_counter() - t0
@@ -247,7 +260,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
             + ", ".join(f"{r.term.key} {r.held_rms_sigma:.3g} σ" for r in rows[:4]))
         # --- refit the best few on the full nonlinear model
         t0 = time.perf_counter()
-        for row in ([] if best is not None else refit_list(rows, n_refit)):
+        for row in ([] if best is not None else with_onsets(refit_list(rows, n_refit), onset_rows)):
             k = terms.index(row.term)
             out = refit_row(row)
             if out is None:

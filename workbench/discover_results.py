@@ -70,10 +70,14 @@ def separating_test(term: Term, twins: Sequence[dict[str, Any]]) -> str:
 
 @dataclass
 class ScreenRow:
+    """A screened term: its coefficient and the errors it leaves; ``shape``: the shape it was probed at when not the
+    term's own (an onset found in the residual)."""
+
     term: Term
     coef: float
     held_rms_sigma: float
     train_rms_sigma: float
+    shape: float | None = None
 
 
 @dataclass
