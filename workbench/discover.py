@@ -3,7 +3,9 @@
 1. **Dictionary.** Candidate terms from the model's own signals along the records
    (:mod:`workbench.discovery_dictionary`: forces on masses and sections, currents into the patch charges, changes
    of the drive and of the measurement; linear, sign, |x|·x, polynomial, one-sided, dead-zone, clipped, saturating,
-   time-weighted and delayed forms), with thresholds set from each signal's scale. All of them live in *one*
+   time-weighted and delayed forms), with thresholds set from each signal's scale, and damage forms — every core
+   parameter's own term switched by a gate (:mod:`workbench.discovery_gates`: a breathing crack, free play, a
+   polarity, a step or ramp at an onset t0 inside the record). All of them live in *one*
    generated effect whose coefficients are 0 (the nominal model), compiled once per machine whatever the records.
 2. **Sensitivities.** One batch through the compiled integrator: member 0 is the current model, member k switches term
    k on with a small coefficient ε_k; (y_k − y_0)/ε_k is the change of the measured channels per unit coefficient —
@@ -13,8 +15,11 @@
    held-out residual they leave.
 4. **Refit.** The best few are refitted on the full nonlinear model (the fit engine's :class:`~workbench.fit.Objective`,
    coefficient and threshold/delay free, together with terms already kept) and judged on held-out data; a term is
-   kept when it removes a clear share of what is left above the noise. Forward selection: with a term kept, the
-   sensitivities are recomputed around the new model and the next term is sought (up to ``max_terms``).
+   kept when it removes a clear share of what is left above the noise. A time-gated term's onset comes from the
+   residual (where it leaves the noise), a probe of every time-gated term there and a scan around it
+   (:func:`~workbench.discover_search.onset_scan`): least squares alone cannot place a step. Forward selection:
+   with a term kept, the sensitivities are recomputed around the new model and the next term is sought (up to
+   ``max_terms``).
 5. **Guards.** The kept model must run free (full rate, every record) without diverging; "not found" is an answer.
 
 The result (:class:`Discovery`) names each kept term in words and units and carries the source of a readable effect
