@@ -80,7 +80,8 @@ def _median_at(f, h, rng):
 @given(curv=st.floats(0.0, 4e-8), slope=st.floats(2e-5, 1e-4), err=st.floats(2e-4, 2e-3), seed=st.integers(0, 999))
 def test_the_averaged_interval_holds_each_plausible_laws_median(curv, slope, err, seed):
     """Five visits a few laws fit: the model-averaged 90 % band far ahead holds the median of every law with an
-    Akaike weight of at least 10 %."""
+    Akaike weight of at least 15 % (with the hedge's 20 % of paths elsewhere, such a law still has ≥ 6 % of the
+    paths on each side of its median)."""
     h = np.arange(5) * 200.0
     rng = np.random.default_rng(seed)
     y = slope * h + curv * h ** 2 + rng.normal(0.0, err, 5)
@@ -89,7 +90,7 @@ def test_the_averaged_interval_holds_each_plausible_laws_median(curv, slope, err
     paths = t.sample_paths(np.array([far]), 8000, rng)[:, 0]
     lo, hi = np.quantile(paths, [0.05, 0.95])
     for name, w in t.weights.items():
-        if w >= 0.1:
+        if w >= 0.15:
             assert lo <= _median_at(t.fits[name], far, rng) <= hi, (name, w, lo, hi)
 
 
