@@ -98,3 +98,9 @@ def test_a_set_singular_in_its_own_units_is_judged_on_the_records():
     assert se["kappa_nl"] < 0.01 * 5e4 and se["G_leak"] < 0.01 * 5e-5
     for member in ("geometric_stiffening", "dielectric_leakage"):
         assert not_identifiable_because(c, member, {}, se) == ""
+    # and the verdict reports the measured standard errors, not "not identifiable"
+    from workbench.diagnose_evidence import evidence_of
+
+    ev = evidence_of(c, base, targets, 129.0, o.residuals(sim, "all")[0], lambda spec, start: c, {})
+    assert all(e.identifiable for e in ev)
+    assert "not identifiable" not in c.estimates_text() and all(np.isfinite(e.stderr) for e in c.outcome.estimates)

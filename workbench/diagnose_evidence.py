@@ -220,6 +220,9 @@ def evidence_of(cand: CandidateResult, base: ParameterSet, targets: Sequence[Tar
     changes = prediction_changes(cand, base, targets, base_residual_all)
     missing = [e.name for e in cand.outcome.estimates if not math.isfinite(e.stderr)]
     direct = direct_stderr(cand, base, targets, missing) if missing else {}
+    if direct:  # the fit's own estimate failed numerically: report the measured one (verdict, --json, report)
+        cand.outcome.estimates = [replace(e, stderr=direct[e.name], interval_low=math.nan, interval_high=math.nan)
+                                  if e.name in direct else e for e in cand.outcome.estimates]
     tol = noise_tolerance(cand.n_eff_held)
     out = []
     for member in cand.spec.members:
