@@ -7,7 +7,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, Phase, given, settings
+from hypothesis import HealthCheck, Phase, assume, given, settings
 from hypothesis import strategies as st
 
 from plant import resolve_effect
@@ -106,11 +106,11 @@ def test_every_term_of_the_dictionary_emits_a_file_that_loads(short_sweep, tmp_p
 
 
 def _coefficient(term: Term, short_sweep) -> float:
-    """A coefficient that moves the tip by a few per cent of its motion (25x the sensitivity step)."""
+    """A coefficient that moves the tip by about 1 % of its motion (5x the sensitivity step)."""
     from workbench.discover_dictionary_effect import reference_magnitudes, term_scale
 
     ref = reference_magnitudes(short_sweep["targets"][0].model, short_sweep["scales"])
-    return 25.0 * ref[term.placement] / max(term_scale(term, short_sweep["sig"], short_sweep["targets"]), 1e-300)
+    return 5.0 * ref[term.placement] / max(term_scale(term, short_sweep["sig"], short_sweep["targets"]), 1e-300)
 
 
 @pytest.mark.slow
@@ -160,10 +160,17 @@ def test_drawn_terms_emit_files_that_simulate_like_the_dictionary_and_refit(shor
         pd[k, dictionary.param_index(a)] = coef
     # tight tolerance: the two models carry different states (the dictionary's delay lines), so at the default
     # tolerance their steps differ (a current term: 5e-7 m apart at rtol default, 1e-9 m at 1e-9)
-    ze = emitted.simulate(tg.inputs, t_out=tg.t, params=pe, rtol=1e-9)["z3_meas"]
-    zd = dictionary.simulate(tg.inputs, t_out=tg.t, params=pd, rtol=1e-9)["z3_meas"]
+    re = emitted.simulate(tg.inputs, t_out=tg.t, params=pe, rtol=1e-9)
+    rd = dictionary.simulate(tg.inputs, t_out=tg.t, params=pd, rtol=1e-9)
+    ze, zd = re["z3_meas"], rd["z3_meas"]
     nominal = PlantModel(base).simulate(tg.inputs, t_out=tg.t, rtol=1e-9)["z3_meas"][0]
+    # a drawn sign can make a term an energy source (viscous force along the root's velocity) whose run diverges or
+    # exhausts the steps of a 1e-9 tolerance: such a term is compared where both runs integrate, not here
+    ran = (re.status == 0) & (rd.status == 0)
+    assume(bool(ran.any()))
     for k, term in enumerate(chosen):
+        if not ran[k]:
+            continue
         moved = float(np.max(np.abs(zd[k] - nominal)))
         assert moved > 1e-7, term.key  # the term acts
         assert float(np.max(np.abs(ze[k] - zd[k]))) <= 1e-3 * moved + 1e-10, term.key
