@@ -124,7 +124,11 @@ def test_done_when_chain_foreign_friction(tmp_path, capsys):
     assert main(["diagnose", str(path), "--params", "table2", "--fit-top", "1", "--out", str(tmp_path / "diag"),
                  "--json"]) == 0
     diag = json.loads(capsys.readouterr().out)
-    assert diag["verdict"] in ("partial", "unexplained") or "shm discover" in json.dumps(diag)
+    # … and runs the discovery step itself: its first sentence names the friction at the tip, with the file to add
+    assert diag["verdict"] == "discovered", diag["message"]
+    first = diag["message"].split(". ", 1)[0]
+    assert first.startswith("Found beyond the library") and "mass 3" in first and "friction" in first
+    assert "--add" in diag["fit_command"] and Path(diag["discover"]["emitted"]["file"]).is_file()
     # discover names the physics and writes the effect file
     emit = tmp_path / "tip_friction.py"
     assert main(["discover", str(path), "--params", "table2", "--emit", str(emit), "--out", str(tmp_path / "disc"),

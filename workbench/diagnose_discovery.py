@@ -93,7 +93,9 @@ def final_verdict(d: Any, disc: Any, section: dict[str, Any]) -> None:
     library = _library_sentence(d)
     if improves(disc, d):
         found = "; and ".join(ft.description for ft in disc.terms)
-        at_floor = disc.held_after <= CURE_AT_MOST_SIGMA
+        # at the noise floor by the cure's 1.5 σ, or by the discovery's own criterion (the one every candidate is judged
+        # by: within the noise tolerance of its held-out samples, or below 3 σ with at most 1 % of the excess left)
+        at_floor = disc.verdict == "found" or disc.held_after <= CURE_AT_MOST_SIGMA
         head = (("Found beyond the library: " if at_floor else "Partly found beyond the library: ") + found
                 + f". Held-out error {disc.held_before:.4g} σ → {disc.held_after:.4g} σ (noise floor 1 σ"
                 + ("" if at_floor else f"; above the {CURE_AT_MOST_SIGMA:g} σ of a cure: something else is missing "
