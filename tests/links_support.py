@@ -142,3 +142,33 @@ def exchange_through_outage(link, make_command: Callable[[int], ActuatorCommand]
             break
         time.sleep(pause_s)
     return outcomes
+
+
+#: a parked second, one maintenance visit (MBIT.a, MBIT.b, verdict) of 28 s and the HV removed: the shortest scenario
+#: whose board run ends with a clean PASS verdict (tests that run `shm hil serve` and `shm run --link` as processes)
+SHORT_MAINTENANCE_SCENARIO = """
+[scenario]
+name = "maintenance-short"
+description = "A parked second, a maintenance visit (MBIT.a, MBIT.b, verdict), HV removed."
+seed = 1
+expect_verdict = "PASS"
+
+[rig]
+params = "table2"
+battery_initial_voltage = { value = 3.0, unit = "V" }
+
+[[phase]]
+name = "parked"
+kind = "ground"
+duration = { value = 1, unit = "s" }
+
+[[phase]]
+name = "maintenance"
+kind = "maintenance"
+duration = { value = 28, unit = "s" }
+
+[[phase]]
+name = "disconnected"
+kind = "ground"
+duration = { value = 0.5, unit = "s" }
+"""

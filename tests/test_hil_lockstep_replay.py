@@ -19,7 +19,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from links_support import FakeRig
+from links_support import SHORT_MAINTENANCE_SCENARIO, FakeRig
 
 from drivers import ActuatorCommand
 from hil_stub.rig_host import RigHost
@@ -90,39 +90,13 @@ def test_the_service_hands_out_a_prebuilt_rig_with_fresh_sensor_faults():
         assert hil.summary()["board_runs"] == 2 and hil.summary()["rig_restarts"] == 1
 
 
-SCENARIO = """
-[scenario]
-name = "maintenance-short"
-description = "A parked second, a maintenance visit (MBIT.a, MBIT.b, verdict), HV removed."
-seed = 1
-expect_verdict = "PASS"
-
-[rig]
-params = "table2"
-battery_initial_voltage = { value = 3.0, unit = "V" }
-
-[[phase]]
-name = "parked"
-kind = "ground"
-duration = { value = 1, unit = "s" }
-
-[[phase]]
-name = "maintenance"
-kind = "maintenance"
-duration = { value = 28, unit = "s" }
-
-[[phase]]
-name = "disconnected"
-kind = "ground"
-duration = { value = 0.5, unit = "s" }
-"""
 
 
 @pytest.mark.slow
 @pytest.mark.integration
 def test_two_board_runs_against_one_served_lockstep_stub_both_get_their_verdict(tmp_path):
     scen = tmp_path / "maintenance-short.toml"
-    scen.write_text(SCENARIO)
+    scen.write_text(SHORT_MAINTENANCE_SCENARIO)
     summary = tmp_path / "hil.json"
     serve = subprocess.Popen(
         [sys.executable, "-m", "shm_cli.main", "hil", "serve", "--modbus-tcp", "127.0.0.1:0", "--clock", "lockstep",

@@ -14,34 +14,10 @@ import time
 from pathlib import Path
 
 import pytest
+from links_support import SHORT_MAINTENANCE_SCENARIO
 
 ROOT = Path(__file__).resolve().parents[1]
 
-SCENARIO = """
-[scenario]
-name = "maintenance-short"
-seed = 1
-expect_verdict = "PASS"
-
-[rig]
-params = "table2"
-battery_initial_voltage = { value = 3.0, unit = "V" }
-
-[[phase]]
-name = "parked"
-kind = "ground"
-duration = { value = 1, unit = "s" }
-
-[[phase]]
-name = "maintenance"
-kind = "maintenance"
-duration = { value = 28, unit = "s" }
-
-[[phase]]
-name = "disconnected"
-kind = "ground"
-duration = { value = 0.5, unit = "s" }
-"""
 
 
 def _serve(scen: Path) -> tuple[subprocess.Popen, str]:
@@ -62,7 +38,7 @@ def _serve(scen: Path) -> tuple[subprocess.Popen, str]:
 @pytest.mark.integration
 def test_the_stub_killed_mid_visit_leaves_a_complete_failed_run(tmp_path):
     scen = tmp_path / "maintenance-short.toml"
-    scen.write_text(SCENARIO)
+    scen.write_text(SHORT_MAINTENANCE_SCENARIO)
     serve, url = _serve(scen)
     out = tmp_path / "run"
     url += ("&" if "?" in url else "?") + "timeout=2"  # lock-step: no tick deadline
