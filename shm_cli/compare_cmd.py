@@ -7,6 +7,7 @@ import sys
 from pathlib import Path
 
 from board_config.errors import InputError
+from shm_cli.batch_records import add_scheduler_arg, run_batch, wanted
 from shm_cli.common import add_out_arg, add_params_arg, dump_json, positive_float
 
 
@@ -20,6 +21,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "drive amplitude and rate, rising vs falling branches). Writes PNGs, a self-contained "
                     "report.html and compare.json into --out. Records: see docs/records.md.")
     p.add_argument("records", nargs="+", metavar="RECORD", help="record files (.csv time record or FRF table, .tdms)")
+    add_scheduler_arg(p)
     add_params_arg(p)
     p.add_argument("--add", action="append", default=[], metavar="EFFECT",
                    help="add a physical effect to the model (registered name or pkg.mod:Class); repeatable")
@@ -67,6 +69,8 @@ def _eq4(items: list[str]) -> dict[str, tuple[float, float]]:
 
 
 def cmd_compare(args: argparse.Namespace) -> int:
+    if wanted(args, args.records):  # a folder or 'glob': one task per record (docs/scale-out.md)
+        return run_batch("compare", args, args.records)
     from tqdm import tqdm
 
     from shm_cli.synth_cmd import _assignments

@@ -6,6 +6,7 @@ import argparse
 import functools
 import sys
 
+from shm_cli.batch_records import add_scheduler_arg, run_batch, wanted
 from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, even_int, out_dir, seed_int
 
 
@@ -29,6 +30,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "print the shm discover command instead). Writes diagnosis.json, ranking.png, overlay.png and "
                     "diagnosis.html.")
     p.add_argument("records", nargs="+", metavar="RECORD", help="time records (.csv or .tdms; docs/records.md)")
+    add_scheduler_arg(p)
     add_params_arg(p)
     p.add_argument("--candidates", action="append", default=None, metavar="NAME[,NAME...]",
                    help="candidates, comma-separated or repeated: effects (library names or pkg.mod:Class), core "
@@ -57,6 +59,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_diagnose(args: argparse.Namespace) -> int:
+    if wanted(args, args.records):  # a folder or 'glob': one task per record (docs/scale-out.md)
+        return run_batch("diagnose", args, args.records)
     from shm_cli.main import CliError
     from shm_cli.progress import StageReporter
 

@@ -8,6 +8,7 @@ import functools
 import sys
 from pathlib import Path
 
+from shm_cli.batch_records import add_scheduler_arg, run_batch, wanted
 from shm_cli.common import add_params_arg, dump_json, even_int, out_dir
 
 
@@ -22,6 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "units. --emit writes it as a PhysicalEffect module; refit it with `shm fit RECORD --add "
                     "FILE.py`. 'Not found' is an allowed answer.")
     p.add_argument("records", nargs="+", metavar="RECORD", help="time records (.csv or .tdms; docs/records.md)")
+    add_scheduler_arg(p)
     add_params_arg(p)
     p.add_argument("--add", action="append", default=[], metavar="EFFECT",
                    help="effect already in the model (library name, pkg.mod:Class or FILE.py; repeatable)")
@@ -41,6 +43,8 @@ def register(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_discover(args: argparse.Namespace) -> int:
+    if wanted(args, args.records):  # a folder or 'glob': one task per record (docs/scale-out.md)
+        return run_batch("discover", args, args.records)
     from board_config import load_parameter_set
     from shm_cli.main import CliError
     from workbench.discover import describe_units, discover

@@ -7,6 +7,7 @@ import functools
 import sys
 from pathlib import Path
 
+from shm_cli.batch_records import add_scheduler_arg, run_batch, wanted
 from shm_cli.common import Decorations, add_params_arg, dump_json, even_int, out_dir, output_file_arg, seed_int
 
 
@@ -22,6 +23,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                     "strongly correlated), also in fit.json; with --save, writes a parameter set (TOML with "
                     "[[effects]]) that `shm run` and the board's monitor load at once.")
     p.add_argument("records", nargs="+", metavar="RECORD", help="time records (.csv or .tdms; docs/records.md)")
+    add_scheduler_arg(p)
     add_params_arg(p)
     p.add_argument("--add", action="append", default=[], metavar="EFFECT",
                    help="effect to add: a library name, pkg.mod:Class, or a file FILE.py / FILE.py:Class (e.g. the one "
@@ -57,6 +59,8 @@ def _load_records(paths: list[str]):
 
 
 def cmd_fit(args: argparse.Namespace) -> int:
+    if wanted(args, args.records):  # a folder or 'glob': one task per record (docs/scale-out.md)
+        return run_batch("fit", args, args.records)
     from board_config import load_parameter_set
     from shm_cli.main import CliError
     from workbench.diagnose_report import ProgressPlot, overlay_figure, write_html

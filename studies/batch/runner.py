@@ -1,0 +1,208 @@
+"""Run many tasks on Dask: local processes (default), a cluster (``tcp://host:port``) or in this process
+(``synchronous``, for debugging) — the same task function, the same results, ordered by task key.
+
+Data moves once: every task's input files are scattered to the workers once (one future each, the task refers to
+it), the shared inputs (a parameter set's file ...) are broadcast once to every worker; compiled kernels are warmed
+on each worker by a worker plugin before its first task (and on a worker that joins later). A task function catches
+its own errors (a record that fails is a result with a non-zero code), so an exception from a future is the
+infrastructure: a worker died or its data was lost. Such a task is resubmitted (its input scattered again when it
+was lost with the worker) up to :data:`MAX_ATTEMPTS` times; the progress line counts lost workers and reruns.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+import uuid
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+from board_config.errors import InputError
+
+#: a task: fn(key, files by name, shared files by name, options) -> TaskResult
+TaskFn = Callable[[str, dict[str, bytes], dict[str, bytes], Any], "TaskResult"]
+ProgressFn = Callable[["BatchProgress"], None]
+#: submissions of one task before it is reported failed (a worker lost each time)
+MAX_ATTEMPTS = 4
+#: seconds between looks at the cluster's workers while waiting for results
+POLL_S = 0.5
+
+
+class SchedulerError(InputError):
+    """The scheduler cannot be reached or started."""
+
+
+@dataclass
+class TaskResult:
+    """What one task did: its exit code, a one-line message, its JSON document and the files it wrote."""
+
+    key: str
+    code: int
+    message: str
+    doc: dict[str, Any] = field(default_factory=dict)
+    files: dict[str, bytes] = field(default_factory=dict)
+    wall_s: float = 0.0
+    cpu_s: float = 0.0
+    worker: str = ""
+
+
+@dataclass
+class BatchProgress:
+    done: int
+    total: int
+    workers: int
+    workers_lost: int
+    reruns: int
+
+    def line(self, what: str) -> str:
+        text = f"{what}: {self.done}/{self.total} tasks done, {self.workers} workers"
+        if self.workers_lost:
+            text += f", {self.workers_lost} worker(s) lost — {self.reruns} task(s) rerun"
+        return text
+
+
+@dataclass
+class BatchOutcome:
+    """All results (ordered by key) and what the run cost."""
+
+    results: list[TaskResult]
+    scheduler: str
+    n_workers: int
+    workers_lost: int = 0
+    reruns: int = 0
+    wall_s: float = 0.0
+    warm_s: dict[str, float] = field(default_factory=dict)
+    bytes_scattered: int = 0
+    bytes_returned: int = 0
+
+    def cost(self) -> dict[str, Any]:
+        task_wall = sum(r.wall_s for r in self.results)
+        return {"scheduler": self.scheduler, "workers": self.n_workers, "workers_lost": self.workers_lost,
+                "reruns": self.reruns, "wall_s": self.wall_s, "task_wall_s": task_wall,
+                "task_cpu_s": sum(r.cpu_s for r in self.results), "warm_s": self.warm_s,
+                "bytes_scattered": self.bytes_scattered, "bytes_returned": self.bytes_returned}
+
+
+# --- connecting --------------------------------------------------------------------------------------------------
+def _client(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s: float) -> tuple[Any, Any, str]:
+    """(client, local cluster or None, description)."""
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise SchedulerError("--scheduler needs Dask: pip install 'mfc-shm[cluster]'") from None
+    if scheduler in (None, "", "local"):
+        n = max(1, min(workers or os.cpu_count() or 1, n_tasks))
+        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                               memory_limit=0, silence_logs=50)
+        return Client(cluster, set_as_default=False), cluster, f"local processes ({n} workers)"
+    try:
+        return Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False), None, f"dask {scheduler}"
+    except (OSError, TimeoutError) as exc:
+        raise SchedulerError(f"--scheduler: cannot reach the Dask scheduler at {scheduler!r} within "
+                             f"{timeout_s:g} s ({exc})") from None
+    except Exception as exc:  # malformed address and other connection errors
+        raise SchedulerError(f"--scheduler: cannot connect to {scheduler!r}: {type(exc).__name__}: {exc}") from None
+
+
+def check_scheduler(text: str | None) -> str | None:
+    """The ``--scheduler`` value, checked: ``local``, ``synchronous`` or ``tcp://host:port``."""
+    if text in (None, "", "local", "synchronous") or (text is not None and "://" in text):
+        return text
+    raise SchedulerError(f"--scheduler {text!r}: expected local, synchronous or tcp://HOST:PORT")
+
+
+# --- running -----------------------------------------------------------------------------------------------------
+def run_tasks(tasks: list[tuple[str, dict[str, bytes]]], fn: TaskFn, options: Any, *,
+              shared: dict[str, bytes] | None = None, scheduler: str | None = None, workers: int | None = None,
+              warm: Callable[[], None] | None = None, progress: ProgressFn | None = None,
+              timeout_s: float = 10.0) -> BatchOutcome:
+    """Run ``fn`` once per ``(key, files)`` and return the results ordered by key (never by completion)."""
+    shared = shared or {}
+    t0 = time.perf_counter()
+    if scheduler == "synchronous":
+        outcome = _run_here(tasks, fn, options, shared, warm, progress)
+    else:
+        client, cluster, desc = _client(scheduler, workers, len(tasks), timeout_s)
+        try:
+            outcome = _run_dask(client, desc, tasks, fn, options, shared, warm, progress)
+        finally:
+            client.close()
+            if cluster is not None:
+                cluster.close()
+    outcome.results.sort(key=lambda r: r.key)
+    outcome.wall_s = time.perf_counter() - t0
+    outcome.bytes_returned = sum(len(b) for r in outcome.results for b in r.files.values())
+    return outcome
+
+
+def _run_here(tasks, fn, options, shared, warm, progress) -> BatchOutcome:
+    warm_s = {}
+    if warm is not None:
+        t0 = time.perf_counter()
+        warm()
+        warm_s["this process"] = time.perf_counter() - t0
+    results = []
+    for i, (key, files) in enumerate(sorted(tasks, key=lambda t: t[0])):
+        results.append(fn(key, files, shared, options))
+        if progress is not None:
+            progress(BatchProgress(i + 1, len(tasks), 1, 0, 0))
+    return BatchOutcome(results, "synchronous (this process)", 1, warm_s=warm_s)
+
+
+def _run_dask(client, desc, tasks, fn, options, shared, warm, progress) -> BatchOutcome:
+    from distributed import wait
+
+    from studies.batch.warm import WarmPlugin, warm_seconds
+
+    if warm is not None:
+        client.register_plugin(WarmPlugin(warm), name=WarmPlugin.name)
+    warm_s = {w: s.get(WarmPlugin.name, 0.0) for w, s in client.run(warm_seconds).items()}
+    run_id = uuid.uuid4().hex[:8]
+    shared_f = client.scatter([shared], broadcast=True, hash=False)[0]
+    inputs = dict(zip([k for k, _ in tasks], client.scatter([f for _, f in tasks], hash=False), strict=True))
+    payload = {k: f for k, f in tasks}
+    scattered = sum(len(b) for _, f in tasks for b in f.values()) + len(warm_s) * sum(len(b) for b in shared.values())
+    attempts = dict.fromkeys(payload, 0)
+
+    def submit(key: str) -> Any:
+        attempts[key] += 1
+        return client.submit(fn, key, inputs[key], shared_f, options, pure=False,
+                             key=f"shm-{key}-{run_id}-{attempts[key]}")
+
+    pending = {submit(k): k for k in sorted(payload)}
+    results: dict[str, TaskResult] = {}
+    processing: dict[str, Any] = client.processing()
+    lost = reruns = 0
+    n_workers = len(processing)
+    while pending:
+        with client.as_current():
+            try:
+                done, _ = wait(list(pending), timeout=POLL_S, return_when="FIRST_COMPLETED")
+            except TimeoutError:  # nothing finished within POLL_S: look at the workers
+                done = set()
+        now = client.processing()
+        gone = set(processing) - set(now)
+        lost += len(gone)
+        reruns += sum(len(processing[w]) for w in gone)  # the scheduler reruns what a lost worker was running
+        processing = now
+        n_workers = max(n_workers, len(now))
+        changed = bool(done or gone)
+        for fut in done:
+            key = pending.pop(fut)
+            try:
+                results[key] = fut.result()
+            except Exception as exc:  # a worker died or the task's data went with it: run it again
+                if attempts[key] >= MAX_ATTEMPTS:
+                    results[key] = TaskResult(key, 1, f"lost {attempts[key]} times with its worker: "
+                                                      f"{type(exc).__name__}: {exc}")
+                    continue
+                if inputs[key].status != "finished":
+                    inputs[key] = client.scatter(payload[key], hash=False)
+                    scattered += sum(len(b) for b in payload[key].values())
+                reruns += 1
+                pending[submit(key)] = key
+        if progress is not None and changed:
+            progress(BatchProgress(len(results), len(tasks), len(now), lost, reruns))
+    return BatchOutcome(list(results.values()), desc, n_workers, lost, reruns, warm_s=warm_s,
+                        bytes_scattered=scattered)
