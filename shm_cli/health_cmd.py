@@ -4,8 +4,8 @@
                [--locate-diagnose] [--workers N] [--json] --out DIR
 
 A SOURCE is a run directory of ``shm run`` (its ``records/`` and ``usage.db``), its ``usage.db``, or record files
-carrying ``operating_hours``. Also home of the life runner behind ``shm run --scenario aging`` (a scenario with a
-``[life]`` section). Exit 0 when the assessment was made, 2 for bad input, 1 when the job failed.
+carrying ``operating_hours`` (the life runner behind ``shm run --scenario aging`` is :mod:`shm_cli.life_cmd`).
+Exit 0 when the assessment was made, 2 for bad input, 1 when the job failed.
 """
 
 from __future__ import annotations
@@ -13,9 +13,8 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-from typing import Any
 
-from shm_cli.common import add_out_arg, dump_json, out_dir, seed_int
+from shm_cli.common import add_out_arg, out_dir, seed_int
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -109,68 +108,4 @@ def cmd_health(args: argparse.Namespace) -> int:
     else:
         print(text)
         print(f"results in {out}/ (health.json, report.html, figures)")
-    return 1 if failed else 0
-
-
-def run_life_command(args: argparse.Namespace, scenario: Any) -> int:
-    """``shm run`` on a scenario with ``[life]``: every visit in parallel, one usage.db, the visit records."""
-    from board_config.board import load_board_config
-    from shm_cli.main import CliError
-
-    if args.link != "sim":
-        raise CliError("a [life] scenario runs on the simulated rig only (--link sim): each visit is a fresh rig with "
-                       "that visit's degradation")
-    seed = args.seed if args.seed is not None else scenario.seed
-    if seed < 0:
-        raise CliError(f"--seed must be >= 0, got {seed}")
-    params = args.params or scenario.rig.params
-    cfg = load_board_config(args.board_config, overrides=scenario.board_overrides, overrides_source=scenario.source)
-    if getattr(args, "append", False):
-        raise CliError("--append does not apply to a [life] scenario (a life is one run in its own usage.db)")
-    out = out_dir(args.out)
-    from shm_cli.run_cmd import _prepare_out
-    from shm_cli.run_lock import OutputLock
-
-    lock = OutputLock(out, command=f"shm run --scenario {args.scenario} --out {args.out}")
-    lock.acquire()
-    try:
-        _prepare_out(args, out)
-        return _run_life_locked(args, scenario, seed, params, cfg, out)
-    finally:
-        lock.release()
-
-
-def _run_life_locked(args: argparse.Namespace, scenario: Any, seed: int, params: str, cfg: Any, out: Any) -> int:
-    from studies.health.life import run_life, visit_line, write_life_log
-
-    lines: list[str] = []
-    to = sys.stderr if args.json else sys.stdout
-    life = scenario.life
-
-    def say(s: str) -> None:
-        lines.append(s)
-        if not args.quiet:
-            print(s, file=to, flush=True)
-
-    say(f"shm run: life scenario '{scenario.name}' ({scenario.source}), seed {seed}, params {params}: "
-        f"{life.visits} visits every {life.visit_interval:g} h ({life.flights_between_visits} flights between "
-        + (f"visits, {life.tick_flights} of them ticked before each visit from the 2nd ({life.flight_scenario}'s "
-           "flight phases), the rest summarised)" if life.tick_flights else "visits, summarised)"))
-    result = run_life(scenario, seed=seed, params=params, board_config=args.board_config,
-                      on_visit=lambda v: say(visit_line(v)))
-    summary = write_life_log(result, scenario, out, seed=seed, params=params, board_config=cfg.as_dict())
-    first = summary["first_fault_visit"]
-    say(f"end: {len(result.visits)} visits in {result.wall_s:.1f} s wall ({result.workers} workers); first FAULT "
-        + (f"at visit {first} ({summary['first_fault_operating_hours']:g} h)" if first else "never"))
-    (out / "timeline.txt").write_text("\n".join(lines) + "\n")
-    (out / "summary.json").write_text(dump_json(summary))
-    from studies.health.life_report import write_life_report
-
-    failed = write_life_report(summary, out, str(args.out))
-    for artefact, why in failed.items():
-        print(f"shm run: could not write {artefact} ({why})", file=sys.stderr)
-    if args.json:
-        print(dump_json(summary))
-    elif not args.quiet:
-        print(f"results in {out}/ (usage.db, records/, life.json, timeline.txt, report.html, life.png)")
     return 1 if failed else 0

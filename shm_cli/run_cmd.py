@@ -292,7 +292,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise CliError(f"{opt} is empty: give a name or a path")
     scenario = load_scenario(args.scenario)
     if scenario.life is not None:  # many visits over an operating life (issue 17): studies.health.life
-        from shm_cli.health_cmd import run_life_command
+        from shm_cli.life_cmd import run_life_command
 
         return run_life_command(args, scenario)
     seed = args.seed if args.seed is not None else scenario.seed

@@ -18,7 +18,6 @@ import json
 import os
 import time
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -139,6 +138,8 @@ class LifeResult:
     visits: list[VisitRun]
     wall_s: float
     workers: int
+    interrupted: bool = False  # stopped on request (SIGTERM/SIGINT): ``visits`` are those finished by then
+    planned: int = 0  # visits the life has
 
     @property
     def first_fault_visit(self) -> int | None:
@@ -158,35 +159,51 @@ def plan_life(scenario: Scenario) -> list[tuple[int, float, dict[str, float]]]:
 
 
 def run_life(scenario: Scenario, *, seed: int, params: str, workers: int | None = None,
-             board_config: str | None = None, on_visit: Callable[[VisitRun], None] | None = None) -> LifeResult:
-    """Every visit of the scenario's life (process pool of ``workers``, default min(CPU count, 2... visits))."""
+             board_config: str | None = None, on_visit: Callable[[VisitRun], None] | None = None,
+             should_stop: Callable[[], bool] = lambda: False) -> LifeResult:
+    """Every visit of the scenario's life (default min(CPU count, visits) worker processes,
+    :class:`studies.board_run.life_pool.LifePool`; ``workers=1``: in this process). ``on_visit`` sees the visits
+    in visit order. When ``should_stop()`` turns true, no new visit starts, the workers are stopped and the result
+    holds the visits finished by then (``interrupted``)."""
+    from studies.board_run.life_pool import LifePool
+
     plan = plan_life(scenario)
     n_workers = workers if workers is not None else min(len(plan), os.cpu_count() or 1)
     t0 = time.perf_counter()
     args = [(scenario.source, v, h, d, visit_seed(seed, v), params, board_config) for v, h, d in plan]
-    results: list[VisitRun] = []
-    if n_workers <= 1:
-        for a in args:
-            r = run_visit(*a)
-            results.append(r)
+    done: dict[int, VisitRun] = {}
+    shown = [0]
+
+    def finished(i: int, r: VisitRun) -> None:
+        done[i] = r
+        while shown[0] in done:  # in visit order: deterministic output whatever finishes first
             if on_visit:
-                on_visit(r)
+                on_visit(done[shown[0]])
+            shown[0] += 1
+
+    stopped = False
+    if n_workers <= 1:
+        for i, a in enumerate(args):
+            if should_stop():
+                stopped = True
+                break
+            finished(i, run_visit(*a))
     else:
-        with ProcessPoolExecutor(max_workers=n_workers) as pool:
-            futs = [pool.submit(run_visit, *a) for a in args]
-            for f in futs:  # in visit order: deterministic output whatever finishes first
-                r = f.result()
-                results.append(r)
-                if on_visit:
-                    on_visit(r)
-    return LifeResult(results, time.perf_counter() - t0, n_workers)
+        with LifePool(run_visit, min(n_workers, len(args))) as pool:
+            stopped = pool.run(args, finished, should_stop)
+    for i in sorted(done):  # finished after a gap (a stop): shown too
+        if i >= shown[0] and on_visit:
+            on_visit(done[i])
+    return LifeResult([done[i] for i in sorted(done)], time.perf_counter() - t0, n_workers, stopped, len(plan))
 
 
 def write_life_log(result: LifeResult, scenario: Scenario, out: Path, *, seed: int, params: str,
-                   link_url: str = "sim", board_config: dict | None = None) -> dict[str, Any]:
-    """usage.db (one run), the visit records and their links, life.json. Returns the life summary."""
+                   link_url: str = "sim", board_config: dict | None = None, status: str = "finished",
+                   final_dir: Path | None = None) -> dict[str, Any]:
+    """usage.db (one run, its ``status``), the visit records and their links, life.json. Returns the life summary.
+    ``final_dir``: where the files will live once moved there (``out`` is then a staging folder)."""
     from firmware_sim.usage_log import UsageLog
-    from studies.health.visit_records import VisitRecordWriter
+    from studies.health.visit_records import VisitRecordWriter, run_identity
 
     db_path = out / "usage.db"
     for suffix in ("", "-wal", "-shm"):
@@ -194,12 +211,16 @@ def write_life_log(result: LifeResult, scenario: Scenario, out: Path, *, seed: i
     life = scenario.life
     assert life is not None
     rate = 100.0
-    with UsageLog(db_path) as log:
+    identity = run_identity(board_config or {})
+    log = UsageLog(db_path)
+    ok = False
+    try:
         run_id = log.start_run(scenario=scenario.name, seed=seed, link_url=link_url, params=params,
                                board_config=board_config or {},
-                               rig={"life": True, "visits": life.visits, "visit_interval_h": life.visit_interval})
+                               rig={"life": True, "visits": life.visits, "visit_interval_h": life.visit_interval,
+                                    **identity})
         writer = VisitRecordWriter(out, db_path, params=params, z3_noise_m=scenario.rig.z3_noise,
-                                   scenario=scenario.name, run_id=run_id)
+                                   scenario=scenario.name, run_id=run_id, identity=identity)
         try:
             for v in result.visits:
                 offset = v.operating_hours * SECONDS_PER_HOUR
@@ -216,10 +237,14 @@ def write_life_log(result: LifeResult, scenario: Scenario, out: Path, *, seed: i
                      v.verdict, json.dumps(v.deviations), v.seed))
         finally:
             writer.close()
+        ok = True
+    finally:
+        log.close(status if ok else "failed")
     first = result.first_fault_visit
     summary = {
         "scenario": scenario.name, "scenario_file": scenario.source, "seed": seed, "params": params,
-        "run_id": run_id, "database": str(db_path), "life": True, "workers": result.workers, "status": "finished",
+        "run_id": run_id, "database": str((final_dir or out) / "usage.db"), "life": True, "workers": result.workers,
+        "status": status, "visits_planned": result.planned or len(result.visits), **identity,
         "ticks": round(len(result.visits) * scenario.duration * rate),  # board ticks over all visits
         "wall_s": result.wall_s, "visits": [
             {"visit": v.visit, "operating_hours": v.operating_hours, "verdict": v.verdict, "seed": v.seed,

@@ -22,7 +22,11 @@ never writes more, however long HV stays connected).
 
 from __future__ import annotations
 
+import hashlib
+import json
 import sqlite3
+import uuid
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -47,8 +51,17 @@ def record_file_name(visit: int, mbit: str) -> str:
     return f"visit-{visit:03d}_mbit-{mbit}.csv"
 
 
+def run_identity(board_config: Mapping[str, Any]) -> dict[str, str]:
+    """What makes a run's records belong together (``shm health`` checks it): ``run_uid``, a random id drawn once
+    per run, and ``board_id``, the board's identity — the first 12 hex digits of the SHA-256 of its configuration
+    (a simulated board has no serial number; two boards configured differently never share it)."""
+    text = json.dumps(dict(board_config), sort_keys=True, default=str)
+    return {"run_uid": uuid.uuid4().hex, "board_id": "cfg-" + hashlib.sha256(text.encode()).hexdigest()[:12]}
+
+
 def mbit_record(event: BoardEvent, *, visit: int, operating_hours: float | None, params: str,
-                z3_noise_m: float, scenario: str = "", run_id: int | None = None, time_offset_s: float = 0.0):
+                z3_noise_m: float, scenario: str = "", run_id: int | None = None, time_offset_s: float = 0.0,
+                identity: Mapping[str, str] | None = None):
     """The :class:`workbench.records.Record` of an ``mbit_record`` event (time from 0 at the settle's start)."""
     d = event.data
     rows = np.asarray(d["rows"], dtype=float).reshape(-1, 4)
@@ -63,6 +76,7 @@ def mbit_record(event: BoardEvent, *, visit: int, operating_hours: float | None,
     }
     if run_id is not None:
         meta["provenance"]["run_id"] = int(run_id)
+    meta["provenance"].update(identity or {})
     if operating_hours is not None:
         meta["operating_hours"] = float(operating_hours)
     n_mbit = int(d.get("mbit_ticks", len(rows) - 1))
@@ -92,7 +106,7 @@ class VisitRecordWriter:
     """
 
     def __init__(self, out_dir: str | Path, db_path: str | Path, *, params: str, z3_noise_m: float = 2e-6,
-                 scenario: str = "", run_id: int | None = None) -> None:
+                 scenario: str = "", run_id: int | None = None, identity: Mapping[str, str] | None = None) -> None:
         self.dir = Path(out_dir) / "records"
         self.dir.mkdir(parents=True, exist_ok=True)
         self.db = sqlite3.connect(str(db_path), isolation_level=None)
@@ -101,6 +115,7 @@ class VisitRecordWriter:
         self.z3_noise = float(z3_noise_m)
         self.scenario = scenario
         self.run_id = run_id
+        self.identity = dict(identity or {})
         self.visit = 0
         self.operating_hours: float | None = None
         self.time_offset_s = 0.0
@@ -122,7 +137,7 @@ class VisitRecordWriter:
                 self.visit = 1
             rec = mbit_record(ev, visit=self.visit, operating_hours=self.operating_hours, params=self.params,
                               z3_noise_m=self.z3_noise, scenario=self.scenario, run_id=self.run_id,
-                              time_offset_s=self.time_offset_s)
+                              time_offset_s=self.time_offset_s, identity=self.identity)
             path = self.dir / record_file_name(self.visit, ev.data["mbit"])
             write_record(rec, path)
             self.written.append(path)
