@@ -16,18 +16,29 @@ scheme                 example                                     implementatio
 
 from __future__ import annotations
 
+from board_config.url_options import split_url_query
 from drivers.link import Link, LinkFactory, register_link_scheme
+from drivers.link_url import check_serial_target, network_endpoint
+
+#: pyserial URL handlers this project registers itself (``hil_stub.protocol_ptymaster``)
+_OWN_SERIAL_PROTOCOLS = frozenset({"ptymaster"})
 
 
 def _serial_link(url: str, **_defaults: object) -> Link:
-    from drivers.serial_link import SerialLink
+    from drivers.serial_link import SerialLink, split_link_options
 
+    # a malformed //HOST:PORT, an unknown protocol or option is refused here, not when pyserial opens the port
+    target = url.removeprefix("serial:")
+    _, theirs = split_url_query(split_link_options(target)[0])
+    check_serial_target(url, target, [key for key, _ in theirs], _OWN_SERIAL_PROTOCOLS)
     return SerialLink(url)
 
 
 def _modbus_link(url: str, **_defaults: object) -> Link:
     from drivers.modbus_link import ModbusLink
 
+    if url.startswith("modbus-tcp://"):
+        network_endpoint(url, "modbus-tcp://", 502)  # urllib's bare ValueError ('Invalid IPv6 URL') never reached
     return ModbusLink(url)
 
 

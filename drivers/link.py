@@ -117,6 +117,8 @@ def open_link(url: str, **defaults: object) -> Link:
     """
     given = {key: value for key, value in defaults.items() if value is not None}
     for scheme in sorted(_SCHEMES, key=len, reverse=True):
-        if url.startswith(scheme):
+        # a bare name ('sim') is a scheme only as a whole word: 'sim', 'sim:...', 'sim?...' (not 'simfoo')
+        if url.startswith(scheme) and (scheme.endswith(":") or scheme.endswith("/")
+                                       or url[len(scheme):len(scheme) + 1] in ("", ":", "?")):
             return _SCHEMES[scheme](url, **given)
     raise InputError(f"unknown link URL '{url}' (known schemes: {', '.join(registered_schemes()) or 'none'})")

@@ -34,11 +34,43 @@ from shm_cli.common import (
 )
 
 
+def _listen_endpoint(text: str, scheme: str, hostport: str) -> str:
+    """``text`` (its ``hostport``: ``HOST:PORT``, port 0 = any free one) checked as a place the stub can listen on;
+    argparse error naming ``text``, the part that is wrong and what is allowed."""
+    from drivers.link_url import LinkUrlError, network_endpoint
+
+    try:
+        host, _ = network_endpoint(text, scheme, None, 0, part=scheme + hostport)
+    except LinkUrlError as exc:
+        raise argparse.ArgumentTypeError(f"'{text}': {exc.reason}") from None
+    if ":" in host:
+        raise argparse.ArgumentTypeError(f"'{text}': the stub listens on an IPv4 address or a host name "
+                                         "(e.g. 127.0.0.1:5020, 0.0.0.0:502); IPv6 is not served")
+    return text
+
+
 def tcp_endpoint_arg(text: str) -> str:
-    """argparse ``type=`` of ``HOST:PORT``: a port outside 0 .. 65535 is refused at parse time."""
-    _, _, port = text.rpartition(":")
-    if port.isdigit() and int(port) > 65535:
-        raise argparse.ArgumentTypeError(f"'{text}': port {port} is out of range 0 .. 65535")
+    """argparse ``type=`` of ``--modbus-tcp HOST:PORT``: a malformed host or a port outside 0 .. 65535 is refused at
+    parse time, before the rig is built."""
+    return _listen_endpoint(text, "modbus-tcp://", text)
+
+
+def serial_endpoint_arg(text: str) -> str:
+    """argparse ``type=`` of ``--serial``: ``pty``, ``pty:PATH``, ``socket://HOST:PORT`` (to listen on) or a
+    device path; another URL protocol is refused at parse time."""
+    if text.startswith("socket://"):
+        _listen_endpoint(text, "socket://", text.removeprefix("socket://").split("?", 1)[0])
+    elif "://" in text:
+        raise argparse.ArgumentTypeError(f"'{text}': allowed pty, pty:PATH, socket://HOST:PORT (to listen on) or a "
+                                         "serial device path")
+    return text
+
+
+def rtu_endpoint_arg(text: str) -> str:
+    """argparse ``type=`` of ``--modbus-rtu``: ``pty`` or an existing serial device path."""
+    if text != "pty" and not Path(text).exists():
+        raise argparse.ArgumentTypeError(f"'{text}': no such serial device (allowed: pty, or the path of a serial "
+                                         "device or one end of a socat pair)")
     return text
 
 
@@ -59,10 +91,12 @@ def register(sub: argparse._SubParsersAction) -> None:
                "  --modbus-tcp H:P          Modbus TCP server (port 0: any free port)\n"
                "  --modbus-rtu pty|PATH     Modbus RTU slave on a built-in pty or a serial device\n")
     g = s.add_argument_group("endpoints")
-    g.add_argument("--serial", action="append", default=[], metavar="pty|URL", help="framed serial protocol endpoint")
+    g.add_argument("--serial", action="append", default=[], metavar="pty|URL", type=serial_endpoint_arg,
+                   help="framed serial protocol endpoint")
     g.add_argument("--modbus-tcp", action="append", default=[], metavar="HOST:PORT", type=tcp_endpoint_arg,
                    help="Modbus TCP endpoint")
-    g.add_argument("--modbus-rtu", action="append", default=[], metavar="pty|PATH", help="Modbus RTU endpoint")
+    g.add_argument("--modbus-rtu", action="append", default=[], metavar="pty|PATH", type=rtu_endpoint_arg,
+                   help="Modbus RTU endpoint")
     g.add_argument("--unit", type=int_in_range(1, 247), default=1, help="Modbus unit id (default 1)")
     g.add_argument("--baud", type=positive_int, default=115200,
                    help="serial line speed, RTU and device paths (default 115200)")
