@@ -64,6 +64,8 @@ from typing import Any, ClassVar
 
 from board_config.errors import InputError
 from board_config.parameter import Parameter as OneParameter
+from plant.effect_declarations import parameter_problem
+from plant.effect_file_guard import guarded_import
 
 
 class EffectError(InputError):
@@ -258,7 +260,8 @@ class PhysicalEffect:
     @classmethod
     def validate_class(cls) -> None:
         """Raise :class:`EffectError` when the class is ill-formed (checked at registration and load)."""
-        label = f"effect {cls.__module__}.{cls.__qualname__}"
+        source = effect_source_file(cls)
+        label = f"effect '{cls.name}' in {source}" if source else f"effect {cls.__module__}.{cls.__qualname__}"
         if not isinstance(cls.name, str) or not cls.name.isidentifier():
             raise EffectError(f"{label}: 'name' must be a Python identifier, got {cls.name!r}")
         if cls.role not in ("core", "terminal", "effect"):
@@ -284,6 +287,8 @@ class PhysicalEffect:
                 raise EffectError(f"{label}: parameter '{par.name}' declared twice")
             seen.add(par.name)
             if par.core_index is None:
+                if (why := parameter_problem(par)) is not None:
+                    raise EffectError(f"{label}: parameter '{par.name}': {why}")
                 par.check(par.default, label)
         for st in cls.states:
             if not isinstance(st, StateSpec) or not st.scale > 0:
@@ -380,11 +385,10 @@ def is_file_spec(spec: str) -> bool:
 
 
 def load_effect_file(path: str | os.PathLike) -> Any:
-    """Import the Python file ``path`` as a module (once per path and content; errors as :class:`EffectError`).
-
-    The module name is ``_mfc_shm_effect_file_<stem>_<hash of the absolute path>`` and it is kept in
-    ``sys.modules``, so effects defined there are importable by module path (the kernel generator imports them
-    that way); a file whose content changed since it was loaded is imported afresh."""
+    """Import the Python file ``path`` as a module (once per path and content; errors, an exit or a print at import
+    as :class:`EffectError`: :mod:`plant.effect_file_guard`). The module, ``_mfc_shm_effect_file_<stem>_<hash of
+    the absolute path>``, is kept in ``sys.modules``, so effects defined there are importable by module path (the
+    kernel generator imports them that way); a file whose content changed since it was loaded is imported afresh."""
     p = os.path.abspath(os.fspath(path))
     if not os.path.isfile(p):
         raise EffectError(f"effect file '{path}' does not exist (or is not a file)")
@@ -403,14 +407,14 @@ def load_effect_file(path: str | os.PathLike) -> Any:
     if spec is None or spec.loader is None:
         raise EffectError(f"effect file '{path}' cannot be imported as a Python module")
     module = importlib.util.module_from_spec(spec)
-    setattr(module, SOURCE_FILE_ATTR, p)
-    setattr(module, DIGEST_ATTR, digest)
+    vars(module).update({SOURCE_FILE_ATTR: p, DIGEST_ATTR: digest})
     sys.modules[name] = module
-    try:
-        spec.loader.exec_module(module)
-    except Exception as exc:
+    loader = spec.loader
+    try:  # sys.exit(), a BaseException or a print at import: one EffectError naming the file (issue 33)
+        guarded_import(lambda: loader.exec_module(module), str(path), EffectError)
+    except BaseException:
         sys.modules.pop(name, None)
-        raise EffectError(f"cannot import effect file '{path}': {type(exc).__name__}: {exc}") from exc
+        raise
     return module
 
 
