@@ -11,6 +11,7 @@ was lost with the worker) up to :data:`MAX_ATTEMPTS` times; the progress line co
 
 from __future__ import annotations
 
+import asyncio
 import os
 import time
 import uuid
@@ -151,8 +152,6 @@ def _run_here(tasks, fn, options, shared, warm, progress) -> BatchOutcome:
 
 
 def _run_dask(client, desc, tasks, fn, options, shared, warm, progress) -> BatchOutcome:
-    from distributed import wait
-
     from studies.batch.warm import WarmPlugin, warm_seconds
 
     if warm is not None:
@@ -173,18 +172,23 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress) -> Batch
     pending = {submit(k): k for k in sorted(payload)}
     results: dict[str, TaskResult] = {}
     processing: dict[str, Any] = client.processing()
-    lost = reruns = 0
+    lost = 0
+    rerun: set[str] = set()
     n_workers = len(processing)
+    next_look = time.monotonic() + POLL_S
     while pending:
-        with client.as_current():
-            try:
-                done, _ = wait(list(pending), timeout=POLL_S, return_when="FIRST_COMPLETED")
-            except TimeoutError:  # nothing finished within POLL_S: look at the workers
-                done = set()
+        # polled, not distributed.wait: a future cancelled with its worker's data must come back here, not raise
+        done = [f for f in pending if f.done()]
+        if not done and time.monotonic() < next_look:
+            time.sleep(0.05)
+            continue
+        next_look = time.monotonic() + POLL_S
         now = client.processing()
         gone = set(processing) - set(now)
         lost += len(gone)
-        reruns += sum(len(processing[w]) for w in gone)  # the scheduler reruns what a lost worker was running
+        by_dask_key = {f.key: k for f, k in pending.items()}
+        # the scheduler reruns what a lost worker was running (or it comes back cancelled and is resubmitted below)
+        rerun.update(by_dask_key[t] for w in gone for t in processing[w] if t in by_dask_key)
         processing = now
         n_workers = max(n_workers, len(now))
         changed = bool(done or gone)
@@ -192,7 +196,7 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress) -> Batch
             key = pending.pop(fut)
             try:
                 results[key] = fut.result()
-            except Exception as exc:  # a worker died or the task's data went with it: run it again
+            except (Exception, asyncio.CancelledError) as exc:  # a worker died or took the task's data: again
                 if attempts[key] >= MAX_ATTEMPTS:
                     results[key] = TaskResult(key, 1, f"lost {attempts[key]} times with its worker: "
                                                       f"{type(exc).__name__}: {exc}")
@@ -200,9 +204,9 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress) -> Batch
                 if inputs[key].status != "finished":
                     inputs[key] = client.scatter(payload[key], hash=False)
                     scattered += sum(len(b) for b in payload[key].values())
-                reruns += 1
+                rerun.add(key)
                 pending[submit(key)] = key
         if progress is not None and changed:
-            progress(BatchProgress(len(results), len(tasks), len(now), lost, reruns))
-    return BatchOutcome(list(results.values()), desc, n_workers, lost, reruns, warm_s=warm_s,
+            progress(BatchProgress(len(results), len(tasks), len(now), lost, len(rerun)))
+    return BatchOutcome(list(results.values()), desc, n_workers, lost, len(rerun), warm_s=warm_s,
                         bytes_scattered=scattered)
