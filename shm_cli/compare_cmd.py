@@ -8,7 +8,8 @@ from pathlib import Path
 
 from board_config.errors import InputError
 from shm_cli.batch_records import add_scheduler_arg, run_batch, wanted
-from shm_cli.common import add_out_arg, add_params_arg, dump_json, positive_float
+from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir, positive_float
+from shm_cli.output_guard import add_force_arg, check_foreign_run, locked_out
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -48,6 +49,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     fq.add_argument("--no-frf", action="store_false", dest="frf", help="no frequency-domain panel, even for a sweep")
     p.add_argument("--json", action="store_true", help="also print the report's numbers as JSON on stdout")
     add_out_arg(p)
+    add_force_arg(p, "another command's finished run in --out (its report is rewritten)")
     p.set_defaults(func=cmd_compare)
 
 
@@ -71,13 +73,10 @@ def _eq4(items: list[str]) -> dict[str, tuple[float, float]]:
 def cmd_compare(args: argparse.Namespace) -> int:
     if wanted(args, args.records):  # a folder or 'glob': one task per record (docs/scale-out.md)
         return run_batch("compare", args, args.records)
-    from tqdm import tqdm
-
+    from plant.effect_probe import probe_effects
     from shm_cli.synth_cmd import _assignments
-    from workbench.compare import CompareOptions, compare
+    from workbench.compare import CompareOptions
     from workbench.records import gap_notes, load_record
-    from workbench.replay import SimulationFailed
-    from workbench.report import report_json, write_report
 
     if args.lags < 1 or args.decimate < 1:
         raise InputError("--lags and --decimate must be at least 1")
@@ -90,9 +89,22 @@ def cmd_compare(args: argparse.Namespace) -> int:
                              predict=not args.no_predict, horizon_s=args.horizon_s, interval_s=args.interval_s,
                              eq4_given=_eq4(args.eq4) or None, frf=args.frf)
     values = _assignments("--set", args.set_values)
+    check_foreign_run(Path(args.out), "compare.json", args.force)
     records = [load_record(Path(r)) for r in args.records]  # validate every file before any work
     for note in gap_notes(records):  # lost samples are left out, said once (docs/records.md)
         print(f"shm compare: {note}", file=sys.stderr)
+    probe_effects(args.add, args.params, "--add")
+    with locked_out(out_dir(args.out), "compare"):
+        return _compare(args, records, values, options)
+
+
+def _compare(args: argparse.Namespace, records: list, values: dict[str, float], options) -> int:
+    from tqdm import tqdm
+
+    from workbench.compare import compare
+    from workbench.replay import SimulationFailed
+    from workbench.report import report_json, write_report
+
     comparisons = []
     failures = []
     for rec in tqdm(records, desc="compare", unit="record", file=sys.stderr, disable=len(records) < 2):

@@ -8,6 +8,7 @@ import sys
 
 from shm_cli.batch_records import add_scheduler_arg, run_batch, wanted
 from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, even_int, out_dir, seed_int
+from shm_cli.output_guard import locked_out
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -61,6 +62,14 @@ def register(sub: argparse._SubParsersAction) -> None:
 def cmd_diagnose(args: argparse.Namespace) -> int:
     if wanted(args, args.records):  # a folder or 'glob': one task per record (docs/scale-out.md)
         return run_batch("diagnose", args, args.records)
+    from workbench.records import check_distinct_records
+
+    check_distinct_records(args.records)  # one record twice: training and held-out data would be the same
+    with locked_out(out_dir(args.out), "diagnose"):
+        return _diagnose(args)
+
+
+def _diagnose(args: argparse.Namespace) -> int:
     from shm_cli.main import CliError
     from shm_cli.progress import StageReporter
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 from shm_cli.batch_records import add_scheduler_arg, run_batch, wanted
 from shm_cli.common import add_params_arg, dump_json, even_int, out_dir
+from shm_cli.output_guard import add_force_arg, check_new_file, locked_out, write_whole
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -30,6 +31,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--emit", default=None, metavar="FILE.py",
                    help="write what was found as an effect module here (nothing is written when nothing is found)")
     p.add_argument("--out", required=True, metavar="DIR", help="directory for discover.json")
+    add_force_arg(p, "the --emit file")
     p.add_argument("--max-terms", type=int, default=2, help="most terms to keep (forward selection; default 2)")
     p.add_argument("--refit", type=int, default=4, help="screened terms refitted per round (default 4)")
     p.add_argument("--holdout", choices=("blocks", "records"), default="blocks",
@@ -45,11 +47,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 def cmd_discover(args: argparse.Namespace) -> int:
     if wanted(args, args.records):  # a folder or 'glob': one task per record (docs/scale-out.md)
         return run_batch("discover", args, args.records)
-    from board_config import load_parameter_set
     from shm_cli.main import CliError
-    from workbench.discover import describe_units, discover
-    from workbench.fit import FitError
-    from workbench.records import gap_notes, load_record
 
     if args.emit is not None and Path(args.emit).suffix != ".py":
         raise CliError(f"--emit must name a .py file, got '{args.emit}'")
@@ -61,11 +59,43 @@ def cmd_discover(args: argparse.Namespace) -> int:
         raise CliError(f"--refit must be 1 … 20, got {args.refit}")
     if not args.max_rate_hz > 0:
         raise CliError(f"--max-rate-hz must be > 0, got {args.max_rate_hz}")
+    if args.emit is not None:
+        _check_emit(Path(args.emit), args.add, args.force)
     out = out_dir(args.out)
+    with locked_out(out, "discover"):
+        return _discover(args, out)
+
+
+def _check_emit(emit: Path, add: list[str], force: bool) -> None:
+    """--emit names a new file: never one of the --add effect files being refined (even with --force: the effect
+    would be lost), never an existing file without --force, never the shipped configuration."""
+    from plant.effect import is_file_spec, split_instance_spec
+    from shm_cli.main import CliError
+
+    for spec in add:
+        inner = split_instance_spec(spec)[0]
+        path = Path(inner if inner.endswith(".py") or ":" not in inner else inner.rpartition(":")[0])
+        if is_file_spec(inner) and path.exists() and emit.exists() and path.resolve() == emit.resolve():
+            raise CliError(f"--emit {emit} is the effect file given to --add {spec}: writing there would replace the "
+                           f"effect being refined (--force does not apply); emit to another file (e.g. --emit "
+                           f"{emit.with_name(emit.stem + '_more.py')}) and refit with --add {spec} --add <that file>")
+    check_new_file(emit, "--emit", force)
+
+
+def _discover(args: argparse.Namespace, out: Path) -> int:
+    from board_config import load_parameter_set
+    from plant.effect_probe import probe_effects
+    from shm_cli.main import CliError
+    from workbench.discover import describe_units, discover
+    from workbench.fit import FitError
+    from workbench.records import check_distinct_records, gap_notes, load_record
+
+    check_distinct_records(args.records)
     records = [load_record(p) for p in args.records]
     for note in gap_notes(records):  # lost samples are left out, said once (docs/records.md)
         print(f"shm discover: {note}", file=sys.stderr)
     base = load_parameter_set(args.params)
+    probe_effects(args.add, base, "--add")
     say = functools.partial(print, file=sys.stderr) if args.json else print
     progress = functools.partial(print, file=sys.stderr, flush=True)
     progress(f"discover: {len(records)} record(s), parameter set {base.name}"
@@ -85,9 +115,7 @@ def cmd_discover(args: argparse.Namespace) -> int:
         emit.parent.mkdir(parents=True, exist_ok=True)
         src = d.effect_source(effect_name=f"discovered_{emit.stem}")
         assert src is not None
-        tmp = emit.with_suffix(".py.tmp")
-        tmp.write_text(src, encoding="utf-8")
-        tmp.replace(emit)
+        write_whole(emit, lambda tmp: tmp.write_text(src, encoding="utf-8"), "--emit", args.force)
         # it must load through the documented seam, as `shm fit --add FILE.py` will load it
         from plant.effect import EffectError, resolve_effect
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 from shm_cli.batch_records import add_scheduler_arg, run_batch, wanted
 from shm_cli.common import Decorations, add_params_arg, dump_json, even_int, out_dir, output_file_arg, seed_int
+from shm_cli.output_guard import add_force_arg, check_new_file, locked_out, write_whole
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -46,12 +47,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="directory for fit.json, fit_progress.png, fit_overlay.png, fit.html (default: beside --save, "
                         "else the current directory)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
+    add_force_arg(p, "the --save file")
     p.set_defaults(func=cmd_fit)
 
 
 def _load_records(paths: list[str]):
-    from workbench.records import gap_notes, load_record
+    from workbench.records import check_distinct_records, gap_notes, load_record
 
+    check_distinct_records(paths)
     records = [load_record(p) for p in paths]
     for note in gap_notes(records):  # lost samples are left out, said once (docs/records.md)
         print(f"shm fit: {note}", file=sys.stderr)
@@ -61,11 +64,7 @@ def _load_records(paths: list[str]):
 def cmd_fit(args: argparse.Namespace) -> int:
     if wanted(args, args.records):  # a folder or 'glob': one task per record (docs/scale-out.md)
         return run_batch("fit", args, args.records)
-    from board_config import load_parameter_set
     from shm_cli.main import CliError
-    from workbench.diagnose_report import ProgressPlot, overlay_figure, write_html
-    from workbench.fit import FitError, fit_records
-    from workbench.fit_report import fit_warnings, other_notes, report_dict
 
     save = Path(args.save) if args.save is not None else None
     if save is not None and save.suffix.lower() != ".toml":
@@ -74,10 +73,25 @@ def cmd_fit(args: argparse.Namespace) -> int:
         raise CliError("nothing to fit: give --add EFFECT and/or --free PARAM")
     if args.max_rate_hz <= 0 or args.max_nfev < 1:
         raise CliError("--max-rate-hz must be > 0 and --max-nfev >= 1")
+    if save is not None:  # checked before the fit: never over the shipped sets, never over a file without --force
+        check_new_file(save, "--save", args.force)
     out = _output_dir(args.out, save)
-    (out / "fit.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
+    with locked_out(out, "fit", option="--out" if args.out else "--out (default)"):
+        return _fit(args, out, save)
+
+
+def _fit(args: argparse.Namespace, out: Path, save: Path | None) -> int:
+    from board_config import load_parameter_set
+    from plant.effect_probe import probe_effects
+    from shm_cli.main import CliError
+    from workbench.diagnose_report import ProgressPlot, overlay_figure, write_html
+    from workbench.fit import FitError, fit_records
+    from workbench.fit_report import fit_warnings, other_notes, report_dict
+
     records = _load_records(args.records)
     base = load_parameter_set(args.params)
+    probe_effects(args.add, base, "--add")
+    (out / "fit.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
     progress: list[ProgressPlot] = []
     deco = Decorations("fit", args)
 
@@ -105,7 +119,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     o = rep.outcome
     # --json: stdout carries the JSON document only; the tables and notes go to stderr
     say = functools.partial(print, file=sys.stderr) if args.json else print
-    pset = _save_set(rep, save) if save is not None else None
+    pset = _save_set(rep, save, args.force) if save is not None else None
     header, rows = _before_after(rep)
     notes = other_notes(rep.notes, o.estimates)  # what [[Warnings]] does not already say
     _print_results(say, rep, header, rows, notes)
@@ -142,7 +156,7 @@ def cmd_fit(args: argparse.Namespace) -> int:
     return 0 if deco.ok else 1
 
 
-def _save_set(rep, save: Path):
+def _save_set(rep, save: Path, force: bool):
     """Write the fitted parameter set to ``save`` (atomically) and check that it loads as `shm run` will load it."""
     from board_config import load_parameter_set
     from plant import PlantModel
@@ -155,9 +169,8 @@ def _save_set(rep, save: Path):
         raise CliError(str(exc)) from None
     # the results first (the saved set, fit.json), then the figures and the report: a plotting failure never
     # loses them
-    tmp = save.with_suffix(".toml.tmp")
-    tmp.write_text(pset.to_toml(), encoding="utf-8")
-    tmp.replace(save)
+    text = pset.to_toml()
+    write_whole(save, lambda tmp: tmp.write_text(text, encoding="utf-8"), "--save", force)
     PlantModel(load_parameter_set(save))
     return pset
 

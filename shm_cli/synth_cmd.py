@@ -18,6 +18,7 @@ from shm_cli.common import (
     positive_float,
     seed_int,
 )
+from shm_cli.output_guard import add_force_arg, check_new_file, write_whole
 
 #: test frequencies synth accepts (Hz): up to Table 1's operational limit of the MFC (10 kHz)
 FREQUENCY_HZ = number_in_range(1e-3, 1e4, unit="Hz (Table 1: the MFC operates from DC to 10 kHz)")
@@ -69,6 +70,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="leave the truth (effects, parameter values) out of the record's provenance")
     p.add_argument("--json", action="store_true", help="print a summary of the written record as JSON")
     p.add_argument("--out", required=True, metavar="FILE", type=output_file_arg, help="output file (.csv or .tdms)")
+    add_force_arg(p, "the --out file")
     p.set_defaults(func=cmd_synth)
 
 
@@ -103,6 +105,7 @@ def _check_drive_limits(args: argparse.Namespace, spec, base: bool) -> None:
 def cmd_synth(args: argparse.Namespace) -> int:
     from board_config import CORE_PARAMETER_NAMES, CORE_PARAMETERS, ParameterVector, load_parameter_set
     from plant import G0
+    from plant.effect_probe import probe_effects
     from workbench.records import write_record
     from workbench.synth import synth_frf, synth_record, synth_test, truth_model, write_frf_record
 
@@ -111,6 +114,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
         raise InputError(f"--out {out}: expected a .csv or .tdms file name")
     if args.test == "frf" and out.suffix.lower() != ".csv":
         raise InputError("--test frf writes a frequency-response table: use a .csv file name")
+    check_new_file(out, "--out", args.force)  # before the simulation; the write itself checks again
     pset = load_parameter_set(args.params)
     values = _assignments("--set", args.set_values)
     deviations = _assignments("--deviation", args.deviation)
@@ -131,6 +135,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
     channels = (args.channels.split(",") if args.channels else (["v_stored", "z3"] if base else ["z3"]))
     channels = [c.strip() for c in channels if c.strip()]
     _check_set_names(values, args.effect, CORE_PARAMETER_NAMES)
+    probe_effects(args.effect, pset, "--effect")
     model = truth_model(pset, effects=args.effect, values=values, terminal="open_circuit" if base else "amplifier")
     _warn_neutral(model)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -148,7 +153,8 @@ def cmd_synth(args: argparse.Namespace) -> int:
                         effects=args.effect, values=values, blind=args.blind)
         if args.operating_hours is not None:
             rec = _stamp_hours(rec, args.operating_hours)
-        path = write_frf_record(rec, out)
+        write_whole(out, lambda tmp: write_frf_record(rec, tmp), "--out", args.force)
+        path = out
         summary = {"file": str(path), "test": "frf", "frequencies": int(rec.frequency_Hz.size),
                    "channels": list(rec.responses), "drive": rec.drive}
     else:
@@ -162,7 +168,8 @@ def cmd_synth(args: argparse.Namespace) -> int:
                             blind=args.blind)
         if args.operating_hours is not None:
             trec = _stamp_hours(trec, args.operating_hours)
-        path = write_record(trec, out)
+        write_whole(out, lambda tmp: write_record(trec, tmp), "--out", args.force)
+        path = out
         summary = {"file": str(path), "test": trec.test, "samples": trec.n_samples, "duration_s": trec.duration_s,
                    "sample_rate_Hz": trec.sample_rate_Hz, "inputs": list(trec.inputs), "outputs": list(trec.outputs)}
     if args.operating_hours is not None:

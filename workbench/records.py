@@ -27,7 +27,8 @@ validated record), :mod:`workbench.record_csv`, :mod:`workbench.record_tdms` and
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+import hashlib
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -67,6 +68,29 @@ def load_record(path: str | Path) -> Record | FrfRecord:
     if p.suffix.lower() in (".csv", ".txt"):
         return load_csv_record(p)
     raise RecordError(p, f"unknown record type '{p.suffix}' (expected .csv or .tdms)")
+
+
+def check_distinct_records(paths: Sequence[str | Path]) -> None:
+    """Refuse one record given twice — the same file (resolved path) or a copy (same bytes): with held-out records
+    one copy would be training and the other held-out data (a held-out score that proves nothing), and with
+    held-out blocks the record would count twice. :class:`RecordError` names both."""
+    seen_path: dict[Path, str] = {}
+    seen_hash: dict[str, str] = {}
+    for raw in paths:
+        p = Path(raw)
+        try:
+            resolved = p.resolve()
+            digest = hashlib.sha256(p.read_bytes()).hexdigest() if p.is_file() else ""
+        except OSError:
+            continue  # unreadable: load_record names it
+        twin = seen_path.get(resolved) or (seen_hash.get(digest) if digest else None)
+        if twin is not None:
+            how = "the same file as" if resolved in seen_path else "a copy (the same content) of"
+            raise RecordError(p, f"is {how} record '{twin}' given before: one record cannot be both training and "
+                                 "held-out data (or count twice); give each record once")
+        seen_path[resolved] = str(raw)
+        if digest:
+            seen_hash[digest] = str(raw)
 
 
 def record_from_arrays(time_s: np.ndarray, columns: Mapping[str, np.ndarray], meta: Mapping[str, Any],
@@ -131,6 +155,7 @@ __all__ = [
     "Record",
     "RecordError",
     "Segment",
+    "check_distinct_records",
     "full_rows",
     "gap_notes",
     "load_csv_record",
