@@ -312,6 +312,8 @@ class WriteVerdict:
     code: ModbusExceptionCode | None
     reason: str = ""
     changed: tuple[str, ...] = ()
+    #: False when a written value is NaN or ±Inf: refused before it reaches the rig (no count, no flag)
+    finite: bool = True
 
 
 def check_holding_write(address: int, values: list[int] | tuple[int, ...], current: list[int] | tuple[int, ...],
@@ -341,7 +343,10 @@ def check_holding_write(address: int, values: list[int] | tuple[int, ...], curre
         lo, hi = r.lower, r.upper
         if r.name in ("v_ch1", "v_ch2"):
             lo, hi = v_min, v_max
-        if not math.isfinite(v) or (lo is not None and v < lo) or (hi is not None and v > hi):
+        if not math.isfinite(v):
+            return WriteVerdict(ModbusExceptionCode.ILLEGAL_VALUE, f"'{r.name}'={v!r} {r.unit} is not a finite "
+                                f"number (allowed range [{lo}, {hi}])", finite=False)
+        if (lo is not None and v < lo) or (hi is not None and v > hi):
             return WriteVerdict(ModbusExceptionCode.ILLEGAL_VALUE,
                                 f"'{r.name}'={v!r} {r.unit} outside the allowed range [{lo}, {hi}]")
     return WriteVerdict(None, "", tuple(r.name for r in touched))

@@ -25,11 +25,8 @@ import asyncio
 import contextlib
 import logging
 import struct
-import threading
 import time
 from collections import Counter, deque
-from concurrent.futures import Future
-from typing import Any
 
 from pymodbus.constants import ExcCodes
 from pymodbus.framer import FramerType
@@ -60,99 +57,16 @@ from drivers.modbus_registers import (
 )
 from hil_stub import protocol_ptymaster
 from hil_stub.faults import LinkFaults, ReplyFaulter
+from hil_stub.loop_thread import LoopThread
+from hil_stub.modbus_requests import check_request_pdu
 from hil_stub.pty_port import PtyPort
 from hil_stub.rig_host import Delivery, RigHost
 
 log = logging.getLogger("hil_stub.modbus_server")
 
 
-class LoopThread:
-    """An asyncio event loop in a daemon thread; ``run(coro)`` waits for a result from any other thread."""
-
-    def __init__(self, name: str = "modbus-loop") -> None:
-        self.loop = asyncio.new_event_loop()
-        self._thread = threading.Thread(target=self._main, name=name, daemon=True)
-        self._thread.start()
-
-    def _main(self) -> None:
-        asyncio.set_event_loop(self.loop)
-        self.loop.run_forever()
-
-    def submit(self, coro) -> Future:
-        return asyncio.run_coroutine_threadsafe(coro, self.loop)
-
-    def run(self, coro, timeout: float = 10.0) -> Any:
-        return self.submit(coro).result(timeout)
-
-    def close(self) -> None:
-        if self.loop.is_closed():
-            return
-
-        async def _cancel_all() -> None:
-            tasks = [t for t in asyncio.all_tasks() if t is not asyncio.current_task()]
-            for t in tasks:
-                t.cancel()
-            await asyncio.gather(*tasks, return_exceptions=True)
-
-        with contextlib.suppress(Exception):
-            self.run(_cancel_all(), timeout=2.0)
-        self.loop.call_soon_threadsafe(self.loop.stop)
-        self._thread.join(timeout=2.0)
-        with contextlib.suppress(Exception):
-            self.loop.close()
-
-
 def _bits(*values: bool) -> int:
     return sum(1 << i for i, v in enumerate(values) if v)
-
-
-#: the function codes the map serves (docs/registers.md); pymodbus decodes these, every other one is answered with
-#: ILLEGAL FUNCTION (pymodbus would also decode e.g. FC 21 "write file record" and answer it from a datastore that
-#: has no files)
-_SERVED_FUNCTIONS = frozenset({1, 2, 3, 4, 5, 6, 15, 16, 22, 23})
-
-
-def check_request_pdu(pdu: bytes) -> int | None:
-    """The Modbus exception a request PDU (function code + data) deserves before it reaches the datastore, or None.
-
-    pymodbus 3.16 answers an unknown function code and a bad quantity alike with exception 01 on function 0x80;
-    the spec wants 01 (ILLEGAL FUNCTION) echoing the function code, and 03 (ILLEGAL DATA VALUE) for a quantity or
-    byte count out of range. Pure.
-    """
-    if not pdu:
-        return None
-    fc = pdu[0]
-    if fc not in _SERVED_FUNCTIONS:
-        return 0x01
-    if fc == 22:
-        return None if len(pdu) == 7 else 0x03
-    if fc == 23:
-        if len(pdu) < 10:
-            return 0x03
-        (_ra, r_qty, _wa, w_qty, nbytes) = struct.unpack(">HHHHB", pdu[1:10])
-        if not 1 <= r_qty <= 125 or not 1 <= w_qty <= 121 or nbytes != 2 * w_qty or len(pdu) != 10 + nbytes:
-            return 0x03
-        return None
-    if fc in (1, 2, 3, 4, 5, 6):
-        if len(pdu) != 5:
-            return 0x03
-        (_addr, value) = struct.unpack(">HH", pdu[1:5])
-        if fc in (1, 2) and not 1 <= value <= 2000:
-            return 0x03
-        if fc in (3, 4) and not 1 <= value <= 125:
-            return 0x03
-        if fc == 5 and value not in (0x0000, 0xFF00):
-            return 0x03
-        return None
-    if fc in (15, 16):
-        if len(pdu) < 6:
-            return 0x03
-        (_addr, qty, nbytes) = struct.unpack(">HHB", pdu[1:6])
-        want = (qty + 7) // 8 if fc == 15 else 2 * qty
-        limit = 1968 if fc == 15 else 123
-        if not 1 <= qty <= limit or nbytes != want or len(pdu) != 6 + nbytes:
-            return 0x03
-    return None
 
 
 class _CheckingHandler(ServerRequestHandler):
@@ -310,8 +224,10 @@ class ModbusRigServer:
             values = [int(v) for v in set_values]
             verdict = check_holding_write(address, values, current, host.limits.voltage_min, host.limits.voltage_max)
             touches_command = address < COMMAND_END and address + len(values) > COMMAND_START
+            if not verdict.finite:  # NaN/Inf: refused here, before the rig (no count, no flag, no tick, no run)
+                self.stats["nonfinite_refused"] += 1
             if verdict.code is not None and not (verdict.code == ModbusExceptionCode.ILLEGAL_VALUE
-                                                 and touches_command):
+                                                 and touches_command and verdict.finite):
                 self.stats[f"exception_{int(verdict.code):02d}"] += 1
                 host.incident(f"{self.describe()}: write refused with exception {int(verdict.code):02d}: "
                               f"{verdict.reason}")

@@ -30,7 +30,8 @@ from drivers.link import RigEndpoint
 from drivers.modbus_registers import MAP_VERSION
 from hil_stub.faults import FaultPlan, SensorFaultRig
 from hil_stub.frame_server import FrameServer
-from hil_stub.modbus_server import LoopThread, ModbusRigServer
+from hil_stub.loop_thread import LoopThread
+from hil_stub.modbus_server import ModbusRigServer
 from hil_stub.rig_host import RigHost
 
 _Server = TypeVar("_Server", FrameServer, ModbusRigServer)

@@ -126,11 +126,11 @@ def test_the_stub_refuses_what_the_map_does_not_allow():
         assert [c.seq for c in rig.applied] == [5]  # nothing refused reached the rig
         c = ModbusTcpClient("127.0.0.1", port=srv.port, timeout=0.5, retries=0)
         assert c.connect()
-        try:  # the mirror reads with FC 03 too (the refused NaN command still moved the lock-step rig one tick)
+        try:  # the mirror reads with FC 03 too (the NaN command never reached the rig: not counted, no tick)
             rr = c.read_holding_registers(MIRROR_START, count=INPUT_COUNT, device_id=1)
             snap = hil.host.snapshot
             assert rr.registers == encode_input_block(snap.sample, snap.cmd_seq_applied, snap.refused_count)
-            assert snap.refused_count == 1
+            assert snap.refused_count == 0 and snap.tick == 1
         finally:
             c.close()
 
