@@ -117,15 +117,19 @@ def test_prognosis_challenge_fast_subset():
 
 
 def test_metrics_follow_progpy_definitions():
-    from studies.health.metrics import alpha_lambda, interval_covers, prognostic_horizon
+    from studies.health.metrics import alpha_lambda, alpha_lambda_point, interval_covers, prognostic_horizon
 
     t_eol = 1000.0
     times = [400.0, 600.0, 800.0]
     good = [np.full(100, 1000.0)] * 3
     far = [np.full(100, 1500.0), np.full(100, 1050.0), np.full(100, 1000.0)]
     assert alpha_lambda(times, good, t_eol) is True
-    # lambda = 0.5: t_lambda = 700 h -> the prediction at 600 h (1050 h is inside 1000 +- 0.2*400 = +-80 h)
+    # lambda = 0.5: t_lambda = 700 h -> ProgPy judges the first prediction at or after it, 800 h (1000 h inside
+    # 1000 +- 0.2*200 h); the one before it (600 h, 1050 h inside +-80 h) is not the one judged
     assert alpha_lambda(times, far, t_eol) is True
+    late = [np.full(100, 1500.0), np.full(100, 1000.0), np.full(100, 1100.0)]
+    assert alpha_lambda(times, late, t_eol) is False  # at/before t_lambda (600 h) would have said True
+    assert alpha_lambda(times, late, t_eol) == alpha_lambda_point(times, late, t_eol, lam=0.5)["ok"]
     assert alpha_lambda(times, [np.full(100, 1200.0)] * 3, t_eol) is False
     assert prognostic_horizon(times, far, t_eol) == pytest.approx(400.0)
     assert prognostic_horizon(times, [np.full(100, 2000.0)] * 3, t_eol) is None

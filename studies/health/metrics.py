@@ -3,8 +3,10 @@
 A *prediction* at time t (h) is a sample of time-of-event (ToE, here the operating hours at which the board's
 monitor first says FAULT). The ground truth t_EOL is the hours of the first FAULT visit.
 
-* :func:`alpha_lambda` — ProgPy ``alpha_lambda``: at the prediction made at t_λ = t_P + λ·(t_EOL − t_P) (t_P the first
-  prediction), is the share of the ToE sample inside t_EOL ± α·(t_EOL − t_λ) at least β (ProgPy's default β = 0.5)?
+* :func:`alpha_lambda` — ProgPy ``alpha_lambda``: at t_λ = t_P + λ·(t_EOL − t_P) (t_P the first prediction), on the
+  first prediction made at or after t_λ (ProgPy: "at this time or the next prediction following"), is the share of
+  the ToE sample inside t_EOL ± α·(t_EOL − t) at least β (ProgPy's default β = 0.5)? One definition
+  (:func:`alpha_lambda_point`) for the challenge and ``shm health --evaluate``.
 * :func:`prognostic_horizon` — ProgPy ``prognostic_horizon``: t_EOL minus the first prediction time from which every
   later prediction meets the α criterion (None if the last one does not).
 * :func:`interval_covers` — does the 90 % interval (5–95 % quantiles) of a prediction hold the truth?
@@ -30,16 +32,11 @@ def within_alpha(samples: np.ndarray, t: float, t_eol: float, alpha: float, beta
 
 def alpha_lambda(times: Sequence[float], samples: Sequence[np.ndarray], t_eol: float, *, lam: float = 0.5,
                  alpha: float = 0.2, beta: float = 0.5) -> bool | None:
-    """ProgPy's α-λ accuracy for one life (None without a prediction before t_λ)."""
-    if not times:
-        return None
-    t_p = times[0]
-    t_lam = t_p + lam * (t_eol - t_p)
-    idx = [i for i, t in enumerate(times) if t <= t_lam + 1e-9]
-    if not idx:
-        return None
-    i = idx[-1]
-    return within_alpha(samples[i], times[i], t_eol, alpha, beta)
+    """ProgPy's α-λ accuracy for one life at one λ: :func:`alpha_lambda_point`'s verdict — the prediction judged is
+    the first one made at or after t_λ (and before t_EOL); None without one. The challenge and ``--evaluate`` both
+    use this one definition."""
+    ok = alpha_lambda_point(times, samples, t_eol, lam=lam, alpha=alpha, beta=beta)["ok"]
+    return None if ok is None else bool(ok)
 
 
 def prognostic_horizon(times: Sequence[float], samples: Sequence[np.ndarray], t_eol: float, *, alpha: float = 0.2,
