@@ -93,6 +93,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "process; default) or full (also an OS crash or power cut; one fsync per record)")
     p.add_argument("--json", action="store_true", help="print the run summary as JSON at the end")
     p.add_argument("--quiet", action="store_true", help="no timeline on stdout and no progress bar")
+    from shm_cli.live_args import add_live_args
+
+    add_live_args(p, "the running board")
     add_out_arg(p, default="out/run")
     p.set_defaults(func=cmd_run)
 
@@ -313,13 +316,17 @@ def cmd_run(args: argparse.Namespace) -> int:
     lock.acquire()
     try:
         _prepare_out(args, out)
+        from shm_cli.live_args import start_live  # --live: the page of the running board (docs/live.md)
+
+        args.live_session = live = start_live(args, report=out / "report.html")
         # from here to the last file written, SIGINT/SIGTERM ask for a clean stop (see StopOnSignal)
         with StopOnSignal() as stopper:
-            return _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board, BoardRunner,
+            code = _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board, BoardRunner,
                                InProcessLink, LogError, Scheduler, SimulatedRig, UsageLog, VirtualClock, WallClock,
                                open_link)
     finally:
         lock.release()
+    return live.linger(code, interrupted=stopper.requested) if live is not None else code
 
 
 def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board, BoardRunner, InProcessLink,
@@ -347,6 +354,10 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
     rig = link.rig if isinstance(link, InProcessLink) else None
     paced = args.realtime or (args.link != "sim" and not args.virtual)
     scheduler = StoppableScheduler(Scheduler(cfg.tick_rate, WallClock() if paced else VirtualClock()), stopper)
+    live = getattr(args, "live_session", None)
+    if live is not None:  # the page reads what the board publishes after each tick; the link is timed
+        link, scheduler = live.attach_board(board, link, scheduler, planned_s=duration, paced=paced, title=(
+            f"scenario {scenario.name}, link {args.link}, {'real time' if paced else 'virtual time'}"))
     setup_s = time.perf_counter() - t_setup
 
     bar = None
@@ -390,6 +401,8 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
 
         def on_event(ev) -> None:
             printer(ev)
+            if live is not None:
+                live.on_event(ev)
             try:  # a record that cannot be written is a failed step of the run, never the end of the board's run
                 recorder(ev)
             except Exception as exc:
@@ -444,6 +457,8 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
     summary = write_run_outputs(ctx, status, stopper.name if status == "interrupted" else None, printer, out, link,
                                 deco, dump_json, runner.lost_exchanges)
     figures = summary["figures"]
+    if live is not None:
+        live.finish(status)
     if args.json:
         print(dump_json(summary))
     elif not args.quiet:

@@ -1,0 +1,66 @@
+"""The websocket messages of the live page: what changed between a page's last message and a snapshot (pure).
+
+A message is one JSON object (SI units, names as in :class:`~live_page.snapshot.Snapshot`; non-finite numbers are
+``null``). ``full`` is true for a page's first message (the page starts afresh); ``chunks`` and ``events`` hold only
+the items whose running index is past what the page already has (``since_chunk``, ``since_event``), the scalars and
+the short lists (regime changes, verdicts, link health) are always whole. The same message serves every page at the
+same position, so the server encodes it once per position, not once per page.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from board_config.json_values import to_jsonable
+from live_page.snapshot import Chunk, Snapshot
+
+
+def _chunk(c: Chunk) -> dict[str, Any]:
+    d: dict[str, Any] = {"i": c.index, "t_s": c.t_s, "v_battery_V": c.v_battery_V, "soc": c.soc,
+                         "monitor_count": c.monitor_count, "rtt_p99_s": c.rtt_p99_s, "mbit_id": c.mbit_id}
+    if c.mbit_t_s:
+        d.update(mbit_t_s=c.mbit_t_s, z3_meas_m=c.z3_meas_m, z3_model_m=c.z3_model_m, eps=c.eps)
+    return d
+
+
+def message(snap: Snapshot, since_chunk: int = -1, since_event: int = -1, full: bool = False) -> dict[str, Any]:
+    """The message that brings a page holding chunks up to ``since_chunk`` and events up to ``since_event`` (-1:
+    none) to ``snap``; ``full``: the page's first message (it starts afresh)."""
+    link = snap.link
+    return {
+        "version": snap.version, "full": full, "source": snap.source,
+        "title": snap.title, "board_time_s": snap.board_time_s, "planned_s": snap.planned_s, "paced": snap.paced,
+        "regime": snap.regime, "regime_since_s": snap.regime_since_s, "regimes": snap.regimes,
+        "v_battery_V": snap.v_battery_V, "soc": snap.soc, "soc_note": snap.soc_note,
+        "monitor_count": snap.monitor_count, "count_max": snap.count_max, "fault_latched": snap.fault_latched,
+        "eps_th": snap.eps_th, "maintenance": snap.maintenance, "mbit_id": snap.mbit_id,
+        "mbit_label": snap.mbit_label, "mbit_max_eps": snap.mbit_max_eps, "mbit_max_count": snap.mbit_max_count,
+        "verdicts": snap.verdicts,
+        "link": {"exchanges": link.exchanges, "misses": link.misses, "rtt_p50_s": link.rtt_p50_s,
+                 "rtt_p99_s": link.rtt_p99_s, "incidents": link.incidents, "deadline_misses": link.deadline_misses,
+                 "counters": dict(link.counters)},
+        "extra": snap.extra,
+        "chunks": [_chunk(c) for c in snap.chunks if c.index > since_chunk],
+        "events": [e for e in snap.events if e[0] > since_event],
+        "finished": snap.finished, "status": snap.status, "report": snap.report,
+    }
+
+
+def _dumps(obj: Any) -> str:
+    return json.dumps(to_jsonable(obj), separators=(",", ":"), allow_nan=False)
+
+
+def encode(snap: Snapshot, since_chunk: int = -1, since_event: int = -1, full: bool = False) -> str:
+    """:func:`message` as JSON text (strict JSON: NaN and infinities become null). The chunks are encoded one by
+    one: a page's first message of a long run holds thousands, and one long C call would hold the interpreter
+    lock for all of them (the board's thread waits for it)."""
+    msg = message(snap, since_chunk, since_event, full)
+    chunks = msg.pop("chunks")
+    head = _dumps(msg)
+    return head[:-1] + ',"chunks":[' + ",".join(_dumps(c) for c in chunks) + "]}"
+
+
+def last_indices(snap: Snapshot) -> tuple[int, int]:
+    """(last chunk index, last event index) a page holds after a message of ``snap`` (-1: none)."""
+    return (snap.chunks[-1].index if snap.chunks else -1, snap.events[-1][0] if snap.events else -1)
