@@ -47,11 +47,12 @@ class RigFeed:
         self._thread = threading.Thread(target=self._run, name="live-rig-feed", daemon=True)
         self._thread.start()
 
-    def stop(self, status: str = "finished") -> None:
+    def finish(self, status: str, report: str | None = None) -> Snapshot:
+        """The rig stopped serving: stop the thread, publish the last state (kept by the page)."""
         self._stop.set()
         if self._thread is not None:
             self._thread.join(2.0)
-        self.publish(finished=True, status=status)
+        return self.publish(finished=True, status=status, report=report)
 
     def _run(self) -> None:
         while not self._stop.wait(self._period):

@@ -90,6 +90,15 @@ class LiveSession:
         self.feed = BoardFeed(self.slot, board, title=title, planned_s=planned_s, paced=paced, link=timed)
         return timed, PublishingScheduler(scheduler, self.feed)
 
+    # --- the rig (shm hil serve) ----------------------------------------------------------------------------
+    def attach_rig(self, service: Any, *, title: str) -> None:
+        """Publish the state of ``service`` (a :class:`hil_stub.service.HilService`) 20 times a second from a
+        thread of its own."""
+        from live_page.rig_feed import RigFeed
+
+        self.feed = RigFeed(self.slot, service, title=title)
+        self.feed.start()
+
     def on_event(self, ev: Any) -> None:
         if self.feed is not None:
             self.feed.on_event(ev)
@@ -99,6 +108,7 @@ class LiveSession:
         link when the report exists."""
         if self.feed is not None and not self.slot.latest().finished:
             self.feed.finish(status, "/report" if self._report_file() is not None else None)
+            self.feed = None
 
     # --- the end ------------------------------------------------------------------------------------------
     def linger(self, exit_code: int, interrupted: bool = False) -> int:

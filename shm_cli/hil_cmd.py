@@ -145,6 +145,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="relative parameter deviation of the truth plant (k3=-0.3: k3 × 0.7); repeatable")
     f.add_argument("--effect", action="append", default=[], metavar="NAME|module:Class",
                    help="add a physical effect to the truth plant (registered name or dotted path); repeatable")
+    from shm_cli.live_args import add_live_args
+
+    add_live_args(s, "the rig")
     s.set_defaults(func=cmd_serve)
 
 
@@ -206,6 +209,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
         stop.set()
 
     old = {sig: signal.signal(sig, _on_signal) for sig in (signal.SIGINT, signal.SIGTERM)}
+    live = None
     try:
         try:
             service.start()
@@ -228,6 +232,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
             print(f"    board: --link {srv.board_url}", flush=True)
         for line in plan.describe():
             print(f"  fault: {line}", flush=True)
+        from shm_cli.live_args import start_live  # --live: the rig's page (docs/live.md)
+
+        live = start_live(args)
+        if live is not None:
+            live.attach_rig(service, title=f"rig {desc['params']}, clock {args.clock}, "
+                                           + ", ".join(srv.describe() for srv in service.servers))
         t0 = time.monotonic()
         next_status = t0 + args.status_every if args.status_every > 0 else float("inf")
         while not stop.is_set():
@@ -246,10 +256,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
         service.stop()
         for sig, handler in old.items():
             signal.signal(sig, handler)
+        if live is not None:
+            live.finish("interrupted" if stop.is_set() else "finished")
     summary = service.summary()
     summary["incident_log"] = service.host.incidents[-50:]
     print("shm hil: stopped. " + json.dumps(to_jsonable({k: v for k, v in summary.items() if k != "incident_log"})),
           flush=True)
     if args.summary:
         Path(args.summary).write_text(json.dumps(to_jsonable(summary), indent=2))
-    return 0
+    return live.linger(0, interrupted=stop.is_set()) if live is not None else 0

@@ -39,6 +39,7 @@ function value(id, v) { $(id).dataset.value = (v === null || v === undefined) ? 
 function showNumbers(m) {
   text("source", m.source === "rig" ? "— the rig (shm hil serve)" : "— the board (shm run)");
   text("title", m.title);
+  text("time-label", m.source === "rig" ? "rig time" : "board time");
   text("board-time", fmt(m.board_time_s, 2, " s")); value("board-time", m.board_time_s);
   text("planned", m.planned_s ? "of " + m.planned_s.toFixed(0) + " s" : "");
   text("regime", m.regime || (m.source === "rig" ? "not known to the rig" : "–")); value("regime", m.regime);
