@@ -3,9 +3,10 @@
 Per tick ``k`` (board time ``k / rate``), given the rig sample the link returned (``None`` if the exchange failed):
 
 1. **Percepts** (pure): plausibility of the sample (NaN/Inf, out of range, rig fault flags, frozen sequence number
-   for ``[tick] stale_ticks``) → sensor fault; the rig's "limit refused" flag or a demand the output guard had to
-   clamp → limit violation; the wake comparator (|v_patch| ≥ ``[wake] patch_voltage`` or |z̈0| ≥
-   ``[wake] base_acceleration``); HV presence; the scheduler's overrun flag; an operator re-arm request.
+   for ``[tick] stale_ticks``, a counter that keeps stepping back: ``sample_order``) → sensor fault; the rig's
+   "limit refused" flag or a demand the output guard had to clamp → limit violation; the wake comparator
+   (|v_patch| ≥ ``[wake] patch_voltage`` or |z̈0| ≥ ``[wake] base_acceleration``); HV presence; the scheduler's
+   overrun flag; an operator re-arm request.
 2. **Power manager** (``power_manager.power_step``): brown-out and "energy to wake".
 3. **Regimes** (``regimes.step``): the transition table decides the regime.
 4. **Regime work**: entering SENSING opens a usage episode (``usage.UsageEpisode``), fed every SENSING tick and
@@ -55,6 +56,7 @@ from firmware_sim.regimes import (
     quiet_standby,
 )
 from firmware_sim.regimes import step as regime_step
+from firmware_sim.sample_order import StepsBack, clock_backwards_reason, seq_backwards_reason, steps_back
 from firmware_sim.usage import UsageEpisode
 from plant import PlantModel
 
@@ -132,6 +134,8 @@ class Board:
         self._rearm = False
         self._limit_pending = ""
         self._prev_seq = -1
+        self._prev_t = -math.inf
+        self._back = StepsBack()  # recent steps back of the rig's counter and clock
         self._stale = 0
         self._fault_reason = ""
         self._fault_key = ""  # the persisting sensor condition ('' = none)
@@ -190,14 +194,17 @@ class Board:
                 reason = ""
             else:
                 reason = check_sample(sample, cfg)
-            if sample.seq == self._prev_seq:
+            prev_seq, prev_t = self._prev_seq, self._prev_t
+            if sample.seq == prev_seq:
                 self._stale += 1
                 if self._stale >= cfg.tick_stale_ticks and not reason:
                     reason = (f"rig_seq frozen at {sample.seq} for {cfg.tick_stale_ticks} ticks or more "
                               f"(stale sensor path)")
             else:
                 self._stale = 0
-            self._prev_seq = sample.seq
+            self._prev_seq, self._prev_t = sample.seq, sample.t
+            if sample.seq < prev_seq or sample.t < prev_t or self._back.any:  # a step back: firmware_sim.sample_order
+                reason = self._check_order(k, prev_seq, prev_t, sample, reason, events)
             # a persisting condition is one incident when it starts (and one when it ends, with its count), not
             # one per tick: the reason's first two words name the condition, the rest carries this tick's values
             if reason:
@@ -334,7 +341,7 @@ class Board:
         if regime is Regime.SENSING and ep is not None:  # before the tick that slices the episode (max_episode)
             n = min(n, self._episode_ticks - 1 - ep.samples)
         ref_k, ref_t = self._clock_ref  # type: ignore[misc]  # can_take_quiet: set
-        if (n < 1 or span.seq0 == self._prev_seq or not ref_t <= float(span.t[0])
+        if (n < 1 or span.seq0 == self._prev_seq or not ref_t <= float(span.t[0]) or self._back.any
                 or span.hv_present != (regime is Regime.MAINTENANCE)):
             return 0, None
         lim = self._sample_limits
@@ -387,7 +394,7 @@ class Board:
             self.power = self.power._replace(below_run=0)
         last = k + m - 1
         self.ticks += m
-        self._prev_seq = (span.seq0 + m - 1) & 0xFFFFFFFF
+        self._prev_seq, self._prev_t = (span.seq0 + m - 1) & 0xFFFFFFFF, float(t[m - 1])
         self._stale = 0
         self._fault_reason = ""
         self._v_batt = float(vb[m - 1])
@@ -405,6 +412,17 @@ class Board:
                 f"({(k - self._fault_since) * self.period:.2f} s)")))
             self._fault_key = ""
             self._fault_ticks = 0
+
+    def _check_order(self, k: int, prev_seq: int, prev_t: float, sample: RigSample, reason: str,
+                     events: list[BoardEvent]) -> str:
+        """A rig whose counter or clock keeps stepping back (:mod:`firmware_sim.sample_order`): the clock incident
+        (once per run) and the sensor-fault reason (``reason`` if there is one already)."""
+        self._back = steps_back(self._back, prev_seq, sample.seq, prev_t, sample.t, k * self.period)
+        clock = clock_backwards_reason(self._back, prev_t, sample.t)
+        if clock and not self.clock_mismatch:
+            self.clock_mismatch = clock
+            events.append(self._incident(k, "clock_mismatch", clock))
+        return reason or seq_backwards_reason(self._back, prev_seq, sample.seq)
 
     def _check_clock(self, k: int, t_rig: float, events: list[BoardEvent]) -> None:
         """Compare the rig's clock (sample time) with the board's (tick count) every ``_CLOCK_WINDOW`` s: a
