@@ -1,0 +1,150 @@
+"""The live page's pieces without a browser (issue 32): the address option, the messages, the server's routes and
+stream, the board feed over a virtual-time run, the safety defaults."""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import gzip
+import io
+import json
+import math
+import urllib.error
+import urllib.request
+from pathlib import Path
+
+import pytest
+from tornado.httpclient import HTTPClientError, HTTPRequest
+from tornado.websocket import websocket_connect
+
+from live_page.messages import encode, last_indices
+from live_page.server import LiveServer
+from live_page.session import LiveSession, is_loopback, live_address
+from live_page.snapshot import Chunk, Snapshot, SnapshotSlot, bounded
+
+
+def test_the_address_is_port_or_host_and_port_loopback_by_default() -> None:
+    assert live_address("8765") == ("127.0.0.1", 8765)
+    assert live_address("0.0.0.0:80") == ("0.0.0.0", 80)
+    assert live_address("[::1]:9000") == ("::1", 9000)
+    assert live_address("0") == ("127.0.0.1", 0)
+    for bad in ("abc", "70000", ":80", "host:", "-1"):
+        with pytest.raises(argparse.ArgumentTypeError, match=r"PORT|host"):
+            live_address(bad)
+    assert is_loopback("127.0.0.1") and is_loopback("::1") and is_loopback("localhost")
+    assert not is_loopback("0.0.0.0") and not is_loopback("192.0.2.7") and not is_loopback("rig-pc")
+
+
+def _chunk(i: int, rows: int = 0) -> Chunk:
+    t = tuple(i + 0.01 * k for k in range(rows))
+    return Chunk(i, float(i), 3.0, 0.9, i, 1e-4, 1 if rows else 0, t, tuple(math.nan for _ in t), t, t)
+
+
+def test_a_message_holds_only_what_the_page_lacks_and_is_strict_json() -> None:
+    snap = Snapshot(version=3, chunks=tuple(_chunk(i, rows=2) for i in range(3)),
+                    events=((0, "a"), (1, "b"), (2, "c")), v_battery_V=math.nan)
+    first = json.loads(encode(snap, full=True))
+    assert first["full"] and [c["i"] for c in first["chunks"]] == [0, 1, 2] and len(first["events"]) == 3
+    assert first["v_battery_V"] is None and first["chunks"][0]["z3_meas_m"] == [None, None]
+    later = json.loads(encode(snap, 1, 1))
+    assert not later["full"] and [c["i"] for c in later["chunks"]] == [2] and later["events"] == [[2, "c"]]
+    assert last_indices(snap) == (2, 2) and last_indices(Snapshot()) == (-1, -1)
+    assert bounded((1, 2, 3), (4, 5), 3) == (3, 4, 5) and bounded((1,), (), 3) == (1,)
+
+
+def _get(url: str, **headers: str) -> tuple[int, bytes, dict]:
+    try:
+        with urllib.request.urlopen(urllib.request.Request(url, headers=headers), timeout=10) as r:
+            return r.status, r.read(), dict(r.headers)
+    except urllib.error.HTTPError as exc:
+        return exc.code, b"", {}
+
+
+def test_the_server_streams_changes_serves_offline_assets_and_changes_nothing(tmp_path: Path) -> None:
+    slot = SnapshotSlot(Snapshot(version=1, chunks=(_chunk(0),)))
+    report = tmp_path / "report.html"
+    server = LiveServer(slot, port=0, report=lambda: report if report.exists() else None)
+    server.start()
+    try:
+        status, page, _ = _get(server.url)
+        assert status == 200 and b'src="/plotly.min.js"' in page and b"http" not in page.split(b"<body>")[0]
+        status, js, headers = _get(server.url + "plotly.min.js", **{"Accept-Encoding": "gzip"})
+        assert status == 200 and headers["Content-Encoding"] == "gzip" and b"plotly" in gzip.decompress(js)[:2000]
+        assert _get(server.url + "report")[0] == 404
+        report.write_text("<html>the report</html>")
+        assert _get(server.url + "report")[1] == b"<html>the report</html>"
+        req = urllib.request.Request(server.url, data=b"x", method="POST")
+        with pytest.raises(urllib.error.HTTPError, match="405"):
+            urllib.request.urlopen(req, timeout=10)
+
+        async def stream() -> tuple[dict, dict]:
+            ws = await websocket_connect(server.url.replace("http", "ws") + "ws")
+            first = json.loads(await ws.read_message())
+            await ws.write_message('{"command": "rearm"}')  # ignored: read-only
+            slot.publish(Snapshot(version=2, chunks=(_chunk(0), _chunk(1)), events=((0, "x"),)))
+            second = json.loads(await asyncio.wait_for(ws.read_message(), 5.0))
+            ws.close()
+            with pytest.raises(HTTPClientError, match="403"):  # another origin cannot read the stream
+                await websocket_connect(HTTPRequest(server.url.replace("http", "ws") + "ws",
+                                                    headers={"Origin": "http://elsewhere.example"}))
+            return first, second
+
+        first, second = asyncio.run(stream())
+        assert first["full"] and first["version"] == 1 and [c["i"] for c in first["chunks"]] == [0]
+        assert not second["full"] and second["version"] == 2 and [c["i"] for c in second["chunks"]] == [1]
+        assert second["events"] == [[0, "x"]]
+        assert json.loads(_get(server.url + "state.json")[1])["version"] == 2
+    finally:
+        server.stop()
+
+
+def test_a_non_loopback_address_is_warned_about(monkeypatch: pytest.MonkeyPatch) -> None:
+    out = io.StringIO()
+    session = LiveSession(("0.0.0.0", 8765), stream=out)
+    monkeypatch.setattr(session.server, "start", lambda: None)  # no socket on every interface in a test
+    session.start()
+    assert "WARNING: serving on 0.0.0.0, not on loopback" in out.getvalue()
+    quiet = io.StringIO()
+    session = LiveSession(("127.0.0.1", 8765), stream=quiet)
+    monkeypatch.setattr(session.server, "start", lambda: None)
+    session.start()
+    assert "WARNING" not in quiet.getvalue() and "ssh -L 8765:127.0.0.1:8765" in quiet.getvalue()
+
+
+@pytest.mark.slow
+def test_the_board_feed_publishes_what_the_board_did(tmp_path: Path) -> None:
+    """A virtual-time maintenance visit through the publishing scheduler: the last snapshot's regime changes,
+    verdicts, MBIT rows and ε are the board's (ε by the monitor's own Eq. 11)."""
+    from board_config.board import load_board_config
+    from board_config.scenario import load_scenario
+    from drivers.link import open_link
+    from firmware_sim.board import Board
+    from firmware_sim.runner import BoardRunner
+    from firmware_sim.scheduler import Scheduler
+    from hil_stub.rig import SimulatedRig  # registers the simulated rig behind the 'sim' URL
+    from live_page.board_feed import BoardFeed, PublishingScheduler, TimedLink
+
+    scenario = load_scenario("degraded")
+    cfg = load_board_config(overrides=scenario.board_overrides, overrides_source=scenario.source)
+    board = Board(cfg, nominal=scenario.rig.params)
+    link = TimedLink(open_link("sim", scenario=scenario, tick=cfg.tick_period))
+    assert isinstance(link._inner.rig, SimulatedRig)
+    slot = SnapshotSlot()
+    wall = iter(range(10**9))  # a clock that advances 10 ms a call: a publication every 5th tick at 20 Hz
+    feed = BoardFeed(slot, board, title="t", planned_s=scenario.duration, paced=False, link=link,
+                     clock=lambda: 0.01 * next(wall))
+    runner = BoardRunner(board, link, scheduler=PublishingScheduler(Scheduler(cfg.tick_rate), feed),
+                         on_event=feed.on_event)
+    link.open()
+    result = runner.run(scenario.duration)
+    snap = feed.finish("finished", None)
+    changes = [e for e in result.events if e.kind == "regime_change"]
+    assert snap.regimes[1:] == tuple((e.time, e.data["to_regime"]) for e in changes)
+    assert snap.regime == board.regime.value and snap.finished and snap.link.exchanges == result.ticks
+    mbits = [e.data for e in result.events if e.kind == "mbit_result"]
+    assert snap.verdicts[:len(mbits)] == tuple(f"{d['label']} {d['verdict']}" for d in mbits)
+    assert snap.mbit_max_eps == pytest.approx(mbits[-1]["max_eps"])
+    rows = [c for c in snap.chunks if c.mbit_id == snap.mbit_id and c.mbit_t_s]
+    eps = [e for c in rows for e in c.eps]
+    assert len(eps) >= mbits[-1]["n_samples"] - 2 and max(eps) == pytest.approx(mbits[-1]["max_eps"])
+    assert link.timed > 0 and link.rtt_percentiles()[1] is not None
