@@ -26,10 +26,12 @@ from board_config.errors import InputError
 from shm_cli.common import dump_json, out_dir
 
 #: the JSON document each command writes into its --out
-DOC_NAME = {"compare": "compare.json", "diagnose": "diagnosis.json", "discover": "discover.json", "fit": "fit.json",
+DOC_NAME = {"run": "life.json",
+            "compare": "compare.json", "diagnose": "diagnosis.json", "discover": "discover.json", "fit": "fit.json",
             "health": "health.json"}
 #: the command's own page in its --out (the summary links to it)
-REPORT_NAME = {"compare": "report.html", "diagnose": "diagnosis.html", "discover": "discover.json", "fit": "fit.html",
+REPORT_NAME = {"run": "report.html",
+               "compare": "report.html", "diagnose": "diagnosis.html", "discover": "discover.json", "fit": "fit.html",
                "health": "report.html"}
 
 
@@ -71,7 +73,12 @@ def _collect(out: Path, tmp: str) -> dict[str, bytes]:
 
 def _task_args(args: argparse.Namespace, tmp: Path, names: list[str], shared: dict[str, bytes]) -> argparse.Namespace:
     ns = copy.copy(args)
-    setattr(ns, "sources" if ns.command == "health" else "records", [str(tmp / "in" / n) for n in names])
+    if ns.command == "health":  # a board: its run directory (usage.db, records/)
+        ns.sources, ns.fleet, ns.workers = [str(tmp / "in")], False, 1
+    elif ns.command == "run":  # a board's life: its own scenario file
+        ns.scenario, ns.boards = str(tmp / "in" / names[0]), None
+    else:
+        ns.records = [str(tmp / "in" / n) for n in names]
     ns.out = str(tmp / "out")
     ns.json = False
     ns.scheduler = None

@@ -11,8 +11,14 @@ Exit 0 when the assessment was made, 2 for bad input, 1 when the job failed.
 from __future__ import annotations
 
 import argparse
+import contextlib
+import errno
+import os
+import shutil
 import sys
 import time
+from pathlib import Path
+from typing import Any
 
 from shm_cli.common import add_out_arg, out_dir, seed_int
 
@@ -64,11 +70,20 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="--evaluate: a lambda point in [0, 1) (repeatable; default 0.25, 0.5, 0.75)")
     p.add_argument("--seed", type=seed_int, default=1, help="seed of the forecast's Monte Carlo (default 1)")
     p.add_argument("--json", action="store_true", help="print one JSON document (also written to DIR/health.json)")
+    p.add_argument("--force", action="store_true",
+                   help="write into an --out holding another command's results (its report.html is replaced)")
+    from shm_cli.fleet_cmd import add_fleet_args
+
+    add_fleet_args(p, boards=False)
     add_out_arg(p, default="out/health")
     p.set_defaults(func=cmd_health)
 
 
 def cmd_health(args: argparse.Namespace) -> int:
+    if args.fleet:  # each SOURCE a board: one task per board (docs/scale-out.md)
+        from shm_cli.fleet_cmd import run_fleet_health
+
+        return run_fleet_health(args)
     from shm_cli.main import CliError
     from studies.health.assess import assess_health
     from studies.health.evaluate import LAMBDAS
@@ -87,7 +102,60 @@ def cmd_health(args: argparse.Namespace) -> int:
     bad = [x for x in (args.lambdas or []) if not 0 <= x < 1]
     if bad:
         raise CliError(f"--lambda must be in [0, 1), got {bad[0]}")
+    _check_params(args.params)
+    from studies.health.sources import check_sources
+
+    check_sources(args.sources)  # records that belong together, before any fit (issue 33)
     out = out_dir(args.out)
+    from shm_cli.run_lock import OutputLock
+
+    lock = OutputLock(out, command=f"shm health --out {args.out}")
+    lock.acquire()
+    try:
+        _check_out_is_health(out, args.force)
+        return _health_locked(args, out, assess_health, LAMBDAS, evaluation_text, four_levels_text, health_json,
+                              write_health_outputs)
+    finally:
+        lock.release()
+
+
+#: what shm health writes into --out
+HEALTH_OUTPUTS = ("health.json", "levels.txt", "health.png", "forecast.png", "remaining_life.png", "report.html")
+STAGE_NAME = ".shm-health-new"
+
+
+def _check_params(params: str) -> None:
+    """--params loads (a name or a file) before any visit is read or fitted: one line naming it (exit 2)."""
+    from board_config.errors import InputError
+    from board_config.parameter_sets import load_parameter_set
+    from shm_cli.main import CliError
+
+    if not str(params).strip():
+        raise CliError("--params is empty: give a parameter set's name or a path")
+    try:
+        load_parameter_set(params)
+    except InputError as exc:
+        text = " ".join(str(exc).split())
+        raise CliError(text if text.startswith("--params") else f"--params {params}: {text}") from None
+
+
+def _check_out_is_health(out: Path, force: bool) -> None:
+    """A folder holding another command's results (a run's usage.db, a compare's report.html ...) is refused
+    without --force; an earlier shm health's outputs (health.json beside them) are replaced."""
+    from shm_cli.main import CliError
+
+    if (out / "health.json").exists() or force:
+        return
+    foreign = [n for n in ("report.html", "summary.json", "usage.db", "life.json", "records", "levels.txt")
+               if (out / n).exists()]
+    if foreign:
+        raise CliError(f"--out {out} holds another command's results ({', '.join(foreign)}; no health.json), not an "
+                       "earlier shm health: not overwriting them; choose another --out, or --force to write the "
+                       "health outputs there anyway")
+
+
+def _health_locked(args: argparse.Namespace, out: Path, assess_health: Any, LAMBDAS: Any, evaluation_text: Any,
+                   four_levels_text: Any, health_json: Any, write_health_outputs: Any) -> int:
     log = (lambda s: print(s, file=sys.stderr, flush=True)) if args.json else (lambda s: print(s, flush=True))
     t0 = time.perf_counter()
     result = assess_health(args.sources, params=args.params, as_of=args.as_of, free=args.free or None,
@@ -99,9 +167,9 @@ def cmd_health(args: argparse.Namespace) -> int:
     text = four_levels_text(result)
     if result.doc.get("evaluation"):
         text += "\n" + evaluation_text(result.doc["evaluation"])
-    failed = write_health_outputs(result, out, text)
+    failed = _write_staged(out, lambda d: write_health_outputs(result, d, text))
     for artefact, why in failed.items():
-        print(f"shm health: could not write {artefact} ({why})", file=sys.stderr)
+        print(f"shm health: could not write {artefact} into {out}/ ({why}); not replaced", file=sys.stderr)
     if args.json:
         print(health_json(result))
         print(text, file=sys.stderr)
@@ -109,3 +177,35 @@ def cmd_health(args: argparse.Namespace) -> int:
         print(text)
         print(f"results in {out}/ (health.json, report.html, figures)")
     return 1 if failed else 0
+
+
+def _write_staged(out: Path, write: Any) -> dict[str, str]:
+    """Every output written into ``out/.shm-health-new/`` first, then each complete file moved into ``out``
+    (``os.replace``): a full disk never leaves a cut-off report.html. A failure to write health.json or levels.txt
+    is one line naming the path and the disk (OSError, exit 1); a failed figure or page is reported and skipped."""
+    stage = out / STAGE_NAME
+    shutil.rmtree(stage, ignore_errors=True)
+    try:
+        stage.mkdir()
+        try:
+            failed: dict[str, str] = write(stage)
+        except OSError as exc:
+            raise OSError(_disk_text(out, exc)) from None
+        for name in failed:
+            (stage / name).unlink(missing_ok=True)
+        for name in HEALTH_OUTPUTS:
+            if (stage / name).exists():
+                os.replace(stage / name, out / name)
+        return {k: (_disk_text(out, v) if "No space" in v or "disk" in v else v) for k, v in failed.items()}
+    finally:
+        shutil.rmtree(stage, ignore_errors=True)
+
+
+def _disk_text(out: Path, exc: object) -> str:
+    why = " ".join(str(exc).split())
+    free = ""
+    with contextlib.suppress(OSError):
+        free = f"; the file system holding {out} has {shutil.disk_usage(out).free / 1e6:.1f} MB free"
+    full = "No space left" in why or getattr(exc, "errno", None) == errno.ENOSPC
+    return (f"could not write the health outputs into {out}/: {why}" + (" (the disk is full)" if full else "")
+            + free + "; nothing half-written was left there")

@@ -96,6 +96,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     from shm_cli.live_args import add_live_args
 
     add_live_args(p, "the running board")
+    from shm_cli.fleet_cmd import add_fleet_args
+
+    add_fleet_args(p, boards=True)
     add_out_arg(p, default="out/run")
     p.set_defaults(func=cmd_run)
 
@@ -277,6 +280,10 @@ class StoppableScheduler:
 
 # --- the command --------------------------------------------------------------------------------------
 def cmd_run(args: argparse.Namespace) -> int:
+    if args.boards is not None:  # a fleet of boards through a [life] scenario (docs/scale-out.md)
+        from shm_cli.fleet_cmd import run_fleet_boards
+
+        return run_fleet_boards(args)
     from board_config.board import load_board_config
     from board_config.scenario import load_scenario
     from drivers.link import open_link

@@ -94,8 +94,12 @@ def _client(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s:
         raise SchedulerError("--scheduler needs Dask: pip install 'mfc-shm[cluster]'") from None
     if scheduler in (None, "", "local"):
         n = max(1, min(workers or os.cpu_count() or 1, n_tasks))
-        cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                               memory_limit=0, silence_logs=50)
+        import dask
+
+        # non-daemon workers: a task may run its own process pool (a board's life, a health fit)
+        with dask.config.set({"distributed.worker.daemon": False}):
+            cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                                   memory_limit=0, silence_logs=50)
         return Client(cluster, set_as_default=False), cluster, f"local processes ({n} workers)"
     try:
         return Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False), None, f"dask {scheduler}"

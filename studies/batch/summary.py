@@ -50,11 +50,11 @@ def _cell(v: Any) -> str:
 
 
 def write_summary(out: Path, title: str, rows: Sequence[dict[str, Any]], report_of: dict[str, str],
-                  notes: Sequence[str] = ()) -> dict[str, Path]:
-    """``summary.csv`` and ``summary.html`` in ``out``; ``rows`` carry a ``task`` column (the key), ``report_of``
-    maps a key to its report's path relative to ``out``."""
+                  notes: Sequence[str] = (), stem: str = "summary", key: str = "task") -> dict[str, Path]:
+    """``<stem>.csv`` and ``<stem>.html`` in ``out``; ``rows`` carry a ``key`` column (the task), ``report_of``
+    maps a task to its report's path relative to ``out``."""
     cols = columns_of(rows)
-    csv_path = out / "summary.csv"
+    csv_path = out / f"{stem}.csv"
     with csv_path.open("w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(cols)
@@ -67,13 +67,13 @@ def write_summary(out: Path, title: str, rows: Sequence[dict[str, Any]], report_
         for c in cols:
             v = r.get(c)
             text = html.escape(f"{v:.6g}" if isinstance(v, float) else _cell(v))
-            if c == "task" and r.get("task") in report_of:
-                text = f"<a href='{html.escape(report_of[str(r['task'])])}'>{text}</a>"
+            if c == key and r.get(key) in report_of:
+                text = f"<a href='{html.escape(report_of[str(r[key])])}'>{text}</a>"
             bad = c == "exit_code" and v not in (0, None)
             cells.append(f"<td class='bad'>{text}</td>" if bad else f"<td>{text}</td>")
         body.append("<tr>" + "".join(cells) + "</tr>")
     parts = [f"<h1>{html.escape(title)}</h1>", f"<table><tr>{head}</tr>{''.join(body)}</table>",
              *(f"<p>{html.escape(n)}</p>" for n in notes)]
-    html_path = out / "summary.html"
+    html_path = out / f"{stem}.html"
     html_path.write_text(page(title, _CSS, parts), encoding="utf-8")
     return {"csv": csv_path, "html": html_path}

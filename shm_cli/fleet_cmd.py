@@ -1,0 +1,145 @@
+"""A fleet of boards on one scheduler (issue 31): ``shm health --fleet DIR...`` (one task per board's ``shm run``
+output, a fleet table ranked by forecast first FAULT) and ``shm run --scenario aging --boards N --seed S`` (N boards
+whose degradation rates scatter around the scenario's, seeded per board). docs/scale-out.md."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+from typing import Any
+
+from board_config.errors import InputError
+from shm_cli.batch_records import REPORT_NAME, run_command_task, warm_workbench
+from shm_cli.common import dump_json, out_dir
+
+FLEET_COLUMNS = ("rank", "board", "first_fault_h", "first_fault_90_lo_h", "first_fault_90_hi_h", "rul_h",
+                 "where", "last_verdict")
+
+
+def add_fleet_args(p: argparse.ArgumentParser, boards: bool) -> None:
+    if boards:
+        p.add_argument("--boards", type=int, default=None, metavar="N",
+                       help="a fleet: N boards through a [life] scenario, each with its degradation rates scattered "
+                            "(log-normal, seeded per board by --seed), in parallel on --scheduler; --out/boardNNN/")
+    else:
+        p.add_argument("--fleet", action="store_true",
+                       help="each SOURCE is one board (a 'shm run' output): one task per board on --scheduler, a "
+                            "fleet table and page ranked by forecast first FAULT (fleet.csv, fleet.html)")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="with --fleet/--boards: local (default: local worker processes), tcp://HOST:PORT (a Dask "
+                        "cluster) or synchronous (this process)")
+
+
+def _board_files(folder: Path) -> dict[str, bytes]:
+    if not (folder / "usage.db").is_file():
+        raise InputError(f"--fleet: {folder} is not a 'shm run' output (no usage.db in it)")
+    files = {"usage.db": (folder / "usage.db").read_bytes()}
+    for p in sorted((folder / "records").rglob("*")) if (folder / "records").is_dir() else []:
+        if p.is_file():
+            files[str(p.relative_to(folder))] = p.read_bytes()
+    return files
+
+
+def _write_task_files(out: Path, results: list[Any]) -> dict[str, str]:
+    report_of = {}
+    for r in results:
+        for rel, data in r.files.items():
+            dest = out / r.key / rel
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            dest.write_bytes(data)
+        if REPORT_NAME["health" if "health.json" in r.files else "run"] in r.files:
+            report_of[r.key] = f"{r.key}/report.html"
+    return report_of
+
+
+def _progress(what: str):
+    last = [""]
+
+    def show(p) -> None:
+        line = p.line(what)
+        if line != last[0]:
+            print(line, file=sys.stderr, flush=True)
+            last[0] = line
+    return show
+
+
+def run_fleet_health(args: argparse.Namespace) -> int:
+    """``shm health --fleet DIR...``: each board's assessment as one task, the fleet ranked by first FAULT."""
+    from studies.batch import run_tasks
+    from studies.batch.fleet import fleet_row, rank_fleet
+    from studies.batch.runner import check_scheduler
+    from studies.batch.summary import write_summary
+
+    scheduler = check_scheduler(args.scheduler)
+    folders = [Path(s) for s in args.sources]
+    names = [f.resolve().name for f in folders]
+    if len(set(names)) != len(names):
+        raise InputError("--fleet: two boards have the same folder name; each board's folder names it")
+    tasks = sorted(((n, _board_files(f)) for n, f in zip(names, folders, strict=True)), key=lambda t: t[0])
+    out = out_dir(args.out)
+    args.command = "health"
+    print(f"shm health: fleet of {len(tasks)} boards on {scheduler or 'local'}", file=sys.stderr, flush=True)
+    outcome = run_tasks(tasks, run_command_task, args, scheduler=scheduler, warm=warm_workbench,
+                        progress=_progress("shm health --fleet"))
+    report_of = _write_task_files(out, outcome.results)
+    rows = rank_fleet([fleet_row(r.key, r.doc, r.code, r.message) for r in outcome.results])
+    paths = write_summary(out, f"Fleet: {len(rows)} boards ranked by forecast first FAULT", rows, report_of,
+                          stem="fleet", key="board")
+    doc = {"fleet": rows, "files": {k: str(v) for k, v in paths.items()}, "cost": outcome.cost()}
+    (out / "fleet.json").write_text(dump_json(doc), encoding="utf-8")
+    say = (lambda s: print(s, file=sys.stderr)) if args.json else print
+    for r in rows:
+        fault = "-" if r["first_fault_h"] is None else (
+            f"{r['first_fault_h']:.0f} h (90 %: {r['first_fault_90_lo_h']:.0f}-{r['first_fault_90_hi_h']:.0f} h), "
+            f"RUL {r['rul_h']:.0f} h")
+        say(f"{r['rank']:3d}  {r['board']}: first FAULT {fault}; where: {r['where'] or '-'}; last verdict "
+            f"{r['last_verdict'] or '-'}" + (f"; exit {r['exit_code']}: {r['message']}" if r["exit_code"] else ""))
+    say(f"fleet table {paths['csv']}, page {paths['html']} ({outcome.wall_s:.1f} s, {outcome.scheduler})")
+    if args.json:
+        print(dump_json(doc))
+    return 1 if any(r["exit_code"] for r in rows) else 0
+
+
+def run_fleet_boards(args: argparse.Namespace) -> int:
+    """``shm run --scenario S --boards N --seed S``: N lives in parallel, each board's rates scaled by its factor."""
+    from board_config.scenario import load_scenario
+    from studies.batch import run_tasks
+    from studies.batch.fleet import board_rate_factor, scaled_life
+    from studies.batch.runner import check_scheduler
+    from studies.batch.summary import scalar_columns, write_summary
+
+    if args.boards < 1:
+        raise InputError(f"--boards must be >= 1, got {args.boards}")
+    scheduler = check_scheduler(args.scheduler)
+    scenario = load_scenario(args.scenario)
+    if scenario.life is None:
+        raise InputError(f"--boards needs a scenario with a [life] section ({scenario.source} has none)")
+    seed = args.seed if args.seed is not None else scenario.seed
+    text = Path(scenario.source).read_text(encoding="utf-8")
+    factors = [board_rate_factor(seed, i) for i in range(args.boards)]
+    tasks = [(f"board{i:03d}", {"scenario.toml": scaled_life(text, f).encode()}) for i, f in enumerate(factors)]
+    out = out_dir(args.out)
+    args.command = "run"
+    args.quiet = True
+    outcome = run_tasks(tasks, _board_life_task, (args, seed), scheduler=scheduler, warm=warm_workbench,
+                        progress=_progress("shm run --boards"))
+    report_of = _write_task_files(out, outcome.results)
+    rows = [{"board": r.key, "exit_code": r.code, "rate_factor": factors[i], "seed": seed + i,
+             **scalar_columns(r.doc, skip=("wall_s",)), "first_fault_visit": r.doc.get("first_fault_visit"),
+             "message": "" if r.code == 0 else r.message} for i, r in enumerate(outcome.results)]
+    paths = write_summary(out, f"{len(rows)} boards through '{scenario.name}'", rows, report_of, stem="boards",
+                          key="board")
+    print(f"shm run: {len(rows)} boards in {outcome.wall_s:.1f} s ({outcome.scheduler}); {paths['html']}; next: "
+          f"shm health --fleet {out}/board* --out {out}/fleet", file=sys.stderr)
+    if args.json:
+        print(dump_json({"boards": rows, "cost": outcome.cost()}))
+    return 1 if any(r["exit_code"] for r in rows) else 0
+
+
+def _board_life_task(key: str, files: dict[str, bytes], shared: dict[str, bytes], options: Any) -> Any:
+    """One board's life: the single-board ``shm run`` on its scaled scenario, its rig seeded seed + board index."""
+    args, seed = options
+    board_args = argparse.Namespace(**vars(args))
+    board_args.seed = seed + int(key.removeprefix("board"))
+    return run_command_task(key, files, shared, board_args)
