@@ -50,7 +50,15 @@ from workbench.discover_dictionary_effect import (
     signal_scales,
     term_scale,
 )
-from workbench.discover_results import DiscoverError, Discovery, FoundTerm, ScreenRow, describe_units
+from workbench.discover_results import (
+    DiscoverError,
+    Discovery,
+    FoundTerm,
+    ScreenRow,
+    describe_units,
+    excess_share_removed,
+    noise_free_match,
+)
 from workbench.discover_search import (
     SearchState,
     change_point,
@@ -136,8 +144,8 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     for round_no in range(max_terms):
         if explained(current_held, held_before, n_held) and round_no > 0:
             break
-        if held_before <= 1.0 + noise_tolerance(n_held):  # at the noise floor: among 200 terms one fits noise
-            break
+        if held_before <= 1.0 + noise_tolerance(n_held) or noise_free_match(targets, held_before):
+            break  # at the noise floor (or a noise-free record matched numerically): among 200 terms one fits noise
         # --- sensitivities: one batch, member k+1 switches term k on with eps_k
         t0 = time.perf_counter()
         cand = [k for k in range(len(terms)) if k not in state.kept]
@@ -282,10 +290,10 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
             break
         h_new, k_new, out = best
         twins[k_new] = _twins(terms[k_new], h_new, rows, tried, n_held, scales, linearised=fast)
-        gain = (current_held ** 2 - h_new ** 2) / max(current_held ** 2 - 1.0, 1e-12)
+        gain = excess_share_removed(current_held, h_new, noise_tolerance(n_held))
         say(f"  best refit: {terms[k_new].key}: held-out {current_held:.4g} σ → {h_new:.4g} σ "
-            f"({100 * gain:.0f} % of the excess removed)")
-        if gain < MIN_SHARE or h_new >= current_held:
+            + (f"({100 * gain:.0f} % of the excess removed)" if gain is not None else "(no excess over the noise)"))
+        if gain is None or gain < MIN_SHARE or h_new >= current_held:
             break
         state.kept.append(k_new)
         state.values.update(out.values)
@@ -351,6 +359,9 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
                   if best_row else "."))
         if held_before <= 1.0 + noise_tolerance(n_held):
             msg = f"Nothing to find: the nominal model is already at the noise floor ({held_before:.4g} σ held-out)."
+        elif noise_free_match(targets, held_before):
+            msg = ("Nothing to find: the records are noise-free and the nominal model matches them within the "
+                   "simulation's own accuracy (held-out residual below 1e-5 of each channel's range).")
     timings["total_s"] = time.perf_counter() - t_start
     return Discovery(verdict, msg, found, train_before, held_before,
                      current_train if found else train_before, current_held if found else held_before,

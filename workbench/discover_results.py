@@ -3,9 +3,12 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
+
+import numpy as np
 
 from workbench.discovery_dictionary import ALL_FORMS, DELAY_FORMS, Term
 from workbench.discovery_gates import TIME_GATES
@@ -16,6 +19,36 @@ from workbench.fit_targets import FitError, Target
 
 class DiscoverError(FitError):
     """Discovery cannot start (bad records or effects)."""
+
+
+#: a residual below this fraction of a channel's range is the simulation's own accuracy (integration rtol 1e-6,
+#: ten times over), not a model error: a noise-free record that the model matches this well has nothing to find
+NUMERICAL_MATCH_OF_RANGE = 1e-5
+
+
+def noise_free_match(targets: Sequence[Target], held_sigma: float) -> bool:
+    """True when the held-out residual of every channel of every record is below :data:`NUMERICAL_MATCH_OF_RANGE`
+    of the channel's range (bounded from the RMS over all channels, ``held_sigma`` in each channel's σ): the model
+    matches a noise-free record numerically, and any term found would fit the integrator's rounding (issue 33: a
+    noiseless nominal record 'found' a term, with more than 100 % of the excess removed)."""
+    if not targets:
+        return False
+    for tg in targets:
+        span = np.ptp(tg.measured, axis=1)
+        bound = held_sigma * math.sqrt(sum(len(t.channels) for t in targets)) * tg.sigma
+        if not np.all(bound <= NUMERICAL_MATCH_OF_RANGE * span):
+            return False
+    return True
+
+
+def excess_share_removed(before_sigma: float, after_sigma: float, tolerance: float) -> float | None:
+    """The share of the excess over the noise (RMS² − 1, σ²) that going from ``before_sigma`` to ``after_sigma``
+    removes, at most 1 (what falls below the noise floor removes no more than the whole excess); None when
+    ``before_sigma`` is within ``tolerance`` of the floor: no meaningful excess to take a share of."""
+    if not before_sigma > 1.0 + tolerance:
+        return None
+    before, after = before_sigma ** 2 - 1.0, max(after_sigma ** 2 - 1.0, 0.0)
+    return (before - after) / before
 
 
 @dataclass
