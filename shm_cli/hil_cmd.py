@@ -74,6 +74,19 @@ def rtu_endpoint_arg(text: str) -> str:
     return text
 
 
+def sched_slice_arg(text: str) -> float:
+    """argparse ``type=`` of ``--sched-slice-ms``: 0 (off) or 0.1 .. 100 ms."""
+    from board_config.errors import InputError
+    from drivers.latency_slice import check_slice_ms
+
+    try:
+        value = float(text)
+        check_slice_ms(value)
+    except (ValueError, InputError) as exc:
+        raise argparse.ArgumentTypeError(f"'{text}': allowed 0 (off) or 0.1 .. 100 ms") from exc
+    return value
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("hil", help="hardware-in-the-loop stub: the simulated rig served over serial / Modbus",
                        description="The simulated rig as hardware: serial frames, Modbus TCP, Modbus RTU.")
@@ -122,6 +135,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="write the end-of-run summary as JSON")
     r.add_argument("--status-every", type=nonnegative_float, default=10.0, metavar="S",
                    help="print a status line every S seconds (0: never)")
+    r.add_argument("--sched-slice-ms", type=sched_slice_arg, default=0.2, metavar="MS",
+                   help="CPU time slice asked for the serving threads (Linux >= 6.12, EEVDF: a short slice lets them "
+                        "preempt a CPU-bound neighbour when a request arrives; normal priority and nice kept; "
+                        "0.1 .. 100, 0: off; default 0.2; docs/real-rig.md)")
     f = s.add_argument_group("fault injection (seeded by --seed)")
     f.add_argument("--drop", type=float_in_range(0.0, 1.0), default=0.0, metavar="FRAC",
                    help="fraction of replies dropped")
@@ -164,6 +181,53 @@ def fault_plan(args: argparse.Namespace, seed: int):
     return FaultPlan(link=link, sensors=sensors, truth=truth, seed=seed)
 
 
+def _announce(args: argparse.Namespace, desc: dict, seed: int, service, plan, slice_note: str) -> None:
+    """The lines `shm hil serve` prints once it serves: the rig, each endpoint with its --link URL, the faults."""
+    print(f"shm hil: rig {desc['params']}"
+          + (f", scenario {desc['scenario']}" if desc["scenario"] else ", no scenario (bench rig)")
+          + f", seed {seed}; clock {args.clock} at {1 / service.host.dt:g} Hz"
+          + (", rig time starts at the board's first command" if args.start == "first-command" else "")
+          + ("; every board run starts the rig again from t = 0" if args.clock == "lockstep" else
+             "; the scenario plays once (one board run per stub run)"),
+          flush=True)
+    for srv in service.servers:
+        print(f"  {srv.describe()}", flush=True)
+        print(f"    board: --link {srv.board_url}", flush=True)
+    for line in plan.describe():
+        print(f"  fault: {line}", flush=True)
+    print(f"  scheduler slice: {slice_note}", flush=True)
+
+
+def _serve_until_stopped(args: argparse.Namespace, service, stop: threading.Event) -> None:
+    """Serve until ``stop`` (a signal) or ``--duration``; a status line every ``--status-every`` s."""
+    t0 = time.monotonic()
+    next_status = t0 + args.status_every if args.status_every > 0 else float("inf")
+    while not stop.is_set():
+        stop.wait(0.1)
+        now = time.monotonic()
+        if args.duration is not None and now - t0 >= args.duration:
+            break
+        if now >= next_status:
+            next_status += args.status_every
+            h = service.host
+            p = h.pacing
+            print(f"  [{now - t0:7.1f} s] rig t = {h.snapshot.sample.t:8.2f} s, commands {h.commands}, "
+                  f"refused {h.refused_count}, deadline misses {p.deadline_misses}, incidents {h.incident_count}",
+                  file=sys.stderr, flush=True)
+
+
+def _report(args: argparse.Namespace, service, slice_note) -> None:
+    """The end-of-run summary: one line on stdout, the JSON file with ``--summary``."""
+    summary = service.summary()
+    summary["sched_slice"] = {"applied": slice_note.applied, "slice_ms": 1e3 * slice_note.slice_s,
+                              "note": slice_note.note}
+    summary["incident_log"] = service.host.incidents[-50:]
+    print("shm hil: stopped. " + json.dumps(to_jsonable({k: v for k, v in summary.items() if k != "incident_log"})),
+          flush=True)
+    if args.summary:
+        Path(args.summary).write_text(json.dumps(to_jsonable(summary), indent=2))
+
+
 def cmd_serve(args: argparse.Namespace) -> int:
     from shm_cli.main import CliError
 
@@ -174,6 +238,10 @@ def cmd_serve(args: argparse.Namespace) -> int:
         raise CliError(f"--duration {args.duration!r}: must be > 0 s")
     logging.basicConfig(level=logging.WARNING, format="%(asctime)s %(name)s: %(message)s", stream=sys.stderr)
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+    from drivers.latency_slice import request_process_slice
+
+    # every thread: the serving threads started later (Modbus event loop, serial servers, rig clock) inherit it
+    slice_note = request_process_slice(args.sched_slice_ms / 1e3)
     # at once, before the imports and the truth plant's kernels (a cold cache compiles them: announced by the plant)
     print(f"shm hil: building the rig ({'scenario ' + args.scenario if args.scenario else 'bench rig'}); the "
           f"endpoints open when it is ready …", file=sys.stderr, flush=True)
@@ -220,48 +288,19 @@ def cmd_serve(args: argparse.Namespace) -> int:
         gc.collect()
         gc.freeze()
         desc = rig.describe()
-        print(f"shm hil: rig {desc['params']}"
-              + (f", scenario {desc['scenario']}" if desc["scenario"] else ", no scenario (bench rig)")
-              + f", seed {seed}; clock {args.clock} at {1 / service.host.dt:g} Hz"
-              + (", rig time starts at the board's first command" if args.start == "first-command" else "")
-              + ("; every board run starts the rig again from t = 0" if args.clock == "lockstep" else
-                 "; the scenario plays once (one board run per stub run)"),
-              flush=True)
-        for srv in service.servers:
-            print(f"  {srv.describe()}", flush=True)
-            print(f"    board: --link {srv.board_url}", flush=True)
-        for line in plan.describe():
-            print(f"  fault: {line}", flush=True)
+        _announce(args, desc, seed, service, plan, slice_note.note)
         from shm_cli.live_args import start_live  # --live: the rig's page (docs/live.md)
 
         live = start_live(args)
         if live is not None:
             live.attach_rig(service, title=f"rig {desc['params']}, clock {args.clock}, "
                                            + ", ".join(srv.describe() for srv in service.servers))
-        t0 = time.monotonic()
-        next_status = t0 + args.status_every if args.status_every > 0 else float("inf")
-        while not stop.is_set():
-            stop.wait(0.1)
-            now = time.monotonic()
-            if args.duration is not None and now - t0 >= args.duration:
-                break
-            if now >= next_status:
-                next_status += args.status_every
-                h = service.host
-                p = h.pacing
-                print(f"  [{now - t0:7.1f} s] rig t = {h.snapshot.sample.t:8.2f} s, commands {h.commands}, "
-                      f"refused {h.refused_count}, deadline misses {p.deadline_misses}, incidents {h.incident_count}",
-                      file=sys.stderr, flush=True)
+        _serve_until_stopped(args, service, stop)
     finally:
         service.stop()
         for sig, handler in old.items():
             signal.signal(sig, handler)
         if live is not None:
             live.finish("interrupted" if stop.is_set() else "finished")
-    summary = service.summary()
-    summary["incident_log"] = service.host.incidents[-50:]
-    print("shm hil: stopped. " + json.dumps(to_jsonable({k: v for k, v in summary.items() if k != "incident_log"})),
-          flush=True)
-    if args.summary:
-        Path(args.summary).write_text(json.dumps(to_jsonable(summary), indent=2))
+    _report(args, service, slice_note)
     return live.linger(0, interrupted=stop.is_set()) if live is not None else 0

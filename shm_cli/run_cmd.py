@@ -78,6 +78,12 @@ def register(sub: argparse._SubParsersAction) -> None:
     pace.add_argument("--virtual", action="store_true",
                       help="virtual time, as fast as possible (default for --link sim)")
     p.add_argument("--duration-s", type=float, default=None, help="stop after this much board time (s)")
+    from shm_cli.hil_cmd import sched_slice_arg
+
+    p.add_argument("--sched-slice-ms", type=sched_slice_arg, default=0.2, metavar="MS",
+                   help="hardware links, paced: CPU time slice asked for the board's link thread (Linux >= 6.12: it "
+                        "preempts a CPU-bound neighbour when a reply arrives; normal priority kept; 0: off; "
+                        "docs/real-rig.md)")
     p.add_argument("--board-config", default=None, metavar="FILE", help="board configuration (default: shipped)")
     p.add_argument("--timeline-every-s", type=nonnegative_float, default=60.0,
                    help="print a telemetry line this often (s of board time; 0 = never); every record is logged")
@@ -360,6 +366,10 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
             raise InputError(f"--link {args.link!r}: {exc}") from None
     rig = link.rig if isinstance(link, InProcessLink) else None
     paced = args.realtime or (args.link != "sim" and not args.virtual)
+    if paced and rig is None:  # the thread that exchanges with a hardware link: a short slice (drivers.latency_slice)
+        from drivers.latency_slice import request_slice
+
+        request_slice(args.sched_slice_ms / 1e3)
     scheduler = StoppableScheduler(Scheduler(cfg.tick_rate, WallClock() if paced else VirtualClock()), stopper)
     live = getattr(args, "live_session", None)
     if live is not None:  # the page reads what the board publishes after each tick; the link is timed
