@@ -6,12 +6,12 @@ Routes (all GET; there is no route that changes anything — the page has no con
 ``/``                  the page (``assets/index.html``)
 ``/live.js``, ``/live.css``  its script and style (``assets/``)
 ``/plotly.min.js``     plotly.js from the installed ``plotly`` package (gzip-compressed once at start)
-``/ws``                the websocket: a full message on connect, then what changed, at most ``rate_hz`` per second
+``/ws``                the websocket: a full message on connect, then what changed, one message per publication
 ``/state.json``        the full message of now (for scripts and ``curl``)
 ``/report``            the run's ``report.html`` once it is written (404 before)
 ====================  ===========================================================================================
 
-Every ``1 / rate_hz`` seconds the server reads the slot; if the snapshot is new it encodes one message per distinct
+Every ``1 / stream_hz`` seconds the server reads the slot; if the snapshot is new it encodes one message per distinct
 page position (usually one for all pages) and writes it to every page whose previous message has left; a page whose
 previous write is still pending (a slow line) skips this round and catches up with the next. Memory per page is
 therefore bounded, and the board's thread is never involved. A websocket from another origin is refused (tornado's
@@ -38,8 +38,9 @@ import tornado.websocket
 from live_page.messages import encode, last_indices
 from live_page.snapshot import SnapshotSlot
 
-#: websocket messages per second at most (the page shows at least 10 updates per second)
-STREAM_HZ = 20.0
+#: how often the server looks at the slot (Hz): faster than the board publishes (20 Hz), so that every publication
+#: reaches the pages (a page gets at most one message per publication; at least 10 per second is the target)
+STREAM_HZ = 40.0
 
 
 def _asset(name: str) -> bytes:
