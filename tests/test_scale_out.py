@@ -67,3 +67,32 @@ def test_scheduler_with_files_only_is_a_usage_error(tmp_path, capsys):
     assert "--scheduler runs one task per record of a folder" in capsys.readouterr().err
     assert main(["compare", str(tmp_path), "--scheduler", "nowhere", "--out", str(tmp_path / "o")]) == 2
     assert "expected local, synchronous or tcp://HOST:PORT" in capsys.readouterr().err
+
+
+def test_board_rates_scatter_deterministically_and_scale_only_the_life_laws():
+    from studies.batch.fleet import board_rate_factor, scaled_life
+
+    factors = [board_rate_factor(3, i) for i in range(50)]
+    assert factors[:2] == [board_rate_factor(3, 0), board_rate_factor(3, 1)] and len(set(factors)) == 50
+    assert 0.8 < float(sorted(factors)[25]) < 1.25 and min(factors) > 0
+    text = ("[rig]\nbattery = { value = 3.0, unit = \"V\" }\n[[life.law]]\nparameter = \"k3\"\n"
+            "rate = { value = -2.0e-4, unit = \"1/h\" }\n[[life.law]]\namplitude = { value = 0.15, unit = \"1\" }\n"
+            "[[phase]]\nrate = { value = 7, unit = \"1\" }\n")
+    out = scaled_life(text, 2.0)
+    assert "rate = { value = -0.0004, unit" in out and "amplitude = { value = 0.3, unit" in out
+    assert "battery = { value = 3.0," in out and "rate = { value = 7, unit" in out  # outside [[life.law]]: kept
+
+
+def test_fleet_ranks_faulty_first_then_earliest_forecast():
+    from studies.batch.fleet import fleet_row, rank_fleet
+
+    def doc(t, verdict, faulty=False):
+        return {"forecast": {"trip_operating_hours": t, "trip_interval_90": [t and t - 10, t and t + 10],
+                             "rul_hours": t and t - 900, "already_faulty": faulty},
+                "visits": [{"operating_hours": 900.0, "board_verdict": verdict}],
+                "location": {"parameter": "k3", "section": 3}}
+
+    rows = rank_fleet([fleet_row("c", doc(1500.0, "PASS"), 0, ""), fleet_row("a", doc(None, "PASS"), 0, ""),
+                       fleet_row("b", doc(1200.0, "PASS"), 0, ""), fleet_row("d", doc(950.0, "FAULT", True), 0, "")])
+    assert [(r["rank"], r["board"]) for r in rows] == [(1, "d"), (2, "b"), (3, "c"), (4, "a")]
+    assert rows[1]["first_fault_90_lo_h"] == 1190.0 and rows[1]["where"] == "k3 (section 3)"
