@@ -351,7 +351,14 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
             how_much += (f"; the stiffness loss itself: {loc['parameter']} {100 * loc['relative']:+.1f} % "
                          f"(section {loc['section']})")
     f = doc["forecast"]
-    if fc.already_faulty:
+    said = next((v for v in doc["visits"] if v.get("board_verdict") == "FAULT"), None)
+    if said is not None:  # the board's own built-in test already said FAULT: that is the answer (issue 33)
+        f["already_faulty"] = True
+        f["board_said_fault_hours"] = said["operating_hours"]
+        how_long = (f"already faulty: the board's own built-in test said FAULT at visit {said['visit']} "
+                    f"({said['operating_hours']:g} h)"
+                    + ("" if said is last else f", before the last visit used ({last['operating_hours']:g} h)"))
+    elif fc.already_faulty:
         how_long = ("now: the estimated parameters are already beyond the monitor's trip limit (the built-in test "
                     "flags this laminate)")
     elif fc.significant and fc.trip_operating_hours is not None:

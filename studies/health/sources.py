@@ -51,6 +51,59 @@ def _verdicts(db_path: Path) -> tuple[dict[float, str], dict[tuple[float, str], 
     return visit_v, mbit_v, truth
 
 
+#: the latest plausible operating time of a record (h): about 114 years of continuous operation
+MAX_OPERATING_HOURS = 1.0e6
+
+
+def check_sources(sources: Sequence[str | Path]) -> None:
+    """The same source given twice (a path repeated, a record file inside a run directory also given, a run
+    directory and its own usage.db): one line naming both (the same visit would count twice)."""
+    seen: dict[Path, str] = {}
+    for s in sources:
+        p = Path(s)
+        if not p.exists():
+            continue  # load_visits says so, with what a SOURCE may be
+        key = p.resolve()
+        if p.suffix == ".db":
+            key = key.parent
+        for owner in (key, *key.parents):
+            if owner in seen and (owner == key or (p.is_file() and owner / "records" == key.parent)):
+                raise InputError(f"{s}: the same visit data given twice ({seen[owner]} already holds it); give each "
+                                 "run directory, usage.db or record file once")
+        seen[key] = str(s)
+
+
+def _check_belonging(f: Path, rec: Record, h: float, groups: dict[float, list[Record]],
+                     first: dict[str, tuple[str, str]]) -> None:
+    """A record must belong with the others: plausible hours, one record per MBIT and visit, the visit number
+    matching its hours, and every board record of one run (``run_uid``) of one board (``board_id``)."""
+    if not h <= MAX_OPERATING_HOURS:
+        raise InputError(f"{f}: operating_hours = {h:g} h is not a plausible time in a structure's life (at most "
+                         f"{MAX_OPERATING_HOURS:g} h)")
+    prov = rec.meta.get("provenance", {}) or {}
+    test = str(rec.meta.get("test", ""))
+    for other in groups.get(h, []):
+        if str(other.meta.get("test", "")) == test:
+            raise InputError(f"{f}: a second {test} record of the visit at {h:g} h ({other.path} is one already): "
+                             "the same visit given twice")
+    vis = prov.get("visit")
+    for oh, recs in groups.items():
+        ov = (recs[0].meta.get("provenance", {}) or {}).get("visit")
+        if prov.get("generator") == "board" and vis is not None and ov == vis and oh != h \
+                and (recs[0].meta.get("provenance", {}) or {}).get("generator") == "board":
+            raise InputError(f"{f}: visit {vis} at {h:g} h, but {recs[0].path} has visit {vis} at {oh:g} h: "
+                             "records of two different lives or runs")
+    if prov.get("generator") != "board":
+        return
+    for key, what in (("run_uid", "run"), ("board_id", "board")):
+        mine = str(prov.get(key, "none (an older record)"))
+        if key not in first:
+            first[key] = (mine, str(f))
+        elif first[key][0] != mine:
+            raise InputError(f"{f}: a record of another {what} ({key} {mine}; {first[key][1]} has {first[key][0]}): "
+                             "a life's visits must come from one run of one board")
+
+
 def load_visits(sources: Sequence[str | Path]) -> list[Visit]:
     """Visits (sorted by operating hours) from run directories, usage.db files or record files."""
     files: list[Path] = []
@@ -68,7 +121,9 @@ def load_visits(sources: Sequence[str | Path]) -> list[Visit]:
             dbs.append(p)
         else:
             files.append(p)
+    check_sources(sources)
     groups: dict[float, list[Record]] = {}
+    first: dict[str, tuple[str, str]] = {}
     for f in files:
         rec = load_record(f)
         if not isinstance(rec, Record):
@@ -77,6 +132,7 @@ def load_visits(sources: Sequence[str | Path]) -> list[Visit]:
         if h is None:
             raise InputError(f"{f}: the record has no 'operating_hours' header key (when in the structure's life it "
                              "was taken; shm synth --operating-hours H stamps it)")
+        _check_belonging(f, rec, float(h), groups, first)
         groups.setdefault(float(h), []).append(rec)
     visit_v: dict[float, str] = {}
     mbit_v: dict[tuple[float, str], str] = {}
