@@ -49,12 +49,16 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy import stats
 from scipy.optimize import brentq, least_squares
+from scipy.special import expit
 
 SIGMA_FLOOR = 5e-4
 P_SIGNIFICANT = 0.002  # ~0.5 % per parameter, Bonferroni over the three monitor parameters
-MODELS = ("none", "linear", "exponential", "power", "change_point")
+MODELS = ("none", "linear", "exponential", "power", "logistic", "two_stage", "change_point")
 #: visits each law needs (k ≤ n − 1: one more visit than coefficients)
-MIN_VISITS_FOR = {"none": 1, "linear": 3, "exponential": 4, "power": 4, "change_point": 5}
+MIN_VISITS_FOR = {"none": 1, "linear": 3, "exponential": 4, "power": 4, "logistic": 5, "two_stage": 5,
+                  "change_point": 5}
+#: laws whose position (a change point's step, a two-stage wear's knee) is searched over a grid and counted in k
+SEARCHED = ("change_point", "two_stage")
 #: AIC margin a change point must beat every smooth candidate by before a sudden change is claimed (docs/health.md)
 CHANGE_POINT_MIN_DELTA_AICC = 2.0
 #: family-wise significance of the change point's step, split (Bonferroni) over the step positions searched
@@ -64,6 +68,13 @@ P_STEP = 0.05
 RECENT_SHARE = 0.2
 RECENT_VISITS = 4
 _H_SCALE = 1000.0  # h: power-law coefficients are per 1000 h (conditioning)
+#: the latest-visit check (:func:`latest_visit_check`) from this many visits on; its spread factor at most
+#: CHECK_MAX_FACTOR and its Monte Carlo seed (the check is deterministic)
+CHECK_MIN_VISITS = 5
+CHECK_MAX_FACTOR = 30.0
+CHECK_SEED = 2028
+#: a logistic's midpoint is searched up to this many times the span of the visits (beyond, it is an exponential)
+LOGISTIC_MID_SPAN = 4.0
 
 
 @dataclass
@@ -112,7 +123,17 @@ def model_value(name: str, h: np.ndarray, th: np.ndarray, tau: float | None = No
         return a + c * np.power(np.maximum(h, 0.0) / _H_SCALE, m)
     if name == "change_point":
         return a + th[..., 1:2] * h + th[..., 2:3] * (h >= (tau if tau is not None else np.inf))
+    if name == "two_stage":
+        return a + th[..., 1:2] * h + th[..., 2:3] * np.maximum(h - (tau if tau is not None else np.inf), 0.0)
+    if name == "logistic":
+        return a + th[..., 1:2] * logistic_rise(h, th[..., 2:3], th[..., 3:4])
     raise ValueError(name)
+
+
+def logistic_rise(h: np.ndarray, mid: np.ndarray | float, width: np.ndarray | float) -> np.ndarray:
+    """σ((h − mid)/width) − σ(−mid/width): a logistic step of unit size that is 0 at entry into service."""
+    w = np.maximum(width, 1e-9)
+    return expit((h - mid) / w) - expit(-mid / w)
 
 
 def _coefficients(name: str, h: np.ndarray, y: np.ndarray, w: np.ndarray, tau: float | None,
@@ -120,22 +141,28 @@ def _coefficients(name: str, h: np.ndarray, y: np.ndarray, w: np.ndarray, tau: f
     """Weighted least squares of one law: (θ, raw residuals y − f, raw Jacobian ∂f/∂θ) or None."""
     n = h.size
     sw = np.sqrt(w)
-    if name in ("none", "linear", "change_point"):
+    if name in ("none", "linear", "change_point", "two_stage"):
         cols = [np.ones(n)]
         if name != "none":
             cols.append(h)
         if name == "change_point":
             cols.append((h >= tau).astype(float))
+        if name == "two_stage":
+            cols.append(np.maximum(h - (tau if tau is not None else np.inf), 0.0))
         x = np.column_stack(cols)
         theta, *_ = np.linalg.lstsq(x * sw[:, None], y * sw, rcond=None)
         return theta, y - x @ theta, x
     span = max(float(h.max()), 1.0)
-    if x0 is None:
-        lin = np.polyfit(h, y, 1, w=sw)
-        x0 = np.array([y[0], lin[0] * span / 2, span / 2] if name == "exponential" else
-                      [y[0], lin[0] * _H_SCALE, 1.5])
-    lb, ub = ([-np.inf, -np.inf, span / 20], [np.inf, np.inf, 50 * span]) if name == "exponential" else \
-        ([-np.inf, -np.inf, 0.3], [np.inf, np.inf, 6.0])
+    if name == "logistic":
+        lb, ub = logistic_bounds(h)
+        x0 = _logistic_start(h, y, sw, lb, ub) if x0 is None else x0
+    else:
+        if x0 is None:
+            lin = np.polyfit(h, y, 1, w=sw)
+            x0 = np.array([y[0], lin[0] * span / 2, span / 2] if name == "exponential" else
+                          [y[0], lin[0] * _H_SCALE, 1.5])
+        lb, ub = ([-np.inf, -np.inf, span / 20], [np.inf, np.inf, 50 * span]) if name == "exponential" else \
+            ([-np.inf, -np.inf, 0.3], [np.inf, np.inf, 6.0])
     x0 = np.clip(x0, np.array(lb) + 1e-12, np.array(ub) - 1e-12)
 
     def res(th: np.ndarray) -> np.ndarray:
@@ -146,6 +173,30 @@ def _coefficients(name: str, h: np.ndarray, y: np.ndarray, w: np.ndarray, tau: f
     except (ValueError, FloatingPointError):
         return None
     return sol.x, -sol.fun / sw, sol.jac / sw[:, None]
+
+
+def logistic_bounds(h: np.ndarray) -> tuple[list[float], list[float]]:
+    """Bounds of (a, A, mid, width): the midpoint up to :data:`LOGISTIC_MID_SPAN` × the span seen, the width at
+    least the typical visit spacing (narrower, the logistic would be a step between two visits — a change point's
+    claim, which must earn it) and at most the span."""
+    span = max(float(h.max() - h.min()), 1.0)
+    spacing = float(np.median(np.diff(h))) if h.size > 1 else span
+    w_min = min(max(spacing, span / 20), span / 2)
+    return [-np.inf, -np.inf, float(h.min()) - span, w_min], [np.inf, np.inf, LOGISTIC_MID_SPAN * span, span]
+
+
+def _logistic_start(h: np.ndarray, y: np.ndarray, sw: np.ndarray, lb: list[float], ub: list[float]) -> np.ndarray:
+    """The best (a, A) by weighted least squares on a grid of (mid, width) — linear in (a, A) once those are
+    fixed — as the start of the non-linear fit."""
+    best, x0 = np.inf, np.array([y[0], 0.0, 0.5 * (lb[2] + ub[2]), ub[3]])
+    for mid in np.linspace(lb[2], ub[2], 14):
+        for w in np.geomspace(lb[3], ub[3], 8):
+            x = np.column_stack([np.ones(h.size), logistic_rise(h, mid, w)])
+            coef, *_ = np.linalg.lstsq(x * sw[:, None], y * sw, rcond=None)
+            r = float(np.sum(((x @ coef - y) * sw) ** 2))
+            if r < best:
+                best, x0 = r, np.array([coef[0], coef[1], mid, w])
+    return x0
 
 
 def between_visit_scatter(resid: np.ndarray, var0: np.ndarray, dof: int) -> float:
@@ -177,7 +228,7 @@ def _wls(name: str, h: np.ndarray, y: np.ndarray, var0: np.ndarray, tau: float |
     jw = jac / np.sqrt(v)[:, None]
     cov = np.linalg.pinv(jw.T @ jw)
     loglik = -0.5 * float(np.sum(e ** 2 / v + np.log(v)))
-    k = theta.size + (1 if name == "change_point" else 0)
+    k = theta.size + (1 if name in SEARCHED else 0)
     return ModelFit(name, np.asarray(theta, float), cov, float(np.sum(e ** 2 / var0)), k, h.size, tau, tau2,
                     loglik)
 
@@ -196,6 +247,11 @@ class Trend:
     change_point_note: str | None = None
     #: the line through the latest :data:`RECENT_VISITS` visits (None: too few visits for a separate window)
     recent: ModelFit | None = None
+    #: the latest-visit check (:func:`latest_visit_check`): the paths' spread around their median is multiplied
+    #: by this (1: the laws fitted to the earlier visits foresaw the latest one within their 90 % band)
+    spread_factor: float = 1.0
+    #: the check's numbers (None: too few visits to check)
+    check: dict[str, float] | None = None
 
     @property
     def model(self) -> str:
@@ -214,11 +270,15 @@ class Trend:
         """(n, len(h)) sampled mean paths (coefficient uncertainty, model averaging over the trend laws; a share
         :data:`RECENT_SHARE` from the line through the latest visits when there is one)."""
         if self.recent is None or RECENT_SHARE <= 0:
-            return sample_mixture(self.fits, self.weights, h, n, rng)
-        n_recent = round(RECENT_SHARE * n)
-        out = np.empty((n, h.size))
-        out[: n - n_recent] = sample_mixture(self.fits, self.weights, h, n - n_recent, rng)
-        out[n - n_recent:] = _paths_of(self.recent, h, n_recent, rng)
+            out = sample_mixture(self.fits, self.weights, h, n, rng)
+        else:
+            n_recent = round(RECENT_SHARE * n)
+            out = np.empty((n, h.size))
+            out[: n - n_recent] = sample_mixture(self.fits, self.weights, h, n - n_recent, rng)
+            out[n - n_recent:] = _paths_of(self.recent, h, n_recent, rng)
+        if self.spread_factor > 1.0:
+            med = np.median(out, axis=0)
+            out = med + self.spread_factor * (out - med)
         return out
 
     def band(self, h: np.ndarray, rng: np.random.Generator, n: int = 400, q: float = 0.9) -> tuple[np.ndarray, ...]:
@@ -251,6 +311,8 @@ def _paths_of(f: ModelFit, h: np.ndarray, n: int, rng: np.random.Generator) -> n
     th += f.theta
     if f.name == "exponential":
         th[:, 2] = np.maximum(th[:, 2], 1e-6)
+    if f.name == "logistic":
+        th[:, 3] = np.maximum(th[:, 3], 0.5 * f.theta[3])
     return model_value(f.name, h[None, :], th, f.tau)
 
 
@@ -261,7 +323,8 @@ def _psd(c: np.ndarray) -> np.ndarray:
 
 
 def fit_trend(parameter: str, hours: Sequence[float] | np.ndarray, y: Sequence[float] | np.ndarray,
-              stderr: Sequence[float | None] | np.ndarray, *, floor: float = SIGMA_FLOOR) -> Trend:
+              stderr: Sequence[float | None] | np.ndarray, *, floor: float = SIGMA_FLOOR, check: bool = True
+              ) -> Trend:
     """Choose the trend of one parameter (see the module docstring). ``floor``: the repeatability floor σ_f in the
     unit of ``y`` (default: 0.05 % for relative deviations; an effect's parameter trended in its own unit has its
     own)."""
@@ -271,19 +334,16 @@ def fit_trend(parameter: str, hours: Sequence[float] | np.ndarray, y: Sequence[f
     var0 = s ** 2 + floor ** 2
     n = h.size
     fits: dict[str, ModelFit] = {}
-    for name in ("none", "linear", "exponential", "power"):
+    for name in ("none", "linear", "exponential", "power", "logistic"):
         if n >= MIN_VISITS_FOR[name]:
             f = _wls(name, h, yv, var0)
             if f is not None:
                 fits[name] = f
-    if n >= MIN_VISITS_FOR["change_point"]:
-        best_cp = None
-        for j in range(1, n - 1):  # a step between visits j-1 and j, at least two visits after it
-            f = _wls("change_point", h, yv, var0, 0.5 * (h[j - 1] + h[j]))
-            if f is not None and (best_cp is None or f.ic < best_cp.ic):
-                best_cp = f
-        if best_cp is not None:
-            fits["change_point"] = best_cp
+    for name in SEARCHED:
+        if n >= MIN_VISITS_FOR[name]:
+            f = _best_position(name, h, yv, var0)
+            if f is not None:
+                fits[name] = f
     ic = {k: f.ic for k, f in fits.items()}
     best_name = min(ic, key=lambda k: ic[k])
     cp_note = None
@@ -297,7 +357,48 @@ def fit_trend(parameter: str, hours: Sequence[float] | np.ndarray, y: Sequence[f
     recent = None
     if significant and n >= RECENT_VISITS + 2 and best_name != "change_point" and best.scatter2 > 0:
         recent = _wls("linear", h[-RECENT_VISITS:], yv[-RECENT_VISITS:], var0[-RECENT_VISITS:])
-    return Trend(parameter, best, fits, significant, p, akaike_weights(fits), cp_note, recent)
+    trend = Trend(parameter, best, fits, significant, p, akaike_weights(fits), cp_note, recent)
+    if check and n >= CHECK_MIN_VISITS:
+        earlier = fit_trend(parameter, h[:-1], yv[:-1], s[:-1], floor=floor, check=False)
+        trend.check = latest_visit_check(earlier, float(h[-1]), float(yv[-1]), float(var0[-1]))
+        trend.spread_factor = trend.check["spread_factor"]
+    return trend
+
+
+def latest_visit_check(earlier: Trend, h: float, y: float, var: float, n: int = 4000) -> dict[str, float]:
+    """How well the laws fitted to the visits before the latest one foresaw it: their predictive band at the
+    latest visit's hours (the mean paths of the mixture — or of ``none`` without a trend — plus the visit's own
+    variance ``var`` and the chosen law's scatter), and the ratio of the miss to the band's half-width on the
+    miss's side. ``spread_factor`` = max(1, that ratio): a law outside the candidates (a knee just passed, an
+    inflection) shows as a miss here before the laws can represent it, whatever its shape."""
+    rng = np.random.default_rng(CHECK_SEED)
+    hh = np.array([h])
+    paths = earlier.sample_paths(hh, n, rng)[:, 0] if earlier.significant else \
+        _paths_of(earlier.fits["none"], hh, n, rng)[:, 0]
+    pred = paths + rng.normal(0.0, 1.0, n) * math.sqrt(var + earlier.best.scatter2)
+    med, lo, hi = (float(v) for v in np.quantile(pred, [0.5, 0.05, 0.95]))
+    half = (hi - med) if y >= med else (med - lo)
+    ratio = abs(y - med) / half if half > 0 else math.inf
+    return {"hours": h, "observed": y, "predicted_median": med, "predicted_low": lo, "predicted_high": hi,
+            "miss_ratio": ratio, "spread_factor": min(max(1.0, ratio), CHECK_MAX_FACTOR)}
+
+
+def searched_positions(name: str, h: np.ndarray) -> list[float]:
+    """Where a change point's step (midway between two visits, at least two visits after it) or a two-stage
+    wear's knee (at a visit or midway between two, at least two visits after it) is searched."""
+    if name == "change_point":
+        return [0.5 * (h[j - 1] + h[j]) for j in range(1, h.size - 1)]
+    knees = [float(h[j]) for j in range(1, h.size - 2)]
+    return sorted(knees + [0.5 * (h[j] + h[j + 1]) for j in range(1, h.size - 3)])
+
+
+def _best_position(name: str, h: np.ndarray, y: np.ndarray, var0: np.ndarray) -> ModelFit | None:
+    best = None
+    for tau in searched_positions(name, h):
+        f = _wls(name, h, y, var0, tau)
+        if f is not None and (best is None or f.ic < best.ic):
+            best = f
+    return best
 
 
 def akaike_weights(fits: dict[str, ModelFit]) -> dict[str, float]:
