@@ -325,13 +325,14 @@ def cmd_run(args: argparse.Namespace) -> int:
     check_memory(f"{src} = {n_ticks:.3g} board ticks", n_ticks * BYTES_PER_TICK,
                  hint="run a shorter stretch (--duration-s) or split the scenario")
     out = out_dir(args.out)
+    from shm_cli.live_args import start_live  # --live: the page of the running board (docs/live.md)
+
+    # before anything in --out is touched: a port in use is refused with the earlier run still there
+    args.live_session = live = start_live(args, report=out / "report.html")
     lock = OutputLock(out, command=f"shm run --scenario {args.scenario} --out {args.out}")
     lock.acquire()
     try:
         _prepare_out(args, out)
-        from shm_cli.live_args import start_live  # --live: the page of the running board (docs/live.md)
-
-        args.live_session = live = start_live(args, report=out / "report.html")
         # from here to the last file written, SIGINT/SIGTERM ask for a clean stop (see StopOnSignal)
         with StopOnSignal() as stopper:
             code = _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board, BoardRunner,

@@ -148,3 +148,24 @@ def test_the_board_feed_publishes_what_the_board_did(tmp_path: Path) -> None:
     eps = [e for c in rows for e in c.eps]
     assert len(eps) >= mbits[-1]["n_samples"] - 2 and max(eps) == pytest.approx(mbits[-1]["max_eps"])
     assert link.timed > 0 and link.rtt_percentiles()[1] is not None
+
+
+@pytest.mark.integration
+def test_a_port_in_use_is_refused_before_an_earlier_run_is_touched(tmp_path: Path) -> None:
+    import socket
+    import subprocess
+    import sys
+
+    out = tmp_path / "run"
+    out.mkdir()
+    (out / "summary.json").write_text('{"scenario": "earlier", "ticks": 1}')
+    with socket.socket() as busy:
+        busy.bind(("127.0.0.1", 0))
+        busy.listen()
+        port = busy.getsockname()[1]
+        r = subprocess.run([sys.executable, "-m", "shm_cli.main", "run", "--scenario", "maintenance", "--quiet",
+                            "--force", "--live", f"127.0.0.1:{port}", "--out", str(out)],
+                           capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and f"--live 127.0.0.1:{port}: cannot serve the live page there" in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
+    assert (out / "summary.json").read_text() == '{"scenario": "earlier", "ticks": 1}'
