@@ -40,6 +40,14 @@ def _shortened(line: str, out: Path) -> list[str]:
     return [sys.executable, "-m", "shm_cli.main", *argv[1:], *extra, "--live-linger", "0"]
 
 
+def test_the_readmes_live_commands_are_the_docs_ones() -> None:
+    """README's ``--live`` examples are docs/live.md's, which the test below runs."""
+    readme = (REPO / "README.md").read_text()
+    lines = [line.split("#", 1)[0].strip() for block in re.findall(r"```sh\n(.*?)```", readme, flags=re.S)
+             for line in block.splitlines() if "--live" in line.split("#", 1)[0]]
+    assert lines and set(lines) <= set(_shm_lines()), lines
+
+
 def test_the_docs_commands_run_and_print_what_the_docs_show(tmp_path: Path) -> None:
     lines = _shm_lines()
     assert [line.split()[:2] for line in lines] == [["shm", "run"], ["shm", "hil"]]
