@@ -169,3 +169,38 @@ def test_a_port_in_use_is_refused_before_an_earlier_run_is_touched(tmp_path: Pat
     assert r.returncode == 2 and f"--live 127.0.0.1:{port}: cannot serve the live page there" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and "Traceback" not in r.stderr
     assert (out / "summary.json").read_text() == '{"scenario": "earlier", "ticks": 1}'
+
+
+@pytest.mark.integration
+def test_the_rig_page_follows_the_rig() -> None:
+    """``shm hil serve --live``: the page's state is the rig's (rig time moving, its cell, HV, no board regime)."""
+    import re
+    import subprocess
+    import sys
+    import time
+
+    proc = subprocess.Popen([sys.executable, "-m", "shm_cli.main", "hil", "serve", "--scenario", "maintenance",
+                             "--modbus-tcp", "127.0.0.1:0", "--start", "now", "--duration", "4", "--status-every",
+                             "0", "--live", "0", "--live-linger", "0"], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    try:
+        url = None
+        assert proc.stderr is not None
+        for line in proc.stderr:
+            m = re.search(r"live page: (http://\S+/)", line)
+            if m:
+                url = m.group(1)
+                break
+        assert url is not None
+        first = json.loads(_get(url + "state.json")[1])
+        time.sleep(1.0)
+        second = json.loads(_get(url + "state.json")[1])
+        assert first["source"] == second["source"] == "rig" and second["regime"] is None
+        assert second["board_time_s"] > first["board_time_s"] + 0.5  # rig time, running from --start now
+        assert 2.9 < second["v_battery_V"] < 3.1 and 0.0 < second["soc"] <= 1.0
+        assert dict(second["extra"])["HV equipment"] in ("present", "absent")
+        assert second["link"]["exchanges"] == 0 and not second["finished"]
+        assert proc.wait(60) == 0
+    finally:
+        proc.kill()
+        proc.wait(10)
