@@ -25,6 +25,7 @@ BENCHMARKS: tuple[str, ...] = (
     "bench.bench_damage_challenge",
     "bench.bench_health",
     "bench.bench_coldstart",
+    "bench.bench_live_page",
     "bench.bench_scale_out",
 )
 
