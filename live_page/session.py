@@ -114,6 +114,7 @@ class LiveSession:
     def linger(self, exit_code: int, interrupted: bool = False) -> int:
         """Serve the final state until Ctrl-C / SIGTERM or ``linger_s``; stop the server; return ``exit_code``."""
         self.finish("interrupted" if interrupted else "failed")  # a run that ended without saying how
+        sys.stdout.flush()  # --json: the run's document reaches its reader now, not when the page stops
         if not interrupted and (self.linger_s is None or self.linger_s > 0):
             how = "until Ctrl-C" if self.linger_s is None else f"for {self.linger_s:g} s (or until Ctrl-C)"
             self.say(f"live page: the run has ended; {self.server.url} keeps its final state {how}")

@@ -308,6 +308,9 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise CliError(f"{opt} is empty: give a name or a path")
     scenario = load_scenario(args.scenario)
     if scenario.life is not None:  # many visits over an operating life (issue 17): studies.health.life
+        if getattr(args, "live", None) is not None:
+            raise CliError(f"--live: scenario '{scenario.name}' is a life whose visits run in parallel processes; "
+                           "the live page follows one board run (a maintenance or flight scenario)")
         from shm_cli.life_cmd import run_life_command
 
         return run_life_command(args, scenario)

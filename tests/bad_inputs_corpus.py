@@ -363,6 +363,7 @@ def _option_cases() -> list[Case]:
         c("run-live-badport", f"run --live 70000 --quiet {out}", "--live", "70000"),
         c("run-live-nohost", f"run --live :8765 --quiet {out}", "--live", "no host"),
         c("run-live-linger-alone", f"run --live-linger 3 --quiet {out}", "--live-linger", "--live"),
+        c("run-live-life", f"run --scenario aging --live 0 --quiet {out}", "--live", "aging", "life"),
         c("run-out-file", "run --quiet --out {d}/a_file", "--out", "a_file", "not a directory"),
         c("run-out-under-file", "run --quiet --out {d}/a_file/sub", "--out", "a_file", "not a directory"),
         c("run-finished-dir", "run --quiet --out {d}/finished_run", "finished_run", "--force"),
