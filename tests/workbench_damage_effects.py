@@ -7,7 +7,7 @@ record, a breathing crack in section 2 (open for δ2 > 0), and a patch whose aut
 from __future__ import annotations
 
 from plant.effect import Parameter, PhysicalEffect
-from plant.layout import B_QH, B_S, B_VA, P_C_EP, P_D_EP, P_K, X_DDELTA, X_DELTA, X_Q
+from plant.layout import B_QH, B_S, B_VA, P_C, P_C_EP, P_D_EP, P_K, X_DDELTA, X_DELTA, X_Q
 
 
 class Section2StiffnessEvent(PhysicalEffect):
@@ -52,3 +52,31 @@ class PatchWeakNegative(PhysicalEffect):
                 theta = p[P_K + i] * p[P_D_EP]
                 bus[B_S + i] -= p[po] * theta * bus[B_QH + i] / p[P_C_EP]
                 dx[X_Q + i] += p[po] * theta * x[X_DDELTA + i]
+
+
+class Section2DampingEvent(PhysicalEffect):
+    """At t_event section 2 starts to dissipate (1 + rise) times more (a loosened joint rubs): for t ≥ t_event the
+    section force gains − rise · c2 · δ̇2."""
+
+    name = "truth_section2_damping_event"
+    parameters = (Parameter("rise", "1", 0.0, 0.0, 20.0, "relative damping added at the event"),
+                  Parameter("t_event", "s", 1.0, 0.0, 1e4, "instant of the event"))
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        if t >= p[po + 1]:
+            bus[B_S + 1] -= p[po] * p[P_C + 1] * x[X_DDELTA + 1]
+
+
+class Section3StiffnessEvent(PhysicalEffect):
+    """At t_event section 3 loses a share loss_k3 of its stiffness: for t ≥ t_event the section force gains
+    + loss_k3 · k3 · δ3."""
+
+    name = "truth_section3_event"
+    parameters = (Parameter("loss_k3", "1", 0.0, 0.0, 0.9, "share of k3 lost at the event"),
+                  Parameter("t_event", "s", 1.0, 0.0, 1e4, "instant of the event"))
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        if t >= p[po + 1]:
+            bus[B_S + 2] += p[po] * p[P_K + 2] * x[X_DELTA + 2]

@@ -24,19 +24,28 @@ from workbench.records import FrfRecord, Record
 
 def falls_short(d: Any) -> bool:
     """Whether the library and the core parameters fall short on the diagnosed records: the verdict is "partial"
-    (what may be named leaves more than the noise floor of the verdicts) or "unexplained"."""
-    return d.verdict in ("partial", "unexplained")
+    (what may be named leaves more than the noise floor of the verdicts) or "unexplained", or what it names is not
+    constant over the record (:func:`changed_in_time`)."""
+    return d.verdict in ("partial", "unexplained") or changed_in_time(d)
+
+
+def changed_in_time(d: Any) -> bool:
+    """Whether the split-record refit of the named set (:mod:`workbench.diagnose_time_change`) found a parameter
+    whose value differs between the record's early and late parts."""
+    tc = getattr(d, "time_change", None)
+    return tc is not None and bool(tc.changed)
 
 
 def run_discovery(records: Sequence[Record | FrfRecord], params: ParameterSet | str, *, holdout: str,
-                  n_blocks: int, max_rate_Hz: float, on_progress: Callable[[str], None] | None = None) -> Any:
+                  n_blocks: int, max_rate_Hz: float, on_progress: Callable[[str], None] | None = None,
+                  expect_change: bool = False) -> Any:
     """:func:`workbench.discover.discover` on the diagnosed records (the same parameter set, held-out split and
-    rate), its wall time in ``timings['total_s']``."""
+    rate; ``expect_change``: the named set changed during the record), its wall time in ``timings['total_s']``."""
     from workbench.discover import discover
 
     t0 = time.perf_counter()
     disc = discover(records, params, holdout=holdout, n_blocks=n_blocks, max_rate_Hz=max_rate_Hz,
-                    on_progress=on_progress)
+                    on_progress=on_progress, expect_change=expect_change)
     disc.timings.setdefault("total_s", time.perf_counter() - t0)
     return disc
 
@@ -81,8 +90,13 @@ def discovery_section(disc: Any | None, *, ran: bool, reason: str, emitted: dict
 
 
 def _library_sentence(d: Any) -> str:
-    """The library verdict's first line without its trailing command (the discovery step replaced it)."""
-    return d.message.split("\n", 1)[0]
+    """The library verdict's first line without its trailing command (the discovery step replaced it); when what it
+    names changed during the record, that comes first (the re-estimation is then no cure)."""
+    first = d.message.split("\n", 1)[0]
+    if changed_in_time(d):
+        names = ", ".join(p.name for p in d.time_change.changed)
+        return f"What the library names ({names}) is {d.time_change.sentence()}. Within the library: {first}"
+    return first
 
 
 def final_verdict(d: Any, disc: Any, section: dict[str, Any]) -> None:
@@ -164,11 +178,13 @@ def discovery_step(d: Any, records: Sequence[Record | FrfRecord], params: Parame
         d.discover = discovery_section(None, ran=False, reason=f"not needed: the verdict is {d.verdict}")
         return
     say = on_progress or (lambda _m: None)
-    say("the library and the core parameters fall short: running the discovery step")
+    reason = ("what the library names changed during the record" if changed_in_time(d)
+              else "the library and the core parameters fall short")
+    say(f"{reason}: running the discovery step")
     t0 = time.perf_counter()
     try:
         disc = run_discovery(records, params, holdout=holdout, n_blocks=n_blocks, max_rate_Hz=max_rate_Hz,
-                             on_progress=say)
+                             on_progress=say, expect_change=changed_in_time(d))
     except FitError as exc:
         d.discover = discovery_section(None, ran=False, reason=f"the discovery step failed: {exc}")
         d.message += f"\nThe discovery step failed: {exc}"
@@ -180,6 +196,6 @@ def discovery_step(d: Any, records: Sequence[Record | FrfRecord], params: Parame
             command = fit_add_command(records_arg(d), params_label, emitted["file"])
     seconds = time.perf_counter() - t0
     d.timings["discover_s"] = seconds
-    d.discover = discovery_section(disc, ran=True, reason="the library and the core parameters fall short",
+    d.discover = discovery_section(disc, ran=True, reason=reason,
                                    emitted=emitted, fit_command=command, load_error=load_error, seconds=seconds)
     final_verdict(d, disc, d.discover)

@@ -17,7 +17,7 @@
    coefficient and threshold/delay free, together with terms already kept) and judged on held-out data; a term is
    kept when it removes a clear share of what is left above the noise. A time-gated term's onset comes from the
    residual (where it leaves the noise), a probe of every time-gated term there and a scan around it
-   (:func:`~workbench.discover_search.onset_scan`): least squares alone cannot place a step. Forward selection:
+   (:func:`~workbench.discover_onset.onset_scan`): least squares alone cannot place a step. Forward selection:
    with a term kept, the sensitivities are recomputed around the new model and the next term is sought (up to
    ``max_terms``).
 5. **Guards.** The kept model must run free (full rate, every record) without diverging; "not found" is an answer.
@@ -50,6 +50,7 @@ from workbench.discover_dictionary_effect import (
     signal_scales,
     term_scale,
 )
+from workbench.discover_onset import change_point, onset_probe, onset_scan, with_onsets
 from workbench.discover_results import (
     DiscoverError,
     Discovery,
@@ -61,16 +62,12 @@ from workbench.discover_results import (
 )
 from workbench.discover_search import (
     SearchState,
-    change_point,
     free_for,
     free_run_check,
     nonlinear_check,
-    onset_probe,
-    onset_scan,
     other_delay_order,
     refine,
     refit_list,
-    with_onsets,
 )
 from workbench.discovery_dictionary import (
     DELAY_FORMS,
@@ -96,9 +93,14 @@ SENS_RTOL = 1e-7
 def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str = "table2",
              add: Sequence[str | type[PhysicalEffect]] = (), *, max_terms: int = 2, n_refit: int = 4,
              holdout: str = "blocks", n_blocks: int = DEFAULT_BLOCKS, max_rate_Hz: float = DEFAULT_MAX_RATE_HZ,
-             max_nfev: int = 12, threads: int | None = None,
+             max_nfev: int = 12, threads: int | None = None, expect_change: bool = False,
              on_progress: Callable[[str], None] | None = None) -> Discovery:
-    """Search the dictionary for the terms the model lacks on ``records`` (see the module docstring)."""
+    """Search the dictionary for the terms the model lacks on ``records`` (see the module docstring).
+
+    ``expect_change``: the caller found the physics changed during the record (a split-record refit,
+    :mod:`workbench.diagnose_time_change`): the time-gated terms are probed at the residual's onset and refitted
+    first, before any term constant in time (whose refit may already reach the noise floor's tolerance, as a constant
+    extra damping does for a damping that doubled half way)."""
     t_start = time.perf_counter()
     say = on_progress or (lambda _msg: None)
     timings: dict[str, float] = {}
@@ -234,7 +236,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         tried = []
         # fast path: the linearised screen already reaches the noise floor with one term — confirm it on the full
         # model before probing every term nonlinearly
-        fast = bool(rows) and explained(rows[0].held_rms_sigma, held_before, n_held)
+        fast = bool(rows) and explained(rows[0].held_rms_sigma, held_before, n_held) and not expect_change
         if fast:
             t1 = time.perf_counter()
             # the best row, for a delay the best row of its other Padé order (the linearised screen barely tells
@@ -273,7 +275,8 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
             + ", ".join(f"{r.term.key} {r.held_rms_sigma:.3g} σ" for r in rows[:4]))
         # --- refit the best few on the full nonlinear model
         t0 = time.perf_counter()
-        for row in ([] if best is not None else with_onsets(refit_list(rows, n_refit), onset_rows)):
+        todo = [] if best is not None else with_onsets(refit_list(rows, n_refit), onset_rows, first=expect_change)
+        for row in todo:
             k = terms.index(row.term)
             out = refit_row(row)
             if out is None:

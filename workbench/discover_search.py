@@ -3,7 +3,6 @@ what to refit (and with which free parameters), and the free-run stability guard
 
 from __future__ import annotations
 
-import math
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -15,7 +14,6 @@ from board_config.parameter import Parameter, freed
 from plant import PlantModel
 from workbench.discover_results import ScreenRow
 from workbench.discovery_dictionary import Term
-from workbench.discovery_gates import TIME_GATES
 from workbench.fit_objective import Objective
 from workbench.fit_optimiser import FitOutcome, outcome_at, train_residual_and_jacobian
 from workbench.fit_targets import Target
@@ -116,127 +114,6 @@ def probe_batch(targets: Sequence[Target], models: Sequence[PlantModel], values:
     return np.sqrt(held / n_h), np.sqrt(train / n_t), ok
 
 
-#: a time-gated term's onset: found in the residual (:func:`change_point`), every time-gated key probed there
-#: (:func:`onset_probe`), the best few scanned around it (ONSET_ZOOM onsets over ± 1/ONSET_SCAN of the record and
-#: multiples of the coefficient, then zoomed in, the spacing shrinking each time, down to a few milliseconds) and
-#: refitted. Neither least squares nor a screen at fixed onsets can place t0: the error of a mistimed step rings in
-#: the lightly damped modes — a 25 % loss of k2 at 20 s of a sweep leaves 0.06 σ at the right instant, 8 σ 10 ms off,
-#: 23 σ 50 ms off, 28 σ 0.1 s off (refitted from the 18.75 s onset: 325 σ held-out; at 10 s of a 15 s sweep the
-#: linearised screen ranked damping steps first and the probes at fixed onsets ranked contact terms first)
-ONSET_SCAN = 24
-ONSET_MULTIPLIERS = (0.4, 0.8, 1.4, 2.5)
-ONSET_ZOOM = 9  # odd: the best onset so far is on the next grid
-#: half-width of the first grid around an onset found in the residual (s; that onset is within a few samples)
-ONSET_NEAR_S = 0.1
-ONSET_RESOLUTION_S = 2e-3
-#: time-gated keys refitted per round (each after a scan around its onset)
-MAX_ONSET_KEYS = 2
-
-
-def change_point(t: np.ndarray, r: np.ndarray) -> tuple[float, float]:
-    """The instant the residual ``r`` (channels × samples, in σ) leaves the noise — the first where its RMS over
-    ten samples exceeds 3 σ, when that is past the record's first 2 % (a change point by variance lags an event:
-    the error of a lost stiffness grows from 0) — else where it changes its level most (two segments of constant
-    variance, maximum likelihood); and the log-likelihood gained over one segment."""
-    e = np.sum(np.asarray(r, float) ** 2, axis=0) / max(np.shape(r)[0], 1) + 1e-12
-    n = e.size
-    if n < 20:
-        return float(t[0]), 0.0
-    win = 10
-    mean = np.convolve(e, np.ones(win) / win, mode="valid")
-    over = np.flatnonzero(mean > 9.0)
-    first = int(over[0]) + win - 2 if over.size else n  # the window's last samples made it exceed
-    c = np.cumsum(e)
-    k = np.unique(np.linspace(0.02 * n, 0.98 * n, 400).astype(int))
-    cost = k * np.log(c[k - 1] / k) + (n - k) * np.log((c[-1] - c[k - 1]) / (n - k))
-    i = int(np.argmin(cost))
-    gain = float(n * math.log(c[-1] / n) - cost[i])
-    if 0.02 * n < first < n:
-        return float(t[first]), gain
-    return float(t[k[i]]), gain
-
-
-#: relative changes a step is probed at (not the linearised coefficient: a 25 % loss of k2 is far from linear), and
-#: the total changes over the rest of the record a ramp is probed at
-STEP_PROBES = (-0.3, -0.1, -0.03, 0.03, 0.1, 0.3)
-RAMP_PROBES = (-0.3, -0.1, 0.1, 0.3)
-#: how much earlier than the residual leaves the noise a step is probed (s): the error of an event needs a moment
-STEP_LEADS_S = (0.0, 0.02)
-#: multiples of each key's best probe tried next
-COEF_REFINE = (0.7, 0.85, 1.15, 1.3)
-
-
-def onset_probe(rows: Sequence[ScreenRow], names: Mapping[Term, tuple[str, str | None]], targets: Sequence[Target],
-                models: Sequence[PlantModel], values: Mapping[str, float], t0: float, t_end: float,
-                threads: int | None) -> tuple[list[ScreenRow], int]:
-    """Every time-gated key probed at the onset ``t0`` (s; ``t_end`` the record's end) at the relative changes of
-    :data:`STEP_PROBES` / :data:`RAMP_PROBES`, in one batch; one row per key at its best probe (``shape`` = t0),
-    best first, and the number of probes per record."""
-    firsts: dict[str, ScreenRow] = {}
-    for r in rows:
-        if r.term.form in TIME_GATES and names[r.term][1] is not None:
-            firsts.setdefault(r.term.key, r)
-    rest = max(t_end - t0, 1e-3)
-    flat = [(r, v, t0 - lead) for r in firsts.values() if r.term.form == "on_step" for v in STEP_PROBES
-            for lead in STEP_LEADS_S]
-    flat += [(r, v / rest, t0) for r in firsts.values() if r.term.form == "on_ramp" for v in RAMP_PROBES]
-    if not flat:
-        return [], 0
-    best: dict[str, ScreenRow] = {}
-    n = 0
-    for _ in range(2):  # the probes, then each key's best refined (a mass +10 % mimics k2 −25 % better than −30 %)
-        settings = [{names[r.term][0]: c, str(names[r.term][1]): max(at, 0.0)} for r, c, at in flat]
-        held, train, ok = probe_batch(targets, models, values, settings, threads)
-        n += len(flat)
-        for (r, c, at), h, e, good in zip(flat, held, train, ok):
-            if good and (r.term.key not in best or e < best[r.term.key].train_rms_sigma):
-                best[r.term.key] = ScreenRow(r.term, c, float(h), float(e), max(at, 0.0))
-        flat = [(b, b.coef * m, float(b.shape or t0)) for b in best.values() for m in COEF_REFINE]
-    return sorted(best.values(), key=lambda r: r.train_rms_sigma), n
-
-
-def onset_scan(row: ScreenRow, name: tuple[str, str | None], targets: Sequence[Target],
-               models: Sequence[PlantModel], values: Mapping[str, float], span: tuple[float, float],
-               threads: int | None) -> tuple[dict[str, float], int]:
-    """The best (coefficient, onset) of a time-gated term by the training error — around the row's probed onset
-    (else a grid over ``span``, s, the record), then zoomed in — as a refit's start, and the number of probes per
-    record."""
-    cname, gname = name
-    if gname is None:
-        return {cname: row.coef}, 0
-    lo, hi = span
-    step = (hi - lo) / ONSET_SCAN
-    if row.shape is not None:  # probed on the full model at that onset: its coefficient is close already
-        step = min(step, ONSET_NEAR_S)
-        grid = [(c * row.coef, min(max(row.shape + (k / (ONSET_ZOOM - 1) * 2.0 - 1.0) * step, lo), hi))
-                for k in range(ONSET_ZOOM) for c in (0.92, 1.0, 1.08)]
-        step /= 0.5 * (ONSET_ZOOM - 1)
-    else:
-        grid = [(c * row.coef, lo + (k + 0.5) * step) for k in range(ONSET_SCAN) for c in ONSET_MULTIPLIERS]
-    best: tuple[float, float, float] | None = None  # (training RMS, coefficient, onset)
-    n = 0
-    while True:
-        _, train, ok = probe_batch(targets, models, values, [{cname: c, gname: t0} for c, t0 in grid], threads)
-        n += len(grid)
-        for (c, t0), e, good in zip(grid, train, ok):
-            if good and (best is None or e < best[0]):
-                best = (float(e), c, t0)
-        if best is None or step <= ONSET_RESOLUTION_S:
-            break
-        _, c, t0 = best
-        grid = [(c, min(max(t0 + (k / (ONSET_ZOOM - 1) * 2.0 - 1.0) * step, lo), hi)) for k in range(ONSET_ZOOM)]
-        step /= 0.5 * (ONSET_ZOOM - 1)
-    if best is None:
-        return {cname: row.coef}, n
-    return {cname: best[1], gname: best[2]}, n
-
-
-def with_onsets(todo: list[ScreenRow], leads: Sequence[ScreenRow]) -> list[ScreenRow]:
-    """The refit list with its time-gated rows (probed at fixed onsets: ranked too low or too high) replaced by the
-    best :data:`MAX_ONSET_KEYS` rows of the probe at the residual's onset (:func:`onset_probe`)."""
-    return [r for r in todo if r.term.form not in TIME_GATES] + list(leads[:MAX_ONSET_KEYS])
-
-
 def refit_list(rows: list[ScreenRow], n_refit: int, n_siblings: int = 2) -> list[ScreenRow]:
     """The best ``n_refit`` rows, then the best ``n_siblings`` *siblings* of the first (all of them for a hard
     form) and every sibling of each hard-form force among them: the same form acting on another mass or section (a
@@ -288,10 +165,10 @@ def free_for(terms: Sequence[Term], names: list[tuple[str, str | None]], idx: Se
             rng = terms[k].shape_range
             if rng is not None:  # an onset: a window as wide as its term's range, centred on the (scanned) start
                 half = 0.5 * (rng[1] - rng[0])
-                out.append(freed(gname, "SI", max(g - half, 0.0), g + half, False, "discover"))
+                out.append(freed(gname, terms[k].shape_unit, max(g - half, 0.0), g + half, False, "discover"))
                 continue
             lo, hi = (g / 20.0, g * 2.0) if terms[k].form == "sign" else (g / 4.0, g * 4.0)
-            out.append(freed(gname, "SI", lo, hi, True, "discover"))
+            out.append(freed(gname, terms[k].shape_unit, lo, hi, True, "discover"))
     return out
 
 

@@ -174,6 +174,13 @@ class Term:
         return f"{where}_{self.form}_{self.signal}"
 
     @property
+    def shape_unit(self) -> str:
+        """SI unit of the shape: s for a delay or an onset, else the signal's unit (a gap, a smoothing width)."""
+        if self.form in DELAY_FORMS or self.form in ("on_step", "on_ramp"):
+            return "s"
+        return SIGNALS[self.signal].unit
+
+    @property
     def unit(self) -> str:
         """Unit of the coefficient."""
         if self.placement == "damage":
@@ -481,7 +488,8 @@ def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDiction
         gi = None
         if gname is not None:
             gi = len(params)
-            params.append(f"        Parameter({gname!r}, 'SI', 1.0, 0.0, math.inf, 'shape of {term.key}'),")
+            params.append(f"        Parameter({gname!r}, {term.shape_unit!r}, 1.0, 0.0, math.inf, "
+                          f"'shape of {term.key}'),")
         slots.append(TermSlot(term, ci, gi, allocate_states(term, specs)))
     states = "\n".join(f"        StateSpec('w_{k}', {u!r}, {sc!r})," for k, (u, sc) in enumerate(specs))
     return (

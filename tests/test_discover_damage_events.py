@@ -1,0 +1,77 @@
+"""A damage event inside a record found by shm discover's onset search (issue 26 points 3 and 5): a damping rise of
+×3 at an instant (far beyond the ±30 % a step was first probed at) and a small stiffness loss (12 %, whose step probed
+a few milliseconds off the instant rings in the modes and lost to a ramp of the same parameter). Truths written
+outside the dictionary: ``tests/workbench_damage_effects.py``."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from workbench.discover_onset import MAX_LOSS, _next_probes, with_onsets
+from workbench.discover_results import ScreenRow
+from workbench.discovery_dictionary import Term
+
+DAMAGE = Path(__file__).with_name("workbench_damage_effects.py")
+
+
+def _row(param: str, index: int, form: str, coef: float, train: float, shape: float = 2.0) -> ScreenRow:
+    return ScreenRow(Term("damage", index, "one", form, 1.0, param, (0.0, 4.0)), coef, train, train, shape)
+
+
+def test_the_refit_gets_the_step_and_the_ramp_of_each_leading_parameter():
+    """The probe ranks the ramp of k3 first, then m3, then the step of k3 (a mistimed step rings): the refit list
+    holds both forms of the two best parameters, whatever their order in the probe."""
+    leads = [_row("k", 2, "on_ramp", -0.05, 40.0), _row("m", 2, "on_step", 0.3, 90.0),
+             _row("k", 2, "on_step", -0.12, 95.0), _row("c", 0, "on_step", 0.1, 99.0),
+             _row("m", 2, "on_ramp", 0.05, 120.0)]
+    other = ScreenRow(Term("force_mass", 0, "zd1", "lin"), 0.1, 9.0, 9.0)
+    out = with_onsets([other, _row("k", 2, "on_step", -0.1, 50.0, shape=None)], leads)
+    assert out[0] is other
+    assert {(r.term.param, r.term.form) for r in out[1:]} == {("k", "on_ramp"), ("k", "on_step"),
+                                                              ("m", "on_step"), ("m", "on_ramp")}
+    assert all(r.shape == 2.0 for r in out[1:])  # the probed rows, not the screen's fixed-onset ones
+
+
+def test_a_probe_at_its_edge_is_followed_outwards_and_a_loss_stops_at_its_bound():
+    rise = _row("c", 0, "on_step", 0.3, 10.0)
+    loss = _row("k", 1, "on_step", -0.3, 10.0)
+    inner = _row("m", 1, "on_step", 0.1, 10.0)
+    probed = {r.term.key: [-0.3, -0.1, -0.03, 0.03, 0.1, 0.3] for r in (rise, loss, inner)}
+    nxt = _next_probes({r.term.key: r for r in (rise, loss, inner)}, probed, set(), rest=2.0)
+    by = {k: sorted(c for r, c, _ in nxt if r.term.key == k) for k in probed}
+    assert 3.0 in [round(c, 9) for c in by[rise.term.key]] and max(by[rise.term.key]) == pytest.approx(3.0)
+    assert min(by[loss.term.key]) == pytest.approx(MAX_LOSS)  # ×3 = −0.9, ×10 clipped at the bound
+    assert max(by[inner.term.key]) == pytest.approx(0.13)  # not at its edge: refined only
+    ramp = _row("k", 1, "on_ramp", -0.3 / 2.0, 10.0)  # a total change of −30 % over the 2 s left
+    nxt = _next_probes({ramp.term.key: ramp}, {ramp.term.key: [-0.3, -0.1, 0.1, 0.3]}, set(), rest=2.0)
+    assert min(c for _, c, _ in nxt) * 2.0 == pytest.approx(MAX_LOSS)
+
+
+CASES = {
+    "damping rise x3": ("Section2DampingEvent", {"rise": 2.0, "t_event": 2.3}, "c2_step_t", 2.0, 0.3,
+                        ("damping c2 of section 2 rose by",)),
+    "stiffness loss 12 %": ("Section3StiffnessEvent", {"loss_k3": 0.12, "t_event": 2.6}, "k3_step_t", -0.12, 0.02,
+                            ("section 3 lost 12 % of its stiffness at t = 2.6",)),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_discover_finds_an_event_at_its_instant_on_a_short_sweep(case):
+    """A 4 s sweep with the event hidden: discover keeps the step of the right parameter, its size and its instant
+    (within 10 ms), at the noise floor."""
+    from workbench.discover import discover
+    from workbench.synth import synth_record, synth_test, truth_model
+
+    cls, values, key, size, tol, words = CASES[case]
+    rec = synth_record(synth_test("sweep", duration_s=4.0), truth_model("table2", [f"{DAMAGE}:{cls}"], values),
+                       noise={"z3": 2e-6}, seed=3)
+    d = discover([rec], "table2", max_terms=1)
+    assert d.verdict == "found", d.message
+    found = d.terms[0]
+    assert found.term.key == key, d.message
+    assert found.coef == pytest.approx(size, abs=tol)
+    assert found.shape == pytest.approx(values["t_event"], abs=0.01)
+    assert all(w in found.words for w in words), found.words
