@@ -351,13 +351,8 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
             how_much += (f"; the stiffness loss itself: {loc['parameter']} {100 * loc['relative']:+.1f} % "
                          f"(section {loc['section']})")
     f = doc["forecast"]
-    said = next((v for v in doc["visits"] if v.get("board_verdict") == "FAULT"), None)
-    if said is not None:  # the board's own built-in test already said FAULT: that is the answer (issue 33)
-        f["already_faulty"] = True
-        f["board_said_fault_hours"] = said["operating_hours"]
-        how_long = (f"already faulty: the board's own built-in test said FAULT at visit {said['visit']} "
-                    f"({said['operating_hours']:g} h)"
-                    + ("" if said is last else f", before the last visit used ({last['operating_hours']:g} h)"))
+    if (board_said := _board_said_fault(doc)) is not None:
+        how_long = board_said
     elif fc.already_faulty:
         how_long = ("now: the estimated parameters are already beyond the monitor's trip limit (the built-in test "
                     "flags this laminate)")
@@ -386,6 +381,20 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
         how_long = (f"no significant trend: no date. No FAULT of the monitor expected before {lb:.0f} h "
                     f"(lower bound: remaining life ≥ {lb - fc.last_hours:.0f} h)")
     return {"detected": detected, "where": where, "how_much": how_much, "how_long": how_long}
+
+
+def _board_said_fault(doc: dict[str, Any]) -> str | None:
+    """How long? when the board's own built-in test already said FAULT at a visit used: that is the answer, whatever
+    the trend (issue 33); marks the forecast ``already_faulty`` with the hours."""
+    said = next((v for v in doc["visits"] if v.get("board_verdict") == "FAULT"), None)
+    if said is None:
+        return None
+    last = doc["visits"][-1]
+    doc["forecast"]["already_faulty"] = True
+    doc["forecast"]["board_said_fault_hours"] = said["operating_hours"]
+    return (f"already faulty: the board's own built-in test said FAULT at visit {said['visit']} "
+            f"({said['operating_hours']:g} h)"
+            + ("" if said is last else f", before the last visit used ({last['operating_hours']:g} h)"))
 
 
 def _power_word(t: Trend) -> str:
