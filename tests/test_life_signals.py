@@ -94,6 +94,7 @@ def _check_kept(out: Path, at_least: int) -> dict:
     for v in kept:
         assert (out / "records" / f"visit-{v:03d}_mbit-a.csv").exists()
     assert not (out / ".shm-life-new").exists()
+    assert "<b>interrupted</b>" in (out / "report.html").read_text()
     return summary
 
 

@@ -74,7 +74,10 @@ def life_page(summary: dict[str, Any], figure: Path | None, out_name: str = "DIR
              f"<p>{summary['workers']} workers; every visit a full board run (100 Hz firmware, simulated rig, "
              "link, MBITs, monitor)</p></div></div>")
     body = ["<main>", f"<h1>A life: {html.escape(summary['scenario'])}</h1>",
-            f"<p class='sub'>{html.escape(summary['scenario_file'])}</p>", cards,
+            f"<p class='sub'>{html.escape(summary['scenario_file'])}</p>",
+            (f"<p class='note'><b>interrupted</b>: {len(summary['visits'])} of {summary.get('visits_planned', '?')} "
+             "visits finished before the stop (SIGTERM / Ctrl-C); the page shows those</p>"
+             if summary.get("status") == "interrupted" else ""), cards,
             "<h2>The truth and what the board saw, visit by visit</h2>",
             img_tag(figure) if figure is not None and figure.exists() else "<p class='note'>(life.png could not be "
             "drawn)</p>",
