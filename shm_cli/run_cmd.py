@@ -12,7 +12,8 @@ one: pid, start time, command); a directory holding an earlier run is refused un
 ``--append`` (add this run to its ``usage.db``; the other files then describe this run); ``--append`` refuses a
 database that is not an mfc-shm usage log. SIGTERM and Ctrl-C end the run cleanly after the current tick: the board
 closes, the run's status is recorded as ``interrupted``, the timeline, traces, summary and report are written (of
-the part that ran), and the exit code is 130 (Ctrl-C) or 143 (SIGTERM); a second signal aborts at once.
+the part that ran), and the exit code is 130 (Ctrl-C) or 143 (SIGTERM); a second signal aborts at once. A scenario
+with ``[life]`` is run by :mod:`shm_cli.life_cmd` (visits on worker processes; a stop keeps the finished visits).
 
 Exit code 0 when the run completed with the expected verdict (or the scenario expects none), 1 when the verdict is
 not the expected one or the run could not complete (the rig's integration failed, the log could not be written),
