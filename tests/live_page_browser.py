@@ -26,6 +26,8 @@ class Browser:
         self.proc = proc
         self.ws = ws
         self._ids = itertools.count(1)
+        #: JavaScript exceptions and console errors of every page (``Runtime.exceptionThrown``, console.error)
+        self.page_errors: list[str] = []
 
     @classmethod
     async def launch(cls, profile: Path, width: int = 1500, height: int = 1000) -> Browser:
@@ -54,6 +56,13 @@ class Browser:
             if text is None:
                 raise ConnectionError("chromium closed the DevTools connection")
             reply = json.loads(text)
+            method_seen = reply.get("method")
+            if method_seen == "Runtime.exceptionThrown":
+                details = reply["params"]["exceptionDetails"]
+                self.page_errors.append(str(details.get("exception", {}).get("description") or details))
+            elif method_seen == "Runtime.consoleAPICalled" and reply["params"].get("type") == "error":
+                self.page_errors.append(" ".join(str(a.get("value", a.get("description")))
+                                                 for a in reply["params"].get("args", [])))
             if reply.get("id") == msg_id:
                 if "error" in reply:
                     raise RuntimeError(f"{method}: {reply['error']}")

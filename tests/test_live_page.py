@@ -152,6 +152,7 @@ def test_the_page_follows_the_run_and_ends_on_what_the_log_holds(tmp_path: Path)
             await asyncio.sleep(0.5)  # the charts' last flush
             final = await browser.evaluate(session, READ_PAGE)
             await browser.screenshot(session, SCREENSHOT)
+            assert not browser.page_errors, browser.page_errors  # the page's script ran without an error
             return seen, final
         finally:
             await browser.close()
