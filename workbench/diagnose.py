@@ -71,6 +71,7 @@ from workbench.diagnose_discovery import discovery_section, discovery_step
 from workbench.diagnose_evidence import Judgement, judge_winner
 from workbench.diagnose_progress import DiagnoseProgress, SilentProgress
 from workbench.diagnose_rules import why_not_named
+from workbench.diagnose_time_change import time_change
 from workbench.effect_library import LIBRARY, resolve_candidates
 from workbench.fit import (
     DEFAULT_BLOCKS,
@@ -95,6 +96,8 @@ __all__ = ["AT_NOISE_FLOOR", "CandidateResult", "Diagnosis", "diagnose", "explai
 
 #: candidates of each kind fitted in full after screening (None: all)
 FIT_TOP = 3
+#: verdicts that present a cure: checked for a change during the record before they are believed
+CURE_VERDICTS = ("wrong_parameter", "missing", "combination")
 
 
 @dataclass
@@ -133,6 +136,8 @@ class Diagnosis:
     #: the discovery step run when the library and the parameters fall short (``shm diagnose`` fills it)
     discover: dict[str, Any] = field(default_factory=dict)
     judgement: Judgement | None = None
+    #: the split-record refit of a presented cure (:mod:`workbench.diagnose_time_change`; None when not made)
+    time_change: Any = None
 
     @property
     def ranked_names(self) -> list[str]:
@@ -166,6 +171,7 @@ class Diagnosis:
             "members": [e.__dict__ | {"named": not why_not_named(e), "why_not_named": why_not_named(e)}
                         for e in self.evidence],
             "discover": self.discover,
+            "time_change": self.time_change.to_dict() if self.time_change is not None else None,
             "baseline": {"params": self.params_name, "train_rms_sigma": self.baseline_train_rms_sigma,
                          "held_rms_sigma": self.baseline_held_rms_sigma,
                          "channels": [s.__dict__ | {"rms_sigma": s.rms_sigma} for s in self.baseline_channels]},
@@ -429,6 +435,11 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     verdict_for(d, base, label)
     timings["verdict_s"] = time.perf_counter() - t1
     if emit_dir is not None:
+        t1 = time.perf_counter()
+        if d.verdict in CURE_VERDICTS and winner is not None:  # a cure presented: constant over the record?
+            d.time_change = time_change(winner, base, targets, base_sim, data, rss0_held,
+                                        min_reduction=min_reduction, threads=threads, max_nfev=max_nfev, seed=seed)
+        timings["time_change_s"] = time.perf_counter() - t1
         discovery_step(d, records, base, label, emit_dir, holdout=holdout, n_blocks=n_blocks,
                        max_rate_Hz=max_rate_Hz, on_progress=on_discover)
     else:

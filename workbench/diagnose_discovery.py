@@ -94,8 +94,7 @@ def _library_sentence(d: Any) -> str:
     names changed during the record, that comes first (the re-estimation is then no cure)."""
     first = d.message.split("\n", 1)[0]
     if changed_in_time(d):
-        names = ", ".join(p.name for p in d.time_change.changed)
-        return f"What the library names ({names}) is {d.time_change.sentence()}. Within the library: {first}"
+        return f"What the library names is {d.time_change.sentence()}; its verdict on the whole record: {first}"
     return first
 
 
