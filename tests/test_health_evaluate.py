@@ -54,3 +54,29 @@ def test_evaluate_on_synthetic_records_whose_headers_carry_the_truth(tmp_path):
     assert truth[-1]["relative"]["alpha_h"] == pytest.approx(0.175, abs=1e-4)
     page = (out / "report.html").read_text()
     assert "Prognostics scores" in page and "alpha_h truth" in page
+
+
+def test_the_challenge_and_evaluate_judge_alpha_lambda_alike():
+    """One α-λ definition (ProgPy's: the first prediction at or after t_λ) for the prognosis challenge and
+    ``--evaluate``. Before, the challenge judged the last prediction at or before t_λ: on this life (t_P 300 h,
+    FAULT 1000 h, t_λ 650 h) the 600 h prediction sits in the α cone and the 700 h one does not — the challenge said
+    met, ``--evaluate`` missed."""
+    import numpy as np
+
+    from studies.health.challenge import ChallengeLife, _score
+    from studies.health.evaluate import evaluate_sweep
+
+    hours = np.arange(0.0, 1100.0, 100.0)
+    medians = {300.0: 1400.0, 400.0: 1300.0, 500.0: 1200.0, 600.0: 1000.0, 700.0: 1200.0, 800.0: 1000.0,
+               900.0: 1000.0}
+    challenge_preds, sweep = [], []
+    for t, m in medians.items():
+        s = np.full(50, m)
+        challenge_preds.append({"hours": t, "significant": True, "interval_visits": [int(m // 100)] * 2,
+                                "samples_seen": s})
+        sweep.append({"as_of_hours": t, "significant": True, "trip_interval_90": [m, m], "samples": s})
+    life = ChallengeLife("t", (), visits=11)
+    scored = _score(challenge_preds, life, 10, hours)
+    ev = evaluate_sweep(sweep, 1000.0, lambdas=(0.5,))
+    assert ev["alpha_lambda"][0]["prediction_hours"] == 700.0
+    assert scored["alpha_lambda"] is ev["alpha_lambda"][0]["ok"] is False

@@ -103,8 +103,8 @@ def test_the_latest_visit_check_is_quiet_on_the_candidate_laws():
     touched (and never by much)."""
     rng = np.random.default_rng(4)
     fired, factors = 0, []
-    for i in range(120):
-        n = int(rng.integers(5, 13))
+    for i in range(60):
+        n = int(rng.integers(5, 11))
         h = np.arange(n) * 100.0
         err = 10 ** rng.uniform(-4, -2.5)
         law = [1e-4 * h, 0.15 * (h / 1200.0) ** 1.5, 0.02 * np.expm1(h / 500.0)][i % 3]
@@ -112,7 +112,7 @@ def test_the_latest_visit_check_is_quiet_on_the_candidate_laws():
         assert t.check is not None
         fired += t.spread_factor > 1.0
         factors.append(t.spread_factor)
-    assert fired <= 24, fired  # ≤ 20 % (10 % expected from a calibrated 90 % band)
+    assert fired <= 12, fired  # ≤ 20 % (10 % expected from a calibrated 90 % band; 8 measured)
     assert max(factors) < 4.0, max(factors)
 
 

@@ -8,8 +8,13 @@ none           y = a                             k=1
 linear         y = a + b·h                       k=2 (from 3 visits)
 exponential    y = a + c·(exp(h/τ) − 1)          k=3 (from 4 visits)
 power          y = a + c·h^m                     k=3 (from 4 visits)
+logistic       y = a + A·(σ((h−m)/w) − σ(−m/w))  k=4 (from 5 visits; w ≥ the visit spacing, m ≤ 4 × span)
+two stage      y = a + b·h + c·max(h − κ, 0)     k=4 (from 5 visits; κ at a visit or midway, searched)
 change point   y = a + b·h + Δ·[h ≥ τ]           k=4 (from 5 visits; τ midway between two visits, searched)
 =============  ================================  ==================================================
+
+The logistic (a wear that accelerates, then saturates) and the two-stage wear (one rate, then another from a knee)
+are the shapes of the issue's out-of-family lives; a searched position (τ, κ) counts as a coefficient.
 
 **The visits' own precision is the evidence.** Each visit's variance is its own s_i² + σ_f² (σ_f = 0.05 %: the
 repeatability floor a fit's formal error does not show) plus, when a law leaves more scatter than those errors
@@ -20,8 +25,10 @@ log-likelihood ℓ uses them. Four precise visits on a line are therefore a tren
 
 **Choice between laws: Akaike's criterion on that likelihood**, AIC = −2 ℓ + 2 k. AICc's small-sample correction
 2k(k+1)/(n − k − 1) is undefined at k ≥ n − 1 and, at k = n − 2, adds 24 to a three-coefficient law on five visits —
-it hides every curved law until the law has been seen for many visits. Laws are instead admitted by n (k ≤ n − 1),
-and the likelihood carries each law's scatter. A *change point* (a sudden change claimed between two visits) must
+it hides every curved law until the law has been seen for many visits (measured with the logistic and two-stage laws
+among the candidates: the challenge's out-of-family lives 31/42 covered with AICc weights against 35/44 with AIC,
+in-family synthetic shapes 97 % against 100 %). Laws are instead admitted by n (k ≤ n − 1), and the likelihood
+carries each law's scatter. A *change point* (a sudden change claimed between two visits) must
 earn it: its AIC must be lower than every other candidate's by at least :data:`CHANGE_POINT_MIN_DELTA_AICC` (2),
 and its step must be significant on its own with the search over step positions accounted for (t-test, p <
 :data:`P_STEP` / number of positions searched); otherwise the best smooth law is chosen.
@@ -33,7 +40,13 @@ parameters) is a trend; else "no significant trend".
 
 **Hedge.** When the chosen law needs scatter beyond the errors (it does not fit them) and six visits or more are at
 hand, :data:`RECENT_SHARE` of the paths follow the line through the latest :data:`RECENT_VISITS` visits — a law
-outside the candidates (a two-stage wear past its knee) is then not extrapolated by the candidates alone.
+outside the candidates (a wear whose rate changed again) is then not extrapolated by the candidates alone.
+
+**The latest-visit check.** The laws fitted to every visit but the latest predict the latest one (their mixture's
+mean paths plus the visit's own variance and the chosen law's scatter); when it falls outside that 90 % band by a
+ratio r (the miss over the band's half-width on its side), the forecast paths' spread around their median is
+multiplied by r (at most :data:`CHECK_MAX_FACTOR`). It needs no assumption on the shape: right after a knee or an
+inflection no law fitted so far represents the new regime, and the miss says by how much to trust them less.
 
 **Model averaging.** Forecasts draw coefficient vectors from every admitted law in proportion to its Akaike weight
 exp(−ΔAIC/2) — and, for a law whose scatter τ² was estimated, from a multivariate t with n − p degrees of freedom
