@@ -140,7 +140,12 @@ def _new_lives() -> list[ChallengeLife]:
             ("two-stage-wear-knee1000h", (_lin("alpha_h", 2e-5), LifeLaw("alpha_h", "linear", rate=8e-5,
                                                                           start=1000.0)), 26, 100.0),
             ("two-stage-wear-knee600h-every200h", (_lin("alpha_h", 3e-5), LifeLaw("alpha_h", "linear", rate=1.2e-4,
-                                                                                   start=600.0)), 12, 200.0))
+                                                                                   start=600.0)), 12, 200.0),
+            # added after the logistic and two-stage laws were built, not used to tune them: α_h falling along a
+            # logistic to the lower trip limit, and a knee between two visits
+            ("logistic-decreasing-mid1400-w350", (LogisticLaw("alpha_h", -0.20, 1400.0, 350.0),), 16, 100.0),
+            ("two-stage-wear-knee750h", (_lin("alpha_h", 3e-5), LifeLaw("alpha_h", "linear", rate=1.0e-4,
+                                                                         start=750.0)), 20, 100.0))
     for name, laws_, visits, interval in odd:
         i += 1
         lives.append(ChallengeLife(name, laws_, visits=visits, interval=interval, noise_m=2e-6, seed=i,
