@@ -13,7 +13,9 @@ rebuilt from the visits so far (:mod:`.trend`, :mod:`.forecast`). Scores (:mod:`
 
 * coverage — the true first FAULT visit inside the 90 % interval (in visits), over the predictions made once the
   trend is significant with at least four visits;
-* α-λ (α = 20 %, λ = 0.5, β = 0.5) and the prognostic horizon, per life, on the trip time seen at visits;
+* α-λ (α = 20 %, λ = 0.5, β = 0.5; ProgPy's rule, as ``shm health --evaluate``: the first prediction at or after
+  t_λ is judged, :func:`.metrics.alpha_lambda`) and the prognostic horizon, per life, on the trip time seen at
+  visits;
 * stable lives — "no significant trend" at the last visit;
 * sudden damage — the change-point model chosen with its step between the two visits that bracket the truth's step.
 
@@ -339,14 +341,23 @@ def _cause_followed(lives: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
 
 
 def run_challenge(lives: Sequence[ChallengeLife], params: str = "table2", workers: int | None = None,
-                  progress: Callable[[str], None] | None = None) -> ChallengeResult:
-    """Every life (process pool of ``workers``) and the summary scores."""
+                  progress: Callable[[str], None] | None = None, scheduler: str | None = None) -> ChallengeResult:
+    """Every life (process pool of ``workers``; with ``scheduler``, one task per life on the scale-out runner:
+    ``local`` workers, ``tcp://host:port`` or ``synchronous``) and the summary scores."""
     t0 = time.perf_counter()
     trip_boundary(params)  # computed (or loaded) once before the workers start
     thr = f1_alarm_threshold(params)
     n = workers if workers is not None else min(len(lives), os.cpu_count() or 1)
     out: list[dict[str, Any]] = []
-    if n <= 1:
+    if scheduler is not None:
+        from studies.batch.cases import run_cases
+
+        def shown(x: dict[str, Any]) -> None:  # each life in life order, as soon as the lives before it are in
+            if progress:
+                progress(_life_line(x))
+        out = run_cases(run_life_challenge, [(life, params, thr) for life in lives], scheduler=scheduler,
+                        workers=n, on_result=shown, what="health challenge")[0]
+    elif n <= 1:
         for life in lives:
             out.append(run_life_challenge(life, params, thr))
             if progress:
