@@ -13,6 +13,8 @@ checks that every entry still names a test.
 SLOW_TESTS: frozenset[str] = frozenset({
     "test_bad_inputs.py::test_a_closed_pipe_is_quiet",  # 4 s
     "test_bad_inputs.py::test_bad_input_is_one_clear_line",  # 3 s
+    "test_bad_inputs_newer_life_health.py::test_bad_input_is_one_clear_line_and_touches_nothing",  # 6 s (first case)
+    "test_bad_inputs_newer_life_health.py::test_mutated_life_files_never_give_an_internal_error",  # 4 s
     "test_board_cli.py::test_shipped_short_scenarios_reach_their_expected_verdict",  # 167 s
     "test_board_cli.py::test_shm_run_bad_input_exits_2",  # 52 s
     "test_board_cli.py::test_shm_run_catches_a_degraded_laminate",  # 20 s
