@@ -26,7 +26,6 @@ from typing import Any
 
 import numpy as np
 
-from board_config.battery import BatterySpec, load_battery
 from drivers.link import ActuatorCommand, LinkError, RigSample
 from live_page.snapshot import (
     MAX_CHUNKS,
@@ -38,6 +37,7 @@ from live_page.snapshot import (
     SnapshotSlot,
     bounded,
 )
+from live_page.soc import SocEstimate
 from studies.board_run.timeline import format_event
 
 #: at most this many publications per second (wall clock)
@@ -84,12 +84,12 @@ class BoardFeed:
     """Reads ``board`` after each tick and publishes into ``slot`` (see the module docstring)."""
 
     def __init__(self, slot: SnapshotSlot, board: Any, *, title: str, planned_s: float, paced: bool,
-                 link: TimedLink | None = None, battery: BatterySpec | None = None,
+                 link: TimedLink | None = None, soc: SocEstimate | None = None,
                  clock: Callable[[], float] = time.perf_counter, publish_hz: float = PUBLISH_HZ) -> None:
         self.slot = slot
         self.board = board
         self.link = link
-        self.battery = battery if battery is not None else load_battery()
+        self.soc = soc if soc is not None else SocEstimate()
         self._clock = clock
         self._period = 1.0 / publish_hz
         self._next = 0.0
@@ -113,8 +113,7 @@ class BoardFeed:
         slot.publish(Snapshot(
             source="board", title=title, planned_s=planned_s, paced=paced, regime=self._last_regime,
             regime_since_s=0.0, regimes=((0.0, self._last_regime),), count_max=settings.count_max,
-            eps_th=settings.eps_th, soc_note=f"estimated from the measured voltage on the {self.battery.name} "
-                                             "open-circuit curve"))
+            eps_th=settings.eps_th, soc_note=self.soc.note))
 
     # --- the board's thread ------------------------------------------------------------------------------
     def on_event(self, ev: Any) -> None:
@@ -159,10 +158,7 @@ class BoardFeed:
         t_now = self._ticks * self._tick_s
         sample = board.last_sample
         v_batt = float(sample.v_battery) if sample is not None else None
-        soc = None
-        if v_batt is not None and math.isfinite(v_batt):
-            lo, hi = self.battery.voltage_range
-            soc = 1.0 - float(self.battery.discharged_capacity(min(max(v_batt, lo), hi))) / self.battery.capacity
+        soc = self.soc.soc(v_batt)
         mnt = board.maintenance
         state = self._monitor.state
         rtt50, rtt99 = self.link.rtt_percentiles() if self.link is not None else (None, None)

@@ -16,10 +16,10 @@ from board_config.json_values import to_jsonable
 from live_page.snapshot import Chunk, Snapshot
 
 
-def _chunk(c: Chunk) -> dict[str, Any]:
+def _chunk(c: Chunk, rows: bool = True) -> dict[str, Any]:
     d: dict[str, Any] = {"i": c.index, "t_s": c.t_s, "v_battery_V": c.v_battery_V, "soc": c.soc,
                          "monitor_count": c.monitor_count, "rtt_p99_s": c.rtt_p99_s, "mbit_id": c.mbit_id}
-    if c.mbit_t_s:
+    if c.mbit_t_s and rows:
         d.update(mbit_t_s=c.mbit_t_s, z3_meas_m=c.z3_meas_m, z3_model_m=c.z3_model_m, eps=c.eps)
     return d
 
@@ -41,7 +41,8 @@ def message(snap: Snapshot, since_chunk: int = -1, since_event: int = -1, full: 
                  "rtt_p99_s": link.rtt_p99_s, "incidents": link.incidents, "deadline_misses": link.deadline_misses,
                  "counters": dict(link.counters)},
         "extra": snap.extra,
-        "chunks": [_chunk(c) for c in snap.chunks if c.index > since_chunk],
+        # a page shows the current MBIT only: the rows of earlier ones would be sent for nothing
+        "chunks": [_chunk(c, c.mbit_id == snap.mbit_id) for c in snap.chunks if c.index > since_chunk],
         "events": [e for e in snap.events if e[0] > since_event],
         "finished": snap.finished, "status": snap.status, "report": snap.report,
     }

@@ -15,8 +15,8 @@ import threading
 from dataclasses import replace
 from typing import Any
 
-from board_config.battery import BatterySpec, load_battery
 from live_page.snapshot import MAX_CHUNKS, MAX_EVENTS, Chunk, LinkHealth, Snapshot, SnapshotSlot, bounded
+from live_page.soc import SocEstimate
 
 #: publications per second
 PUBLISH_HZ = 20.0
@@ -25,11 +25,11 @@ PUBLISH_HZ = 20.0
 class RigFeed:
     """Publishes the state of ``service`` (a :class:`hil_stub.service.HilService`) into ``slot`` from a thread."""
 
-    def __init__(self, slot: SnapshotSlot, service: Any, *, title: str, battery: BatterySpec | None = None,
+    def __init__(self, slot: SnapshotSlot, service: Any, *, title: str, soc: SocEstimate | None = None,
                  publish_hz: float = PUBLISH_HZ) -> None:
         self.slot = slot
         self.service = service
-        self.battery = battery if battery is not None else load_battery()
+        self.soc = soc if soc is not None else SocEstimate()
         self._period = 1.0 / publish_hz
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -40,8 +40,7 @@ class RigFeed:
         self._hv_id = 0
         self._answer: tuple[float | None, float | None] = (None, None)
         slot.publish(Snapshot(source="rig", title=title, paced=True,
-                              soc_note=f"estimated from the rig's battery voltage on the {self.battery.name} "
-                                       "open-circuit curve"))
+                              soc_note=self.soc.note))
 
     def start(self) -> None:
         self._thread = threading.Thread(target=self._run, name="live-rig-feed", daemon=True)
@@ -74,9 +73,7 @@ class RigFeed:
         snap_rig = host.snapshot
         sample = snap_rig.sample
         v = float(sample.v_battery)
-        lo, hi = self.battery.voltage_range
-        soc = (1.0 - float(self.battery.discharged_capacity(min(max(v, lo), hi))) / self.battery.capacity
-               if math.isfinite(v) else None)
+        soc = self.soc.soc(v)
         if sample.hv_present and not self._hv:
             self._hv_id += 1
         self._hv = bool(sample.hv_present)

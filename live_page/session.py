@@ -53,7 +53,7 @@ class LiveSession:
                  stream: TextIO | None = None) -> None:
         from live_page.server import LiveServer
 
-        self.slot = SnapshotSlot(Snapshot(status="starting"))
+        self.slot = SnapshotSlot(Snapshot(status="starting", source=""))  # until a board or rig is attached
         self._report = report
         self.linger_s = linger_s
         self._stream = stream if stream is not None else sys.stderr

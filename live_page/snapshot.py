@@ -15,8 +15,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-#: chunks kept (one per publication, at most 20 per second: the last ~4 minutes at 20 Hz)
-MAX_CHUNKS = 5000
+#: chunks kept (one per publication, at most 20 per second: the last 2 minutes at 20 Hz)
+MAX_CHUNKS = 2400
 #: event-log lines kept
 MAX_EVENTS = 1000
 #: regime changes kept

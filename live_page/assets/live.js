@@ -2,7 +2,7 @@
 // Read-only: the page sends nothing to the board.
 "use strict";
 const REGIMES = ["SAFE", "STANDBY_HARVEST", "SENSING", "MAINTENANCE"];
-const SLOW_POINTS = 3000;   // points kept per slow series on the page
+const SLOW_POINTS = 2400;   // points kept per slow series on the page (2 minutes at 20 Hz, as the server)
 const MBIT_POINTS = 6000;   // points kept of the current MBIT
 const $ = (id) => document.getElementById(id);
 const fmt = (v, digits, unit) => (v === null || v === undefined) ? "–" : v.toFixed(digits) + (unit || "");
@@ -37,7 +37,7 @@ function text(id, value) { const el = $(id); if (el.textContent !== value) el.te
 function value(id, v) { $(id).dataset.value = (v === null || v === undefined) ? "" : String(v); }
 
 function showNumbers(m) {
-  text("source", m.source === "rig" ? "— the rig (shm hil serve)" : "— the board (shm run)");
+  text("source", {rig: "— the rig (shm hil serve)", board: "— the board (shm run)"}[m.source] || "");
   text("title", m.title);
   text("time-label", m.source === "rig" ? "rig time" : "board time");
   text("board-time", fmt(m.board_time_s, 2, " s")); value("board-time", m.board_time_s);
