@@ -210,3 +210,16 @@ def test_the_rig_page_follows_the_rig() -> None:
     finally:
         proc.kill()
         proc.wait(10)
+
+
+def test_the_state_of_charge_table_is_the_cells_curve() -> None:
+    from board_config.battery import load_battery
+    from live_page.soc import SocEstimate
+
+    cell = load_battery()
+    est = SocEstimate(cell)
+    lo, hi = cell.voltage_range
+    for v in (lo, 2.5, 2.9, 2.95, 3.0, hi):
+        exact = 1.0 - float(cell.discharged_capacity(v)) / cell.capacity
+        assert est.soc(v) == pytest.approx(exact, abs=2e-3)
+    assert est.soc(hi + 1.0) == pytest.approx(est.soc(hi)) and est.soc(math.nan) is None and est.soc(None) is None
