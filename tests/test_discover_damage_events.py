@@ -106,3 +106,32 @@ def test_split_estimates_differ_only_beyond_their_errors_and_materially():
     assert [p.name for p in tc.changed] == ["c1"]
     assert "c1 0.1 ± 0.002 N*s/m before t ≈ 3 s, 0.2 ± 0.003 N*s/m after (+100 %" in tc.sentence()
     assert TimeChange(3.0, [constant]).sentence() == ""
+
+
+def test_a_time_change_leads_the_verdict_only_when_the_discovery_keeps_a_time_term(monkeypatch):
+    """A cure presented by the library ("c1 is wrong"), refitted on two parts that differ: the discovery's result
+    replaces it only when it keeps a term gated in time; a constant term (on a sweep, time is also frequency: a
+    mimic's parts may differ) leaves the library's verdict first."""
+    from types import SimpleNamespace
+
+    import workbench.diagnose_discovery as dd
+    from workbench.diagnose_time_change import PartEstimates, TimeChange
+
+    monkeypatch.setattr(dd, "term_formulas", lambda disc: ["…"])
+    tc = TimeChange(3.0, [PartEstimates("c1", "N*s/m", 0.1, 0.002, 0.2, 0.003)])
+
+    def run(form: str, words: str) -> SimpleNamespace:
+        d = SimpleNamespace(message="c1 is wrong: 0.196 N*s/m instead of 0.098 N*s/m (+100 %) — re-estimate it.",
+                            verdict="wrong_parameter", winner=SimpleNamespace(held_rms_sigma=1.2),
+                            baseline_held_rms_sigma=28.8, fit_command="", next_command="", time_change=tc)
+        term = Term("damage", 0, "one", form, 3.0, "c") if form else Term("force_mass", 0, "zd1", "lin")
+        disc = SimpleNamespace(terms=[SimpleNamespace(description=words, term=term)], held_before=28.8,
+                               held_after=0.97, message="Found: …", verdict="found")
+        dd.final_verdict(d, disc, {"emitted": None, "fit_command": ""})
+        return d
+
+    d = run("on_step", "damping c1 of section 1 rose by 100 % at t = 3.000 s")
+    assert d.message.startswith("Found beyond the library: damping c1 of section 1 rose by 100 % at t = 3.000 s")
+    assert "What the library names is not constant over the record: c1 0.1 ± 0.002 N*s/m before t ≈ 3 s" in d.message
+    d = run("", "a viscous force on mass 1")
+    assert d.message.startswith("c1 is wrong") and "not constant" not in d.message

@@ -63,11 +63,23 @@ def term_formulas(disc: Any) -> list[str]:
 
 
 def improves(disc: Any, d: Any) -> bool:
-    """Whether the discovery's model explains the held-out data better than what the library verdict names."""
+    """Whether the discovery's model explains the held-out data better than what the library verdict names; when
+    the discovery ran only because the named set changed during the record (the library's verdict presents a cure),
+    also whether it confirms the change: a term gated in time is kept (on a sweep, time is also frequency — a split
+    refit of a mimic may differ between the parts while nothing changed in time)."""
     if not disc.terms:
         return False
     library_held = d.winner.held_rms_sigma if d.winner is not None else d.baseline_held_rms_sigma
+    if d.verdict not in ("partial", "unexplained") and not confirms_change(disc):
+        return False
     return bool(disc.held_after < library_held)
+
+
+def confirms_change(disc: Any) -> bool:
+    """Whether the discovery kept a term gated in time (a step or a ramp from an onset)."""
+    from workbench.discovery_gates import TIME_GATES
+
+    return any(ft.term.form in TIME_GATES for ft in disc.terms)
 
 
 def fit_add_command(records_arg: str, params_label: str, effect_file: str) -> str:
@@ -89,11 +101,12 @@ def discovery_section(disc: Any | None, *, ran: bool, reason: str, emitted: dict
                   "load_error": load_error, "timings_s": disc.timings}
 
 
-def _library_sentence(d: Any) -> str:
+def _library_sentence(d: Any, confirmed: bool) -> str:
     """The library verdict's first line without its trailing command (the discovery step replaced it); when what it
-    names changed during the record, that comes first (the re-estimation is then no cure)."""
+    names changed during the record (``confirmed``: the discovery kept a term gated in time), that comes first (it
+    is then no cure)."""
     first = d.message.split("\n", 1)[0]
-    if changed_in_time(d):
+    if changed_in_time(d) and confirmed:
         return f"What the library names is {d.time_change.sentence()}; its verdict on the whole record: {first}"
     return first
 
@@ -103,7 +116,7 @@ def final_verdict(d: Any, disc: Any, section: dict[str, Any]) -> None:
     sentence names what was found when it explains the records better than the library's named set; otherwise the
     library's own verdict stays first and the discovery's result follows it."""
     emitted = section.get("emitted")
-    library = _library_sentence(d)
+    library = _library_sentence(d, changed_in_time(d) and confirms_change(disc))
     if improves(disc, d):
         found = "; and ".join(ft.description for ft in disc.terms)
         # at the noise floor by the cure's 1.5 σ, or by the discovery's own criterion (the one every candidate is judged
