@@ -23,7 +23,8 @@ function setupCharts() {
     layout("", { showlegend: false, margin: { l: 120, r: 10, t: 6, b: 30 },
       yaxis: { type: "category", categoryorder: "array", categoryarray: REGIMES, range: [-0.5, 3.5] } }), config);
   Plotly.newPlot("chart-battery", [line("battery (V)"), line("SoC (%)", { yaxis: "y2", line: { dash: "dot" } })],
-    layout("V", { yaxis2: { title: { text: "SoC (%)" }, overlaying: "y", side: "right" } }), config);
+    layout("V", { margin: { l: 50, r: 64, t: 6, b: 30 },
+      yaxis2: { title: { text: "SoC (%)" }, overlaying: "y", side: "right" } }), config);
   Plotly.newPlot("chart-count", [line("fault counter"), line("count_max", { line: { dash: "dash", color: "#c62828" } })],
     layout("count"), config);
   Plotly.newPlot("chart-eps", [line("ε"), line("ε_th", { line: { dash: "dash", color: "#c62828" } })],
