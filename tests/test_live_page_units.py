@@ -223,3 +223,80 @@ def test_the_state_of_charge_table_is_the_cells_curve() -> None:
         exact = 1.0 - float(cell.discharged_capacity(v)) / cell.capacity
         assert est.soc(v) == pytest.approx(exact, abs=2e-3)
     assert est.soc(hi + 1.0) == pytest.approx(est.soc(hi)) and est.soc(math.nan) is None and est.soc(None) is None
+
+
+def test_a_slow_page_skips_rounds_instead_of_queueing() -> None:
+    """A page whose previous message has not left (a slow tunnel) gets nothing new until it has; then it gets
+    everything it lacks in one message."""
+    from concurrent.futures import Future
+
+    class Page:
+        def __init__(self) -> None:
+            self.position, self.version, self.pending, self.sent = None, -1, None, []
+
+        def write_message(self, text: str) -> Future:
+            self.sent.append(json.loads(text))
+            f: Future = Future()
+            return f
+
+    slot = SnapshotSlot(Snapshot(version=1, chunks=(_chunk(0),)))
+    server = LiveServer(slot)
+    page = Page()
+    server.pages.add(page)  # type: ignore[arg-type]
+    server.push()
+    assert [m["version"] for m in page.sent] == [1] and page.sent[0]["full"]
+    for v in (2, 3, 4):  # the first write never completes: nothing more is queued
+        slot.publish(Snapshot(version=v, chunks=tuple(_chunk(i) for i in range(v))))
+        server.push()
+    assert len(page.sent) == 1
+    page.pending.set_result(None)
+    server.push()
+    assert [m["version"] for m in page.sent] == [1, 4] and [c["i"] for c in page.sent[1]["chunks"]] == [1, 2, 3]
+
+
+def test_the_feed_publishes_at_most_20_times_a_second_and_counts_lost_exchanges() -> None:
+    from drivers.link import ActuatorCommand, LinkError
+    from live_page.board_feed import BoardFeed, TimedLink
+
+    class Flaky:
+        def __init__(self) -> None:
+            self.n = 0
+
+        def exchange(self, command: ActuatorCommand) -> object:
+            self.n += 1
+            if self.n % 4 == 0:
+                raise LinkError("no reply")
+            return object()
+
+    class Monitor:
+        settings = type("S", (), {"count_max": 200, "eps_th": 0.2})()
+        state = type("St", (), {"fault": False, "max_eps": 0.0, "max_count": 0})()
+
+    class Maintenance:
+        monitor, active, monitor_count, current, z3_model = Monitor(), False, 0, "done", math.nan
+
+    class FakeBoard:
+        period, maintenance, last_sample, incidents = 0.01, Maintenance(), None, 0
+        regime = type("R", (), {"value": "STANDBY_HARVEST"})()
+
+    link = TimedLink(Flaky())
+    now = [0.0]
+    slot = SnapshotSlot()
+    feed = BoardFeed(slot, FakeBoard(), title="t", planned_s=2.0, paced=True, link=link, clock=lambda: now[0])
+    for k in range(200):  # 2 s of 100 Hz ticks
+        with pytest.raises(LinkError) if (k + 1) % 4 == 0 else _no_error():
+            link.exchange(ActuatorCommand(k))
+        feed.after_tick(k)
+        now[0] += 0.01
+    assert 38 <= slot.latest().version <= 41  # 20 per second (the first snapshot is version 0)
+    snap = feed.finish("finished", None)  # the last state, whenever the run ends
+    assert snap.finished and snap.link.exchanges == 200 and snap.link.misses == 50
+    assert snap.link.rtt_p50_s is not None and snap.link.rtt_p99_s is not None
+
+
+class _no_error:
+    def __enter__(self) -> None:
+        return None
+
+    def __exit__(self, *exc: object) -> bool:
+        return False
