@@ -18,6 +18,7 @@ The state of charge is an estimate: the measured battery voltage read on the cel
 
 from __future__ import annotations
 
+import contextlib
 import math
 import time
 from collections.abc import Callable
@@ -92,6 +93,7 @@ class BoardFeed:
         self.soc = soc if soc is not None else SocEstimate()
         self._clock = clock
         self._period = 1.0 / publish_hz
+        self.broken = ""  #: why the feed stopped ('' while it works)
         self._next = 0.0
         self._tick_s = board.period
         settings = board.maintenance.monitor.settings
@@ -118,8 +120,14 @@ class BoardFeed:
     # --- the board's thread ------------------------------------------------------------------------------
     def on_event(self, ev: Any) -> None:
         """A board event (already in the usage log): the event log, regime timeline and verdicts."""
-        if ev.kind == "telemetry" or ev.kind == "mbit_record":
+        if self.broken or ev.kind == "telemetry" or ev.kind == "mbit_record":
             return
+        try:
+            self._take_event(ev)
+        except Exception as exc:  # the page stops; the board's run never does
+            self._break(exc)
+
+    def _take_event(self, ev: Any) -> None:
         line = format_event(ev)
         if line is not None:
             self._pending_events.append((self._event_index, line.strip()))
@@ -136,7 +144,24 @@ class BoardFeed:
             self._verdicts.append(f"MAINTENANCE {d['verdict']}")
 
     def after_tick(self, k: int, overran: bool = False, ticks: int = 1) -> None:
-        """After board tick ``k`` (the last of ``ticks`` ticks done at once): keep an MBIT's row, publish if due."""
+        """After board tick ``k`` (the last of ``ticks`` ticks done at once): keep an MBIT's row, publish if due.
+        Never raises: a failure of the page's feed stops the page (it says why), not the board."""
+        if self.broken:
+            return
+        try:
+            self._after_tick(k, overran, ticks)
+        except Exception as exc:
+            self._break(exc)
+
+    def _break(self, exc: Exception) -> None:
+        """The feed failed: publish why (once) and publish nothing more."""
+        self.broken = f"{type(exc).__name__}: {exc}"
+        with contextlib.suppress(Exception):
+            prev = self.slot.latest()
+            self.slot.publish(replace(prev, version=prev.version + 1, status="page stopped", extra=(
+                *prev.extra, ("live page stopped (the board runs on)", self.broken))))
+
+    def _after_tick(self, k: int, overran: bool, ticks: int) -> None:
         self._ticks += ticks
         if overran:
             self._deadline_misses += 1
@@ -201,6 +226,11 @@ class BoardFeed:
 
     def finish(self, status: str, report: str | None) -> Snapshot:
         """The run has ended: the last snapshot, kept by the page (``report``: its URL path, if written)."""
+        if self.broken:
+            prev = self.slot.latest()
+            snap = replace(prev, version=prev.version + 1, finished=True, status=status, report=report)
+            self.slot.publish(snap)
+            return snap
         return self.publish(finished=True, status=status, report=report)
 
 

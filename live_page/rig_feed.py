@@ -54,8 +54,13 @@ class RigFeed:
         return self.publish(finished=True, status=status, report=report)
 
     def _run(self) -> None:
-        while not self._stop.wait(self._period):
-            self.publish()
+        try:
+            while not self._stop.wait(self._period):
+                self.publish()
+        except Exception as exc:  # the page stops and says why; the rig serves on
+            prev = self.slot.latest()
+            self.slot.publish(replace(prev, version=prev.version + 1, status="page stopped", extra=(
+                *prev.extra, ("live page stopped (the rig serves on)", f"{type(exc).__name__}: {exc}"))))
 
     def _answer_time(self) -> tuple[float | None, float | None]:
         """The rig's answer time (s) p50/p99 over its Modbus servers' last answers (refreshed once a second)."""

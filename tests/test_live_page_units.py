@@ -300,3 +300,31 @@ class _no_error:
 
     def __exit__(self, *exc: object) -> bool:
         return False
+
+
+def test_a_failing_feed_stops_the_page_never_the_board() -> None:
+    from live_page.board_feed import BoardFeed
+
+    class Monitor:
+        settings = type("S", (), {"count_max": 200, "eps_th": 0.2})()
+
+    class Maintenance:
+        monitor = Monitor()
+
+        @property
+        def active(self) -> bool:
+            raise RuntimeError("a board the feed does not understand")
+
+    class FakeBoard:
+        period, maintenance, last_sample, incidents = 0.01, Maintenance(), None, 0
+        regime = type("R", (), {"value": "STANDBY_HARVEST"})()
+
+    slot = SnapshotSlot()
+    feed = BoardFeed(slot, FakeBoard(), title="t", planned_s=1.0, paced=True, clock=lambda: 0.0)
+    for k in range(3):
+        feed.after_tick(k)  # does not raise
+    feed.on_event(type("E", (), {"kind": "regime_change", "time": 1.0, "tick": 100, "data": {}})())
+    snap = slot.latest()
+    assert snap.status == "page stopped" and "a board the feed does not understand" in dict(snap.extra)[
+        "live page stopped (the board runs on)"]
+    assert feed.finish("finished", "/report").status == "finished"
