@@ -238,3 +238,31 @@ def test_better_boundaries_and_rejected_sets():
     nospec.spec = None  # a set whose spec is unknown is not "plain": a plain challenger within the margin wins
     m3 = fitted(5.0, "m3")
     assert fs.better(nospec, m3) is m3
+
+
+def test_a_set_met_again_is_not_refitted_and_is_scored_against_the_nominal_model(monkeypatch):
+    """The beam's paths and the backward step meet the same sets again (the set before a path's last addition is a
+    drop-one fit; two members added in either order): one fit per set, each use a copy scored against the nominal
+    model (a try scored against the path's current set does not leak into a later use)."""
+    calls: list[str] = []
+
+    def fake_fit(s, base, targets, data, rss0_held, *, start, min_reduction, **kw):
+        calls.append(s.label)
+        c = fitted(5.0, *s.members)
+        c.outcome = SimpleNamespace(held_rss=25.0 * N, held_rms_sigma=5.0, n_held=N, n_train=N, train_rss=25.0 * N,
+                                    rho1_held=0.0, values={})
+        c.free = [object()] * len(s.members)
+        c.status = "fitted"
+        return c
+
+    monkeypatch.setattr(fs, "fit_spec", fake_fit)
+    fits = fs.FitCache()
+    kw = dict(start={}, min_reduction=0.02)
+    a = fits.fit(spec("dielectric_leakage", "k1"), None, [], {}, RSS0, **kw)
+    fs.score(a, 30.0 ** 2 * N, 0.02, k_ref=1)  # scored against a current set, as forward selection does
+    b = fits.fit(spec("k1", "dielectric_leakage"), None, [], {}, RSS0, **kw)
+    assert calls == [spec("dielectric_leakage", "k1").label] and fits.hits == 1
+    assert b is not a and b.outcome is a.outcome
+    assert b.delta_bic_held == pytest.approx(N * math.log(RSS0 / (25.0 * N)) - 2 * math.log(N))
+    fits.fit(spec("k1"), None, [], {}, RSS0, **kw)
+    assert len(calls) == 2

@@ -24,6 +24,7 @@ effect when both are fitted with the rest; a set without new physics still wins 
 
 from __future__ import annotations
 
+import copy
 import time
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
@@ -67,6 +68,36 @@ PRUNE_WITHIN = 1.02
 ALTERNATIVE_STARTS = 2
 #: effects tried in place of each re-estimation of the best set by the swap step
 SWAP_EFFECTS = 3
+
+
+class FitCache:
+    """Fits of candidate sets made during one selection, by what the set holds (its effects, parameters and extras):
+    the beam's paths, the backward step's drop-one fits and the swap meet the same sets again (the set before a
+    path's last addition is one of its drop-one fits; two paths that add the same two members in either order end in
+    the same set). A set is fitted once; each use gets a copy scored against the nominal model."""
+
+    def __init__(self) -> None:
+        self.fits: dict[tuple, CandidateResult] = {}
+        self.hits = 0
+
+    @staticmethod
+    def key(spec: CandidateSpec) -> tuple:
+        return (frozenset(e.name for e in spec.effects), frozenset((p.name, p.tied) for p in spec.params),
+                frozenset(spec.extras))
+
+    def fit(self, spec: CandidateSpec, base: ParameterSet, targets: Sequence[Target], data: Mapping[str, Any],
+            rss0_held: float, *, start: Mapping[str, float], min_reduction: float, **kw: Any) -> CandidateResult:
+        """:func:`~workbench.candidate_fit.fit_spec` of ``spec`` (from ``start`` the first time it is met)."""
+        k = self.key(spec)
+        if k in self.fits:
+            self.hits += 1
+            r = copy.copy(self.fits[k])
+            if r.outcome is not None:
+                score(r, rss0_held, min_reduction)
+            return r
+        r = fit_spec(spec, base, targets, data, rss0_held, start=dict(start), min_reduction=min_reduction, **kw)
+        self.fits[k] = copy.copy(r)
+        return r
 
 
 @dataclass
@@ -144,13 +175,15 @@ def forward_select(winner: CandidateResult, others: Sequence[CandidateResult], b
                    targets: Sequence[Target], data: Mapping[str, Any], rss0_held: float, *, min_reduction: float,
                    threads: int | None, max_nfev: int, seed: int, base_held: float,
                    specs: Sequence[CandidateSpec] = (), without: dict[str, CandidateResult] | None = None,
-                   ) -> tuple[CandidateResult, list[CandidateResult]]:
+                   fits: FitCache | None = None) -> tuple[CandidateResult, list[CandidateResult]]:
     """(the final set, the sets accepted in order — the first is ``winner``): greedy forward selection from
     ``winner`` and the backward step; see the module docstring.
 
     ``others``: the other candidates as diagnosed alone (the strongest are tried first among the effects);
     ``specs``: every single candidate that may join (default: those of ``others``); ``without`` collects the
-    backward step's drop-one fits of the final set (see :func:`_prune`)."""
+    backward step's drop-one fits of the final set (see :func:`_prune`); ``fits``: the selection's fits of sets
+    (:class:`FitCache`)."""
+    fits = fits if fits is not None else FitCache()
     current = winner
     steps = [winner]
     ranked = sorted((c for c in others if c.spec is not None and c.stable and c.kind != "combination"),
@@ -178,7 +211,7 @@ def forward_select(winner: CandidateResult, others: Sequence[CandidateResult], b
         for spec1, own in tries_specs:
             spec = current.spec.plus(spec1)
             start = own | dict(current.outcome.values)
-            r = fit_spec(spec, base, targets, data, rss0_held, start=start, min_reduction=min_reduction,
+            r = fits.fit(spec, base, targets, data, rss0_held, start=start, min_reduction=min_reduction,
                          threads=threads, max_nfev=max_nfev, seed=seed)
             score(r, current.held_rss, min_reduction, k_ref=len(current.free))
             tries.append(r)
@@ -195,7 +228,7 @@ def forward_select(winner: CandidateResult, others: Sequence[CandidateResult], b
         steps.append(best)
     if len(current.members) > 1:
         pruned = _prune(current, base, targets, data, rss0_held, without, min_reduction=min_reduction,
-                        threads=threads, max_nfev=max_nfev, seed=seed)
+                        threads=threads, max_nfev=max_nfev, seed=seed, fits=fits)
         if pruned is not current:
             current = pruned
             steps.append(current)
@@ -209,11 +242,13 @@ def _without(spec: CandidateSpec, name: str) -> CandidateSpec:
 
 
 def _prune(current: CandidateResult, base: ParameterSet, targets: Sequence[Target], data: Mapping[str, Any],
-           rss0_held: float, without: dict[str, CandidateResult] | None = None, **kw: Any) -> CandidateResult:
+           rss0_held: float, without: dict[str, CandidateResult] | None = None, fits: FitCache | None = None,
+           **kw: Any) -> CandidateResult:
     """Backward step: drop a member the others made redundant (the set without it explains the held-out data
     within :data:`PRUNE_WITHIN`) — e.g. a parameter taken first that returns to its value once the effects are in.
     ``without`` collects, per member of the returned set, the set refitted without it (when that fit was made on the
     returned set)."""
+    fits = fits if fits is not None else FitCache()
     assert current.spec is not None and current.outcome is not None
     # a tied group whose effect one of its members carries alone (the mass group standing in for m3): swap
     for pc in [p for p in current.spec.params if p.tied]:
@@ -224,7 +259,7 @@ def _prune(current: CandidateResult, base: ParameterSet, targets: Sequence[Targe
             spec = CandidateSpec(current.spec.effects, params, current.spec.extras)
             start = {k: v for k, v in current.outcome.values.items() if k != pc.scale_name}
             start[n] = float(base.values[n]) * current.outcome.values.get(pc.scale_name, 1.0)
-            r = fit_spec(spec, base, targets, data, rss0_held, start=start, **kw)
+            r = fits.fit(spec, base, targets, data, rss0_held, start=start, **kw)
             if r.accepted and r.held_rss <= PRUNE_WITHIN * current.held_rss and (
                     best is None or r.held_rss < best.held_rss):
                 best = r
@@ -236,7 +271,7 @@ def _prune(current: CandidateResult, base: ParameterSet, targets: Sequence[Targe
             break
         assert current.spec is not None and current.outcome is not None  # an accepted fit keeps both
         spec = _without(current.spec, name)
-        r = fit_spec(spec, base, targets, data, rss0_held, start=dict(current.outcome.values), **kw)
+        r = fits.fit(spec, base, targets, data, rss0_held, start=dict(current.outcome.values), **kw)
         drops[name] = (current, r)
         if r.accepted and r.held_rss <= PRUNE_WITHIN * current.held_rss:
             current = r
@@ -309,7 +344,8 @@ def select_set(winner: CandidateResult, others: Sequence[CandidateResult], base:
     ``winner``; when it does not reach the noise floor, the paths from :func:`alternative_starts`, then the swap
     of each re-estimation of the best set for the effects that fit best in its place. Stops as soon as a set
     explains the held-out data to the noise floor."""
-    kw: dict[str, Any] = dict(min_reduction=min_reduction, threads=threads, max_nfev=max_nfev, seed=seed)
+    kw: dict[str, Any] = dict(min_reduction=min_reduction, threads=threads, max_nfev=max_nfev, seed=seed,
+                              fits=FitCache())
     everyone = [winner, *others]
     tried: list[tuple[str, CandidateResult, float]] = []
 
@@ -341,7 +377,7 @@ def select_set(winner: CandidateResult, others: Sequence[CandidateResult], base:
 
 
 def _swap(sel: Selection, everyone: Sequence[CandidateResult], base: ParameterSet, targets: Sequence[Target],
-          data: Mapping[str, Any], rss0_held: float, **kw: Any) -> CandidateResult | None:
+          data: Mapping[str, Any], rss0_held: float, fits: FitCache, **kw: Any) -> CandidateResult | None:
     """Swap step: each re-estimation of the set replaced by each of the :data:`SWAP_EFFECTS` strongest effects
     (alone) that do not touch the rest, fitted together with the rest; the best such set (or None)."""
     cur = sel.final
@@ -362,18 +398,18 @@ def _swap(sel: Selection, everyone: Sequence[CandidateResult], base: ParameterSe
             own = dict(c.outcome.values) if c.outcome is not None else dict(c.screen_start)
             start = own | {k: v for k, v in cur.outcome.values.items()
                            if k not in {*pc.members, pc.scale_name}}
-            r = fit_spec(rest.plus(c.spec), base, targets, data, rss0_held, start=start, **kw)
+            r = fits.fit(rest.plus(c.spec), base, targets, data, rss0_held, start=start, **kw)
             if r.accepted and (best is None or better(best, r) is r):
                 best = r
     return best
 
 
 def _fill_without(sel: Selection, base: ParameterSet, targets: Sequence[Target], data: Mapping[str, Any],
-                  rss0_held: float, **kw: Any) -> None:
+                  rss0_held: float, fits: FitCache, **kw: Any) -> None:
     """The drop-one fits of the final set that the backward step did not leave (how much each member explains)."""
     cur = sel.final
     assert cur.spec is not None and cur.outcome is not None
     for name in cur.members:
         if name not in sel.without:
-            sel.without[name] = fit_spec(_without(cur.spec, name), base, targets, data, rss0_held,
+            sel.without[name] = fits.fit(_without(cur.spec, name), base, targets, data, rss0_held,
                                          start=dict(cur.outcome.values), **kw)
