@@ -42,12 +42,16 @@ def is_user_spec(spec: str | type[PhysicalEffect]) -> bool:
 def probe_effects(specs: Sequence[str | type[PhysicalEffect]], params: ParameterSet | str = "table2",
                   option: str = "--effect") -> None:
     """Probe every user effect among ``specs`` (see the module docstring); ``option`` names where it was given."""
-    for spec in specs:
-        if is_user_spec(spec):
-            cls = resolve_effect(spec)
-            if cls.role == "effect" and cls not in _PROBED:
-                _probe(cls, spec, params, option)
-                _PROBED.add(cls)
+    user = [(spec, resolve_effect(spec)) for spec in specs if is_user_spec(spec)]  # every one loads first
+    names: dict[str, type[PhysicalEffect]] = {}
+    for spec, cls in user:
+        if names.setdefault(cls.name, cls) is not cls:
+            raise EffectError(f"{option} {spec}: two different effects share the name '{cls.name}' (the other from "
+                              f"{effect_source_file(names[cls.name]) or names[cls.name].__module__}); rename one")
+    for spec, cls in user:
+        if cls.role == "effect" and cls not in _PROBED:
+            _probe(cls, spec, params, option)
+            _PROBED.add(cls)
 
 
 def _probe(cls: type[PhysicalEffect], spec: str | type[PhysicalEffect], params: ParameterSet | str,

@@ -85,11 +85,13 @@ def _fit(args: argparse.Namespace, out: Path, save: Path | None) -> int:
     from plant.effect_probe import probe_effects
     from shm_cli.main import CliError
     from workbench.diagnose_report import ProgressPlot, overlay_figure, write_html
+    from workbench.effect_library import resolve_candidates
     from workbench.fit import FitError, fit_records
     from workbench.fit_report import fit_warnings, other_notes, report_dict
 
     records = _load_records(args.records)
     base = load_parameter_set(args.params)
+    resolve_candidates(args.add)  # each loads and has something to fit (EffectError), before a probe compiles it
     probe_effects(args.add, base, "--add")
     (out / "fit.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
     progress: list[ProgressPlot] = []
