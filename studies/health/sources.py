@@ -81,6 +81,14 @@ def _check_belonging(f: Path, rec: Record, h: float, groups: dict[float, list[Re
         raise InputError(f"{f}: operating_hours = {h:g} h is not a plausible time in a structure's life (at most "
                          f"{MAX_OPERATING_HOURS:g} h)")
     prov = rec.meta.get("provenance", {}) or {}
+    if prov.get("generator") == "board":
+        for key, what in (("run_uid", "run"), ("board_id", "board")):
+            mine = str(prov.get(key, "none (an older record)"))
+            if key not in first:
+                first[key] = (mine, str(f))
+            elif first[key][0] != mine:
+                raise InputError(f"{f}: a record of another {what} ({key} {mine}; {first[key][1]} has "
+                                 f"{first[key][0]}): a life's visits must come from one run of one board")
     test = str(rec.meta.get("test", ""))
     for other in groups.get(h, []):
         if str(other.meta.get("test", "")) == test:
@@ -93,15 +101,6 @@ def _check_belonging(f: Path, rec: Record, h: float, groups: dict[float, list[Re
                 and (recs[0].meta.get("provenance", {}) or {}).get("generator") == "board":
             raise InputError(f"{f}: visit {vis} at {h:g} h, but {recs[0].path} has visit {vis} at {oh:g} h: "
                              "records of two different lives or runs")
-    if prov.get("generator") != "board":
-        return
-    for key, what in (("run_uid", "run"), ("board_id", "board")):
-        mine = str(prov.get(key, "none (an older record)"))
-        if key not in first:
-            first[key] = (mine, str(f))
-        elif first[key][0] != mine:
-            raise InputError(f"{f}: a record of another {what} ({key} {mine}; {first[key][1]} has {first[key][0]}): "
-                             "a life's visits must come from one run of one board")
 
 
 def load_visits(sources: Sequence[str | Path]) -> list[Visit]:
