@@ -9,7 +9,8 @@ verdict) to the file.
 Header keys: ``test`` (``mbit-a``/``mbit-b``), ``sample_rate_Hz`` (the tick rate, 100 Hz), ``terminal =
 "amplifier"``, ``inputs``, ``params`` (the board's nominal set), ``operating_hours`` (when known), ``[channels.z3_m]``
 (laser noise σ), ``[[segments]]`` (settle, the MBIT) and ``[provenance]`` (``generator = "board"``, scenario, run id,
-visit number, board time of the first row, MBIT label).
+visit number, board time of the first row, MBIT label; for a life also ``run_uid`` and ``board_id``,
+:func:`run_identity`, which ``shm health`` checks to keep records of different runs or boards apart).
 
 A tick whose sample the link lost (or whose sample the board could not trust) keeps its row — time and the
 commanded channels — with an empty ``z3_m`` cell; the header says ``missing = "empty"`` (docs/records.md, "Lost
