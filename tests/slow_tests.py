@@ -15,6 +15,7 @@ SLOW_TESTS: frozenset[str] = frozenset({
     "test_bad_inputs.py::test_bad_input_is_one_clear_line",  # 3 s
     "test_bad_inputs_newer_life_health.py::test_bad_input_is_one_clear_line_and_touches_nothing",  # 6 s (first case)
     "test_bad_inputs_newer_life_health.py::test_mutated_life_files_never_give_an_internal_error",  # 4 s
+    "test_bad_inputs_newer_workbench.py::test_bad_input_is_one_clear_line_and_touches_nothing",  # 17 s (NaN probe)
     "test_board_cli.py::test_shipped_short_scenarios_reach_their_expected_verdict",  # 167 s
     "test_board_cli.py::test_shm_run_bad_input_exits_2",  # 52 s
     "test_board_cli.py::test_shm_run_catches_a_degraded_laminate",  # 20 s
@@ -75,6 +76,7 @@ SLOW_TESTS: frozenset[str] = frozenset({
     "test_discover.py::test_done_when_chain_foreign_friction",  # 141 s
     "test_discover.py::test_not_found_on_a_clean_record",  # 2 s
     "test_discover.py::test_synth_names_the_effect_whose_hook_produced_nan",  # 60 s
+    "test_discover_noise_free.py::test_a_noise_free_nominal_record_has_nothing_to_find",  # 5 s
     "test_effect_seam.py::test_docs_worked_example_loads_by_dotted_path_and_acts",  # 119 s
     "test_effect_seam.py::test_effect_defined_in_a_function_compiles_in_memory",  # 69 s
     "test_effect_seam.py::test_hook_that_numba_cannot_compile_names_the_effect",  # 43 s
