@@ -41,3 +41,24 @@ def start_live(args: argparse.Namespace, report: Path | None = None) -> Any:
         host, port = args.live
         raise CliError(f"--live {host}:{port}: cannot serve the live page there ({exc.strerror or exc})") from None
     return session
+
+
+def refuse_live_for_a_life(args: argparse.Namespace, scenario: Any) -> None:
+    """``--live`` follows one board run: a life (its visits run in parallel processes) is refused (exit 2)."""
+    if getattr(args, "live", None) is not None:
+        from shm_cli.main import CliError
+
+        raise CliError(f"--live: scenario '{scenario.name}' is a life whose visits run in parallel processes; "
+                       "the live page follows one board run (a maintenance or flight scenario)")
+
+
+def attach_live_board(args: argparse.Namespace, board: Any, link: Any, scheduler: Any, scenario: str,
+                      duration_s: float, paced: bool) -> tuple[Any, Any, Any]:
+    """(the run's live session or None, the link and the scheduler to run with): with ``--live`` the link is timed
+    and the scheduler publishes the board's state after each tick."""
+    live = getattr(args, "live_session", None)
+    if live is None:
+        return None, link, scheduler
+    link, scheduler = live.attach_board(board, link, scheduler, planned_s=duration_s, paced=paced, title=(
+        f"scenario {scenario}, link {args.link}, {'real time' if paced else 'virtual time'}"))
+    return live, link, scheduler

@@ -42,6 +42,7 @@ from shm_cli.common import (
     nonnegative_float,
     out_dir,
 )
+from shm_cli.live_args import add_live_args, attach_live_board, refuse_live_for_a_life, start_live
 from studies.board_run.timeline import format_event
 
 EXIT_SIGINT = 130
@@ -100,8 +101,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "process; default) or full (also an OS crash or power cut; one fsync per record)")
     p.add_argument("--json", action="store_true", help="print the run summary as JSON at the end")
     p.add_argument("--quiet", action="store_true", help="no timeline on stdout and no progress bar")
-    from shm_cli.live_args import add_live_args
-
     add_live_args(p, "the running board")
     from shm_cli.fleet_cmd import add_fleet_args
 
@@ -309,9 +308,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             raise CliError(f"{opt} is empty: give a name or a path")
     scenario = load_scenario(args.scenario)
     if scenario.life is not None:  # many visits over an operating life (issue 17): studies.health.life
-        if getattr(args, "live", None) is not None:
-            raise CliError(f"--live: scenario '{scenario.name}' is a life whose visits run in parallel processes; "
-                           "the live page follows one board run (a maintenance or flight scenario)")
+        refuse_live_for_a_life(args, scenario)
         from shm_cli.life_cmd import run_life_command
 
         return run_life_command(args, scenario)
@@ -329,9 +326,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     check_memory(f"{src} = {n_ticks:.3g} board ticks", n_ticks * BYTES_PER_TICK,
                  hint="run a shorter stretch (--duration-s) or split the scenario")
     out = out_dir(args.out)
-    from shm_cli.live_args import start_live  # --live: the page of the running board (docs/live.md)
-
-    # before anything in --out is touched: a port in use is refused with the earlier run still there
+    # --live (docs/live.md): before anything in --out is touched, so a port in use leaves an earlier run there
     args.live_session = live = start_live(args, report=out / "report.html")
     lock = OutputLock(out, command=f"shm run --scenario {args.scenario} --out {args.out}")
     lock.acquire()
@@ -376,10 +371,8 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
 
         request_slice(args.sched_slice_ms / 1e3)
     scheduler = StoppableScheduler(Scheduler(cfg.tick_rate, WallClock() if paced else VirtualClock()), stopper)
-    live = getattr(args, "live_session", None)
-    if live is not None:  # the page reads what the board publishes after each tick; the link is timed
-        link, scheduler = live.attach_board(board, link, scheduler, planned_s=duration, paced=paced, title=(
-            f"scenario {scenario.name}, link {args.link}, {'real time' if paced else 'virtual time'}"))
+    # --live: the page reads what the board publishes after each tick; the link is timed
+    live, link, scheduler = attach_live_board(args, board, link, scheduler, scenario.name, duration, paced)
     setup_s = time.perf_counter() - t_setup
 
     bar = None
