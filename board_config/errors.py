@@ -12,8 +12,20 @@ from __future__ import annotations
 class InputError(ValueError):
     """Input the user can fix: a file, option or value. The message names it and says why it is wrong.
 
-    A ``ValueError`` subclass so that code catching ``ValueError`` around validation keeps working.
+    A ``ValueError`` subclass so that code catching ``ValueError`` around validation keeps working. Every subclass
+    pickles (whatever its ``__init__``), so one raised in a worker process reaches the parent as the same error
+    with the same message, instead of breaking the pool (issue 33).
     """
+
+    def __reduce__(self) -> tuple:
+        return (_rebuild_input_error, (type(self), str(self), dict(self.__dict__)))
+
+
+def _rebuild_input_error(cls: type[InputError], message: str, state: dict) -> InputError:
+    err = cls.__new__(cls)
+    ValueError.__init__(err, message)
+    err.__dict__.update(state)
+    return err
 
 
 class ConfigError(InputError):

@@ -269,3 +269,21 @@ def test_mutated_health_inputs_never_give_an_internal_error(hours, uids, boards,
     assert "Traceback" not in err and "internal error" not in err, err
     assert code == 2, err
     _one_error_line(err)
+
+
+def test_every_input_error_crosses_a_process_boundary_whole() -> None:
+    """An InputError subclass with its own __init__ (ConfigError, RecordError ...) raised in a worker of any pool
+    (the health fits', the campaign's) used to fail to unpickle in the parent and break the pool; now it arrives as
+    the same error, message and attributes."""
+    import pickle
+
+    from board_config.errors import ConfigError
+    from board_config.parameter import ParameterError
+    from drivers.link_url import LinkUrlError
+    from workbench.record_types import RecordError
+
+    for err in (ConfigError("p.toml", "parameters.k3.unit", "expected unit 'N/m', got 'N/mm'"),
+                RecordError("r.csv", "not finite", line=9, column="z3_mm"), LinkUrlError("sim://?seed=-1", "bad seed"),
+                ParameterError("bad", where="w", name="k3", reason="r")):
+        back = pickle.loads(pickle.dumps(err))
+        assert type(back) is type(err) and str(back) == str(err) and back.__dict__ == err.__dict__
