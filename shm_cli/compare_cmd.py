@@ -73,9 +73,9 @@ def _eq4(items: list[str]) -> dict[str, tuple[float, float]]:
 def cmd_compare(args: argparse.Namespace) -> int:
     if wanted(args, args.records):  # a folder or 'glob': one task per record (docs/scale-out.md)
         return run_batch("compare", args, args.records)
-    from plant.effect_probe import probe_effects
     from shm_cli.synth_cmd import _assignments
     from workbench.compare import CompareOptions
+    from workbench.effect_probe import probe_effects
     from workbench.records import gap_notes, load_record
 
     if args.lags < 1 or args.decimate < 1:

@@ -84,9 +84,9 @@ def _check_emit(emit: Path, add: list[str], force: bool) -> None:
 
 def _discover(args: argparse.Namespace, out: Path) -> int:
     from board_config import load_parameter_set
-    from plant.effect_probe import probe_effects
     from shm_cli.main import CliError
     from workbench.discover import describe_units, discover
+    from workbench.effect_probe import probe_effects
     from workbench.fit import FitError
     from workbench.records import check_distinct_records, gap_notes, load_record
 

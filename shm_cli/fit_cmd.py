@@ -76,16 +76,18 @@ def cmd_fit(args: argparse.Namespace) -> int:
     if save is not None:  # checked before the fit: never over the shipped sets, never over a file without --force
         check_new_file(save, "--save", args.force)
     out = _output_dir(args.out, save)
-    with locked_out(out, "fit", option="--out" if args.out else "--out (default)"):
+    if not args.out:  # the report beside --save or in the current directory: no lock file left among the user's
+        return _fit(args, out, save)
+    with locked_out(out, "fit"):
         return _fit(args, out, save)
 
 
 def _fit(args: argparse.Namespace, out: Path, save: Path | None) -> int:
     from board_config import load_parameter_set
-    from plant.effect_probe import probe_effects
     from shm_cli.main import CliError
     from workbench.diagnose_report import ProgressPlot, overlay_figure, write_html
     from workbench.effect_library import resolve_candidates
+    from workbench.effect_probe import probe_effects
     from workbench.fit import FitError, fit_records
     from workbench.fit_report import fit_warnings, other_notes, report_dict
 

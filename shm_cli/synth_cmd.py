@@ -105,7 +105,7 @@ def _check_drive_limits(args: argparse.Namespace, spec, base: bool) -> None:
 def cmd_synth(args: argparse.Namespace) -> int:
     from board_config import CORE_PARAMETER_NAMES, CORE_PARAMETERS, ParameterVector, load_parameter_set
     from plant import G0
-    from plant.effect_probe import probe_effects
+    from workbench.effect_probe import probe_effects
     from workbench.records import write_record
     from workbench.synth import synth_frf, synth_record, synth_test, truth_model, write_frf_record
 

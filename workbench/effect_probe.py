@@ -64,14 +64,17 @@ def _probe(cls: type[PhysicalEffect], spec: str | type[PhysicalEffect], params: 
     model = PlantModel(params, effects=[cls])
     inputs = step_drive(PROBE_STEP_V, PROBE_S, dt=1e-3)
     try:
-        res = model.simulate(inputs, t_end=PROBE_S, dt_out=PROBE_S / 50)
+        res = model.simulate(inputs, t_end=PROBE_S, dt_out=PROBE_S / 50, record_states=True)
     except (IndexError, ValueError, ZeroDivisionError) as exc:
         raise EffectError(f"{label} fails in a {PROBE_S:g} s probe simulation: {type(exc).__name__}: {exc} — check "
                           "that its hooks only index its own slots (p[P.name], x[X.name], y[Y.name])") from None
     bad = [n for j, n in enumerate(res.output_names) if not np.all(np.isfinite(res.y[0, :, j]))]
     if res.ok and not bad:
         return
-    why = "; ".join(res.failures()) or f"non-finite outputs {', '.join(bad[:4])}"
+    from workbench.synth import blame_non_finite
+
+    blame = blame_non_finite(model, res, inputs.values[0], inputs.dt)
+    why = blame or ("; ".join(res.failures()) or f"non-finite outputs {', '.join(bad[:4])}") + (
+        " — check its hooks (a division by a zero parameter or state? a square root or log of a negative number?)")
     raise EffectError(f"{label} produces NaN or infinity in a {PROBE_S:g} s probe simulation (nominal model + the "
-                      f"effect at its default values, a {PROBE_STEP_V:g} V step on the patches): {why} — check its "
-                      "hooks (a division by a zero parameter or state? a square root or log of a negative number?)")
+                      f"effect at its default values, a {PROBE_STEP_V:g} V step on the patches): {why}")
