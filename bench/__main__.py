@@ -1,9 +1,11 @@
-"""Run the benchmarks: ``python -m bench [--out DIR] [--quick] [--only NAME ...]``."""
+"""Run the benchmarks: ``python -m bench [--out DIR] [--quick] [--only NAME ...] [--scheduler ADDRESS]``
+(``--scheduler`` reaches the benchmarks whose ``run`` takes it: the challenges' case loops, docs/scale-out.md)."""
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import inspect
 import json
 import sys
 import time
@@ -35,7 +37,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", default="out/bench", help="output directory (JSON results and figures)")
     ap.add_argument("--quick", action="store_true", help="smaller sizes (a smoke run, not for quoting)")
     ap.add_argument("--only", nargs="*", default=None, help="run only these benchmark modules (short names)")
+    ap.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                    help="where the challenges' cases run (hidden_effect, discovery_challenge, damage_challenge, "
+                         "health): local (default: two local worker processes), tcp://HOST:PORT (a Dask cluster) "
+                         "or synchronous (this process)")
     args = ap.parse_args(argv)
+    try:
+        from studies.batch.runner import check_scheduler
+
+        check_scheduler(args.scheduler)
+    except ValueError as exc:
+        ap.error(str(exc))
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     results = {}
@@ -45,7 +57,9 @@ def main(argv: list[str] | None = None) -> int:
             continue
         print(f"== {short}", flush=True)
         t0 = time.perf_counter()
-        res = importlib.import_module(name).run(out, args.quick)
+        module = importlib.import_module(name)
+        takes_scheduler = "scheduler" in inspect.signature(module.run).parameters
+        res = module.run(out, args.quick, scheduler=args.scheduler) if takes_scheduler else module.run(out, args.quick)
         res["wall_s_total"] = time.perf_counter() - t0
         results[short] = res
         (out / f"{short}.json").write_text(json.dumps(res, indent=2, default=float))

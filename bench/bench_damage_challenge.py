@@ -5,7 +5,8 @@ play at the root) at two strengths, hidden in a 6 s sweep, MBIT.a and MBIT.b at 
 ``workbench.diagnose.diagnose`` on each record. Scored on the FIRST SENTENCE of the verdict: it names the right
 physics (section and kind; a time event's instant within 2 % of the record) AND the fix it proposes (the emitted
 effect file refitted by ``shm fit``'s engine, else the named candidate) reaches ≤ 1.5 σ held out. Target: ≥ 80 % of
-the cases larger than 3 σ. Cases run in a process pool (two workers); each is logged as it completes.
+the cases larger than 3 σ. Cases run as tasks on ``--scheduler`` (studies.batch.cases: two local workers by default),
+each logged in case order as it comes in.
 
 ``python -m bench --only damage_challenge`` (72 cases); ``--quick``: the sweep at 2 µm only (12 cases).
 ``DAMAGE_CHALLENGE_ONLY=Name1,Name2`` restricts the damage classes (a partial run, not for quoting)."""
@@ -15,7 +16,6 @@ from __future__ import annotations
 import json
 import os
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 DAMAGE_FILE = Path(__file__).parents[1] / "tests" / "workbench_foreign_damage.py"
@@ -53,21 +53,26 @@ def cases(quick: bool, only: str | None = None) -> list[tuple]:
             for name in names for i, v in enumerate(damage[name][0]) for kind in kinds for noise in noises]
 
 
-def run(out_dir: Path, quick: bool) -> dict:
+def run(out_dir: Path, quick: bool, scheduler: str | None = None) -> dict:
+    from studies.batch.cases import run_cases
     from workbench.discovery_challenge import DamageCaseResult, format_damage_table, summarise_damage
 
     todo = cases(quick, os.environ.get("DAMAGE_CHALLENGE_ONLY"))
     results = []
     progress = Path(out_dir) / "damage_challenge_progress.jsonl"
-    with ProcessPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool, progress.open("w") as log:
-        for k, r in enumerate(pool.map(_one, todo), 1):  # in order; each case logged as it completes
+    with progress.open("w") as log:
+        def logged(r: dict) -> None:  # in case order; each case logged as soon as the cases before it are in
             results.append(DamageCaseResult(**r))
+            k = len(results)
             log.write(json.dumps(r, default=float) + "\n")
             log.flush()
             print(f"   [{k}/{len(todo)}] {r['label']} {r['strength']} {r['kind']} {r['noise_m'] * 1e6:g} µm: "
                   f"size {r['size_sigma']:.3g} σ, named {r['named']}, {r['fix']} {r['held_before']:.3g} → "
                   f"{r['held_fix']:.3g} σ ({r['wall_s']:.0f} s): {r['sentence'][:140]}", file=sys.stderr,
                   flush=True)
+
+        run_cases(_one, [(t,) for t in todo], scheduler=scheduler, workers=min(2, os.cpu_count() or 1),
+                  on_result=logged, what="damage challenge")
     table = format_damage_table(results)
     summary = summarise_damage(results)
     share = summary["rate_both"]

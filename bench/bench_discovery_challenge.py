@@ -2,14 +2,14 @@
 (written only there, loaded by file path) at two strengths, hidden in MBIT.b and 6 s sweep records at 2 µm and
 10 µm laser noise; ``shm discover`` on each, the emitted file refitted with ``shm fit``'s engine. Targets: held-out
 error ≤ 1.5 σ in ≥ 80 % of the cases larger than 3 σ, and the description naming the right signal and condition.
-Cases run in a process pool (one per core)."""
+Cases run as tasks on ``--scheduler`` (:func:`studies.batch.cases.run_cases`: two local worker processes by
+default), logged in case order as they come in."""
 
 from __future__ import annotations
 
 import json
 import os
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 FOREIGN_FILE = Path(__file__).parents[1] / "tests" / "workbench_foreign_effects.py"
@@ -51,20 +51,25 @@ def cases(quick: bool) -> list[tuple]:
     return out
 
 
-def run(out_dir: Path, quick: bool) -> dict:
+def run(out_dir: Path, quick: bool, scheduler: str | None = None) -> dict:
+    from studies.batch.cases import run_cases
     from workbench.discovery_challenge import DiscoveryCaseResult, format_table, summarise
 
     todo = cases(quick)
     results = []
     progress = Path(out_dir) / "discovery_challenge_progress.jsonl"
-    with ProcessPoolExecutor(max_workers=min(2, os.cpu_count() or 1)) as pool, progress.open("w") as log:
-        for k, r in enumerate(pool.map(_one, todo), 1):  # in order; each case logged as it completes
+    with progress.open("w") as log:
+        def logged(r: dict) -> None:  # in case order; each case logged as soon as the cases before it are in
             results.append(DiscoveryCaseResult(**r))
             log.write(json.dumps(r, default=float) + "\n")
             log.flush()
-            print(f"   [{k}/{len(todo)}] {r['label']} {r['strength']} {r['kind']} {r['noise_m'] * 1e6:g} µm: "
-                  f"{r['verdict']} {'/'.join(r['found']) or '-'}, held-out {r['held_before']:.3g} → "
-                  f"{r['held_after']:.3g} σ, named {r['named']} ({r['wall_s']:.0f} s)", file=sys.stderr, flush=True)
+            print(f"   [{len(results)}/{len(todo)}] {r['label']} {r['strength']} {r['kind']} "
+                  f"{r['noise_m'] * 1e6:g} µm: {r['verdict']} {'/'.join(r['found']) or '-'}, held-out "
+                  f"{r['held_before']:.3g} → {r['held_after']:.3g} σ, named {r['named']} ({r['wall_s']:.0f} s)",
+                  file=sys.stderr, flush=True)
+
+        run_cases(_one, [(t,) for t in todo], scheduler=scheduler, workers=min(2, os.cpu_count() or 1),
+                  on_result=logged, what="discovery challenge")
     table = format_table(results)
     (out_dir / "discovery_challenge.txt").write_text(table + "\n")
     (out_dir / "discovery_challenge_cases.json").write_text(json.dumps([r.to_dict() for r in results], indent=1,

@@ -5,8 +5,9 @@ Reported: the life's wall time on the process pool (2 workers) and, as the same-
 first four visits in one process (extrapolated to 24); the health assessment's wall time as of a few visits before the
 board's first FAULT and whether its 90 % interval holds that visit; the challenge's summary (coverage, α-λ,
 prognostic horizon, stable lives, sudden damage, baseline side by side, by group: core, effect, few-visits,
-out-of-family) and its wall time. ``--quick`` runs the smoke size of the challenge; the environment variable
-``MFC_SHM_HEALTH_CHALLENGE_PER_GROUP=N`` keeps the first N lives of each group (a reduced run).
+out-of-family) and its wall time (the lives as tasks on ``--scheduler``, two local workers by default). ``--quick``
+runs the smoke size of the challenge; the environment variable ``MFC_SHM_HEALTH_CHALLENGE_PER_GROUP=N`` keeps the
+first N lives of each group (a reduced run).
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ from dataclasses import replace
 from pathlib import Path
 
 
-def run(out_dir: Path, quick: bool) -> dict:
+def run(out_dir: Path, quick: bool, scheduler: str | None = None) -> dict:
     from board_config.scenario import load_scenario
     from studies.health.assess import assess_health
     from studies.health.challenge import challenge_lives, run_challenge
@@ -56,7 +57,7 @@ def run(out_dir: Path, quick: bool) -> dict:
     t0 = time.perf_counter()
     per_group = os.environ.get("MFC_SHM_HEALTH_CHALLENGE_PER_GROUP")  # a reduced run: that many lives per group
     lives = challenge_lives("smoke" if quick else "full", per_group=int(per_group) if per_group else None)
-    ch = run_challenge(lives, workers=2, progress=lambda s: print(s, flush=True))
+    ch = run_challenge(lives, workers=2, progress=lambda s: print(s, flush=True), scheduler=scheduler or "local")
     challenge_wall = time.perf_counter() - t0
     import json
 

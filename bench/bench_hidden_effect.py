@@ -6,8 +6,9 @@ parameter re-estimations); plus effect-free records over many seeds. See :mod:`w
 
 Targets (issue 11): a wrong parameter named first in ≥ 90 % of the cases that change the response by > 3 σ; both
 effects of a pair found in ≥ 80 %; a single library effect ranked first in ≥ 95 % (cases above the noise); an
-effect-free record "nothing missing" in ≥ 95 % of seeds. Prints the confusion matrix. Cases run in a process pool
-(one per core).
+effect-free record "nothing missing" in ≥ 95 % of seeds. Prints the confusion matrix. Cases run as tasks on
+``--scheduler`` (:func:`studies.batch.cases.run_cases`: two local worker processes by default, a Dask cluster with
+``tcp://HOST:PORT``, this process with ``synchronous``), returned and logged in case order.
 """
 
 from __future__ import annotations
@@ -15,7 +16,6 @@ from __future__ import annotations
 import json
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from workbench.hidden_effect import (
@@ -31,6 +31,8 @@ from workbench.hidden_effect import (
 )
 
 N_NULL = 12
+#: local worker processes when no cluster is given (the machine's two cores)
+WORKERS = max(1, min(2, os.cpu_count() or 1))
 
 
 def _one(item: tuple) -> dict:
@@ -58,19 +60,28 @@ def cases(quick: bool) -> list[tuple[HiddenCase, str, float, int]]:
     return out
 
 
-def run(out_dir: Path, quick: bool) -> dict:
+def run_cases_logged(todo: list[tuple], log_path: Path, scheduler: str | None = None) -> tuple[list, int]:
+    """Every case on ``scheduler`` (two local workers by default), each logged to ``log_path`` in case order; the
+    results in case order and the number of workers."""
+    from studies.batch.cases import run_cases
     from workbench.hidden_effect import CaseResult
 
-    todo = cases(quick)
-    t0 = time.perf_counter()
-    workers = max(1, min(2, os.cpu_count() or 1))
     results = []
-    progress = Path(out_dir) / "hidden_effect_progress.jsonl"
-    with ProcessPoolExecutor(workers) as pool, progress.open("w") as log:
-        for r in pool.map(_one, todo):  # in order, as they complete
+    with log_path.open("w") as log:
+        def logged(r: dict) -> None:
             results.append(CaseResult(**r))
             log.write(json.dumps(r) + "\n")
             log.flush()
+
+        _, outcome = run_cases(_one, [(item,) for item in todo], scheduler=scheduler, workers=WORKERS,
+                               on_result=logged, what="hidden-effect sweep")
+    return results, outcome.n_workers
+
+
+def run(out_dir: Path, quick: bool, scheduler: str | None = None) -> dict:
+    todo = cases(quick)
+    t0 = time.perf_counter()
+    results, workers = run_cases_logged(todo, Path(out_dir) / "hidden_effect_progress.jsonl", scheduler)
     wall = time.perf_counter() - t0
     summary = summarise(results)
     matrix = format_confusion(results)

@@ -75,8 +75,8 @@ def _task_args(args: argparse.Namespace, tmp: Path, names: list[str], shared: di
     ns = copy.copy(args)
     if ns.command == "health":  # a board: its run directory (usage.db, records/)
         ns.sources, ns.fleet, ns.workers = [str(tmp / "in")], False, 1
-    elif ns.command == "run":  # a board's life: its own scenario file
-        ns.scenario, ns.boards = str(tmp / "in" / names[0]), None
+    elif ns.command == "run":  # a board's life: its own scenario file, its visits in this task (no pool of its own)
+        ns.scenario, ns.boards, ns.life_workers = str(tmp / "in" / names[0]), None, 1
     else:
         ns.records = [str(tmp / "in" / n) for n in names]
     ns.out = str(tmp / "out")

@@ -99,7 +99,9 @@ def _run_life_staged(args: argparse.Namespace, scenario: Any, seed: int, params:
         + (f"visits, {life.tick_flights} of them ticked before each visit from the 2nd ({life.flight_scenario}'s "
            "flight phases), the rest summarised)" if life.tick_flights else "visits, summarised)"))
     try:
+        # life_workers: 1 for a board of shm run --boards (a Dask task: the worker is the parallelism)
         result = run_life(scenario, seed=seed, params=params, board_config=args.board_config,
+                          workers=getattr(args, "life_workers", None),
                           on_visit=lambda v: say(visit_line(v)), should_stop=lambda: stopper.requested)
     except KeyboardInterrupt:  # a second signal: stop at once (the pool has terminated its workers)
         print(f"shm run: stopped at once by a second signal; nothing of this life written, {out}/ as it was",

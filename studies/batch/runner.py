@@ -24,6 +24,8 @@ from board_config.errors import InputError
 #: a task: fn(key, files by name, shared files by name, options) -> TaskResult
 TaskFn = Callable[[str, dict[str, bytes], dict[str, bytes], Any], "TaskResult"]
 ProgressFn = Callable[["BatchProgress"], None]
+#: sees each task's result as it arrives (completion order; a lost task's final failure too)
+ResultFn = Callable[["TaskResult"], None]
 #: submissions of one task before it is reported failed (a worker lost each time)
 MAX_ATTEMPTS = 4
 #: seconds between looks at the cluster's workers while waiting for results
@@ -121,16 +123,16 @@ def check_scheduler(text: str | None) -> str | None:
 def run_tasks(tasks: list[tuple[str, dict[str, bytes]]], fn: TaskFn, options: Any, *,
               shared: dict[str, bytes] | None = None, scheduler: str | None = None, workers: int | None = None,
               warm: Callable[[], None] | None = None, progress: ProgressFn | None = None,
-              timeout_s: float = 10.0) -> BatchOutcome:
+              on_result: ResultFn | None = None, timeout_s: float = 10.0) -> BatchOutcome:
     """Run ``fn`` once per ``(key, files)`` and return the results ordered by key (never by completion)."""
     shared = shared or {}
     t0 = time.perf_counter()
     if scheduler == "synchronous":
-        outcome = _run_here(tasks, fn, options, shared, warm, progress)
+        outcome = _run_here(tasks, fn, options, shared, warm, progress, on_result)
     else:
         client, cluster, desc = _client(scheduler, workers, len(tasks), timeout_s)
         try:
-            outcome = _run_dask(client, desc, tasks, fn, options, shared, warm, progress)
+            outcome = _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_result)
         finally:
             client.close()
             if cluster is not None:
@@ -141,7 +143,7 @@ def run_tasks(tasks: list[tuple[str, dict[str, bytes]]], fn: TaskFn, options: An
     return outcome
 
 
-def _run_here(tasks, fn, options, shared, warm, progress) -> BatchOutcome:
+def _run_here(tasks, fn, options, shared, warm, progress, on_result) -> BatchOutcome:
     warm_s = {}
     if warm is not None:
         t0 = time.perf_counter()
@@ -150,12 +152,14 @@ def _run_here(tasks, fn, options, shared, warm, progress) -> BatchOutcome:
     results = []
     for i, (key, files) in enumerate(sorted(tasks, key=lambda t: t[0])):
         results.append(fn(key, files, shared, options))
+        if on_result is not None:
+            on_result(results[-1])
         if progress is not None:
             progress(BatchProgress(i + 1, len(tasks), 1, 0, 0))
     return BatchOutcome(results, "synchronous (this process)", 1, warm_s=warm_s)
 
 
-def _run_dask(client, desc, tasks, fn, options, shared, warm, progress) -> BatchOutcome:
+def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_result) -> BatchOutcome:
     from studies.batch.warm import WarmPlugin, warm_seconds
 
     if warm is not None:
@@ -204,12 +208,17 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress) -> Batch
                 if attempts[key] >= MAX_ATTEMPTS:
                     results[key] = TaskResult(key, 1, f"lost {attempts[key]} times with its worker: "
                                                       f"{type(exc).__name__}: {exc}")
+                    if on_result is not None:
+                        on_result(results[key])
                     continue
                 if inputs[key].status != "finished":
                     inputs[key] = client.scatter(payload[key], hash=False)
                     scattered += sum(len(b) for b in payload[key].values())
                 rerun.add(key)
                 pending[submit(key)] = key
+                continue
+            if on_result is not None:
+                on_result(results[key])
         if progress is not None and changed:
             progress(BatchProgress(len(results), len(tasks), len(now), lost, len(rerun)))
     return BatchOutcome(list(results.values()), desc, n_workers, lost, len(rerun), warm_s=warm_s,

@@ -1,0 +1,143 @@
+"""Issue 31 point 3: the challenges' and benches' case loops on the scale-out runner (``python -m bench --scheduler``):
+cases are tasks keyed by their position, their results and the per-case log come back in case order whatever order
+the workers finish them in, a failing case is named, and a small subset gives the same results in this process
+(``synchronous``) as on two local Dask workers. Point 3 of the fleet too: a board's life inside a Dask task runs its
+visits in the task (no pool of its own sized to the CPU count)."""
+
+from __future__ import annotations
+
+import json
+import operator
+import sys
+import types
+
+import pytest
+from test_scale_out_cluster import _timeless
+
+import studies.batch.cases as cases_mod
+from studies.batch import TaskResult
+from studies.batch.cases import CaseFailed, case_key, run_case_task, run_cases
+from studies.batch.runner import BatchOutcome
+
+
+def _boom(x: int) -> int:
+    if x == 2:
+        raise ValueError("two is not allowed")
+    return x
+
+
+def test_cases_run_in_this_process_give_the_loops_results_in_case_order():
+    seen = []
+    results, outcome = run_cases(operator.mul, [(i, 3) for i in range(12)], scheduler="synchronous",
+                                 on_result=seen.append, warm=None)
+    assert results == seen == [3 * i for i in range(12)]
+    assert [r.key for r in outcome.results] == [case_key(i) for i in range(12)]
+    assert case_key(3) < case_key(10)  # zero-padded: the runner's key order is the case order
+
+
+def test_results_reach_on_result_in_case_order_whatever_order_they_arrive_in(monkeypatch):
+    def reversed_arrival(tasks, fn, options, *, on_result, **_):
+        done = [fn(key, files, {}, options) for key, files in reversed(tasks)]
+        for r in done:
+            on_result(r)
+        return BatchOutcome(sorted(done, key=lambda r: r.key), "fake", 2)
+
+    monkeypatch.setattr(cases_mod, "run_tasks", reversed_arrival)
+    seen = []
+    results, _ = run_cases(operator.add, [(i, 100) for i in range(5)], on_result=seen.append, warm=None)
+    assert seen == results == [100, 101, 102, 103, 104]
+
+
+def test_a_failing_case_stops_the_run_naming_the_case_and_its_exception():
+    seen = []
+    with pytest.raises(CaseFailed, match=r"case00002 failed: ValueError: two is not allowed") as err:
+        run_cases(_boom, [(0,), (1,), (2,), (3,)], scheduler="synchronous", on_result=seen.append, warm=None)
+    assert seen == [0, 1]
+    assert "_boom" in str(err.value)  # the worker's traceback comes with it
+    r = run_case_task("case00000", {"case.pkl": __import__("pickle").dumps((2,))}, {}, _boom)
+    assert isinstance(r, TaskResult) and r.code == 1
+
+
+def test_bench_passes_scheduler_to_the_benchmarks_that_take_it(monkeypatch, tmp_path):
+    import bench.__main__ as bench_main
+
+    got = {}
+
+    def run_takes(out, quick, scheduler=None):
+        got["takes"] = scheduler
+        return {}
+
+    def run_plain(out, quick):
+        got["plain"] = quick
+        return {}
+
+    takes, plain = types.ModuleType("fake_takes"), types.ModuleType("fake_plain")
+    takes.run, plain.run = run_takes, run_plain
+    monkeypatch.setitem(sys.modules, "fake_takes", takes)
+    monkeypatch.setitem(sys.modules, "fake_plain", plain)
+    monkeypatch.setattr(bench_main, "BENCHMARKS", ("fake_takes", "fake_plain"))
+    assert bench_main.main(["--out", str(tmp_path), "--quick", "--scheduler", "synchronous"]) == 0
+    assert got == {"takes": "synchronous", "plain": True}
+
+
+def test_bench_refuses_a_bad_scheduler_in_one_line(capsys, tmp_path):
+    import bench.__main__ as bench_main
+
+    with pytest.raises(SystemExit) as ex:
+        bench_main.main(["--out", str(tmp_path), "--scheduler", "my-laptop"])
+    assert ex.value.code == 2
+    assert "--scheduler 'my-laptop': expected local, synchronous or tcp://HOST:PORT" in capsys.readouterr().err
+
+
+def test_a_board_life_in_a_dask_task_runs_its_visits_in_the_task(monkeypatch):
+    """shm run --boards: the board's life must not start a pool sized to the CPU count inside a worker."""
+    import studies.health.life as life_mod
+    from shm_cli.fleet_cmd import _board_life_task
+    from shm_cli.main import build_parser
+
+    asked = []
+
+    def no_life(*_a, workers=None, **_k):
+        asked.append(workers)
+        raise RuntimeError("stop here")
+
+    monkeypatch.setattr(life_mod, "run_life", no_life)
+    from board_config.scenario import load_scenario
+
+    text = open(load_scenario("aging").source, encoding="utf-8").read().encode()
+    args = build_parser().parse_args(["run", "--scenario", "aging", "--boards", "2", "--out", "unused"])
+    args.command, args.quiet = "run", True
+    r = _board_life_task("board001", {"scenario.toml": text}, {}, (args, 7))
+    assert asked == [1], r.message
+
+
+# --- the real loops on a small subset: this process vs two local Dask workers (slow) ---------------------------
+@pytest.mark.slow
+def test_hidden_effect_subset_is_the_same_in_this_process_and_on_two_local_workers(tmp_path):
+    from bench import bench_hidden_effect as b
+
+    todo = b.cases(True)
+    subset = [todo[0], todo[5], todo[9]]  # a null case, two hidden effects (MBIT.b, 2 µm)
+    here, n_here = b.run_cases_logged(subset, tmp_path / "here.jsonl", "synchronous")
+    local, n_local = b.run_cases_logged(subset, tmp_path / "local.jsonl", "local")
+    assert (n_here, n_local) == (1, 2)
+    assert [r.effect for r in here] == [r.effect for r in local] == [t[0].label for t in subset]
+    dump = [json.dumps(_timeless(r.to_dict()), sort_keys=True) for r in here]
+    assert dump == [json.dumps(_timeless(r.to_dict()), sort_keys=True) for r in local]
+    logged = [json.loads(line) for line in (tmp_path / "local.jsonl").read_text().splitlines()]
+    assert [x["effect"] for x in logged] == [t[0].label for t in subset]
+
+
+@pytest.mark.slow
+def test_health_challenge_subset_is_the_same_in_this_process_and_on_two_local_workers():
+    from studies.health.challenge import challenge_lives, run_challenge
+
+    lives = challenge_lives("smoke")[:2]
+    lines: list[str] = []
+    here = run_challenge(lives, workers=2, scheduler="synchronous")
+    local = run_challenge(lives, workers=2, scheduler="local", progress=lines.append)
+    assert [x["life"] for x in local.lives] == [x["life"] for x in here.lives] == [life.name for life in lives]
+    assert _timeless(local.lives) == _timeless(here.lives)
+    assert json.dumps(local.summary, sort_keys=True, default=str) == json.dumps(here.summary, sort_keys=True,
+                                                                                default=str)
+    assert [ln.split()[0] for ln in lines] == [life.name for life in lives]
