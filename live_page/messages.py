@@ -24,6 +24,23 @@ def _chunk(c: Chunk, rows: bool = True) -> dict[str, Any]:
     return d
 
 
+def _chunk_index(c: Chunk) -> int:
+    return c.index
+
+
+def _event_index(e: tuple[int, str]) -> int:
+    return e[0]
+
+
+def _after(items: tuple, since: int, index: Any) -> tuple:
+    """The items whose running index is past ``since``: indices run without gaps, so the tail (no scan of the
+    whole history for every message)."""
+    if not items or index(items[-1]) <= since:
+        return ()
+    first = index(items[0])
+    return items if since < first else items[since - first + 1:]
+
+
 def message(snap: Snapshot, since_chunk: int = -1, since_event: int = -1, full: bool = False) -> dict[str, Any]:
     """The message that brings a page holding chunks up to ``since_chunk`` and events up to ``since_event`` (-1:
     none) to ``snap``; ``full``: the page's first message (it starts afresh)."""
@@ -42,8 +59,8 @@ def message(snap: Snapshot, since_chunk: int = -1, since_event: int = -1, full: 
                  "counters": dict(link.counters)},
         "extra": snap.extra,
         # a page shows the current MBIT only: the rows of earlier ones would be sent for nothing
-        "chunks": [_chunk(c, c.mbit_id == snap.mbit_id) for c in snap.chunks if c.index > since_chunk],
-        "events": [e for e in snap.events if e[0] > since_event],
+        "chunks": [_chunk(c, c.mbit_id == snap.mbit_id) for c in _after(snap.chunks, since_chunk, _chunk_index)],
+        "events": list(_after(snap.events, since_event, _event_index)),
         "finished": snap.finished, "status": snap.status, "report": snap.report,
     }
 
