@@ -175,7 +175,8 @@ def _health_locked(args: argparse.Namespace, out: Path, assess_health: Any, LAMB
         print(text, file=sys.stderr)
     else:
         print(text)
-        print(f"results in {out}/ (health.json, report.html, figures)")
+        written = [n for n in ("health.json", "report.html") if n not in failed]
+        print(f"results in {out}/ ({', '.join([*written, 'figures'])})")
     return 1 if failed else 0
 
 
@@ -196,16 +197,19 @@ def _write_staged(out: Path, write: Any) -> dict[str, str]:
         for name in HEALTH_OUTPUTS:
             if (stage / name).exists():
                 os.replace(stage / name, out / name)
-        return {k: (_disk_text(out, v) if "No space" in v or "disk" in v else v) for k, v in failed.items()}
+        return {k: (_disk_text(out, v, whole=False) if "No space" in v or "disk" in v else v)
+                for k, v in failed.items()}
     finally:
         shutil.rmtree(stage, ignore_errors=True)
 
 
-def _disk_text(out: Path, exc: object) -> str:
+def _disk_text(out: Path, exc: object, whole: bool = True) -> str:
     why = " ".join(str(exc).split())
     free = ""
     with contextlib.suppress(OSError):
         free = f"; the file system holding {out} has {shutil.disk_usage(out).free / 1e6:.1f} MB free"
     full = "No space left" in why or getattr(exc, "errno", None) == errno.ENOSPC
+    if not whole:  # one artefact: the caller names it and the folder
+        return why + (" (the disk is full)" if full else "") + free
     return (f"could not write the health outputs into {out}/: {why}" + (" (the disk is full)" if full else "")
             + free + "; nothing half-written was left there")
