@@ -110,7 +110,10 @@ class LifePool:
             for w, (_proc, conn) in enumerate(self._workers):
                 if w not in busy and todo:
                     i = todo.pop(0)
-                    conn.send(tasks[i])
+                    try:
+                        conn.send(tasks[i])
+                    except OSError:  # the worker is gone (killed from outside)
+                        raise WorkerDiedError(self._died(w, i)) from None
                     busy[w] = i
             conns: dict[Any, int] = {self._workers[w][1]: w for w in busy}
             sentinels: dict[Any, int] = {self._workers[w][0].sentinel: w for w in busy}

@@ -1,0 +1,55 @@
+"""The life's worker pool (studies/board_run/life_pool.py, issue 33): errors cross as the same error, a worker killed
+from outside is one clear error, a stop terminates every worker at once."""
+
+from __future__ import annotations
+
+import os
+import signal
+import threading
+import time
+
+import pytest
+
+from board_config.errors import ConfigError
+from studies.board_run.life_pool import LifePool, VisitFailedError, VisitInputError, WorkerDiedError
+
+
+def _task(kind: str, seconds: float = 0.0) -> str:
+    time.sleep(seconds)
+    if kind == "config":
+        raise ConfigError("life.toml", "life.law[0].parameter", "no such model parameter 'nosuch'")
+    if kind == "bug":
+        raise ZeroDivisionError("division by zero")
+    return kind
+
+
+def test_results_in_order_and_errors_as_the_same_line() -> None:
+    got: dict[int, str] = {}
+    with LifePool(_task, 2) as pool:
+        assert pool.run([("a",), ("b",), ("c",)], got.__setitem__) is False
+    assert got == {0: "a", 1: "b", 2: "c"}
+    with LifePool(_task, 2) as pool, pytest.raises(VisitInputError) as exc:
+        pool.run([("a",), ("config",)], lambda i, r: None)
+    assert str(exc.value) == "life.toml: key 'life.law[0].parameter': no such model parameter 'nosuch'"
+    with LifePool(_task, 1) as pool, pytest.raises(VisitFailedError, match="ZeroDivisionError: division by zero"):
+        pool.run([("bug",)], lambda i, r: None)
+
+
+def test_a_worker_killed_from_outside_is_one_clear_error() -> None:
+    with LifePool(_task, 1) as pool:
+        pid = pool.pids[0]
+        threading.Timer(0.5, os.kill, (pid, signal.SIGKILL)).start()
+        with pytest.raises(WorkerDiedError, match="killed by signal 9"):
+            pool.run([("a", 30.0)], lambda i, r: None)
+
+
+def test_a_stop_terminates_every_worker_at_once() -> None:
+    t0 = time.monotonic()
+    pool = LifePool(_task, 2)
+    pids = pool.pids
+    stopped = pool.run([("a", 60.0)] * 4, lambda i, r: None, should_stop=lambda: time.monotonic() - t0 > 0.5)
+    pool.close()
+    assert stopped and time.monotonic() - t0 < 5.0
+    for pid in pids:
+        with pytest.raises(ProcessLookupError):
+            os.kill(pid, 0)
