@@ -123,3 +123,25 @@ def test_the_check_needs_five_visits_and_compares_with_the_earlier_laws():
     earlier = fit_trend("alpha_h", h5[:-1], 1e-4 * h5[:-1], np.full(4, 1e-5), check=False)
     c = latest_visit_check(earlier, 400.0, 0.04, 1e-10 + 5e-4 ** 2)
     assert c["predicted_low"] <= 0.04 <= c["predicted_high"] and c["spread_factor"] == 1.0
+
+
+def test_health_json_carries_the_latest_visit_check():
+    """health.json's trend of each parameter has the check's numbers (``latest_visit_check``), null before five
+    visits."""
+    from studies.health.assess import _document
+    from studies.health.estimate import Visit
+
+    def doc_for(n: int) -> dict:
+        h = np.arange(n) * 100.0
+        y = 1e-4 * h
+        y[-1] += 0.01
+        visits = [Visit(float(x), [], visit=i + 1) for i, x in enumerate(h)]
+        ests = [{"held_rms_sigma": 1.0, "estimates": [{"name": "alpha_h", "value": 1.0 + float(v), "stderr": 1e-5,
+                                                       "nominal": 1.0, "unit": "-"}]} for v in y]
+        trends = {"alpha_h": fit_trend("alpha_h", h, y, np.full(n, 1e-5))}
+        fc = forecast_trip(trends, _boundary(), h[-1], 100.0, n_paths=200, n_grid=200)
+        return _document(visits, visits, ests, trends, fc, h, 100.0, None, "table2", ["alpha_h"])
+
+    check = doc_for(10)["trend"]["alpha_h"]["latest_visit_check"]
+    assert check["miss_ratio"] > 5.0 and check["spread_factor"] > 5.0 and check["hours"] == 900.0
+    assert doc_for(4)["trend"]["alpha_h"]["latest_visit_check"] is None

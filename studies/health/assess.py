@@ -258,7 +258,8 @@ def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, a
                         "model_weights": t.weights,
                         "change_point_hours": t.best.tau if t.best.name == "change_point" and t.significant
                         else None, "change_point_note": t.change_point_note,
-                        "current_relative": float(t.best.predict(np.array([hours[-1]]))[0])}
+                        "current_relative": float(t.best.predict(np.array([hours[-1]]))[0]),
+                        "latest_visit_check": t.check}
     f = fc.as_dict()
     start = hours[0]
     f["visit_interval_hours"] = interval
