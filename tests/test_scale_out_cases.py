@@ -117,7 +117,7 @@ def test_hidden_effect_subset_is_the_same_in_this_process_and_on_two_local_worke
     from bench import bench_hidden_effect as b
 
     todo = b.cases(True)
-    subset = [todo[0], todo[5], todo[9]]  # a null case, two hidden effects (MBIT.b, 2 µm)
+    subset = [todo[0], todo[5]]  # a null case and a hidden effect (MBIT.b, 2 µm)
     here, n_here = b.run_cases_logged(subset, tmp_path / "here.jsonl", "synchronous")
     local, n_local = b.run_cases_logged(subset, tmp_path / "local.jsonl", "local")
     assert (n_here, n_local) == (1, 2)
@@ -141,3 +141,28 @@ def test_health_challenge_subset_is_the_same_in_this_process_and_on_two_local_wo
     assert json.dumps(local.summary, sort_keys=True, default=str) == json.dumps(here.summary, sort_keys=True,
                                                                                 default=str)
     assert [ln.split()[0] for ln in lines] == [life.name for life in lives]
+
+
+def test_the_docs_bench_commands_reach_benchmarks_that_take_the_scheduler(monkeypatch, tmp_path):
+    """docs/scale-out.md's ``python -m bench ... --scheduler`` lines: each names a benchmark whose run takes the
+    option, and the option reaches it as written (the runs themselves replaced by a recorder)."""
+    import importlib
+    import inspect
+    import shlex
+    from pathlib import Path
+
+    import bench.__main__ as bench_main
+
+    doc = (Path(__file__).parents[1] / "docs" / "scale-out.md").read_text(encoding="utf-8")
+    lines = [ln.split("#")[0].strip() for ln in doc.splitlines() if ln.startswith("python -m bench ")]
+    assert len(lines) >= 3
+    for line in lines:
+        argv = shlex.split(line)[3:]
+        name = argv[argv.index("--only") + 1]
+        module = importlib.import_module(f"bench.bench_{name}")
+        assert "scheduler" in inspect.signature(module.run).parameters, name
+        got = []
+        monkeypatch.setattr(module, "run", lambda out, quick, scheduler=None, got=got: got.append(scheduler) or {})
+        assert bench_main.main([*argv, "--out", str(tmp_path)]) == 0
+        want = argv[argv.index("--scheduler") + 1] if "--scheduler" in argv else None
+        assert got == [want], line
