@@ -144,8 +144,8 @@ def test_health_challenge_subset_is_the_same_in_this_process_and_on_two_local_wo
 
 
 def test_the_docs_bench_commands_reach_benchmarks_that_take_the_scheduler(monkeypatch, tmp_path):
-    """docs/scale-out.md's ``python -m bench ... --scheduler`` lines: each names a benchmark whose run takes the
-    option, and the option reaches it as written (the runs themselves replaced by a recorder)."""
+    """docs/scale-out.md's and README's ``python -m bench ... --scheduler`` lines: each names a benchmark whose run
+    takes the option, and the option reaches it as written (the runs themselves replaced by a recorder)."""
     import importlib
     import inspect
     import shlex
@@ -153,9 +153,11 @@ def test_the_docs_bench_commands_reach_benchmarks_that_take_the_scheduler(monkey
 
     import bench.__main__ as bench_main
 
-    doc = (Path(__file__).parents[1] / "docs" / "scale-out.md").read_text(encoding="utf-8")
-    lines = [ln.split("#")[0].strip() for ln in doc.splitlines() if ln.startswith("python -m bench ")]
-    assert len(lines) >= 3
+    root = Path(__file__).parents[1]
+    doc = (root / "docs" / "scale-out.md").read_text(encoding="utf-8") + (root / "README.md").read_text("utf-8")
+    lines = [ln.split("#")[0].strip() for ln in doc.splitlines()
+             if ln.startswith("python -m bench ") and "--only" in ln]
+    assert len(lines) >= 4
     for line in lines:
         argv = shlex.split(line)[3:]
         name = argv[argv.index("--only") + 1]
