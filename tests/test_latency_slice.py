@@ -80,6 +80,7 @@ def test_a_thread_started_afterwards_inherits_it() -> None:
     assert _in_thread(work) == pytest.approx(2e-4)
 
 
+@pytest.mark.slow
 @needs_eevdf
 def test_shm_run_gives_the_link_thread_its_slice_and_0_turns_it_off() -> None:
     from shm_cli.main import main
