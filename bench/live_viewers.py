@@ -1,7 +1,7 @@
-"""Viewers of the live page for ``bench_live_page``, as their own process: in the odd blocks of a schedule,
-``n`` viewers each load the page as a browser would (``/``, ``/live.js``, ``/plotly.min.js`` gzipped) and hold its
-websocket, reading every message; in the even blocks none is connected. Prints one JSON line: per block and
-viewer, the messages received and the seconds its websocket was open.
+"""Viewers of the live page for ``bench_live_page``, as their own process at the lowest priority (nice 19): in the
+odd blocks of a schedule, ``n`` viewers each load the page as a browser would (``/``, ``/live.js``,
+``/plotly.min.js`` gzipped) and hold its websocket, reading every message; in the even blocks none is connected.
+Prints one JSON line: per block and viewer, the messages received and the seconds its websocket was open.
 
     python -m bench.live_viewers URL START_MONOTONIC BLOCK_S BLOCKS N
 """
@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import asyncio
 import json
+import os
 import sys
 import time
 
@@ -53,6 +54,9 @@ async def _main(url: str, start: float, block_s: float, blocks: int, n: int) -> 
 
 
 if __name__ == "__main__":
+    # the lowest priority: what is measured is the page's cost to the board's process, not the viewers' own CPU
+    # (a browser on another machine, through ssh -L, costs the board's machine nothing)
+    os.nice(19)
     url, start, block_s, blocks, n = sys.argv[1], float(sys.argv[2]), float(sys.argv[3]), int(sys.argv[4]), \
         int(sys.argv[5])
     print(json.dumps(asyncio.run(_main(url, start, block_s, blocks, n))), flush=True)
