@@ -69,6 +69,20 @@ def cmd_diagnose(args: argparse.Namespace) -> int:
         return _diagnose(args)
 
 
+def _candidates(args: argparse.Namespace) -> list[str] | None:
+    """The option checks, and the --candidates list (None: the whole library and every parameter)."""
+    from shm_cli.main import CliError
+
+    if args.workers < 1 or args.max_rate_hz <= 0 or not 0 <= args.min_reduction < 1 or args.fit_top < 0:
+        raise CliError("--workers must be >= 1, --max-rate-hz > 0, --min-reduction in [0, 1) and --fit-top >= 0")
+    if not args.candidates:
+        return None
+    candidates = [c.strip() for item in args.candidates for c in item.split(",") if c.strip()]
+    if not candidates:
+        raise CliError("--candidates is empty")
+    return candidates
+
+
 def _diagnose(args: argparse.Namespace) -> int:
     from shm_cli.main import CliError
     from shm_cli.progress import StageReporter
@@ -82,13 +96,7 @@ def _diagnose(args: argparse.Namespace) -> int:
     from workbench.fit import FitError
     from workbench.records import gap_notes, load_record
 
-    if args.workers < 1 or args.max_rate_hz <= 0 or not 0 <= args.min_reduction < 1 or args.fit_top < 0:
-        raise CliError("--workers must be >= 1, --max-rate-hz > 0, --min-reduction in [0, 1) and --fit-top >= 0")
-    candidates = None
-    if args.candidates:
-        candidates = [c.strip() for item in args.candidates for c in item.split(",") if c.strip()]
-        if not candidates:
-            raise CliError("--candidates is empty")
+    candidates = _candidates(args)
     out = out_dir(args.out)
     (out / "diagnosis.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
     records = [load_record(p) for p in args.records]

@@ -140,15 +140,7 @@ def cmd_synth(args: argparse.Namespace) -> int:
     _warn_neutral(model)
     out.parent.mkdir(parents=True, exist_ok=True)
     if args.test == "frf":
-        nz = {"amp": 0.01, "phase": 0.5}
-        for item in args.noise:
-            if item == "none":
-                nz = {"amp": 0.0, "phase": 0.0}
-            else:
-                nz.update(_assignments("--noise", [item]))
-        unknown = set(nz) - {"amp", "phase"}
-        if unknown:
-            raise InputError(f"--noise for --test frf takes amp=REL and phase=DEG, got {sorted(unknown)}")
+        nz = _frf_noise(args.noise)
         rec = synth_frf(spec, model, channels, noise_rel=nz["amp"], noise_phase_deg=nz["phase"], seed=args.seed,
                         effects=args.effect, values=values, blind=args.blind)
         if args.operating_hours is not None:
@@ -182,6 +174,20 @@ def cmd_synth(args: argparse.Namespace) -> int:
               + (f" + {', '.join(args.effect)}" if args.effect and not args.blind else "")
               + (" [blind]" if args.blind else "") + ")", file=sys.stderr)
     return 0
+
+
+def _frf_noise(items: list[str]) -> dict[str, float]:
+    """--noise for --test frf: amp=REL and phase=DEG (default 0.01 and 0.5; 'none': both 0)."""
+    nz = {"amp": 0.01, "phase": 0.5}
+    for item in items:
+        if item == "none":
+            nz = {"amp": 0.0, "phase": 0.0}
+        else:
+            nz.update(_assignments("--noise", [item]))
+    unknown = set(nz) - {"amp", "phase"}
+    if unknown:
+        raise InputError(f"--noise for --test frf takes amp=REL and phase=DEG, got {sorted(unknown)}")
+    return nz
 
 
 def _warn_neutral(model) -> None:
