@@ -3,7 +3,8 @@ without ``--force``, never over the project's shipped configuration, never into 
 and always whole.
 
 * :func:`check_new_file` — an output file the user named (``--emit``, ``--save``, synth's ``--out``): refused when it
-  exists (unless ``--force``) or lies in the shipped ``board_config/`` (always: those files are the project's).
+  exists (unless ``--force``) or lies in the shipped ``board_config/`` or another of mfc-shm's own packages
+  (always: those files are the project's).
 * :func:`write_whole` — writes through a temporary file in the same directory and moves it into place: a reader
   never sees half a file, and two commands writing one name at once leave one whole file. Without ``--force`` the
   move refuses a file that appeared meanwhile (a hard link, which fails when the name exists).
@@ -27,6 +28,8 @@ from shm_cli.run_lock import OutputLock
 
 #: the project's shipped configuration (parameter sets, scenarios, board): never an output
 SHIPPED_CONFIG = Path(__file__).resolve().parents[1] / "board_config"
+#: mfc-shm's own packages (plant/effects holds the library effects): never an output either
+OWN_PACKAGES = tuple(p for p in SHIPPED_CONFIG.parent.iterdir() if (p / "__init__.py").is_file())
 
 #: a finished run's marker file -> the command that wrote it
 RUN_MARKERS: dict[str, str] = {
@@ -52,10 +55,12 @@ def _is_within(path: Path, folder: Path) -> bool:
 def check_new_file(path: Path, option: str, force: bool) -> None:
     """Refuse ``path`` as an output (exit 2, naming ``option``) when it is in the shipped configuration, or exists and
     ``force`` is not given; a symbolic link is refused too unless ``force`` (its target would be replaced)."""
-    if _is_within(path, SHIPPED_CONFIG):
-        raise OutputPathError(f"{option} {path}: inside the project's shipped configuration ({SHIPPED_CONFIG}); those "
-                              "files are part of mfc-shm and are never replaced (--force does not apply): write "
-                              "your own file elsewhere and load it by its path")
+    own = next((pkg for pkg in OWN_PACKAGES if _is_within(path, pkg)), None)
+    if own is not None:
+        what = "shipped configuration" if own == SHIPPED_CONFIG else f"own package '{own.name}'"
+        raise OutputPathError(f"{option} {path}: inside the project's {what} ({own}); those files are part of mfc-shm "
+                              "and are never written or replaced (--force does not apply): write your own file "
+                              "elsewhere and load it by its path")
     if (path.exists() or path.is_symlink()) and not force:
         raise OutputPathError(f"{option} {path} already exists: it would be replaced; choose another name, or give "
                               "--force to replace it")

@@ -172,6 +172,8 @@ def _option_cases() -> list[Case]:
           "--emit", "--add", "e_dup_a.py", "refined"),
         c("discover-emit-shipped", "discover {d}/good.csv --emit {shipped}/params/mine.py --out {o}", "--emit",
           "shipped configuration"),
+        c("discover-emit-library-effect", "discover {d}/good.csv --emit {shipped}/../plant/effects/air_damping.py "
+          "--force --out {o}", "--emit", "own package 'plant'", "--force does not apply"),
         c("fit-save-existing-scenario", "fit {d}/good.csv --free k3 --save {d}/myscen.toml", "--save", "myscen.toml",
           "already exists"),
         c("fit-save-shipped-table2", "fit {d}/good.csv --free k3 --save {shipped}/params/table2.toml --force",
