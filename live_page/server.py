@@ -35,7 +35,7 @@ import tornado.netutil
 import tornado.web
 import tornado.websocket
 
-from live_page.messages import encode, last_indices
+from live_page.messages import ChunkTexts, encode, last_indices
 from live_page.snapshot import SnapshotSlot
 
 #: how often the server looks at the slot (Hz): faster than the board publishes (20 Hz), so that every publication
@@ -124,6 +124,7 @@ class LiveServer:
         self._stream_hz = stream_hz
         self.pages: set[_Stream] = set()
         self.messages_sent = 0
+        self._chunk_texts = ChunkTexts()  # used in the server's thread only
         self._loop: tornado.ioloop.IOLoop | None = None
         self._thread: threading.Thread | None = None
 
@@ -177,7 +178,7 @@ class LiveServer:
             pos = page.position
             text = texts.get(pos)
             if text is None:
-                text = texts[pos] = encode(snap, *(pos or (-1, -1)), full=pos is None)
+                text = texts[pos] = encode(snap, *(pos or (-1, -1)), full=pos is None, texts=self._chunk_texts)
             try:
                 page.pending = page.write_message(text)
             except tornado.websocket.WebSocketClosedError:

@@ -328,3 +328,16 @@ def test_a_failing_feed_stops_the_page_never_the_board() -> None:
     assert snap.status == "page stopped" and "a board the feed does not understand" in dict(snap.extra)[
         "live page stopped (the board runs on)"]
     assert feed.finish("finished", "/report").status == "finished"
+
+
+def test_kept_chunk_texts_give_the_same_messages() -> None:
+    from live_page.messages import ChunkTexts
+
+    texts = ChunkTexts()
+    first = Snapshot(version=1, chunks=tuple(_chunk(i, rows=2) for i in range(3)), mbit_id=1)
+    assert encode(first, full=True, texts=texts) == encode(first, full=True)
+    later = Snapshot(version=2, chunks=(*first.chunks[1:], _chunk(3, rows=2)), mbit_id=2)  # a new MBIT
+    assert encode(later, full=True, texts=texts) == encode(later, full=True)  # old rows left out, as without
+    assert encode(later, 2, -1, texts=texts) == encode(later, 2, -1)
+    assert json.loads(encode(later, full=True, texts=texts))["chunks"][0] == json.loads(encode(later, full=True))[
+        "chunks"][0]
