@@ -29,7 +29,8 @@ from shm_cli.run_lock import OutputLock
 #: the project's shipped configuration (parameter sets, scenarios, board): never an output
 SHIPPED_CONFIG = Path(__file__).resolve().parents[1] / "board_config"
 #: mfc-shm's own packages (plant/effects holds the library effects): never an output either
-OWN_PACKAGES = tuple(p for p in SHIPPED_CONFIG.parent.iterdir() if (p / "__init__.py").is_file())
+OWN_PACKAGES = tuple(p for p in SHIPPED_CONFIG.parent.iterdir()
+                     if (p / "__init__.py").is_file() and p.name != "bench")  # bench/ keeps results of its runs
 
 #: a finished run's marker file -> the command that wrote it
 RUN_MARKERS: dict[str, str] = {
