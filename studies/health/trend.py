@@ -391,7 +391,7 @@ def latest_visit_check(earlier: Trend, h: float, y: float, var: float, n: int = 
     pred = paths + rng.normal(0.0, 1.0, n) * math.sqrt(var + earlier.best.scatter2)
     med, lo, hi = (float(v) for v in np.quantile(pred, [0.5, 0.05, 0.95]))
     half = (hi - med) if y >= med else (med - lo)
-    ratio = abs(y - med) / half if half > 0 else math.inf
+    ratio = abs(y - med) / half if half > 0 else (0.0 if y == med else CHECK_MAX_FACTOR)  # finite: JSON
     return {"hours": h, "observed": y, "predicted_median": med, "predicted_low": lo, "predicted_high": hi,
             "miss_ratio": ratio, "spread_factor": min(max(1.0, ratio), CHECK_MAX_FACTOR)}
 
