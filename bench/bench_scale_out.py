@@ -1,9 +1,11 @@
-"""Scale out (issue 31): a 40-record ``shm diagnose`` (1 s MBIT.b records, two candidates, no discovery step) on a
-local Dask cluster of 1 worker and of 2 workers in the same run — speed-up, per-task overhead (wall per task on the
-cluster minus the task's own time) and bytes moved (scattered records, returned reports), from batch.json.
+"""Scale out (issue 31): a 40-record ``shm diagnose`` (1 s MBIT.b records, two candidates, no discovery step) and a
+fleet's ``shm health --fleet`` (8 boards of a short aging life, made by ``shm run --boards``) each on a local Dask
+cluster of 1 worker and of 2 workers in the same run — speed-up, per-task overhead (wall per task on the cluster
+minus the task's own time) and bytes moved (scattered inputs, returned reports), from batch.json / fleet.json.
 
-The command runs as a subprocess (``shm diagnose DIR --scheduler tcp://...``) against a ``distributed.LocalCluster``
-started here with the wanted number of single-thread worker processes. Noisy on a shared machine: quote as such.
+The commands run as subprocesses (``shm diagnose DIR --scheduler tcp://...``, ``shm health --fleet ... --scheduler
+tcp://...``) against a ``distributed.LocalCluster`` started here with the wanted number of single-thread worker
+processes. Noisy on a shared machine: quote as such.
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ from workbench.records import write_record
 from workbench.synth import synth_record, synth_test, truth_model
 
 CANDIDATES = ["--candidates", "geometric_stiffening,m3", "--no-discover"]
+SHM = str(Path(sys.executable).parent / "shm")
 
 
 def _records(folder: Path, n: int) -> None:
@@ -30,7 +33,25 @@ def _records(folder: Path, n: int) -> None:
         write_record(rec, folder / f"rec{i:03d}.csv")
 
 
-def _diagnose_on(records: Path, out: Path, n_workers: int) -> dict:
+def _fleet(base: Path, n: int) -> list[Path]:
+    """``n`` boards of the aging life shortened to 5 visits every 250 h (``shm run --boards n --seed 3``)."""
+    from board_config.scenario import load_scenario
+
+    text = Path(load_scenario("aging").source).read_text(encoding="utf-8")
+    short = text.replace('visits = { value = 24, unit = "1" }', 'visits = { value = 5, unit = "1" }').replace(
+        'visit_interval = { value = 100, unit = "h" }', 'visit_interval = { value = 250, unit = "h" }')
+    if short == text:
+        raise RuntimeError("bench_scale_out: the aging scenario's visits/visit_interval lines changed")
+    base.mkdir(parents=True, exist_ok=True)
+    (base / "short.toml").write_text(short, encoding="utf-8")
+    subprocess.run([SHM, "run", "--scenario", str(base / "short.toml"), "--boards", str(n), "--seed", "3", "--out",
+                    str(base / "boards")], check=True, stderr=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                   env=os.environ | {"MPLBACKEND": "Agg"})
+    return sorted(p for p in (base / "boards").glob("board*") if p.is_dir())
+
+
+def _on_cluster(argv: list[str], out: Path, n_workers: int, doc_name: str) -> dict:
+    """``shm ARGV --scheduler <a fresh LocalCluster of n_workers> --out OUT``: its cost document and wall time."""
     import dask
     from distributed import LocalCluster
 
@@ -38,12 +59,29 @@ def _diagnose_on(records: Path, out: Path, n_workers: int) -> dict:
             LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None,
                          memory_limit=0, silence_logs=50) as cluster:
         t0 = time.perf_counter()
-        subprocess.run([str(Path(sys.executable).parent / "shm"), "diagnose", str(records), *CANDIDATES,
-                        "--scheduler", cluster.scheduler_address, "--out", str(out)], check=True,
-                       stderr=subprocess.DEVNULL, env=os.environ | {"MPLBACKEND": "Agg"})
+        subprocess.run([SHM, *argv, "--scheduler", cluster.scheduler_address, "--out", str(out)], check=True,
+                       stderr=subprocess.DEVNULL, stdout=subprocess.DEVNULL, env=os.environ | {"MPLBACKEND": "Agg"})
         wall = time.perf_counter() - t0
-    cost = json.loads((out / "batch.json").read_text())["cost"]
+    cost = json.loads((out / doc_name).read_text())["cost"]
     return cost | {"command_wall_s": wall}
+
+
+def _fleet_health(base: Path, n: int) -> dict:
+    boards = _fleet(base, n)
+    argv = ["health", "--fleet", *map(str, boards), "--follow", "never", "--locate", "never"]
+    one = _on_cluster(argv, base / "health_one", 1, "fleet.json")
+    two = _on_cluster(argv, base / "health_two", 2, "fleet.json")
+    same = (base / "health_one" / "fleet.csv").read_bytes() == (base / "health_two" / "fleet.csv").read_bytes()
+    return {"fleet_boards": len(boards), "fleet_wall_1_worker_s": one["wall_s"], "fleet_wall_2_workers_s":
+            two["wall_s"], "fleet_speedup_2_vs_1": one["wall_s"] / two["wall_s"],
+            "fleet_task_wall_mean_s": one["task_wall_s"] / len(boards),
+            "fleet_task_cpu_mean_s": one["task_cpu_s"] / len(boards),
+            # task CPU over wall: the cores the run really got (2 workers on a loaded machine may get no more than 1)
+            "fleet_cores_obtained_1_worker": one["task_cpu_s"] / one["wall_s"],
+            "fleet_cores_obtained_2_workers": two["task_cpu_s"] / two["wall_s"],
+            "fleet_per_task_overhead_s": (one["wall_s"] - one["task_wall_s"]) / len(boards),
+            "fleet_bytes_scattered": one["bytes_scattered"], "fleet_bytes_returned": one["bytes_returned"],
+            "fleet_table_equal_1_vs_2_workers": same}
 
 
 def run(out_dir: Path, quick: bool) -> dict:
@@ -51,18 +89,23 @@ def run(out_dir: Path, quick: bool) -> dict:
     base = Path(out_dir) / "scale_out"
     records = base / "records"
     _records(records, n)
-    one = _diagnose_on(records, base / "one", 1)
-    two = _diagnose_on(records, base / "two", 2)
+    argv = ["diagnose", str(records), *CANDIDATES]
+    one = _on_cluster(argv, base / "one", 1, "batch.json")
+    two = _on_cluster(argv, base / "two", 2, "batch.json")
     same = (base / "one" / "summary.csv").read_bytes() == (base / "two" / "summary.csv").read_bytes()
     return {
         "records": n,
         "wall_1_worker_s": one["wall_s"], "wall_2_workers_s": two["wall_s"],
         "speedup_2_vs_1": one["wall_s"] / two["wall_s"],
         "task_wall_mean_s": one["task_wall_s"] / n, "task_cpu_mean_s": one["task_cpu_s"] / n,
+        "cores_obtained_1_worker": one["task_cpu_s"] / one["wall_s"],
+        "cores_obtained_2_workers": two["task_cpu_s"] / two["wall_s"],
         "per_task_overhead_s": (one["wall_s"] - one["task_wall_s"]) / n,
         "warm_s_per_worker": max(one["warm_s"].values()),
         "bytes_scattered": one["bytes_scattered"], "bytes_returned": one["bytes_returned"],
         "bytes_per_task": (one["bytes_scattered"] + one["bytes_returned"]) / n,
         "summary_equal_1_vs_2_workers": same,
         "command_wall_1_worker_s": one["command_wall_s"], "command_wall_2_workers_s": two["command_wall_s"],
+        **_fleet_health(base / "fleet", 4 if quick else 8),
+        "load_average_1min": os.getloadavg()[0],
     }

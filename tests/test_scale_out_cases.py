@@ -10,6 +10,7 @@ import json
 import operator
 import sys
 import types
+from pathlib import Path
 
 import pytest
 from test_scale_out_cluster import _timeless
@@ -149,7 +150,6 @@ def test_the_docs_bench_commands_reach_benchmarks_that_take_the_scheduler(monkey
     import importlib
     import inspect
     import shlex
-    from pathlib import Path
 
     import bench.__main__ as bench_main
 
@@ -168,3 +168,34 @@ def test_the_docs_bench_commands_reach_benchmarks_that_take_the_scheduler(monkey
         assert bench_main.main([*argv, "--out", str(tmp_path)]) == 0
         want = argv[argv.index("--scheduler") + 1] if "--scheduler" in argv else None
         assert got == [want], line
+
+
+def test_bench_fleet_health_makes_a_short_fleet_and_compares_1_and_2_workers(monkeypatch, tmp_path):
+    """bench_scale_out's fleet part: shm run --boards on the aging life cut to 5 visits, then shm health --fleet on
+    a 1-worker and a 2-worker cluster (the runs replaced by recorders; the real run is make bench's)."""
+    import bench.bench_scale_out as bso
+
+    ran = []
+
+    def fake_run(argv, **_):
+        ran.append(argv)
+        out = Path(argv[argv.index("--out") + 1])
+        for i in range(int(argv[argv.index("--boards") + 1])):
+            (out / f"board{i:03d}").mkdir(parents=True)
+
+    def fake_cluster(argv, out, n_workers, doc_name):
+        out.mkdir(parents=True)
+        (out / "fleet.csv").write_text("same")
+        return {"wall_s": 100.0 / n_workers ** 0.5, "task_wall_s": 90.0, "task_cpu_s": 30.0 * n_workers,
+                "bytes_scattered": 10, "bytes_returned": 20, "workers": n_workers, "argv": argv}
+
+    monkeypatch.setattr(bso.subprocess, "run", fake_run)
+    monkeypatch.setattr(bso, "_on_cluster", fake_cluster)
+    got = bso._fleet_health(tmp_path, 3)
+    short = (tmp_path / "short.toml").read_text()
+    assert 'visits = { value = 5, unit = "1" }' in short and 'visit_interval = { value = 250, unit = "h" }' in short
+    assert ran[0][1:] == ["run", "--scenario", str(tmp_path / "short.toml"), "--boards", "3", "--seed", "3",
+                          "--out", str(tmp_path / "boards")]
+    assert got["fleet_boards"] == 3 and got["fleet_table_equal_1_vs_2_workers"]
+    assert got["fleet_speedup_2_vs_1"] == pytest.approx(2 ** 0.5)
+    assert got["fleet_cores_obtained_2_workers"] == pytest.approx(60 / (100 / 2 ** 0.5))
