@@ -100,8 +100,9 @@ def _client(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s:
 
         # non-daemon workers: a task may run its own process pool (a board's life, a health fit)
         with dask.config.set({"distributed.worker.daemon": False}):
+            # no dashboard; the scheduler's small HTTP server on a free port (not 8787: no warning beside a 2nd run)
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                                   memory_limit=0, silence_logs=50)
+                                   scheduler_kwargs={"dashboard_address": ":0"}, memory_limit=0, silence_logs=50)
         return Client(cluster, set_as_default=False), cluster, f"local processes ({n} workers)"
     try:
         return Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False), None, f"dask {scheduler}"
