@@ -12,8 +12,10 @@ loop's exception did.
 
 from __future__ import annotations
 
+import os
 import pickle
 import sys
+import time
 import traceback
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -35,19 +37,14 @@ def case_key(index: int) -> str:
 
 def run_case_task(key: str, files: dict[str, bytes], shared: dict[str, bytes], fn: Callable[..., Any]) -> TaskResult:
     """One case on a worker: ``fn(*case)``; its result pickled back, an exception a result with code 1."""
-    import os
-    import time
-
     t0, c0 = time.perf_counter(), time.process_time()
     case = pickle.loads(files[CASE_FILE])
     try:
-        value = fn(*case)
+        code, message, out = 0, "done", {RESULT_FILE: pickle.dumps(fn(*case))}
     except Exception as exc:  # reported in the parent, named by the case
-        return TaskResult(key, 1, f"{type(exc).__name__}: {exc}", files={"traceback.txt": traceback.format_exc()
-                                                                          .encode()},
-                          wall_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0)
-    return TaskResult(key, 0, "done", files={RESULT_FILE: pickle.dumps(value)}, wall_s=time.perf_counter() - t0,
-                      cpu_s=time.process_time() - c0, worker=f"{os.uname().nodename}:{os.getpid()}")
+        code, message, out = 1, f"{type(exc).__name__}: {exc}", {"traceback.txt": traceback.format_exc().encode()}
+    return TaskResult(key, code, message, files=out, wall_s=time.perf_counter() - t0, cpu_s=time.process_time() - c0,
+                      worker=f"{os.uname().nodename}:{os.getpid()}")
 
 
 def warm_kernels() -> None:
