@@ -199,3 +199,13 @@ def test_bench_fleet_health_makes_a_short_fleet_and_compares_1_and_2_workers(mon
     assert got["fleet_boards"] == 3 and got["fleet_table_equal_1_vs_2_workers"]
     assert got["fleet_speedup_2_vs_1"] == pytest.approx(2 ** 0.5)
     assert got["fleet_cores_obtained_2_workers"] == pytest.approx(60 / (100 / 2 ** 0.5))
+
+
+def test_a_lost_worker_during_the_cases_is_said_once_on_stderr(capsys):
+    from studies.batch.runner import BatchProgress
+
+    show = cases_mod._lost_workers_line("hidden-effect sweep")
+    for p in (BatchProgress(1, 4, 2, 0, 0), BatchProgress(2, 4, 1, 1, 1), BatchProgress(3, 4, 1, 1, 1)):
+        show(p)
+    assert capsys.readouterr().err.splitlines() == [
+        "hidden-effect sweep: 2/4 tasks done, 1 workers, 1 worker(s) lost — 1 task(s) rerun"]
