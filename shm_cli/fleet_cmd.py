@@ -12,6 +12,7 @@ from typing import Any
 from board_config.errors import InputError
 from shm_cli.batch_records import REPORT_NAME, run_command_task, warm_workbench
 from shm_cli.common import dump_json, out_dir
+from shm_cli.output_guard import check_foreign_run, locked_out
 
 FLEET_COLUMNS = ("rank", "board", "first_fault_h", "first_fault_90_lo_h", "first_fault_90_hi_h", "rul_h",
                  "where", "last_verdict")
@@ -78,16 +79,21 @@ def run_fleet_health(args: argparse.Namespace) -> int:
         raise InputError("--fleet: two boards have the same folder name; each board's folder names it")
     tasks = sorted(((n, _board_files(f)) for n, f in zip(names, folders, strict=True)), key=lambda t: t[0])
     out = out_dir(args.out)
-    args.command = "health"
-    print(f"shm health: fleet of {len(tasks)} boards on {scheduler or 'local'}", file=sys.stderr, flush=True)
-    outcome = run_tasks(tasks, run_command_task, args, scheduler=scheduler, warm=warm_workbench,
-                        progress=_progress("shm health --fleet"))
-    report_of = _write_task_files(out, outcome.results)
-    rows = rank_fleet([fleet_row(r.key, r.doc, r.code, r.message) for r in outcome.results])
-    paths = write_summary(out, f"Fleet: {len(rows)} boards ranked by forecast first FAULT", rows, report_of,
-                          stem="fleet", key="board")
-    doc = {"fleet": rows, "files": {k: str(v) for k, v in paths.items()}, "cost": outcome.cost()}
-    (out / "fleet.json").write_text(dump_json(doc), encoding="utf-8")
+    if out.resolve() in {f.resolve() for f in folders}:
+        raise InputError(f"--out {out} is one of the --fleet boards: the fleet table would be written into a board's "
+                         "own run; choose another --out")
+    check_foreign_run(out, "fleet.json", bool(getattr(args, "force", False)))
+    with locked_out(out, "health"):
+        args.command = "health"
+        print(f"shm health: fleet of {len(tasks)} boards on {scheduler or 'local'}", file=sys.stderr, flush=True)
+        outcome = run_tasks(tasks, run_command_task, args, scheduler=scheduler, warm=warm_workbench,
+                            progress=_progress("shm health --fleet"))
+        report_of = _write_task_files(out, outcome.results)
+        rows = rank_fleet([fleet_row(r.key, r.doc, r.code, r.message) for r in outcome.results])
+        paths = write_summary(out, f"Fleet: {len(rows)} boards ranked by forecast first FAULT", rows, report_of,
+                              stem="fleet", key="board")
+        doc = {"fleet": rows, "files": {k: str(v) for k, v in paths.items()}, "cost": outcome.cost()}
+        (out / "fleet.json").write_text(dump_json(doc), encoding="utf-8")
     say = (lambda s: print(s, file=sys.stderr)) if args.json else print
     for r in rows:
         fault = "-" if r["first_fault_h"] is None else (
@@ -115,6 +121,7 @@ def run_fleet_boards(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario)
     if scenario.life is None:
         raise InputError(f"--boards needs a scenario with a [life] section ({scenario.source} has none)")
+    _check_fleet_life(args, scenario)
     seed = args.seed if args.seed is not None else scenario.seed
     text = Path(scenario.source).read_text(encoding="utf-8")
     factors = [board_rate_factor(seed, i) for i in range(args.boards)]
@@ -122,19 +129,39 @@ def run_fleet_boards(args: argparse.Namespace) -> int:
     out = out_dir(args.out)
     args.command = "run"
     args.quiet = True
-    outcome = run_tasks(tasks, _board_life_task, (args, seed), scheduler=scheduler, warm=warm_workbench,
-                        progress=_progress("shm run --boards"))
-    report_of = _write_task_files(out, outcome.results)
-    rows = [{"board": r.key, "exit_code": r.code, "rate_factor": factors[i], "seed": seed + i,
-             **scalar_columns(r.doc, skip=("wall_s",)), "first_fault_visit": r.doc.get("first_fault_visit"),
-             "message": "" if r.code == 0 else r.message} for i, r in enumerate(outcome.results)]
-    paths = write_summary(out, f"{len(rows)} boards through '{scenario.name}'", rows, report_of, stem="boards",
-                          key="board")
+    with locked_out(out, "run"):
+        if any(out.glob("board[0-9][0-9][0-9]")) and not args.force:
+            raise InputError(f"--out {out} holds an earlier fleet (board### folders): not overwriting it; use "
+                             "--force to replace it, or choose another --out")
+        outcome = run_tasks(tasks, _board_life_task, (args, seed), scheduler=scheduler, warm=warm_workbench,
+                            progress=_progress("shm run --boards"))
+        report_of = _write_task_files(out, outcome.results)
+        rows = [{"board": r.key, "exit_code": r.code, "rate_factor": factors[i], "seed": seed + i,
+                 **scalar_columns(r.doc, skip=("wall_s",)), "first_fault_visit": r.doc.get("first_fault_visit"),
+                 "message": "" if r.code == 0 else r.message} for i, r in enumerate(outcome.results)]
+        paths = write_summary(out, f"{len(rows)} boards through '{scenario.name}'", rows, report_of, stem="boards",
+                              key="board")
     print(f"shm run: {len(rows)} boards in {outcome.wall_s:.1f} s ({outcome.scheduler}); {paths['html']}; next: "
           f"shm health --fleet {out}/board* --out {out}/fleet", file=sys.stderr)
     if args.json:
         print(dump_json({"boards": rows, "cost": outcome.cost()}))
     return 1 if any(r["exit_code"] for r in rows) else 0
+
+
+def _check_fleet_life(args: argparse.Namespace, scenario: Any) -> None:
+    """What a single life refuses in its parent, refused once for the whole fleet before any task (exit 2):
+    options that mean nothing for a life (``--live`` included), a bad seed, and the life's own checks."""
+    from shm_cli.life_cmd import refuse_life_options
+    from studies.health.life_check import check_life
+
+    if getattr(args, "live", None) is not None:
+        raise InputError("--live follows one board run; a fleet (--boards) runs many lives in parallel tasks")
+    refuse_life_options(args)
+    seed = args.seed if args.seed is not None else scenario.seed
+    if not 0 <= seed <= 2**32 - 1 - args.boards:
+        raise InputError(f"--seed must be in [0, 2^32-1-N] for --boards N={args.boards}, got {seed}")
+    params = args.params or scenario.rig.params
+    check_life(scenario, params, "--params" if args.params else None)
 
 
 def _board_life_task(key: str, files: dict[str, bytes], shared: dict[str, bytes], options: Any) -> Any:

@@ -96,3 +96,44 @@ def test_fleet_ranks_faulty_first_then_earliest_forecast():
                        fleet_row("b", doc(1200.0, "PASS"), 0, ""), fleet_row("d", doc(950.0, "FAULT", True), 0, "")])
     assert [(r["rank"], r["board"]) for r in rows] == [(1, "d"), (2, "b"), (3, "c"), (4, "a")]
     assert rows[1]["first_fault_90_lo_h"] == 1190.0 and rows[1]["where"] == "k3 (section 3)"
+
+
+@pytest.mark.parametrize("extra, needle", [
+    (["--live", "127.0.0.1:0"], "--live"),
+    (["--duration-s", "5"], "--duration-s"),
+    (["--realtime"], "--realtime"),
+    (["--seed", "-3"], "--seed"),
+])
+def test_a_fleet_refuses_what_a_life_refuses_before_any_task(tmp_path, capsys, extra, needle):
+    code = main(["run", "--scenario", "aging", "--boards", "2", "--scheduler", "synchronous",
+                 "--out", str(tmp_path / "fleet"), *extra])
+    err = capsys.readouterr().err
+    assert code == 2 and needle in err and "Traceback" not in err
+    assert not list((tmp_path / "fleet").glob("board*"))
+
+
+def test_a_fleet_does_not_overwrite_an_earlier_fleet(tmp_path, capsys):
+    out = tmp_path / "fleet"
+    (out / "board000").mkdir(parents=True)
+    (out / "board000" / "summary.json").write_text("{}")
+    code = main(["run", "--scenario", "aging", "--boards", "1", "--scheduler", "synchronous", "--out", str(out)])
+    assert code == 2 and "earlier fleet" in capsys.readouterr().err
+    assert (out / "board000" / "summary.json").read_text() == "{}"
+
+
+def _fake_board(folder):
+    folder.mkdir(parents=True)
+    (folder / "usage.db").write_bytes(b"")
+    return folder
+
+
+def test_fleet_health_writes_neither_into_a_board_nor_over_another_commands_run(tmp_path, capsys):
+    a, b = _fake_board(tmp_path / "a"), _fake_board(tmp_path / "b")
+    code = main(["health", "--fleet", str(a), str(b), "--scheduler", "synchronous", "--out", str(a)])
+    assert code == 2 and "one of the --fleet boards" in capsys.readouterr().err
+    foreign = tmp_path / "cmp"
+    foreign.mkdir()
+    (foreign / "compare.json").write_text("{}")
+    code = main(["health", "--fleet", str(a), str(b), "--scheduler", "synchronous", "--out", str(foreign)])
+    assert code == 2 and "shm compare" in capsys.readouterr().err
+    assert sorted(p.name for p in foreign.iterdir()) == ["compare.json"]
