@@ -145,3 +145,16 @@ def test_health_json_carries_the_latest_visit_check():
     check = doc_for(10)["trend"]["alpha_h"]["latest_visit_check"]
     assert check["miss_ratio"] > 5.0 and check["spread_factor"] > 5.0 and check["hours"] == 900.0
     assert doc_for(4)["trend"]["alpha_h"]["latest_visit_check"] is None
+
+
+def test_the_non_linear_laws_jacobians_match_finite_differences():
+    from scipy.optimize._numdiff import approx_derivative
+
+    from studies.health.trend import model_jacobian
+
+    h = np.arange(12) * 100.0
+    for name, th in (("exponential", [0.01, 0.02, 500.0]), ("power", [0.0, 0.05, 1.5]),
+                     ("logistic", [0.0, 0.3, 1800.0, 400.0]), ("logistic", [0.01, -0.2, 300.0, 150.0])):
+        theta = np.array(th)
+        num = approx_derivative(lambda t, name=name: model_value(name, h, t), theta, method="3-point")
+        assert np.allclose(model_jacobian(name, h, theta), num, rtol=1e-6, atol=1e-9 * np.abs(num).max()), name

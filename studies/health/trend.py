@@ -181,11 +181,36 @@ def _coefficients(name: str, h: np.ndarray, y: np.ndarray, w: np.ndarray, tau: f
     def res(th: np.ndarray) -> np.ndarray:
         return (model_value(name, h, th) - y) * sw
 
+    def jac(th: np.ndarray) -> np.ndarray:
+        return model_jacobian(name, h, th) * sw[:, None]
+
     try:
-        sol = least_squares(res, x0, bounds=(lb, ub), x_scale="jac", max_nfev=400)
+        sol = least_squares(res, x0, jac=jac, bounds=(lb, ub), x_scale="jac", max_nfev=400)
     except (ValueError, FloatingPointError):
         return None
     return sol.x, -sol.fun / sw, sol.jac / sw[:, None]
+
+
+def model_jacobian(name: str, h: np.ndarray, th: np.ndarray) -> np.ndarray:
+    """∂f/∂θ (len(h), 3 or 4) of the non-linear laws (exponential, power, logistic) at one coefficient vector."""
+    ones = np.ones(h.size)
+    if name == "exponential":
+        c, tau_e = th[1], max(th[2], 1e-9)
+        x = h / tau_e
+        inside = x < 50.0
+        ex = np.exp(np.minimum(x, 50.0))
+        return np.column_stack([ones, np.expm1(np.minimum(x, 50.0)), np.where(inside, -c * ex * x / tau_e, 0.0)])
+    if name == "power":
+        r = np.maximum(h, 0.0) / _H_SCALE
+        rm = np.power(r, th[2])
+        log_r = np.log(np.where(r > 0, r, 1.0))
+        return np.column_stack([ones, rm, th[1] * rm * log_r])
+    if name == "logistic":
+        amp, mid, w = th[1], th[2], max(th[3], 1e-9)
+        s, s0 = expit((h - mid) / w), float(expit(-mid / w))
+        ds, ds0 = s * (1.0 - s), s0 * (1.0 - s0)
+        return np.column_stack([ones, s - s0, -amp / w * (ds - ds0), -amp / w ** 2 * (ds * (h - mid) + ds0 * mid)])
+    raise ValueError(name)
 
 
 def logistic_bounds(h: np.ndarray) -> tuple[list[float], list[float]]:
@@ -200,16 +225,20 @@ def logistic_bounds(h: np.ndarray) -> tuple[list[float], list[float]]:
 
 def _logistic_start(h: np.ndarray, y: np.ndarray, sw: np.ndarray, lb: list[float], ub: list[float]) -> np.ndarray:
     """The best (a, A) by weighted least squares on a grid of (mid, width) — linear in (a, A) once those are
-    fixed — as the start of the non-linear fit."""
-    best, x0 = np.inf, np.array([y[0], 0.0, 0.5 * (lb[2] + ub[2]), ub[3]])
-    for mid in np.linspace(lb[2], ub[2], 14):
-        for w in np.geomspace(lb[3], ub[3], 8):
-            x = np.column_stack([np.ones(h.size), logistic_rise(h, mid, w)])
-            coef, *_ = np.linalg.lstsq(x * sw[:, None], y * sw, rcond=None)
-            r = float(np.sum(((x @ coef - y) * sw) ** 2))
-            if r < best:
-                best, x0 = r, np.array([coef[0], coef[1], mid, w])
-    return x0
+    fixed, solved for the whole grid at once — as the start of the non-linear fit."""
+    grid = np.meshgrid(np.linspace(lb[2], ub[2], 14), np.geomspace(lb[3], ub[3], 8), indexing="ij")
+    mids, widths = grid[0].ravel(), grid[1].ravel()
+    r = logistic_rise(h[None, :], mids[:, None], widths[:, None])  # (grid, visits)
+    w = sw ** 2
+    s0, sy = float(w.sum()), float(w @ y)
+    sr, srr, sry = r @ w, (r * r) @ w, r @ (w * y)
+    det = s0 * srr - sr ** 2
+    ok = det > 1e-12 * max(s0 * float(np.max(srr)), 1e-300)
+    amp = np.where(ok, (s0 * sry - sr * sy) / np.where(ok, det, 1.0), 0.0)
+    a = (sy - amp * sr) / s0
+    rss = np.where(ok, ((y[None, :] - a[:, None] - amp[:, None] * r) ** 2) @ w, np.inf)
+    k = int(np.argmin(rss))
+    return np.array([a[k], amp[k], mids[k], widths[k]])
 
 
 def between_visit_scatter(resid: np.ndarray, var0: np.ndarray, dof: int) -> float:
