@@ -266,3 +266,30 @@ def test_a_set_met_again_is_not_refitted_and_is_scored_against_the_nominal_model
     assert b.delta_bic_held == pytest.approx(N * math.log(RSS0 / (25.0 * N)) - 2 * math.log(N))
     fits.fit(spec("k1"), None, [], {}, RSS0, **kw)
     assert len(calls) == 2
+
+
+def test_a_forward_step_fits_every_try_quickly_and_only_the_best_in_full(monkeypatch):
+    calls: list[tuple[str, int]] = []
+    held = {"geometric_stiffening": 3.0, "piezo_creep": 9.0, "air_damping": 6.0}
+
+    def fake_fit(s, base, targets, data, rss0_held, *, start, min_reduction, max_nfev=30, **kw):
+        calls.append((s.label, max_nfev))
+        other = next(m for m in s.members if m != "dielectric_leakage")
+        h = held[other] * (0.9 if max_nfev > fs.TRY_NFEV else 1.0)
+        c = fitted(h, *s.members)
+        c.outcome = SimpleNamespace(held_rss=h * h * N, held_rms_sigma=h, n_held=N, n_train=N, train_rss=h * h * N,
+                                    rho1_held=0.0, values={"x": 1.0})
+        c.free = [object()] * len(s.members)
+        c.status = "fitted"
+        return c
+
+    monkeypatch.setattr(fs, "fit_spec", fake_fit)
+    current = fitted(20.0, "dielectric_leakage")
+    current.outcome.values = {}
+    current.free = [object()]
+    tries = [(spec(n), {}) for n in held]
+    best = fs._best_try(current, tries, None, [], {}, RSS0, fs.FitCache(), min_reduction=0.02, max_nfev=30,
+                        threads=None, seed=0)
+    assert best is not None and "geometric_stiffening" in best.members and best.held_rms_sigma == pytest.approx(2.7)
+    assert sorted(n for _, n in calls) == [fs.TRY_NFEV] * 3 + [30]
+    assert calls[-1] == (current.spec.plus(spec("geometric_stiffening")).label, 30)
