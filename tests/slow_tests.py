@@ -17,6 +17,7 @@ SLOW_TESTS: frozenset[str] = frozenset({
     "test_bad_inputs_newer_life_health.py::test_mutated_life_files_never_give_an_internal_error",  # 4 s
     "test_bad_inputs_newer_workbench.py::test_bad_input_is_one_clear_line_and_touches_nothing",  # 17 s (NaN probe)
     "test_board_cli.py::test_shipped_short_scenarios_reach_their_expected_verdict",  # 167 s
+    "test_health_change_point.py::test_linear_lives_rarely_get_a_sudden_change",  # 8 s (quiet machine)
     "test_board_cli.py::test_shm_run_bad_input_exits_2",  # 52 s
     "test_board_cli.py::test_shm_run_catches_a_degraded_laminate",  # 20 s
     "test_board_cli.py::test_shm_run_end_to_end",  # 24 s

@@ -74,3 +74,10 @@ def test_tiny_or_huge_uncertainties_share_a_power_of_ten(value, exp):
     assert float(m.group(2)) > 0
     assert abs(float(m.group(2)) * scale - u) <= 0.051 * u
     assert abs(float(m.group(1)) * scale - value) <= u + 1e-15 * abs(value)
+
+
+def test_numpy_floats_print_like_python_floats():
+    import numpy as np
+
+    assert format_uncertain(np.float64(9.743841), np.float64(0.00047), sign=True) == format_uncertain(
+        9.743841, 0.00047, sign=True)
