@@ -18,7 +18,8 @@ _FIXED_EXPONENTS = (-6, 6)
 
 def _round_at(x: float | Decimal, place: int) -> Decimal:
     """``x`` rounded half away from zero at the decimal exponent ``place`` (exact: decimal arithmetic)."""
-    return Decimal(repr(float(x)) if isinstance(x, float) else x).quantize(Decimal(1).scaleb(place), rounding=ROUND_HALF_UP)
+    exact = Decimal(repr(float(x)) if isinstance(x, float) else x)  # float(): numpy's repr is 'np.float64(...)'
+    return exact.quantize(Decimal(1).scaleb(place), rounding=ROUND_HALF_UP)
 
 
 def _last_place(uncertainty: float, sig: int) -> tuple[int, Decimal]:
