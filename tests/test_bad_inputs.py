@@ -9,7 +9,6 @@ subprocesses check what only a process shows (a closed pipe).
 from __future__ import annotations
 
 import os
-import re
 import sqlite3
 import subprocess
 import sys
@@ -17,8 +16,7 @@ from pathlib import Path
 
 import pytest
 from bad_inputs_corpus import all_cases, write_corpus_files
-
-from shm_cli.main import main
+from bad_inputs_support import assert_one_clear_line, no_leftover_log_handlers, run_shm  # noqa: F401 (autouse fixture)
 
 CASES = all_cases()
 ROOT = Path(__file__).resolve().parents[1]
@@ -29,27 +27,6 @@ def corpus(tmp_path_factory) -> Path:
     d = tmp_path_factory.mktemp("bad_inputs")
     write_corpus_files(d)
     return d
-
-
-@pytest.fixture(autouse=True)
-def _no_leftover_log_handlers():
-    """``shm hil serve`` configures logging on the stderr of the moment; in-process that is pytest's capture, closed
-    after the case: drop such handlers so a later case's library warning does not hit a closed stream."""
-    import logging
-
-    root = logging.getLogger()
-    before = list(root.handlers)
-    yield
-    for h in list(root.handlers):
-        if h not in before:
-            root.removeHandler(h)
-
-
-def run_shm(argv: list[str]) -> int:
-    try:
-        return int(main(argv) or 0)
-    except SystemExit as exc:  # argparse: usage errors
-        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
 
 
 def test_the_corpus_is_large_and_covers_every_command() -> None:
@@ -64,14 +41,7 @@ def test_bad_input_is_one_clear_line(case, corpus: Path, capsys, monkeypatch) ->
     monkeypatch.delenv("SHM_DEBUG", raising=False)
     code = run_shm(case.resolved(corpus))
     cap = capsys.readouterr()
-    assert "Traceback" not in cap.err + cap.out, cap.err
-    assert code == case.code, f"exit {code}, expected {case.code}: {cap.err[-800:]}"
-    errors = [ln for ln in re.split(r"[\r\n]+", cap.err) if re.search(r"\berror\b:", ln)]
-    assert len(errors) == 1, f"expected one error line, got {len(errors)}: {cap.err[-800:]}"
-    line = errors[0].lower()
-    missing = [n for n in case.needles if n.lower() not in line]
-    assert not missing, f"the error line does not name {missing}: {errors[0]}"
-    assert "bug in mfc-shm" not in line
+    assert_one_clear_line(case, code, cap)
 
 
 def test_a_closed_pipe_is_quiet(tmp_path: Path) -> None:

@@ -11,26 +11,17 @@ from __future__ import annotations
 
 import errno
 import hashlib
-import re
 import sqlite3
 from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
 from bad_inputs_newer_life_health import LIFE, all_cases, board_record, write_corpus_files
+from bad_inputs_support import assert_one_clear_line, one_error_line, run_shm
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from shm_cli.main import main
-
 CASES = all_cases()
-
-
-def run_shm(argv: list[str]) -> int:
-    try:
-        return int(main(argv) or 0)
-    except SystemExit as exc:
-        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
 
 
 def _snapshot(d: Path) -> dict[str, str]:
@@ -45,12 +36,6 @@ def corpus(tmp_path_factory) -> Path:
     return d
 
 
-def _one_error_line(err: str) -> str:
-    errors = [ln for ln in re.split(r"[\r\n]+", err) if re.search(r"\berror\b:", ln)]
-    assert len(errors) == 1, f"expected one error line, got {len(errors)}: {err[-800:]}"
-    return errors[0]
-
-
 def test_the_corpus_is_large_and_covers_lives_and_health() -> None:
     assert len(CASES) >= 55
     assert sum(c.argv[0] == "run" for c in CASES) >= 30 and sum(c.argv[0] == "health" for c in CASES) >= 25
@@ -62,12 +47,7 @@ def test_bad_input_is_one_clear_line_and_touches_nothing(case, corpus: Path, cap
     before = _snapshot(corpus)
     code = run_shm(case.resolved(corpus))
     cap = capsys.readouterr()
-    assert "Traceback" not in cap.err + cap.out, cap.err
-    assert code == case.code, f"exit {code}, expected {case.code}: {cap.err[-800:]}"
-    line = _one_error_line(cap.err).lower()
-    missing = [n for n in case.needles if n.lower() not in line]
-    assert not missing, f"the error line does not name {missing}: {line}"
-    assert "bug in mfc-shm" not in line and "brokenprocesspool" not in line
+    assert_one_clear_line(case, code, cap, forbidden=("brokenprocesspool",))
     assert _snapshot(corpus) == before, "a pre-existing file changed"
 
 
@@ -99,7 +79,7 @@ def test_two_health_on_one_out_the_second_names_the_lock(corpus: Path, tmp_path:
     out.mkdir()
     with OutputLock(out, command="shm health --out h"):  # a first shm health holding it
         code = run_shm(["health", str(corpus / "life_run"), "--out", str(out)])
-    line = _one_error_line(capsys.readouterr().err)
+    line = one_error_line(capsys.readouterr().err)
     assert code == 2 and "in use" in line and "shm health" in line and str(out) in line
 
 
@@ -160,7 +140,7 @@ def test_a_full_disk_during_a_life_is_one_line_and_keeps_the_earlier_life(tmp_pa
 
     monkeypatch.setattr(life_mod, "write_life_log", disk_full)
     code = run_shm(["run", "--scenario", str(toml), "--quiet", "--force", "--out", str(out)])
-    line = _one_error_line(capsys.readouterr().err)
+    line = one_error_line(capsys.readouterr().err)
     assert code == 1 and "database or disk is full" in line and "disk is full" in line and str(out) in line
     assert "bug in mfc-shm" not in line
     assert (out / "summary.json").read_text() == '{"earlier": true}'
@@ -226,7 +206,7 @@ def test_mutated_life_files_never_give_an_internal_error(cuts, tmp_path_factory,
     assert "Traceback" not in err and "internal error" not in err, err
     assert code in (0, 2), err
     if code == 2:
-        _one_error_line(err)
+        one_error_line(err)
 
 
 @settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -268,7 +248,7 @@ def test_mutated_health_inputs_never_give_an_internal_error(hours, uids, boards,
     err = capsys.readouterr().err
     assert "Traceback" not in err and "internal error" not in err, err
     assert code == 2, err
-    _one_error_line(err)
+    one_error_line(err)
 
 
 def test_every_input_error_crosses_a_process_boundary_whole() -> None:

@@ -6,7 +6,6 @@ documented exception over TCP and RTU, without the rig noticing anything but a f
 from __future__ import annotations
 
 import os
-import re
 import socket
 import struct
 import termios
@@ -15,10 +14,10 @@ from pathlib import Path
 
 import pytest
 from bad_inputs_newer_rig import REGISTER_CASES, RegisterCase, newer_rig_cases
+from bad_inputs_support import assert_one_clear_line, no_leftover_log_handlers, run_shm  # noqa: F401 (autouse fixture)
 from links_support import FakeRig
 
 from hil_stub.service import HilService
-from shm_cli.main import main
 
 CASES = newer_rig_cases()
 
@@ -26,25 +25,6 @@ CASES = newer_rig_cases()
 @pytest.fixture(scope="module")
 def corpus(tmp_path_factory) -> Path:
     return tmp_path_factory.mktemp("bad_inputs_newer_rig")
-
-
-@pytest.fixture(autouse=True)
-def _no_leftover_log_handlers():
-    import logging
-
-    root = logging.getLogger()
-    before = list(root.handlers)
-    yield
-    for h in list(root.handlers):
-        if h not in before:
-            root.removeHandler(h)
-
-
-def run_shm(argv: list[str]) -> int:
-    try:
-        return int(main(argv) or 0)
-    except SystemExit as exc:  # argparse: usage errors
-        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
 
 
 def test_the_corpus_covers_every_scheme_and_the_register_map() -> None:
@@ -60,14 +40,7 @@ def test_bad_rig_input_is_one_clear_line(case, corpus: Path, capsys, monkeypatch
     monkeypatch.delenv("SHM_DEBUG", raising=False)
     code = run_shm(case.resolved(corpus))
     cap = capsys.readouterr()
-    assert "Traceback" not in cap.err + cap.out, cap.err
-    assert code == case.code, f"exit {code}, expected {case.code}: {cap.err[-800:]}"
-    errors = [ln for ln in re.split(r"[\r\n]+", cap.err) if re.search(r"\berror\b:", ln)]
-    assert len(errors) == 1, f"expected one error line, got {len(errors)}: {cap.err[-800:]}"
-    line = errors[0].lower()
-    missing = [n for n in case.needles if n.lower() not in line]
-    assert not missing, f"the error line does not name {missing}: {errors[0]}"
-    assert "bug in mfc-shm" not in line
+    assert_one_clear_line(case, code, cap)
     out = corpus / "out" / case.id
     assert not (out / "usage.db").exists()  # refused before the run started: nothing written
 

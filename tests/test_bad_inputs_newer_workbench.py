@@ -8,16 +8,13 @@ after). The cases and files are in ``tests/bad_inputs_newer_workbench.py``. Two 
 from __future__ import annotations
 
 import fcntl
-import hashlib
 import os
-import re
 import threading
 from pathlib import Path
 
 import pytest
 from bad_inputs_newer_workbench import SLOW_CASES, all_newer_cases, write_newer_files
-
-from shm_cli.main import main
+from bad_inputs_support import assert_one_clear_line, file_hashes, no_leftover_log_handlers, run_shm  # noqa: F401 (autouse fixture)
 
 CASES = all_newer_cases()
 PARAMS = [pytest.param(c, id=c.id, marks=[pytest.mark.slow] if c in SLOW_CASES else []) for c in CASES]
@@ -34,37 +31,6 @@ def corpus(tmp_path_factory):
     os.close(fd)
 
 
-@pytest.fixture(autouse=True)
-def _no_leftover_log_handlers():
-    """``shm hil serve`` configures logging on the stderr of the moment (pytest's capture): drop such handlers."""
-    import logging
-
-    root = logging.getLogger()
-    before = list(root.handlers)
-    yield
-    for h in list(root.handlers):
-        if h not in before:
-            root.removeHandler(h)
-
-
-def file_hashes(d: Path) -> dict[str, str]:
-    """sha256 of every regular file under ``d`` (symbolic links by their target text)."""
-    out = {}
-    for p in sorted(d.rglob("*")):
-        if p.is_symlink():
-            out[str(p)] = "->" + os.readlink(p)
-        elif p.is_file():
-            out[str(p)] = hashlib.sha256(p.read_bytes()).hexdigest()
-    return out
-
-
-def run_shm(argv: list[str]) -> int:
-    try:
-        return int(main(argv) or 0)
-    except SystemExit as exc:  # argparse: usage errors
-        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else 2)
-
-
 def test_the_corpus_is_large_and_covers_the_newer_commands() -> None:
     assert len(CASES) >= 55
     assert {c.argv[0] for c in CASES} >= {"discover", "fit", "synth", "compare", "diagnose", "hil"}
@@ -77,14 +43,7 @@ def test_bad_input_is_one_clear_line_and_touches_nothing(case, corpus: Path, cap
     before = file_hashes(corpus)
     code = run_shm(case.resolved(corpus))
     cap = capsys.readouterr()
-    assert "Traceback" not in cap.err + cap.out, cap.err
-    assert code == case.code, f"exit {code}, expected {case.code}: {cap.err[-800:]}"
-    errors = [ln for ln in re.split(r"[\r\n]+", cap.err) if re.search(r"\berror\b:", ln)]
-    assert len(errors) == 1, f"expected one error line, got {len(errors)}: {cap.err[-800:]}"
-    line = errors[0].lower()
-    missing = [n for n in case.needles if n.lower() not in line]
-    assert not missing, f"the error line does not name {missing}: {errors[0]}"
-    assert "bug in mfc-shm" not in line
+    assert_one_clear_line(case, code, cap)
     after = file_hashes(corpus)
     changed = [p for p, h in before.items() if after.get(p) != h]
     assert not changed, f"files there before the case were changed or removed: {changed}"
