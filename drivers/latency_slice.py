@@ -111,11 +111,13 @@ def _thread_ids() -> list[int]:
 
 
 def _request(slice_s: float, tid: int, machine: str, system: str) -> SliceResult:
-    if slice_s <= 0:
+    numbers = SYSCALLS.get(machine) if system == "Linux" else None
+    if slice_s <= 0:  # off: a slice this thread inherited (an earlier request in this process) goes back too
+        if numbers is not None:
+            _reset(numbers, tid)
         return SliceResult(False, 0.0, "off (--sched-slice-ms 0): the kernel's default slice")
     if system != "Linux":
         return SliceResult(False, 0.0, f"not applied: {system} has no sched_setattr slice (Linux >= 6.12 only)")
-    numbers = SYSCALLS.get(machine)
     if numbers is None:
         return SliceResult(False, 0.0, f"not applied: sched_setattr's number on {machine} is not known here")
     set_nr, get_nr = numbers
@@ -140,6 +142,16 @@ def _request(slice_s: float, tid: int, machine: str, system: str) -> SliceResult
     policy = _POLICY_NAMES.get(got.sched_policy, str(got.sched_policy))
     return SliceResult(True, got.sched_runtime / 1e9, f"{got.sched_runtime / 1e6:g} ms per slice, {policy}, "
                                                       f"nice {got.sched_nice} (sched_setattr)", policy)
+
+
+def _reset(numbers: tuple[int, int], tid: int) -> None:
+    """Give a SCHED_OTHER thread the kernel's default slice back (``sched_runtime`` 0); anything else is left."""
+    set_nr, get_nr = numbers
+    syscall = _libc_syscall()
+    now = _getattr(syscall, get_nr, tid)
+    if now is not None and now.sched_policy == SCHED_OTHER:
+        back = _SchedAttr(size=ctypes.sizeof(_SchedAttr), sched_policy=SCHED_OTHER, sched_nice=now.sched_nice)
+        syscall(set_nr, tid, ctypes.byref(back), ctypes.c_uint(0))
 
 
 def thread_slice_s(pid: int | str = "self", tid: int | None = None) -> float | None:

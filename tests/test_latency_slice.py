@@ -43,9 +43,25 @@ def test_the_option_range() -> None:
 def test_where_it_cannot_apply_it_changes_nothing_and_says_why() -> None:
     before = thread_slice_s("self", threading.get_native_id())
     for result, why in ((request_slice(2e-4, system="Darwin"), "Darwin"),
-                        (request_slice(2e-4, machine="sparc64"), "sparc64"), (request_slice(0), "off")):
+                        (request_slice(2e-4, machine="sparc64"), "sparc64")):
         assert not result.applied and why in result.note
     assert thread_slice_s("self", threading.get_native_id()) == before
+
+
+@needs_eevdf
+def test_off_gives_an_inherited_slice_back_to_the_kernel() -> None:
+    """0 means the kernel's default even on a thread that got a slice earlier in the process (pytest runs many
+    commands in one worker; a thread inherits its creator's slice)."""
+    me = threading.get_native_id()
+    default = thread_slice_s("self", me)
+    try:
+        assert request_slice(2e-4).applied and thread_slice_s("self", me) == pytest.approx(2e-4)
+        off = request_slice(0)
+        assert not off.applied and "off" in off.note
+        assert thread_slice_s("self", me) != pytest.approx(2e-4)
+    finally:
+        request_slice(0)
+    assert default is None or thread_slice_s("self", me) == default or default == pytest.approx(2e-4)
 
 
 def _in_thread(fn):
