@@ -173,13 +173,16 @@ def test_drawn_terms_emit_files_that_simulate_like_the_dictionary_and_refit(shor
             continue
         moved = float(np.max(np.abs(zd[k] - nominal)))
         assert moved > 1e-7, term.key  # the term acts
-        assert float(np.max(np.abs(ze[k] - zd[k]))) <= 1e-3 * moved + 1e-10, term.key
+        # 1e-3 of what the term does, or 10 nm (1/200 of the records' 2 um noise): two different state vectors at
+        # rtol 1e-9 drift apart by a few nm on a term that barely acts (beta_h ramp: 3e-9 m of 4e-7 m)
+        assert float(np.max(np.abs(ze[k] - zd[k]))) <= max(1e-3 * moved, 1e-8), term.key
     # a record the emitted effect generates, refitted in a fresh process from its discovered values
     rec = synth_record(short_sweep["spec"], truth_model("table2", [str(f)], values), noise={"z3": 2e-6}, seed=5)
     rec_path = tmp_path / "drawn.csv"
     write_record(rec, rec_path)
     run = subprocess.run([sys.executable, "-m", "shm_cli.main", "fit", str(rec_path), "--params", "table2",
-                          "--add", str(f), "--save", str(tmp_path / "refit.toml"), "--out", str(tmp_path / "fit"),
+                          "--add", str(f), "--save", str(tmp_path / "refit.toml"), "--force",  # examples share tmp_path
+                          "--out", str(tmp_path / "fit"),
                           "--max-nfev", "6", "--json"], capture_output=True, text=True, timeout=600)
     assert run.returncode == 0, run.stderr[-2000:]
     out = json.loads(run.stdout)
