@@ -176,7 +176,8 @@ def run_batch(command: str, args: argparse.Namespace, items: list[str]) -> int:
     print(f"shm {command}: {len(tasks)} tasks ({sum(len(t.files) for t in tasks)} records) on "
           f"{scheduler or 'local'}", file=sys.stderr, flush=True)
     outcome = run_tasks([(t.key, t.read()) for t in tasks], run_command_task, args, shared=shared,
-                        scheduler=scheduler, warm=warm_workbench, progress=_progress_printer(command))
+                        scheduler=scheduler, warm=warm_workbench, progress=_progress_printer(command),
+                        longest_first=True)
     rows, report_of = [], {}
     for r in outcome.results:
         for rel, data in r.files.items():

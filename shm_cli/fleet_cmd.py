@@ -87,7 +87,7 @@ def run_fleet_health(args: argparse.Namespace) -> int:
         args.command = "health"
         print(f"shm health: fleet of {len(tasks)} boards on {scheduler or 'local'}", file=sys.stderr, flush=True)
         outcome = run_tasks(tasks, run_command_task, args, scheduler=scheduler, warm=warm_workbench,
-                            progress=_progress("shm health --fleet"))
+                            progress=_progress("shm health --fleet"), longest_first=True)
         report_of = _write_task_files(out, outcome.results)
         rows = rank_fleet([fleet_row(r.key, r.doc, r.code, r.message) for r in outcome.results])
         paths = write_summary(out, f"Fleet: {len(rows)} boards ranked by forecast first FAULT", rows, report_of,

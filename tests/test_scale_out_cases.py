@@ -112,6 +112,36 @@ def test_a_board_life_in_a_dask_task_runs_its_visits_in_the_task(monkeypatch):
     assert asked == [1], r.message
 
 
+@pytest.mark.slow
+def test_a_task_on_a_dask_worker_integrates_on_one_thread(monkeypatch):
+    """A worker runs one task per thread and has one core: a task whose fits split each batch over every CPU of the
+    machine (the default outside Dask) competes with the next worker's task — the fleet's 2-vs-1 speed-up was 1.6x.
+    The worker plugin pins the integrator to one thread, whatever the worker inherited (here 2)."""
+    from plant.stepper import default_threads
+
+    monkeypatch.setenv("MFC_SHM_THREADS", "2")
+    results, _ = run_cases(default_threads, [(), ()], scheduler="local", workers=1, warm=None)
+    assert results == [1, 1]
+
+
+@pytest.mark.slow
+def test_longest_first_starts_the_tasks_with_the_most_input_first():
+    """8 boards on 2 workers: a long board started last would run alone at the end. With ``longest_first`` the
+    tasks start by their input's bytes, largest first (ties by key); here one worker, so start order = run order."""
+    import pickle
+    import time
+
+    from studies.batch import run_tasks
+    from studies.batch.cases import CASE_FILE, RESULT_FILE
+
+    tasks = [(k, {CASE_FILE: pickle.dumps(()), "pad": b"x" * n}) for k, n in (("a", 10), ("b", 3000), ("c", 900))]
+    for longest_first, want in ((True, ["b", "c", "a"]), (False, ["a", "b", "c"])):
+        out = run_tasks(tasks, run_case_task, time.monotonic, scheduler="local", workers=1,
+                        longest_first=longest_first)
+        started = {r.key: pickle.loads(r.files[RESULT_FILE]) for r in out.results}
+        assert sorted(started, key=started.__getitem__) == want, longest_first
+
+
 # --- the real loops on a small subset: this process vs two local Dask workers (slow) ---------------------------
 @pytest.mark.slow
 def test_hidden_effect_subset_is_the_same_in_this_process_and_on_two_local_workers(tmp_path):

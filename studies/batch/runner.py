@@ -124,8 +124,11 @@ def check_scheduler(text: str | None) -> str | None:
 def run_tasks(tasks: list[tuple[str, dict[str, bytes]]], fn: TaskFn, options: Any, *,
               shared: dict[str, bytes] | None = None, scheduler: str | None = None, workers: int | None = None,
               warm: Callable[[], None] | None = None, progress: ProgressFn | None = None,
-              on_result: ResultFn | None = None, timeout_s: float = 10.0) -> BatchOutcome:
-    """Run ``fn`` once per ``(key, files)`` and return the results ordered by key (never by completion)."""
+              on_result: ResultFn | None = None, timeout_s: float = 10.0,
+              longest_first: bool = False) -> BatchOutcome:
+    """Run ``fn`` once per ``(key, files)`` and return the results ordered by key (never by completion).
+    ``longest_first``: on Dask, the tasks with the most input bytes start first (a board with more visits, a
+    longer record), so no long task is left alone for the last wave."""
     shared = shared or {}
     t0 = time.perf_counter()
     if scheduler == "synchronous":
@@ -133,7 +136,7 @@ def run_tasks(tasks: list[tuple[str, dict[str, bytes]]], fn: TaskFn, options: An
     else:
         client, cluster, desc = _client(scheduler, workers, len(tasks), timeout_s)
         try:
-            outcome = _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_result)
+            outcome = _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_result, longest_first)
         finally:
             client.close()
             if cluster is not None:
@@ -160,11 +163,11 @@ def _run_here(tasks, fn, options, shared, warm, progress, on_result) -> BatchOut
     return BatchOutcome(results, "synchronous (this process)", 1, warm_s=warm_s)
 
 
-def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_result) -> BatchOutcome:
+def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_result,
+              longest_first=False) -> BatchOutcome:
     from studies.batch.warm import WarmPlugin, warm_seconds
 
-    if warm is not None:
-        client.register_plugin(WarmPlugin(warm), name=WarmPlugin.name)
+    client.register_plugin(WarmPlugin(warm), name=WarmPlugin.name)  # one thread per task, kernels warm
     warm_s = {w: s.get(WarmPlugin.name, 0.0) for w, s in client.run(warm_seconds).items()}
     run_id = uuid.uuid4().hex[:8]
     shared_f = client.scatter([shared], broadcast=True, hash=False)[0]
@@ -172,13 +175,17 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_resul
     payload = {k: f for k, f in tasks}
     scattered = sum(len(b) for _, f in tasks for b in f.values()) + len(warm_s) * sum(len(b) for b in shared.values())
     attempts = dict.fromkeys(payload, 0)
+    size_of = {k: sum(len(b) for b in f.values()) for k, f in payload.items()}
 
     def submit(key: str) -> Any:
         attempts[key] += 1
+        # longest first (by its input's bytes) when asked: the last wave is then the short tasks
         return client.submit(fn, key, inputs[key], shared_f, options, pure=False,
+                             priority=size_of[key] if longest_first else 0,
                              key=f"shm-{key}-{run_id}-{attempts[key]}")
 
-    pending = {submit(k): k for k in sorted(payload)}
+    order = sorted(payload, key=lambda k: (-size_of[k], k)) if longest_first else sorted(payload)
+    pending = {submit(k): k for k in order}
     results: dict[str, TaskResult] = {}
     processing: dict[str, Any] = client.processing()
     lost = 0
