@@ -29,6 +29,7 @@ BENCHMARKS: tuple[str, ...] = (
     "bench.bench_coldstart",
     "bench.bench_live_page",
     "bench.bench_scale_out",
+    "bench.bench_single_machine",
 )
 
 
