@@ -10,7 +10,7 @@ import numpy as np
 
 from workbench.record_columns import build_record
 from workbench.record_metadata import META_KEYS, merge_meta, read_sidecar, sidecar_path
-from workbench.record_types import Record, RecordError
+from workbench.record_types import Record, RecordError, full_rows
 from workbench.units import known_units, split_column, unit_from_string
 
 
@@ -128,7 +128,6 @@ def write_tdms_record(record: Record, path: str | Path, group: str = "Measuremen
     samples as NaN with the file property ``missing = "nan"``."""
     from nptdms import ChannelObject, GroupObject, RootObject, TdmsWriter
 
-    from workbench.records import full_rows
 
     path = Path(path)
     props = {k: v for k, v in record.meta.items() if isinstance(v, (str, int, float)) and not isinstance(v, bool)}

@@ -262,3 +262,20 @@ class FrfRecord:
     @property
     def outputs(self) -> tuple[str, ...]:
         return tuple(self.responses)
+
+
+def full_rows(record: Record) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The record's time (s) and channels (SI) on every row, the lost samples included as NaN (the inputs at a
+    lost row from the record's input track). For a record without gaps: its own arrays."""
+    if not record.gaps or record.input_track is None:
+        return record.t, {n: ch.values for n, ch in record.channels.items()}
+    t_all, u_all = record.input_track
+    at = np.searchsorted(t_all, record.t)
+    cols: dict[str, np.ndarray] = {}
+    for n, ch in record.channels.items():
+        v = np.full(t_all.size, np.nan)
+        v[at] = ch.values
+        if ch.role == "input" and n in ("v_ch1", "v_ch2", "z0dd"):
+            v = u_all[:, {"v_ch1": U_V_CH1, "v_ch2": U_V_CH2, "z0dd": U_Z0DD}[n]].copy()
+        cols[n] = v
+    return t_all, cols

@@ -34,7 +34,7 @@ from typing import Any
 
 import numpy as np
 
-from plant.layout import INPUT_NAMES, U_V_CH1, U_V_CH2, U_Z0DD
+from plant.layout import INPUT_NAMES
 from workbench.record_columns import build_record
 from workbench.record_csv import load_csv_record, write_csv_record
 from workbench.record_frf import write_frf_table
@@ -54,6 +54,7 @@ from workbench.record_types import (
     Record,
     RecordError,
     Segment,
+    full_rows,
 )
 
 
@@ -107,23 +108,6 @@ def record_from_arrays(time_s: np.ndarray, columns: Mapping[str, np.ndarray], me
 def gap_notes(records) -> list[str]:
     """One sentence per record that lost samples (``Record.gap_note``), for the commands to show."""
     return [r.gap_note() for r in records if getattr(r, "gaps", ())]
-
-
-def full_rows(record: Record) -> tuple[np.ndarray, dict[str, np.ndarray]]:
-    """The record's time (s) and channels (SI) on every row, the lost samples included as NaN (the inputs at a
-    lost row from the record's input track). For a record without gaps: its own arrays."""
-    if not record.gaps or record.input_track is None:
-        return record.t, {n: ch.values for n, ch in record.channels.items()}
-    t_all, u_all = record.input_track
-    at = np.searchsorted(t_all, record.t)
-    cols: dict[str, np.ndarray] = {}
-    for n, ch in record.channels.items():
-        v = np.full(t_all.size, np.nan)
-        v[at] = ch.values
-        if ch.role == "input" and n in ("v_ch1", "v_ch2", "z0dd"):
-            v = u_all[:, {"v_ch1": U_V_CH1, "v_ch2": U_V_CH2, "z0dd": U_Z0DD}[n]].copy()
-        cols[n] = v
-    return t_all, cols
 
 
 def write_record(record: Record, path: str | Path) -> Path:
