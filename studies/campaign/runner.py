@@ -173,6 +173,77 @@ def connect_dask(address: str, timeout_s: float = 10.0) -> Any:
                             ) from None
 
 
+@dataclass
+class _Tally:
+    """The batches computed in this call: stored as each one finishes, their arrays, wall and CPU time."""
+
+    store: ResultStore
+    progress: ProgressFn | None
+    computed: dict[str, dict] = field(default_factory=dict)
+    compute_s: float = 0.0  # summed task wall time (s)
+    cpu_s: float = 0.0  # summed task CPU time (s)
+    failures: list[BatchFailure] = field(default_factory=list)
+
+    def accept(self, batch: BatchSpec, res: BatchResult) -> None:
+        self.store.save(res)
+        self.computed[batch.key] = res.arrays
+        self.compute_s += res.elapsed_s
+        self.cpu_s += res.cpu_s
+        if self.progress is not None:
+            self.progress(batch.n)
+
+    def fail(self, batch: BatchSpec, exc: BaseException) -> None:
+        self.failures.append(BatchFailure(batch.key, _describe_exception(exc)))
+
+
+def _check_executor_choice(workers: int | None, dask_scheduler: str | None) -> None:
+    if workers is not None and workers < 1:
+        raise InputError(f"--workers must be >= 1, got {workers}")
+    if dask_scheduler is not None and workers is not None:
+        raise InputError("--workers and --dask-scheduler are exclusive (the cluster decides its workers)")
+
+
+def _open_executor(n_todo: int, workers: int | None, dask_scheduler: str | None, dask_client: Any,
+                   dask_timeout_s: float) -> tuple[Executor | None, Any, str]:
+    """The executor for ``n_todo`` batches (``None``: run them in this process), the Dask client it came from
+    (``None`` unless Dask) and its description for the outcome."""
+    if not n_todo:
+        return None, None, "none (all batches reused from the store)"
+    if dask_scheduler is not None or dask_client is not None:
+        if dask_client is not None:
+            client = dask_client
+        else:
+            assert dask_scheduler is not None  # one of the two, by the condition above
+            client = connect_dask(dask_scheduler, dask_timeout_s)
+        return client.get_executor(pure=False), client, f"dask {client.scheduler.address}"
+    if (workers or os.cpu_count() or 1) == 1:
+        return None, None, "in-process"
+    n_proc = min(workers or os.cpu_count() or 1, n_todo)
+    executor, method = _process_executor(n_proc)
+    return executor, None, f"process pool ({n_proc} workers, {method})"
+
+
+def _run_batches(todo: list[BatchSpec], executor: Executor | None, batch_fn: BatchFn, tally: _Tally) -> None:
+    """Run ``todo`` in this process (``executor`` None, the plant's own batch threads) or on ``executor`` (one
+    thread per task); every finished batch is stored at once and a failing batch never loses the others."""
+    if executor is None:
+        for batch in todo:
+            try:
+                tally.accept(batch, batch_fn(batch, None))
+            except Exception as exc:  # a failing batch must not lose the others
+                tally.fail(batch, exc)
+        return
+    futures: dict[Future, BatchSpec] = {executor.submit(batch_fn, b, 1): b for b in todo}
+    for fut in as_completed(futures):
+        batch = futures[fut]
+        try:
+            res = fut.result()
+        except Exception as exc:
+            tally.fail(batch, exc)
+            continue
+        tally.accept(batch, res)
+
+
 def run_campaign(
     spec: CampaignSpec,
     out_dir: str | Path,
@@ -193,10 +264,7 @@ def run_campaign(
     first). ``batch_fn`` is the task (a module-level callable taking ``(BatchSpec, threads)``).
     """
     t_start = time.perf_counter()
-    if workers is not None and workers < 1:
-        raise InputError(f"--workers must be >= 1, got {workers}")
-    if dask_scheduler is not None and workers is not None:
-        raise InputError("--workers and --dask-scheduler are exclusive (the cluster decides its workers)")
+    _check_executor_choice(workers, dask_scheduler)
     out_dir = Path(out_dir)
     # fail fast on the model and the MBIT sequences in this process (clear errors, clamp reports)
     model = model_from_toml(spec.params_toml)
@@ -211,57 +279,10 @@ def run_campaign(
     if progress is not None and stored:
         progress(sum(b.n for b in batches if b.key in stored))
 
-    failures: list[BatchFailure] = []
-    computed: dict[str, dict] = {}
-    compute_s = 0.0
-    cpu_s = 0.0
-
-    def accept(batch: BatchSpec, res: BatchResult) -> None:
-        nonlocal compute_s, cpu_s
-        store.save(res)
-        computed[batch.key] = res.arrays
-        compute_s += res.elapsed_s
-        cpu_s += res.cpu_s
-        if progress is not None:
-            progress(batch.n)
-
-    client = None
-    executor: Executor | None = None
-    if not todo:
-        desc = "none (all batches reused from the store)"
-    elif dask_scheduler is not None or dask_client is not None:
-        if dask_client is not None:
-            client = dask_client
-        else:
-            assert dask_scheduler is not None  # one of the two, by the condition above
-            client = connect_dask(dask_scheduler, dask_timeout_s)
-        executor = client.get_executor(pure=False)
-        desc = f"dask {client.scheduler.address}"
-    elif (workers or os.cpu_count() or 1) == 1:
-        desc = "in-process"
-    else:
-        n_proc = min(workers or os.cpu_count() or 1, len(todo))
-        executor, method = _process_executor(n_proc)
-        desc = f"process pool ({n_proc} workers, {method})"
-
+    tally = _Tally(store, progress)
+    executor, client, desc = _open_executor(len(todo), workers, dask_scheduler, dask_client, dask_timeout_s)
     try:
-        if todo and executor is None:
-            for batch in todo:
-                try:
-                    accept(batch, batch_fn(batch, None))
-                except Exception as exc:  # a failing batch must not lose the others
-                    failures.append(BatchFailure(batch.key, _describe_exception(exc)))
-        elif todo:
-            assert executor is not None
-            futures: dict[Future, BatchSpec] = {executor.submit(batch_fn, b, 1): b for b in todo}
-            for fut in as_completed(futures):
-                batch = futures[fut]
-                try:
-                    res = fut.result()
-                except Exception as exc:
-                    failures.append(BatchFailure(batch.key, _describe_exception(exc)))
-                    continue
-                accept(batch, res)
+        _run_batches(todo, executor, batch_fn, tally)
     finally:
         if isinstance(executor, ProcessPoolExecutor):
             executor.shutdown(wait=True, cancel_futures=True)
@@ -270,12 +291,12 @@ def run_campaign(
 
     notes += store.notes
     result = None
-    if not failures:
-        arrays = [stored[b.key] if b.key in stored else computed[b.key] for b in batches]
+    if not tally.failures:
+        arrays = [stored[b.key] if b.key in stored else tally.computed[b.key] for b in batches]
         result = CampaignResult.from_batches(spec, arrays, tuple(model.param_units[model.param_index(n)]
                                                                  for n in spec.deviated))
-    failures.sort(key=lambda f: f.key)
+    failures = sorted(tally.failures, key=lambda f: f.key)
     return CampaignOutcome(spec=spec, out_dir=out_dir, result=result, n_batches=len(batches),
-                           n_reused=len(stored), n_computed=len(computed), failures=failures, notes=notes,
-                           wall_s=time.perf_counter() - t_start, executor=desc, clamp=clamp, compute_s=compute_s,
-                           cpu_s=cpu_s)
+                           n_reused=len(stored), n_computed=len(tally.computed), failures=failures, notes=notes,
+                           wall_s=time.perf_counter() - t_start, executor=desc, clamp=clamp,
+                           compute_s=tally.compute_s, cpu_s=tally.cpu_s)
