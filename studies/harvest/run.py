@@ -131,6 +131,59 @@ class HarvestRun:
 
 ProgressFn = Callable[[float, float, float], None]  # (t_done_s, t_total_s, soc)
 
+_RECORDED = ("t", "v_bat", "v_bat_term", "soc_bat", "v_stored")
+_CHUNK_COLUMNS = ("t_end_s", "v_bat_V", "soc", "i_mean_A", "p_in_W", "va_peak_V", "z3_peak_m")
+
+
+def _full_crossing(soc: np.ndarray, t_out: np.ndarray, taper_soc: float, t0: float) -> tuple[float, int] | None:
+    """When (s, interpolated) and at which output sample the state of charge first reaches ``taper_soc`` in this
+    chunk; ``None`` if it does not."""
+    hit = np.flatnonzero(soc >= taper_soc)
+    if not hit.size:
+        return None
+    k = int(hit[0])
+    if k == 0:
+        return t0, k
+    f = (taper_soc - soc[k - 1]) / (soc[k] - soc[k - 1])
+    return float(t_out[k - 1] + f * (t_out[k] - t_out[k - 1])), k
+
+
+@dataclass
+class _ChunkRecorder:
+    """The charge curve (thinned to ``keep_every``), the per-chunk summaries and the last seconds of the run."""
+
+    keep_every: int
+    period: float  # s, one period of the base drive
+    i_qd: int  # state index of the cell's discharge charge
+    i_ein: int  # state index of the base energy in
+    rec: dict[str, list[np.ndarray]] = field(default_factory=lambda: {k: [] for k in _RECORDED})
+    cols: dict[str, list[float]] = field(default_factory=lambda: {k: [] for k in _CHUNK_COLUMNS})
+    tail: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def add(self, first: bool, t_out: np.ndarray, res: SimulationResult, stop_k: int, x: np.ndarray,
+            x_last: np.ndarray) -> None:
+        """One chunk's outputs up to ``stop_k`` (``x``/``x_last``: the state at the chunk's start and stop)."""
+        sl = slice(0 if first else 1, stop_k + 1)
+        for key in self.rec:
+            arr = t_out if key == "t" else res[key][0]
+            self.rec[key].append(arr[sl][::self.keep_every] if first else arr[sl][self.keep_every - 1::self.keep_every])
+        tail_sel = (t_out <= t_out[stop_k]) & (t_out >= t_out[stop_k] - 4.0)
+        self.tail = {"t_s": t_out[tail_sel], "v_stored_V": res["v_stored"][0][tail_sel],
+                     "z3_m": res["z3"][0][tail_sel], "i_bat_A": res["i_bat"][0][tail_sel]}
+        dt_chunk = float(t_out[stop_k] - t_out[0])
+        period = self.period
+        # a sliding window of whole periods at the chunk's end for peaks, the whole chunk for means
+        win = t_out >= t_out[stop_k] - max(period * math.floor(min(dt_chunk, 2.0) / period), period)
+        win &= t_out <= t_out[stop_k]
+        so, i_ein = self.i_qd, self.i_ein
+        self.cols["t_end_s"].append(float(t_out[stop_k]))
+        self.cols["v_bat_V"].append(float(res["v_bat"][0, stop_k]))
+        self.cols["soc"].append(float(res["soc_bat"][0][stop_k]))
+        self.cols["i_mean_A"].append(float(-(x_last[so] - x[so]) / dt_chunk) if dt_chunk > 0 else 0.0)
+        self.cols["p_in_W"].append(float((x_last[i_ein] - x[i_ein]) / dt_chunk) if dt_chunk > 0 else 0.0)
+        self.cols["va_peak_V"].append(float(np.max(np.abs(res["v_stored"][0][win]))))
+        self.cols["z3_peak_m"].append(float(np.max(np.abs(res["z3"][0][win]))))
+
 
 def run_harvest(setup: HarvestSetup, progress: ProgressFn | None = None, chunk_s: float | None = None,
                 dt_out: float = 0.01, max_points: int = 20000, stop_when_full: bool = True, project: bool = True,
@@ -141,7 +194,6 @@ def run_harvest(setup: HarvestSetup, progress: ProgressFn | None = None, chunk_s
     names = model.state_names
     so = names.index("bat_qd")
     s_below = names.index("bat_q_below_cutoff")
-    i_ein = names.index("E_base_in")
     duration = float(setup.duration)
     period = 1.0 / setup.freq
     dt_out = min(dt_out, period / 40.0)
@@ -149,24 +201,18 @@ def run_harvest(setup: HarvestSetup, progress: ProgressFn | None = None, chunk_s
         chunk_s = min(max(duration / 60.0, 2.0), 30.0)
     n_chunks = max(1, math.ceil(duration / chunk_s - 1e-9))
     edges = np.linspace(0.0, duration, n_chunks + 1)
-    keep_every = max(1, round(duration / dt_out / max_points))
     h_max = step_cap(setup.freq)
-
-    rec: dict[str, list[np.ndarray]] = {k: [] for k in ("t", "v_bat", "v_bat_term", "soc_bat", "v_stored")}
-    chunk_cols: dict[str, list[float]] = {k: [] for k in (
-        "t_end_s", "v_bat_V", "soc", "i_mean_A", "p_in_W", "va_peak_V", "z3_peak_m")}
+    recorder = _ChunkRecorder(max(1, round(duration / dt_out / max_points)), period, so, names.index("E_base_in"))
     x = x0.copy()
     e_start: tuple[float, float] | None = None
     e_end = (0.0, 0.0)
     t_full: float | None = None
     steps = 0
     t_end = 0.0
-    tail: dict[str, np.ndarray] = {}
     taper_soc = 1.0 - battery.taper / battery.capacity
     for c in range(n_chunks):
         t0, t1 = float(edges[c]), float(edges[c + 1])
-        n_out = max(2, round((t1 - t0) / dt_out) + 1)
-        t_out = np.linspace(t0, t1, n_out)
+        t_out = np.linspace(t0, t1, max(2, round((t1 - t0) / dt_out) + 1))
         res: SimulationResult = model.simulate(setup.inputs(t0, t1), t_out=t_out, x0=x, record_states=True,
                                                rtol=rtol, h_max=h_max)
         res.raise_on_failure(f"harvesting run failed in [{t0:g}, {t1:g}] s: ")
@@ -175,43 +221,19 @@ def run_harvest(setup: HarvestSetup, progress: ProgressFn | None = None, chunk_s
         steps += int(res.n_steps.sum())
         if e_start is None:
             e_start = (float(res["E_mech"][0, 0]), float(res["E_elec"][0, 0]))
-        soc = res["soc_bat"][0]
-        stop_k = n_out - 1
-        if t_full is None:
-            hit = np.flatnonzero(soc >= taper_soc)
-            if hit.size:
-                k = int(hit[0])
-                if k == 0:
-                    t_full = t0
-                else:
-                    f = (taper_soc - soc[k - 1]) / (soc[k] - soc[k - 1])
-                    t_full = float(t_out[k - 1] + f * (t_out[k] - t_out[k - 1]))
-                if stop_when_full:
-                    stop_k = k
-        sl = slice(0 if c == 0 else 1, stop_k + 1)
-        for key in rec:
-            arr = t_out if key == "t" else res[key][0]
-            rec[key].append(arr[sl][::keep_every] if c == 0 else arr[sl][keep_every - 1::keep_every])
+        stop_k = len(t_out) - 1
+        crossing = _full_crossing(res["soc_bat"][0], t_out, taper_soc, t0) if t_full is None else None
+        if crossing is not None:
+            t_full = crossing[0]
+            if stop_when_full:
+                stop_k = crossing[1]
         x_last = xs[0, stop_k]
-        tail_sel = (t_out <= t_out[stop_k]) & (t_out >= t_out[stop_k] - 4.0)
-        tail = {"t_s": t_out[tail_sel], "v_stored_V": res["v_stored"][0][tail_sel],
-                "z3_m": res["z3"][0][tail_sel], "i_bat_A": res["i_bat"][0][tail_sel]}
-        dt_chunk = float(t_out[stop_k] - t0)
-        # a sliding window of whole periods at the chunk's end for peaks, the whole chunk for means
-        win = t_out >= t_out[stop_k] - max(period * math.floor(min(dt_chunk, 2.0) / period), period)
-        win &= t_out <= t_out[stop_k]
-        chunk_cols["t_end_s"].append(float(t_out[stop_k]))
-        chunk_cols["v_bat_V"].append(float(res["v_bat"][0, stop_k]))
-        chunk_cols["soc"].append(float(soc[stop_k]))
-        chunk_cols["i_mean_A"].append(float(-(x_last[so] - x[so]) / dt_chunk) if dt_chunk > 0 else 0.0)
-        chunk_cols["p_in_W"].append(float((x_last[i_ein] - x[i_ein]) / dt_chunk) if dt_chunk > 0 else 0.0)
-        chunk_cols["va_peak_V"].append(float(np.max(np.abs(res["v_stored"][0][win]))))
-        chunk_cols["z3_peak_m"].append(float(np.max(np.abs(res["z3"][0][win]))))
+        recorder.add(c == 0, t_out, res, stop_k, x, x_last)
         e_end = (float(res["E_mech"][0, stop_k]), float(res["E_elec"][0, stop_k]))
         x = np.array(x_last)
         t_end = float(t_out[stop_k])
         if progress is not None:
-            progress(t_end, duration, float(soc[stop_k]))
+            progress(t_end, duration, recorder.cols["soc"][-1])
         if t_full is not None and stop_when_full:
             break
     assert e_start is not None
@@ -219,15 +241,13 @@ def run_harvest(setup: HarvestSetup, progress: ProgressFn | None = None, chunk_s
     projection = None
     if t_full is None and project:
         projection = project_time_to_full(setup, float(x[so]), t_end, model=model, battery=battery, x_now=x)
-    cat = {k: np.concatenate(v) for k, v in rec.items()}
+    cat = {k: np.concatenate(v) for k, v in recorder.rec.items()}
     return HarvestRun(
         setup=setup, battery=battery.describe(), t=cat["t"], v_bat=cat["v_bat"], v_bat_term=cat["v_bat_term"],
-        soc=cat["soc_bat"], v_stored=cat["v_stored"], chunks={k: np.array(v) for k, v in chunk_cols.items()},
-        tail=tail,
+        soc=cat["soc_bat"], v_stored=cat["v_stored"], chunks={k: np.array(v) for k, v in recorder.cols.items()},
+        tail=recorder.tail,
         reached_full=t_full is not None, t_full_s=t_full, projection=projection, audit=audit, t_end=t_end,
         q_d_start=float(x0[so]), q_d_end=float(x[so]), q_below_cutoff=float(x[s_below] - x0[s_below]),
         n_steps=steps, wall_s=time.perf_counter() - wall0,
         meta={"effects": list(model.effect_names), "parameter_set": model.params.name},
     )
-
-
