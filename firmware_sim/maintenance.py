@@ -19,6 +19,7 @@ from __future__ import annotations
 import json
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -64,7 +65,7 @@ class MaintenanceSequencer:
         self._ref_cache: list[float] | None = None  # the same for every visit: computed once (prepare())
         self._calls = 0
         self.active = False
-        self.results: list[dict] = []
+        self.results: list[dict[str, Any]] = []
         self._i = 0  # index in plan
         self._j = 0  # tick within the current plan step
         self._cmd = (0.0, 0.0)  # last command sent (V)
@@ -252,7 +253,8 @@ class MaintenanceSequencer:
         res = self.nominal.simulate(InputSignals(0.0, self.period, u), t_out=t_out, rtol=1e-6,
                                     h_max=min(5e-3, self.period), threads=1)
         res.raise_on_failure("nominal model failed on the MBIT sequence: ")
-        return res.y[0, :, self._i_z3].tolist()
+        ref: list[float] = res.y[0, :, self._i_z3].tolist()
+        return ref
 
     # --- records --------------------------------------------------------------------------------------
     def _record(self, tick: int, key: str) -> BoardEvent:

@@ -130,7 +130,8 @@ class MbitSequence:
     @property
     def va_applied(self) -> np.ndarray:
         """Differential drive actually applied, ``(v_ch1 − v_ch2)/2`` (V)."""
-        return 0.5 * (self.v_ch1 - self.v_ch2)
+        applied: np.ndarray = 0.5 * (self.v_ch1 - self.v_ch2)
+        return applied
 
     @property
     def dt(self) -> float:

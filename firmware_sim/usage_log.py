@@ -47,6 +47,7 @@ import sqlite3
 from collections.abc import Iterator, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
+from types import TracebackType
 from typing import Any
 
 from board_config.errors import InputError
@@ -264,7 +265,8 @@ class UsageLog:
     def __enter__(self) -> UsageLog:
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: TracebackType | None
+                 ) -> None:
         self.close("failed" if exc_type is not None else "finished")
 
 
@@ -297,7 +299,8 @@ def table_columns(db: sqlite3.Connection, table: str) -> list[str]:
     return [str(r[1]) for r in db.execute(f'PRAGMA table_info("{table}")')]
 
 
-def read_table(db: sqlite3.Connection, table: str, run_id: int | None = None) -> tuple[list[str], list[tuple]]:
+def read_table(db: sqlite3.Connection, table: str, run_id: int | None = None
+               ) -> tuple[list[str], list[tuple[Any, ...]]]:
     """Columns and rows of one log table in insertion order; with ``run_id``, only that run's rows when the table
     has a ``run_id`` column (``meta`` has none: all of it). An unknown table is an :class:`InputError` listing the
     tables of this log."""
