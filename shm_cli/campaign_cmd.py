@@ -24,6 +24,7 @@ import numpy as np
 
 from board_config.errors import InputError
 from board_config.json_values import to_jsonable
+from shm_cli.command_args import add_command
 from shm_cli.common import (
     Decorations,
     add_out_arg,
@@ -40,11 +41,11 @@ DEFAULT_COUNT_GRID = "25,50,100,200,300,400"
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "campaign", help="Monte-Carlo MBIT campaign: fault detection probability per deviation range (Fig. 11)",
-        description="Simulate degraded laminates (uniform random deviations of k3, alpha_h, beta_h within each "
-                    "range) through MBIT.a / MBIT.b, run the condition monitor (Eq. 11, Table 3) and report "
-                    "detected faults and fault probability per range with 95 % Wilson intervals.")
+    p = add_command(
+        sub, "campaign", "Monte-Carlo MBIT campaign: fault detection probability per deviation range (Fig. 11)",
+        """Simulate degraded laminates (uniform random deviations of k3, alpha_h, beta_h within each range) through
+        MBIT.a / MBIT.b, run the condition monitor (Eq. 11, Table 3) and report detected faults and fault
+        probability per range with 95 % Wilson intervals.""")
     p.add_argument("--mbit", default="both", metavar="a|b|both",
                    help="which built-in test(s): a, b, both (default), all, or a comma list of keys in the MBIT file")
     p.add_argument("--ranges", default="0:50:10", metavar="SPEC",
@@ -81,10 +82,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_out_arg(p)
     p.set_defaults(func=cmd_campaign)
 
-    r = sub.add_parser(
-        "campaign-roc", help="ROC view: sweep eps_th and count_max over a campaign's stored error traces",
-        description="Detection probability (units beyond --faulty-min-pct) against false-alarm probability "
-                    "(units within --healthy-max-pct) for a grid of thresholds, without re-simulating.")
+    r = add_command(
+        sub, "campaign-roc", "ROC view: sweep eps_th and count_max over a campaign's stored error traces",
+        """Detection probability (units beyond --faulty-min-pct) against false-alarm probability (units within
+        --healthy-max-pct) for a grid of thresholds, without re-simulating.""")
     r.add_argument("--from", dest="source", required=True, metavar="DIR",
                    help="a finished campaign's output directory (or its traces.npz)")
     r.add_argument("--eps-th", default=DEFAULT_EPS_GRID, metavar="GRID",

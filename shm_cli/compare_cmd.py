@@ -7,23 +7,21 @@ import sys
 from pathlib import Path
 
 from board_config.errors import InputError
-from shm_cli.batch_records import add_scheduler_arg, run_batch, wanted
-from shm_cli.common import add_out_arg, add_params_arg, dump_json, out_dir, positive_float
+from shm_cli.batch_records import run_batch, wanted
+from shm_cli.command_args import add_command, add_record_inputs
+from shm_cli.common import add_out_arg, dump_json, out_dir, positive_float
 from shm_cli.output_guard import add_force_arg, check_foreign_run, locked_out
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "compare", help="compare the model with measurement records: fit, residual tests, where it fails (HTML)",
-        description="Replay each record's inputs through the model (free run, and a labelled k-step-ahead "
-                    "prediction), then report fit % per channel, the paper's normalised error (Eq. 4-5), residual "
-                    "tests with bands and verdicts (bias, whiteness, input cross-correlation, the five Billings-Voon "
-                    "tests) and where the model fails (time windows by regime, error-carrying bands, residual vs "
-                    "drive amplitude and rate, rising vs falling branches). Writes PNGs, a self-contained "
-                    "report.html and compare.json into --out. Records: see docs/records.md.")
-    p.add_argument("records", nargs="+", metavar="RECORD", help="record files (.csv time record or FRF table, .tdms)")
-    add_scheduler_arg(p)
-    add_params_arg(p)
+    p = add_command(
+        sub, "compare", "compare the model with measurement records: fit, residual tests, where it fails (HTML)",
+        """Replay each record's inputs through the model (free run, and a labelled k-step-ahead prediction), then
+        report fit % per channel, the paper's normalised error (Eq. 4-5), residual tests with bands and verdicts
+        (bias, whiteness, input cross-correlation, the five Billings-Voon tests) and where the model fails (time
+        windows by regime, error-carrying bands, residual vs drive amplitude and rate, rising vs falling branches).
+        Writes PNGs, a self-contained report.html and compare.json into --out. Records: see docs/records.md.""")
+    add_record_inputs(p, "record files (.csv time record or FRF table, .tdms)")
     p.add_argument("--add", action="append", default=[], metavar="EFFECT",
                    help="add a physical effect to the model (registered name or pkg.mod:Class); repeatable")
     p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE", dest="set_values",

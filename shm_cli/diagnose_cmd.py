@@ -6,33 +6,30 @@ import argparse
 import functools
 import sys
 
-from shm_cli.batch_records import add_scheduler_arg, run_batch, wanted
-from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, even_int, out_dir, seed_int
+from shm_cli.batch_records import run_batch, wanted
+from shm_cli.command_args import add_command, add_holdout_args, add_record_inputs
+from shm_cli.common import Decorations, add_out_arg, dump_json, out_dir, seed_int
 from shm_cli.output_guard import locked_out
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "diagnose", help="rank missing effects and wrong parameters by how much held-out residual each explains",
-        description="For every candidate — each library effect and each core parameter (k_i, c_i, m_i, d_ep, R_ep, "
-                    "C_ep, alpha_h, beta_h, gamma_h) or group (stiffness, damping, mass scaled together; the "
-                    "electrical pair) to re-estimate — screen it cheaply, fit the promising ones on a training "
-                    "part of the records, score them on held-out blocks (or records), and rank by held-out error "
-                    "reduction with a BIC penalty per free parameter. A re-estimation that explains as well as an "
-                    "effect wins (no new physics). When the best leaves more than 1.5 σ, forward selection adds "
-                    "the next best. Candidates whose free run diverges, goes flat or ends at its bounds lose their "
-                    "claim. A verdict names a member only when it is identifiable on the records, not at a bound, "
-                    "changes the prediction by more than the noise and costs more than the noise when removed; it "
-                    "says 'm3 is wrong: ... — re-estimate it', 'missing effect' or a combination only when that "
-                    "reaches 1.5 σ held out, else the share of the excess over the noise the library explains. "
-                    "Then, when the library falls short, it runs the discovery step (shm discover) itself, writes "
-                    "what it finds inside --out (discovered.py, never over an existing file) and ends with one "
-                    "verdict: what was found in words and formula and the shm fit --add command (--no-discover: "
-                    "print the shm discover command instead). Writes diagnosis.json, ranking.png, overlay.png and "
-                    "diagnosis.html.")
-    p.add_argument("records", nargs="+", metavar="RECORD", help="time records (.csv or .tdms; docs/records.md)")
-    add_scheduler_arg(p)
-    add_params_arg(p)
+    p = add_command(
+        sub, "diagnose", "rank missing effects and wrong parameters by how much held-out residual each explains",
+        """For every candidate — each library effect and each core parameter (k_i, c_i, m_i, d_ep, R_ep, C_ep,
+        alpha_h, beta_h, gamma_h) or group (stiffness, damping, mass scaled together; the electrical pair) to
+        re-estimate — screen it cheaply, fit the promising ones on a training part of the records, score them on
+        held-out blocks (or records), and rank by held-out error reduction with a BIC penalty per free parameter. A
+        re-estimation that explains as well as an effect wins (no new physics). When the best leaves more than 1.5
+        σ, forward selection adds the next best. Candidates whose free run diverges, goes flat or ends at its bounds
+        lose their claim. A verdict names a member only when it is identifiable on the records, not at a bound,
+        changes the prediction by more than the noise and costs more than the noise when removed; it says 'm3 is
+        wrong: ... — re-estimate it', 'missing effect' or a combination only when that reaches 1.5 σ held out, else
+        the share of the excess over the noise the library explains. Then, when the library falls short, it runs the
+        discovery step (shm discover) itself, writes what it finds inside --out (discovered.py, never over an
+        existing file) and ends with one verdict: what was found in words and formula and the shm fit --add command
+        (--no-discover: print the shm discover command instead). Writes diagnosis.json, ranking.png, overlay.png and
+        diagnosis.html.""")
+    add_record_inputs(p, "time records (.csv or .tdms; docs/records.md)")
     p.add_argument("--candidates", action="append", default=None, metavar="NAME[,NAME...]",
                    help="candidates, comma-separated or repeated: effects (library names or pkg.mod:Class), core "
                         "parameters (m3, k2, ...) or groups (stiffness, damping, mass, electrical); default: the "
@@ -41,12 +38,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="after screening, fit in full the best N effects and the best N parameter candidates "
                         "(default 3; 0: fit every candidate)")
     p.add_argument("--no-combine", action="store_true", help="do not look for combinations (forward selection)")
-    p.add_argument("--holdout", choices=("blocks", "records"), default="blocks",
-                   help="held-out data: alternate blocks of every record (default) or every second record")
-    p.add_argument("--blocks", type=even_int(2), default=10,
-                   help="blocks per record for --holdout blocks (even, default 10)")
-    p.add_argument("--max-rate-hz", type=float, default=250.0,
-                   help="sub-sample records to at most this rate for fitting (default 250 Hz)")
+    add_holdout_args(p, " for fitting")
     p.add_argument("--min-reduction", type=float, default=0.02,
                    help="held-out residual-energy reduction a candidate must reach to be accepted (default 0.02)")
     p.add_argument("--workers", type=int, default=1, help="candidates fitted concurrently (threads; default 1)")

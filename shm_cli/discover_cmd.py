@@ -8,24 +8,22 @@ import functools
 import sys
 from pathlib import Path
 
-from shm_cli.batch_records import add_scheduler_arg, run_batch, wanted
-from shm_cli.common import add_params_arg, dump_json, even_int, out_dir
+from shm_cli.batch_records import run_batch, wanted
+from shm_cli.command_args import add_command, add_holdout_args, add_record_inputs
+from shm_cli.common import dump_json, out_dir
 from shm_cli.output_guard import add_force_arg, check_new_file, locked_out, write_whole
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "discover", help="find a missing term beyond the effects library and write it as an effect file",
-        description="Search a dictionary of candidate correction terms built from the model's own signals (forces on "
-                    "masses and sections, currents into the patches, changes of the drive and of the laser reading; "
-                    "linear, sign, |x|·x, polynomial, one-sided, dead-zone, clearance, saturating, time-weighted and "
-                    "delayed forms), keep the few that explain held-out data, refit them on the full nonlinear "
-                    "model, check the result runs free without diverging, and say what was found in words and "
-                    "units. --emit writes it as a PhysicalEffect module; refit it with `shm fit RECORD --add "
-                    "FILE.py`. 'Not found' is an allowed answer.")
-    p.add_argument("records", nargs="+", metavar="RECORD", help="time records (.csv or .tdms; docs/records.md)")
-    add_scheduler_arg(p)
-    add_params_arg(p)
+    p = add_command(
+        sub, "discover", "find a missing term beyond the effects library and write it as an effect file",
+        """Search a dictionary of candidate correction terms built from the model's own signals (forces on masses
+        and sections, currents into the patches, changes of the drive and of the laser reading; linear, sign, |x|·x,
+        polynomial, one-sided, dead-zone, clearance, saturating, time-weighted and delayed forms), keep the few that
+        explain held-out data, refit them on the full nonlinear model, check the result runs free without diverging,
+        and say what was found in words and units. --emit writes it as a PhysicalEffect module; refit it with `shm
+        fit RECORD --add FILE.py`. 'Not found' is an allowed answer.""")
+    add_record_inputs(p, "time records (.csv or .tdms; docs/records.md)")
     p.add_argument("--add", action="append", default=[], metavar="EFFECT",
                    help="effect already in the model (library name, pkg.mod:Class or FILE.py; repeatable)")
     p.add_argument("--emit", default=None, metavar="FILE.py",
@@ -34,12 +32,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     add_force_arg(p, "the --emit file")
     p.add_argument("--max-terms", type=int, default=2, help="most terms to keep (forward selection; default 2)")
     p.add_argument("--refit", type=int, default=4, help="screened terms refitted per round (default 4)")
-    p.add_argument("--holdout", choices=("blocks", "records"), default="blocks",
-                   help="held-out data: alternate blocks of every record (default) or every second record")
-    p.add_argument("--blocks", type=even_int(2), default=10,
-                   help="blocks per record for --holdout blocks (even, default 10)")
-    p.add_argument("--max-rate-hz", type=float, default=250.0,
-                   help="sub-sample records to at most this rate (default 250 Hz)")
+    add_holdout_args(p)
     p.add_argument("--json", action="store_true", help="print the result as one JSON document on stdout")
     p.set_defaults(func=cmd_discover)
 

@@ -7,25 +7,23 @@ import functools
 import sys
 from pathlib import Path
 
-from shm_cli.batch_records import add_scheduler_arg, run_batch, wanted
-from shm_cli.common import Decorations, add_params_arg, dump_json, even_int, out_dir, output_file_arg, seed_int
+from shm_cli.batch_records import run_batch, wanted
+from shm_cli.command_args import add_command, add_holdout_args, add_record_inputs
+from shm_cli.common import Decorations, dump_json, out_dir, output_file_arg, seed_int
 from shm_cli.output_guard import add_force_arg, check_new_file, locked_out, write_whole
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "fit", help="add physical effects, refit their parameters on records, report the fit, save a parameter set",
-        description="Add one or more physical effects (library names, see `shm diagnose`, or your own "
-                    "pkg.mod:Class or FILE.py) to the model, fit their parameters (and any --free ones) on the "
-                    "training part of the records with least squares, and show the error falling per iteration "
-                    "(terminal and fit_progress.png). Prints a before/after table on training and held-out data and "
-                    "a fit report as lmfit prints it (chi-square, reduced chi-square, AIC, BIC; estimates with "
-                    "standard errors; correlations; warnings for parameters at a bound, not identifiable or "
-                    "strongly correlated), also in fit.json; with --save, writes a parameter set (TOML with "
-                    "[[effects]]) that `shm run` and the board's monitor load at once.")
-    p.add_argument("records", nargs="+", metavar="RECORD", help="time records (.csv or .tdms; docs/records.md)")
-    add_scheduler_arg(p)
-    add_params_arg(p)
+    p = add_command(
+        sub, "fit", "add physical effects, refit their parameters on records, report the fit, save a parameter set",
+        """Add one or more physical effects (library names, see `shm diagnose`, or your own pkg.mod:Class or
+        FILE.py) to the model, fit their parameters (and any --free ones) on the training part of the records with
+        least squares, and show the error falling per iteration (terminal and fit_progress.png). Prints a
+        before/after table on training and held-out data and a fit report as lmfit prints it (chi-square, reduced
+        chi-square, AIC, BIC; estimates with standard errors; correlations; warnings for parameters at a bound, not
+        identifiable or strongly correlated), also in fit.json; with --save, writes a parameter set (TOML with
+        [[effects]]) that `shm run` and the board's monitor load at once.""")
+    add_record_inputs(p, "time records (.csv or .tdms; docs/records.md)")
     p.add_argument("--add", action="append", default=[], metavar="EFFECT",
                    help="effect to add: a library name, pkg.mod:Class, or a file FILE.py / FILE.py:Class (e.g. the one "
                         "`shm discover --emit` wrote; repeatable)")
@@ -35,12 +33,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--save", default=None, metavar="NAME.toml", type=output_file_arg,
                    help="write the fitted parameter set here (its name is the file's stem); without it the fit is "
                         "evaluated and reported, nothing is saved")
-    p.add_argument("--holdout", choices=("blocks", "records"), default="blocks",
-                   help="held-out data: alternate blocks of every record (default) or every second record")
-    p.add_argument("--blocks", type=even_int(2), default=10,
-                   help="blocks per record for --holdout blocks (even, default 10)")
-    p.add_argument("--max-rate-hz", type=float, default=250.0,
-                   help="sub-sample records to at most this rate for fitting (default 250 Hz)")
+    add_holdout_args(p, " for fitting")
     p.add_argument("--max-nfev", type=int, default=40, help="optimiser evaluations per start (default 40)")
     p.add_argument("--seed", type=seed_int, default=0, help="seed of the multi-start design")
     p.add_argument("--out", default=None, metavar="DIR",

@@ -15,6 +15,7 @@ import sys
 from typing import Any
 
 from board_config.errors import InputError
+from shm_cli.command_args import add_command
 from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir
 
 #: the paper's claim, full recharge from 2 V within 10 minutes (= studies.harvest.PAPER_CLAIM_S; kept here so that
@@ -23,13 +24,12 @@ PAPER_CLAIM_S = 600.0
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "harvest", help="energy harvesting: charge the ML2032 from base vibration, time to full, power audit",
-        description="Simulate the patches charging the board's cell under a sinusoidal base acceleration "
-                    "(seed paper Sec. 3.3, Eq. 6-10, Fig. 9). 'coupled' (default) solves the patch-bridge-cell "
-                    "circuit consistently, so charging damps the beam; 'paper' is Eq. 8 as written (the cell "
-                    "charges from the open-circuit |v_a|, the patches are not loaded). The power audit closes the "
-                    "energy books (coupled) or shows the energy Eq. 8 creates (paper).")
+    p = add_command(
+        sub, "harvest", "energy harvesting: charge the ML2032 from base vibration, time to full, power audit",
+        """Simulate the patches charging the board's cell under a sinusoidal base acceleration (seed paper Sec. 3.3,
+        Eq. 6-10, Fig. 9). 'coupled' (default) solves the patch-bridge-cell circuit consistently, so charging damps
+        the beam; 'paper' is Eq. 8 as written (the cell charges from the open-circuit |v_a|, the patches are not
+        loaded). The power audit closes the energy books (coupled) or shows the energy Eq. 8 creates (paper).""")
     add_params_arg(p)
     p.add_argument("--coupling", choices=("coupled", "paper"), default="coupled",
                    help="coupled: energy-consistent circuit (default); paper: Eq. 8 as written")

@@ -8,6 +8,7 @@ from pathlib import Path
 
 from board_config.assignments import parse_assignments
 from board_config.errors import InputError
+from shm_cli.command_args import add_command
 from shm_cli.common import (
     add_params_arg,
     check_memory,
@@ -29,12 +30,11 @@ TESTS = ("mbit-a", "mbit-b", "step", "sine", "sweep", "frf")
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "synth", help="write a synthetic record (CSV/TDMS) from a truth plant with injected effects and noise",
-        description="Simulate a test on a truth plant — the parameter set with parameter deviations and injected "
-                    "physical effects (the hardware-in-the-loop stub's seam) — and write the record a rig would log, "
-                    "in the documented format (docs/records.md). Output .csv (time record or, for --test frf, a "
-                    "frequency-response table) or .tdms.")
+    p = add_command(
+        sub, "synth", "write a synthetic record (CSV/TDMS) from a truth plant with injected effects and noise",
+        """Simulate a test on a truth plant — the parameter set with parameter deviations and injected physical
+        effects (the hardware-in-the-loop stub's seam) — and write the record a rig would log, in the documented
+        format (docs/records.md). Output .csv (time record or, for --test frf, a frequency-response table) or .tdms.""")
     p.add_argument("--test", required=True, choices=TESTS, help="test to simulate")
     add_params_arg(p)
     p.add_argument("--effect", action="append", default=[], metavar="NAME|pkg.mod:Class",
