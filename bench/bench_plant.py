@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 from scipy.integrate import solve_ivp
 
-import plant.integrate as tableau
+import plant.integrate_steps as tableau
 from bench.integrator_before import INTEGRATOR_SOURCE_BEFORE
 from board_config import load_parameter_set
 from plant import PlantModel, sine_drive

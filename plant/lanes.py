@@ -3,7 +3,7 @@
 An effect hook is written for one trajectory: it reads and writes ``x[i]``, ``p[i]``, ``bus[i]``, ``dx[i]`` (``y[i]``
 for the output hook). :func:`lane_hook_source` rewrites it, at the syntax level, into a function of one flat work
 array ``W`` holding every array of ``LANES`` members row by row (row ``r``, lane ``l`` at ``W[r * LANES + l]``):
-``x[e]`` becomes ``W[(_O_x + e) * LANES + _lane_]`` inside a loop over the lanes. Every offset and ``LANES`` are
+``x[e]`` becomes ``W[(ROW_x + e) * LANES + _lane_]`` inside a loop over the lanes. Every offset and ``LANES`` are
 compile-time constants and all data live in one array, so LLVM sees that the accesses do not overlap and
 vectorises the lane loop (the loop over members), which a per-member ``rhs`` can never be.
 
@@ -26,7 +26,7 @@ from typing import Any
 #: the lane loop's variable and the work array's name in generated hooks (a hook using them is not rewritten)
 LANE_VAR = "_lane_"
 WORK = "W"
-#: array argument position (1..4 after ``t``) -> row block name (``_O_<name>`` in the generated module)
+#: array argument position (1..4 after ``t``) -> row block name (``ROW_<name>`` in the generated module)
 PHASE_ROLES = ("x", "p", "bus", "dx")
 OUTPUT_ROLES = ("x", "p", "bus", "y")
 
@@ -76,7 +76,7 @@ def lane_hook_source(fn: Callable[..., Any], new_name: str, tag: str, roles: tup
             if isinstance(node.value, ast.Name) and node.value.id in arrays:
                 if isinstance(node.slice, (ast.Slice, ast.Tuple)):
                     raise LaneFormUnsupported(f"the hook slices {node.value.id!r}")
-                row = ast.BinOp(ast.Name(f"_O_{arrays[node.value.id]}", ast.Load()), ast.Add(),
+                row = ast.BinOp(ast.Name(f"ROW_{arrays[node.value.id]}", ast.Load()), ast.Add(),
                                 self.visit(node.slice))
                 index = ast.BinOp(ast.BinOp(row, ast.Mult(), ast.Name("LANES", ast.Load())), ast.Add(),
                                   ast.Name(LANE_VAR, ast.Load()))

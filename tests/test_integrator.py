@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-import plant.integrate as integrate
+import plant.integrate_steps as integrate_steps
 from plant import IntegrationFailed, IntegrationStatus, Integrator, PlantModel, PlantStepper, sine_drive, step_drive
 from plant.compose import generate_source
 from plant.linear import linearise
@@ -145,8 +145,8 @@ def test_controller_constants_reach_the_kernel_cache_key(table2_model, monkeypat
     changing one recompiles instead of loading stale machine code."""
     args = (table2_model.effects, *table2_model._offsets, table2_model.n_states, True)
     before = generate_source(*args)
-    assert f"_PI_BETA = {integrate._PI_BETA!r}" in before
-    monkeypatch.setattr(integrate, "_PI_BETA", integrate._PI_BETA / 2)
+    assert f"_PI_BETA = {integrate_steps._PI_BETA!r}" in before
+    monkeypatch.setattr(integrate_steps, "_PI_BETA", integrate_steps._PI_BETA / 2)
     assert generate_source(*args) != before
 
 
