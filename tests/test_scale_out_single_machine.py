@@ -13,20 +13,16 @@ import bench.bench_single_machine as bsm
 
 def test_compare_interleaves_the_command_and_the_direct_body_and_takes_the_median_ratio(monkeypatch):
     calls = []
-    walls = {"_command": iter([9.0, 2.0, 2.2, 2.4, 50.0]), "direct": iter([1.0, 1.1, 1.2, 0.1])}
+    walls = {"command": iter([9.0, 2.0, 2.2, 2.4, 50.0]), "direct": iter([1.0, 1.1, 1.2, 0.1])}
 
-    def fake_timed(fn, argv):
-        calls.append(fn.__name__)
-        return next(walls[fn.__name__])
-
-    def direct(argv):
-        return 0
+    def fake_timed(kind, argv):
+        calls.append(kind)
+        return next(walls[kind])
 
     monkeypatch.setattr(bsm, "_timed", fake_timed)
-    got = bsm.compare(["diagnose", "x.csv"], direct, 4)
-    # the first command call warms imports and kernels and is not counted; then A B, B A, A B, B A
-    assert calls == ["_command", "_command", "direct", "direct", "_command", "_command", "direct", "direct",
-                     "_command"]
+    got = bsm.compare(["diagnose", "x.csv"], 4)
+    # the first command run fills the caches and is not counted; then A B, B A, A B, B A
+    assert calls == ["command", "command", "direct", "direct", "command", "command", "direct", "direct", "command"]
     assert got["command_s"] == pytest.approx((2.2 + 2.4) / 2)
     assert got["direct_s"] == pytest.approx((1.0 + 1.1) / 2)
     assert got["ratio"] == pytest.approx(2.3 / 1.05)
@@ -52,6 +48,6 @@ def _doc(out):
 def test_the_direct_diagnose_is_the_command_without_the_batch_layer(tmp_path):
     bsm._records(tmp_path / "recs", 1)
     rec = str(tmp_path / "recs" / "rec000.csv")
-    assert bsm._timed(bsm._command, ["diagnose", rec, *bsm.CANDIDATES, "--out", str(tmp_path / "a")]) > 0
-    assert bsm._timed(bsm._diagnose_direct, ["diagnose", rec, *bsm.CANDIDATES, "--out", str(tmp_path / "b")]) > 0
+    assert bsm._timed("command", ["diagnose", rec, *bsm.CANDIDATES, "--out", str(tmp_path / "a")]) > 0
+    assert bsm._timed("direct", ["diagnose", rec, *bsm.CANDIDATES, "--out", str(tmp_path / "b")]) > 0
     assert _doc(tmp_path / "a") == _doc(tmp_path / "b")
