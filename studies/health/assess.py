@@ -299,37 +299,13 @@ def _est_verdict(x: dict[str, Any]) -> str:
 def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[str, str]:
     """Rytter's four levels in words: detected? where? how much? how long?"""
     last = doc["visits"][-1]
-    changed = [e for e in last["estimates"] if e["verdict"] == "changed"]
-    sig = [n for n, t in trends.items() if t.significant]
     bv = last["board_verdict"]
     board = f"; the board's monitor said {bv} at this visit" if bv else ""
-    if changed or sig:
-        names = sorted({e["name"] for e in changed} | set(sig))
-        detected = (f"yes — {', '.join(names)} changed since entry into service"
-                    + (f" (significant trend: {', '.join(sig)})" if sig else "") + board)
-        loc = doc.get("location") or {}
-        where = "; ".join(f"{n}: {LOCATION.get(n, n)}" for n in names if not (loc.get("run") and n in SECTIONS))
-        if loc.get("run"):
-            where = (where + "; " if where else "") + location_sentence(loc)
-        elif any(n in SECTIONS for n in names):
-            where += (" (from which model parameter moved: the section stiffnesses were not compared; "
-                      "--locate always does)")
-    else:
-        detected = "no — every health parameter is within 3 standard errors (or 2 %) of nominal, no trend" + board
-        where = "nothing to place"
-    parts = []
-    for e in last["estimates"]:
-        t = trends.get(e["name"])
-        rse = e["stderr"] / abs(e["nominal"]) if e["stderr"] is not None else None
-        rate = ""
-        if t is not None and t.significant:
-            acc = {"exponential": ", accelerating", "power": _power_word(t),
-                   "change_point": f", after a sudden change at about {t.best.tau or 0:g} h"}.get(t.best.name, "")
-            rate = f", {100 * t.rate_per_100h(last['operating_hours']):+.2f} % per 100 h ({t.best.name}{acc})"
-        bound = " — at its fit bound: a limit, not an estimate" if e.get("at_bound") else ""
-        parts.append(f"{e['name']} {format_percent_change(e['relative'], rse)}{bound}{rate}")
+    detected, where = _detected_where(doc, trends, board)
+    parts = [_estimate_words(e, trends, last["operating_hours"]) for e in last["estimates"]]
     how_much = f"at {last['operating_hours']:g} h: " + "; ".join(parts)
     fol = doc.get("followed") or {}
+    loc = doc.get("location") or {}
     if fol.get("switched"):
         how_much = (f"at {last['operating_hours']:g} h: " + _followed_how_much(doc, trends)
                     + f" (the default set's estimates moved too — {'; '.join(parts)} — with "
@@ -338,26 +314,69 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
             detected = (f"yes — {', '.join(fol['free'])} changed since entry into service (significant trend; "
                         f"shm diagnose named {', '.join(fol['named'])} at {fol['diagnosed_visit_hours']:g} h)"
                         + board)
-        loc = doc.get("location") or {}
         where = _cause_place(fol) + ("; " + location_sentence(loc) + _section_agreement(fol, loc)
                                      if loc.get("run") and loc.get("distinguishable") is not None else "")
-    loc = doc.get("location") or {}
     if loc.get("run") and loc.get("distinguishable") is not None:
-        alts = sorted((c for c in loc["candidates"] if c.get("section") in (loc.get("possible_sections") or [])
-                       and "relative" in c), key=lambda c: c["held_rss_sigma2"])
-        how_much += ("; the stiffness loss itself: " + (" or ".join(
-            f"{c['name']} {100 * c['relative']:+.1f} % if in section {c['section']}" for c in alts))
-            if len(alts) > 1 or loc.get("section") is None else "")
-        if loc.get("section") is not None and len(alts) <= 1:
-            how_much += (f"; the stiffness loss itself: {loc['parameter']} {100 * loc['relative']:+.1f} % "
-                         f"(section {loc['section']})")
+        how_much += _stiffness_loss_words(loc)
+    return {"detected": detected, "where": where, "how_much": how_much, "how_long": _how_long(doc, fc)}
+
+
+def _detected_where(doc: dict[str, Any], trends: dict[str, Trend], board: str) -> tuple[str, str]:
+    """Levels 1 and 2 from the last visit's estimates and the trends (``board``: the monitor's words, or "")."""
+    changed = [e for e in doc["visits"][-1]["estimates"] if e["verdict"] == "changed"]
+    sig = [n for n, t in trends.items() if t.significant]
+    if not (changed or sig):
+        return ("no — every health parameter is within 3 standard errors (or 2 %) of nominal, no trend" + board,
+                "nothing to place")
+    names = sorted({e["name"] for e in changed} | set(sig))
+    detected = (f"yes — {', '.join(names)} changed since entry into service"
+                + (f" (significant trend: {', '.join(sig)})" if sig else "") + board)
+    loc = doc.get("location") or {}
+    where = "; ".join(f"{n}: {LOCATION.get(n, n)}" for n in names if not (loc.get("run") and n in SECTIONS))
+    if loc.get("run"):
+        where = (where + "; " if where else "") + location_sentence(loc)
+    elif any(n in SECTIONS for n in names):
+        where += (" (from which model parameter moved: the section stiffnesses were not compared; "
+                  "--locate always does)")
+    return detected, where
+
+
+def _estimate_words(e: dict[str, Any], trends: dict[str, Trend], hours: float) -> str:
+    """One estimate's change since nominal, with its trend's rate at ``hours`` (h) when the trend is significant."""
+    t = trends.get(e["name"])
+    rse = e["stderr"] / abs(e["nominal"]) if e["stderr"] is not None else None
+    rate = ""
+    if t is not None and t.significant:
+        acc = {"exponential": ", accelerating", "power": _power_word(t),
+               "change_point": f", after a sudden change at about {t.best.tau or 0:g} h"}.get(t.best.name, "")
+        rate = f", {100 * t.rate_per_100h(hours):+.2f} % per 100 h ({t.best.name}{acc})"
+    bound = " — at its fit bound: a limit, not an estimate" if e.get("at_bound") else ""
+    return f"{e['name']} {format_percent_change(e['relative'], rse)}{bound}{rate}"
+
+
+def _stiffness_loss_words(loc: dict[str, Any]) -> str:
+    """How much stiffness the located section lost (or each possible section, when they cannot be told apart)."""
+    alts = sorted((c for c in loc["candidates"] if c.get("section") in (loc.get("possible_sections") or [])
+                   and "relative" in c), key=lambda c: c["held_rss_sigma2"])
+    words = ("; the stiffness loss itself: " + (" or ".join(
+        f"{c['name']} {100 * c['relative']:+.1f} % if in section {c['section']}" for c in alts))
+        if len(alts) > 1 or loc.get("section") is None else "")
+    if loc.get("section") is not None and len(alts) <= 1:
+        words += (f"; the stiffness loss itself: {loc['parameter']} {100 * loc['relative']:+.1f} % "
+                  f"(section {loc['section']})")
+    return words
+
+
+def _how_long(doc: dict[str, Any], fc: Forecast) -> str:
+    """Level 4: the board's own FAULT if it said so, else the forecast trip time, or a lower bound without trend."""
+    last = doc["visits"][-1]
     f = doc["forecast"]
     if (board_said := _board_said_fault(doc)) is not None:
-        how_long = board_said
-    elif fc.already_faulty:
-        how_long = ("now: the estimated parameters are already beyond the monitor's trip limit (the built-in test "
-                    "flags this laminate)")
-    elif fc.significant and fc.trip_operating_hours is not None:
+        return board_said
+    if fc.already_faulty:
+        return ("now: the estimated parameters are already beyond the monitor's trip limit (the built-in test "
+                "flags this laminate)")
+    if fc.significant and fc.trip_operating_hours is not None:
         # forecast_trip sets the remaining life and P(FAULT at the next visit) together with the trip time
         assert fc.rul_hours is not None and fc.p_fault_next_visit is not None
         lo, hi = f["trip_interval_90"]
@@ -369,19 +388,17 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
             a = vis[0] - last_no
             b = (vis[1] - last_no) if vis[1] is not None else None
             in_visits = f", i.e. in {a} to {b if b is not None else '?'} visits (visit {vis[0]}–{vis[1]})"
-        how_long = (f"the built-in test will flag this laminate at about {fc.trip_operating_hours:.0f} h "
-                    f"(90 %: {lo:.0f}–{hi_s} h){in_visits}; remaining useful life {fc.rul_hours:.0f} h from the "
-                    f"last visit; P(FAULT at the next visit, {fc.next_visit_hours:g} h) = "
-                    f"{100 * fc.p_fault_next_visit:.0f} %")
-    elif fc.significant:
-        how_long = (f"a trend, but no FAULT of the monitor expected before {fc.horizon_hours:.0f} h (the forecast "
-                    "horizon)")
-    else:
-        lb = fc.lower_bound_hours
-        assert lb is not None  # forecast_trip sets it whenever no trend is significant
-        how_long = (f"no significant trend: no date. No FAULT of the monitor expected before {lb:.0f} h "
-                    f"(lower bound: remaining life ≥ {lb - fc.last_hours:.0f} h)")
-    return {"detected": detected, "where": where, "how_much": how_much, "how_long": how_long}
+        return (f"the built-in test will flag this laminate at about {fc.trip_operating_hours:.0f} h "
+                f"(90 %: {lo:.0f}–{hi_s} h){in_visits}; remaining useful life {fc.rul_hours:.0f} h from the "
+                f"last visit; P(FAULT at the next visit, {fc.next_visit_hours:g} h) = "
+                f"{100 * fc.p_fault_next_visit:.0f} %")
+    if fc.significant:
+        return (f"a trend, but no FAULT of the monitor expected before {fc.horizon_hours:.0f} h (the forecast "
+                "horizon)")
+    lb = fc.lower_bound_hours
+    assert lb is not None  # forecast_trip sets it whenever no trend is significant
+    return (f"no significant trend: no date. No FAULT of the monitor expected before {lb:.0f} h "
+            f"(lower bound: remaining life ≥ {lb - fc.last_hours:.0f} h)")
 
 
 def _board_said_fault(doc: dict[str, Any]) -> str | None:
