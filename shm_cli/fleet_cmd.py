@@ -28,8 +28,8 @@ def add_fleet_args(p: argparse.ArgumentParser, boards: bool) -> None:
                        help="each SOURCE is one board (a 'shm run' output): one task per board on --scheduler, a "
                             "fleet table and page ranked by forecast first FAULT (fleet.csv, fleet.html)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="with --fleet/--boards: local (default: local worker processes), tcp://HOST:PORT (a Dask "
-                        "cluster) or synchronous (this process)")
+                   help=("with --boards or a [life] scenario" if boards else "with --fleet") + ": local (default: "
+                        "local worker processes), tcp://HOST:PORT (a Dask cluster) or synchronous (this process)")
 
 
 def _board_files(folder: Path) -> dict[str, bytes]:

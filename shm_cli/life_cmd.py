@@ -1,4 +1,5 @@
-"""``shm run`` on a scenario with ``[life]``: every visit on a worker pool, one usage.db, the visit records.
+"""``shm run`` on a scenario with ``[life]``: every visit a Dask task (local worker processes, or ``--scheduler
+tcp://HOST:PORT``), one usage.db, the visit records.
 
 What the user gets wrong is refused before any worker starts (:func:`studies.health.life_check.check_life`, and the
 options that mean nothing for a life: ``--duration-s``, ``--realtime``, ``--append``, a hardware ``--link``); an
@@ -55,6 +56,9 @@ def run_life_command(args: argparse.Namespace, scenario: Any) -> int:
     from studies.health.life_check import check_life
 
     refuse_life_options(args)
+    from studies.batch.runner import check_scheduler
+
+    args.scheduler = check_scheduler(getattr(args, "scheduler", None))  # where the visits run (docs/scale-out.md)
     seed = args.seed if args.seed is not None else scenario.seed
     if not 0 <= seed < 2**32:
         raise CliError(f"--seed must be in [0, 2^32-1], got {seed}")
@@ -101,7 +105,7 @@ def _run_life_staged(args: argparse.Namespace, scenario: Any, seed: int, params:
     try:
         # life_workers: 1 for a board of shm run --boards (a Dask task: the worker is the parallelism)
         result = run_life(scenario, seed=seed, params=params, board_config=args.board_config,
-                          workers=getattr(args, "life_workers", None),
+                          workers=getattr(args, "life_workers", None), scheduler=args.scheduler,
                           on_visit=lambda v: say(visit_line(v)), should_stop=lambda: stopper.requested)
     except KeyboardInterrupt:  # a second signal: stop at once (the pool has terminated its workers)
         print(f"shm run: stopped at once by a second signal; nothing of this life written, {out}/ as it was",

@@ -1,9 +1,9 @@
 """SIGTERM / Ctrl-C on a life run (issue 33): real signals to a real ``shm run`` subprocess on a small life.
 
-The life's visits run on worker processes. A signal must stop it cleanly: exit 143 (SIGTERM) or 130 (SIGINT), the
-visits already finished kept in --out (usage.db with status ``interrupted``, their records, summary.json), no worker
-process left behind (checked by PID), and with ``--force`` over an earlier life, the earlier one kept whole until the
-new one has a finished visit to replace it with.
+The life's visits run on Dask worker processes (a local cluster). A signal must stop it cleanly: exit 143 (SIGTERM)
+or 130 (SIGINT), the visits already finished kept in --out (usage.db with status ``interrupted``, their records,
+summary.json), no worker process left behind (checked by PID), and with ``--force`` over an earlier life, the
+earlier one kept whole until the new one has a finished visit to replace it with.
 """
 
 from __future__ import annotations
@@ -109,8 +109,10 @@ def test_a_signal_stops_a_life_cleanly_and_keeps_the_finished_visits(tmp_path: P
     _check_kept(out, 2)
     time.sleep(0.5)
     assert not [w for w in workers if _alive(w)], "a worker process survived the stop"
-    # nothing left in the run's process group either
-    assert subprocess.run(["pgrep", "-g", str(proc.pid)], capture_output=True).stdout.strip() == b""
+    # nothing left running in the run's process group either (an exited helper not yet reaped by init, such as
+    # multiprocessing's resource tracker that ends with the run, is a zombie, not a process left behind)
+    group = subprocess.run(["ps", "-o", "stat=", "-g", str(proc.pid)], capture_output=True, text=True).stdout.split()
+    assert not [s for s in group if not s.startswith("Z")], group
 
 
 def test_force_keeps_the_earlier_life_until_the_new_one_has_a_visit(tmp_path: Path) -> None:

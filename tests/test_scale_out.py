@@ -137,3 +137,24 @@ def test_fleet_health_writes_neither_into_a_board_nor_over_another_commands_run(
     code = main(["health", "--fleet", str(a), str(b), "--scheduler", "synchronous", "--out", str(foreign)])
     assert code == 2 and "shm compare" in capsys.readouterr().err
     assert sorted(p.name for p in foreign.iterdir()) == ["compare.json"]
+
+
+@pytest.mark.slow
+def test_a_single_life_takes_the_scheduler_and_refuses_a_bad_one_before_any_worker(tmp_path, capsys, monkeypatch):
+    """shm run on a [life] scenario runs its visits on Dask: --scheduler reaches the life's runner; a bad one is one
+    line (exit 2) before anything is written."""
+    import studies.health.life as life_mod
+
+    code = main(["run", "--scenario", "aging", "--scheduler", "my-laptop", "--out", str(tmp_path / "a")])
+    err = capsys.readouterr().err
+    assert code == 2 and "--scheduler 'my-laptop'" in err and "Traceback" not in err
+    assert not (tmp_path / "a" / "usage.db").exists()
+    asked = []
+
+    def no_life(*_a, scheduler=None, **_k):
+        asked.append(scheduler)
+        raise KeyboardInterrupt  # the command's "stopped at once" path: nothing written
+
+    monkeypatch.setattr(life_mod, "run_life", no_life)
+    main(["run", "--scenario", "aging", "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path / "b")])
+    assert asked == ["tcp://127.0.0.1:1"]

@@ -88,8 +88,9 @@ class BatchOutcome:
 
 
 # --- connecting --------------------------------------------------------------------------------------------------
-def _client(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s: float) -> tuple[Any, Any, str]:
-    """(client, local cluster or None, description)."""
+def connect(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s: float = 10.0) -> tuple[Any, Any, str]:
+    """(client, local cluster or None, description): a LocalCluster of ``min(workers or CPUs, n_tasks)``
+    single-thread worker processes for ``local``/None, else the cluster at ``scheduler``."""
     try:
         from distributed import Client, LocalCluster
     except ImportError:
@@ -134,7 +135,7 @@ def run_tasks(tasks: list[tuple[str, dict[str, bytes]]], fn: TaskFn, options: An
     if scheduler == "synchronous":
         outcome = _run_here(tasks, fn, options, shared, warm, progress, on_result)
     else:
-        client, cluster, desc = _client(scheduler, workers, len(tasks), timeout_s)
+        client, cluster, desc = connect(scheduler, workers, len(tasks), timeout_s)
         try:
             outcome = _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_result, longest_first)
         finally:

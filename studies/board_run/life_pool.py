@@ -1,32 +1,39 @@
-"""The worker pool of a life run (``shm run`` on a ``[life]`` scenario): visits on local processes, stoppable.
+"""The visits of a life run (``shm run`` on a ``[life]`` scenario) on Dask: a ``distributed.LocalCluster`` of
+single-thread worker processes by default, or an existing cluster (``scheduler="tcp://host:port"``), stoppable.
 
-Why not ``concurrent.futures.ProcessPoolExecutor``: an exception that cannot be unpickled in the parent (any error
-class with its own ``__init__``) broke the whole pool ("BrokenProcessPool"), and a SIGTERM or Ctrl-C meant either
-workers left running (parented to PID 1) or a parent blocked in the executor's queue locks. Here:
+What the life needs from its workers, and how it holds on Dask:
 
-* each worker is a plain process with its own pipe: the parent sends a task, the worker sends back
-  ``("ok", result)`` or ``("error", kind, message)`` — an error crosses as text, so it always arrives, and an
+* an error crosses as text: each visit runs inside :func:`_answer`, which returns ``("ok", result)`` or
+  ``("error", kind, message)`` — an exception class that cannot be unpickled never reaches the parent, and an
   :class:`~board_config.errors.InputError` raised inside a visit reaches the user as the same one line (exit 2);
-* workers ignore SIGINT (a terminal's Ctrl-C goes to the whole process group; the parent decides) and die with
-  their parent (Linux ``PR_SET_PDEATHSIG``), so a killed parent leaves no worker behind;
-* ``should_stop()`` is polled at least every 0.2 s; once true, no new visit starts, every worker is terminated
-  (SIGTERM, then SIGKILL after 5 s) and joined, and the visits finished so far are what the run returns.
+* a worker lost mid-visit (killed from outside) loses nothing: Dask runs its visit again on a worker (the local
+  cluster's nanny starts a new worker process); said once on stderr. A visit whose workers die
+  ``distributed.scheduler.allowed-failures`` + 1 times is :class:`WorkerDiedError`;
+* local workers ignore SIGINT (a terminal's Ctrl-C goes to the whole process group; the parent decides) and end
+  when their parent ends (Dask's worker processes watch their parent);
+* ``should_stop()`` is polled at least every 0.2 s; once true, no new visit starts, the visits are cancelled, the
+  local cluster is closed and any worker process still alive after :data:`TERMINATE_GRACE_S` is killed, and the
+  visits finished so far are what the run returns.
+
+Why not ``concurrent.futures.ProcessPoolExecutor``: an exception that could not be unpickled broke the whole pool,
+and a SIGTERM or Ctrl-C left workers running or the parent blocked in the executor's locks.
 """
 
 from __future__ import annotations
 
 import contextlib
-import ctypes
-import multiprocessing as mp
+import os
 import signal
+import sys
+import time
+import uuid
 from collections.abc import Callable, Sequence
-from multiprocessing.connection import Connection, wait
 from typing import Any
 
 from board_config.errors import InputError
 
-#: how long a terminated worker may take before it is killed (s)
-TERMINATE_GRACE_S = 5.0
+#: how long the local cluster may take to close before its worker processes are killed (s)
+TERMINATE_GRACE_S = 3.0
 POLL_S = 0.2
 
 
@@ -39,38 +46,20 @@ class VisitFailedError(RuntimeError):
 
 
 class WorkerDiedError(OSError):
-    """A worker process ended without an answer (killed from outside: out of memory, a signal)."""
+    """A visit's worker process ended without an answer each time it was tried (killed from outside, out of
+    memory)."""
 
 
-def _die_with_parent() -> None:
-    with contextlib.suppress(OSError, AttributeError):
-        libc = ctypes.CDLL("libc.so.6", use_errno=True)
-        libc.prctl(1, int(signal.SIGKILL))  # PR_SET_PDEATHSIG
-
-
-def _worker_main(conn: Connection, fn: Callable[..., Any]) -> None:
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    _die_with_parent()
-    while True:
-        try:
-            task = conn.recv()
-        except (EOFError, OSError):
-            return
-        if task is None:
-            return
-        try:
-            answer: tuple[Any, ...] = ("ok", fn(*task))
-        except InputError as exc:
-            answer = ("error", "input", str(exc))
-        except OSError as exc:
-            answer = ("error", "os", f"{exc}")
-        except Exception as exc:  # a bug: its type and message travel as text
-            answer = ("error", "bug", f"{type(exc).__name__}: {exc}")
-        try:
-            conn.send(answer)
-        except Exception as exc:  # an unpicklable result is a bug too; say so instead of dying silently
-            conn.send(("error", "bug", f"cannot send the visit's result: {type(exc).__name__}: {exc}"))
+def _answer(fn: Callable[..., Any], *task: Any) -> tuple[Any, ...]:
+    """``fn(*task)`` on the worker, its outcome as data: an error travels as its kind and text."""
+    try:
+        return ("ok", fn(*task))
+    except InputError as exc:
+        return ("error", "input", str(exc))
+    except OSError as exc:
+        return ("error", "os", f"{exc}")
+    except Exception as exc:  # a bug: its type and message travel as text
+        return ("error", "bug", f"{type(exc).__name__}: {exc}")
 
 
 def _raise_for(kind: str, message: str) -> None:
@@ -81,83 +70,108 @@ def _raise_for(kind: str, message: str) -> None:
     raise VisitFailedError(message)
 
 
-class LifePool:
-    """``workers`` processes running ``fn(*task)``; see the module docstring."""
+def _ignore_interrupt() -> None:
+    """On a local worker: Ctrl-C is the parent's to decide (it stops the life and closes the cluster)."""
+    with contextlib.suppress(ValueError):  # not the main thread: nothing to do
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
-    def __init__(self, fn: Callable[..., Any], workers: int) -> None:
-        ctx = mp.get_context("fork") if "fork" in mp.get_all_start_methods() else mp.get_context()
-        self._workers: list[tuple[Any, Connection]] = []
-        for _ in range(max(1, workers)):
-            parent_end, child_end = ctx.Pipe(duplex=True)
-            proc = ctx.Process(target=_worker_main, args=(child_end, fn), daemon=True)
-            proc.start()
-            child_end.close()
-            self._workers.append((proc, parent_end))
+
+def _still_my_child(pid: int) -> bool:
+    """True when ``pid`` is a running (not zombie) child of this process (Linux ``/proc``)."""
+    try:
+        fields = open(f"/proc/{pid}/stat", encoding="ascii").read().rsplit(")", 1)[1].split()
+    except OSError:
+        return False
+    return fields[0] != "Z" and int(fields[1]) == os.getpid()
+
+
+class LifePool:
+    """``workers`` Dask worker processes (or the cluster at ``scheduler``) running ``fn(*task)``; see the module
+    docstring. ``fn`` must be a module-level function (sent by reference) whose arguments and result pickle."""
+
+    def __init__(self, fn: Callable[..., Any], workers: int, scheduler: str | None = None) -> None:
+        from studies.batch.runner import connect
+
+        self._fn = fn
+        self._client, self._cluster, self.description = connect(scheduler, max(1, workers), max(1, workers))
+        try:
+            from studies.batch.warm import WarmPlugin
+
+            self._client.register_plugin(WarmPlugin(None), name=WarmPlugin.name)  # one thread per visit
+            if self._cluster is not None:
+                self._client.run(_ignore_interrupt)
+        except BaseException:
+            self.close()
+            raise
+        self.workers_lost = 0
 
     @property
     def pids(self) -> list[int]:
-        return [p.pid for p, _ in self._workers if p.pid is not None]
+        """The local cluster's worker processes (none for a remote cluster)."""
+        if self._cluster is None:
+            return []
+        return [int(w.process.pid) for w in self._cluster.workers.values()
+                if getattr(w, "process", None) is not None and w.process.pid is not None]
 
     def run(self, tasks: Sequence[tuple[Any, ...]], on_result: Callable[[int, Any], None],
             should_stop: Callable[[], bool] = lambda: False) -> bool:
-        """Run every task (index i of ``tasks``); ``on_result(i, result)`` in the parent as each ends. Returns
-        True when stopped by ``should_stop`` before all ended. The first error ends the pool and is raised."""
-        todo = list(range(len(tasks)))
-        busy: dict[int, int] = {}  # worker index -> task index
-        while todo or busy:
-            if should_stop():
-                return True
-            for w, (_proc, conn) in enumerate(self._workers):
-                if w not in busy and todo:
-                    i = todo.pop(0)
-                    try:
-                        conn.send(tasks[i])
-                    except OSError:  # the worker is gone (killed from outside)
-                        raise WorkerDiedError(self._died(w, i)) from None
-                    busy[w] = i
-            conns: dict[Any, int] = {self._workers[w][1]: w for w in busy}
-            sentinels: dict[Any, int] = {self._workers[w][0].sentinel: w for w in busy}
-            ready = wait([*conns, *sentinels], timeout=POLL_S)
-            for obj in ready:
-                r = conns.get(obj)
-                if r is None or r not in busy:
+        """Run every task (index i of ``tasks``, submitted in order); ``on_result(i, result)`` in the parent as
+        each ends. Returns True when stopped by ``should_stop`` before all ended. The first error is raised."""
+        run_id = uuid.uuid4().hex[:8]
+        pending = {self._client.submit(_answer, self._fn, *task, pure=False, key=f"visit-{i:04d}-{run_id}"): i
+                   for i, task in enumerate(tasks)}
+        seen = set(self._client.scheduler_info()["workers"])
+        next_look = time.monotonic() + 0.5
+        try:
+            while pending:
+                if should_stop():
+                    return True
+                done = sorted((f for f in pending if f.done()), key=pending.__getitem__)
+                if time.monotonic() >= next_look:
+                    next_look = time.monotonic() + 0.5
+                    seen = self._look_for_lost(seen)
+                if not done:
+                    time.sleep(min(0.05, POLL_S))
                     continue
-                try:
-                    answer = self._workers[r][1].recv()
-                except (EOFError, OSError):
-                    raise WorkerDiedError(self._died(r, busy[r])) from None
-                i = busy.pop(r)
-                if answer[0] != "ok":
-                    _raise_for(answer[1], answer[2])
-                on_result(i, answer[1])
-            for obj in ready:
-                s = sentinels.get(obj)
-                if s is not None and s in busy and not self._workers[s][1].poll():
-                    raise WorkerDiedError(self._died(s, busy[s]))
+                for fut in done:
+                    i = pending.pop(fut)
+                    try:
+                        answer = fut.result()
+                    except Exception as exc:  # KilledWorker: its worker died on every try
+                        raise WorkerDiedError(f"visit {i + 1}: its worker process ended without an answer on every "
+                                              f"try ({type(exc).__name__}: {exc}; out of memory, or killed from "
+                                              "outside?)") from None
+                    if answer[0] != "ok":
+                        _raise_for(answer[1], answer[2])
+                    on_result(i, answer[1])
+        finally:
+            for fut in pending:
+                fut.cancel()
         return False
 
-    def _died(self, w: int, task: int) -> str:
-        proc = self._workers[w][0]
-        proc.join(1.0)
-        code = proc.exitcode
-        how = f"killed by signal {-code}" if code is not None and code < 0 else f"exit code {code}"
-        return (f"the worker process running task {task + 1} (pid {proc.pid}) ended without an answer ({how}; "
-                "out of memory, or killed from outside?)")
+    def _look_for_lost(self, seen: set[str]) -> set[str]:
+        now = set(self._client.scheduler_info()["workers"])
+        lost = len(seen - now)
+        if lost:
+            self.workers_lost += lost
+            print(f"shm run: {self.workers_lost} worker(s) lost — the visit(s) they were running run again",
+                  file=sys.stderr, flush=True)
+        return now
 
     def close(self) -> None:
-        """Stop every worker (asked to end, terminated if busy, killed if it does not go) and join them."""
-        for proc, conn in self._workers:
-            with contextlib.suppress(OSError, ValueError):
-                if proc.is_alive():
-                    proc.terminate()
-            with contextlib.suppress(OSError):
-                conn.close()
-        for proc, _ in self._workers:
-            proc.join(TERMINATE_GRACE_S)
-            if proc.is_alive():
-                proc.kill()
-                proc.join(TERMINATE_GRACE_S)
-        self._workers.clear()
+        """Close the client and the local cluster; a worker process still alive after the grace time is killed."""
+        pids = self.pids
+        with contextlib.suppress(Exception):
+            self._client.close(timeout=TERMINATE_GRACE_S)
+        if self._cluster is not None:
+            with contextlib.suppress(Exception):
+                self._cluster.close(timeout=TERMINATE_GRACE_S)
+            for pid in pids:
+                if _still_my_child(pid):  # never a pid the system gave to another process since
+                    with contextlib.suppress(ProcessLookupError, PermissionError):
+                        os.kill(pid, signal.SIGKILL)
+                    with contextlib.suppress(ChildProcessError, OSError):
+                        os.waitpid(pid, 0)
 
     def __enter__(self) -> LifePool:
         return self

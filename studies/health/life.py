@@ -160,9 +160,10 @@ def plan_life(scenario: Scenario) -> list[tuple[int, float, dict[str, float]]]:
 
 def run_life(scenario: Scenario, *, seed: int, params: str, workers: int | None = None,
              board_config: str | None = None, on_visit: Callable[[VisitRun], None] | None = None,
-             should_stop: Callable[[], bool] = lambda: False) -> LifeResult:
-    """Every visit of the scenario's life (default min(CPU count, visits) worker processes,
-    :class:`studies.board_run.life_pool.LifePool`; ``workers=1``: in this process). ``on_visit`` sees the visits
+             should_stop: Callable[[], bool] = lambda: False, scheduler: str | None = None) -> LifeResult:
+    """Every visit of the scenario's life on Dask (default a local cluster of min(CPU count, visits) worker
+    processes, or the cluster at ``scheduler``: :class:`studies.board_run.life_pool.LifePool`; ``workers=1``
+    without a ``scheduler``, or ``scheduler="synchronous"``: in this process). ``on_visit`` sees the visits
     in visit order. When ``should_stop()`` turns true, no new visit starts, the workers are stopped and the result
     holds the visits finished by then (``interrupted``)."""
     from studies.board_run.life_pool import LifePool
@@ -182,14 +183,14 @@ def run_life(scenario: Scenario, *, seed: int, params: str, workers: int | None 
             shown[0] += 1
 
     stopped = False
-    if n_workers <= 1:
+    if scheduler == "synchronous" or (n_workers <= 1 and scheduler in (None, "", "local")):
         for i, a in enumerate(args):
             if should_stop():
                 stopped = True
                 break
             finished(i, run_visit(*a))
     else:
-        with LifePool(run_visit, min(n_workers, len(args))) as pool:
+        with LifePool(run_visit, min(n_workers, len(args)), scheduler) as pool:
             stopped = pool.run(args, finished, should_stop)
     for i in sorted(done):  # finished after a gap (a stop): shown too
         if i >= shown[0] and on_visit:
