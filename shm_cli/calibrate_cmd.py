@@ -7,9 +7,15 @@ import argparse
 import sys
 import tomllib
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from board_config.errors import InputError
 from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir, output_file_arg
+from shm_cli.output_guard import add_force_arg, check_foreign_run, locked_out
+
+if TYPE_CHECKING:
+    from board_config import ParameterSet
+    from workbench.calibrate import ClaimTarget
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -29,6 +35,7 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="write the calibrated parameter set here")
     p.add_argument("--json", action="store_true", help="print the result table as JSON")
     add_out_arg(p)
+    add_force_arg(p, "another command's finished run in --out (its report is rewritten)")
     p.set_defaults(func=cmd_calibrate)
 
 
@@ -36,7 +43,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from board_config import load_parameter_set
     from plant import PlantModel
     from plant.linear import static_tip_gain_closed_form
-    from workbench.calibrate import CLAIMS_FILE, DEFAULT_FREE, calibrate, load_claim_targets
+    from workbench.calibrate import CLAIMS_FILE, load_claim_targets
 
     if not args.name.strip():
         raise InputError("--name is empty: the saved parameter set needs a name")
@@ -55,7 +62,17 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise InputError(f"--claims {claims}: missing key {exc} (layout: the shipped paper_claims.toml)") from None
     except (TypeError, ValueError) as exc:
         raise InputError(f"--claims {claims}: a claim is not a number: {exc}") from None
+    check_foreign_run(Path(args.out), "calibration.json", args.force)  # another command's results stay
     out = out_dir(args.out)
+    with locked_out(out, "calibrate"):  # one command per --out at a time
+        return _calibrate_locked(args, base, claims, targets, out)
+
+
+def _calibrate_locked(args: argparse.Namespace, base: ParameterSet, claims: Path, targets: list[ClaimTarget],
+                      out: Path) -> int:
+    """Calibrate into ``out`` (its lock held): the saved set and calibration.json first, then the figure."""
+    from workbench.calibrate import DEFAULT_FREE, calibrate
+
     (out / "calibration.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
 
     def progress(i: int, cost: float) -> None:

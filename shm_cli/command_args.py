@@ -36,3 +36,12 @@ def add_holdout_args(p: argparse.ArgumentParser, rate_use: str = "") -> None:
                    help="blocks per record for --holdout blocks (even, default 10)")
     p.add_argument("--max-rate-hz", type=float, default=250.0,
                    help=f"sub-sample records to at most this rate{rate_use} (default 250 Hz)")
+
+
+def add_command_group(sub: argparse._SubParsersAction, name: str, summary: str,
+                      description: str) -> argparse._SubParsersAction:
+    """A command with sub-commands (``shm NAME SUBCOMMAND``, one of them required): the parser of ``name`` as
+    :func:`add_command` makes it, and the action its sub-commands are added to (their choice in ``NAME_command``)."""
+    group = add_command(sub, name, summary, description).add_subparsers(dest=f"{name}_command", metavar="SUBCOMMAND")
+    group.required = True
+    return group

@@ -16,9 +16,9 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Mapping
 from typing import TYPE_CHECKING, Any
 
+from shm_cli.command_args import add_command_group
 from shm_cli.common import dump_json
 
 if TYPE_CHECKING:
@@ -26,11 +26,9 @@ if TYPE_CHECKING:
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("effects", help="list the physical effects, or show one: parameters, units, neutral values, "
-                                       "fit ranges, what it models",
-                       description="The physical effects the plant is composed of (docs/effects.md).")
-    esub = p.add_subparsers(dest="effects_command", metavar="SUBCOMMAND")
-    esub.required = True
+    esub = add_command_group(
+        sub, "effects", "list the physical effects, or show one: parameters, units, neutral values, fit ranges, what "
+        "it models", "The physical effects the plant is composed of (docs/effects.md).")
     pl = esub.add_parser("list", help="the library effects (--all: also the core effects and terminals)")
     pl.add_argument("--all", action="store_true", help="also the core effects of the nominal model and the terminals")
     pl.add_argument("--json", action="store_true", help="print the list as one JSON document")
@@ -59,14 +57,12 @@ def _parameter(cls: type[PhysicalEffect], par: Any, fitted: set[str]) -> dict[st
         return {"name": par.name, "kind": "core (Table 2, from the parameter set)", "unit": par.unit,
                 "default": par.default, "lower": _number(par.lower), "upper": _number(par.upper),
                 "neutral": None, "fit": None, "fitted_by_default": False, "description": par.description}
-    table = getattr(cls, "neutral", None)
-    neutral = (table if isinstance(table, Mapping) else {}).get(par.name, par.neutral)
-    declared = {**(getattr(cls, "extra_ranges", None) or {}), **(getattr(cls, "fit_ranges", None) or {})}
+    neutral = par.neutral
     freed = effect_free_parameters(cls, [par.name])[0]
     scale = "log" if freed.fit_range.log else ("symlog" if freed.fit_range.linthresh else "linear")
     fit = {"lower": freed.lower, "upper": freed.upper, "scale": scale,
            "linthresh": freed.fit_range.linthresh,
-           "source": "declared by the effect" if par.name in declared or par.fit is not None else
+           "source": "declared by the effect" if par.fit is not None else
            "derived from the bounds"}
     return {"name": par.name, "kind": "own", "unit": par.unit, "default": par.default, "lower": _number(par.lower),
             "upper": _number(par.upper), "neutral": None if neutral is None else float(neutral), "fit": fit,

@@ -12,11 +12,14 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from board_config.errors import InputError
 from shm_cli.command_args import add_command
 from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir
+from shm_cli.output_guard import add_force_arg, check_foreign_run, locked_out
 
 #: the paper's claim, full recharge from 2 V within 10 minutes (= studies.harvest.PAPER_CLAIM_S; kept here so that
 #: building the parser does not import the plant)
@@ -56,6 +59,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     p.add_argument("--no-projection", action="store_true", help="do not project the time to full")
     p.add_argument("--json", action="store_true", help="print the summary as JSON on stdout")
     add_out_arg(p)
+    add_force_arg(p, "another command's finished run in --out (its report is rewritten)")
     p.set_defaults(func=cmd_harvest)
 
 
@@ -82,19 +86,48 @@ def _setup_from_args(args: argparse.Namespace):
 
 def cmd_harvest(args: argparse.Namespace) -> int:
     from board_config import load_parameter_set
-    from studies.harvest import run_harvest
-    from studies.harvest.figures import plot_charge_curve
-    from studies.harvest.outputs import format_duration, verdict, write_outputs
 
     setup = _setup_from_args(args)
     load_parameter_set(args.params)  # a bad set fails here, before any output
+    check_foreign_run(Path(args.out), "harvest_summary.json", args.force)  # another command's results stay
     out = out_dir(args.out)
+    with locked_out(out, "harvest"):  # one command per --out at a time
+        return _harvest_locked(args, setup, out)
+
+
+def _harvest_locked(args: argparse.Namespace, setup: Any, out: Path) -> int:
+    """Run the harvest into ``out`` (its lock held): the numbers first, then the figure; the exit code."""
+    from studies.harvest import run_harvest
+
     (out / "harvest_summary.json").unlink(missing_ok=True)  # an earlier one must not outlive a failure
+    bars: list[Any] = []  # created at the first report, once the model is built
+    try:
+        run = run_harvest(setup, progress=_progress_bar(setup, bars), project=not args.no_projection)
+    except FloatingPointError as exc:
+        print(f"shm: harvest failed: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        for bar in bars:
+            bar.close()
+    summary, deco = _write_results(args, run, out)
+    if args.json:
+        print(dump_json(summary))
+    else:
+        _print_summary(setup, run, summary, out)
+    if setup.coupling == "coupled" and not run.audit.closes():
+        print(f"shm: the coupled energy books do not close: residual {run.audit.relative_residual:+.3%} of sources",
+              file=sys.stderr)
+        return 1
+    return 0 if deco.ok else 1
+
+
+def _progress_bar(setup: Any, bars: list[Any]) -> Callable[[float, float, float], None]:
+    """The harvest's progress callback: a tqdm bar on stderr (appended to ``bars`` at the first report), shown on a
+    terminal or for a run of a simulated minute or more."""
     from tqdm import tqdm
 
     tty = sys.stderr.isatty()
     show = tty or setup.duration >= 60.0
-    bars: list[Any] = []  # created at the first report, once the model is built
     last = [0.0]
 
     def progress(t_done: float, t_total: float, soc: float) -> None:
@@ -108,15 +141,14 @@ def cmd_harvest(args: argparse.Namespace) -> int:
         last[0] = t_done
         bars[0].set_postfix_str(f"SoC {soc:.4f}", refresh=False)
 
-    try:
-        run = run_harvest(setup, progress=progress, project=not args.no_projection)
-    except FloatingPointError as exc:
-        print(f"shm: harvest failed: {exc}", file=sys.stderr)
-        return 1
-    finally:
-        for bar in bars:
-            bar.close()
-    # the numbers first (CSV, harvest_summary.json), then the figure: a plotting failure never loses them
+    return progress
+
+
+def _write_results(args: argparse.Namespace, run: Any, out: Path) -> tuple[dict[str, Any], Decorations]:
+    """The numbers (CSV, harvest_summary.json), then the figure: a plotting failure never loses them."""
+    from studies.harvest.figures import plot_charge_curve
+    from studies.harvest.outputs import verdict, write_outputs
+
     files = write_outputs(run, out)
     summary = run.summary()
     summary["verdict"] = verdict(run)
@@ -129,44 +161,42 @@ def cmd_harvest(args: argparse.Namespace) -> int:
     else:
         summary["failed"] = deco.failed
     (out / "harvest_summary.json").write_text(dump_json(summary))
-    closes = run.audit.closes()
-    if args.json:
-        print(dump_json(summary))
-    else:
-        print(f"parameter set {summary['parameter_set']}, coupling {setup.coupling} "
-              f"({setup.terminal()}), cell {run.battery['name']}")
-        print(f"simulated {run.t_end:.1f} s in {run.wall_s:.1f} s wall ({run.n_steps} steps)")
-        print(f"cell: {run.v_bat[0]:.4f} V -> {run.v_bat[-1]:.4f} V, SoC {run.soc[0]:.4f} -> {run.soc[-1]:.4f}, "
-              f"charge gained {run.q_d_start - run.q_d_end:.4g} C")
-        print(f"patch terminal voltage peak {summary['stored_voltage_peak_V']:.4g} V "
-              f"({summary['stored_gain_V_per_g']:.4g} V/g), tip peak {summary['tip_peak_m'] * 1e3:.3g} mm")
-        print(verdict(run))
-        if run.q_below_cutoff > 0:
-            print(f"WARNING: {run.q_below_cutoff:.4g} C drawn below the cut-off voltage")
-        w = summary["what_it_would_take"]
-        print(f"\nwhat a full recharge within {w['target_s']:g} s would take: {w['energy_to_full_J']:.4g} J into the "
-              f"cell = {w['required_mean_cell_power_W']:.3g} W on average; this run's base power in is "
-              f"{w['measured_mean_base_power_W']:.3g} W ({w['required_over_base_power']:.3g} x short)")
-        eff = w["harvest_efficiency_cell_over_base"]
-        at_eff = ("" if math.isnan(eff) else
-                  f"; at this run's efficiency ({eff:.3g}): {w['accel_for_required_power_g']:.3g} g")
-        print(f"  even harvesting all the base power: {w['accel_if_all_base_power_harvested_g']:.3g} g at "
-              f"{setup.freq:g} Hz{at_eff}")
-        print(f"  Eq. 8 (unloaded patches) needs an open-circuit amplitude of {w['eq8_required_amplitude_V']:.4g} V "
-              f"({w['eq8_required_gain_V_per_g']:.4g} V/g; this run: {w['measured_gain_V_per_g']:.3g} V/g); with the "
-              f"paper's {w['paper_gain_V_per_g']:g} V/g it takes {format_duration(w['eq8_time_at_paper_gain_s'])}")
-        print()
-        print(run.audit.table())
-        if setup.coupling == "paper" and run.audit.energy_from_nowhere_J > 0:
-            src = max(run.audit.row("base excitation power in (relative frame)").energy_J, 1e-300)
-            print(f"\nEq. 8 took {run.audit.energy_from_nowhere_J:.4g} J from patches that never delivered it "
-                  f"({run.audit.energy_from_nowhere_J / src:.3g} x the base energy in)")
-        print(f"\nresults in {out}/")
-    if setup.coupling == "coupled" and not closes:
-        print(f"shm: the coupled energy books do not close: residual {run.audit.relative_residual:+.3%} of sources",
-              file=sys.stderr)
-        return 1
-    return 0 if deco.ok else 1
+    return summary, deco
+
+
+def _print_summary(setup: Any, run: Any, summary: dict[str, Any], out: Path) -> None:
+    """The text report on stdout: the run, the cell, the verdict, what a full recharge would take, the audit."""
+    from studies.harvest.outputs import format_duration, verdict
+
+    print(f"parameter set {summary['parameter_set']}, coupling {setup.coupling} "
+          f"({setup.terminal()}), cell {run.battery['name']}")
+    print(f"simulated {run.t_end:.1f} s in {run.wall_s:.1f} s wall ({run.n_steps} steps)")
+    print(f"cell: {run.v_bat[0]:.4f} V -> {run.v_bat[-1]:.4f} V, SoC {run.soc[0]:.4f} -> {run.soc[-1]:.4f}, "
+          f"charge gained {run.q_d_start - run.q_d_end:.4g} C")
+    print(f"patch terminal voltage peak {summary['stored_voltage_peak_V']:.4g} V "
+          f"({summary['stored_gain_V_per_g']:.4g} V/g), tip peak {summary['tip_peak_m'] * 1e3:.3g} mm")
+    print(verdict(run))
+    if run.q_below_cutoff > 0:
+        print(f"WARNING: {run.q_below_cutoff:.4g} C drawn below the cut-off voltage")
+    w = summary["what_it_would_take"]
+    print(f"\nwhat a full recharge within {w['target_s']:g} s would take: {w['energy_to_full_J']:.4g} J into the "
+          f"cell = {w['required_mean_cell_power_W']:.3g} W on average; this run's base power in is "
+          f"{w['measured_mean_base_power_W']:.3g} W ({w['required_over_base_power']:.3g} x short)")
+    eff = w["harvest_efficiency_cell_over_base"]
+    at_eff = ("" if math.isnan(eff) else
+              f"; at this run's efficiency ({eff:.3g}): {w['accel_for_required_power_g']:.3g} g")
+    print(f"  even harvesting all the base power: {w['accel_if_all_base_power_harvested_g']:.3g} g at "
+          f"{setup.freq:g} Hz{at_eff}")
+    print(f"  Eq. 8 (unloaded patches) needs an open-circuit amplitude of {w['eq8_required_amplitude_V']:.4g} V "
+          f"({w['eq8_required_gain_V_per_g']:.4g} V/g; this run: {w['measured_gain_V_per_g']:.3g} V/g); with the "
+          f"paper's {w['paper_gain_V_per_g']:g} V/g it takes {format_duration(w['eq8_time_at_paper_gain_s'])}")
+    print()
+    print(run.audit.table())
+    if setup.coupling == "paper" and run.audit.energy_from_nowhere_J > 0:
+        src = max(run.audit.row("base excitation power in (relative frame)").energy_J, 1e-300)
+        print(f"\nEq. 8 took {run.audit.energy_from_nowhere_J:.4g} J from patches that never delivered it "
+              f"({run.audit.energy_from_nowhere_J / src:.3g} x the base energy in)")
+    print(f"\nresults in {out}/")
 
 
 __all__ = ["cmd_harvest", "register"]

@@ -21,14 +21,13 @@ import sys
 from pathlib import Path
 from typing import TextIO
 
+from shm_cli.command_args import add_command_group
 from shm_cli.common import nonnegative_int, out_dir, output_file_arg, positive_int
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("log", help="show or export the board's SQLite usage/event log",
-                       description="Read the usage/event log written by `shm run` (schema in docs/board.md).")
-    lsub = p.add_subparsers(dest="log_command", metavar="SUBCOMMAND")
-    lsub.required = True
+    lsub = add_command_group(sub, "log", "show or export the board's SQLite usage/event log",
+                             "Read the usage/event log written by `shm run` (schema in docs/board.md).")
     ps = lsub.add_parser("show", help="print the runs and a run's records as a timeline")
     _common(ps)
     ps.add_argument("--limit", type=nonnegative_int, default=0, help="print at most this many records (0 = all)")

@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import sys
+from collections.abc import Callable, Iterator
 from pathlib import Path
 
 import numpy as np
 
 from board_config.errors import InputError
 from board_config.physical_constants import G0
+from shm_cli.command_args import add_command_group
 from shm_cli.common import (
     add_out_arg,
     add_params_arg,
@@ -20,6 +23,7 @@ from shm_cli.common import (
     positive_float,
     write_csv,
 )
+from shm_cli.output_guard import add_force_arg, check_foreign_run, locked_out
 
 #: largest differential amplitude the patches can be driven at within Table 1's -500 ... 1500 V per channel (the
 #: channels at common mode 500 V +- 1000 V); the model commands drive v_ch1 = +A, v_ch2 = -A
@@ -31,11 +35,9 @@ BYTES_PER_SAMPLE = 400
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser("model", help="plant model: modes, frequency responses, step and hysteresis-loop responses",
-                       description="Inspect the plant model of a parameter set.")
-    msub = p.add_subparsers(dest="model_command", metavar="SUBCOMMAND")
-    msub.required = True
-
+    msub = add_command_group(
+        sub, "model", "plant model: modes, frequency responses, step and hysteresis-loop responses",
+        "Inspect the plant model of a parameter set.")
     pi = msub.add_parser("info", help="modes, damping, RC pole, static gain, harvesting gains")
     add_params_arg(pi)
     pi.add_argument("--json", action="store_true", help="print the summary as JSON")
@@ -46,25 +48,43 @@ def register(sub: argparse._SubParsersAction) -> None:
     pf.add_argument("--f-min-hz", type=positive_float, default=0.1)
     pf.add_argument("--f-max-hz", type=positive_float, default=200.0)
     pf.add_argument("--points", type=number_in_range(2, 10_000_000, integer=True), default=2000)
-    add_out_arg(pf)
-    pf.set_defaults(func=cmd_frf)
+    _add_out_args(pf, cmd_frf)
 
-    ps = msub.add_parser("step", help="nonlinear step response (Fig. 7b)")
-    add_params_arg(ps)
-    ps.add_argument("--amplitude-v", type=DIFFERENTIAL_AMPLITUDE, default=300.0,
-                    help=f"differential step amplitude (V, |A| <= {MAX_DIFFERENTIAL_V:g})")
+    ps = _time_response_parser(msub, "step", "nonlinear step response (Fig. 7b)", 300.0, "step")
     ps.add_argument("--duration-s", type=positive_float, default=2.0)
-    add_out_arg(ps)
-    ps.set_defaults(func=cmd_step)
+    _add_out_args(ps, cmd_step)
 
-    pl = msub.add_parser("loop", help="quasi-static hysteresis loop (Fig. 7a)")
-    add_params_arg(pl)
-    pl.add_argument("--amplitude-v", type=DIFFERENTIAL_AMPLITUDE, default=600.0,
-                    help=f"differential sine amplitude (V, |A| <= {MAX_DIFFERENTIAL_V:g})")
+    pl = _time_response_parser(msub, "loop", "quasi-static hysteresis loop (Fig. 7a)", 600.0, "sine")
     pl.add_argument("--freq-hz", type=positive_float, default=0.01)
     pl.add_argument("--cycles", type=positive_float, default=1.25)
-    add_out_arg(pl)
-    pl.set_defaults(func=cmd_loop)
+    _add_out_args(pl, cmd_loop)
+
+
+def _time_response_parser(msub: argparse._SubParsersAction, name: str, summary: str, amplitude_v: float,
+                          drive: str) -> argparse.ArgumentParser:
+    """A time-response sub-command (step, loop): its parameter set and differential drive amplitude (V)."""
+    p: argparse.ArgumentParser = msub.add_parser(name, help=summary)
+    add_params_arg(p)
+    p.add_argument("--amplitude-v", type=DIFFERENTIAL_AMPLITUDE, default=amplitude_v,
+                   help=f"differential {drive} amplitude (V, |A| <= {MAX_DIFFERENTIAL_V:g})")
+    return p
+
+
+def _add_out_args(p: argparse.ArgumentParser, func: Callable[[argparse.Namespace], int]) -> None:
+    """``--out`` and ``--force`` of a sub-command that writes files, and its handler."""
+    add_out_arg(p)
+    add_force_arg(p, "another command's finished run in --out (its report is rewritten)")
+    p.set_defaults(func=func)
+
+
+@contextlib.contextmanager
+def _model_out(args: argparse.Namespace) -> Iterator[Path]:
+    """The ``--out`` folder, created and locked while the block writes into it (one command per folder at a time);
+    a folder holding another command's finished run is refused without ``--force`` (exit 2, nothing written)."""
+    check_foreign_run(Path(args.out), "", args.force)
+    out = out_dir(args.out)
+    with locked_out(out, "model"):
+        yield out
 
 
 def model_summary(params: str) -> dict:
@@ -145,23 +165,23 @@ def cmd_frf(args: argparse.Namespace) -> int:
     if args.points < 2:
         raise InputError(f"--points must be at least 2, got {args.points}")
     check_memory(f"--points {args.points}", args.points * 128.0, hint="use fewer --points")
-    out = out_dir(args.out)
-    model = PlantModel(args.params)
-    lin = linearise(model)
-    lin_oc = linearise(PlantModel(model.params, terminal="open_circuit"))
-    f = np.logspace(np.log10(args.f_min_hz), np.log10(args.f_max_hz), args.points)
-    h_z = lin.frf(f, "z3", "va")
-    h_v = lin_oc.frf(f, "v_stored", "z0dd") * G0
-    write_csv(out / "frf_z3_per_va.csv", {"frequency_Hz": f, "amplitude_m_per_V": np.abs(h_z),
-                                          "phase_deg": np.degrees(np.unwrap(np.angle(h_z)))})
-    write_csv(out / "frf_vstored_per_accel.csv", {"frequency_Hz": f, "amplitude_V_per_g": np.abs(h_v),
-                                                  "phase_deg": np.degrees(np.unwrap(np.angle(h_v)))})
-    from workbench.model_figures import FRF_FIGURES, bode_figure
+    with _model_out(args) as out:
+        model = PlantModel(args.params)
+        lin = linearise(model)
+        lin_oc = linearise(PlantModel(model.params, terminal="open_circuit"))
+        f = np.logspace(np.log10(args.f_min_hz), np.log10(args.f_max_hz), args.points)
+        h_z = lin.frf(f, "z3", "va")
+        h_v = lin_oc.frf(f, "v_stored", "z0dd") * G0
+        write_csv(out / "frf_z3_per_va.csv", {"frequency_Hz": f, "amplitude_m_per_V": np.abs(h_z),
+                                              "phase_deg": np.degrees(np.unwrap(np.angle(h_z)))})
+        write_csv(out / "frf_vstored_per_accel.csv", {"frequency_Hz": f, "amplitude_V_per_g": np.abs(h_v),
+                                                      "phase_deg": np.degrees(np.unwrap(np.angle(h_v)))})
+        from workbench.model_figures import FRF_FIGURES, bode_figure
 
-    for name, h in (("frf_z3_per_va", h_z * 1e6), ("frf_vstored_per_accel", h_v)):
-        ylabel, title = FRF_FIGURES[name]
-        bode_figure(out / f"{name}.png", f, h, ylabel, f"{title} — {model.params.name}")
-    print(f"wrote {out}/frf_z3_per_va.(csv|png) and {out}/frf_vstored_per_accel.(csv|png)")
+        for name, h in (("frf_z3_per_va", h_z * 1e6), ("frf_vstored_per_accel", h_v)):
+            ylabel, title = FRF_FIGURES[name]
+            bode_figure(out / f"{name}.png", f, h, ylabel, f"{title} — {model.params.name}")
+        print(f"wrote {out}/frf_z3_per_va.(csv|png) and {out}/frf_vstored_per_accel.(csv|png)")
     return 0
 
 
@@ -179,12 +199,12 @@ def cmd_step(args: argparse.Namespace) -> int:
         raise InputError(f"--duration-s must be above 0.1 s (the step is applied at 0.1 s), got {args.duration_s}")
     check_memory(f"--duration-s {args.duration_s:g} ({args.duration_s / 1e-3:.3g} output samples)",
                  args.duration_s / 1e-3 * BYTES_PER_SAMPLE, hint="use a shorter --duration-s")
-    out = out_dir(args.out)
-    model = PlantModel(args.params)
-    resp = step_response(model, args.amplitude_v, args.duration_s)
-    write_csv(out / "step.csv", resp.columns())
-    _plot_time(out, "step", resp, False, f"Step response, {resp.label} — {model.params.name} (cf. Fig. 7b)")
-    print(f"final z3 {resp.z3[-1] * 1e3:.4f} mm; wrote {out}/step.csv and step.png", file=sys.stdout)
+    with _model_out(args) as out:
+        model = PlantModel(args.params)
+        resp = step_response(model, args.amplitude_v, args.duration_s)
+        write_csv(out / "step.csv", resp.columns())
+        _plot_time(out, "step", resp, False, f"Step response, {resp.label} — {model.params.name} (cf. Fig. 7b)")
+        print(f"final z3 {resp.z3[-1] * 1e3:.4f} mm; wrote {out}/step.csv and step.png", file=sys.stdout)
     return 0
 
 
@@ -197,10 +217,10 @@ def cmd_loop(args: argparse.Namespace) -> int:
     n = args.cycles / args.freq_hz / min(1e-2, 1.0 / (args.freq_hz * 2000))
     check_memory(f"--cycles {args.cycles:g} at --freq-hz {args.freq_hz:g} ({n:.3g} input samples)",
                  n * BYTES_PER_SAMPLE, hint="use fewer --cycles")
-    out = out_dir(args.out)
-    model = PlantModel(args.params)
-    resp = hysteresis_loop(model, args.amplitude_v, args.freq_hz, args.cycles)
-    write_csv(out / "loop.csv", resp.columns())
-    _plot_time(out, "loop", resp, True, f"Hysteresis loop, {resp.label} — {model.params.name} (cf. Fig. 7a)")
-    print(f"z3 range {resp.z3.min() * 1e3:.4f} .. {resp.z3.max() * 1e3:.4f} mm; wrote {out}/loop.csv and loop.png")
+    with _model_out(args) as out:
+        model = PlantModel(args.params)
+        resp = hysteresis_loop(model, args.amplitude_v, args.freq_hz, args.cycles)
+        write_csv(out / "loop.csv", resp.columns())
+        _plot_time(out, "loop", resp, True, f"Hysteresis loop, {resp.label} — {model.params.name} (cf. Fig. 7a)")
+        print(f"z3 range {resp.z3.min() * 1e3:.4f} .. {resp.z3.max() * 1e3:.4f} mm; wrote {out}/loop.csv and loop.png")
     return 0
