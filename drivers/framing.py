@@ -248,7 +248,7 @@ def decode_pong(frame: Frame) -> int:
     """The rig's protocol version from a PONG frame."""
     _expect(frame, MessageType.PONG, PONG_PAYLOAD.size)
     version, _max_payload = PONG_PAYLOAD.unpack(frame.payload)
-    return version
+    return int(version)
 
 
 def encode_nak(seq: int, rejected_type: int, reason: NakReason) -> bytes:

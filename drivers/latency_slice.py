@@ -24,6 +24,7 @@ import math
 import os
 import platform
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from board_config.errors import InputError
@@ -68,14 +69,19 @@ def check_slice_ms(value: float) -> float:
     return value / 1e3
 
 
-def _libc_syscall():
+#: ``syscall(2)`` from the C library: (number, *arguments) -> result (-1 with errno on failure)
+_Syscall = Callable[..., int]
+
+
+def _libc_syscall() -> _Syscall:
     libc = ctypes.CDLL(None, use_errno=True)
     fn = libc.syscall
     fn.restype = ctypes.c_long
-    return fn
+    syscall: _Syscall = fn
+    return syscall
 
 
-def _getattr(syscall, nr: int, tid: int) -> _SchedAttr | None:
+def _getattr(syscall: _Syscall, nr: int, tid: int) -> _SchedAttr | None:
     attr = _SchedAttr()
     if syscall(nr, tid, ctypes.byref(attr), ctypes.c_uint(ctypes.sizeof(_SchedAttr)), ctypes.c_uint(0)) != 0:
         return None

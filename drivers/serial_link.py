@@ -36,6 +36,7 @@ from board_config.errors import InputError
 from board_config.url_options import UrlOptions, split_url_query
 from drivers.framing import (
     PROTOCOL_VERSION,
+    Frame,
     FrameDecoder,
     FramingError,
     MessageType,
@@ -191,7 +192,7 @@ class SerialLink(ReconnectingLink):
         assert last is not None
         raise last
 
-    def _transact(self, frame: bytes, request: MessageType, seq: int, timeout: float | None = None):
+    def _transact(self, frame: bytes, request: MessageType, seq: int, timeout: float | None = None) -> Frame:
         self._ensure_up()
         port = self._port
         assert port is not None

@@ -87,7 +87,7 @@ class InProcessLink:
         """The rig's quiet span (:mod:`drivers.quiet_span`) for the next exchanges, if it offers them: never while
         the link is closed, a failure is injected, the rig advances by another step than one tick, or a subclass
         overrides :meth:`exchange` without overriding this too."""
-        peek = getattr(self.rig, "peek_quiet", None)
+        peek: Callable[[ActuatorCommand, int, float], QuietSpan | None] | None = getattr(self.rig, "peek_quiet", None)
         if peek is None or not self._open or self._fail_next > 0:
             return None
         cls = type(self)

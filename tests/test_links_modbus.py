@@ -215,7 +215,7 @@ def test_rtu_late_reply_arriving_with_the_real_one_costs_nothing():
 
     from pymodbus.framer.rtu import FramerRTU
 
-    from drivers.modbus_link import _RtuClient
+    from drivers.modbus_rtu_client import RtuClient
 
     def frame(*body: int) -> bytes:
         b = bytes(body)
@@ -223,7 +223,7 @@ def test_rtu_late_reply_arriving_with_the_real_one_costs_nothing():
 
     master, slave = os.openpty()
     stats: Counter[str] = Counter()
-    c = _RtuClient(os.ttyname(slave), framer=FramerType.RTU, baudrate=115200, timeout=0.5, retries=0, stats=stats)
+    c = RtuClient(os.ttyname(slave), framer=FramerType.RTU, baudrate=115200, timeout=0.5, retries=0, stats=stats)
     late = frame(1, 0x04, 44, *([0] * 44))
     ack = frame(1, 0x10, 0, 0, 0, 8)
 

@@ -1,4 +1,4 @@
-"""The board's RTU receive (drivers.modbus_link._RtuTransaction) at its deadline, on a real pty."""
+"""The board's RTU receive (drivers.modbus_rtu_client.RtuTransaction) at its deadline, on a real pty."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import pytest
 from pymodbus.framer import FramerType
 from pymodbus.framer.rtu import FramerRTU
 
-from drivers.modbus_link import _RtuClient
+from drivers.modbus_rtu_client import RtuClient
 from hil_stub.pty_port import PtyPort
 
 
@@ -23,7 +23,7 @@ def _fc04_reply(unit: int, registers: list[int]) -> bytes:
 def client(tmp_path):
     pty = PtyPort(tmp_path / "board")
     pty.open()
-    c = _RtuClient(str(pty.link), framer=FramerType.RTU, baudrate=115200, timeout=0.5, retries=0, stats=Counter())
+    c = RtuClient(str(pty.link), framer=FramerType.RTU, baudrate=115200, timeout=0.5, retries=0, stats=Counter())
     assert c.connect()
     yield c, pty
     c.close()
