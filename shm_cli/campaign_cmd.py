@@ -19,6 +19,7 @@ from __future__ import annotations
 import argparse
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -35,6 +36,12 @@ from shm_cli.common import (
     positive_float,
     seed_int,
 )
+
+if TYPE_CHECKING:
+    from studies.campaign.results import CampaignResult
+    from studies.campaign.roc import RocTable
+    from studies.campaign.runner import CampaignOutcome
+    from studies.campaign.spec import CampaignSpec
 
 DEFAULT_EPS_GRID = "0.025:0.6:0.025"
 DEFAULT_COUNT_GRID = "25,50,100,200,300,400"
@@ -172,16 +179,44 @@ def cmd_campaign(args: argparse.Namespace) -> int:
         return _campaign_in(args, spec, out)
 
 
-def _campaign_in(args: argparse.Namespace, spec, out: Path) -> int:
-    """The campaign proper, run while ``out`` is locked."""
-    from tqdm import tqdm
-
-    from studies.campaign import figures as campaign_figures
-    from studies.campaign import load_traces, run_campaign
-    from studies.campaign.results import save_json
-
+def _campaign_in(args: argparse.Namespace, spec: CampaignSpec, out: Path) -> int:
+    """The campaign proper, run while ``out`` is locked: the batches, then the numbers, then the figures."""
     # campaign.json marks a finished campaign: an earlier one must not survive a run that fails
     (out / "campaign.json").unlink(missing_ok=True)
+    outcome = _run_batches(args, spec, out)
+    if not outcome.complete:
+        print(f"shm campaign: {outcome.failure_message()}", file=sys.stderr)
+        if args.json:
+            print(dump_json({"complete": False, "fingerprint": spec.fingerprint(), "batches": {
+                "total": outcome.n_batches, "reused": outcome.n_reused, "computed": outcome.n_computed,
+                "failed": [{"key": f.key, "message": f.message} for f in outcome.failures]}}))
+        return 1
+    result = outcome.result
+    assert result is not None
+    # results first (tables, runs, traces, ROC table, campaign.json), then the figures: a plotting failure must never
+    # lose the numbers, and campaign.json says which figures exist
+    summary, tables = _write_numbers(args, spec, outcome, out)
+    deco = Decorations("campaign", args)
+    if not args.no_figures:
+        _draw_figures(result, tables, (spec.monitor.eps_th, spec.monitor.count_max), out, summary, deco)
+    if args.json:
+        print(dump_json(summary))
+    else:
+        print(result.markdown_table())
+        print(f"\n{len(spec.ranges) * spec.n_runs} units x {len(spec.mbits)} MBITs in {outcome.wall_s:.1f} s "
+              f"({outcome.executor}); files in {out}/")
+    if result.n_failed:
+        print(f"shm campaign: {result.n_failed} degraded-unit simulations failed to integrate (excluded from the "
+              "probabilities; see status_* in runs.csv)", file=sys.stderr)
+    return 1 if result.n_failed or not deco.ok else 0
+
+
+def _run_batches(args: argparse.Namespace, spec: CampaignSpec, out: Path) -> CampaignOutcome:
+    """Run (or resume) the campaign's batches into ``out`` with a progress bar; say what was noted and reused."""
+    from tqdm import tqdm
+
+    from studies.campaign import run_campaign
+
     total = len(spec.ranges) * spec.n_runs
     tqdm.monitor_interval = 0  # no tqdm monitor thread: lets the process pool fork (see campaign.runner)
     bar = tqdm(total=total, unit="run", desc=f"campaign {'+'.join(m.label for m in spec.mbits)}", file=sys.stderr,
@@ -196,20 +231,20 @@ def _campaign_in(args: argparse.Namespace, spec, out: Path) -> int:
     if outcome.n_reused:
         print(f"shm campaign: resumed: {outcome.n_reused} of {outcome.n_batches} batches reused from {out}/batches",
               file=sys.stderr)
-    if not outcome.complete:
-        print(f"shm campaign: {outcome.failure_message()}", file=sys.stderr)
-        if args.json:
-            print(dump_json({"complete": False, "fingerprint": spec.fingerprint(), "batches": {
-                "total": outcome.n_batches, "reused": outcome.n_reused, "computed": outcome.n_computed,
-                "failed": [{"key": f.key, "message": f.message} for f in outcome.failures]}}))
-        return 1
+    return outcome
+
+
+def _write_numbers(args: argparse.Namespace, spec: CampaignSpec, outcome: CampaignOutcome,
+                   out: Path) -> tuple[dict[str, Any], list[RocTable]]:
+    """A finished campaign's numbers into ``out`` (tables, runs, traces, the ROC table at the default grids,
+    campaign.json): the summary written and the ROC tables (for the figure)."""
+    from studies.campaign import load_traces
+    from studies.campaign.results import save_json
+
     result = outcome.result
     assert result is not None
-    # results first (tables, runs, traces, ROC table, campaign.json), then the figures: a plotting failure must never
-    # lose the numbers, and campaign.json says which figures exist
     files = {k: str(v) for k, v in result.save(out).items()}
-    traces = load_traces(out)
-    tables = _roc_tables(traces, parse_grid(DEFAULT_EPS_GRID, "--eps-th"),
+    tables = _roc_tables(load_traces(out), parse_grid(DEFAULT_EPS_GRID, "--eps-th"),
                          parse_grid(DEFAULT_COUNT_GRID, "--count-max", integer=True), 0.10, 0.10)
     mark = (spec.monitor.eps_th, spec.monitor.count_max)
     files.update({k: str(v) for k, v in _write_roc(tables, out, mark, figure=False).items()})
@@ -230,29 +265,26 @@ def _campaign_in(args: argparse.Namespace, spec, out: Path) -> int:
         "figures": "skipped (--no-figures)" if args.no_figures else "not written yet",
     }
     save_json(out / "campaign.json", to_jsonable(summary))
-    deco = Decorations("campaign", args)
-    if not args.no_figures:
-        for key, name, make in (
-            ("fig11", "fig11.png", lambda: campaign_figures.fig11(result, out / "fig11")[0]),
-            ("error_traces", "error_traces.png",
-             lambda: campaign_figures.error_traces(result, out / "error_traces")[0]),
-            ("roc_png", "roc.png", lambda: campaign_figures.roc(tables, out / "roc", mark=mark)[0]),
-        ):
-            path = deco.attempt(name, make)
-            if path is not None:
-                files[key] = str(path)
-        summary["figures"] = "written" if deco.ok else {"failed": deco.failed}
-        save_json(out / "campaign.json", to_jsonable(summary))
-    if args.json:
-        print(dump_json(summary))
-    else:
-        print(result.markdown_table())
-        print(f"\n{total} units x {len(spec.mbits)} MBITs in {outcome.wall_s:.1f} s ({outcome.executor}); "
-              f"files in {out}/")
-    if result.n_failed:
-        print(f"shm campaign: {result.n_failed} degraded-unit simulations failed to integrate (excluded from the "
-              "probabilities; see status_* in runs.csv)", file=sys.stderr)
-    return 1 if result.n_failed or not deco.ok else 0
+    return summary, tables
+
+
+def _draw_figures(result: CampaignResult, tables: list[RocTable], mark: tuple[float, int], out: Path,
+                  summary: dict[str, Any], deco: Decorations) -> None:
+    """Fig. 11, the error traces and the ROC figure into ``out``; campaign.json then says which were written."""
+    from studies.campaign import figures as campaign_figures
+    from studies.campaign.results import save_json
+
+    files = summary["files"]
+    for key, name, make in (
+        ("fig11", "fig11.png", lambda: campaign_figures.fig11(result, out / "fig11")[0]),
+        ("error_traces", "error_traces.png", lambda: campaign_figures.error_traces(result, out / "error_traces")[0]),
+        ("roc_png", "roc.png", lambda: campaign_figures.roc(tables, out / "roc", mark=mark)[0]),
+    ):
+        path = deco.attempt(name, make)
+        if path is not None:
+            files[key] = str(path)
+    summary["figures"] = "written" if deco.ok else {"failed": deco.failed}
+    save_json(out / "campaign.json", to_jsonable(summary))
 
 
 def cmd_roc(args: argparse.Namespace) -> int:
