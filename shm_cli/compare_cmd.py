@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from board_config.assignments import parse_assignments
 from board_config.errors import InputError
 from shm_cli.batch_records import run_batch, wanted
 from shm_cli.command_args import add_command, add_record_inputs
@@ -71,7 +72,6 @@ def _eq4(items: list[str]) -> dict[str, tuple[float, float]]:
 def cmd_compare(args: argparse.Namespace) -> int:
     if wanted(args, args.records):  # a folder or 'glob': one task per record (docs/scale-out.md)
         return run_batch("compare", args, args.records)
-    from shm_cli.synth_cmd import _assignments
     from workbench.compare import CompareOptions
     from workbench.effect_probe import probe_effects
     from workbench.records import gap_notes, load_record
@@ -86,7 +86,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
                              threshold_sigma=args.threshold_sigma, window_s=args.window_s,
                              predict=not args.no_predict, horizon_s=args.horizon_s, interval_s=args.interval_s,
                              eq4_given=_eq4(args.eq4) or None, frf=args.frf)
-    values = _assignments("--set", args.set_values)
+    values = parse_assignments("--set", args.set_values, comma_lists=False)
     check_foreign_run(Path(args.out), "compare.json", args.force)
     records = [load_record(Path(r)) for r in args.records]  # validate every file before any work
     for note in gap_notes(records):  # lost samples are left out, said once (docs/records.md)
