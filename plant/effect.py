@@ -51,42 +51,33 @@ import dataclasses
 import hashlib
 import importlib
 import importlib.util
-import inspect
 import keyword
 import math
 import os
 import pkgutil
 import re
 import sys
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
-from board_config.errors import InputError
+from board_config.parameter import FitRange
 from board_config.parameter import Parameter as OneParameter
-from plant.effect_declarations import parameter_problem
+from plant.effect_declarations import (
+    EffectError,
+    Parameter,
+    challenge_strengths,
+    default_fit_names,
+    legacy_table_problem,
+    neutral_values,
+    on_request_fit_names,
+    parameter_problem,
+)
 from plant.effect_file_guard import guarded_import
-
-
-class EffectError(InputError):
-    """An effect is unknown, cannot be imported, or is ill-formed."""
-
-
-@dataclass(frozen=True)
-class Parameter(OneParameter):
-    """A parameter of an effect: the one parameter type (:class:`board_config.parameter.Parameter`: name, SI unit,
-    default, bounds, description, neutral value, fit range ...); its :meth:`check` raises :class:`EffectError`.
-    ``core_index`` is set for the Table 2 parameters, which the core effects take from
-    ``board_config.CORE_SCHEMA``."""
-
-    error: ClassVar[type[InputError]] = EffectError
-
-    @classmethod
-    def of(cls, par: OneParameter) -> Parameter:
-        """``par`` as an effect parameter (the same values; its check raises :class:`EffectError`)."""
-        if isinstance(par, Parameter):
-            return par
-        return cls(**{f.name: getattr(par, f.name) for f in dataclasses.fields(par)})
+from plant.effect_hooks import HOOKS as HOOKS
+from plant.effect_hooks import Hook
+from plant.effect_hooks import hook_function as hook_function
+from plant.effect_hooks import hook_style as hook_style
 
 
 @dataclass(frozen=True)
@@ -114,48 +105,6 @@ class SignalSpec:
     name: str
     unit: str
     description: str = ""
-
-
-Hook = Callable[..., None]
-HOOKS: tuple[str, ...] = ("pre", "rates", "post", "output")
-#: positional arguments of a hook with slot tables (named) and of one written against the offsets seam
-NAMED_ARGS: dict[str, tuple[str, ...]] = {
-    **{h: ("t", "x", "p", "bus", "dx", "X", "P", "B") for h in ("pre", "rates", "post")},
-    "output": ("t", "x", "p", "bus", "y", "X", "P", "B", "Y"),
-}
-OFFSET_ARGS: dict[str, tuple[str, ...]] = {
-    **{h: ("t", "x", "p", "bus", "dx", "so", "po") for h in ("pre", "rates", "post")},
-    "output": ("t", "x", "p", "bus", "y", "so", "po", "yo"),
-}
-
-
-def hook_function(cls: type, hook: str) -> Callable[..., None] | None:
-    """The plain Python function of ``cls``'s hook (a numba dispatcher's ``py_func``), or None."""
-    fn = getattr(cls, hook, None)
-    return getattr(fn, "py_func", fn)
-
-
-def hook_style(cls: type, hook: str) -> str:
-    """``"named"`` (slot tables X, P, B[, Y]) or ``"offsets"`` (the seam before them: so, po[, yo])."""
-    fn = hook_function(cls, hook)
-    if fn is None:
-        return "named"
-    try:
-        params = list(inspect.signature(fn).parameters.values())
-    except (TypeError, ValueError):
-        return "named"
-    n = len(params)
-    if any(p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD) for p in params):
-        n = -1
-    if n == len(NAMED_ARGS[hook]):
-        return "named"
-    if n == len(OFFSET_ARGS[hook]):
-        return "offsets"
-    raise EffectError(
-        f"effect {cls.__module__}.{cls.__qualname__}: hook '{hook}' takes {n if n >= 0 else 'a variable number of'} "
-        f"arguments; write it as {hook}({', '.join(NAMED_ARGS[hook])}) and use the slot tables by name "
-        f"(p[P.my_parameter], bus[B.fm3], x[X.my_state], docs/effects.md) — the older form "
-        f"{hook}({', '.join(OFFSET_ARGS[hook])}) is still accepted")
 
 
 def _renamed(spec: Any, name: str) -> Any:
@@ -192,6 +141,10 @@ class PhysicalEffect:
     signature: ClassVar[str] = ""
     #: Physical origin, for the effects library documentation.
     origin: ClassVar[str] = ""
+    #: where the reports list a library effect (the eight of the seed study are 1..8; without one: after them)
+    library_order: ClassVar[float] = math.inf
+    #: a short column label for the hidden-effect challenge's confusion matrix ("": the effect's name)
+    short_name: ClassVar[str] = ""
 
     pre: ClassVar[Hook | None] = None
     rates: ClassVar[Hook | None] = None
@@ -206,6 +159,35 @@ class PhysicalEffect:
     @classmethod
     def own_parameters(cls) -> tuple[Parameter, ...]:
         return tuple(Parameter.of(p) for p in cls.parameters if p.core_index is None)
+
+    @classmethod
+    def fit_range(cls, name: str) -> FitRange:
+        """The declared ``fit`` range of own parameter ``name`` (:class:`EffectError` when it declares none)."""
+        par = next((p for p in cls.own_parameters() if p.name == name), None)
+        if par is None or par.fit is None:
+            raise EffectError(f"effect '{cls.name}': parameter '{name}' declares no fit range")
+        return par.fit
+
+    @classmethod
+    def neutral_values(cls) -> dict[str, float]:
+        """Own parameter values at which the effect leaves the model unchanged (their ``neutral``), by name."""
+        return neutral_values(cls.own_parameters())
+
+    @classmethod
+    def default_fit_names(cls) -> tuple[str, ...]:
+        """Own parameters the workbench fits by default (:func:`plant.effect_declarations.default_fit_names`)."""
+        return default_fit_names(cls.own_parameters())
+
+    @classmethod
+    def on_request_fit_names(cls) -> tuple[str, ...]:
+        """Own parameters with a declared fit range that are fitted only when asked (``fit_by_default=False``)."""
+        return on_request_fit_names(cls.own_parameters())
+
+    @classmethod
+    def challenge_strengths(cls) -> tuple[dict[str, float], ...]:
+        """(weak, medium, strong) values the hidden-effect challenge hides the effect at (its parameters'
+        ``challenge``); () when it declares none."""
+        return challenge_strengths(cls.own_parameters())
 
     @classmethod
     def declared_name(cls, name: str) -> str:
@@ -248,9 +230,6 @@ class PhysicalEffect:
             "signals": tuple(_renamed(sg, f"{prefix}.{sg.name}") for sg in base.signals),
             "guess": classmethod(guess),
         }
-        for table in ("neutral", "fit_ranges", "extra_ranges"):
-            if isinstance(getattr(base, table, None), Mapping):
-                attrs[table] = pre(getattr(base, table))
         sub: type[PhysicalEffect] = type(f"{base.__name__}_{prefix}", (base,), attrs)
         sub.__qualname__ = f"{base.__qualname__}_{prefix}"
         sub.validate_class()
@@ -266,6 +245,8 @@ class PhysicalEffect:
             raise EffectError(f"{label}: 'name' must be a Python identifier, got {cls.name!r}")
         if cls.role not in ("core", "terminal", "effect"):
             raise EffectError(f"{label}: role must be core, terminal or effect, got {cls.role!r}")
+        if (why := legacy_table_problem(cls)) is not None:
+            raise EffectError(f"{label}: {why}")
         if all(getattr(cls, h) is None for h in HOOKS):
             raise EffectError(f"{label}: defines none of the hooks pre, rates, post, output")
         styles = {hook_style(cls, h) for h in HOOKS if getattr(cls, h) is not None}
@@ -365,10 +346,10 @@ def register_effect_package(package: str, library: bool = False) -> list[type[Ph
 
 def library_effects() -> tuple[str, ...]:
     """Names of the library effects (the workbench's default candidates), ordered by their ``library_order``
-    (a class attribute; those without one last), then by registration."""
+    (a typed class attribute of the effect; those without one last), then by registration."""
     names = [n for n in _LIBRARY if n in _REGISTRY]
     rank = {n: i for i, n in enumerate(names)}
-    return tuple(sorted(names, key=lambda n: (getattr(_REGISTRY[n], "library_order", math.inf), rank[n])))
+    return tuple(sorted(names, key=lambda n: (_REGISTRY[n].library_order, rank[n])))
 
 
 #: module attribute set on a module loaded from a file: the file's absolute path (how a parameter set refers to it)

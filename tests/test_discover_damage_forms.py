@@ -86,7 +86,7 @@ def test_emitted_damage_file_reads_the_core_parameters_by_name(tmp_path):
     f.write_text(src)
     cls = resolve_effect(str(f))
     assert cls.__name__ == "DiscoveredSection2StiffnessEventPlus"
-    assert cls.fit_ranges["g_k2_step_t"].lower < 20.0 < cls.fit_ranges["g_k2_step_t"].upper
+    assert cls.fit_range("g_k2_step_t").lower < 20.0 < cls.fit_range("g_k2_step_t").upper
     assert "lost 20 % of its stiffness at t = 20 s" in describe_term(terms[0], -0.2, 20.0, 1.0)
 
 

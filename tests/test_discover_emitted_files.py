@@ -39,7 +39,7 @@ def test_a_switched_off_term_emits_a_file_that_loads(tmp_path, coef):
     term = Term("force_section", 1, "delta2", "clip", 2e-5)
     cname, gname = parameter_names_for([term])[0]
     cls = _load(tmp_path, emit_effect_source([term], {cname: coef, gname: 2e-5}))
-    rng = cls.fit_ranges[cname]
+    rng = cls.fit_range(cname)
     assert rng.lower < 0.0 < rng.upper
 
 
@@ -98,7 +98,7 @@ def test_every_term_of_the_dictionary_emits_a_file_that_loads(short_sweep, tmp_p
         for coef in (-0.3, 2.0, 0.0):
             values = {cname: coef} | ({gname: term.shape} if gname else {})
             cls = _load(tmp_path, emit_effect_source([term], values), f"t{k}_{int(coef * 10) + 5}")
-            assert cls.guess()[cname] == coef and cls.fit_ranges[cname].lower < cls.fit_ranges[cname].upper
+            assert cls.guess()[cname] == coef and cls.fit_range(cname).lower < cls.fit_range(cname).upper
     names = parameter_names_for(terms)
     values = {c: 0.1 for c, _ in names} | {g: t.shape for t, (_, g) in zip(terms, names) if g}
     cls = _load(tmp_path, emit_effect_source(terms, values), "all_terms")

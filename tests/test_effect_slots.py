@@ -195,8 +195,9 @@ def test_instance_prefix_renames_library_declarations():
     assert creep.name == "creep_b" and creep.instance_of is registered_effects()["piezo_creep"]
     assert [p.name for p in creep.own_parameters()] == ["creep_b.gamma_creep", "creep_b.tau_creep"]
     assert creep.states[0].name == "creep_b.w_creep11"
-    assert set(creep.fit_ranges) == {"creep_b.gamma_creep", "creep_b.tau_creep"}
-    assert creep.neutral == {"creep_b.gamma_creep": 0.0}
+    assert creep.default_fit_names() == ("creep_b.gamma_creep", "creep_b.tau_creep")
+    assert creep.neutral_values() == {"creep_b.gamma_creep": 0.0}
+    assert creep.challenge_strengths()[2] == {"creep_b.gamma_creep": 0.1, "creep_b.tau_creep": 2.0}
     assert set(creep.guess(None)) == {"creep_b.gamma_creep", "creep_b.tau_creep"}
     assert resolve_effect("piezo_creep as creep_b") is creep
     with pytest.raises(EffectError, match="identifier"):
@@ -252,10 +253,8 @@ class TipFrameSpring(PhysicalEffect):
               "stiffening the tip section.")
     signature = ("Static tip gain lower than modelled and the first resonance higher; the residual is in phase with "
                  "the tip deflection and opposite in sign, with no amplitude or rate dependence.")
-    parameters = (Parameter("k_frame", "N/m", 0.0, 0.0, 100.0, "tip-to-frame stiffness"),)
-    neutral = {"k_frame": 0.0}
-    fit_ranges = {"k_frame": FitRange(0.0, 50.0, linthresh=0.1)}
-    challenge_strengths = ({"k_frame": 0.5}, {"k_frame": 2.0}, {"k_frame": 8.0})
+    parameters = (Parameter("k_frame", "N/m", 0.0, 0.0, 100.0, "tip-to-frame stiffness", neutral=0.0,
+                            fit=FitRange(0.0, 50.0, linthresh=0.1), challenge=(0.5, 2.0, 8.0)),)
 
     @classmethod
     def guess(cls, data=None):

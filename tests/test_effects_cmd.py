@@ -59,14 +59,13 @@ def test_show_matches_every_effects_declarations(name, capsys):
     d = _json(capsys, ["effects", "show", name, "--json"])
     assert d["role"] == cls.role and d["description"] == cls.description
     assert [p["name"] for p in d["parameters"]] == [p.name for p in cls.parameters]
-    neutral = getattr(cls, "neutral", None) or {}
     for p, par in zip(d["parameters"], cls.parameters):
         assert p["unit"] == par.unit
         if par.core_index is not None:
             assert p["fit"] is None
             continue
         assert p["default"] == par.default
-        assert p["neutral"] == neutral.get(par.name, par.neutral)
+        assert p["neutral"] == par.neutral
         assert p["fit"]["lower"] < p["fit"]["upper"]
 
 

@@ -55,17 +55,20 @@ def test_library_is_registered_and_documented(name):
         assert par.unit and par.description, (name, par.name)
         assert math.isfinite(par.lower) and math.isfinite(par.upper), (name, par.name)
         assert par.lower <= par.default <= par.upper, (name, par.name)
-    for pname, value in cls.neutral.items():
-        par = next(p for p in cls.own_parameters() if p.name == pname)
-        assert par.lower <= value <= par.upper
-    assert cls.fit_ranges, name
-    for pname, rng in {**getattr(cls, "extra_ranges", {}), **cls.fit_ranges}.items():
-        par = next(p for p in cls.own_parameters() if p.name == pname)
-        assert isinstance(rng, FitRange)
-        assert par.lower <= rng.lower < rng.upper <= par.upper, (name, pname)
-    # the hidden-effect challenge hides it at three strengths its own file declares
-    strengths = cls.challenge_strengths
-    assert len(strengths) == 3, name
+    # everything the workbench needs is on the parameters' own declarations (docs/effects.md, "What a library
+    # effect declares"): a neutral value (at least one: the test below switches the effect off with them) ...
+    assert cls.neutral_values(), name
+    # ... a fit range on every parameter fitted by default (at least one), inside the parameter's bounds ...
+    assert cls.default_fit_names(), name
+    for par in cls.own_parameters():
+        if par.neutral is not None:
+            assert par.lower <= par.neutral <= par.upper, (name, par.name)
+        if par.name in cls.default_fit_names() or par.fit is not None:
+            assert isinstance(par.fit, FitRange), (name, par.name)
+            assert par.lower <= par.fit.lower < par.fit.upper <= par.upper, (name, par.name)
+    # ... and the three strengths the hidden-effect challenge hides it at
+    strengths = cls.challenge_strengths()
+    assert len(strengths) == 3 and all(strengths), name
     for values in strengths:
         for pname, value in values.items():
             par = next(p for p in cls.own_parameters() if p.name == pname)
@@ -99,7 +102,7 @@ def test_compiles_and_is_neutral(name, models, table2_model):
     # tight tolerance on both sides: extra states change the step-size sequence, so compare converged solutions
     model = models[name]
     cls = registered_effects()[name]
-    res = model.simulate(STEP, dt_out=1e-3, params=model.param_batch(**cls.neutral), rtol=1e-10)
+    res = model.simulate(STEP, dt_out=1e-3, params=model.param_batch(**cls.neutral_values()), rtol=1e-10)
     ref = table2_model.simulate(STEP, dt_out=1e-3, rtol=1e-10)
     assert res.ok
     peak = np.max(np.abs(ref["z3_meas"][0]))

@@ -151,7 +151,7 @@ class CandidateSpec:
         free: list[Parameter] = []
         ties: list = []
         for cls in self.effects:
-            names = list(getattr(cls, "fit_ranges", {}) or [p.name for p in cls.own_parameters()])
+            names = list(cls.default_fit_names())
             names += [n for n in self.extra_for(cls) if n not in names]
             for fp in effect_free_parameters(cls, names):
                 free.append(ranges.get(fp.name, fp))
@@ -451,8 +451,7 @@ def neutral_end(fp: Parameter, cls: type[PhysicalEffect] | None) -> tuple[bool, 
     not 'beyond the range')."""
     if cls is None:
         return False, False
-    neutral = {**{p.name: p.neutral for p in cls.own_parameters() if p.neutral is not None},
-               **(getattr(cls, "neutral", {}) or {})}  # declared on the parameter, or in the effect's table
+    neutral = cls.neutral_values()
     if fp.name not in neutral:
         return False, False
     v = float(neutral[fp.name])

@@ -364,7 +364,7 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     for r in results:
         if r.spec is not None and r.kind == "effect" and r.stable and r.accepted:
             cls = r.spec.effects[0]
-            extra = tuple(getattr(cls, "extra_ranges", {}) or ())
+            extra = cls.on_request_fit_names()
             if extra:
                 v = CandidateSpec(effects=(cls,), extras=((cls.name, extra),))
                 variants.append(one_variant(v, r, base, targets, data, rss0_held, min_reduction, threads, max_nfev,

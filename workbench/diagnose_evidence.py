@@ -67,9 +67,8 @@ def singular(cand: CandidateResult) -> bool:
 
 
 def neutral_values(cls: type[PhysicalEffect]) -> dict[str, float]:
-    """The values that switch effect ``cls`` off (declared on its parameters or in its ``neutral`` table)."""
-    return {**{p.name: float(p.neutral) for p in cls.own_parameters() if p.neutral is not None},
-            **{k: float(v) for k, v in (getattr(cls, "neutral", {}) or {}).items()}}
+    """The values that switch effect ``cls`` off (declared on its parameters: their ``neutral``)."""
+    return cls.neutral_values()
 
 
 def _member_names(spec: CandidateSpec, member: str) -> set[str]:

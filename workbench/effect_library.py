@@ -4,8 +4,9 @@ The library is the registry's (:func:`plant.effect.library_effects`: every effec
 of ``plant/effects``, ordered by ``library_order``); :data:`LIBRARY` reads it each time it is used, so there is no
 list to edit here when an effect joins.
 
-Library effects (``plant/effects``) declare ``fit_ranges`` (and ``neutral``), or give a parameter its ``fit`` range
-(and ``neutral`` value) where it is declared; a user's own effect usually declares neither: then every own
+An effect gives a parameter its ``fit`` range (and ``neutral`` value) where the parameter is declared
+(:class:`plant.effect.Parameter`); those with a range are fitted by default unless ``fit_by_default=False``
+(:meth:`~plant.effect.PhysicalEffect.default_fit_names`). A user's own effect usually declares none: then every own
 parameter is free over its declared bounds (infinite bounds are replaced by a range around the default), linear,
 unless the bounds span more than three decades on the positive side (log).
 Core parameters (Table 2) can be freed too (``--free k3`` or ``--free k3:10:40``): default range a factor of
@@ -24,7 +25,7 @@ from typing import overload
 import numpy as np
 
 from board_config import CORE_PARAMETER_NAMES
-from board_config.parameter import FitRange, Parameter, freed
+from board_config.parameter import Parameter, freed
 from plant import PhysicalEffect, PlantModel, resolve_effect
 from plant.effect import EffectError, library_effects
 
@@ -79,22 +80,14 @@ def resolve_candidates(specs: Sequence[str | type[PhysicalEffect]]) -> list[type
 
 def effect_free_parameters(cls: type[PhysicalEffect], names: Sequence[str] | None = None) -> list[Parameter]:
     """The parameters of ``cls`` the workbench fits by default (or ``names``), with their ranges."""
-    ranges: Mapping[str, FitRange] = {**getattr(cls, "extra_ranges", {}), **getattr(cls, "fit_ranges", {})}
     own = {p.name: p for p in cls.own_parameters()}
-    declared = [p.name for p in own.values() if p.fit is not None or p.vary]  # fit range on the parameter itself
-    default_names = list(getattr(cls, "fit_ranges", {}) or declared or own)
-    chosen = list(names) if names is not None else default_names
+    chosen = list(names) if names is not None else list(cls.default_fit_names())
     out = []
     for n in chosen:
         par = own.get(n)
         if par is None:
             raise EffectError(f"effect '{cls.name}' has no parameter '{n}' (parameters: {', '.join(own)})")
-        rng = ranges.get(n)
-        if rng is not None:
-            out.append(par.free(float(rng.lower), float(rng.upper), log=bool(rng.log),
-                                linthresh=getattr(rng, "linthresh", None), owner=cls.name))
-        else:
-            out.append(par.free(owner=cls.name))  # its declared fit range, else one from its bounds
+        out.append(par.free(owner=cls.name))  # its declared fit range, else one from its bounds
     return out
 
 

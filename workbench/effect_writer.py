@@ -5,7 +5,7 @@ The emitted module holds the chosen terms of :mod:`workbench.discovery_dictionar
 term (``c_<term>``, default 0 = the nominal model) and, for a term with a threshold, saturation level or delay, that
 shape as a parameter too (``g_<term>``). Its docstring gives the formula with units; ``origin`` and ``signature``
 say what was found on which records; ``guess`` starts a fit (``shm fit --add FILE.py``) at the discovered values;
-``fit_ranges`` say where to search.
+each parameter's ``fit`` range says where to search (and a coefficient's ``neutral`` 0 switches its term off).
 """
 
 from __future__ import annotations
@@ -200,8 +200,6 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
     see :func:`parameter_names_for`)."""
     slots: list[TermSlot] = []
     params: list[str] = []  # source lines
-    fit_ranges: list[str] = []
-    neutral: list[str] = []
     discovered: dict[str, float] = {}
     names: list[str] = []  # every parameter's name, in order
     state_specs: list[tuple[str, float]] = []  # (unit, scale) of each state
@@ -212,11 +210,10 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
         span = abs(c) if c != 0.0 else 1.0  # a coefficient of 0 (a term switched off): a unit range around it
         lo, hi = _r(min(0.0, -20 * span if c < 0 else -span)), _r(max(0.0, 20 * span if c > 0 else span))
         names.append(cname)
-        params.append(f"        Parameter({cname!r}, {term.unit!r}, 0.0, {lo!r}, {hi!r},\n"
-                      f"                  {('coefficient of ' + term.key)!r}),")
         a, b = sorted((_r(c * 0.2), _r(c * 3.0))) if c != 0.0 else (-span, span)
-        fit_ranges.append(f"        {cname!r}: FitRange({a!r}, {b!r}),")
-        neutral.append(f"{cname!r}: 0.0")
+        params.append(f"        Parameter({cname!r}, {term.unit!r}, 0.0, {lo!r}, {hi!r},\n"
+                      f"                  {('coefficient of ' + term.key)!r},\n"
+                      f"                  neutral=0.0, fit=FitRange({a!r}, {b!r})),")
         discovered[cname] = c
         shape_idx = None
         if gname is not None:
@@ -224,7 +221,6 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
             shape_idx = len(params)
             names.append(gname)
             params.append(_shape_parameter(term, gname, g))
-            fit_ranges.append(f"        {gname!r}: {_shape_fit_range(term, g)},")
             discovered[gname] = g
         slots.append(TermSlot(term, k, shape_idx, allocate_states(term, state_specs)))
         formulas.append(formula(term, cname, gname))
@@ -261,9 +257,7 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
         f"    signature = {('its absence leaves: ' + what)!r}\n"
         "    parameters = (\n" + "\n".join(params) + "\n    )\n"
         + ("    states = (\n" + states + "    )\n" if state_specs else "")
-        + "    neutral = {" + ", ".join(neutral) + "}\n"
-        "    fit_ranges = {\n" + "\n".join(fit_ranges) + "\n    }\n"
-        f"    DISCOVERED = {discovered!r}\n\n"
+        + f"    DISCOVERED = {discovered!r}\n\n"
         "    @classmethod\n"
         "    def guess(cls, data=None):\n"
         '        """Start a fit at the values shm discover found."""\n'
@@ -289,7 +283,8 @@ def _shape_parameter(term: Term, gname: str, g: float) -> str:
         bounds = (_r(g / 20), _r(g * 20))
         unit = "s" if term.form in DELAY_FORMS else SIGNALS[term.signal].unit
     return (f"        Parameter({gname!r}, {unit!r}, {g!r}, {bounds[0]!r}, {bounds[1]!r},\n"
-            f"                  {(ALL_FORMS[term.form].shape + ' of ' + term.key)!r}),")
+            f"                  {(ALL_FORMS[term.form].shape + ' of ' + term.key)!r},\n"
+            f"                  fit={_shape_fit_range(term, g)}),")
 
 
 def _shape_fit_range(term: Term, g: float) -> str:

@@ -6,7 +6,7 @@ registry :data:`CASE_KINDS` (:func:`register_case_kind`; part B of issue 11 adds
 from its own module):
 
 * ``library``   — one library effect at three strengths (:data:`STRENGTHS`: every library effect of the registry
-  with the ``challenge_strengths`` its own file declares — weak, medium, strong parameter values of the truth);
+  with the strengths its own file declares on its parameters — ``Parameter(..., challenge=(weak, medium, strong))``);
 * ``parameter`` — one wrong core parameter at two deviations (:data:`PARAMETER_CASES`): the truth differs from the
   parameter set, nothing is missing;
 * ``pair``      — two library effects at once (:data:`PAIRS`), two strengths;
@@ -33,23 +33,22 @@ import numpy as np
 
 from board_config import load_parameter_set
 from plant.effect import EffectError, registered_effects, resolve_effect
+from plant.effect_declarations import STRENGTH_NAMES
 from workbench.candidates import PARAMETER_CANDIDATES
 from workbench.diagnose import diagnose
 from workbench.effect_library import LIBRARY
 from workbench.synth import synth_inputs, synth_record, synth_test, truth_model
 
-STRENGTH_NAMES = ("weak", "medium", "strong")
-
 
 def challenge_strengths(name: str) -> tuple[dict[str, float], ...]:
-    """The weak, medium and strong parameter values of library effect ``name`` in the challenge (its
-    ``challenge_strengths``)."""
+    """The weak, medium and strong parameter values of library effect ``name`` in the challenge (its parameters'
+    ``challenge``, :meth:`plant.effect.PhysicalEffect.challenge_strengths`)."""
     cls = registered_effects().get(name)
-    values = getattr(cls, "challenge_strengths", None)
-    if cls is None or not values or len(values) != len(STRENGTH_NAMES):
-        raise EffectError(f"library effect '{name}' declares no challenge_strengths (a tuple of "
-                          f"{len(STRENGTH_NAMES)} parameter mappings: {', '.join(STRENGTH_NAMES)})")
-    return tuple(dict(v) for v in values)
+    values = cls.challenge_strengths() if cls is not None else ()
+    if not values:
+        raise EffectError(f"library effect '{name}' declares no challenge strengths (Parameter(..., "
+                          f"challenge=({', '.join(s.upper() for s in STRENGTH_NAMES)})) on a parameter)")
+    return values
 
 
 class LibraryStrengths(Mapping[str, tuple[dict[str, float], ...]]):
@@ -317,7 +316,7 @@ _SHORT = {"nothing missing": "nothing", "combination": "combo", "other parameter
 
 def _short(name: str) -> str:
     reg = registered_effects()
-    effects = {n: getattr(reg[n], "short_name", n) for n in LIBRARY}
+    effects = {n: reg[n].short_name or n for n in LIBRARY}
     for k, v in {**effects, **_SHORT}.items():
         name = name.replace(k, v)
     return name.replace(" wrong", "✗").replace("pair: ", "")

@@ -264,19 +264,18 @@ def added_effect_values(model: PlantModel) -> dict[str, float]:
 
 
 def neutral_effects(model: PlantModel) -> dict[str, dict[str, float]]:
-    """The model's added effects whose every own parameter sits at its declared neutral value (the class's
-    ``neutral`` table or the parameter's ``neutral``), with those values: each leaves the plant the nominal one.
-    An effect that declares no neutral value for a parameter is not judged (left out)."""
+    """The model's added effects whose every own parameter sits at its declared neutral value (the parameter's
+    ``neutral``), with those values: each leaves the plant the nominal one. An effect that declares no neutral value
+    for a parameter is not judged (left out)."""
     out: dict[str, dict[str, float]] = {}
     for cls in model.effects:
         pars = cls.own_parameters()
         if cls.role != "effect" or not pars:
             continue
-        table = getattr(cls, "neutral", None)
-        table = table if isinstance(table, Mapping) else {}
+        table = cls.neutral_values()
         at: dict[str, float] = {}
         for par in pars:
-            n = table.get(par.name, par.neutral)
+            n = table.get(par.name)
             if n is None or model.param_value(par.name) != float(n):
                 break
             at[par.name] = float(n)

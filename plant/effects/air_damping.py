@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
@@ -35,13 +35,11 @@ class QuadraticAirDamping(PhysicalEffect):
                  "φ(u²)'ε and φ(u²)'ε² tests flag — and its spectrum sits at the modal frequencies and their "
                  "odd harmonics.")
     parameters = (
-        Parameter("c_air", "kg/m", 0.0, 0.0, 1.0, "Drag coefficient of the plate, ½ ρ C_d A"),
+        Parameter("c_air", "kg/m", 0.0, 0.0, 1.0, "Drag coefficient of the plate, ½ ρ C_d A", neutral=0.0,
+                  fit=FitRange(0.0, 1.0, linthresh=1e-3), challenge=(0.02, 0.08, 0.3)),
     )
-    neutral: ClassVar[Mapping[str, float]] = {"c_air": 0.0}
-    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"c_air": FitRange(0.0, 1.0, linthresh=1e-3)}
     library_order = 3
     short_name = "air_damp"
-    challenge_strengths = ({"c_air": 0.02}, {"c_air": 0.08}, {"c_air": 0.3})
 
     @staticmethod
     def rates(t, x, p, bus, dx, X, P, B):
@@ -65,4 +63,4 @@ class QuadraticAirDamping(PhysicalEffect):
         b = regress(res, -np.abs(v) * v)
         # b has units of m/(m²/s²); the drag acts through the tip dynamics, so scale by a typical 1/ω·(1/m)
         guess = float(np.clip(abs(b) * 50.0, 0.005, 0.2))
-        return {"c_air": cls.fit_ranges["c_air"].clip(guess)}
+        return {"c_air": cls.fit_range("c_air").clip(guess)}

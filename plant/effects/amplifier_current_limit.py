@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
@@ -36,13 +36,11 @@ class AmplifierCurrentLimit(PhysicalEffect):
                  "residual appears where the input rate is largest (zero crossings) and grows with "
                  "amplitude × frequency. Residual versus input rate shows a dead band, then a linear rise.")
     parameters = (
-        Parameter("I_max", "A", 10.0, 1.0e-4, 10.0, "Maximum output current of the amplifier into the patches"),
+        Parameter("I_max", "A", 10.0, 1.0e-4, 10.0, "Maximum output current of the amplifier into the patches",
+                  neutral=10.0, fit=FitRange(1.0e-3, 10.0, log=True), challenge=(0.2, 0.05, 0.008)),
     )
-    neutral: ClassVar[Mapping[str, float]] = {"I_max": 10.0}
-    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"I_max": FitRange(1.0e-3, 10.0, log=True)}
     library_order = 5
     short_name = "amp_limit"
-    challenge_strengths = ({"I_max": 0.2}, {"I_max": 0.05}, {"I_max": 0.008})
 
     @staticmethod
     def pre(t, x, p, bus, dx, X, P, B):
@@ -70,4 +68,4 @@ class AmplifierCurrentLimit(PhysicalEffect):
         va = 0.5 * (v1 - v2)
         vc = (patches[0] + patches[1] + patches[2]) / 3.0
         peak = 3.0 * float(np.max(np.abs(va - vc))) / r_ep
-        return {"I_max": cls.fit_ranges["I_max"].clip(0.5 * peak if peak > 0 else 0.05)}
+        return {"I_max": cls.fit_range("I_max").clip(0.5 * peak if peak > 0 else 0.05)}

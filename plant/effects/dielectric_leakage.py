@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import Any
 
 from plant.effect import Parameter, PhysicalEffect
 from plant.effects.library_support import FitRange, param, regress, residual
@@ -29,13 +29,11 @@ class DielectricLeakage(PhysicalEffect):
                  "zero above the R-C pole (the step settles faster, to a lower level); in open-circuit sensing the "
                  "stored voltage decays between excitations. No time trend, no amplitude dependence.")
     parameters = (
-        Parameter("G_leak", "S", 0.0, 0.0, 1.0e-2, "Leakage conductance in parallel with each patch couple"),
+        Parameter("G_leak", "S", 0.0, 0.0, 1.0e-2, "Leakage conductance in parallel with each patch couple",
+                  neutral=0.0, fit=FitRange(0.0, 2.0e-3, linthresh=1e-7), challenge=(2e-6, 1e-5, 5e-5)),
     )
-    neutral: ClassVar[Mapping[str, float]] = {"G_leak": 0.0}
-    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"G_leak": FitRange(0.0, 2.0e-3, linthresh=1e-7)}
     library_order = 4
     short_name = "leakage"
-    challenge_strengths = ({"G_leak": 2e-6}, {"G_leak": 1e-5}, {"G_leak": 5e-5})
 
     @staticmethod
     def rates(t, x, p, bus, dx, X, P, B):
@@ -53,4 +51,4 @@ class DielectricLeakage(PhysicalEffect):
         res, pred = rp
         rel = min(regress(res, pred), -1e-3)
         rel = max(rel, -0.9)
-        return {"G_leak": cls.fit_ranges["G_leak"].clip(-rel / (r_ep * (1.0 + rel)))}
+        return {"G_leak": cls.fit_range("G_leak").clip(-rel / (r_ep * (1.0 + rel)))}

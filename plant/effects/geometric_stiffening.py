@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import Any
 
 from plant.effect import Parameter, PhysicalEffect
 from plant.effects.library_support import FitRange, regress, residual
@@ -29,13 +29,11 @@ class GeometricStiffening(PhysicalEffect):
                  "residual spectrum of a sine test; resonances move with amplitude; no loop in residual versus "
                  "input (elastic, not hysteretic) and no dependence on the input rate.")
     parameters = (
-        Parameter("kappa_nl", "m^-2", 0.0, -1.0e4, 5.0e5, "Relative cubic stiffness: k_i(δ) = k_i (1 + κ δ_i²)"),
+        Parameter("kappa_nl", "m^-2", 0.0, -1.0e4, 5.0e5, "Relative cubic stiffness: k_i(δ) = k_i (1 + κ δ_i²)",
+                  neutral=0.0, fit=FitRange(-1.0e4, 2.0e5, linthresh=100.0), challenge=(2e3, 1e4, 5e4)),
     )
-    neutral: ClassVar[Mapping[str, float]] = {"kappa_nl": 0.0}
-    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"kappa_nl": FitRange(-1.0e4, 2.0e5, linthresh=100.0)}
     library_order = 2
     short_name = "stiffening"
-    challenge_strengths = ({"kappa_nl": 2e3}, {"kappa_nl": 1e4}, {"kappa_nl": 5e4})
 
     @staticmethod
     def rates(t, x, p, bus, dx, X, P, B):
@@ -52,4 +50,4 @@ class GeometricStiffening(PhysicalEffect):
             return {"kappa_nl": 1.0e3}
         res, pred = rp
         b = regress(res, pred**3)
-        return {"kappa_nl": cls.fit_ranges["kappa_nl"].clip(-9.0 * b if b != 0 else 1.0e3)}
+        return {"kappa_nl": cls.fit_range("kappa_nl").clip(-9.0 * b if b != 0 else 1.0e3)}

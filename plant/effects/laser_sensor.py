@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
@@ -39,23 +39,18 @@ class LaserSensor(PhysicalEffect):
                  "gives a residual proportional to the tip velocity (90° ahead of the deflection), growing with "
                  "frequency. The physics outputs (charge, voltages) agree; only z3_meas disagrees.")
     parameters = (
-        Parameter("z_offset", "m", 0.0, -5.0e-3, 5.0e-3, "Zero offset of the laser reading"),
-        Parameter("spot_offset", "1", 0.0, 0.0, 1.0, "Spot position: fraction of the way from tip to section 2"),
-        Parameter("tau_sensor", "s", 0.0, 0.0, 0.1, "First-order averaging lag of the sensor"),
+        Parameter("z_offset", "m", 0.0, -5.0e-3, 5.0e-3, "Zero offset of the laser reading", neutral=0.0,
+                  fit=FitRange(-2.0e-3, 2.0e-3, linthresh=1e-7), challenge=(5e-6, 2e-5, 1e-4)),
+        # the spot position is not fitted by default: in quasi-static tests it is indistinguishable from a gain
+        # error (z2/z3 is constant there); free it explicitly (``shm fit --free spot_offset``) with resonant data
+        Parameter("spot_offset", "1", 0.0, 0.0, 1.0, "Spot position: fraction of the way from tip to section 2",
+                  neutral=0.0, fit=FitRange(0.0, 0.5), fit_by_default=False),
+        Parameter("tau_sensor", "s", 0.0, 0.0, 0.1, "First-order averaging lag of the sensor", neutral=0.0,
+                  fit=FitRange(0.0, 0.02, linthresh=1e-4), challenge=(1e-3, 3e-3, 1e-2)),
     )
     states = (StateSpec("s_laser", "m", 1e-3),)
-    neutral: ClassVar[Mapping[str, float]] = {"z_offset": 0.0, "spot_offset": 0.0, "tau_sensor": 0.0}
-    #: the spot position is not fitted by default: in quasi-static tests it is indistinguishable from a gain
-    #: error (z2/z3 is constant there); free it explicitly (``shm fit --free spot_offset``) with resonant data
-    fit_ranges: ClassVar[Mapping[str, FitRange]] = {
-        "z_offset": FitRange(-2.0e-3, 2.0e-3, linthresh=1e-7),
-        "tau_sensor": FitRange(0.0, 0.02, linthresh=1e-4),
-    }
-    extra_ranges: ClassVar[Mapping[str, FitRange]] = {"spot_offset": FitRange(0.0, 0.5)}
     library_order = 6
     short_name = "laser"
-    challenge_strengths = ({"z_offset": 5e-6, "tau_sensor": 1e-3}, {"z_offset": 2e-5, "tau_sensor": 3e-3},
-                           {"z_offset": 1e-4, "tau_sensor": 1e-2})
 
     @staticmethod
     def rates(t, x, p, bus, dx, X, P, B):
@@ -86,14 +81,14 @@ class LaserSensor(PhysicalEffect):
         res, pred = rp
         head = res[: max(5, res.size // 50)]
         offset = float(np.median(head)) if abs(float(np.median(head))) > 0 else float(np.median(res))
-        out["z_offset"] = cls.fit_ranges["z_offset"].clip(offset)
+        out["z_offset"] = cls.fit_range("z_offset").clip(offset)
         z2 = series(data, "predicted", "z2")
         if z2 is not None and z2.size == pred.size:
             lam = regress(res - offset, z2 - pred)
-            out["spot_offset"] = cls.extra_ranges["spot_offset"].clip(max(lam, 0.02))
+            out["spot_offset"] = cls.fit_range("spot_offset").clip(max(lam, 0.02))
         t = data.get("t_s") if data else None
         if t is not None and np.size(t) == pred.size and pred.size > 4:
             v = np.gradient(pred, np.asarray(t, dtype=float))
             tau = regress(res - offset, -v)
-            out["tau_sensor"] = cls.fit_ranges["tau_sensor"].clip(max(tau, 5e-4))
+            out["tau_sensor"] = cls.fit_range("tau_sensor").clip(max(tau, 5e-4))
         return out

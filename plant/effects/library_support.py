@@ -1,20 +1,21 @@
 """Support for the effects library: fit ranges and the data an effect's ``guess`` may read.
 
-Library effects (creep, stiffening, air damping, ...) declare, besides the seam's required attributes:
+A library effect (creep, stiffening, air damping, ...) declares what the workbench needs on each parameter's own
+declaration (:class:`plant.effect.Parameter`; docs/effects.md lists every field and why):
 
-``neutral``
-    parameter values at which the effect leaves the response exactly unchanged (the nominal model);
-``fit_ranges``
-    for each parameter the workbench should fit by default, a :class:`FitRange` (search interval, linear or
-    logarithmic scaling; the fit range of the one parameter type, :mod:`board_config.parameter`). Parameters not
-    listed stay at their value (e.g. a literature coefficient whose product with another parameter is all the data
-    can identify);
-``challenge_strengths``
-    three parameter mappings (weak, medium, strong): the values the hidden-effect challenge hides the effect at;
-``library_order`` (optional)
-    where the reports list the effect (the first eight are 1..8; without it an effect comes after them);
-``short_name`` (optional)
-    a short column label for the challenge's confusion matrix.
+``neutral=``
+    the value at which the effect leaves the response exactly unchanged (the nominal model);
+``fit=``
+    a :class:`FitRange` (search interval, linear, logarithmic or symmetric-log scaling) for each parameter the
+    workbench fits; those without one stay at their value (e.g. a literature coefficient whose product with
+    another parameter is all the data can identify); ``fit_by_default=False`` keeps a declared range for an
+    explicit ``--free NAME`` only;
+``challenge=``
+    (weak, medium, strong): the values the hidden-effect challenge hides the effect at;
+
+and, on the class, ``library_order`` (optional: where the reports list it; the first eight are 1..8, without it an
+effect comes after them) and ``short_name`` (optional: a short column label for the challenge's confusion matrix).
+An effect's guess clips into a declared range with ``cls.fit_range(NAME).clip(value)``.
 
 Membership needs no list: every effect of role ``"effect"`` in a file of ``plant/effects`` is registered on import
 and is in the library (:func:`plant.effect.library_effects`).

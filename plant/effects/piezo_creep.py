@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
@@ -39,19 +39,14 @@ class PiezoCreep(PhysicalEffect):
                  "late), and it does not depend on the deflection rate.")
     parameters = (
         Parameter("gamma_creep", "1", 0.0, 0.0, 1.0, "Creep gain: extra static stroke as a fraction of the "
-                  "creep-free stroke"),
-        Parameter("tau_creep", "s", 1.0, 0.01, 1000.0, "Shorter creep time constant (the second is 10 τ_c)"),
+                  "creep-free stroke", neutral=0.0, fit=FitRange(0.0, 0.5, linthresh=1e-3),
+                  challenge=(0.01, 0.03, 0.1)),
+        Parameter("tau_creep", "s", 1.0, 0.01, 1000.0, "Shorter creep time constant (the second is 10 τ_c)",
+                  fit=FitRange(0.03, 100.0, log=True), challenge=(0.5, 1.0, 2.0)),
     )
     states = tuple(StateSpec(f"w_creep{i + 1}{k + 1}", "C", 1e-3) for i in range(3) for k in range(2))
-    neutral: ClassVar[Mapping[str, float]] = {"gamma_creep": 0.0}
-    fit_ranges: ClassVar[Mapping[str, FitRange]] = {
-        "gamma_creep": FitRange(0.0, 0.5, linthresh=1e-3),
-        "tau_creep": FitRange(0.03, 100.0, log=True),
-    }
     library_order = 1
     short_name = "creep"
-    challenge_strengths = ({"gamma_creep": 0.01, "tau_creep": 0.5}, {"gamma_creep": 0.03, "tau_creep": 1.0},
-                           {"gamma_creep": 0.1, "tau_creep": 2.0})
 
     @staticmethod
     def rates(t, x, p, bus, dx, X, P, B):
@@ -78,6 +73,6 @@ class PiezoCreep(PhysicalEffect):
         span = float(t[-1] - t[0]) if t.size > 1 else 10.0
         late = slice(res.size // 2, None)
         gain = regress(res[late], pred[late])
-        out["gamma_creep"] = cls.fit_ranges["gamma_creep"].clip(max(gain, 0.01))
-        out["tau_creep"] = cls.fit_ranges["tau_creep"].clip(float(np.clip(span / 10.0, 0.1, 10.0)))
+        out["gamma_creep"] = cls.fit_range("gamma_creep").clip(max(gain, 0.01))
+        out["tau_creep"] = cls.fit_range("tau_creep").clip(float(np.clip(span / 10.0, 0.1, 10.0)))
         return out

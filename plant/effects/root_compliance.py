@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import Any
 
 from plant.effect import Parameter, PhysicalEffect, StateSpec
 from plant.effects.library_support import FitRange
@@ -35,17 +35,16 @@ class RootClampCompliance(PhysicalEffect):
                  "each mode, largest around the first), base-excited responses larger; quasi-static (0.1 Hz) "
                  "tests show almost nothing; no amplitude dependence.")
     parameters = (
-        Parameter("clamp_compliance", "m/N", 0.0, 0.0, 0.05, "Compliance of the root clamp, 1/k_0"),
+        # fit range from 1e-4 m/N: below it the clamp mode (> 350 Hz) stiffens the integration and moves the bending
+        # modes by < 0.2 %
+        Parameter("clamp_compliance", "m/N", 0.0, 0.0, 0.05, "Compliance of the root clamp, 1/k_0", neutral=0.0,
+                  fit=FitRange(1.0e-4, 2.0e-2, log=True), challenge=(1e-3, 4e-3, 1.5e-2)),
         Parameter("m_clamp", "kg", 2.0e-3, 1.0e-4, 0.1, "Mass moving with the clamp"),
         Parameter("zeta_clamp", "1", 0.05, 0.0, 1.0, "Damping ratio of the clamp spring on its own mass"),
     )
     states = (StateSpec("delta0", "m", 1e-4), StateSpec("ddelta0", "m/s", 1e-2))
-    neutral: ClassVar[Mapping[str, float]] = {"clamp_compliance": 0.0}
-    #: below 1e-4 m/N the clamp mode (> 350 Hz) stiffens the integration and moves the bending modes by < 0.2 %
-    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"clamp_compliance": FitRange(1.0e-4, 2.0e-2, log=True)}
     library_order = 7
     short_name = "root_compl"
-    challenge_strengths = ({"clamp_compliance": 1e-3}, {"clamp_compliance": 4e-3}, {"clamp_compliance": 1.5e-2})
 
     @staticmethod
     def pre(t, x, p, bus, dx, X, P, B):
@@ -77,4 +76,4 @@ class RootClampCompliance(PhysicalEffect):
         k1 = 332.98
         if data and isinstance(data.get("params"), Mapping):
             k1 = float(data["params"].get("k1", k1))
-        return {"clamp_compliance": cls.fit_ranges["clamp_compliance"].clip(0.5 / k1)}
+        return {"clamp_compliance": cls.fit_range("clamp_compliance").clip(0.5 / k1)}

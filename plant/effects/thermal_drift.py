@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import Any
 
 import numpy as np
 
@@ -33,14 +33,12 @@ class PiezoThermalDrift(PhysicalEffect):
                  "different residuals. Spectrum and correlation tests look like a plain gain error; the tell-tale "
                  "is the trend: windows above threshold cluster at the end of the record.")
     parameters = (
-        Parameter("dT_dt", "K/s", 0.0, -2.0, 2.0, "Rate of change of the patch temperature during the test"),
+        Parameter("dT_dt", "K/s", 0.0, -2.0, 2.0, "Rate of change of the patch temperature during the test",
+                  neutral=0.0, fit=FitRange(-2.0, 2.0, linthresh=1e-3), challenge=(0.05, 0.2, 1.0)),
         Parameter("kappa_T", "1/K", 2.5e-3, -0.02, 0.02, "Relative temperature coefficient of d_ep"),
     )
-    neutral: ClassVar[Mapping[str, float]] = {"dT_dt": 0.0}
-    fit_ranges: ClassVar[Mapping[str, FitRange]] = {"dT_dt": FitRange(-2.0, 2.0, linthresh=1e-3)}
     library_order = 8
     short_name = "thermal"
-    challenge_strengths = ({"dT_dt": 0.05}, {"dT_dt": 0.2}, {"dT_dt": 1.0})
 
     @staticmethod
     def rates(t, x, p, bus, dx, X, P, B):
@@ -66,4 +64,4 @@ class PiezoThermalDrift(PhysicalEffect):
         t = time_axis(data, pred.size)
         slope = regress(res, t * pred)
         rate = slope / kappa if np.isfinite(slope) else 0.1
-        return {"dT_dt": cls.fit_ranges["dT_dt"].clip(rate if rate != 0 else 0.1)}
+        return {"dT_dt": cls.fit_range("dT_dt").clip(rate if rate != 0 else 0.1)}
