@@ -230,11 +230,14 @@ def _phase(port: int | str, seconds: float, first_seq: int, client_slice_s: floa
             **{name: latency_stats(t) for name, t in out["times"].items()}}
 
 
-def _stub_phase(seconds: float, summary: Path, n_hogs: int, rtu: bool = False, slice_s: float = 2e-4) -> dict:
-    """A fresh stub (``--sched-slice-ms`` from ``slice_s``), warmed up, then ``seconds`` of paced transactions with
-    ``n_hogs`` CPU hogs beside it; the client's times and the stub's own answer times (request bytes in -> reply
-    out, from its --summary)."""
-    stub, port = start_stub(("--summary", str(summary), "--sched-slice-ms", f"{1e3 * slice_s:g}"), rtu=rtu)
+def _stub_phase(seconds: float, summary: Path, n_hogs: int, rtu: bool = False, slice_s: float = 2e-4,
+                clock_slice_s: float | None = None) -> dict:
+    """A fresh stub (``--sched-slice-ms`` from ``slice_s``, ``--clock-slice-ms`` from ``clock_slice_s`` unless
+    None), warmed up, then ``seconds`` of paced transactions with ``n_hogs`` CPU hogs beside it; the client's times
+    and the stub's own answer times (request bytes in -> reply out, and on TCP from the kernel's receive timestamp
+    -> reply out; from its --summary)."""
+    clock = () if clock_slice_s is None else ("--clock-slice-ms", f"{1e3 * clock_slice_s:g}")
+    stub, port = start_stub(("--summary", str(summary), "--sched-slice-ms", f"{1e3 * slice_s:g}", *clock), rtu=rtu)
     hogs: list[subprocess.Popen] = []
     try:
         paced_transactions(port, 0.5)  # warm-up: connection, first ticks, kernels
@@ -254,30 +257,46 @@ def _stub_phase(seconds: float, summary: Path, n_hogs: int, rtu: bool = False, s
             stub.kill()
     try:
         stub_summary = json.loads(summary.read_text())
-        res["stub_answer_time"] = next(iter(stub_summary["servers"].values())).get("answer_time", {})
-        res["stub_slice"] = stub_summary.get("sched_slice", {}).get("note", "")
+        server = next(iter(stub_summary["servers"].values()))
+        res["stub_answer_time"] = server.get("answer_time", {})
+        res["stub_answer_time_from_kernel_rx"] = server.get("answer_time_from_kernel_rx", {})
+        res["stub_slice"] = stub_summary.get("sched_slice", {})
     except (OSError, ValueError, StopIteration, KeyError):
         res["stub_answer_time"] = {}
     return res
 
 
-#: the variants measured side by side: the kernel's default slice (0) and the short one ``shm hil serve`` and
-#: ``shm run --link`` ask for by default; ``SHM_BENCH_SLICES_MS="0,0.2,0.5"`` adds others (named ``slice_0.5ms``)
-VARIANTS: dict[str, float] = {"default_slice": 0.0, "short_slice": 2e-4}
+#: the variants measured side by side, (serving threads' slice, rig clock thread's slice; None: the same) in s: the
+#: kernel's default slice everywhere, the short one for every thread of the stub, and the short one for the serving
+#: threads only (the rig clock keeps the kernel's default: a physics step holding the GIL is not cut short);
+#: ``SHM_BENCH_SLICES_MS="0,0.2,0.5"`` measures those slices for every thread instead (named ``slice_0.5ms``)
+VARIANTS: dict[str, tuple[float, float | None]] = {"default_slice": (0.0, None), "short_slice": (2e-4, None),
+                                                   "short_slice_not_clock": (2e-4, 0.0)}
 
 
-def _variants() -> dict[str, float]:
+def _variants() -> dict[str, tuple[float, float | None]]:
     extra = os.environ.get("SHM_BENCH_SLICES_MS", "")
     if not extra:
         return VARIANTS
-    out = {}
+    out: dict[str, tuple[float, float | None]] = {}
     for text in extra.split(","):
         ms = float(text)
         name = {0.0: "default_slice", 0.2: "short_slice"}.get(ms, f"slice_{ms:g}ms")
-        out[name] = ms / 1e3
+        out[name] = (ms / 1e3, None)
     return out
+
+
 PHASES = {"idle": (False, False), "under_load": (False, True), "rtu_idle": (True, False),
           "rtu_under_load": (True, True)}
+
+
+def _phases() -> dict[str, tuple[bool, bool]]:
+    """:data:`PHASES`, or those named in ``SHM_BENCH_STUB_PHASES`` (comma-separated; e.g. ``under_load``)."""
+    names = [n for n in os.environ.get("SHM_BENCH_STUB_PHASES", "").split(",") if n]
+    unknown = sorted(set(names) - set(PHASES))
+    if unknown:
+        raise ValueError(f"SHM_BENCH_STUB_PHASES: unknown phase(s) {', '.join(unknown)}; allowed {', '.join(PHASES)}")
+    return {n: PHASES[n] for n in names} if names else PHASES
 
 
 def run(out_dir: Path, quick: bool) -> dict:
@@ -285,12 +304,14 @@ def run(out_dir: Path, quick: bool) -> dict:
     n_hogs = os.cpu_count() or 1
     res: dict = {"seconds_per_phase": seconds, "cpu_hogs": n_hogs, "nice": os.nice(0)}
     variants = _variants()
-    for phase, (rtu, loaded) in PHASES.items():
-        for variant, slice_s in variants.items():  # back to back: the same machine state for both
+    phases = _phases()
+    for phase, (rtu, loaded) in phases.items():
+        for variant, (slice_s, clock_slice_s) in variants.items():  # back to back: the same machine state for all
             res[f"{variant}_{phase}"] = _stub_phase(seconds, out_dir / f"stub_latency_{variant}_{phase}.json",
-                                                    n_hogs if loaded else 0, rtu=rtu, slice_s=slice_s)
+                                                    n_hogs if loaded else 0, rtu=rtu, slice_s=slice_s,
+                                                    clock_slice_s=clock_slice_s)
     for variant in variants:
-        for phase in PHASES:
+        for phase in phases:
             r = res[f"{variant}_{phase}"]
             for name in ("fc23", "fc16", "fc04"):
                 res[f"{variant}_{phase}_{name}_p50_ms"] = round(r[name].get("p50_ms", math.nan), 3)
@@ -298,7 +319,12 @@ def run(out_dir: Path, quick: bool) -> dict:
             st = r["stub_answer_time"]
             res[f"{variant}_{phase}_stub_answer_p50_ms"] = round(st.get("p50_ms", math.nan), 3)
             res[f"{variant}_{phase}_stub_answer_p99_ms"] = round(st.get("p99_ms", math.nan), 3)
+            kt = r.get("stub_answer_time_from_kernel_rx", {})
+            if kt:
+                res[f"{variant}_{phase}_stub_answer_from_kernel_rx_p50_ms"] = round(kt.get("p50_ms", math.nan), 3)
+                res[f"{variant}_{phase}_stub_answer_from_kernel_rx_p99_ms"] = round(kt.get("p99_ms", math.nan), 3)
     res["target_p99_ms"] = 1.5
-    if "short_slice" in variants:
-        res["short_slice_under_load_fc23_p99_within_target"] = bool(res["short_slice_under_load_fc23_p99_ms"] <= 1.5)
+    if "under_load" in phases:
+        for variant in variants:
+            res[f"{variant}_under_load_fc23_p99_within_target"] = bool(res[f"{variant}_under_load_fc23_p99_ms"] <= 1.5)
     return res

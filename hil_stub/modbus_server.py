@@ -55,7 +55,7 @@ from drivers.modbus_registers import (
     encode_input_block,
     initial_holding_block,
 )
-from hil_stub import protocol_ptymaster
+from hil_stub import kernel_rx_time, protocol_ptymaster
 from hil_stub.faults import LinkFaults, ReplyFaulter
 from hil_stub.loop_thread import LoopThread
 from hil_stub.modbus_requests import check_request_pdu
@@ -72,9 +72,18 @@ def _bits(*values: bool) -> int:
 class _CheckingHandler(ServerRequestHandler):
     """pymodbus' per-connection request handler, with :func:`check_request_pdu` in front (TCP MBAP or RTU)."""
 
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        super().connection_made(transport)
+        rig: ModbusRigServer | None = getattr(self.server, "rig", None)
+        if rig is not None and rig.kind == "tcp":
+            rig.kernel_stamps = kernel_rx_time.install(transport)
+
     def callback_data(self, data: bytes, addr: tuple | None = None) -> int:
         rig: ModbusRigServer | None = getattr(self.server, "rig", None)
         if rig is not None:
+            stamp = kernel_rx_time.take_rx(self.transport)
+            if stamp is not None:
+                rig.kernel_received_at = stamp
             stale = rig.stale_request_bytes(data)
             if stale:  # answer the newest request; the ones before it, its master has given up on
                 return stale + self.callback_data(data[stale:], addr)
@@ -139,6 +148,11 @@ class ModbusRigServer:
         #: reply are not counted): the stub's own answer time, without the network or the client's scheduling
         self.service_times: deque[float] = deque(maxlen=100_000)
         self._received_at: float | None = None
+        #: TCP: seconds from the kernel receiving a request (its software receive timestamp) to the reply leaving, the
+        #: last 100 000: the answer time with the stub's own wake-up in it (:mod:`hil_stub.kernel_rx_time`)
+        self.kernel_service_times: deque[float] = deque(maxlen=100_000)
+        self.kernel_received_at: float | None = None  #: CLOCK_REALTIME (s) of the request being answered
+        self.kernel_stamps = False  #: whether the kernel stamps the served connection's requests
         self._wire = "send"
         if kind == "tcp":
             endpoint = split_host_port(where)
@@ -187,71 +201,21 @@ class ModbusRigServer:
 
     async def _action(self, function_code: int, start_address: int, address: int, count: int,
                       registers: list[int], set_values: list[int] | list[bool] | None) -> ExcCodes | None:
-        host = self.host
+        """pymodbus' hook for every valid request, in stages: reads filled from the snapshot, coil writes refused,
+        holding writes checked and the command posted to the host, then the reply's silence and delay."""
+        sample_read = self._fill_read(function_code, start_address, address, count, registers, set_values)
         silence = False
-        sample_read = function_code == 0x04
-        if function_code == 0x04:
-            snap = host.snapshot
-            off = INPUT_START - start_address
-            registers[off: off + INPUT_COUNT] = encode_input_block(snap.sample, snap.cmd_seq_applied,
-                                                                   snap.refused_count)
-            self.stats["reads"] += 1
-        elif function_code in (0x03, 0x17) and set_values is None and address + count > MIRROR_START:
-            # a read of the sample mirror (map version 2): FC 03, or the read part of FC 23 after its write
-            snap = host.snapshot
-            off = MIRROR_START - start_address
-            registers[off: off + INPUT_COUNT] = encode_input_block(snap.sample, snap.cmd_seq_applied,
-                                                                   snap.refused_count)
-            self.stats["reads"] += 1
-            self.stats["fc23_exchanges" if function_code == 0x17 else "mirror_reads"] += 1
-            sample_read = True
-        elif function_code == 0x17 and set_values is None:
-            pass  # the read part of FC 23 outside the mirror: the holding block as it is
-        elif function_code == 0x02:
-            s = host.snapshot.sample
-            registers[0] = _bits(s.hv_present, bool(s.flags & 1), bool(s.flags & 2), bool(s.flags & 4))
-        elif function_code == 0x01:
-            registers[0] = _bits(host.snapshot.amplifier_active)
-        elif function_code in (0x05, 0x0F):  # pymodbus ignores readonly= on bit blocks: refuse coil writes here
+        if function_code in (0x05, 0x0F):  # pymodbus ignores readonly= on bit blocks: refuse coil writes here
             self.stats["exception_02"] += 1
-            host.incident(f"{self.describe()}: coil write refused with exception 02 (read-only)")
+            self.host.incident(f"{self.describe()}: coil write refused with exception 02 (read-only)")
             return ExcCodes.ILLEGAL_ADDRESS
-        elif function_code in (0x06, 0x10, 0x16, 0x17) and set_values is not None:
+        if function_code in (0x06, 0x10, 0x16, 0x17) and set_values is not None:
             # FC 22 (mask write) and the write part of FC 23 are checked like FC 06 / FC 16: whole values, writable
             # entries, finite demands inside Table 1
-            off = HOLDING_START - start_address
-            current = registers[off: off + HOLDING_COUNT]
-            values = [int(v) for v in set_values]
-            verdict = check_holding_write(address, values, current, host.limits.voltage_min, host.limits.voltage_max)
-            touches_command = address < COMMAND_END and address + len(values) > COMMAND_START
-            if not verdict.finite:  # NaN/Inf: refused here, before the rig (no count, no flag, no tick, no run)
-                self.stats["nonfinite_refused"] += 1
-            if verdict.code is not None and not (verdict.code == ModbusExceptionCode.ILLEGAL_VALUE
-                                                 and touches_command and verdict.finite):
-                self.stats[f"exception_{int(verdict.code):02d}"] += 1
-                host.incident(f"{self.describe()}: write refused with exception {int(verdict.code):02d}: "
-                              f"{verdict.reason}")
-                return ExcCodes(int(verdict.code))
-            if touches_command:
-                # also an out-of-limit command goes to the host: it refuses it there (and, in lockstep, the rig
-                # still advances one tick, as in-process); the registers keep the last accepted command
-                new = list(current)
-                new[address - HOLDING_START: address - HOLDING_START + len(values)] = values
-                cmd = decode_command_block(new[COMMAND_START - HOLDING_START: COMMAND_END - HOLDING_START])
-                self.stats["commands"] += 1
-                if host.mode == "lockstep":  # the plant step runs in a worker thread; the loop stays free
-                    delivery = await asyncio.get_running_loop().run_in_executor(None, host.submit, cmd, self.kind)
-                else:
-                    delivery = host.submit(cmd, self.kind)
-                if delivery is Delivery.UNDELIVERED:
-                    silence = True  # the rig's link is down: no reply at all
-                    if verdict.code is not None:
-                        self._silence = True
-                        return ExcCodes.ILLEGAL_VALUE
-                elif delivery is Delivery.REFUSED or verdict.code is not None:
-                    self.stats["exception_03"] += 1
-                    return ExcCodes.ILLEGAL_VALUE
-        if host.mode == "realtime" and host.link_down():
+            code, silence = await self._take_write(start_address, address, registers, [int(v) for v in set_values])
+            if code is not None:
+                return code
+        if self.host.mode == "realtime" and self.host.link_down():
             silence = True
         # --latency-ms delays the sample of each exchange (the FC04 reply), as on the serial link: the rig's
         # response time per board tick; acknowledgements of the command write are not delayed
@@ -266,6 +230,67 @@ class ModbusRigServer:
         # from here to the reply's trace_packet nothing awaits: the flag belongs to this reply
         self._silence = silence
         return None
+
+    def _fill_read(self, function_code: int, start_address: int, address: int, count: int, registers: list[int],
+                   set_values: list[int] | list[bool] | None) -> bool:
+        """Fill a read's registers from the host's latest snapshot; whether it read the sample block."""
+        host = self.host
+        if function_code == 0x04 or (function_code in (0x03, 0x17) and set_values is None
+                                     and address + count > MIRROR_START):
+            # the input registers, or (map version 2) the sample mirror: FC 03, or the read part of FC 23 after its
+            # write; the read part of FC 23 outside the mirror reads the holding block as it is
+            snap = host.snapshot
+            off = (INPUT_START if function_code == 0x04 else MIRROR_START) - start_address
+            registers[off: off + INPUT_COUNT] = encode_input_block(snap.sample, snap.cmd_seq_applied,
+                                                                   snap.refused_count)
+            self.stats["reads"] += 1
+            if function_code != 0x04:
+                self.stats["fc23_exchanges" if function_code == 0x17 else "mirror_reads"] += 1
+            return True
+        if function_code == 0x02 and set_values is None:
+            s = host.snapshot.sample
+            registers[0] = _bits(s.hv_present, bool(s.flags & 1), bool(s.flags & 2), bool(s.flags & 4))
+        elif function_code == 0x01 and set_values is None:
+            registers[0] = _bits(host.snapshot.amplifier_active)
+        return False
+
+    async def _take_write(self, start_address: int, address: int, registers: list[int],
+                          values: list[int]) -> tuple[ExcCodes | None, bool]:
+        """Check a holding write and post a command it completes to the host: (the exception to answer or None,
+        whether the reply is withheld because the rig's link is down)."""
+        host = self.host
+        off = HOLDING_START - start_address
+        current = registers[off: off + HOLDING_COUNT]
+        verdict = check_holding_write(address, values, current, host.limits.voltage_min, host.limits.voltage_max)
+        touches_command = address < COMMAND_END and address + len(values) > COMMAND_START
+        if not verdict.finite:  # NaN/Inf: refused here, before the rig (no count, no flag, no tick, no run)
+            self.stats["nonfinite_refused"] += 1
+        if verdict.code is not None and not (verdict.code == ModbusExceptionCode.ILLEGAL_VALUE
+                                             and touches_command and verdict.finite):
+            self.stats[f"exception_{int(verdict.code):02d}"] += 1
+            host.incident(f"{self.describe()}: write refused with exception {int(verdict.code):02d}: {verdict.reason}")
+            return ExcCodes(int(verdict.code)), False
+        if not touches_command:
+            return None, False
+        # also an out-of-limit command goes to the host: it refuses it there (and, in lockstep, the rig still
+        # advances one tick, as in-process); the registers keep the last accepted command
+        new = list(current)
+        new[address - HOLDING_START: address - HOLDING_START + len(values)] = values
+        cmd = decode_command_block(new[COMMAND_START - HOLDING_START: COMMAND_END - HOLDING_START])
+        self.stats["commands"] += 1
+        if host.mode == "lockstep":  # the plant step runs in a worker thread; the loop stays free
+            delivery = await asyncio.get_running_loop().run_in_executor(None, host.submit, cmd, self.kind)
+        else:
+            delivery = host.submit(cmd, self.kind)
+        if delivery is Delivery.UNDELIVERED:
+            if verdict.code is not None:  # the rig's link is down: no reply at all
+                self._silence = True
+                return ExcCodes.ILLEGAL_VALUE, True
+            return None, True
+        if delivery is Delivery.REFUSED or verdict.code is not None:
+            self.stats["exception_03"] += 1
+            return ExcCodes.ILLEGAL_VALUE, False
+        return None, False
 
     def _trace_pdu(self, sending: bool, pdu):
         if sending:
@@ -285,6 +310,9 @@ class ModbusRigServer:
         if self._received_at is not None:  # the stub's own answer time: request bytes in -> reply bytes out
             self.service_times.append(time.perf_counter() - self._received_at)
             self._received_at = None
+        if self.kernel_received_at is not None:  # the same from the kernel's receive timestamp (wake-up included)
+            self.kernel_service_times.append(time.time() - self.kernel_received_at)
+            self.kernel_received_at = None
         silence, self._silence = self._silence, False
         wire, self._wire = self._wire, "send"
         if silence:
@@ -351,9 +379,10 @@ class ModbusRigServer:
                            f"answered with exception {code:02d}")
         return end
 
-    def service_time_summary(self) -> dict[str, float | int]:
-        """p50 / p99 / max (ms) of :attr:`service_times` and their count."""
-        times = sorted(self.service_times)
+    def service_time_summary(self, from_kernel: bool = False) -> dict[str, float | int]:
+        """p50 / p99 / max (ms) of :attr:`service_times` (``from_kernel``: :attr:`kernel_service_times`) and their
+        count."""
+        times = sorted(self.kernel_service_times if from_kernel else self.service_times)
         if not times:
             return {"n": 0}
 

@@ -46,6 +46,7 @@ from enum import Enum
 from board_config import MfcLimits, load_mfc_limits
 from board_config.errors import InputError
 from drivers.framing import sanitize_sample
+from drivers.latency_slice import request_slice
 from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, RigEndpoint, RigSample
 
 log = logging.getLogger("hil_stub.rig")
@@ -122,7 +123,7 @@ class RigHost:
                  limits: MfcLimits | None = None, start: str = "first-command",
                  clock: Callable[[], float] = time.perf_counter, keep_lateness: bool = False,
                  on_tick: Callable[[Snapshot], None] | None = None,
-                 restart: Callable[[], RigEndpoint] | None = None) -> None:
+                 restart: Callable[[], RigEndpoint] | None = None, clock_slice_s: float | None = None) -> None:
         if mode not in ("realtime", "lockstep"):
             raise InputError(f"rig clock mode {mode!r}: allowed realtime, lockstep")
         if start not in ("first-command", "now"):
@@ -157,6 +158,10 @@ class RigHost:
         self._last_seq: int | None = None
         self.board_runs = 0  #: board runs seen (a command counter that started again counts a new one)
         self.restarts = 0  #: times the lockstep rig started again for a new board run
+        #: the CPU time slice (s) the realtime clock thread asks for (:func:`drivers.latency_slice.request_slice`;
+        #: 0: the kernel's default; None: what it inherits from the thread that starts it) and what became of it
+        self.clock_slice_s = clock_slice_s
+        self.clock_slice_note = "inherited"
         self._snapshot = self._make_snapshot()
 
     # ------------------------------------------------------------------------------------------ snapshot
@@ -289,6 +294,8 @@ class RigHost:
         self._stop.clear()
         self._thread = threading.Thread(target=self._run, name="rig-clock", daemon=True)
         self._thread.start()
+        if self.clock_slice_s is not None and self._thread.native_id is not None:
+            self.clock_slice_note = request_slice(self.clock_slice_s, self._thread.native_id).note
 
     def stop(self) -> None:
         self._stop.set()

@@ -47,14 +47,15 @@ class HilService:
 
     def __init__(self, endpoint: RigEndpoint, *, mode: str = "realtime", dt: float = 0.01,
                  plan: FaultPlan | None = None, start: str = "first-command", keep_lateness: bool = False,
-                 restart: Callable[[], RigEndpoint] | None = None) -> None:
+                 restart: Callable[[], RigEndpoint] | None = None, clock_slice_s: float | None = None) -> None:
         self.plan = plan or FaultPlan()
         self.endpoint = self._with_faults(endpoint)
         self._build = restart if mode == "lockstep" else None
         self._builder: ThreadPoolExecutor | None = None
         self._spare: Future | None = None
         self.host = RigHost(self.endpoint, dt=dt, mode=mode, start=start, keep_lateness=keep_lateness,
-                            restart=self._next_rig if self._build is not None else None)
+                            restart=self._next_rig if self._build is not None else None,
+                            clock_slice_s=clock_slice_s)
         self.servers: list[FrameServer | ModbusRigServer] = []
         self._loop: LoopThread | None = None
         self._started = False
@@ -167,9 +168,19 @@ class HilService:
             "commands": h.commands, "refused": h.refused_count, "undelivered": h.undelivered,
             "board_runs": h.board_runs, "rig_restarts": h.restarts,
             "incidents": h.incident_count, "pacing": h.pacing.summary() if h.mode == "realtime" else None,
-            "servers": {srv.describe(): {**dict(srv.stats), **srv.faulter.counts(),
-                                         **({"answer_time": srv.service_time_summary()}
-                                            if hasattr(srv, "service_time_summary") else {})}
+            "servers": {srv.describe(): {**dict(srv.stats), **srv.faulter.counts(), **_answer_times(srv)}
                         for srv in self.servers},
             "faults": self.plan.describe(),
         }
+
+
+def _answer_times(server: FrameServer | ModbusRigServer) -> dict[str, Any]:
+    """A Modbus server's answer times for the summary: from reading the request (``answer_time``) and, on TCP where
+    the kernel stamps what it receives, from the kernel's receive timestamp (``answer_time_from_kernel_rx``)."""
+    if not isinstance(server, ModbusRigServer):
+        return {}
+    out: dict[str, Any] = {"answer_time": server.service_time_summary()}
+    if server.kind == "tcp":
+        out["answer_time_from_kernel_rx"] = (server.service_time_summary(from_kernel=True) if server.kernel_stamps
+                                             else {"n": 0, "note": "no kernel receive timestamps on this system"})
+    return out

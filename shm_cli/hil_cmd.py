@@ -87,6 +87,21 @@ def sched_slice_arg(text: str) -> float:
     return value
 
 
+#: the serving threads' slice when ``--sched-slice-ms`` is not given (ms), per link (docs/real-rig.md, measured on a
+#: quiet machine with a CPU hog per core): 0.2 ms shortens the client-seen FC 23 p99 on Modbus TCP (5.25 -> 3.96 ms)
+#: and lengthens it on Modbus RTU over a pty (4.25 -> 5.90 ms; the stub's own answer p99 0.59 -> 5.04 ms), so a stub
+#: serving a serial or RTU endpoint keeps the kernel's default
+DEFAULT_SLICE_MS = {"tcp": 0.2, "serial": 0.0}
+
+
+def serving_slice_ms(chosen: float | None, serial_endpoints: int) -> float:
+    """The serving threads' slice (ms): ``--sched-slice-ms`` as given, else :data:`DEFAULT_SLICE_MS` for the links
+    served (``serial_endpoints``: how many framed-serial or Modbus RTU endpoints). Pure."""
+    if chosen is not None:
+        return chosen
+    return DEFAULT_SLICE_MS["serial" if serial_endpoints else "tcp"]
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     p = sub.add_parser("hil", help="hardware-in-the-loop stub: the simulated rig served over serial / Modbus",
                        description="The simulated rig as hardware: serial frames, Modbus TCP, Modbus RTU.")
@@ -135,10 +150,14 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="write the end-of-run summary as JSON")
     r.add_argument("--status-every", type=nonnegative_float, default=10.0, metavar="S",
                    help="print a status line every S seconds (0: never)")
-    r.add_argument("--sched-slice-ms", type=sched_slice_arg, default=0.2, metavar="MS",
+    r.add_argument("--sched-slice-ms", type=sched_slice_arg, default=None, metavar="MS",
                    help="CPU time slice asked for the serving threads (Linux >= 6.12, EEVDF: a short slice lets them "
                         "preempt a CPU-bound neighbour when a request arrives; normal priority and nice kept; "
-                        "0.1 .. 100, 0: off; default 0.2; docs/real-rig.md)")
+                        "0.1 .. 100, 0: off; default 0.2 when every endpoint is Modbus TCP, 0 when a serial or "
+                        "Modbus RTU endpoint is served — measured per link, docs/real-rig.md)")
+    r.add_argument("--clock-slice-ms", type=sched_slice_arg, default=None, metavar="MS",
+                   help="CPU time slice of the rig clock thread (the physics step), apart from the serving threads "
+                        "(default: the same as --sched-slice-ms; 0: the kernel's default; docs/real-rig.md)")
     f = s.add_argument_group("fault injection (seeded by --seed)")
     f.add_argument("--drop", type=float_in_range(0.0, 1.0), default=0.0, metavar="FRAC",
                    help="fraction of replies dropped")
@@ -220,7 +239,7 @@ def _report(args: argparse.Namespace, service, slice_note) -> None:
     """The end-of-run summary: one line on stdout, the JSON file with ``--summary``."""
     summary = service.summary()
     summary["sched_slice"] = {"applied": slice_note.applied, "slice_ms": 1e3 * slice_note.slice_s,
-                              "note": slice_note.note}
+                              "note": slice_note.note, "rig_clock": service.host.clock_slice_note}
     summary["incident_log"] = service.host.incidents[-50:]
     print("shm hil: stopped. " + json.dumps(to_jsonable({k: v for k, v in summary.items() if k != "incident_log"})),
           flush=True)
@@ -241,7 +260,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     from drivers.latency_slice import request_process_slice
 
     # every thread: the serving threads started later (Modbus event loop, serial servers, rig clock) inherit it
-    slice_note = request_process_slice(args.sched_slice_ms / 1e3)
+    slice_note = request_process_slice(serving_slice_ms(args.sched_slice_ms,
+                                                        len(args.serial) + len(args.modbus_rtu)) / 1e3)
     # at once, before the imports and the truth plant's kernels (a cold cache compiles them: announced by the plant)
     print(f"shm hil: building the rig ({'scenario ' + args.scenario if args.scenario else 'bench rig'}); the "
           f"endpoints open when it is ready …", file=sys.stderr, flush=True)
@@ -263,7 +283,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     rig = build()
     # lockstep: every board run gets the rig from t = 0 (docs/real-rig.md); a real-time rig plays its scenario once
-    service = HilService(rig, mode=args.clock, plan=plan, start=args.start, restart=build)
+    clock_slice = None if args.clock_slice_ms is None else args.clock_slice_ms / 1e3
+    service = HilService(rig, mode=args.clock, plan=plan, start=args.start, restart=build, clock_slice_s=clock_slice)
     for where in args.serial:
         service.add_serial(where, baudrate=args.baud)
     for where in args.modbus_tcp:

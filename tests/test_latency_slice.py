@@ -154,3 +154,30 @@ def test_hil_serve_serves_from_threads_with_the_slice_at_normal_priority(slice_m
         assert all(v == pytest.approx(2e-4) for v in slices.values()), slices
     else:
         assert "off" in lines[-1] and not any(v == pytest.approx(2e-4) for v in slices.values()), slices
+
+
+@needs_eevdf
+def test_the_rig_clock_thread_can_keep_the_kernels_slice_while_the_serving_threads_get_the_short_one() -> None:
+    """``--clock-slice-ms 0``: the serving threads (the Modbus event loop) keep the short slice they inherit, the rig
+    clock thread — the physics step, a GIL holder — goes back to the kernel's default."""
+
+    def serve() -> tuple[float | None, float | None, str]:
+        request_slice(2e-4)  # as `shm hil serve` does for the process before it builds the service
+        with HilService(FakeRig(), mode="realtime", clock_slice_s=0.0) as hil:
+            hil.add_modbus_tcp("127.0.0.1:0")
+            clock_thread, loop_thread = hil.host._thread, hil.loop._thread
+            assert clock_thread is not None and clock_thread.native_id and loop_thread.native_id
+            return (thread_slice_s("self", clock_thread.native_id), thread_slice_s("self", loop_thread.native_id),
+                    hil.host.clock_slice_note)
+
+    clock_slice, loop_slice, note = _in_thread(serve)
+    assert loop_slice == pytest.approx(2e-4)
+    assert clock_slice is not None and clock_slice != pytest.approx(2e-4) and "off" in note
+
+
+def test_the_default_slice_is_chosen_per_link() -> None:
+    from shm_cli.hil_cmd import serving_slice_ms
+
+    assert serving_slice_ms(None, serial_endpoints=0) == 0.2  # Modbus TCP only: the short slice
+    assert serving_slice_ms(None, serial_endpoints=1) == 0.0  # an RTU / serial endpoint: the kernel's default
+    assert serving_slice_ms(0.5, serial_endpoints=1) == 0.5 and serving_slice_ms(0.0, serial_endpoints=0) == 0.0
