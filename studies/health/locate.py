@@ -99,15 +99,12 @@ def second_mode_hz(params: str) -> float | None:
         return None
 
 
-def locate_stiffness(records: Sequence[Record], params: str, *, operating_hours: float | None = None,
-                     extra: Sequence[str] = (), max_nfev: int = 30) -> dict[str, Any]:
-    """Free k1, k2, k3 (and ``extra``: core parameters or effects, e.g. ``shm diagnose``'s first name) one at a time
-    with α_h and β_h on one visit's records; the JSON-ready ``location`` (see docs/health.md)."""
-    from studies.health.estimate import join_visit_records
+def _fit_candidates(recs: Sequence[Record], params: str, extra: Sequence[str], max_nfev: int
+                    ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """Each section stiffness (and each ``extra``) freed alone with the hysteresis pair: the fits by name and the
+    candidates' JSON rows (an extra that cannot be fitted gets an ``error`` row; a section that cannot, raises)."""
     from workbench.effect_library import CORE_PARAMETER_NAMES
 
-    board = all(r.meta.get("provenance", {}).get("generator") == "board" for r in records)
-    recs = [join_visit_records(records)] if board else list(records)
     reps: dict[str, Any] = {}
     cands: list[dict[str, Any]] = []
     for name in [*SECTIONS, *[e for e in extra if e not in SECTIONS and e not in NUISANCE]]:
@@ -121,6 +118,59 @@ def locate_stiffness(records: Sequence[Record], params: str, *, operating_hours:
             continue
         reps[name] = rep
         cands.append(_candidate(rep, name, "effect" if effect else "parameter"))
+    return reps, cands
+
+
+def _separating_sweep(params: str) -> str:
+    """The test that would separate two sections: a sweep through the second mode (its frequency when known)."""
+    f2 = second_mode_hz(params)
+    return ("a swept-sine record through the second mode"
+            + (f" (about {f2:.0f} Hz with {params}; e.g. shm synth --test sweep --f0-hz 1 --f1-hz {1.5 * f2:.0f} "
+               "shows what it would look like)" if f2 else "")
+            + ": MBIT.a is quasi-static and MBIT.b's step rings mostly in the first mode, whose frequency every "
+            "section stiffness shifts")
+
+
+def _placement(best_k: dict[str, Any], runner: dict[str, Any], possible: list[int], corr_pair: float,
+               delta: float, noise: float, sweep: str) -> dict[str, Any]:
+    """The location's verdict: no loss to place, a loss the records cannot place (with the test that would), or
+    the section; ``delta`` and ``noise`` are held-out RSS in σ² units."""
+    rel, rse = best_k.get("relative", 0.0), best_k.get("relative_stderr") or 0.0
+    if not abs(rel) > max(3 * rse, 0.02):
+        return {"section": None, "parameter": None, "distinguishable": None, "relative": rel, "relative_stderr": rse,
+                "reason": f"no section stiffness has moved beyond 3 standard errors or 2 % ({best_k['name']}"
+                          f" alone: {100 * rel:+.1f} %)"}
+    if abs(corr_pair) >= MAX_SENSITIVITY_CORR or delta <= noise:
+        why = (f"the sensitivities of {best_k['name']} and {runner['name']} are correlated at {corr_pair:+.4f}"
+               if abs(corr_pair) >= MAX_SENSITIVITY_CORR else
+               f"the held-out scores of {best_k['name']} and {runner['name']} differ by {delta:.1f} σ² "
+               f"(noise {noise:.1f} σ²)")
+        others = [s for s in SECTIONS.values() if s not in possible]
+        lean = (f"; the held-out score leans to section {best_k['section']} ({best_k['name']} "
+                f"{100 * rel:+.0f} %) by {delta:.0f} σ² (noise {noise:.0f} σ²), which near-parallel sensitivities "
+                "do not make a placement" if abs(corr_pair) >= MAX_SENSITIVITY_CORR and delta > noise else "")
+        return {"section": None, "parameter": None, "distinguishable": False, "relative": rel,
+                "relative_stderr": rse, "separating_test": sweep,
+                "reason": f"a stiffness loss, but these records cannot tell section {best_k['section']} "
+                          f"from section {runner['section']}: {why}{lean}"
+                          + (f"; section {' or '.join(map(str, others))} is ruled out (clearly worse on "
+                             "held-out data)" if others else "")}
+    return {"section": best_k["section"], "parameter": best_k["name"], "distinguishable": True,
+            "relative": rel, "relative_stderr": rse,
+            "reason": f"{best_k['name']} alone explains the held-out data better than {runner['name']} "
+                      f"by {delta:.0f} σ² (noise {noise:.0f} σ²; sensitivity correlation "
+                      f"{corr_pair:+.3f})"}
+
+
+def locate_stiffness(records: Sequence[Record], params: str, *, operating_hours: float | None = None,
+                     extra: Sequence[str] = (), max_nfev: int = 30) -> dict[str, Any]:
+    """Free k1, k2, k3 (and ``extra``: core parameters or effects, e.g. ``shm diagnose``'s first name) one at a time
+    with α_h and β_h on one visit's records; the JSON-ready ``location`` (see docs/health.md)."""
+    from studies.health.estimate import join_visit_records
+
+    board = all(r.meta.get("provenance", {}).get("generator") == "board" for r in records)
+    recs = [join_visit_records(records)] if board else list(records)
+    reps, cands = _fit_candidates(recs, params, extra, max_nfev)
     scored = sorted((c for c in cands if "error" not in c), key=lambda c: c["held_rss_sigma2"])
     best = scored[0]
     stiff = [c for c in scored if c["name"] in SECTIONS]
@@ -130,14 +180,7 @@ def locate_stiffness(records: Sequence[Record], params: str, *, operating_hours:
     corr_pair = float(corr[names.index(best_k["name"]), names.index(runner["name"])])
     delta = runner["held_rss_sigma2"] - best_k["held_rss_sigma2"]
     noise = max(MIN_DELTA_RSS, MIN_DELTA_REL * best_k["held_rss_sigma2"])
-    rel, rse = best_k.get("relative", 0.0), best_k.get("relative_stderr") or 0.0
-    changed = abs(rel) > max(3 * rse, 0.02)
-    f2 = second_mode_hz(params)
-    sweep = ("a swept-sine record through the second mode"
-             + (f" (about {f2:.0f} Hz with {params}; e.g. shm synth --test sweep --f0-hz 1 --f1-hz {1.5 * f2:.0f} "
-                "shows what it would look like)" if f2 else "")
-             + ": MBIT.a is quasi-static and MBIT.b's step rings mostly in the first mode, whose frequency every "
-             "section stiffness shifts")
+    sweep = _separating_sweep(params)
     # the sections the records rule out: clearly worse on held-out data and not (anti)parallel to the best
     possible = [best_k["section"]]
     for c in stiff[1:]:
@@ -151,32 +194,7 @@ def locate_stiffness(records: Sequence[Record], params: str, *, operating_hours:
         "delta_held_rss_sigma2": float(delta), "noise_held_rss_sigma2": float(noise),
         "correlation_best_runner_up": corr_pair, "runner_up": runner["name"], "separating_test": None,
     }
-    if not changed:
-        location.update({"section": None, "parameter": None, "distinguishable": None, "relative": rel,
-                         "relative_stderr": rse,
-                         "reason": f"no section stiffness has moved beyond 3 standard errors or 2 % ({best_k['name']}"
-                                   f" alone: {100 * rel:+.1f} %)"})
-    elif abs(corr_pair) >= MAX_SENSITIVITY_CORR or delta <= noise:
-        why = (f"the sensitivities of {best_k['name']} and {runner['name']} are correlated at {corr_pair:+.4f}"
-               if abs(corr_pair) >= MAX_SENSITIVITY_CORR else
-               f"the held-out scores of {best_k['name']} and {runner['name']} differ by {delta:.1f} σ² "
-               f"(noise {noise:.1f} σ²)")
-        others = [s for s in SECTIONS.values() if s not in possible]
-        lean = (f"; the held-out score leans to section {best_k['section']} ({best_k['name']} "
-                f"{100 * rel:+.0f} %) by {delta:.0f} σ² (noise {noise:.0f} σ²), which near-parallel sensitivities "
-                "do not make a placement" if abs(corr_pair) >= MAX_SENSITIVITY_CORR and delta > noise else "")
-        location.update({"section": None, "parameter": None, "distinguishable": False, "relative": rel,
-                         "relative_stderr": rse, "separating_test": sweep,
-                         "reason": f"a stiffness loss, but these records cannot tell section {best_k['section']} "
-                                   f"from section {runner['section']}: {why}{lean}"
-                                   + (f"; section {' or '.join(map(str, others))} is ruled out (clearly worse on "
-                                      "held-out data)" if others else "")})
-    else:
-        location.update({"section": best_k["section"], "parameter": best_k["name"], "distinguishable": True,
-                         "relative": rel, "relative_stderr": rse,
-                         "reason": f"{best_k['name']} alone explains the held-out data better than {runner['name']} "
-                                   f"by {delta:.0f} σ² (noise {noise:.0f} σ²; sensitivity correlation "
-                                   f"{corr_pair:+.3f})"})
+    location.update(_placement(best_k, runner, possible, corr_pair, delta, noise, sweep))
     if best["name"] not in SECTIONS:
         location["better_explained_by"] = best["name"]
     location["at_bound"] = [c["name"] for c in cands if c.get("at_bound")]
