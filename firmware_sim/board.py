@@ -2,11 +2,11 @@
 
 Per tick ``k`` (board time ``k / rate``), given the rig sample the link returned (``None`` if the exchange failed):
 
-1. **Percepts** (pure): plausibility of the sample (NaN/Inf, out of range, rig fault flags, frozen sequence number
-   for ``[tick] stale_ticks``, a counter that keeps stepping back: ``sample_order``) → sensor fault; the rig's
-   "limit refused" flag or a demand the output guard had to clamp → limit violation; the wake comparator
-   (|v_patch| ≥ ``[wake] patch_voltage`` or |z̈0| ≥ ``[wake] base_acceleration``); HV presence; the scheduler's
-   overrun flag; an operator re-arm request.
+1. **Percepts** (pure): plausibility of the sample (``sample_check``: NaN/Inf, out of range, rig fault flags; a
+   frozen sequence number for ``[tick] stale_ticks``, a counter that keeps stepping back: ``sample_order``) → sensor
+   fault; the rig's "limit refused" flag or a demand the output guard had to clamp → limit violation; the wake
+   comparator (|v_patch| ≥ ``[wake] patch_voltage`` or |z̈0| ≥ ``[wake] base_acceleration``); HV presence; the
+   scheduler's overrun flag; an operator re-arm request.
 2. **Power manager** (``power_manager.power_step``): brown-out and "energy to wake".
 3. **Regimes** (``regimes.step``): the transition table decides the regime.
 4. **Regime work**: entering SENSING opens a usage episode (``usage.UsageEpisode``), fed every SENSING tick and
@@ -41,11 +41,11 @@ from board_config import (
 )
 from board_config.board import BoardConfig, load_board_config
 from board_config.errors import InputError
-from drivers.link import FLAG_LIMIT_REFUSED, FLAG_RIG_FAULT, FLAG_SENSOR_FAULT, ActuatorCommand, RigSample
+from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, RigSample
 from drivers.quiet_span import QuietSpan
 from firmware_sim.events import BoardEvent
 from firmware_sim.maintenance import MaintenanceSequencer
-from firmware_sim.power_manager import PowerBudget, PowerLedger, PowerState, power_step
+from firmware_sim.power_manager import PowerBudget, PowerLedger, PowerState, PowerStatus, power_step
 from firmware_sim.regimes import (
     Regime,
     RegimeState,
@@ -56,6 +56,7 @@ from firmware_sim.regimes import (
     quiet_standby,
 )
 from firmware_sim.regimes import step as regime_step
+from firmware_sim.sample_check import SampleLimits, check_sample
 from firmware_sim.sample_order import StepsBack, clock_backwards_reason, seq_backwards_reason, steps_back
 from firmware_sim.usage import UsageEpisode
 from plant import PlantModel
@@ -63,30 +64,13 @@ from plant import PlantModel
 _QUIET_OK = TickInputs()
 _CLOCK_WINDOW = 2.0  # s of board time between two checks of the rig's clock against the board's
 _QUIET_LOW = TickInputs(energy_ok=False)
+_INF = math.inf
 
 
 class TickResult(NamedTuple):
     command: ActuatorCommand
     events: list[BoardEvent]
     regime: Regime
-
-
-def check_sample(sample: RigSample, cfg: BoardConfig) -> str:
-    """Why ``sample`` cannot be trusted ('' if it can): NaN/Inf, out-of-range value, or a rig fault flag."""
-    if sample.flags & (FLAG_SENSOR_FAULT | FLAG_RIG_FAULT):
-        return f"rig flags 0x{sample.flags:x} (sensor/rig fault)"
-    z3, vp, acc, vb = sample.z3, sample.v_patch, sample.z0dd, sample.v_battery
-    if not (abs(z3) <= cfg.sensors_z3_limit):  # also catches NaN
-        return f"z3 = {z3!r} m outside ±{cfg.sensors_z3_limit:g} m"
-    if not (abs(vp) <= cfg.sensors_v_patch_limit):
-        return f"v_patch = {vp!r} V outside ±{cfg.sensors_v_patch_limit:g} V"
-    if not (abs(acc) <= cfg.sensors_z0dd_limit):
-        return f"z0dd = {acc!r} m/s^2 outside ±{cfg.sensors_z0dd_limit:g} m/s^2"
-    if not (0.0 <= vb <= cfg.sensors_v_battery_max):
-        return f"v_battery = {vb!r} V outside [0, {cfg.sensors_v_battery_max:g}] V"
-    if not math.isfinite(sample.t):
-        return f"rig time {sample.t!r} is not finite"
-    return ""
 
 
 class Board:
@@ -124,8 +108,7 @@ class Board:
         self.ledger = PowerLedger(self.budget)
         self._currents = {r: self.budget.current(r) for r in Regime}
         self._wake_v = cfg.wake_patch_voltage
-        self._sample_limits = (cfg.sensors_z3_limit, cfg.sensors_v_patch_limit, cfg.sensors_z0dd_limit,
-                               cfg.sensors_v_battery_max)
+        self._sample_limits = SampleLimits.from_config(cfg)
         self._wake_acc = cfg.wake_base_acceleration
         self._v_lo, self._v_hi = self.limits.voltage_min, self.limits.voltage_max
         self.episode: UsageEpisode | None = None
@@ -176,139 +159,163 @@ class Board:
     def tick(self, sample: RigSample | None, k: int, *, overrun: bool = False, link_error: str = "") -> TickResult:
         """Process tick ``k``: the sample the link returned (``None``: the exchange failed, ``link_error`` says why),
         whether the previous tick overran its deadline; return the command for the next interval and the events."""
-        cfg = self.cfg
         events: list[BoardEvent] = []
         self.ticks += 1
 
         # 1. percepts
-        ok = sample is not None
-        sensor_fault = False
-        limit = bool(self._limit_pending)
-        wake = hv = False
-        v_meas = math.nan  # the battery voltage this tick, if trustworthy
         if sample is not None:
-            lim = self._sample_limits  # check_sample's test inlined for the common, plausible sample
-            if (not sample.flags & (FLAG_SENSOR_FAULT | FLAG_RIG_FAULT) and abs(sample.z3) <= lim[0]
-                    and abs(sample.v_patch) <= lim[1] and abs(sample.z0dd) <= lim[2]
-                    and 0.0 <= sample.v_battery <= lim[3] and -math.inf < sample.t < math.inf):
-                reason = ""
-            else:
-                reason = check_sample(sample, cfg)
-            prev_seq, prev_t = self._prev_seq, self._prev_t
-            if sample.seq == prev_seq:
-                self._stale += 1
-                if self._stale >= cfg.tick_stale_ticks and not reason:
-                    reason = (f"rig_seq frozen at {sample.seq} for {cfg.tick_stale_ticks} ticks or more "
-                              f"(stale sensor path)")
-            else:
-                self._stale = 0
-            self._prev_seq, self._prev_t = sample.seq, sample.t
-            if sample.seq < prev_seq or sample.t < prev_t or self._back.any:  # a step back: firmware_sim.sample_order
-                reason = self._check_order(k, prev_seq, prev_t, sample, reason, events)
-            # a persisting condition is one incident when it starts (and one when it ends, with its count), not
-            # one per tick: the reason's first two words name the condition, the rest carries this tick's values
-            if reason:
-                key = " ".join(reason.split()[:2])
-                sensor_fault = True
-                if key != self._fault_key:
-                    self._close_fault(k, events)
-                    events.append(self._incident(k, "sensor_fault", reason))
-                    self._fault_key, self._fault_since, self._fault_ticks = key, k, 0
-                self._fault_ticks += 1
-            else:
-                if self._fault_key:
-                    self._close_fault(k, events)
-                v_meas = self._v_batt = sample.v_battery
-                wake = abs(sample.z0dd) >= self._wake_acc or abs(sample.v_patch) >= self._wake_v
-            self._fault_reason = reason
-            if sample.flags & FLAG_LIMIT_REFUSED:
-                limit = True
-                if not self._limit_pending:
-                    self._limit_pending = "the rig refused a command (limit refused flag)"
+            sensor_fault, wake, v_meas = self._perceive(sample, k, events)
             hv = sample.hv_present
-            if self._link_error:
-                events.append(self._incident(
-                    k, "link_restored", f"link answered again after {self._link_failures} failed exchange(s) "
-                                        f"({(k - self._link_since) * self.period:.2f} s); first error: "
-                                        f"{self._link_error}"))
-                self._link_error = ""
-            ref = self._clock_ref  # the common case (inside the window, clock sane) without a call
-            if ref is None or not (ref[1] <= sample.t < math.inf) or (k - ref[0]) * self.period >= _CLOCK_WINDOW:
-                self._check_clock(k, sample.t, events)
-            self.last_sample = sample
         else:
-            if not self._link_error:
-                events.append(self._incident(k, "link_error", link_error or "exchange failed"))
-                self._link_error = link_error or "exchange failed"
-                self._link_failures = 0
-                self._link_since = k
-            self._link_failures += 1
-        if limit and self._limit_pending:
+            self._exchange_failed(k, link_error, events)
+            sensor_fault = wake = hv = False
+            v_meas = math.nan  # no battery voltage this tick
+        limit = bool(self._limit_pending)
+        if limit:
             events.append(self._incident(k, "limit_violation", self._limit_pending))
-        self._limit_pending = ""
+            self._limit_pending = ""
 
         # 2. power manager (the battery voltage of a faulty sample is not trusted)
         old = self.state.regime
-        self.power, pstat, pev = power_step(self.power, v_meas, old, k, self.budget)
-        self.ledger.add(old, v_meas)
-        if pev:
-            events.extend(pev)
-            self.incidents += len(pev)
+        pstat = self._power_step(v_meas, old, k, events)
 
         # 3. regimes
+        ok = sample is not None
         if ok and not (sensor_fault or limit or overrun or wake or hv or pstat.brownout or self._rearm):
             inputs = _QUIET_OK if pstat.energy_ok else _QUIET_LOW  # the common case, without building a tuple
         else:
             inputs = TickInputs(ok, sensor_fault, limit, overrun, wake, hv, pstat.energy_ok, pstat.brownout,
                                 self._rearm)
+        regime = self._regime_step(inputs, old, k, events)
+
+        # 4. regime work, 5. output guard
+        v1, v2 = self._regime_work(regime, None if sensor_fault else sample, k, events)
+        self.demand = (v1, v2)
+
+        # 6. telemetry and command
+        if k % self._telemetry_ticks == 0:
+            events.append(self._telemetry(k, regime))
+        return TickResult(ActuatorCommand(k & 0xFFFFFFFF, v1, v2, self._currents[regime]), events, regime)
+
+    def _perceive(self, sample: RigSample, k: int, events: list[BoardEvent]) -> tuple[bool, bool, float]:
+        """Stage 1 for a sample the link returned: (sensor fault, wake comparator, battery voltage in V or NaN when
+        the sample is not trusted). Also the rig's "limit refused" flag (a pending limit violation), the end of a
+        run of failed exchanges and the check of the rig's clock."""
+        reason = self._sample_fault(sample, k, events)
+        # a persisting condition is one incident when it starts (and one when it ends, with its count), not
+        # one per tick: the reason's first two words name the condition, the rest carries this tick's values
+        if reason:
+            key = " ".join(reason.split()[:2])
+            if key != self._fault_key:
+                self._close_fault(k, events)
+                events.append(self._incident(k, "sensor_fault", reason))
+                self._fault_key, self._fault_since, self._fault_ticks = key, k, 0
+            self._fault_ticks += 1
+            wake = False
+            v_meas = math.nan
+        else:
+            if self._fault_key:
+                self._close_fault(k, events)
+            v_meas = self._v_batt = sample.v_battery
+            wake = abs(sample.z0dd) >= self._wake_acc or abs(sample.v_patch) >= self._wake_v
+        self._fault_reason = reason
+        if sample.flags & FLAG_LIMIT_REFUSED and not self._limit_pending:
+            self._limit_pending = "the rig refused a command (limit refused flag)"
+        if self._link_error:
+            events.append(self._incident(
+                k, "link_restored", f"link answered again after {self._link_failures} failed exchange(s) "
+                                    f"({(k - self._link_since) * self.period:.2f} s); first error: {self._link_error}"))
+            self._link_error = ""
+        ref = self._clock_ref  # the common case (inside the window, clock sane) without a call
+        if ref is None or not (ref[1] <= sample.t < _INF) or (k - ref[0]) * self.period >= _CLOCK_WINDOW:
+            self._check_clock(k, sample.t, events)
+        self.last_sample = sample
+        return bool(reason), wake, v_meas
+
+    def _sample_fault(self, sample: RigSample, k: int, events: list[BoardEvent]) -> str:
+        """Why this sample cannot be trusted ('' if it can): :func:`check_sample`, a sequence number frozen for
+        ``[tick] stale_ticks``, or a counter or clock that keeps stepping back (:mod:`firmware_sim.sample_order`)."""
+        reason = check_sample(sample, self._sample_limits)
+        prev_seq, prev_t = self._prev_seq, self._prev_t
+        if sample.seq == prev_seq:
+            self._stale += 1
+            stale_ticks = self.cfg.tick_stale_ticks
+            if self._stale >= stale_ticks and not reason:
+                reason = f"rig_seq frozen at {sample.seq} for {stale_ticks} ticks or more (stale sensor path)"
+        else:
+            self._stale = 0
+        self._prev_seq, self._prev_t = sample.seq, sample.t
+        if sample.seq < prev_seq or sample.t < prev_t or self._back.any:  # a step back
+            reason = self._check_order(k, prev_seq, prev_t, sample, reason, events)
+        return reason
+
+    def _exchange_failed(self, k: int, link_error: str, events: list[BoardEvent]) -> None:
+        """Stage 1 without a sample: the first failed exchange of a run is an incident; the rest are counted."""
+        if not self._link_error:
+            self._link_error = link_error or "exchange failed"
+            events.append(self._incident(k, "link_error", self._link_error))
+            self._link_failures = 0
+            self._link_since = k
+        self._link_failures += 1
+
+    def _power_step(self, v_meas: float, regime: Regime, k: int, events: list[BoardEvent]) -> PowerStatus:
+        """Stage 2: the power manager on this tick's battery voltage (NaN: not trusted) and the charge ledger."""
+        self.power, pstat, pev = power_step(self.power, v_meas, regime, k, self.budget)
+        self.ledger.add(regime, v_meas)
+        if pev:
+            events.extend(pev)
+            self.incidents += len(pev)
+        return pstat
+
+    def _regime_step(self, inputs: TickInputs, old: Regime, k: int, events: list[BoardEvent]) -> Regime:
+        """Stage 3: the transition table (:func:`firmware_sim.regimes.step`) and the work of a regime change."""
         self._rearm = False
         self.state, out, rev = regime_step(self.state, inputs, k, self.timers)
         if self.visit_verdict and self.state.hv_off_run >= self.timers.hv_debounce:
             self.visit_verdict = ""  # HV removed: the next application of HV starts a new visit
-        if rev:
-            for ev in rev:
-                if ev.kind == "regime_change":
-                    data = dict(ev.data)
-                    data["v_battery_V"] = self._v_batt
-                    ev = BoardEvent(ev.kind, ev.tick, ev.time, data)
-                else:
-                    self.incidents += 1
-                events.append(ev)
-        regime = out.regime
+        for ev in rev:
+            if ev.kind == "regime_change":
+                data = dict(ev.data)
+                data["v_battery_V"] = self._v_batt
+                ev = BoardEvent(ev.kind, ev.tick, ev.time, data)
+            else:
+                self.incidents += 1
+            events.append(ev)
         if out.changed:
-            events.extend(self._on_change(old, regime, out.trigger, k))
+            events.extend(self._on_change(old, out.regime, out.trigger, k))
+        return out.regime
 
-        # 4. regime work
-        v1 = v2 = 0.0
+    def _regime_work(self, regime: Regime, trusted: RigSample | None, k: int, events: list[BoardEvent]
+                     ) -> tuple[float, float]:
+        """Stages 4 and 5: SENSING feeds the usage episode, MAINTENANCE steps the MBIT sequence, whose demand the
+        output guard checks against Table 1; the channel voltages (V) to send. ``trusted``: the sample, or None when
+        there is none or it is not trusted."""
         if regime is Regime.SENSING:
-            if sample is not None and not sensor_fault:
+            if trusted is not None:
                 ep = self.episode
                 if ep is None:  # pragma: no cover - opened on entry
                     ep = self.episode = self._new_episode(k * self.period)
-                ep.add(k * self.period, sample.z3, sample.z0dd)
+                ep.add(k * self.period, trusted.z3, trusted.z0dd)
                 if ep.samples >= self._episode_ticks:
                     events.append(self._summary(k, "max_episode"))
                     self.episode = self._new_episode(k * self.period)
         elif regime is Regime.MAINTENANCE and self.maintenance.active:
-            z3 = sample.z3 if (sample is not None and not sensor_fault) else math.nan
-            (v1, v2), mev = self.maintenance.step(k, z3)
+            (v1, v2), mev = self.maintenance.step(k, trusted.z3 if trusted is not None else math.nan)
             events.extend(mev)
             for ev in mev:
                 if ev.kind == "maintenance_verdict":
                     self.visit_verdict = str(ev.data["verdict"])
             # 5. output guard: Table 1 always (outside MAINTENANCE the demand is 0 V by construction)
-            if not (self._v_lo <= v1 <= self._v_hi and self._v_lo <= v2 <= self._v_hi):
-                self._limit_pending = (f"demand ({v1!r}, {v2!r}) V outside Table 1 [{self._v_lo:g}, "
-                                       f"{self._v_hi:g}] V: zero sent")
-                v1 = v2 = 0.0
-        self.demand = (v1, v2)
+            lo, hi = self._v_lo, self._v_hi
+            if lo <= v1 <= hi and lo <= v2 <= hi:
+                return v1, v2
+            self._limit_pending = f"demand ({v1!r}, {v2!r}) V outside Table 1 [{lo:g}, {hi:g}] V: zero sent"
+        return 0.0, 0.0
 
-        # 6. telemetry and command
-        if k % self._telemetry_ticks == 0:
-            events.append(BoardEvent("telemetry", k, k * self.period, {
-                "regime": regime.value, "v_battery_V": self._v_batt, "monitor_count": self.maintenance.monitor_count,
-                "charge_used_C": self.ledger.charge_used, "incidents_total": self.incidents}))
-        return TickResult(ActuatorCommand(k & 0xFFFFFFFF, v1, v2, self._currents[regime]), events, regime)
+    def _telemetry(self, k: int, regime: Regime) -> BoardEvent:
+        return BoardEvent("telemetry", k, k * self.period, {
+            "regime": regime.value, "v_battery_V": self._v_batt, "monitor_count": self.maintenance.monitor_count,
+            "charge_used_C": self.ledger.charge_used, "incidents_total": self.incidents})
 
     # --- quiet spans: settled stand-by ticks at once ---------------------------------------------------------
     def can_take_quiet(self) -> bool:
@@ -347,7 +354,8 @@ class Board:
         lim = self._sample_limits
         z3, vp, zdd, vb, t = span.z3[:n], span.v_patch[:n], span.z0dd[:n], span.v_battery[:n], span.t[:n]
         avp, azdd = np.abs(vp), np.abs(zdd)
-        good = ((np.abs(z3) <= lim[0]) & (avp <= lim[1]) & (azdd <= lim[2]) & (vb >= 0.0) & (vb <= lim[3])
+        good = ((np.abs(z3) <= lim.z3) & (avp <= lim.v_patch) & (azdd <= lim.z0dd) & (vb >= 0.0)
+                & (vb <= lim.v_battery_max)
                 & np.isfinite(t) & (vb >= self.budget.brownout))
         wake = (azdd >= self._wake_acc) | (avp >= self._wake_v)
         quiet = good & ~wake if regime is Regime.STANDBY_HARVEST else good
