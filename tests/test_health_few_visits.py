@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from studies.health.forecast import forecast_trip
-from studies.health.trend import MIN_VISITS_FOR, _paths_of, fit_trend
+from studies.health.trend import MIN_VISITS_FOR, fit_trend, paths_of
 from studies.health.trip import TripBoundary
 
 
@@ -73,7 +73,7 @@ def test_scatter_beyond_the_errors_is_estimated_not_ignored():
 
 
 def _median_at(f, h, rng):
-    return float(np.median(_paths_of(f, np.array([h]), 4000, rng)))
+    return float(np.median(paths_of(f, np.array([h]), 4000, rng)))
 
 
 @settings(max_examples=25, deadline=None)

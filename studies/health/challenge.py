@@ -26,7 +26,6 @@ calibrated on the reference life (the f1 change at which the shipped ``aging`` l
 
 from __future__ import annotations
 
-import math
 import os
 import time
 from collections.abc import Callable, Sequence
@@ -249,9 +248,9 @@ def _baseline_prediction(hh: np.ndarray, f1_rel: np.ndarray, thr: float, life: C
     if tr.significant:
         paths = tr.sample_paths(grid, 400, rng)
     else:
-        from studies.health.trend import _paths_of
+        from studies.health.trend import paths_of
 
-        paths = _paths_of(tr.fits.get("linear") or tr.fits["none"], grid, 400, rng)
+        paths = paths_of(tr.fits.get("linear") or tr.fits["none"], grid, 400, rng)
     cross = (paths <= thr) if thr < 0 else (paths >= thr)
     hit = cross.any(axis=1)
     trips = np.where(hit, grid[np.argmax(cross, axis=1)], np.inf)
@@ -388,7 +387,3 @@ def _life_line(x: dict[str, Any]) -> str:
         extra += f" [followed: {', '.join(fol['free'])} from {fol['diagnosed_visit_hours']:g} h]"
     return (f"  {x['life']:<34} first FAULT visit {fault + 1 if fault is not None else '-':>4}  {cov}{al} {extra}"
             f"  ({x['wall_s']:.1f} s)")
-
-
-def fmt_pct(v: float | None) -> str:
-    return "n/a" if v is None or (isinstance(v, float) and math.isnan(v)) else f"{100 * v:.0f} %"

@@ -55,23 +55,6 @@ class Visit:
     truth: dict[str, Any] | None = None
 
 
-@dataclass
-class Estimate:
-    name: str
-    value: float
-    stderr: float
-    nominal: float
-    unit: str
-
-    @property
-    def relative(self) -> float:
-        return self.value / self.nominal - 1.0
-
-    @property
-    def relative_stderr(self) -> float:
-        return self.stderr / abs(self.nominal)
-
-
 def join_visit_records(records: Sequence[Record]) -> Record:
     """The visit's records (sorted by board time when known) as one record from rest; a single record is returned
     as is."""

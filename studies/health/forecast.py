@@ -17,7 +17,7 @@ from typing import Any
 
 import numpy as np
 
-from studies.health.trend import Trend, _paths_of
+from studies.health.trend import Trend, paths_of
 from studies.health.trip import HEALTH_PARAMS, TripBoundary
 
 N_PATHS = 2000
@@ -117,7 +117,7 @@ def _parameter_paths(t: Trend, significant: bool, grid: np.ndarray, n_paths: int
     if significant and t.significant:
         return t.sample_paths(grid, n_paths, rng)
     f = t.fits.get("linear") if not significant else t.fits.get("none")
-    return _paths_of(f if f is not None else t.fits["none"], grid, n_paths, rng)
+    return paths_of(f if f is not None else t.fits["none"], grid, n_paths, rng)
 
 
 def visit_of(hours: float | None, schedule_start: float, interval: float) -> int | None:

@@ -66,7 +66,6 @@ from scipy.special import expit
 
 SIGMA_FLOOR = 5e-4
 P_SIGNIFICANT = 0.002  # ~0.5 % per parameter, Bonferroni over the three monitor parameters
-MODELS = ("none", "linear", "exponential", "power", "logistic", "two_stage", "change_point")
 #: visits each law needs (k ≤ n − 1: one more visit than coefficients)
 MIN_VISITS_FOR = {"none": 1, "linear": 3, "exponential": 4, "power": 4, "logistic": 5, "two_stage": 5,
                   "change_point": 5}
@@ -317,7 +316,7 @@ class Trend:
             n_recent = round(RECENT_SHARE * n)
             out = np.empty((n, h.size))
             out[: n - n_recent] = sample_mixture(self.fits, self.weights, h, n - n_recent, rng)
-            out[n - n_recent:] = _paths_of(self.recent, h, n_recent, rng)
+            out[n - n_recent:] = paths_of(self.recent, h, n_recent, rng)
         if self.spread_factor > 1.0:
             med = np.median(out, axis=0)
             out = med + self.spread_factor * (out - med)
@@ -325,7 +324,7 @@ class Trend:
 
     def band(self, h: np.ndarray, rng: np.random.Generator, n: int = 400, q: float = 0.9) -> tuple[np.ndarray, ...]:
         """(median, low, high) of the mean path at ``h`` (band q)."""
-        paths = self.sample_paths(h, n, rng) if self.significant else _paths_of(self.fits["none"], h, n, rng)
+        paths = self.sample_paths(h, n, rng) if self.significant else paths_of(self.fits["none"], h, n, rng)
         lo, hi = np.quantile(paths, [(1 - q) / 2, (1 + q) / 2], axis=0)
         return np.median(paths, axis=0), lo, hi
 
@@ -340,11 +339,11 @@ def sample_mixture(fits: dict[str, ModelFit], weights: dict[str, float], h: np.n
     for j, name in enumerate(names):
         idx = np.flatnonzero(pick == j)
         if idx.size:
-            out[idx] = _paths_of(fits[name], h, idx.size, rng)
+            out[idx] = paths_of(fits[name], h, idx.size, rng)
     return out
 
 
-def _paths_of(f: ModelFit, h: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
+def paths_of(f: ModelFit, h: np.ndarray, n: int, rng: np.random.Generator) -> np.ndarray:
     """Mean paths of one law: θ ~ N(θ̂, cov), or a multivariate t with n − p degrees of freedom when the law's
     scatter τ² was estimated from its residuals."""
     th = rng.multivariate_normal(np.zeros(f.theta.size), _psd(f.cov), size=n, method="svd")
@@ -416,7 +415,7 @@ def latest_visit_check(earlier: Trend, h: float, y: float, var: float, n: int = 
     rng = np.random.default_rng(CHECK_SEED)
     hh = np.array([h])
     paths = earlier.sample_paths(hh, n, rng)[:, 0] if earlier.significant else \
-        _paths_of(earlier.fits["none"], hh, n, rng)[:, 0]
+        paths_of(earlier.fits["none"], hh, n, rng)[:, 0]
     pred = paths + rng.normal(0.0, 1.0, n) * math.sqrt(var + earlier.best.scatter2)
     med, lo, hi = (float(v) for v in np.quantile(pred, [0.5, 0.05, 0.95]))
     half = (hi - med) if y >= med else (med - lo)
