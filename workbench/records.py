@@ -28,7 +28,7 @@ validated record), :mod:`workbench.record_csv`, :mod:`workbench.record_tdms` and
 from __future__ import annotations
 
 import hashlib
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -57,18 +57,26 @@ from workbench.record_types import (
     full_rows,
 )
 
+#: the record readers by file suffix (lower case): a new format is one module ``workbench/record_<fmt>.py`` and one
+#: entry here (docs/architecture.md, "Recipe: a new record format")
+RECORD_LOADERS: dict[str, Callable[[Path], Record | FrfRecord]] = {
+    ".csv": load_csv_record,
+    ".txt": load_csv_record,
+    ".tdms": load_tdms_record,
+}
+
 
 def load_record(path: str | Path) -> Record | FrfRecord:
-    """Load a measurement record: ``.csv`` (time record or frequency-response table) or ``.tdms``.
+    """Load a measurement record by its suffix (:data:`RECORD_LOADERS`): ``.csv`` (time record or frequency-response
+    table) or ``.tdms``.
 
     Raises :class:`RecordError` naming file, line/sample, column or metadata key, and the reason.
     """
     p = Path(path)
-    if p.suffix.lower() == ".tdms":
-        return load_tdms_record(p)
-    if p.suffix.lower() in (".csv", ".txt"):
-        return load_csv_record(p)
-    raise RecordError(p, f"unknown record type '{p.suffix}' (expected .csv or .tdms)")
+    loader = RECORD_LOADERS.get(p.suffix.lower())
+    if loader is None:
+        raise RecordError(p, f"unknown record type '{p.suffix}' (expected {' or '.join(RECORD_LOADERS)})")
+    return loader(p)
 
 
 def check_distinct_records(paths: Sequence[str | Path]) -> None:
