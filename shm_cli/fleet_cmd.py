@@ -14,6 +14,8 @@ from shm_cli.batch_records import REPORT_NAME, run_command_task, warm_workbench
 from shm_cli.common import dump_json, out_dir
 from shm_cli.output_guard import check_foreign_run, locked_out
 
+#: the boards of a ``shm run --boards`` output, as a shell pattern (``board*`` would also match boards.csv/.html)
+BOARD_GLOB = "board[0-9]*"
 FLEET_COLUMNS = ("rank", "board", "first_fault_h", "first_fault_90_lo_h", "first_fault_90_hi_h", "rul_h",
                  "where", "last_verdict")
 
@@ -142,7 +144,7 @@ def run_fleet_boards(args: argparse.Namespace) -> int:
         paths = write_summary(out, f"{len(rows)} boards through '{scenario.name}'", rows, report_of, stem="boards",
                               key="board")
     print(f"shm run: {len(rows)} boards in {outcome.wall_s:.1f} s ({outcome.scheduler}); {paths['html']}; next: "
-          f"shm health --fleet {out}/board* --out {out}/fleet", file=sys.stderr)
+          f"shm health --fleet {out}/{BOARD_GLOB} --out {out}/fleet", file=sys.stderr)
     if args.json:
         print(dump_json({"boards": rows, "cost": outcome.cost()}))
     return 1 if any(r["exit_code"] for r in rows) else 0

@@ -5,10 +5,12 @@ forecast first FAULT, one report per board, --json one document."""
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import pytest
 from test_scale_out_cluster import _timeless
 
+from shm_cli.fleet_cmd import BOARD_GLOB
 from shm_cli.main import main
 
 pytestmark = pytest.mark.slow
@@ -34,10 +36,15 @@ def fleet(tmp_path_factory):
 def test_fleet_health_local_workers_equal_the_in_process_run(fleet, capsys):
     tmp, boards = fleet
     assert (boards / "board000" / "usage.db").is_file() and (boards / "boards.csv").is_file()
+    # the pattern shm run --boards suggests for shm health --fleet names the boards and nothing else (boards.csv)
+    assert sorted(p.name for p in boards.glob(BOARD_GLOB)) == ["board000", "board001"]
     sources = [str(boards / "board000"), str(boards / "board001")]
     assert main(["health", "--fleet", *sources, *HEALTH, "--scheduler", "synchronous", "--out",
                  str(tmp / "ref")]) == 0
-    capsys.readouterr()
+    ranked = [ln for ln in capsys.readouterr().out.splitlines() if ln.lstrip()[:1].isdigit()]
+    # README's fleet walk shows this fleet's table: it must be what the code prints today
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    assert ranked and all(ln in readme.splitlines() for ln in ranked), ranked
     assert main(["health", "--fleet", *sources, *HEALTH, "--json", "--out", str(tmp / "local")]) == 0
     doc = json.loads(capsys.readouterr().out)
     assert [r["board"] for r in doc["fleet"]] == ["board000", "board001"]  # board000's rates x1.67: first FAULT
