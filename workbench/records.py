@@ -57,14 +57,6 @@ from workbench.record_types import (
     full_rows,
 )
 
-#: the record readers by file suffix (lower case): a new format is one module ``workbench/record_<fmt>.py`` and one
-#: entry here (docs/architecture.md, "Recipe: a new record format")
-RECORD_LOADERS: dict[str, Callable[[Path], Record | FrfRecord]] = {
-    ".csv": load_csv_record,
-    ".txt": load_csv_record,
-    ".tdms": load_tdms_record,
-}
-
 
 def load_record(path: str | Path) -> Record | FrfRecord:
     """Load a measurement record by its suffix (:data:`RECORD_LOADERS`): ``.csv`` (time record or frequency-response
@@ -77,6 +69,15 @@ def load_record(path: str | Path) -> Record | FrfRecord:
     if loader is None:
         raise RecordError(p, f"unknown record type '{p.suffix}' (expected {' or '.join(RECORD_LOADERS)})")
     return loader(p)
+
+
+#: the record readers by file suffix (lower case): a new format is one module ``workbench/record_<fmt>.py`` and one
+#: entry here (docs/architecture.md, "Recipe: a new record format")
+RECORD_LOADERS: dict[str, Callable[[Path], Record | FrfRecord]] = {
+    ".csv": load_csv_record,
+    ".txt": load_csv_record,
+    ".tdms": load_tdms_record,
+}
 
 
 def check_distinct_records(paths: Sequence[str | Path]) -> None:
