@@ -7,7 +7,8 @@ Public surface (import from here): :class:`PlantModel`, :class:`InputSignals`, :
 """
 
 from plant import kernel_cache as _kernel_cache  # noqa: F401, I001  (first: numba's cache directory, kernel_cache)
-from plant import effects as _builtin_effects  # noqa: F401  (registers the built-in effects)
+# the seam's names are bound before the built-in effects are imported: a file in plant/effects may write
+# `from plant import Parameter, PhysicalEffect` (docs/architecture.md, the library-effect recipe)
 from plant.effect import (
     EffectError,
     OutputSpec,
@@ -19,6 +20,7 @@ from plant.effect import (
     registered_effects,
     resolve_effect,
 )
+from plant import effects as _builtin_effects  # noqa: F401  (registers the built-in effects)
 from plant.effects import NOMINAL_EFFECTS
 from plant.integrate import IntegrationFailed, IntegrationStatus
 from plant.model import PlantModel, SimulationResult
