@@ -60,7 +60,7 @@ def _assess(n_used: int, evaluate: bool, **kw):
     b = _boundary()
     ff = true_first_fault(visits, "table2", b)
     if evaluate:
-        extra = [v for v in visits[n_used:] if v.operating_hours < ff["operating_hours"]]
+        extra = [v for v in visits[n_used:] if v.operating_hours < ff.operating_hours]
     return assess_estimates(used, visits, extra, ests[: n_used + len(extra)], params="table2",
                             free=("k3", "alpha_h", "beta_h"), boundary=b, truth_ff=ff, as_of=used[-1].operating_hours,
                             seed=1, say=lambda s: None, evaluate=evaluate), ff
@@ -89,7 +89,7 @@ def test_evaluate_scores_the_prognosis_against_the_truth(tmp_path):
     """α_h +1.6 % per 100 h from 0: the monitor (+15 %) trips at 1000 h; as of 600 h with --evaluate the sweep goes on
     to 900 h; α-λ at the λ points, the prognostic horizon and the relative accuracy follow ProgPy's definitions."""
     a, ff = _assess(7, evaluate=True)
-    assert ff["operating_hours"] == 1000.0 and "trip boundary" in ff["source"]
+    assert ff.operating_hours == 1000.0 and "trip boundary" in ff.source
     ev = a.doc["evaluation"]
     assert [p["as_of_hours"] for p in ev["predictions"]] == [300.0, 400.0, 500.0, 600.0, 700.0, 800.0, 900.0]
     assert [p["lambda"] for p in ev["alpha_lambda"]] == [0.25, 0.5, 0.75]
@@ -122,7 +122,7 @@ def test_a_bad_prognosis_is_scored_as_such(tmp_path):
             x["value"] += bump * x["nominal"]
     b = _boundary()
     ff = true_first_fault(visits, "table2", b)
-    assert ff["operating_hours"] == 800.0
+    assert ff.operating_hours == 800.0
     used = visits[:5]
     extra = [v for v in visits[5:] if v.operating_hours < 800.0]
     a = assess_estimates(used, visits, extra, ests[: len(used) + len(extra)], params="table2",
@@ -136,7 +136,8 @@ def test_a_bad_prognosis_is_scored_as_such(tmp_path):
 def test_the_board_verdicts_are_the_truth_when_the_log_has_them():
     visits, _ = _life(verdicts=True)
     ff = true_first_fault(visits, "table2", None)
-    assert ff == {"visit": 11, "operating_hours": 1000.0, "source": "the board's own verdicts (usage.db)"}
+    assert ff is not None
+    assert ff.to_json() == {"visit": 11, "operating_hours": 1000.0, "source": "the board's own verdicts (usage.db)"}
 
 
 def test_a_stable_laminate_gets_a_page_with_a_lower_bound(tmp_path):

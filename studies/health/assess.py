@@ -23,7 +23,7 @@ from studies.health.locate import SECTIONS, diagnose_first_name, locate_stiffnes
 from studies.health.sources import load_visits
 from studies.health.trend import Trend
 from studies.health.trip import HEALTH_PARAMS, trip_boundary
-from studies.health.truth import true_first_fault, truth_document
+from studies.health.truth import TrueFirstFault, true_first_fault, truth_document
 
 #: what an added effect is, in words (the Where? level)
 EFFECT_WORDS = {"dielectric_leakage": "their dielectric leaks (dielectric_leakage: a conductance G_leak in parallel "
@@ -120,7 +120,7 @@ def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: floa
 
 def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[Visit],
                      ests_all: list[dict[str, Any]], *, params: str, free: Sequence[str], boundary: Any,
-                     truth_ff: dict[str, Any] | None, as_of: float | None, seed: int, say: Callable[[str], None],
+                     truth_ff: TrueFirstFault | None, as_of: float | None, seed: int, say: Callable[[str], None],
                      locate: str = "never", locate_diagnose: bool = False, locate_visits: int = 1,
                      evaluate: bool = False, alpha: float = ALPHA, lambdas: Sequence[float] = LAMBDAS,
                      followed: Followed | None = None) -> Assessment:
@@ -163,23 +163,24 @@ def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[V
     doc["levels"] = levels(doc, trends, fc)
     doc["remaining_life"] = [{k: v for k, v in p.items() if k != "samples"} for p in sweep]
     doc["truth"] = truth_document(visits, params, free, truth_ff)
-    doc["evaluation"] = (evaluate_sweep(sweep, truth_ff["operating_hours"], alpha=alpha, lambdas=lambdas)
-                         | {"truth_source": truth_ff["source"], "true_first_fault_visit": truth_ff["visit"]}
-                         if evaluate and truth_ff is not None else None)
+    t_eol = truth_ff.operating_hours if truth_ff is not None else None  # h; assess_health checks it is known
+    doc["evaluation"] = (evaluate_sweep(sweep, t_eol, alpha=alpha, lambdas=lambdas)
+                         | {"truth_source": truth_ff.source, "true_first_fault_visit": truth_ff.visit}
+                         if evaluate and truth_ff is not None and t_eol is not None else None)
     return Assessment(doc, visits, ests, trends, fc, boundary, sweep, followed.estimates, limits)
 
 
-def _evaluation_truth(truth_ff: dict[str, Any] | None, all_visits: Sequence[Visit]) -> float:
+def _evaluation_truth(truth_ff: TrueFirstFault | None, all_visits: Sequence[Visit]) -> float:
     """The true first FAULT's hours for --evaluate, or a one-line InputError saying what is missing."""
     if truth_ff is None:
         raise InputError("--evaluate needs a life whose truth is known: these sources carry neither the board's "
                          "verdicts (a run directory of shm run or its usage.db) nor true parameters (the "
                          "provenance.truth_values of a shm synth record)")
-    if truth_ff["operating_hours"] is None:
+    if truth_ff.operating_hours is None:
         raise InputError(f"--evaluate: no FAULT in the {len(all_visits)} visits (up to "
-                         f"{all_visits[-1].operating_hours:g} h; truth from {truth_ff['source']}): a prognosis is "
+                         f"{all_visits[-1].operating_hours:g} h; truth from {truth_ff.source}): a prognosis is "
                          "scored against the first FAULT")
-    t_eol = float(truth_ff["operating_hours"])
+    t_eol = float(truth_ff.operating_hours)
     if sum(v.operating_hours < t_eol for v in all_visits) < MIN_VISITS:
         raise InputError(f"--evaluate: the first FAULT is at {t_eol:g} h, after only "
                          f"{sum(v.operating_hours < t_eol for v in all_visits)} visits; a prediction needs "

@@ -13,6 +13,7 @@ visit through the trip boundary (:mod:`.trip`), seen at the first visit where it
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import asdict, dataclass
 from functools import cache
 from typing import Any
 
@@ -49,26 +50,42 @@ def truth_relative(visit: Visit, params: str, names: Sequence[str]) -> dict[str,
     return out
 
 
-def true_first_fault(visits: Sequence[Visit], params: str, boundary: TripBoundary | None) -> dict[str, Any] | None:
-    """``{"visit", "operating_hours", "source"}`` of the true first FAULT (None: not known, or never in these
-    visits — then ``{"operating_hours": None, ...}`` says which source was searched)."""
+@dataclass(frozen=True)
+class TrueFirstFault:
+    """The true first FAULT of a life, the event a prognosis predicts (``health.json``'s ``truth.first_fault``)."""
+
+    visit: int | None
+    """The visit's number (1 = entry into service) when the source numbers its visits; None: no FAULT here."""
+    operating_hours: float | None
+    """Operating hours (h) of the first FAULT; None: no FAULT in the visits searched."""
+    source: str
+    """Where the truth comes from, in words (the board's verdicts, or its monitor on the records' true values)."""
+
+    def to_json(self) -> dict[str, Any]:
+        """``{"visit", "operating_hours", "source"}`` as written to ``health.json``."""
+        return asdict(self)
+
+
+def true_first_fault(visits: Sequence[Visit], params: str, boundary: TripBoundary | None) -> TrueFirstFault | None:
+    """The true first FAULT (None: not known; ``operating_hours`` None: never in these visits, and ``source`` says
+    which source was searched)."""
     if any(v.verdict for v in visits):
         first = next((v for v in visits if v.verdict == "FAULT"), None)
-        return {"visit": first.visit if first else None, "operating_hours": first.operating_hours if first else None,
-                "source": "the board's own verdicts (usage.db)"}
+        return TrueFirstFault(first.visit if first else None, first.operating_hours if first else None,
+                              "the board's own verdicts (usage.db)")
     truths = [truth_relative(v, params, HEALTH_PARAMS) for v in visits]
     if boundary is None or any(t is None for t in truths):
         return None
     devs = np.array([[t[n] for n in HEALTH_PARAMS] for t in truths if t is not None])
     faults = boundary.fault(devs)
     k = int(np.argmax(faults)) if faults.any() else None
-    return {"visit": visits[k].visit if k is not None else None,
-            "operating_hours": visits[k].operating_hours if k is not None else None,
-            "source": "the board's monitor (trip boundary) on the records' true k3, alpha_h, beta_h"}
+    return TrueFirstFault(visits[k].visit if k is not None else None,
+                          visits[k].operating_hours if k is not None else None,
+                          "the board's monitor (trip boundary) on the records' true k3, alpha_h, beta_h")
 
 
 def truth_document(visits: Sequence[Visit], params: str, names: Sequence[str],
-                   first_fault: dict[str, Any] | None) -> dict[str, Any] | None:
+                   first_fault: TrueFirstFault | None) -> dict[str, Any] | None:
     """``truth`` of health.json: the true relative changes at the visits used and the true first FAULT (None when
     the sources carry no truth at all)."""
     rows = []
@@ -78,4 +95,4 @@ def truth_document(visits: Sequence[Visit], params: str, names: Sequence[str],
             rows.append({"operating_hours": v.operating_hours, "relative": t})
     if not rows and first_fault is None:
         return None
-    return {"visits": rows, "first_fault": first_fault}
+    return {"visits": rows, "first_fault": first_fault.to_json() if first_fault is not None else None}
