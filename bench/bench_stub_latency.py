@@ -13,12 +13,17 @@ network and this process's scheduling. Each phase runs against a fresh stub. Tar
 under load. On a shared machine other processes' CPU use shows up directly in p99 and max: the load average before each
 phase is recorded with the result.
 
-Every phase runs twice, back to back: with the kernel's default time slice (``shm hil serve --sched-slice-ms 0``, the
-client as it is) and with the short slice (the stub's default 0.2 ms; the client's sending thread asks for the same,
-as ``shm run --link`` does for the board's link thread: :mod:`drivers.latency_slice`). Both at normal priority, as
-are the hogs; on a kernel without EEVDF custom slices the two variants are the same code path (the note says so).
+Every phase runs three times, back to back: with the kernel's default time slice (``shm hil serve --sched-slice-ms
+0``, the client as it is), with the short slice for every thread of the stub (``--sched-slice-ms 0.2``; the client's
+sending thread asks for the same, as ``shm run --link`` does for the board's link thread: :mod:`drivers.latency_slice`)
+and with the short slice for the serving threads only (``--clock-slice-ms 0``: the rig clock thread, whose physics step
+holds the GIL, keeps the kernel's default). All at normal priority, as are the hogs; on a kernel without EEVDF custom
+slices the variants are the same code path (the note says so). On TCP the stub also reports its answer time from the
+kernel's receive timestamp of each request (``answer_time_from_kernel_rx``: its own wake-up included, which the
+event loop's clock cannot see).
 
-``--quick``: 3 s per phase (a smoke run, not for quoting); full: 12 s per phase (16 phases, ~5 min).
+``--quick``: 3 s per phase (a smoke run, not for quoting); full: 12 s per phase (12 runs, ~5 min on a quiet machine).
+``SHM_BENCH_STUB_PHASES=under_load,rtu_under_load`` runs only the phases named.
 """
 
 from __future__ import annotations

@@ -99,9 +99,10 @@ def request_slice(slice_s: float = DEFAULT_SLICE_S, tid: int = 0, *, machine: st
 
 def request_process_slice(slice_s: float = DEFAULT_SLICE_S) -> SliceResult:
     """:func:`request_slice` for every thread of this process (those already running — a library's worker started
-    at import — and, by inheritance, those started afterwards); the calling thread's result."""
+    at import — and, by inheritance, those started afterwards); the calling thread's result. With ``slice_s`` 0 every
+    thread goes back to the kernel's default, also one that inherited a slice from the process' parent."""
     result = request_slice(slice_s)
-    if result.applied:
+    if result.applied or slice_s <= 0:
         me = threading.get_native_id()
         for tid in _thread_ids():
             if tid != me:

@@ -158,7 +158,15 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--clock-slice-ms", type=sched_slice_arg, default=None, metavar="MS",
                    help="CPU time slice of the rig clock thread (the physics step), apart from the serving threads "
                         "(default: the same as --sched-slice-ms; 0: the kernel's default; docs/real-rig.md)")
-    f = s.add_argument_group("fault injection (seeded by --seed)")
+    _add_fault_options(s.add_argument_group("fault injection (seeded by --seed)"))
+    from shm_cli.live_args import add_live_args
+
+    add_live_args(s, "the rig")
+    s.set_defaults(func=cmd_serve)
+
+
+def _add_fault_options(f: argparse._ArgumentGroup) -> None:
+    """`shm hil serve`'s fault injection options (wire, timing, sensor and truth faults)."""
     f.add_argument("--drop", type=float_in_range(0.0, 1.0), default=0.0, metavar="FRAC",
                    help="fraction of replies dropped")
     f.add_argument("--corrupt", type=float_in_range(0.0, 1.0), default=0.0, metavar="FRAC",
@@ -181,10 +189,6 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="relative parameter deviation of the truth plant (k3=-0.3: k3 × 0.7); repeatable")
     f.add_argument("--effect", action="append", default=[], metavar="NAME|module:Class",
                    help="add a physical effect to the truth plant (registered name or dotted path); repeatable")
-    from shm_cli.live_args import add_live_args
-
-    add_live_args(s, "the rig")
-    s.set_defaults(func=cmd_serve)
 
 
 def fault_plan(args: argparse.Namespace, seed: int):

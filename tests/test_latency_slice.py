@@ -181,3 +181,33 @@ def test_the_default_slice_is_chosen_per_link() -> None:
     assert serving_slice_ms(None, serial_endpoints=0) == 0.2  # Modbus TCP only: the short slice
     assert serving_slice_ms(None, serial_endpoints=1) == 0.0  # an RTU / serial endpoint: the kernel's default
     assert serving_slice_ms(0.5, serial_endpoints=1) == 0.5 and serving_slice_ms(0.0, serial_endpoints=0) == 0.0
+
+
+@needs_eevdf
+def test_off_for_the_process_gives_every_running_thread_the_kernels_slice_back() -> None:
+    """A process started by one with a slice (a test runner, a bench) inherits it in every thread it has; 0 for the
+    process (``shm hil serve --sched-slice-ms 0``, or its default with an RTU endpoint) resets them all."""
+    from drivers.latency_slice import request_process_slice
+
+    def work() -> float | None:
+        request_slice(2e-4)
+        go = threading.Event()
+        tid: list[int] = []
+
+        def waiting() -> None:
+            tid.append(threading.get_native_id())
+            go.wait(10)
+
+        worker = threading.Thread(target=waiting)
+        worker.start()
+        while not tid:
+            pass
+        try:
+            assert thread_slice_s("self", tid[0]) == pytest.approx(2e-4)  # inherited
+            request_process_slice(0)
+            return thread_slice_s("self", tid[0])
+        finally:
+            go.set()
+            worker.join()
+
+    assert _in_thread(work) != pytest.approx(2e-4)
