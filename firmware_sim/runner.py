@@ -24,7 +24,7 @@ from drivers.quiet_span import QuietSpan, QuietSpanSource
 from firmware_sim.board import Board
 from firmware_sim.events import BoardEvent, EventSink
 from firmware_sim.regimes import REGIME_CODES
-from firmware_sim.scheduler import Scheduler, TickStats, VirtualClock
+from firmware_sim.scheduler import BlockFunction, Scheduler, TickFunction, TickScheduler, TickStats, VirtualClock
 
 #: trace columns (unit in the name)
 TRACE_COLUMNS: tuple[str, ...] = ("time_s", "regime_code", "z3_m", "z3_model_m", "z0dd_m_s2", "v_patch_V",
@@ -50,12 +50,12 @@ class Trace:
         return self._count + len(self.rows)
 
     def add_block(self, rows: np.ndarray) -> None:
-        """Append the rows of several ticks at once (shape (k, len(TRACE_COLUMNS))); ``rows`` is a new list after
-        this (re-read it before appending single rows)."""
+        """Append the rows of several ticks at once (shape (k, len(TRACE_COLUMNS))); ``rows`` stays the same list
+        (emptied), so a bound ``rows.append`` keeps appending after the block."""
         if self.rows:
-            self._parts.append(self.rows)
+            self._parts.append(self.rows.copy())
             self._count += len(self.rows)
-            self.rows = []
+            self.rows.clear()
         self._parts.append(rows)
         self._count += rows.shape[0]
 
@@ -91,16 +91,31 @@ class RunResult:
         return self.duration_s / self.wall_s if self.wall_s > 0 else math.inf
 
 
+def _ticks_before_rearm(k: int, limit: int, rearms: list[float], period: float) -> int:
+    """How many of the ``limit`` ticks from ``k`` on may run as a quiet span: all, or those before the tick that hands
+    the next re-arm to the board (the first ``kk = k + 1 + j`` with ``kk * period >= rearms[0]``)."""
+    if not rearms:
+        return limit
+    r = rearms[0] - 1e-12
+    j = min(limit, max(0, int(r / period) - k - 2))  # a few ticks short of it, then exactly
+    while j > 0 and (k + j) * period >= r:
+        j -= 1
+    while j < limit and (k + 1 + j) * period < r:
+        j += 1
+    return j
+
+
 class BoardRunner:
     """The board's main loop against ``link`` on ``scheduler`` (virtual time by default)."""
 
-    def __init__(self, board: Board, link: Link, *, sink: EventSink | None = None, scheduler: Scheduler | None = None,
+    def __init__(self, board: Board, link: Link, *, sink: EventSink | None = None,
+                 scheduler: TickScheduler | None = None,
                  rearm_times: Sequence[float] = (), on_event: Callable[[BoardEvent], None] | None = None,
                  trace_every: int | None = 1, quiet_spans: bool = True) -> None:
         self.board = board
         self.link = link
         self.sink = sink
-        self.scheduler = scheduler if scheduler is not None else Scheduler(board.cfg.tick_rate)
+        self.scheduler: TickScheduler = scheduler if scheduler is not None else Scheduler(board.cfg.tick_rate)
         if abs(self.scheduler.rate - board.cfg.tick_rate) > 1e-9:
             raise ValueError(f"scheduler rate {self.scheduler.rate:g} Hz differs from the board's tick rate "
                              f"{board.cfg.tick_rate:g} Hz")
@@ -128,15 +143,35 @@ class BoardRunner:
     def run(self, duration_s: float, progress: Callable[[int], None] | None = None) -> RunResult:
         """Run ``duration_s`` seconds of board time (a whole number of ticks, rounded up)."""
         board = self.board
-        period = board.period
-        n = math.ceil(duration_s / period - 1e-9)
+        n = math.ceil(duration_s / board.period - 1e-9)
         trace = Trace(n, self.trace_every) if self.trace_every else None
-        rearms = list(self.rearm_times)
+        rearms = list(self.rearm_times)  # operator re-arms still to hand to the board (s), each taken once
+        step = self._tick_function(trace, rearms)
+        spans = self._quiet_span_source()
+        t0 = time.perf_counter()
+        try:
+            if spans is not None:
+                block = self._block_function(spans, step, trace, rearms)
+                stats = self.scheduler.run_blocks(n, block, progress=progress)
+            else:
+                stats = self.scheduler.run(n, step, progress=progress)
+        finally:  # every exit — the end, an exception, Ctrl-C / SIGTERM mid-tick — leaves the amplifier at 0 V
+            self.zero_sent = self.command_zero()
+        wall = time.perf_counter() - t0
+        for ev in board.close(stats.ticks):
+            self._emit(ev)
+        return RunResult(stats.ticks, stats.ticks * board.period, wall, stats, self.events, trace)
+
+    def _tick_function(self, trace: Trace | None, rearms: list[float]) -> TickFunction:
+        """``step(k, overran)``: tick ``k`` — the command decided at the previous tick through the link, the sample
+        to ``board.tick(sample, k + 1)`` (with a re-arm due by then), its events emitted, its trace row kept."""
+        board = self.board
+        period = board.period
         link = self.link
         emit = self._emit
         rows_append = trace.rows.append if trace is not None else None
-        nan = math.nan
         every = trace.every if trace is not None else 0
+        nan = math.nan
         codes = REGIME_CODES
 
         def step(k: int, overran: bool) -> None:
@@ -166,24 +201,22 @@ class BoardRunner:
                     rows_append((kk * period, codes[res.regime], nan, z3m, nan, nan, nan, cmd.v_ch1, cmd.v_ch2,
                                  mcount, cmd.board_current, 0.0))
 
-        spans = self._quiet_span_source()
+        return step
+
+    def _block_function(self, spans: QuietSpanSource, step: TickFunction, trace: Trace | None,
+                        rearms: list[float]) -> BlockFunction:
+        """``block(k, left)`` against an in-process rig: the quiet ticks from ``k`` on at once (drivers.quiet_span),
+        else the one tick ``k`` by ``step``; never asks to stop (a scheduler wrapper may: shm run's on a signal)."""
+        board = self.board
+        period = board.period
+        every = trace.every if trace is not None else 0
+        codes = REGIME_CODES
 
         def block(k: int, left: int) -> tuple[int, bool]:
-            """Against an in-process rig: the quiet ticks from ``k`` on at once (drivers.quiet_span), else the one
-            tick ``k``; never asks to stop (a scheduler wrapper may)."""
-            nonlocal rows_append
             cmd = self.command
-            if (spans is not None and left > 1 and board.can_take_quiet() and cmd.v_ch1 == 0.0 and cmd.v_ch2 == 0.0
+            if (left > 1 and board.can_take_quiet() and cmd.v_ch1 == 0.0 and cmd.v_ch2 == 0.0
                     and cmd.board_current == board.quiet_command_current()):
-                limit = left
-                if rearms:  # stop before the tick that hands the next re-arm to the board (kk * period >= r)
-                    r = rearms[0] - 1e-12
-                    j = min(limit, max(0, int(r / period) - k - 2))  # a few ticks short of it, then exactly
-                    while j > 0 and (k + j) * period >= r:
-                        j -= 1
-                    while j < limit and (k + 1 + j) * period < r:
-                        j += 1
-                    limit = j
+                limit = _ticks_before_rearm(k, left, rearms, period)
                 span = spans.peek_quiet(cmd, limit) if limit > 1 else None
                 if span is not None:
                     m, command = board.take_quiet(k + 1, span)
@@ -193,23 +226,11 @@ class BoardRunner:
                         if trace is not None:
                             trace.add_block(self._trace_rows(k, m, every, period, codes[board.regime], cmd, command,
                                                              span))
-                            rows_append = trace.rows.append
                         return m, False
-            step(k, False)  # the runner itself never stops early (its scheduler may: shm run's on a signal)
+            step(k, False)
             return 1, False
 
-        t0 = time.perf_counter()
-        try:
-            if spans is not None:
-                stats = self.scheduler.run_blocks(n, block, progress=progress)
-            else:
-                stats = self.scheduler.run(n, step, progress=progress)
-        finally:  # every exit — the end, an exception, Ctrl-C / SIGTERM mid-tick — leaves the amplifier at 0 V
-            self.zero_sent = self.command_zero()
-        wall = time.perf_counter() - t0
-        for ev in board.close(stats.ticks):
-            emit(ev)
-        return RunResult(stats.ticks, stats.ticks * period, wall, stats, self.events, trace)
+        return block
 
     def _quiet_span_source(self) -> QuietSpanSource | None:
         """The link, if quiet stretches may be exchanged in one call: virtual time, a scheduler whose class defines

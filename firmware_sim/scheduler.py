@@ -217,3 +217,62 @@ class Scheduler:
             stats = TickStats(done, self.rate, self.paced, 0, 0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, float(elapsed))
         self.stats = stats
         return stats
+
+
+class TickScheduler(Protocol):
+    """What the board's runner needs of a scheduler: a :class:`Scheduler`, or a :class:`SchedulerWrapper` of one."""
+
+    rate: float  # Hz
+    period: float  # s
+    paced: bool
+    clock: Clock
+
+    def run(self, n_ticks: int, step: TickFunction, first_tick: int = 0,
+            progress: Callable[[int], None] | None = None) -> TickStats: ...
+
+    def run_blocks(self, n_ticks: int, block: BlockFunction, first_tick: int = 0,
+                   progress: Callable[[int], None] | None = None) -> TickStats: ...
+
+
+class SchedulerWrapper:
+    """A scheduler that runs the wrapped one's ticks and calls :meth:`after_ticks` after each tick (and each block
+    of quiet ticks), in the board's own thread; its answer can end the run after that tick. Subclasses define
+    :meth:`after_ticks` (e.g. ``shm run``'s stop on a signal, the live page's publication). Wrappers nest. It
+    defines ``run_blocks`` itself (not by forwarding), so a run with quiet spans keeps the wrapper's condition."""
+
+    def __init__(self, inner: TickScheduler) -> None:
+        self._inner = inner
+        self.rate = inner.rate
+        self.period = inner.period
+        self.paced = inner.paced
+        self.clock = inner.clock
+
+    @property
+    def stats(self) -> TickStats | None:
+        """The wrapped scheduler's statistics of its last run."""
+        return getattr(self._inner, "stats", None)
+
+    def after_ticks(self, k: int, overran: bool, ticks: int) -> bool:
+        """After tick ``k``, the last of ``ticks`` ticks done at once (``overran``: tick ``k`` missed its deadline);
+        True to stop the run there."""
+        raise NotImplementedError
+
+    def run(self, n_ticks: int, step: TickFunction, first_tick: int = 0,
+            progress: Callable[[int], None] | None = None) -> TickStats:
+        after = self.after_ticks
+
+        def wrapped(k: int, overran: bool) -> bool:
+            stop = bool(step(k, overran))
+            return after(k, overran, 1) or stop
+
+        return self._inner.run(n_ticks, wrapped, first_tick=first_tick, progress=progress)
+
+    def run_blocks(self, n_ticks: int, block: BlockFunction, first_tick: int = 0,
+                   progress: Callable[[int], None] | None = None) -> TickStats:
+        after = self.after_ticks
+
+        def wrapped(k: int, left: int) -> tuple[int, bool]:
+            d, stop = block(k, left)
+            return d, after(k + d - 1, False, d) or bool(stop)
+
+        return self._inner.run_blocks(n_ticks, wrapped, first_tick=first_tick, progress=progress)

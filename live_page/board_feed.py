@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from drivers.link import ActuatorCommand, LinkError, RigSample
+from firmware_sim.scheduler import SchedulerWrapper, TickScheduler
 from live_page.snapshot import (
     MAX_CHUNKS,
     MAX_EVENTS,
@@ -234,35 +235,13 @@ class BoardFeed:
         return self.publish(finished=True, status=status, report=report)
 
 
-class PublishingScheduler:
+class PublishingScheduler(SchedulerWrapper):
     """A scheduler that calls ``feed.after_tick`` after each tick (and quiet span) of the wrapped one."""
 
-    def __init__(self, inner: Any, feed: BoardFeed) -> None:
-        self._inner = inner
+    def __init__(self, inner: TickScheduler, feed: BoardFeed) -> None:
+        super().__init__(inner)
         self._feed = feed
-        self.rate = inner.rate
-        self.period = inner.period
-        self.paced = inner.paced
 
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._inner, name)
-
-    def run(self, n_ticks: int, step: Any, first_tick: int = 0, progress: Any = None) -> Any:
-        after = self._feed.after_tick
-
-        def published(k: int, overran: bool) -> bool:
-            stop = bool(step(k, overran))
-            after(k, overran)
-            return stop
-
-        return self._inner.run(n_ticks, published, first_tick=first_tick, progress=progress)
-
-    def run_blocks(self, n_ticks: int, block: Any, first_tick: int = 0, progress: Any = None) -> Any:
-        after = self._feed.after_tick
-
-        def published(k: int, left: int) -> tuple[int, bool]:
-            d, stop = block(k, left)
-            after(k + d - 1, False, d)
-            return d, stop
-
-        return self._inner.run_blocks(n_ticks, published, first_tick=first_tick, progress=progress)
+    def after_ticks(self, k: int, overran: bool, ticks: int) -> bool:
+        self._feed.after_tick(k, overran, ticks)
+        return False
