@@ -26,6 +26,7 @@ from pathlib import Path
 from typing import Any
 
 from shm_cli.common import dump_json, out_dir
+from shm_cli.stop_signal import StopOnSignal
 
 STAGE_NAME = ".shm-life-new"
 
@@ -51,7 +52,7 @@ def refuse_life_options(args: argparse.Namespace) -> None:
 def run_life_command(args: argparse.Namespace, scenario: Any) -> int:
     from board_config.board import load_board_config
     from shm_cli.main import CliError
-    from shm_cli.run_cmd import StopOnSignal, _previous_run
+    from shm_cli.output_folder import previous_run
     from shm_cli.run_lock import OutputLock
     from studies.health.life_check import check_life
 
@@ -69,7 +70,7 @@ def run_life_command(args: argparse.Namespace, scenario: Any) -> int:
     lock = OutputLock(out, command=f"shm run --scenario {args.scenario} --out {args.out}")
     lock.acquire()
     try:
-        previous = _previous_run(out)
+        previous = previous_run(out)
         if previous is not None and not args.force:
             raise CliError(f"--out {out} holds an earlier run ({previous}); not overwriting it: use --force to "
                            "replace it (kept until the new life has a finished visit), or choose another --out")
@@ -86,7 +87,7 @@ def run_life_command(args: argparse.Namespace, scenario: Any) -> int:
 
 
 def _run_life_staged(args: argparse.Namespace, scenario: Any, seed: int, params: str, cfg: Any, out: Path,
-                     stage: Path, stopper: Any) -> int:
+                     stage: Path, stopper: StopOnSignal) -> int:
     from studies.health.life import run_life, visit_line
 
     lines: list[str] = []
@@ -129,20 +130,15 @@ def _run_life_staged(args: argparse.Namespace, scenario: Any, seed: int, params:
     elif not args.quiet:
         print(f"results in {out}/ (usage.db, records/, life.json, timeline.txt, report.html, life.png)")
     if stopper.requested:
-        if result.interrupted:
-            print(f"shm run: interrupted by {stopper.name}; status 'interrupted' recorded in {out / 'usage.db'}, "
-                  f"{len(result.visits)} finished visit(s) in {out}/", file=sys.stderr)
-        else:
-            print(f"shm run: {stopper.name} received after the life finished; its results are complete in {out}/",
-                  file=sys.stderr)
-        return stopper.exit_code
+        return stopper.report(result.interrupted, f"; status 'interrupted' recorded in {out / 'usage.db'}, "
+                              f"{len(result.visits)} finished visit(s) in {out}/", "the life", f"{out}/")
     return 1 if failed else 0
 
 
 def _write_life(args: argparse.Namespace, scenario: Any, seed: int, params: str, cfg: Any, out: Path, stage: Path,
                 result: Any, status: str, lines: list[str], say: Any) -> tuple[dict[str, Any], dict[str, str]]:
     """Every file of the life into ``stage``, then moved into ``out`` (an earlier run's files replaced)."""
-    from shm_cli.run_cmd import RUN_OUTPUTS
+    from shm_cli.output_folder import remove_run_outputs
     from studies.health.life import write_life_log
     from studies.health.life_report import write_life_report
 
@@ -156,12 +152,7 @@ def _write_life(args: argparse.Namespace, scenario: Any, seed: int, params: str,
     failed = write_life_report(summary, stage, str(args.out))
     for name in failed:  # a half-written artefact is not moved into --out
         (stage / name).unlink(missing_ok=True)
-    for name in RUN_OUTPUTS:  # the earlier run's files go only now, when the new ones are complete
-        target = out / name
-        if target.is_dir() and not target.is_symlink():
-            shutil.rmtree(target)
-        else:
-            target.unlink(missing_ok=True)
+    remove_run_outputs(out)  # the earlier run's files go only now, when the new ones are complete
     for entry in sorted(stage.iterdir()):
         os.replace(entry, out / entry.name)
     return summary, failed

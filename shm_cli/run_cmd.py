@@ -24,14 +24,12 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
-import shutil
-import signal
 import sys
-import threading
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from board_config.errors import InputError
 from shm_cli.common import (
@@ -43,14 +41,14 @@ from shm_cli.common import (
     out_dir,
 )
 from shm_cli.live_args import add_live_args, attach_live_board, refuse_live_for_a_life, start_live
+from shm_cli.output_folder import last_visit_number, previous_run, remove_run_outputs
+from shm_cli.stop_signal import StopOnSignal, StoppableScheduler
 from studies.board_run.timeline import format_event
 
-EXIT_SIGINT = 130
-EXIT_SIGTERM = 143
-#: files a run writes into --out (removed by --force before a new run, so that two runs' files never mix)
-RUN_OUTPUTS: tuple[str, ...] = ("usage.db", "usage.db-wal", "usage.db-shm", "timeline.txt", "trace.csv",
-                                "trace.npz", "summary.json", "report.html", "overview.png", "maintenance.png",
-                                "usage.png", "records", "life.json", "life.png")
+if TYPE_CHECKING:
+    from board_config.board import BoardConfig
+    from board_config.scenario import Scenario
+
 #: bytes of memory per board tick kept for the whole run (the per-tick trace, the wall-clock tick statistics)
 BYTES_PER_TICK = 8 * 16
 
@@ -113,7 +111,7 @@ def register(sub: argparse._SubParsersAction) -> None:
 class TimelinePrinter:
     """Prints (and keeps) timeline lines for events as they are committed to the log."""
 
-    def __init__(self, echo: bool, telemetry_every_s: float, write=None) -> None:
+    def __init__(self, echo: bool, telemetry_every_s: float, write: Callable[[str], None] | None = None) -> None:
         self.echo = echo
         self.every = telemetry_every_s
         self.lines: list[str] = []
@@ -136,45 +134,6 @@ class TimelinePrinter:
 
 
 # --- output directory: locked, never overwritten by accident ----------------------------------------------
-def _previous_run(out: Path) -> str | None:
-    """What an earlier run left in ``out`` (None: nothing of a run)."""
-    present = [n for n in RUN_OUTPUTS if (out / n).exists()]
-    if not present:
-        return None
-    what = ""
-    summary = out / "summary.json"
-    if summary.exists():
-        try:
-            d = json.loads(summary.read_text())
-            what = f"scenario '{d.get('scenario')}', {d.get('ticks')} ticks, status {d.get('status', 'finished')}"
-        except (OSError, ValueError):
-            what = ""
-    if not what and (out / "usage.db").exists():
-        import sqlite3
-
-        try:
-            db = sqlite3.connect(f"file:{out / 'usage.db'}?mode=ro", uri=True)
-            try:
-                row = db.execute("SELECT count(*), max(started_utc), "
-                                 "(SELECT status FROM runs ORDER BY run_id DESC LIMIT 1) FROM runs").fetchone()
-            finally:
-                db.close()
-            what = f"{row[0]} run(s) in usage.db, the last started {row[1]}, status {row[2]}"
-        except sqlite3.DatabaseError:
-            what = "usage.db"
-    return what or ", ".join(present)
-
-
-def _last_visit_number(records: Path) -> int:
-    """Highest NNN of the ``visit-NNN_mbit-X.csv`` files in ``records`` (0: none)."""
-    best = 0
-    for f in records.glob("visit-*_mbit-*.csv") if records.is_dir() else ():
-        num = f.name[len("visit-"):].split("_", 1)[0]
-        if num.isdigit():
-            best = max(best, int(num))
-    return best
-
-
 def _prepare_out(args: argparse.Namespace, out: Path) -> None:
     """Refuse to overwrite an earlier run (unless --force / --append); with --force remove its files."""
     from firmware_sim.usage_log import check_is_usage_log
@@ -183,18 +142,13 @@ def _prepare_out(args: argparse.Namespace, out: Path) -> None:
     if args.append:
         check_is_usage_log(out / "usage.db")
         return
-    previous = _previous_run(out)
+    previous = previous_run(out)
     if previous is None:
         return
     if not args.force:
         raise CliError(f"--out {out} holds an earlier run ({previous}); not overwriting it: use --force to replace "
                        "it, --append to add this run to its usage.db, or choose another --out")
-    for name in RUN_OUTPUTS:
-        target = out / name
-        if target.is_dir() and not target.is_symlink():
-            shutil.rmtree(target)
-        else:
-            target.unlink(missing_ok=True)
+    remove_run_outputs(out)
 
 
 def _check_link_url(url: str) -> None:
@@ -214,91 +168,29 @@ def _check_link_url(url: str) -> None:
         raise CliError(f"--link {url!r}: no host before ':{port}'")
 
 
-# --- clean interruption ----------------------------------------------------------------------------------
-class StopOnSignal:
-    """SIGINT (Ctrl-C) and SIGTERM request a clean stop after the current tick (a second signal aborts at once
-    with KeyboardInterrupt). Installed only in the main thread; restores the previous handlers on exit."""
-
-    def __init__(self) -> None:
-        self.signal: int | None = None
-        self._old: dict[int, Any] = {}
-
-    def _handler(self, signum: int, frame: Any) -> None:
-        if self.signal is not None:
-            raise KeyboardInterrupt
-        self.signal = signum
-
-    @property
-    def requested(self) -> bool:
-        return self.signal is not None
-
-    @property
-    def exit_code(self) -> int:
-        return EXIT_SIGTERM if self.signal == signal.SIGTERM else EXIT_SIGINT
-
-    @property
-    def name(self) -> str:
-        return "SIGTERM" if self.signal == signal.SIGTERM else "SIGINT (Ctrl-C)"
-
-    def __enter__(self) -> StopOnSignal:
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                self._old[sig] = signal.signal(sig, self._handler)
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        for sig, old in self._old.items():
-            signal.signal(sig, old)
-        self._old.clear()
-
-
-class StoppableScheduler:
-    """A scheduler whose run ends after the tick (or quiet span) in which ``stop.requested`` became true."""
-
-    def __init__(self, inner: Any, stop: StopOnSignal) -> None:
-        self._inner = inner
-        self._stop = stop
-        self.rate = inner.rate
-        self.period = inner.period
-        self.paced = inner.paced
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self._inner, name)
-
-    def run(self, n_ticks: int, step: Any, first_tick: int = 0, progress: Any = None) -> Any:
-        stop = self._stop
-
-        def guarded(k: int, overran: bool) -> bool:
-            return bool(step(k, overran)) or stop.requested
-
-        return self._inner.run(n_ticks, guarded, first_tick=first_tick, progress=progress)
-
-    def run_blocks(self, n_ticks: int, block: Any, first_tick: int = 0, progress: Any = None) -> Any:
-        """Virtual time with quiet spans: ends after the block in which ``stop.requested`` became true."""
-        stop = self._stop
-
-        def guarded(k: int, left: int) -> tuple[int, bool]:
-            d, halt = block(k, left)
-            return d, bool(halt) or stop.requested
-
-        return self._inner.run_blocks(n_ticks, guarded, first_tick=first_tick, progress=progress)
-
-
 # --- the command --------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class RunPlan:
+    """What one ``shm run`` of a scenario without ``[life]`` does, checked before ``--out`` is touched."""
+
+    scenario: Scenario
+    seed: int
+    params: str  # parameter set of the board's nominal model and of the simulated rig's truth
+    cfg: BoardConfig
+    duration: float  # s of board time
+    out: Path
+
+    @property
+    def db_path(self) -> Path:
+        return self.out / "usage.db"
+
+
 def cmd_run(args: argparse.Namespace) -> int:
     if args.boards is not None:  # a fleet of boards through a [life] scenario (docs/scale-out.md)
         from shm_cli.fleet_cmd import run_fleet_boards
 
         return run_fleet_boards(args)
-    from board_config.board import load_board_config
     from board_config.scenario import load_scenario
-    from drivers.link import open_link
-    from drivers.sim_link import InProcessLink
-    from firmware_sim.board import Board
-    from firmware_sim.runner import BoardRunner
-    from firmware_sim.scheduler import Scheduler, VirtualClock, WallClock
-    from firmware_sim.usage_log import LogError, UsageLog
-    from hil_stub.rig import SimulatedRig
     from shm_cli.main import CliError
     from shm_cli.run_lock import OutputLock
 
@@ -312,6 +204,26 @@ def cmd_run(args: argparse.Namespace) -> int:
         from shm_cli.life_cmd import run_life_command
 
         return run_life_command(args, scenario)
+    plan = _plan_run(args, scenario)
+    # --live (docs/live.md): before anything in --out is touched, so a port in use leaves an earlier run there
+    args.live_session = live = start_live(args, report=plan.out / "report.html")
+    lock = OutputLock(plan.out, command=f"shm run --scenario {args.scenario} --out {args.out}")
+    lock.acquire()
+    try:
+        _prepare_out(args, plan.out)
+        # from here to the last file written, SIGINT/SIGTERM ask for a clean stop (see StopOnSignal)
+        with StopOnSignal() as stopper:
+            code = BoardRunJob(args, plan, stopper).run()
+    finally:
+        lock.release()
+    return live.linger(code, interrupted=stopper.requested) if live is not None else code
+
+
+def _plan_run(args: argparse.Namespace, scenario: Scenario) -> RunPlan:
+    """The seed, parameter set, board configuration and duration of the run, each checked (exit 2), and ``--out``."""
+    from board_config.board import load_board_config
+    from shm_cli.main import CliError
+
     seed = args.seed if args.seed is not None else scenario.seed
     if not 0 <= seed < 2**32:
         raise CliError(f"--seed must be in [0, 2^32-1], got {seed}")
@@ -325,96 +237,175 @@ def cmd_run(args: argparse.Namespace) -> int:
         f"the scenario's duration ({scenario.source}: {duration:g} s)"
     check_memory(f"{src} = {n_ticks:.3g} board ticks", n_ticks * BYTES_PER_TICK,
                  hint="run a shorter stretch (--duration-s) or split the scenario")
-    out = out_dir(args.out)
-    # --live (docs/live.md): before anything in --out is touched, so a port in use leaves an earlier run there
-    args.live_session = live = start_live(args, report=out / "report.html")
-    lock = OutputLock(out, command=f"shm run --scenario {args.scenario} --out {args.out}")
-    lock.acquire()
-    try:
-        _prepare_out(args, out)
-        # from here to the last file written, SIGINT/SIGTERM ask for a clean stop (see StopOnSignal)
-        with StopOnSignal() as stopper:
-            code = _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board, BoardRunner,
-                               InProcessLink, LogError, Scheduler, SimulatedRig, UsageLog, VirtualClock, WallClock,
-                               open_link)
-    finally:
-        lock.release()
-    return live.linger(code, interrupted=stopper.requested) if live is not None else code
+    return RunPlan(scenario, seed, params, cfg, duration, out_dir(args.out))
 
 
-def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board, BoardRunner, InProcessLink,
-                LogError, Scheduler, SimulatedRig, UsageLog, VirtualClock, WallClock, open_link) -> int:
-    db_path = out / "usage.db"
-    t_setup = time.perf_counter()
-    # every URL is opened by drivers.open_link with the run's defaults for what it leaves out: a bare 'sim' is the
-    # run's own simulated rig (the scenario's [rig], --seed, --params, the board tick)
-    defaults = {"scenario": scenario, "seed": args.seed, "params": args.params, "tick": cfg.tick_period}
-    link = None
-    try:
-        if args.link == "sim":
-            link = open_link(args.link, **defaults)
-        board = Board(cfg, nominal=params)
-    except InputError as exc:  # the scenario's [rig] (params, effects, deviations): say which file it came from
-        if scenario.source in str(exc) or (args.params is not None and args.params in str(exc)):
-            raise
-        raise InputError(f"{scenario.source}: [rig]: {exc}") from None
-    if link is None:
-        _check_link_url(args.link)
+class BoardRunJob:
+    """One ``shm run`` in ``plan.out`` (locked, prepared), as named stages: open the board and its link, choose the
+    scheduler, start the timeline, run the board with the usage log open, write the outputs, say how it ended."""
+
+    def __init__(self, args: argparse.Namespace, plan: RunPlan, stopper: StopOnSignal) -> None:
+        self.args = args
+        self.plan = plan
+        self.stopper = stopper
+        self.paced = bool(args.realtime or (args.link != "sim" and not args.virtual))
+        self.failed: dict[str, str] = {}  # step of the run -> why it failed (the run then exits 1, results written)
+        self.status = "failed"
+        self.bar: Any = None  # the progress bar (None with --quiet)
+
+    def run(self) -> int:
+        t_setup = time.perf_counter()
+        board, link, rig = self._open_board_and_link()
+        scheduler = self._scheduler(rig is None)
+        # --live: the page reads what the board publishes after each tick; the link is timed
+        live, link, scheduler = attach_live_board(self.args, board, link, scheduler, self.plan.scenario.name,
+                                                  self.plan.duration, self.paced)
+        setup_s = time.perf_counter() - t_setup
+        printer = self._start_timeline()
+        ran = self._run_logged(board, link, rig, scheduler, live, printer)
+        if ran is None:
+            return 1
+        result, runner, run_id = ran
+        from studies.board_run.outputs import RunContext
+
+        plan = self.plan
+        ctx = RunContext(self.args.link, plan.scenario, plan.seed, plan.params, plan.cfg, board, result, rig,
+                         setup_s, self.paced, plan.db_path, run_id)
+        return self._write_outputs(ctx, printer, link, live, runner.lost_exchanges)
+
+    def _open_board_and_link(self) -> tuple[Any, Any, Any]:
+        """The board and the link (every URL opened by ``drivers.open_link`` with the run's defaults for what it
+        leaves out: a bare 'sim' is the run's own simulated rig: the scenario's [rig], --seed, --params, the board
+        tick), and the in-process rig behind the link (None for a hardware link)."""
+        from drivers.link import open_link
+        from drivers.sim_link import InProcessLink
+        from firmware_sim.board import Board
+        from hil_stub import rig as _registers_the_sim_link  # noqa: F401  (open_link('sim') needs it registered)
+
+        args, plan = self.args, self.plan
+        scenario = plan.scenario
+        defaults = {"scenario": scenario, "seed": args.seed, "params": args.params, "tick": plan.cfg.tick_period}
+        link = None
         try:
-            link = open_link(args.link, **defaults)
-        except InputError as exc:
-            raise InputError(f"--link {args.link!r}: {exc}") from None
-    rig = link.rig if isinstance(link, InProcessLink) else None
-    paced = args.realtime or (args.link != "sim" and not args.virtual)
-    if paced and rig is None:  # the thread that exchanges with a hardware link: a short slice (drivers.latency_slice)
-        from drivers.latency_slice import request_slice
+            if args.link == "sim":
+                link = open_link(args.link, **defaults)
+            board = Board(plan.cfg, nominal=plan.params)
+        except InputError as exc:  # the scenario's [rig] (params, effects, deviations): say which file it came from
+            if scenario.source in str(exc) or (args.params is not None and args.params in str(exc)):
+                raise
+            raise InputError(f"{scenario.source}: [rig]: {exc}") from None
+        if link is None:
+            _check_link_url(args.link)
+            try:
+                link = open_link(args.link, **defaults)
+            except InputError as exc:
+                raise InputError(f"--link {args.link!r}: {exc}") from None
+        return board, link, link.rig if isinstance(link, InProcessLink) else None
 
-        request_slice(args.sched_slice_ms / 1e3)
-    scheduler = StoppableScheduler(Scheduler(cfg.tick_rate, WallClock() if paced else VirtualClock()), stopper)
-    # --live: the page reads what the board publishes after each tick; the link is timed
-    live, link, scheduler = attach_live_board(args, board, link, scheduler, scenario.name, duration, paced)
-    setup_s = time.perf_counter() - t_setup
+    def _scheduler(self, hardware: bool) -> StoppableScheduler:
+        """The 100 Hz scheduler (paced on the wall clock or virtual), stopped by a signal after the current tick."""
+        from firmware_sim.scheduler import Scheduler, VirtualClock, WallClock
 
-    bar = None
-    if not args.quiet:
-        from tqdm import tqdm
+        if self.paced and hardware:  # the thread that exchanges with a hardware link: a short slice
+            from drivers.latency_slice import request_slice
 
-        bar = tqdm(total=round(duration * cfg.tick_rate), unit="tick", desc=f"shm run {scenario.name}",
-                   file=sys.stderr, mininterval=0.5, leave=False)
-        # --json: stdout carries the JSON document only; the timeline goes to stderr
-        timeline_to = sys.stderr if args.json else sys.stdout
-        printer = TimelinePrinter(True, args.timeline_every_s, write=lambda s: bar.write(s, file=timeline_to))
-    else:
-        printer = TimelinePrinter(False, args.timeline_every_s)
-    printer.add_line(f"shm run: scenario '{scenario.name}' ({scenario.source}), seed {seed}, link {args.link}, "
-                     f"params {params}, {'real time' if paced else 'virtual time'}, {duration:g} s of board time")
-    printer.add_line(f"{'time':>11}  event")
+            request_slice(self.args.sched_slice_ms / 1e3)
+        clock = WallClock() if self.paced else VirtualClock()
+        return StoppableScheduler(Scheduler(self.plan.cfg.tick_rate, clock), self.stopper)
 
-    status = "failed"
-    log = None
-    failed: dict[str, str] = {}  # step of the run -> why it failed (the run then exits 1, its results written)
-    recorder: Any = None
-    try:
-        log = UsageLog(db_path, synchronous=args.log_sync.upper())
-        run_id = log.start_run(scenario=scenario.name, seed=seed, link_url=args.link, params=params,
-                               board_config=cfg.as_dict(), rig=rig.describe() if rig is not None else {})
-        from studies.health.visit_records import VisitRecordWriter  # every completed MBIT -> records/ (issue 17)
+    def _start_timeline(self) -> TimelinePrinter:
+        """The timeline printer (echoing on stdout, or stderr with --json, above the progress bar; silent with
+        --quiet) with the run's first two lines."""
+        args, plan = self.args, self.plan
+        if not args.quiet:
+            from tqdm import tqdm
+
+            self.bar = bar = tqdm(total=round(plan.duration * plan.cfg.tick_rate), unit="tick",
+                                  desc=f"shm run {plan.scenario.name}", file=sys.stderr, mininterval=0.5, leave=False)
+            # --json: stdout carries the JSON document only; the timeline goes to stderr
+            timeline_to = sys.stderr if args.json else sys.stdout
+            printer = TimelinePrinter(True, args.timeline_every_s, write=lambda s: bar.write(s, file=timeline_to))
+        else:
+            printer = TimelinePrinter(False, args.timeline_every_s)
+        printer.add_line(f"shm run: scenario '{plan.scenario.name}' ({plan.scenario.source}), seed {plan.seed}, "
+                         f"link {args.link}, params {plan.params}, {'real time' if self.paced else 'virtual time'}, "
+                         f"{plan.duration:g} s of board time")
+        printer.add_line(f"{'time':>11}  event")
+        return printer
+
+    def _run_logged(self, board: Any, link: Any, rig: Any, scheduler: StoppableScheduler, live: Any,
+                    printer: TimelinePrinter) -> tuple[Any, Any, int] | None:
+        """Run the board with the usage log open: (the run's result, its runner, its run id), or None when the run
+        could not complete (said on stderr; the log is closed with status 'failed'). Every visit record is written
+        and the log closed, whatever ends the run."""
+        from firmware_sim.runner import BoardRunner
+        from firmware_sim.usage_log import LogError, UsageLog
+
+        args, plan = self.args, self.plan
+        log = None
+        recorder: Any = None
+        try:
+            log = UsageLog(plan.db_path, synchronous=args.log_sync.upper())
+            run_id = log.start_run(scenario=plan.scenario.name, seed=plan.seed, link_url=args.link,
+                                   params=plan.params, board_config=plan.cfg.as_dict(),
+                                   rig=rig.describe() if rig is not None else {})
+            recorder = self._visit_recorder(run_id)
+            runner = BoardRunner(board, link, sink=log, scheduler=scheduler,
+                                 rearm_times=[e.at for e in plan.scenario.events_of("rearm")],
+                                 on_event=self._event_handler(printer, live, recorder))
+            link.open()
+            try:
+                result = runner.run(plan.duration, progress=self._progress())
+            finally:
+                link.close()
+            self.status = "interrupted" if self.stopper.requested else "finished"
+        except FloatingPointError as exc:
+            print(f"shm run: the rig's plant integration failed: {exc}", file=sys.stderr)
+            return None
+        except LogError as exc:
+            print(f"shm run: {exc}", file=sys.stderr)
+            return None
+        except KeyboardInterrupt:
+            self.status = "interrupted"
+            raise
+        finally:
+            if recorder is not None:  # every record written (a paced run's: waited for) before anything else
+                with contextlib.suppress(Exception):
+                    recorder.close()
+            if log is not None:
+                with contextlib.suppress(Exception):  # the log already failed; its error is what the user sees
+                    log.close(self.status)
+            if self.bar is not None:
+                self.bar.close()
+        if getattr(recorder, "failure", None):
+            self.failed.setdefault("the visit records", recorder.failure)
+        return result, runner, run_id
+
+    def _visit_recorder(self, run_id: int) -> Any:
+        """Every completed MBIT -> records/ (issue 17); a paced run's written beside the ticks (a record written
+        inside a tick is missed deadlines in a row)."""
+        from studies.health.visit_records import VisitRecordWriter
+
+        args, plan = self.args, self.plan
 
         def make_recorder() -> VisitRecordWriter:
-            rec = VisitRecordWriter(out, db_path, params=params, z3_noise_m=scenario.rig.z3_noise,
-                                    scenario=scenario.name, run_id=run_id)
+            rec = VisitRecordWriter(plan.out, plan.db_path, params=plan.params, z3_noise_m=plan.scenario.rig.z3_noise,
+                                    scenario=plan.scenario.name, run_id=run_id)
             if args.append:  # the earlier runs' visit records stay: number this run's visits after theirs
-                rec.visit = _last_visit_number(out / "records")
+                rec.visit = last_visit_number(plan.out / "records")
             return rec
 
-        if paced:  # a record written inside a tick is missed deadlines in a row: written beside the ticks
+        if self.paced:
             from studies.board_run.background_records import BackgroundRecorder
 
-            recorder = BackgroundRecorder(make_recorder)
-        else:
-            recorder = make_recorder()
+            return BackgroundRecorder(make_recorder)
+        return make_recorder()
 
-        def on_event(ev) -> None:
+    def _event_handler(self, printer: TimelinePrinter, live: Any, recorder: Any) -> Callable[[Any], None]:
+        """What sees each event once it is in the usage log: the timeline, the live page, the visit records."""
+        failed = self.failed
+
+        def on_event(ev: Any) -> None:
             printer(ev)
             if live is not None:
                 live.on_event(ev)
@@ -426,8 +417,10 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
                     print(f"shm run: could not write a visit record ({why}); the run goes on", file=sys.stderr)
                 failed.setdefault("the visit records", why)
 
-        runner = BoardRunner(board, link, sink=log, scheduler=scheduler,
-                             rearm_times=[e.at for e in scenario.events_of("rearm")], on_event=on_event)
+        return on_event
+
+    def _progress(self) -> Callable[[int], None]:
+        bar = self.bar
         last = [0]
 
         def progress(i: int) -> None:
@@ -435,64 +428,32 @@ def _run_locked(args, scenario, seed, params, cfg, duration, out, stopper, Board
                 bar.update(i - last[0])
                 last[0] = i
 
-        link.open()
-        try:
-            result = runner.run(duration, progress=progress)
-        finally:
-            link.close()
-        status = "interrupted" if stopper.requested else "finished"
-    except FloatingPointError as exc:
-        print(f"shm run: the rig's plant integration failed: {exc}", file=sys.stderr)
-        return 1
-    except LogError as exc:
-        print(f"shm run: {exc}", file=sys.stderr)
-        return 1
-    except KeyboardInterrupt:
-        status = "interrupted"
-        raise
-    finally:
-        if recorder is not None:  # every record written (a paced run's: waited for) before anything else
-            with contextlib.suppress(Exception):
-                recorder.close()
-        if log is not None:
-            try:
-                log.close(status)
-            except Exception:  # the log already failed; its error is what the user sees
-                pass
-        if bar is not None:
-            bar.close()
+        return progress
 
-    if getattr(recorder, "failure", None):
-        failed.setdefault("the visit records", recorder.failure)
-    deco = Decorations("run", args)
-    deco.failed.update(failed)
-    from studies.board_run.outputs import RunContext, write_run_outputs
+    def _write_outputs(self, ctx: Any, printer: TimelinePrinter, link: Any, live: Any, lost_exchanges: int) -> int:
+        """Timeline, traces, figures, summary and report into --out; the exit code (see the module docstring)."""
+        from studies.board_run.outputs import write_run_outputs
 
-    ctx = RunContext(args.link, scenario, seed, params, cfg, board, result, rig, setup_s, paced, db_path, run_id)
-    summary = write_run_outputs(ctx, status, stopper.name if status == "interrupted" else None, printer, out, link,
-                                deco, dump_json, runner.lost_exchanges)
-    figures = summary["figures"]
-    if live is not None:
-        live.finish(status)
-    if args.json:
-        print(dump_json(summary))
-    elif not args.quiet:
-        print(f"results in {out}/ (usage.db, timeline.txt, report.html, {', '.join(figures)})")
-    if stopper.requested:
-        if status == "interrupted":
-            print(f"shm run: interrupted by {stopper.name} at {result.duration_s:.2f} s of board time; status "
-                  f"'interrupted' recorded in {db_path}, partial results in {out}/", file=sys.stderr)
-        else:
-            print(f"shm run: {stopper.name} received after the run finished; its results are complete in {out}/",
-                  file=sys.stderr)
-        return stopper.exit_code
-    if summary["verdict_as_expected"] is False:
-        print(f"shm run: the final maintenance verdict is not the one scenario '{scenario.name}' expects "
-              f"(expected {summary['expected_verdict']}): exit 1", file=sys.stderr)
-        return 1
-    if not deco.ok:
-        print(f"shm run: the run's results are in {out}/, but these steps failed: {'; '.join(deco.failed)}: exit 1",
-              file=sys.stderr)
-    return 0 if status == "finished" and deco.ok else 1
-
-
+        args, stopper, status, out = self.args, self.stopper, self.status, self.plan.out
+        deco = Decorations("run", args)
+        deco.failed.update(self.failed)
+        summary = write_run_outputs(ctx, status, stopper.name if status == "interrupted" else None, printer, out,
+                                    link, deco, dump_json, lost_exchanges)
+        if live is not None:
+            live.finish(status)
+        if args.json:
+            print(dump_json(summary))
+        elif not args.quiet:
+            print(f"results in {out}/ (usage.db, timeline.txt, report.html, {', '.join(summary['figures'])})")
+        if stopper.requested:
+            return stopper.report(status == "interrupted", f" at {ctx.result.duration_s:.2f} s of board time; status "
+                                  f"'interrupted' recorded in {ctx.db_path}, partial results in {out}/", "the run",
+                                  f"{out}/")
+        if summary["verdict_as_expected"] is False:
+            print(f"shm run: the final maintenance verdict is not the one scenario '{ctx.scenario.name}' expects "
+                  f"(expected {summary['expected_verdict']}): exit 1", file=sys.stderr)
+            return 1
+        if not deco.ok:
+            print(f"shm run: the run's results are in {out}/, but these steps failed: {'; '.join(deco.failed)}: "
+                  "exit 1", file=sys.stderr)
+        return 0 if status == "finished" and deco.ok else 1

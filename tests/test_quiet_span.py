@@ -138,7 +138,7 @@ def test_run_blocks_visits_every_tick_once_in_order_and_reports_progress() -> No
 def test_a_stop_request_ends_a_run_with_spans_after_the_current_span() -> None:
     """``shm run`` wraps the scheduler to stop on SIGINT/SIGTERM: with spans the run still ends right after the
     span in which the stop was requested (in the flight, spans are at most 200 ticks)."""
-    from shm_cli.run_cmd import StoppableScheduler
+    from shm_cli.stop_signal import StoppableScheduler
 
     class Stop:
         requested = False
