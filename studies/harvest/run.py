@@ -20,7 +20,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Any
 
 import numpy as np
@@ -31,6 +31,43 @@ from studies.harvest.audit import PowerAudit, power_audit
 from studies.harvest.projection import Projection, project_time_to_full
 from studies.harvest.requirements import eq8_required_amplitude, eq8_time_to_full
 from studies.harvest.setup import PAPER_CLAIM_S, PAPER_GAIN_V_PER_G, HarvestSetup, step_cap
+
+
+@dataclass(frozen=True)
+class HarvestRequirements:
+    """What a full recharge within ``target_s`` would take (:meth:`HarvestRun.requirements`); the summary's
+    ``what_it_would_take``."""
+
+    target_s: float
+    """Time allowed for the full recharge (s)."""
+    energy_to_full_J: float
+    """Chemical energy to put into the cell from the run's start state (J)."""
+    required_mean_cell_power_W: float
+    """That energy over ``target_s`` (W)."""
+    measured_mean_base_power_W: float
+    """Mean base input power of the run's last chunk (W): an upper bound for any harvest."""
+    required_over_base_power: float
+    """Required cell power over the measured base power (1; inf without base power)."""
+    harvest_efficiency_cell_over_base: float
+    """Cell energy over base energy in this run (1; NaN in paper mode, where the cell's energy is not the base's)."""
+    accel_for_required_power_g: float
+    """Base acceleration (g) carrying the required power at this run's efficiency, power ∝ acceleration²."""
+    accel_if_all_base_power_harvested_g: float
+    """Base acceleration (g) if all base power reached the cell (a lower bound)."""
+    eq8_required_amplitude_V: float
+    """Open-circuit amplitude (V) Eq. 8 needs for ``target_s``."""
+    eq8_required_gain_V_per_g: float
+    """That amplitude per g of this run's base acceleration (V/g)."""
+    eq8_time_at_paper_gain_s: float
+    """Eq. 8's time to full (s) with the paper's gain at this acceleration."""
+    paper_gain_V_per_g: float
+    """The paper's stored-voltage gain (V/g)."""
+    measured_gain_V_per_g: float
+    """This run's peak terminal voltage per g (V/g)."""
+
+    def to_json(self) -> dict[str, Any]:
+        """The fields by name, as ``harvest_summary.json`` writes them."""
+        return asdict(self)
 
 
 @dataclass
@@ -86,10 +123,10 @@ class HarvestRun:
             "mean_charging_current_A": float(self.chunks["i_mean_A"][-1]),
             "charge_below_cutoff_C": self.q_below_cutoff,
             "audit": self.audit.as_dict(), "n_steps": self.n_steps, "wall_s": self.wall_s,
-            "what_it_would_take": self.requirements(), **self.meta,
+            "what_it_would_take": self.requirements().to_json(), **self.meta,
         }
 
-    def requirements(self, target_s: float = PAPER_CLAIM_S) -> dict[str, Any]:
+    def requirements(self, target_s: float = PAPER_CLAIM_S) -> HarvestRequirements:
         """What a full recharge from the run's start state within ``target_s`` would take (SI units).
 
         * the chemical energy to put in, and its mean power over ``target_s``, against the base power this run
@@ -109,24 +146,24 @@ class HarvestRun:
         efficiency = (e_cell / e_in if e_in > 0 else 0.0) if self.setup.coupling == "coupled" else math.nan
         accel_g = self.setup.accel / G0
         a_eq8 = eq8_required_amplitude(battery, self.setup.v_start, target_s, self.setup.v_diode)
-        return {
-            "target_s": target_s,
-            "energy_to_full_J": e_need,
-            "required_mean_cell_power_W": p_need,
-            "measured_mean_base_power_W": p_base,
-            "required_over_base_power": p_need / p_base if p_base > 0 else math.inf,
-            "harvest_efficiency_cell_over_base": efficiency,
-            "accel_for_required_power_g": (accel_g * math.sqrt(p_need / (efficiency * p_base))
-                                           if efficiency > 0 and p_base > 0 else
-                                           (math.nan if math.isnan(efficiency) else math.inf)),
-            "accel_if_all_base_power_harvested_g": accel_g * math.sqrt(p_need / p_base) if p_base > 0 else math.inf,
-            "eq8_required_amplitude_V": a_eq8,
-            "eq8_required_gain_V_per_g": a_eq8 / accel_g,
-            "eq8_time_at_paper_gain_s": eq8_time_to_full(PAPER_GAIN_V_PER_G * accel_g, battery, self.setup.v_start,
-                                                         self.setup.v_diode),
-            "paper_gain_V_per_g": PAPER_GAIN_V_PER_G,
-            "measured_gain_V_per_g": self.stored_gain_v_per_g,
-        }
+        return HarvestRequirements(
+            target_s=target_s,
+            energy_to_full_J=e_need,
+            required_mean_cell_power_W=p_need,
+            measured_mean_base_power_W=p_base,
+            required_over_base_power=p_need / p_base if p_base > 0 else math.inf,
+            harvest_efficiency_cell_over_base=efficiency,
+            accel_for_required_power_g=(accel_g * math.sqrt(p_need / (efficiency * p_base))
+                                        if efficiency > 0 and p_base > 0 else
+                                        (math.nan if math.isnan(efficiency) else math.inf)),
+            accel_if_all_base_power_harvested_g=accel_g * math.sqrt(p_need / p_base) if p_base > 0 else math.inf,
+            eq8_required_amplitude_V=a_eq8,
+            eq8_required_gain_V_per_g=a_eq8 / accel_g,
+            eq8_time_at_paper_gain_s=eq8_time_to_full(PAPER_GAIN_V_PER_G * accel_g, battery, self.setup.v_start,
+                                                      self.setup.v_diode),
+            paper_gain_V_per_g=PAPER_GAIN_V_PER_G,
+            measured_gain_V_per_g=self.stored_gain_v_per_g,
+        )
 
 
 ProgressFn = Callable[[float, float, float], None]  # (t_done_s, t_total_s, soc)
