@@ -48,7 +48,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from board_config import MonitorSettings, load_monitor_settings
-from board_config.error_law import normalised_error  # Eq. 11, shared with the workbench (Eq. 5)
+from board_config.error_law import normalised_error as normalised_error  # Eq. 11 (workbench Eq. 5); re-exported
 
 
 def consecutive_exceedances_to_fault(count_max: int, counter_up: int, count: int = 0) -> int:
