@@ -179,7 +179,7 @@ class UsageEpisode:
 
     def summary(self, t_end: float, reason: str) -> UsageSummary:
         series = self.tp.series()
-        cycles = _count(series)
+        cycles = rainflow_cycles(series)
         pos = self.peak_pos if self.samples else 0.0
         neg = self.peak_neg if self.samples else 0.0
         return UsageSummary(
@@ -189,7 +189,7 @@ class UsageEpisode:
             bin_width=self.bin_width, reason=reason)
 
 
-def _count(series: list[float]) -> tuple[tuple[float, float, float], ...]:
+def rainflow_cycles(series: list[float]) -> tuple[tuple[float, float, float], ...]:
     """Rainflow cycles (range, mean, count) of turning points. ``rainflow`` yields nothing for a two-point series
     (one monotone excursion) although it counts the same excursion as a half cycle inside a longer series; we count
     it as the half cycle it is."""

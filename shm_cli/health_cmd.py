@@ -167,7 +167,7 @@ def _health_locked(args: argparse.Namespace, out: Path, assess_health: Any, LAMB
     text = four_levels_text(result)
     if result.doc.get("evaluation"):
         text += "\n" + evaluation_text(result.doc["evaluation"])
-    failed = _write_staged(out, lambda d: write_health_outputs(result, d, text))
+    failed = write_staged(out, lambda d: write_health_outputs(result, d, text))
     for artefact, why in failed.items():
         print(f"shm health: could not write {artefact} into {out}/ ({why}); not replaced", file=sys.stderr)
     if args.json:
@@ -180,7 +180,7 @@ def _health_locked(args: argparse.Namespace, out: Path, assess_health: Any, LAMB
     return 1 if failed else 0
 
 
-def _write_staged(out: Path, write: Any) -> dict[str, str]:
+def write_staged(out: Path, write: Any) -> dict[str, str]:
     """Every output written into ``out/.shm-health-new/`` first, then each complete file moved into ``out``
     (``os.replace``): a full disk never leaves a cut-off report.html. A failure to write health.json or levels.txt
     is one line naming the path and the disk (OSError, exit 1); a failed figure or page is reported and skipped."""

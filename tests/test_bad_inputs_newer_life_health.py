@@ -84,7 +84,7 @@ def test_two_health_on_one_out_the_second_names_the_lock(corpus: Path, tmp_path:
 
 
 def test_a_full_disk_leaves_no_half_written_report_and_names_the_path(tmp_path: Path, monkeypatch) -> None:
-    from shm_cli.health_cmd import _write_staged
+    from shm_cli.health_cmd import write_staged
 
     out = tmp_path / "h"
     out.mkdir()
@@ -106,7 +106,7 @@ def test_a_full_disk_leaves_no_half_written_report_and_names_the_path(tmp_path: 
         return {}
 
     monkeypatch.setattr(Path, "write_text", full_disk)
-    failed = _write_staged(out, write)
+    failed = write_staged(out, write)
     monkeypatch.undo()
     assert (out / "report.html").read_text() == "<html>the earlier, complete report</html>"
     assert (out / "health.json").read_text() == "{}"
@@ -116,7 +116,7 @@ def test_a_full_disk_leaves_no_half_written_report_and_names_the_path(tmp_path: 
     monkeypatch.setattr(Path, "write_text", lambda self, *a, **k: (_ for _ in ()).throw(
         OSError(errno.ENOSPC, "No space left on device", str(self))))
     with pytest.raises(OSError, match="disk is full") as exc:
-        _write_staged(out, write)
+        write_staged(out, write)
     assert str(out) in str(exc.value) and "MB free" in str(exc.value)
 
 

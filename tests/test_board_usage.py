@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from firmware_sim.usage import TurningPoints, UsageEpisode, _count, cycles_of_series
+from firmware_sim.usage import TurningPoints, UsageEpisode, cycles_of_series, rainflow_cycles
 
 
 def _sorted(c):
@@ -26,7 +26,7 @@ def test_streaming_cycles_equal_rainflow_on_the_full_series(counts):
     tp = TurningPoints(0.0)
     for i, x in enumerate(xs):
         tp.add(i * 0.01, x)
-    assert _sorted(_count(tp.series())) == _sorted(cycles_of_series(np.array(xs)))
+    assert _sorted(rainflow_cycles(tp.series())) == _sorted(cycles_of_series(np.array(xs)))
 
 
 def test_gate_removes_noise_cycles_but_keeps_the_load_cycles():
@@ -38,7 +38,7 @@ def test_gate_removes_noise_cycles_but_keeps_the_load_cycles():
     tp = TurningPoints(gate=2e-4)
     for ti, x in zip(t, noisy):
         tp.add(ti, x)
-    gated = _count(tp.series())
+    gated = rainflow_cycles(tp.series())
     assert sum(c for _, _, c in raw) > 100  # noise makes hundreds of tiny cycles
     big = [r for r, _, c in gated if r > 1e-3]
     assert sum(c for r, _, c in gated if r > 1e-3) == pytest.approx(5.0, abs=0.5)
