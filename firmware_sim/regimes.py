@@ -271,6 +271,15 @@ def quiet_awake(state: RegimeState, timers: RegimeTimers, wake: Sequence[bool]) 
                        state.safe_causes), m
 
 
+def _debounced_wake(run: int, debounce: int, refused: bool, why_refused: str, tick: int, now: float,
+                    events: list[BoardEvent]) -> bool:
+    """A wake request (HV present, the wake comparator) held for ``run`` ticks fires once it has lasted ``debounce``
+    ticks, unless ``refused``; a refused request is logged once per episode (when its run reaches ``debounce``)."""
+    if refused and run == debounce:
+        events.append(BoardEvent("incident", tick, now, {"incident": "wake_refused", "detail": why_refused}))
+    return run >= debounce and not refused
+
+
 def step_full(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeTimers
               ) -> tuple[RegimeState, RegimeOutputs, tuple[BoardEvent, ...]]:
     """:func:`step` without the stand-by shortcut (the reference the shortcut is tested against)."""
@@ -292,6 +301,7 @@ def step_full(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeT
     events: list[BoardEvent] = []
     fired: Transition | None = None
     causes: list[Trigger] | None = None
+    unaffordable = not inputs.energy_ok or inputs.brownout  # waking would cost what the battery cannot give
     for row in _ROWS[regime]:
         trig = row.trigger
         if trig in _FAULT_TRIGGERS:
@@ -301,21 +311,15 @@ def step_full(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeT
         elif trig is Trigger.BROWNOUT:
             hit = inputs.brownout
         elif trig is Trigger.HV_PRESENT:
-            refused = regime is Regime.STANDBY_HARVEST and (not inputs.energy_ok or inputs.brownout)
-            if refused and hv_run == timers.hv_debounce:  # once per HV episode
-                events.append(BoardEvent("incident", tick, now, {
-                    "incident": "wake_refused", "detail": "HV equipment present but the battery cannot afford "
-                                                          "waking into MAINTENANCE"}))
-            hit = hv_run >= timers.hv_debounce and not refused
+            hit = _debounced_wake(hv_run, timers.hv_debounce, regime is Regime.STANDBY_HARVEST and unaffordable,
+                                  "HV equipment present but the battery cannot afford waking into MAINTENANCE",
+                                  tick, now, events)
         elif trig is Trigger.HV_REMOVED:
             hit = hv_off_run >= timers.hv_debounce
         elif trig is Trigger.WAKE:
-            refused = not inputs.energy_ok or inputs.brownout
-            if refused and wake_run == timers.wake_debounce:  # once per comparator episode
-                events.append(BoardEvent("incident", tick, now, {
-                    "incident": "wake_refused", "detail": "wake comparator fired but the battery cannot afford "
-                                                          "waking (below wake_min_voltage or brown-out)"}))
-            hit = wake_run >= timers.wake_debounce and not refused
+            hit = _debounced_wake(wake_run, timers.wake_debounce, unaffordable, "wake comparator fired but the "
+                                  "battery cannot afford waking (below wake_min_voltage or brown-out)", tick, now,
+                                  events)
         elif trig is Trigger.QUIET:
             hit = quiet_run >= timers.quiet
         elif trig is Trigger.LINK_RECOVERED:
