@@ -20,16 +20,17 @@ import time
 from pathlib import Path
 from typing import Any
 
+from shm_cli.command_args import add_command
 from shm_cli.common import add_out_arg, out_dir, seed_int
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "health", help="health over time: per-visit re-estimation, trends, forecast of the board's first FAULT",
-        description="Re-estimate the health parameters at every maintenance visit from the board's records, trend "
-                    "them against operating time, and forecast when the board's own monitor will first say FAULT "
-                    "(trip time with a 90 % interval, remaining useful life). Prints the four levels (detected? "
-                    "where? how much? how long?); plots and report.html go to --out. docs/health.md.")
+    p = add_command(
+        sub, "health", "health over time: per-visit re-estimation, trends, forecast of the board's first FAULT",
+        """Re-estimate the health parameters at every maintenance visit from the board's records, trend them against
+        operating time, and forecast when the board's own monitor will first say FAULT (trip time with a 90 %
+        interval, remaining useful life). Prints the four levels (detected? where? how much? how long?); plots and
+        report.html go to --out. docs/health.md.""")
     p.add_argument("sources", nargs="+", metavar="SOURCE",
                    help="a run directory of 'shm run', its usage.db, or record files (CSV/TDMS) with operating_hours")
     p.add_argument("--params", default="table2", metavar="NAME|FILE",

@@ -32,6 +32,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from board_config.errors import InputError
+from shm_cli.command_args import add_command
 from shm_cli.common import (
     Decorations,
     add_out_arg,
@@ -54,11 +55,11 @@ BYTES_PER_TICK = 8 * 16
 
 
 def register(sub: argparse._SubParsersAction) -> None:
-    p = sub.add_parser(
-        "run", help="run the board firmware through a scenario (flight, abnormal loads, maintenance MBITs)",
-        description="Run the 100 Hz board firmware mock against a rig for one scenario: regime changes, usage "
-                    "summaries, MBIT verdicts and incidents go to an SQLite log; a timeline is printed; plots and "
-                    "an HTML summary are written to --out.")
+    p = add_command(
+        sub, "run", "run the board firmware through a scenario (flight, abnormal loads, maintenance MBITs)",
+        """Run the 100 Hz board firmware mock against a rig for one scenario: regime changes, usage summaries, MBIT
+        verdicts and incidents go to an SQLite log; a timeline is printed; plots and an HTML summary are written to
+        --out.""")
     from board_config.scenario import available_scenarios
 
     p.add_argument("--scenario", default="default", metavar="FILE|NAME",
