@@ -18,7 +18,7 @@ from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import MappingProxyType
-from typing import Any
+from typing import Any, cast
 
 import numpy as np
 
@@ -81,14 +81,18 @@ class MonotoneCubic:
         s = (xq - self.x[k]) / h
         y0, y1 = self.y[k], self.y[k + 1]
         m0, m1 = self.d[k] * h, self.d[k + 1] * h
+        value: np.ndarray  # (numpy's stubs type this arithmetic as Any)
         if order == 0:
-            return ((2 * s**3 - 3 * s**2 + 1) * y0 + (s**3 - 2 * s**2 + s) * m0 + (-2 * s**3 + 3 * s**2) * y1
-                    + (s**3 - s**2) * m1)
+            value = ((2 * s**3 - 3 * s**2 + 1) * y0 + (s**3 - 2 * s**2 + s) * m0 + (-2 * s**3 + 3 * s**2) * y1
+                     + (s**3 - s**2) * m1)
+            return value
         if order == 1:
-            return ((6 * s**2 - 6 * s) * y0 + (3 * s**2 - 4 * s + 1) * m0 + (-6 * s**2 + 6 * s) * y1
-                    + (3 * s**2 - 2 * s) * m1) / h
+            value = ((6 * s**2 - 6 * s) * y0 + (3 * s**2 - 4 * s + 1) * m0 + (-6 * s**2 + 6 * s) * y1
+                     + (3 * s**2 - 2 * s) * m1) / h
+            return value
         if order == 2:
-            return ((12 * s - 6) * y0 + (6 * s - 4) * m0 + (-12 * s + 6) * y1 + (6 * s - 2) * m1) / h**2
+            value = ((12 * s - 6) * y0 + (6 * s - 4) * m0 + (-12 * s + 6) * y1 + (6 * s - 2) * m1) / h**2
+            return value
         raise ValueError(f"order must be 0, 1 or 2, got {order!r}")
 
     def integral(self, a: float, b: float) -> float:
@@ -177,7 +181,7 @@ class BatterySpec:
             lo = np.where(above, mid, lo)
             hi = np.where(above, hi, mid)
         q = 0.5 * (lo + hi)
-        return q if np.ndim(v) else q.reshape(())
+        return cast(np.ndarray, q if np.ndim(v) else q.reshape(()))
 
     def capacitance(self, v: float | np.ndarray) -> np.ndarray:
         """Eq. 6: the equivalent capacitance ``C_b = -dq_d/dv_b`` (F) at open-circuit voltage ``v`` (V)."""
@@ -189,14 +193,14 @@ class BatterySpec:
         q = self.discharged_capacity(v)
         d1 = np.asarray(self._dv_dq(q))
         d2 = np.asarray(self._d2v_dq2(q))
-        return -d2 / d1**3
+        return cast(np.ndarray, -d2 / d1**3)
 
     def stored_energy(self, q_d: float | np.ndarray) -> np.ndarray:
         """Chemical energy (J) the cell can still deliver down to the cut-off: ``integral of v_oc dq`` from
         ``q_d`` to ``capacity``."""
         q = np.clip(np.asarray(q_d, dtype=float), 0.0, self.capacity)
         integ = self._v_of_q.integral
-        return np.vectorize(lambda qq: integ(float(qq), self.capacity))(q)
+        return cast(np.ndarray, np.vectorize(lambda qq: integ(float(qq), self.capacity))(q))
 
     def state_of_charge(self, q_d: float | np.ndarray) -> np.ndarray:
         """1 when full, 0 at the cut-off (may leave [0, 1] when a model overshoots the table)."""

@@ -8,6 +8,9 @@ cause is a file, option or value the user gave; any other exception reaching the
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 
 class InputError(ValueError):
     """Input the user can fix: a file, option or value. The message names it and says why it is wrong.
@@ -17,11 +20,11 @@ class InputError(ValueError):
     with the same message, instead of breaking the pool (issue 33).
     """
 
-    def __reduce__(self) -> tuple:
+    def __reduce__(self) -> tuple[Callable[..., InputError], tuple[type[InputError], str, dict[str, Any]]]:
         return (_rebuild_input_error, (type(self), str(self), dict(self.__dict__)))
 
 
-def _rebuild_input_error(cls: type[InputError], message: str, state: dict) -> InputError:
+def _rebuild_input_error(cls: type[InputError], message: str, state: dict[str, Any]) -> InputError:
     err = cls.__new__(cls)
     ValueError.__init__(err, message)
     err.__dict__.update(state)

@@ -21,7 +21,7 @@ import dataclasses
 import math
 from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 import numpy as np
 
@@ -105,17 +105,17 @@ class FitRange:
             s = v
         # clipped again: on a narrow log range the rounding of log10 alone can land 1e-10 outside [0, 1], which an
         # optimiser bounded to the unit box refuses as an infeasible start
-        return np.clip((s - a) / (b - a), 0.0, 1.0)
+        return cast(np.ndarray, np.clip((s - a) / (b - a), 0.0, 1.0))
 
     def from_unit(self, u: float | np.ndarray) -> np.ndarray:
         """The value at unit-box coordinate ``u`` (clipped into [0, 1])."""
         a, b = self._ends()
         s = a + np.clip(np.asarray(u, float), 0.0, 1.0) * (b - a)
         if self.log:
-            return np.clip(10.0 ** s, self.lower, self.upper)
+            return cast(np.ndarray, np.clip(10.0 ** s, self.lower, self.upper))
         if self.linthresh is not None:
-            return np.clip(self.linthresh * np.sinh(s), self.lower, self.upper)
-        return s
+            return cast(np.ndarray, np.clip(self.linthresh * np.sinh(s), self.lower, self.upper))
+        return cast(np.ndarray, s)
 
     def dvalue_du(self, value: float) -> float:
         """d(value)/du at ``value`` (for turning Jacobians in the unit box into SI)."""

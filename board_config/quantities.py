@@ -48,20 +48,21 @@ class QuantitySpec:
         """Return the validated value or raise :class:`ConfigError` naming file, key and reason."""
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(file, key, f"expected a number, got {type(value).__name__} {value!r}")
+        number: float | int = value
         if self.integer:
-            if isinstance(value, float):
-                if not value.is_integer():
-                    raise ConfigError(file, key, f"expected an integer, got {value!r}")
-                value = int(value)
+            if isinstance(number, float):
+                if not number.is_integer():
+                    raise ConfigError(file, key, f"expected an integer, got {number!r}")
+                number = int(number)
         else:
-            value = float(value)
-        if isinstance(value, float) and not math.isfinite(value):
-            raise ConfigError(file, key, f"value must be finite, got {value!r}")
-        if self.lower is not None and (value <= self.lower if self.lower_open else value < self.lower):
-            raise ConfigError(file, key, f"value {value!r} outside the allowed range {self.describe_range()}")
-        if self.upper is not None and (value >= self.upper if self.upper_open else value > self.upper):
-            raise ConfigError(file, key, f"value {value!r} outside the allowed range {self.describe_range()}")
-        return value
+            number = float(number)
+        if isinstance(number, float) and not math.isfinite(number):
+            raise ConfigError(file, key, f"value must be finite, got {number!r}")
+        if self.lower is not None and (number <= self.lower if self.lower_open else number < self.lower):
+            raise ConfigError(file, key, f"value {number!r} outside the allowed range {self.describe_range()}")
+        if self.upper is not None and (number >= self.upper if self.upper_open else number > self.upper):
+            raise ConfigError(file, key, f"value {number!r} outside the allowed range {self.describe_range()}")
+        return number
 
 
 def read_toml(path: str | Path) -> dict[str, Any]:
