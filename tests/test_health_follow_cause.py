@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from studies.health.cause import excess_trigger, reestimation_set
+from studies.health.cause import VisitDiagnosis, excess_trigger, reestimation_set
 from studies.health.estimate import DEFAULT_FREE
 from studies.health.follow import Followed, find_and_follow, follow_set, series, trends_upto, why_sentence
 
@@ -43,7 +43,7 @@ def test_find_and_follow_diagnoses_once_and_reestimates_the_named_set(monkeypatc
 
     def fake_diagnose(records, params, base, candidates=()):
         calls.append((records, base))
-        return {"named": ["dielectric_leakage"], "verdict": "missing", "message": "Missing effect", "wall_s": 0.1}
+        return VisitDiagnosis(("dielectric_leakage",), "missing", "Missing effect", 0.1)
 
     monkeypatch.setattr("studies.health.follow.diagnose_visit", fake_diagnose)
     ests = [_est(1.0, k3=0.01), _est(1.1), _est(9.0, k3=0.3)]

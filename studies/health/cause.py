@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 from studies.health.estimate import DEFAULT_FREE
@@ -68,10 +69,23 @@ def base_values(first_estimates: dict[str, Any]) -> dict[str, float]:
     return {x["name"]: float(x["value"]) for x in first_estimates["estimates"] if not x.get("at_bound")}
 
 
+@dataclass(frozen=True)
+class VisitDiagnosis:
+    """What ``shm diagnose`` says changed on one visit against the first visit's fitted set."""
+
+    named: tuple[str, ...]
+    """Effects and parameters diagnose blames, in its order (empty: nothing)."""
+    verdict: str
+    """Diagnose's verdict word."""
+    message: str
+    """Diagnose's message, in words."""
+    wall_s: float
+    """Wall time of the diagnosis (s)."""
+
+
 def diagnose_visit(records: Sequence[Any], params: str, base: dict[str, float],
-                   candidates: Sequence[str] = CANDIDATES) -> dict[str, Any]:
-    """What changed on this visit against ``base`` (the first visit's fitted values): ``named`` (effects and
-    parameters diagnose blames, in order), ``verdict``, ``message``, ``wall_s``."""
+                   candidates: Sequence[str] = CANDIDATES) -> VisitDiagnosis:
+    """What changed on this visit against ``base`` (the first visit's fitted values, SI)."""
     from board_config import load_parameter_set
     from studies.health.estimate import join_visit_records
     from workbench.diagnose import diagnose
@@ -81,8 +95,7 @@ def diagnose_visit(records: Sequence[Any], params: str, base: dict[str, float],
     recs = [join_visit_records(records)] if board else list(records)
     pset = load_parameter_set(params).with_values(None, **base)
     d = diagnose(recs, pset, candidates=list(candidates), max_nfev=30)
-    return {"named": list(d.found), "verdict": d.verdict, "message": d.message,
-            "wall_s": time.perf_counter() - t0}
+    return VisitDiagnosis(tuple(d.found), d.verdict, d.message, time.perf_counter() - t0)
 
 
 def effect_of(parameter: str) -> str | None:

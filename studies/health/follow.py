@@ -98,10 +98,10 @@ def find_and_follow(ests: Sequence[dict[str, Any]], records_of: Callable[[int], 
     base = base_values(ests[0])
     say(f"what changed? at visit {idx + 1}: {why}; shm diagnose on it against the first visit's fitted set ...")
     d = diagnose_visit(records_of(idx), params, base)
-    say(f"  shm diagnose names {', '.join(d['named']) or 'nothing'} ({d['wall_s']:.1f} s)")
-    out = Followed(diagnosed_visit=idx, trigger=why, named=list(d["named"]), message=d["message"],
-                   diagnose_wall_s=d["wall_s"])
-    chosen = follow_set(d["named"])
+    say(f"  shm diagnose names {', '.join(d.named) or 'nothing'} ({d.wall_s:.1f} s)")
+    out = Followed(diagnosed_visit=idx, trigger=why, named=list(d.named), message=d.message,
+                   diagnose_wall_s=d.wall_s)
+    chosen = follow_set(d.named)
     if chosen is None:
         return out
     out.effects, out.free = chosen
