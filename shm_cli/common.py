@@ -181,24 +181,25 @@ def _writable_target(path: Path, want_dir: bool) -> str | None:
     return None
 
 
-def output_dir_arg(text: str) -> str:
-    """argparse ``type=`` of an output directory: refused at parse time when it is a file or cannot be created."""
+def _output_path(text: str, want_dir: bool) -> str:
+    """``text`` as an output directory (``want_dir``) or file path, or :class:`argparse.ArgumentTypeError` saying
+    why it cannot be one (empty, a file where a directory is wanted or the reverse, not writable)."""
     if not text.strip():
-        raise argparse.ArgumentTypeError("empty path: give a directory")
-    why = _writable_target(Path(text), want_dir=True)
+        raise argparse.ArgumentTypeError(f"empty path: give a {'directory' if want_dir else 'file name'}")
+    why = _writable_target(Path(text), want_dir=want_dir)
     if why is not None:
         raise argparse.ArgumentTypeError(f"'{text}' {why}")
     return text
+
+
+def output_dir_arg(text: str) -> str:
+    """argparse ``type=`` of an output directory: refused at parse time when it is a file or cannot be created."""
+    return _output_path(text, want_dir=True)
 
 
 def output_file_arg(text: str) -> str:
     """argparse ``type=`` of an output file: refused at parse time when it is a directory or cannot be written."""
-    if not text.strip():
-        raise argparse.ArgumentTypeError("empty path: give a file name")
-    why = _writable_target(Path(text), want_dir=False)
-    if why is not None:
-        raise argparse.ArgumentTypeError(f"'{text}' {why}")
-    return text
+    return _output_path(text, want_dir=False)
 
 
 def add_params_arg(p: argparse.ArgumentParser) -> None:
