@@ -86,9 +86,6 @@ def cmd_health(args: argparse.Namespace) -> int:
 
         return run_fleet_health(args)
     from shm_cli.main import CliError
-    from studies.health.assess import assess_health
-    from studies.health.evaluate import LAMBDAS
-    from studies.health.report import evaluation_text, four_levels_text, health_json, write_health_outputs
 
     if args.as_of is not None and not args.as_of >= 0:
         raise CliError(f"--as-of must be a number of hours >= 0, got {args.as_of!r}")
@@ -114,8 +111,7 @@ def cmd_health(args: argparse.Namespace) -> int:
     lock.acquire()
     try:
         _check_out_is_health(out, args.force)
-        return _health_locked(args, out, assess_health, LAMBDAS, evaluation_text, four_levels_text, health_json,
-                              write_health_outputs)
+        return _health_locked(args, out)
     finally:
         lock.release()
 
@@ -155,8 +151,12 @@ def _check_out_is_health(out: Path, force: bool) -> None:
                        "health outputs there anyway")
 
 
-def _health_locked(args: argparse.Namespace, out: Path, assess_health: Any, LAMBDAS: Any, evaluation_text: Any,
-                   four_levels_text: Any, health_json: Any, write_health_outputs: Any) -> int:
+def _health_locked(args: argparse.Namespace, out: Path) -> int:
+    """The assessment, its outputs written into ``out`` (locked), the four levels printed; the exit code."""
+    from studies.health.assess import assess_health
+    from studies.health.evaluate import LAMBDAS
+    from studies.health.report import evaluation_text, four_levels_text, health_json, write_health_outputs
+
     log = (lambda s: print(s, file=sys.stderr, flush=True)) if args.json else (lambda s: print(s, flush=True))
     t0 = time.perf_counter()
     result = assess_health(args.sources, params=args.params, as_of=args.as_of, free=args.free or None,
