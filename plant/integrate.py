@@ -19,12 +19,13 @@ from __future__ import annotations
 
 import inspect
 import textwrap
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from enum import IntEnum
 from typing import Any
 
 from plant import integrate_lanes, integrate_scalar, integrate_steps
 from plant.integrate_kernel_names import LANES
+from plant.integrate_splice import spliced_source
 from plant.integrate_steps import TABLEAU_NAMES
 
 
@@ -64,21 +65,26 @@ class IntegrationFailed(FloatingPointError):
 NJIT_OPTIONS = 'cache=CACHE, nogil=True, error_model="numpy"'
 
 
-def kernel_source(functions: Sequence[Callable[..., Any]], inline: Sequence[Callable[..., Any]] = ()) -> str:
+def kernel_source(functions: Sequence[Callable[..., Any]], inline: Sequence[Callable[..., Any]] = (),
+                  spliced: Mapping[Callable[..., Any], Sequence[Callable[..., Any]]] | None = None) -> str:
     """The source of ``functions`` as numba functions of a generated kernel module: each function's own text
     (annotations are not evaluated: the module starts with ``from __future__ import annotations``) under
-    ``@numba.njit`` with :data:`NJIT_OPTIONS`, ``inline="always"`` for those in ``inline``."""
+    ``@numba.njit`` with :data:`NJIT_OPTIONS`, ``inline="always"`` for those in ``inline``; a function in
+    ``spliced`` has the bodies of its helpers written in place of their calls
+    (:func:`plant.integrate_splice.spliced_source`)."""
     parts = []
     for fn in functions:
         options = NJIT_OPTIONS + (', inline="always"' if fn in inline else "")
-        parts.append(f"@numba.njit({options})\n{textwrap.dedent(inspect.getsource(fn))}")
+        helpers = (spliced or {}).get(fn)
+        text = spliced_source(fn, helpers) if helpers else textwrap.dedent(inspect.getsource(fn))
+        parts.append(f"@numba.njit({options})\n{text}")
     return "\n\n".join(parts)
 
 
 #: the member-by-member integrator with the step functions it shares with the lane integrator (entry points
 #: ``run_chunk``, ``run_chunk_stats``); :func:`plant.compose.generate_source` puts it in every kernel module
 INTEGRATOR_SOURCE = kernel_source(integrate_steps.FUNCTIONS + integrate_scalar.FUNCTIONS,
-                                  integrate_steps.INLINE + integrate_scalar.INLINE)
+                                  integrate_steps.INLINE + integrate_scalar.INLINE, integrate_scalar.SPLICED)
 #: the lane integrator (entry point ``run_lanes``), after :data:`INTEGRATOR_SOURCE` in a kernel module with a lane
 #: form
 LANE_INTEGRATOR_SOURCE = kernel_source(integrate_lanes.FUNCTIONS, integrate_lanes.INLINE)

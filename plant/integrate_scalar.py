@@ -69,14 +69,13 @@ def emit(b: Index, j: int, t: float, xo: Vector, pb: Vector, u: Array3, bu: Inde
             bs[b, j, k] = bus[k]
 
 
-def attempt(t: float, h_use: float, t_new: float, w: Matrix, pb: Vector, u: Array3, bu: Index, u_t0: float,
-            u_dt: float, uvec: Vector, bus: Vector, rtol: float, atol: Vector) -> tuple[float, float]:
-    """One Dormand–Prince step of ``h_use`` from ``t`` (the work rows of :func:`one`: state in row 0, its derivative
-    in row 1): the stages in rows 2-7 (stage inputs in row 8), the 5th-order solution in row 9. Returns the squared
-    error norm and the sum of the new states (non-finite when any state is)."""
+def attempt(t: float, h_use: float, t_new: float, x: Vector, k1: Vector, k2: Vector, k3: Vector, k4: Vector,
+            k5: Vector, k6: Vector, k7: Vector, xt: Vector, xn: Vector, pb: Vector, u: Array3, bu: Index,
+            u_t0: float, u_dt: float, uvec: Vector, bus: Vector, rtol: float, atol: Vector) -> tuple[float, float]:
+    """One Dormand–Prince step of ``h_use`` from ``t`` (state ``x``, its derivative ``k1``): the stages ``k2`` ..
+    ``k7`` (stage states in ``xt``), the 5th-order solution in ``xn``. Returns the squared error norm and the sum of
+    the new states (non-finite when any state is)."""
     n = N_STATES
-    x, k1, k2, k3, k4, k5, k6, k7 = w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7]
-    xt, xn = w[8], w[9]
     t2, t3, t4, t5 = stage_times(t, h_use)
     for k in range(n):
         xt[k] = stage2(x[k], h_use, k1[k])
@@ -110,13 +109,13 @@ def attempt(t: float, h_use: float, t_new: float, w: Matrix, pb: Vector, u: Arra
     return err2 / n, total
 
 
-def dense_outputs(b: Index, j: int, t: float, t_new: float, h_use: float, w: Matrix, t_out: Vector, pb: Vector,
-                  u: Array3, bu: Index, u_t0: float, u_dt: float, uvec: Vector, bus: Vector, yv: Vector, y: Array3,
-                  xs: Array3, bs: Array3, record_x: bool, record_bus: bool) -> int:
-    """Emit every output time inside the accepted step ``(t, t_new]`` from the dense output, starting at output
-    ``j``; returns the next output index."""
+def dense_outputs(b: Index, j: int, t: float, t_new: float, h_use: float, x: Vector, k1: Vector, k3: Vector,
+                  k4: Vector, k5: Vector, k6: Vector, k7: Vector, xn: Vector, xo: Vector, dx: Vector, t_out: Vector,
+                  pb: Vector, u: Array3, bu: Index, u_t0: float, u_dt: float, uvec: Vector, bus: Vector, yv: Vector,
+                  y: Array3, xs: Array3, bs: Array3, record_x: bool, record_bus: bool) -> int:
+    """Emit every output time inside the accepted step ``(t, t_new]`` (start ``x``, stages ``k1`` .. ``k7``, end
+    ``xn``) from the dense output (into ``xo``), starting at output ``j``; returns the next output index."""
     n = N_STATES
-    x, k1, k3, k4, k5, k6, k7, xn, xo = w[0], w[1], w[3], w[4], w[5], w[6], w[7], w[9], w[10]
     nout = t_out.shape[0]
     while j < nout and output_due(t_out[j], t_new):
         th = (t_out[j] - t) / h_use
@@ -127,7 +126,7 @@ def dense_outputs(b: Index, j: int, t: float, t_new: float, h_use: float, w: Mat
             q = dense_weights(th)
             for k in range(n):
                 xo[k] = dense_point(x[k], h_use, q, k1[k], k3[k], k4[k], k5[k], k6[k], k7[k])
-        emit(b, j, t_out[j], xo, pb, u, bu, u_t0, u_dt, uvec, bus, w[11], yv, y, xs, bs, record_x, record_bus)
+        emit(b, j, t_out[j], xo, pb, u, bu, u_t0, u_dt, uvec, bus, dx, yv, y, xs, bs, record_x, record_bus)
         j += 1
     return j
 
@@ -155,14 +154,15 @@ def one(b: Index, x0: Matrix, p: Matrix, u: Array3, u_t0: float, u_dt: float, t_
     allocation per member or per step): the state, the seven stages, the stage input, the 5th-order solution, the
     dense output and the derivative at an output."""
     bu = np.int64(b) if u.shape[0] > 1 else np.int64(0)
-    x, k1, k7, xn = w[0], w[1], w[7], w[9]
+    x, k1, k2, k3, k4, k5, k6, k7 = w[0], w[1], w[2], w[3], w[4], w[5], w[6], w[7]
+    xt, xn, xo, dx = w[8], w[9], w[10], w[11]
     for k in range(N_STATES):
         x[k] = x0[b, k]
     pb = p[b]
     nout = t_out.shape[0]
     t = t_out[0]
     t_end = t_out[nout - 1]
-    emit(b, 0, t, x, pb, u, bu, u_t0, u_dt, uvec, bus, w[11], yv, y, xs, bs, record_x, record_bus)
+    emit(b, 0, t, x, pb, u, bu, u_t0, u_dt, uvec, bus, dx, yv, y, xs, bs, record_x, record_bus)
     input_at(u, bu, t, u_t0, u_dt, uvec)
     rhs(t, x, pb, uvec, bus, k1)
     h = min(h_max, 1e-4)
@@ -176,7 +176,8 @@ def one(b: Index, x0: Matrix, p: Matrix, u: Array3, u_t0: float, u_dt: float, t_
     while j < nout:
         h_use, last = step_to_take(h, t_end - t)
         t_new = t_end if last else t + h_use
-        err2, total = attempt(t, h_use, t_new, w, pb, u, bu, u_t0, u_dt, uvec, bus, rtol, atol)
+        err2, total = attempt(t, h_use, t_new, x, k1, k2, k3, k4, k5, k6, k7, xt, xn, pb, u, bu, u_t0, u_dt, uvec,
+                              bus, rtol, atol)
         steps += 1
         if not (np.isfinite(total) and np.isfinite(err2)):
             # a non-finite state anywhere makes the sum non-finite (one test instead of one per state)
@@ -189,8 +190,8 @@ def one(b: Index, x0: Matrix, p: Matrix, u: Array3, u_t0: float, u_dt: float, t_
             continue
         log_err = log_error(err2)
         if err2 <= 1.0:
-            j = dense_outputs(b, j, t, t_new, h_use, w, t_out, pb, u, bu, u_t0, u_dt, uvec, bus, yv, y, xs, bs,
-                              record_x, record_bus)
+            j = dense_outputs(b, j, t, t_new, h_use, x, k1, k3, k4, k5, k6, k7, xn, xo, dx, t_out, pb, u, bu,
+                              u_t0, u_dt, uvec, bus, yv, y, xs, bs, record_x, record_bus)
             t = t_new
             for k in range(N_STATES):
                 x[k] = xn[k]
@@ -238,6 +239,9 @@ def run_chunk(lo: int, hi: int, x0: Matrix, p: Matrix, u: Array3, u_t0: float, u
                     y, xs, bs, record_x, record_bus, status, nsteps, nrej)
 
 
-#: the functions of this module in the order the kernel module defines them, and those inlined where called
-FUNCTIONS = (input_at, emit, attempt, dense_outputs, finish, one, run_chunk_stats, run_chunk)
-INLINE = (attempt, dense_outputs, finish)
+#: the functions of this module in the order the kernel module defines them, those inlined where called, and
+#: the helpers whose bodies are written into their caller (numba's inlining would cost a reference count per array
+#: argument per attempted step, ~20 % of it: plant.integrate_splice)
+FUNCTIONS = (input_at, emit, finish, one, run_chunk_stats, run_chunk)
+INLINE = (finish,)
+SPLICED = {one: (attempt, dense_outputs)}
