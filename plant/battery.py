@@ -70,18 +70,18 @@ class TheveninBattery:
     # --- the curve the plant uses ---------------------------------------------------------------------
     def ocv(self, q_d: float | np.ndarray) -> np.ndarray:
         """Open-circuit voltage (V) at discharged capacity ``q_d`` (C), exactly as the compiled terminal has it."""
-        q = np.asarray(q_d, dtype=float)
-        out = np.empty(q.shape)
-        for idx in np.ndindex(q.shape):
-            out[idx] = ocv_and_slope(self._p, 0, N_OCV_NODES, self.capacity, float(q[idx]))[0]
-        return out
+        return self._curve(q_d, 0)
 
     def ocv_slope(self, q_d: float | np.ndarray) -> np.ndarray:
         """dv_oc/dq_d (V/C) of the plant's curve."""
+        return self._curve(q_d, 1)
+
+    def _curve(self, q_d: float | np.ndarray, which: int) -> np.ndarray:
+        """The plant's ``ocv_and_slope`` at every ``q_d`` (C): its voltage (``which`` 0) or slope (1)."""
         q = np.asarray(q_d, dtype=float)
         out = np.empty(q.shape)
         for idx in np.ndindex(q.shape):
-            out[idx] = ocv_and_slope(self._p, 0, N_OCV_NODES, self.capacity, float(q[idx]))[1]
+            out[idx] = ocv_and_slope(self._p, 0, N_OCV_NODES, self.capacity, float(q[idx]))[which]
         return out
 
     def discharged_capacity(self, v: float, what: str = "battery voltage") -> float:

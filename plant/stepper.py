@@ -15,7 +15,8 @@ from __future__ import annotations
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from types import ModuleType
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -23,8 +24,18 @@ from plant import layout as L
 from plant.compose import announce_if_cold
 from plant.integrate import IntegrationFailed, IntegrationStatus
 
-if TYPE_CHECKING:
-    from plant.model import PlantModel
+
+class ComposedModel(Protocol):
+    """What the integration seam needs of a model (:class:`plant.PlantModel` is one): its compiled kernel module,
+    sizes, state scales (set the absolute tolerances) and nominal parameters and start state."""
+
+    n_states: int
+    n_outputs: int
+    state_scales: np.ndarray
+    p_nominal: np.ndarray
+    x0_nominal: np.ndarray
+
+    def kernels(self) -> ModuleType: ...
 
 #: smallest step (s) before an integration stops with ``STEP_TOO_SMALL``
 H_MIN = 1e-14
@@ -69,7 +80,7 @@ class Integrator:
     """The compiled batch integrator of one composition, at relative tolerance ``rtol`` and absolute tolerances
     ``atol`` per state (default: the model's state scales × ``rtol``)."""
 
-    def __init__(self, model: PlantModel, rtol: float = 1e-6, atol: np.ndarray | None = None,
+    def __init__(self, model: ComposedModel, rtol: float = 1e-6, atol: np.ndarray | None = None,
                  max_steps: int = MAX_STEPS) -> None:
         kernels = model.kernels()
         self._kernels = kernels
@@ -179,7 +190,7 @@ class PlantStepper:
     ``FloatingPointError``).
     """
 
-    def __init__(self, model: PlantModel, params: np.ndarray | None = None, x0: np.ndarray | None = None,
+    def __init__(self, model: ComposedModel, params: np.ndarray | None = None, x0: np.ndarray | None = None,
                  rtol: float = 1e-6, h_max: float = 5e-3, max_steps: int = MAX_STEPS) -> None:
         self.model = model
         p = model.p_nominal[None] if params is None else np.atleast_2d(np.asarray(params, dtype=float))

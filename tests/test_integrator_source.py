@@ -108,3 +108,13 @@ def test_splice_keeps_the_meaning():
         spliced_source(_bad_caller, (_two_returns,))
     with pytest.raises(SpliceError, match="only one return"):
         spliced_source(_caller_of_two_returns, (_two_returns,))
+
+
+def test_the_integration_seam_does_not_import_the_model():
+    """plant.stepper needs only a ``ComposedModel`` (a protocol), not plant.model: no import circle, not even
+    type-only (issue 30)."""
+    import grimp
+
+    graph = grimp.build_graph("plant")
+    assert graph.find_shortest_chain(importer="plant.stepper", imported="plant.model") is None
+    assert "plant.model" not in graph.find_modules_directly_imported_by("plant.stepper")
