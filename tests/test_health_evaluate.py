@@ -64,7 +64,7 @@ def test_the_challenge_and_evaluate_judge_alpha_lambda_alike():
     import numpy as np
 
     from studies.health.challenge import ChallengeLife, _score
-    from studies.health.evaluate import evaluate_sweep
+    from studies.health.evaluate import SweepPrediction, evaluate_sweep
 
     hours = np.arange(0.0, 1100.0, 100.0)
     medians = {300.0: 1400.0, 400.0: 1300.0, 500.0: 1200.0, 600.0: 1000.0, 700.0: 1200.0, 800.0: 1000.0,
@@ -74,7 +74,9 @@ def test_the_challenge_and_evaluate_judge_alpha_lambda_alike():
         s = np.full(50, m)
         challenge_preds.append({"hours": t, "significant": True, "interval_visits": [int(m // 100)] * 2,
                                 "samples_seen": s})
-        sweep.append({"as_of_hours": t, "significant": True, "trip_interval_90": [m, m], "samples": s})
+        sweep.append(SweepPrediction(as_of_hours=t, visits_used=int(t // 100) + 1, significant=True,
+                                     trip_hours_median=m, trip_interval_90=[m, m], lower_bound_hours=None,
+                                     rul_median_hours=m - t, rul_interval_90=[m - t, m - t], samples=s))
     life = ChallengeLife("t", (), visits=11)
     scored = _score(challenge_preds, life, 10, hours)
     ev = evaluate_sweep(sweep, 1000.0, lambdas=(0.5,))

@@ -16,7 +16,14 @@ from board_config.errors import InputError
 from reporting.uncertainty_text import format_percent_change
 from studies.health.cause import effect_of
 from studies.health.estimate import DEFAULT_FREE, Visit, estimate_visits
-from studies.health.evaluate import ALPHA, LAMBDAS, MIN_VISITS, evaluate_sweep, sweep_predictions
+from studies.health.evaluate import (
+    ALPHA,
+    LAMBDAS,
+    MIN_VISITS,
+    SweepPrediction,
+    evaluate_sweep,
+    sweep_predictions,
+)
 from studies.health.follow import Followed, effect_limits, find_and_follow, series, trends_upto
 from studies.health.forecast import Forecast, forecast_trip, visit_of
 from studies.health.locate import SECTIONS, diagnose_first_name, locate_stiffness, location_sentence
@@ -48,7 +55,7 @@ class Assessment:
     forecast: Forecast
     boundary: Any
     #: the forecast rebuilt as of each visit (:func:`.evaluate.sweep_predictions`; with trip samples)
-    sweep: list[dict[str, Any]] = field(default_factory=list)
+    sweep: list[SweepPrediction] = field(default_factory=list)
     #: each visit's estimates of the set diagnose named (None: the default set was followed)
     followed_estimates: list[dict[str, Any]] | None = None
     #: the monitor's trip limit of each followed effect parameter (SI)
@@ -161,7 +168,7 @@ def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[V
             vd["followed_estimates"] = fe["estimates"]
             vd["followed_held_rms_sigma"] = fe["held_rms_sigma"]
     doc["levels"] = levels(doc, trends, fc)
-    doc["remaining_life"] = [{k: v for k, v in p.items() if k != "samples"} for p in sweep]
+    doc["remaining_life"] = [p.to_json() for p in sweep]
     doc["truth"] = truth_document(visits, params, free, truth_ff)
     t_eol = truth_ff.operating_hours if truth_ff is not None else None  # h; assess_health checks it is known
     doc["evaluation"] = (evaluate_sweep(sweep, t_eol, alpha=alpha, lambdas=lambdas)

@@ -13,6 +13,7 @@ significant trend are a date (the others give a lower bound) and enter the score
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, fields
 from typing import Any
 
 import numpy as np
@@ -54,15 +55,41 @@ def _quantiles(x: np.ndarray, qs: Sequence[float]) -> list[float | None]:
     return [float(v) if np.isfinite(v) else None for v in q]
 
 
+@dataclass(frozen=True)
+class SweepPrediction:
+    """The forecast as of one visit (:func:`sweep_predictions`); ``health.json``'s ``remaining_life`` rows."""
+
+    as_of_hours: float
+    """The as-of time (h): the visit the prediction is made at."""
+    visits_used: int
+    """Visits up to and including it."""
+    significant: bool
+    """Whether any trend is significant (only then is the prediction a date)."""
+    trip_hours_median: float | None
+    """Median trip time seen at a visit (h); None beyond the horizon."""
+    trip_interval_90: list[float | None]
+    """90 % interval of the trip time seen at visits, [lo, hi] (h; None beyond the horizon)."""
+    lower_bound_hours: float | None
+    """No-trend lower bound of the trip time (h)."""
+    rul_median_hours: float | None
+    """Median remaining useful life from the as-of time (h)."""
+    rul_interval_90: list[float | None]
+    """90 % interval of the remaining useful life (h)."""
+    samples: np.ndarray
+    """Trip time samples seen at visits (h; inf beyond the horizon); not written to JSON."""
+
+    def to_json(self) -> dict[str, Any]:
+        """Every field but ``samples``, by name, in field order."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "samples"}
+
+
 def sweep_predictions(hours: Sequence[float], rel: Mapping[str, Sequence[float]],
                       rel_se: Mapping[str, Sequence[float | None]], boundary: TripBoundary, interval: float, *,
                       seed: int = 1, until_hours: float | None = None, n_paths: int = SWEEP_PATHS,
                       n_grid: int = SWEEP_GRID, effect_limits: Mapping[str, float] | None = None
-                      ) -> list[dict[str, Any]]:
+                      ) -> list[SweepPrediction]:
     """One prediction per visit from the :data:`MIN_VISITS`-th (as of its hours; before ``until_hours`` when
-    given). Each: ``as_of_hours``, ``visits_used``, ``significant``, ``trip_hours_median`` and
-    ``trip_interval_90`` (seen at visits; None beyond the horizon), ``rul_median_hours``, ``rul_interval_90``,
-    ``lower_bound_hours`` (no trend) and ``samples`` (numpy, seen trip hours; not JSON)."""
+    given)."""
     h = np.asarray(hours, float)
     out = []
     for j in range(MIN_VISITS - 1, h.size):
@@ -75,30 +102,28 @@ def sweep_predictions(hours: Sequence[float], rel: Mapping[str, Sequence[float]]
                            effect_limits=effect_limits)
         seen = seen_at_visits(fc.trip_samples, float(h[0]), interval)
         med, lo, hi = _quantiles(seen, [0.5, 0.05, 0.95])
-        p = {"as_of_hours": t, "visits_used": j + 1, "significant": fc.significant, "trip_hours_median": med,
-             "trip_interval_90": [lo, hi], "lower_bound_hours": fc.lower_bound_hours,
-             "rul_median_hours": None if med is None else med - t,
-             "rul_interval_90": [None if lo is None else lo - t, None if hi is None else hi - t], "samples": seen}
-        out.append(p)
+        out.append(SweepPrediction(
+            as_of_hours=t, visits_used=j + 1, significant=fc.significant, trip_hours_median=med,
+            trip_interval_90=[lo, hi], lower_bound_hours=fc.lower_bound_hours,
+            rul_median_hours=None if med is None else med - t,
+            rul_interval_90=[None if lo is None else lo - t, None if hi is None else hi - t], samples=seen))
     return out
 
 
-def evaluate_sweep(preds: Sequence[dict[str, Any]], t_eol: float, *, alpha: float = ALPHA, beta: float = BETA,
+def evaluate_sweep(preds: Sequence[SweepPrediction], t_eol: float, *, alpha: float = ALPHA, beta: float = BETA,
                    lambdas: Sequence[float] = LAMBDAS) -> dict[str, Any]:
     """The scores of the predictions made before ``t_eol`` (h, the true first FAULT visit) — JSON-ready."""
-    before = [p for p in preds if p["as_of_hours"] < t_eol - 1e-9]
-    dated = [p for p in before if p["significant"]]
-    times = [p["as_of_hours"] for p in dated]
-    samples = [p["samples"] for p in dated]
+    before = [p for p in preds if p.as_of_hours < t_eol - 1e-9]
+    dated = [p for p in before if p.significant]
+    times = [p.as_of_hours for p in dated]
+    samples = [p.samples for p in dated]
     rows = []
     for p in before:
-        rows.append({k: v for k, v in p.items() if k != "samples"} | {
-            "rul_true_hours": t_eol - p["as_of_hours"],
-            "within_alpha": within_alpha(p["samples"], p["as_of_hours"], t_eol, alpha, beta) if p["significant"]
-            else None,
-            "relative_accuracy": relative_accuracy(p["samples"], p["as_of_hours"], t_eol) if p["significant"]
-            else None,
-            "covered": interval_covers(p["trip_interval_90"], t_eol) if p["significant"] else None})
+        rows.append(p.to_json() | {
+            "rul_true_hours": t_eol - p.as_of_hours,
+            "within_alpha": within_alpha(p.samples, p.as_of_hours, t_eol, alpha, beta) if p.significant else None,
+            "relative_accuracy": relative_accuracy(p.samples, p.as_of_hours, t_eol) if p.significant else None,
+            "covered": interval_covers(p.trip_interval_90, t_eol) if p.significant else None})
     ras = [r["relative_accuracy"] for r in rows if r["relative_accuracy"] is not None]
     covered = [r["covered"] for r in rows if r["covered"] is not None]
     points = [alpha_lambda_point(times, samples, t_eol, lam=lam, alpha=alpha, beta=beta) for lam in lambdas]
