@@ -45,30 +45,31 @@ def busy(tmp_path: Path) -> Iterator[Path]:
     os.close(fd)
 
 
-@pytest.mark.parametrize("command", COMMANDS)
-def test_a_foreign_finished_run_is_refused_without_force(command: str, tmp_path: Path, capsys) -> None:
-    out = _finished_run(tmp_path / "done")
-    before = file_hashes(out)
-    code = run_shm([*COMMANDS[command], "--out", str(out)])
+def _refused(argv: list[str], folder: Path, capsys: pytest.CaptureFixture[str]) -> str:
+    """Run ``shm argv``: exit 2, no traceback, one error line naming ``folder`` (returned), its files unchanged."""
+    before = file_hashes(folder)
+    code = run_shm(argv)
     err = capsys.readouterr().err
     line = one_error_line(err)
     assert code == 2, err[-800:]
     assert "Traceback" not in err
-    assert str(out) in line and "finished shm compare run" in line and "--force" in line, line
-    assert file_hashes(out) == before
+    assert str(folder) in line, line
+    assert file_hashes(folder) == before
+    return line
+
+
+@pytest.mark.parametrize("command", COMMANDS)
+def test_a_foreign_finished_run_is_refused_without_force(command: str, tmp_path: Path, capsys) -> None:
+    out = _finished_run(tmp_path / "done")
+    line = _refused([*COMMANDS[command], "--out", str(out)], out, capsys)
+    assert "finished shm compare run" in line and "--force" in line, line
     assert sorted(p.name for p in out.iterdir()) == ["compare.json", "report.html"]
 
 
 @pytest.mark.parametrize("command", COMMANDS)
 def test_a_folder_in_use_by_another_command_is_refused(command: str, busy: Path, capsys) -> None:
-    before = file_hashes(busy)
-    code = run_shm([*COMMANDS[command], "--out", str(busy), "--force"])  # --force does not take a held folder
-    err = capsys.readouterr().err
-    line = one_error_line(err)
-    assert code == 2, err[-800:]
-    assert "Traceback" not in err
-    assert str(busy) in line and "in use" in line and "shm fit" in line, line
-    assert file_hashes(busy) == before
+    line = _refused([*COMMANDS[command], "--out", str(busy), "--force"], busy, capsys)  # --force takes no held folder
+    assert "in use" in line and "shm fit" in line, line
 
 
 def test_force_writes_into_a_foreign_run_and_the_lock_is_released(tmp_path: Path, capsys) -> None:
