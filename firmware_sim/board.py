@@ -56,13 +56,13 @@ from firmware_sim.regimes import (
     quiet_standby,
 )
 from firmware_sim.regimes import step as regime_step
-from firmware_sim.sample_check import SampleLimits, check_sample
+from firmware_sim.rig_clock import CLOCK_WINDOW, clocks_agree, mismatch_reason, quiet_clock_checks
+from firmware_sim.sample_check import SampleLimits, check_sample, plausible_samples
 from firmware_sim.sample_order import StepsBack, clock_backwards_reason, seq_backwards_reason, steps_back
 from firmware_sim.usage import UsageEpisode
 from plant import PlantModel
 
 _QUIET_OK = TickInputs()
-_CLOCK_WINDOW = 2.0  # s of board time between two checks of the rig's clock against the board's
 _QUIET_LOW = TickInputs(energy_ok=False)
 _INF = math.inf
 
@@ -227,7 +227,7 @@ class Board:
                                     f"({(k - self._link_since) * self.period:.2f} s); first error: {self._link_error}"))
             self._link_error = ""
         ref = self._clock_ref  # the common case (inside the window, clock sane) without a call
-        if ref is None or not (ref[1] <= sample.t < _INF) or (k - ref[0]) * self.period >= _CLOCK_WINDOW:
+        if ref is None or not (ref[1] <= sample.t < _INF) or (k - ref[0]) * self.period >= CLOCK_WINDOW:
             self._check_clock(k, sample.t, events)
         self.last_sample = sample
         return bool(reason), wake, v_meas
@@ -351,33 +351,14 @@ class Board:
         if (n < 1 or span.seq0 == self._prev_seq or not ref_t <= float(span.t[0]) or self._back.any
                 or span.hv_present != (regime is Regime.MAINTENANCE)):
             return 0, None
-        lim = self._sample_limits
-        z3, vp, zdd, vb, t = span.z3[:n], span.v_patch[:n], span.z0dd[:n], span.v_battery[:n], span.t[:n]
-        avp, azdd = np.abs(vp), np.abs(zdd)
-        good = ((np.abs(z3) <= lim.z3) & (avp <= lim.v_patch) & (azdd <= lim.z0dd) & (vb >= 0.0)
-                & (vb <= lim.v_battery_max)
-                & np.isfinite(t) & (vb >= self.budget.brownout))
+        z3, zdd, vb, t = span.z3[:n], span.z0dd[:n], span.v_battery[:n], span.t[:n]
+        avp, azdd = np.abs(span.v_patch[:n]), np.abs(zdd)
+        good = plausible_samples(z3, avp, azdd, vb, t, self._sample_limits) & (vb >= self.budget.brownout)
         wake = (azdd >= self._wake_acc) | (avp >= self._wake_v)
         quiet = good & ~wake if regime is Regime.STANDBY_HARVEST else good
         m = n if bool(quiet.all()) else int(np.argmin(quiet))
-        # the rig's clock is checked at the first tick (tick - ref_k) * period >= _CLOCK_WINDOW: silently (a new
-        # reference) unless it finds a mismatch not yet reported, where the span stops
         period = self.period
-        checks: list[tuple[int, float]] = []  # (tick, rig time) of the silent checks: the new references
-        while m > 0:
-            d = k - ref_k
-            c = max(0, int(_CLOCK_WINDOW / period) - d - 2)
-            while c < m and (d + c) * period < _CLOCK_WINDOW:
-                c += 1
-            if c >= m:
-                break
-            t_c = float(t[c])
-            board_dt = (d + c) * period
-            if not (0.5 * board_dt <= t_c - ref_t <= 2.0 * board_dt) and not self.clock_mismatch:
-                m = c
-                break
-            ref_k, ref_t = k + c, t_c
-            checks.append((ref_k, ref_t))
+        m, checks = quiet_clock_checks(k, m, (ref_k, ref_t), t, period, bool(self.clock_mismatch))
         if m < 1:
             return 0, None
         if regime is Regime.STANDBY_HARVEST:
@@ -433,23 +414,19 @@ class Board:
         return reason or seq_backwards_reason(self._back, prev_seq, sample.seq)
 
     def _check_clock(self, k: int, t_rig: float, events: list[BoardEvent]) -> None:
-        """Compare the rig's clock (sample time) with the board's (tick count) every ``_CLOCK_WINDOW`` s: a
-        virtual-time board against a real-time rig (or the reverse) sees them drift apart; said once per run."""
+        """Compare the rig's clock (sample time) with the board's (tick count) every ``CLOCK_WINDOW`` s
+        (:mod:`firmware_sim.rig_clock`); a mismatch is said once per run."""
         ref = self._clock_ref
         if ref is None or not math.isfinite(t_rig) or t_rig < ref[1]:  # first sample, or the rig restarted
             self._clock_ref = (k, t_rig)
             return
         board_dt = (k - ref[0]) * self.period
-        if board_dt < _CLOCK_WINDOW:
+        if board_dt < CLOCK_WINDOW:
             return
         rig_dt = t_rig - ref[1]
         self._clock_ref = (k, t_rig)
-        if not (0.5 * board_dt <= rig_dt <= 2.0 * board_dt) and not self.clock_mismatch:
-            self.clock_mismatch = (
-                f"the rig's clock advanced {rig_dt:.2f} s while the board ticked {board_dt:.2f} s: "
-                + ("the board runs in virtual time against a real-time rig (run the board with --realtime, or the "
-                   "rig with --clock lockstep)" if rig_dt < board_dt else
-                   "the rig runs faster than the board (is the board paced slower than its tick?)"))
+        if not clocks_agree(board_dt, rig_dt) and not self.clock_mismatch:
+            self.clock_mismatch = mismatch_reason(board_dt, rig_dt)
             events.append(self._incident(k, "clock_mismatch", self.clock_mismatch))
 
     def _incident(self, k: int, kind: str, detail: str) -> BoardEvent:

@@ -7,6 +7,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from board_config.board import BoardConfig
 from drivers.link import FLAG_RIG_FAULT, FLAG_SENSOR_FAULT, RigSample
 
@@ -49,3 +51,13 @@ def check_sample(sample: RigSample, limits: SampleLimits) -> str:
     if not -_INF < t < _INF:
         return f"rig time {t!r} is not finite"
     return ""
+
+
+def plausible_samples(z3: np.ndarray, abs_v_patch: np.ndarray, abs_z0dd: np.ndarray, v_battery: np.ndarray,
+                      t: np.ndarray, limits: SampleLimits) -> np.ndarray:
+    """:func:`check_sample`'s range and time tests over arrays of samples (a quiet span's, whose flags are all 0:
+    ``drivers.quiet_span``): True where the sample passes them (``|v_patch|``, ``|z0dd|`` given: the caller needs
+    them too)."""
+    good: np.ndarray = ((np.abs(z3) <= limits.z3) & (abs_v_patch <= limits.v_patch) & (abs_z0dd <= limits.z0dd)
+                        & (v_battery >= 0.0) & (v_battery <= limits.v_battery_max) & np.isfinite(t))
+    return good
