@@ -211,3 +211,20 @@ def test_off_for_the_process_gives_every_running_thread_the_kernels_slice_back()
             worker.join()
 
     assert _in_thread(work) != pytest.approx(2e-4)
+
+
+@pytest.mark.slow
+@needs_eevdf
+@pytest.mark.parametrize(("endpoint", "announced"), [(("--modbus-tcp", "127.0.0.1:0"), "0.2 ms per slice"),
+                                                     (("--modbus-rtu", "pty"), "off")])
+def test_hil_serve_chooses_the_slice_per_link_by_default(endpoint: tuple[str, str], announced: str) -> None:
+    proc = subprocess.Popen([sys.executable, "-m", "shm_cli.main", "hil", "serve", *endpoint, "--duration", "60",
+                             "--status-every", "0"], stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                            cwd=ROOT, env={**os.environ, "PYTHONPATH": str(ROOT)})
+    try:
+        assert proc.stdout is not None
+        line = next((line for line in proc.stdout if "scheduler slice:" in line), "")
+    finally:
+        proc.terminate()
+        proc.wait(30)
+    assert announced in line, line
