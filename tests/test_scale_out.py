@@ -158,3 +158,18 @@ def test_a_single_life_takes_the_scheduler_and_refuses_a_bad_one_before_any_work
     monkeypatch.setattr(life_mod, "run_life", no_life)
     main(["run", "--scenario", "aging", "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path / "b")])
     assert asked == ["tcp://127.0.0.1:1"]
+
+
+def test_a_life_on_the_synchronous_scheduler_runs_its_visits_in_this_process(monkeypatch):
+    """shm run --scenario LIFE --scheduler synchronous: no cluster, every visit here, in visit order."""
+    import studies.board_run.life_pool as pool_mod
+    import studies.health.life as life_mod
+    from board_config.scenario import load_scenario
+
+    def no_pool(*_a, **_k):
+        raise AssertionError("a Dask cluster was started")
+
+    monkeypatch.setattr(pool_mod, "LifePool", no_pool)
+    monkeypatch.setattr(life_mod, "run_visit", lambda *a: a[1])  # the visit's number
+    result = life_mod.run_life(load_scenario("aging"), seed=1, params="table2", workers=2, scheduler="synchronous")
+    assert result.visits == list(range(1, 25)) and not result.interrupted
