@@ -293,3 +293,35 @@ def test_a_forward_step_fits_every_try_quickly_and_only_the_best_in_full(monkeyp
     assert best is not None and "geometric_stiffening" in best.members and best.held_rms_sigma == pytest.approx(2.7)
     assert sorted(n for _, n in calls) == [fs.TRY_NFEV] * 3 + [30]
     assert calls[-1] == (current.spec.plus(spec("geometric_stiffening")).label, 30)
+
+
+def test_without_the_beam_only_the_greedy_path_is_taken_and_nothing_is_swapped(monkeypatch):
+    # the same stalled greedy path as above; beam=False (an event inside the record, the discovery step follows):
+    # no other start, no swap fit, the greedy set is the selection
+    stiffness = fitted(60.0, "stiffness")
+    greedy = fitted(40.0, "dielectric_leakage", "stiffness")
+    starts = _stub_paths(monkeypatch, {"stiffness": greedy, "geometric_stiffening": fitted(1.0, "geometric_stiffening",
+                                                                                           "dielectric_leakage")})
+    swaps: list[str] = []
+    monkeypatch.setattr(fs, "fit_spec", lambda s, *a, **kw: swaps.append(s.label) or fitted(50.0, *s.members))
+    sel = fs.select_set(stiffness, [fitted(80.0, "geometric_stiffening"), fitted(200.0, "dielectric_leakage")], None,
+                        [], {}, RSS0, min_reduction=0.02, threads=None, max_nfev=5, seed=0, base_held=400.0,
+                        beam=False)
+    assert sel.final is greedy and starts == ["stiffness"] and swaps == []
+
+
+def test_an_event_inside_the_record_is_where_the_nominal_residual_leaves_the_noise():
+    import numpy as np
+
+    from workbench.discover_onset import event_onset
+
+    rng = np.random.default_rng(0)
+    t = np.arange(15000) / 1000.0
+    noise = rng.standard_normal((1, t.size))
+    step = noise + 40.0 * np.sin(2 * np.pi * 7.0 * t) * (t >= 9.0)
+    assert event_onset(t, step) == pytest.approx(9.0, abs=0.01)
+    assert event_onset(t, noise) is None  # nothing wrong
+    assert event_onset(t, noise + 40.0 * np.sin(2 * np.pi * 7.0 * t)) is None  # wrong from the start
+    assert event_onset(t, noise + 40.0 * (t >= 1.0)) is None  # quiet over less than QUIET_SHARE of the record
+    assert event_onset(t, noise * 1.5 + 40.0 * (t >= 9.0)) is None  # not at the noise level before
+    assert event_onset(t, noise + 10.0 * ((t >= 10.0) & (t < 10.05))) is None  # a burst, not a lasting change

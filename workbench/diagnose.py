@@ -72,6 +72,7 @@ from workbench.diagnose_evidence import Judgement, judge_winner
 from workbench.diagnose_progress import DiagnoseProgress, SilentProgress
 from workbench.diagnose_rules import why_not_named
 from workbench.diagnose_time_change import time_change
+from workbench.discover_onset import event_onset
 from workbench.effect_library import LIBRARY, resolve_candidates
 from workbench.fit import (
     DEFAULT_BLOCKS,
@@ -380,14 +381,24 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     term_shares: dict[str, float] = {}
     without_sigma: dict[str, float] = {}
     paths: list[str] = []
+    notes_early: list[str] = []
     t0 = time.perf_counter()
     # forward selection whenever the winner leaves more than FORWARD_ABOVE σ, even when that is a tiny share of a
     # large residual ("explained" for the verdict): on a sweep a second effect can hide in the last 2 σ
     if winner is not None and combine and winner.held_rms_sigma > FORWARD_ABOVE:
         rep.stage("combinations", None, f"forward selection from {winner.effect}")
+        # an event inside the record, with the discovery step to follow: no constant library set is the answer,
+        # so the greedy path alone (the beam and the swap were most of the step's time on a 15 s sweep)
+        onset = (None if emit_dir is None else
+                 next((t for tg, y in zip(targets, base_sim.y)
+                       if (t := event_onset(tg.t, (tg.measured - y[0]) / tg.sigma[:, None])) is not None), None))
         sel = select_set(winner, [c for c in ranking if c is not winner], base, targets, data, rss0_held,
                          min_reduction=min_reduction, threads=threads, max_nfev=max_nfev, seed=seed,
-                         base_held=base_held)
+                         base_held=base_held, beam=onset is None)
+        if onset is not None:
+            notes_early.append(f"forward selection took the greedy path only: the nominal model matches the records "
+                               f"to the noise until t ≈ {onset:.4g} s (an event inside the record, for the "
+                               "discovery step)")
         winner, steps = sel.final, sel.steps
         term_shares = sel.shares(rss0_held)
         without_sigma = {m: r.held_rms_sigma for m, r in sel.without.items() if m in winner.members}
@@ -422,6 +433,7 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     if judged is not None:
         notes += [f"not named in the verdict: {e.name} — {why_not_named(e)}" for e in judged.evidence
                   if why_not_named(e)]
+    notes += notes_early
     if len(paths) > 1:
         notes.append("the greedy forward selection fell short of the noise floor, so it was started again from "
                      "other candidates (and a re-estimation swapped for an effect); paths tried: " + "; ".join(paths))

@@ -56,6 +56,36 @@ def change_point(t: np.ndarray, r: np.ndarray) -> tuple[float, float]:
     return float(t[k[i]]), gain
 
 
+#: an event inside the record (:func:`event_onset`): the nominal model matches the record to within this RMS (σ)
+#: before the instant its residual leaves the noise, that quiet part is at least :data:`QUIET_SHARE` of the record,
+#: and after it the residual is above :data:`LOUD_SIGMA` RMS
+QUIET_SIGMA = 1.2
+QUIET_SHARE = 0.2
+LOUD_SIGMA = 3.0
+
+
+def event_onset(t: np.ndarray, r: np.ndarray) -> float | None:
+    """The instant (s) a damage event inside the record would have happened, from the nominal model's residual
+    ``r`` (channels × samples, in σ): where it first leaves the noise (its RMS over ten samples above 3 σ, as in
+    :func:`change_point`) when the record before that is at the noise level (:data:`QUIET_SIGMA`) over at least
+    :data:`QUIET_SHARE` of it and the rest is well above it (:data:`LOUD_SIGMA`); else None (a model wrong from the
+    start, or nothing wrong)."""
+    e = np.sum(np.asarray(r, float) ** 2, axis=0) / max(np.shape(r)[0], 1)
+    n = e.size
+    win = 10
+    if n < 20 * win:
+        return None
+    over = np.flatnonzero(np.convolve(e, np.ones(win) / win, mode="valid") > 9.0)
+    if not over.size:
+        return None
+    first = int(over[0]) + win - 2
+    if first < QUIET_SHARE * n:
+        return None
+    quiet = math.sqrt(float(np.mean(e[:first])))
+    loud = math.sqrt(float(np.mean(e[first:])))
+    return float(t[first]) if quiet <= QUIET_SIGMA and loud > LOUD_SIGMA else None
+
+
 #: relative changes a step is probed at first (not the linearised coefficient: a 25 % loss of k2 is far from
 #: linear), and the total changes over the rest of the record a ramp is probed at; a key whose best probe is the
 #: largest of its sign is probed further out (:data:`EDGE_OUT`: a damping ×4 is +300 %), a loss never past
