@@ -96,31 +96,8 @@ def build_record(file: Path, columns: Sequence[str], data: np.ndarray, meta: dic
     colnames = list(columns)
     mark = _lost_cells(file, data, meta, lost, colnames, locate, time_si is None)
     rows_lost: np.ndarray = np.asarray(mark.any(axis=1), bool)
-    if time_si is None:
-        if not parsed or parsed[0][0] != "time":
-            raise RecordError(file, f"the first column must be the time, e.g. 'time_s' (got '{colnames[0]}')",
-                              column=colnames[0] if colnames else None)
-        t = parsed[0][1].to_si(data[:, 0])
-        first = 1
-    else:
-        t = np.asarray(time_si, dtype=float)
-        first = 0
-        if t.size != data.shape[0]:
-            raise RecordError(file, f"time track has {t.size} samples but the channels have {data.shape[0]}")
-    if t.size - int(np.count_nonzero(rows_lost)) < 2:
-        raise RecordError(file, f"needs at least 2 samples, found {t.size - int(np.count_nonzero(rows_lost))}"
-                          + (f" ({int(np.count_nonzero(rows_lost))} lost)" if rows_lost.any() else ""))
-    d = np.diff(t)
-    if np.any(d <= 0):
-        k = int(np.flatnonzero(d <= 0)[0]) + 1
-        raise RecordError(file, f"time is not strictly increasing ({t[k - 1]:.9g} s then {t[k]:.9g} s)",
-                          where=locate(k), column=colnames[0] if time_si is None else "time")
-    if "sample_rate_Hz" in meta:
-        fs = float(meta["sample_rate_Hz"])
-        fs_t = 1.0 / float(np.median(d))
-        if abs(fs_t - fs) > 0.01 * fs:
-            raise RecordError(file, f"sample_rate_Hz = {fs:g} but the time column has {fs_t:.6g} Hz",
-                              key="sample_rate_Hz")
+    t, first = _time_track(file, parsed, colnames, data, locate, time_si, rows_lost)
+    _check_sample_rate(file, meta, t)
     by_col = {c: parsed[j] for j, c in enumerate(colnames)}
     data_cols = colnames[first:]
     chan_meta: dict[str, dict[str, Any]] = meta.get("channels", {})
@@ -128,34 +105,8 @@ def build_record(file: Path, columns: Sequence[str], data: np.ndarray, meta: dic
         if col not in by_col:
             raise RecordError(file, f"describes column '{col}', which the record does not have "
                                     f"(columns: {', '.join(colnames)})", key=f"channels.{col}")
-    inputs_cols = meta.get("inputs")
-    if inputs_cols is None:
-        inputs_cols = [c for c in data_cols if by_col[c][0] in INPUT_QUANTITIES]
-    for c in inputs_cols:
-        if c not in by_col or c not in data_cols:
-            raise RecordError(file, f"input column '{c}' is missing (columns: {', '.join(colnames)})",
-                              key="inputs", column=c)
-        if by_col[c][0] not in INPUT_QUANTITIES:
-            raise RecordError(file, f"'{by_col[c][0]}' is not a model input (inputs: "
-                                    f"{', '.join(INPUT_QUANTITIES)})", key="inputs", column=c)
-    in_q = {by_col[c][0] for c in inputs_cols}
-    if "va" in in_q and in_q & {"v_ch1", "v_ch2"}:
-        raise RecordError(file, "give either the differential drive 'va' or the channel voltages v_ch1/v_ch2, "
-                                "not both", key="inputs")
-    if not inputs_cols:
-        raise RecordError(file, f"no input channel (expected one of {', '.join(INPUT_QUANTITIES)} with a unit, "
-                                "e.g. v_ch1_V; or list them under 'inputs')", key="inputs")
-    outputs_cols = meta.get("outputs")
-    if outputs_cols is None:
-        outputs_cols = [c for c in data_cols if c not in inputs_cols]
-    for c in outputs_cols:
-        if c not in by_col or c not in data_cols:
-            raise RecordError(file, f"output column '{c}' is missing (columns: {', '.join(colnames)})",
-                              key="outputs", column=c)
-        if c in inputs_cols:
-            raise RecordError(file, "listed as both input and output", key="outputs", column=c)
-    if not outputs_cols:
-        raise RecordError(file, "no measured output channel (e.g. z3_m)", key="outputs")
+    inputs_cols = _input_columns(file, meta, by_col, colnames, data_cols)
+    outputs_cols = _output_columns(file, meta, by_col, colnames, data_cols, inputs_cols)
     channels: dict[str, Channel] = {}
     for j, col in enumerate(colnames):
         if col not in inputs_cols and col not in outputs_cols:
@@ -177,6 +128,83 @@ def build_record(file: Path, columns: Sequence[str], data: np.ndarray, meta: dic
         segments=segments, terminal=meta.get("terminal"), meta=MappingProxyType(dict(meta)),
     )
     return _without_lost_rows(rec, rows_lost) if rows_lost.any() else rec
+
+
+def _time_track(file: Path, parsed: list[tuple[str, Unit]], colnames: list[str], data: np.ndarray,
+                locate: Callable[[int], str], time_si: np.ndarray | None, rows_lost: np.ndarray
+                ) -> tuple[np.ndarray, int]:
+    """The time of every row in s (the first column, or ``time_si``), checked: at least 2 samples kept and
+    strictly increasing; with the index of the first data column."""
+    if time_si is None:
+        if not parsed or parsed[0][0] != "time":
+            raise RecordError(file, f"the first column must be the time, e.g. 'time_s' (got '{colnames[0]}')",
+                              column=colnames[0] if colnames else None)
+        t = parsed[0][1].to_si(data[:, 0])
+        first = 1
+    else:
+        t = np.asarray(time_si, dtype=float)
+        first = 0
+        if t.size != data.shape[0]:
+            raise RecordError(file, f"time track has {t.size} samples but the channels have {data.shape[0]}")
+    if t.size - int(np.count_nonzero(rows_lost)) < 2:
+        raise RecordError(file, f"needs at least 2 samples, found {t.size - int(np.count_nonzero(rows_lost))}"
+                          + (f" ({int(np.count_nonzero(rows_lost))} lost)" if rows_lost.any() else ""))
+    d = np.diff(t)
+    if np.any(d <= 0):
+        k = int(np.flatnonzero(d <= 0)[0]) + 1
+        raise RecordError(file, f"time is not strictly increasing ({t[k - 1]:.9g} s then {t[k]:.9g} s)",
+                          where=locate(k), column=colnames[0] if time_si is None else "time")
+    return t, first
+
+
+def _check_sample_rate(file: Path, meta: dict[str, Any], t: np.ndarray) -> None:
+    """A declared ``sample_rate_Hz`` must agree with the time column within 1 %."""
+    if "sample_rate_Hz" in meta:
+        fs = float(meta["sample_rate_Hz"])
+        fs_t = 1.0 / float(np.median(np.diff(t)))
+        if abs(fs_t - fs) > 0.01 * fs:
+            raise RecordError(file, f"sample_rate_Hz = {fs:g} but the time column has {fs_t:.6g} Hz",
+                              key="sample_rate_Hz")
+
+
+def _input_columns(file: Path, meta: dict[str, Any], by_col: dict[str, tuple[str, Unit]], colnames: list[str],
+                   data_cols: list[str]) -> list[str]:
+    """The input columns: ``meta["inputs"]``, else every data column of a model input quantity; checked."""
+    inputs_cols: list[str] | None = meta.get("inputs")
+    if inputs_cols is None:
+        inputs_cols = [c for c in data_cols if by_col[c][0] in INPUT_QUANTITIES]
+    for c in inputs_cols:
+        if c not in by_col or c not in data_cols:
+            raise RecordError(file, f"input column '{c}' is missing (columns: {', '.join(colnames)})",
+                              key="inputs", column=c)
+        if by_col[c][0] not in INPUT_QUANTITIES:
+            raise RecordError(file, f"'{by_col[c][0]}' is not a model input (inputs: "
+                                    f"{', '.join(INPUT_QUANTITIES)})", key="inputs", column=c)
+    in_q = {by_col[c][0] for c in inputs_cols}
+    if "va" in in_q and in_q & {"v_ch1", "v_ch2"}:
+        raise RecordError(file, "give either the differential drive 'va' or the channel voltages v_ch1/v_ch2, "
+                                "not both", key="inputs")
+    if not inputs_cols:
+        raise RecordError(file, f"no input channel (expected one of {', '.join(INPUT_QUANTITIES)} with a unit, "
+                                "e.g. v_ch1_V; or list them under 'inputs')", key="inputs")
+    return inputs_cols
+
+
+def _output_columns(file: Path, meta: dict[str, Any], by_col: dict[str, tuple[str, Unit]], colnames: list[str],
+                    data_cols: list[str], inputs_cols: list[str]) -> list[str]:
+    """The output columns: ``meta["outputs"]``, else every data column that is not an input; checked."""
+    outputs_cols: list[str] | None = meta.get("outputs")
+    if outputs_cols is None:
+        outputs_cols = [c for c in data_cols if c not in inputs_cols]
+    for c in outputs_cols:
+        if c not in by_col or c not in data_cols:
+            raise RecordError(file, f"output column '{c}' is missing (columns: {', '.join(colnames)})",
+                              key="outputs", column=c)
+        if c in inputs_cols:
+            raise RecordError(file, "listed as both input and output", key="outputs", column=c)
+    if not outputs_cols:
+        raise RecordError(file, "no measured output channel (e.g. z3_m)", key="outputs")
+    return outputs_cols
 
 
 def _without_lost_rows(rec: Record, rows_lost: np.ndarray) -> Record:

@@ -23,17 +23,42 @@ def load_tdms_record(path: str | Path) -> Record:
     name itself when it already ends in a unit (``z3_mm``); else ``<name>_<unit_string property>``. File and group
     properties named like metadata keys (``test``, ``sample_rate_Hz``, ``terminal`` ...) are used as metadata.
     """
+    path = Path(path)
+    tf = _read_tdms(path)
+    side = read_sidecar(path)
+    tdms_meta = side.get("tdms", {})
+    if not isinstance(tdms_meta, dict):
+        raise RecordError(sidecar_path(path), "expected a table", key="tdms")
+    group = _data_group(path, tf, tdms_meta.get("group"))
+    meta = merge_meta(path, _tdms_header(tf, group), side)
+    mapping = tdms_meta.get("channels", {})
+    columns, arrays, time_si = _channel_columns(path, group, mapping)
+    missing = [k for k in mapping if k not in {c.name for c in group.channels()}]
+    if missing:
+        raise RecordError(sidecar_path(path), f"maps channel '{missing[0]}', which group '{group.name}' does not have",
+                          key="tdms.channels")
+    if not columns:
+        raise RecordError(path, f"group '{group.name}' holds no channels")
+    data2 = np.column_stack(arrays) if arrays else np.zeros((0, 0))
+    if columns[0].startswith("time_"):
+        time_si = None  # an explicit time channel wins over waveform timing
+    elif time_si is None:
+        raise RecordError(path, "no time: neither a 'time_<unit>' channel nor waveform timing (wf_increment)")
+    return build_record(path, columns, data2, meta, lambda k: f"sample {k}", time_si=time_si)
+
+
+def _read_tdms(path: Path) -> Any:
+    """The npTDMS file at ``path``; a missing or corrupt file is a :class:`RecordError`, not a stream of npTDMS
+    reader warnings (its loggers set their own levels: held at ERROR while reading)."""
     from nptdms import TdmsFile
 
-    path = Path(path)
-    # a corrupt file is our RecordError, not a stream of npTDMS reader warnings (its loggers set their own levels)
     quiet = {name: lg for name, lg in logging.root.manager.loggerDict.items()
              if name.startswith("nptdms") and isinstance(lg, logging.Logger)}
     levels = {name: lg.level for name, lg in quiet.items()}
     for lg in quiet.values():
         lg.setLevel(logging.ERROR)
     try:
-        tf = TdmsFile.read(str(path))
+        return TdmsFile.read(str(path))
     except FileNotFoundError:
         raise RecordError(path, "file not found") from None
     except Exception as exc:  # npTDMS raises several types for corrupt files
@@ -41,25 +66,28 @@ def load_tdms_record(path: str | Path) -> Record:
     finally:
         for name, lg in quiet.items():
             lg.setLevel(levels[name])
-    side = read_sidecar(path)
-    tdms_meta = side.get("tdms", {})
-    if not isinstance(tdms_meta, dict):
-        raise RecordError(sidecar_path(path), "expected a table", key="tdms")
+
+
+def _data_group(path: Path, tf: Any, want: Any) -> Any:
+    """The group to read: the sidecar's ``[tdms] group`` (``want``), else the only group holding data."""
     groups = [g for g in tf.groups() if len(g.channels()) > 0]
-    want = tdms_meta.get("group")
     if want is not None:
         match = [g for g in groups if g.name == want]
         if not match:
             raise RecordError(path, f"no group '{want}' (groups: {', '.join(g.name for g in groups)})",
                               key="tdms.group")
-        group = match[0]
-    elif len(groups) == 1:
-        group = groups[0]
-    elif not groups:
+        return match[0]
+    if len(groups) == 1:
+        return groups[0]
+    if not groups:
         raise RecordError(path, "the file holds no channel data")
-    else:
-        raise RecordError(path, f"several groups hold data ({', '.join(g.name for g in groups)}); choose one with "
-                                "[tdms] group = \"...\" in the sidecar", key="tdms.group")
+    raise RecordError(path, f"several groups hold data ({', '.join(g.name for g in groups)}); choose one with "
+                            "[tdms] group = \"...\" in the sidecar", key="tdms.group")
+
+
+def _tdms_header(tf: Any, group: Any) -> dict[str, Any]:
+    """File and group properties named like metadata keys, as metadata (``inputs``/``outputs``: comma-separated,
+    since TDMS properties cannot hold lists)."""
     header: dict[str, Any] = {}
     for props in (tf.properties, group.properties):
         for k, v in props.items():
@@ -68,29 +96,38 @@ def load_tdms_record(path: str | Path) -> Record:
     for k in ("inputs", "outputs"):
         if isinstance(header.get(k), str):  # TDMS properties cannot hold lists: comma-separated
             header[k] = [s.strip() for s in header[k].split(",") if s.strip()]
-    meta = merge_meta(path, header, side)
-    mapping = tdms_meta.get("channels", {})
+    return header
+
+
+def _channel_column(path: Path, ch: Any, mapping: dict[str, str]) -> str:
+    """The column name of channel ``ch``: the sidecar mapping, else its own name when it ends in a unit, else
+    ``<name>_<unit_string>``."""
+    if ch.name in mapping:
+        return mapping[ch.name]
+    if split_column(ch.name)[1] is not None:
+        return str(ch.name)
+    us = ch.properties.get("unit_string")
+    if us is None:
+        raise RecordError(path, "channel name carries no unit and has no 'unit_string' property; map it "
+                                "in the sidecar: [tdms.channels] \"NAME\" = \"quantity_unit\"",
+                          column=ch.name)
+    unit = unit_from_string(str(us))
+    if unit is None:
+        raise RecordError(path, f"unknown unit_string '{us}' (known units: {known_units()})",
+                          column=ch.name)
+    return f"{ch.name.strip().replace(' ', '_')}_{unit.token}"
+
+
+def _channel_columns(path: Path, group: Any, mapping: dict[str, str]
+                     ) -> tuple[list[str], list[np.ndarray], np.ndarray | None]:
+    """The group's channels as (columns, arrays, waveform time in s or None); a time channel goes first."""
     columns: list[str] = []
     arrays: list[np.ndarray] = []
     time_si = None
     n0 = None
     for ch in group.channels():
         data = np.asarray(ch[:], dtype=float) if ch.data is not None else np.zeros(0)
-        if ch.name in mapping:
-            col = mapping[ch.name]
-        elif split_column(ch.name)[1] is not None:
-            col = ch.name
-        else:
-            us = ch.properties.get("unit_string")
-            if us is None:
-                raise RecordError(path, "channel name carries no unit and has no 'unit_string' property; map it "
-                                        "in the sidecar: [tdms.channels] \"NAME\" = \"quantity_unit\"",
-                                  column=ch.name)
-            unit = unit_from_string(str(us))
-            if unit is None:
-                raise RecordError(path, f"unknown unit_string '{us}' (known units: {known_units()})",
-                                  column=ch.name)
-            col = f"{ch.name.strip().replace(' ', '_')}_{unit.token}"
+        col = _channel_column(path, ch, mapping)
         if n0 is None:
             n0 = data.size
         elif data.size != n0:
@@ -109,18 +146,7 @@ def load_tdms_record(path: str | Path) -> Record:
                 raise RecordError(path, f"wf_increment = {inc!r} must be positive", column=ch.name)
             t0 = float(ch.properties.get("wf_start_offset", 0.0))
             time_si = t0 + inc * np.arange(data.size)
-    missing = [k for k in mapping if k not in {c.name for c in group.channels()}]
-    if missing:
-        raise RecordError(sidecar_path(path), f"maps channel '{missing[0]}', which group '{group.name}' does not have",
-                          key="tdms.channels")
-    if not columns:
-        raise RecordError(path, f"group '{group.name}' holds no channels")
-    data2 = np.column_stack(arrays) if arrays else np.zeros((0, 0))
-    if columns[0].startswith("time_"):
-        time_si = None  # an explicit time channel wins over waveform timing
-    elif time_si is None:
-        raise RecordError(path, "no time: neither a 'time_<unit>' channel nor waveform timing (wf_increment)")
-    return build_record(path, columns, data2, meta, lambda k: f"sample {k}", time_si=time_si)
+    return columns, arrays, time_si
 
 
 def write_tdms_record(record: Record, path: str | Path, group: str = "Measurements") -> Path:
