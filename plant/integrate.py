@@ -87,7 +87,7 @@ INTEGRATOR_SOURCE = kernel_source(integrate_steps.FUNCTIONS + integrate_scalar.F
                                   integrate_steps.INLINE + integrate_scalar.INLINE, integrate_scalar.SPLICED)
 #: the lane integrator (entry point ``run_lanes``), after :data:`INTEGRATOR_SOURCE` in a kernel module with a lane
 #: form
-LANE_INTEGRATOR_SOURCE = kernel_source(integrate_lanes.FUNCTIONS, integrate_lanes.INLINE)
+LANE_INTEGRATOR_SOURCE = kernel_source(integrate_lanes.FUNCTIONS, integrate_lanes.INLINE, integrate_lanes.SPLICED)
 
 __all__ = ["INTEGRATOR_SOURCE", "LANES", "LANE_INTEGRATOR_SOURCE", "TABLEAU_NAMES", "IntegrationFailed",
            "IntegrationStatus", "kernel_source"]

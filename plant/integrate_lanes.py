@@ -357,7 +357,9 @@ def run_lanes(lo: int, hi: int, x0: Matrix, p: Matrix, u: Array3, u_t0: float, u
                     y, xs, bs, record_x, record_bus, status, nsteps, nrej, w, bus, uvec, yv)
 
 
-#: the functions of this module in the order the kernel module defines them, and those inlined where called
-FUNCTIONS = (lane_inputs, lane_rhs_into, lane_emit, lane_start, lane_attempt, lane_error_norm, lane_dense_outputs,
-             lane_stop, lane_finish, lane_accept, lane_group, run_lanes)
-INLINE = (lane_attempt, lane_error_norm, lane_dense_outputs, lane_accept)
+#: the functions of this module in the order the kernel module defines them, those inlined where called, and the
+#: helpers whose bodies are written into their caller (plant.integrate_splice: cheaper to compile than numba's
+#: inlining, and no reference count per array argument)
+FUNCTIONS = (lane_inputs, lane_rhs_into, lane_emit, lane_start, lane_stop, lane_finish, lane_group, run_lanes)
+INLINE = ()
+SPLICED = {lane_group: (lane_attempt, lane_error_norm, lane_dense_outputs, lane_accept)}
