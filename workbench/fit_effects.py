@@ -143,31 +143,9 @@ def fit_records(records: Sequence[Record], params: ParameterSet | str = "table2"
         raise FitError("the starting model fails to integrate on the records: "
                        + "; ".join(f"{tg.name}: status {int(s[0])}" for tg, s in zip(targets, base_sim.status)))
     # the effects' own starting guesses first (cheap; a malformed guess fails before anything compiles)
-    data = guess_data(targets[0], base_sim, base_models[0])
-    free_params: list[Parameter] = []
-    guess: dict[str, float] = {}
-    for cls in classes:
-        try:
-            own = effect_free_parameters(cls)
-            guess.update(guess_values(cls, data, own))
-        except EffectError as exc:
-            raise FitError(str(exc)) from None
-        free_params.extend(own)
-    try:
-        build = model_factory(base, classes)
-        models = [build(tg.record) for tg in targets]
-    except EffectError as exc:
-        raise FitError(str(exc)) from None
-    for cls in classes:
-        check_effect_runs(models[0], cls, targets[0])
-    for spec in free:
-        try:
-            fp = core_free_parameter(models[0], spec)
-        except (EffectError, ValueError) as exc:
-            raise FitError(str(exc)) from None
-        free_params = [q for q in free_params if q.name != fp.name] + [fp]
-    if not free_params:
-        raise FitError("nothing to fit: add an effect (--add) or free a parameter (--free)")
+    free_params, guess = _effect_guesses(classes, guess_data(targets[0], base_sim, base_models[0]))
+    models = _fit_models(base, classes, targets)
+    free_params = _freed_core_parameters(models[0], free, free_params)
     before = channel_scores(targets, base_sim)
     before_train = rms(base_obj.residuals(base_sim, "train")[0])
     before_held = rms(base_obj.residuals(base_sim, "held")[0])
@@ -181,6 +159,62 @@ def fit_records(records: Sequence[Record], params: ParameterSet | str = "table2"
     if not outcome.ok:
         raise FitError(f"the fitted model fails to integrate on the records ({outcome.message})")
     after = channel_scores(targets, outcome.sim)
+    notes, interval_method = _interval_notes(obj, outcome, bootstrap_replicates, seed)
+    return FitReport(
+        added=[c.name for c in classes], free=free_params, outcome=outcome, before=before, after=after,
+        before_train_rms_sigma=before_train, before_held_rms_sigma=before_held,
+        base_set=base, model=models[0], save_name=save_name, targets=targets, baseline_sim=base_sim,
+        wall_s=time.perf_counter() - t0, notes=notes, interval_method=interval_method,
+        initial={fp.name: float(guess[fp.name]) for fp in free_params})
+
+
+def _effect_guesses(classes: Sequence[type[PhysicalEffect]], data: dict[str, Any]
+                    ) -> tuple[list[Parameter], dict[str, float]]:
+    """The added effects' free parameters and their own starting guesses from ``data`` (see :func:`guess_data`)."""
+    free_params: list[Parameter] = []
+    guess: dict[str, float] = {}
+    for cls in classes:
+        try:
+            own = effect_free_parameters(cls)
+            guess.update(guess_values(cls, data, own))
+        except EffectError as exc:
+            raise FitError(str(exc)) from None
+        free_params.extend(own)
+    return free_params, guess
+
+
+def _fit_models(base: ParameterSet, classes: Sequence[type[PhysicalEffect]], targets: list[Target]
+                ) -> list[PlantModel]:
+    """The model with the added effects, one per record; each effect run once on a short stretch first."""
+    try:
+        build = model_factory(base, classes)
+        models = [build(tg.record) for tg in targets]
+    except EffectError as exc:
+        raise FitError(str(exc)) from None
+    for cls in classes:
+        check_effect_runs(models[0], cls, targets[0])
+    return models
+
+
+def _freed_core_parameters(model: PlantModel, free: Sequence[str], free_params: list[Parameter]
+                           ) -> list[Parameter]:
+    """``free_params`` with the freed core parameters (``name`` or ``name:lower:upper``) added or replacing an
+    effect's of the same name; :class:`FitError` when nothing is left to fit."""
+    for spec in free:
+        try:
+            fp = core_free_parameter(model, spec)
+        except (EffectError, ValueError) as exc:
+            raise FitError(str(exc)) from None
+        free_params = [q for q in free_params if q.name != fp.name] + [fp]
+    if not free_params:
+        raise FitError("nothing to fit: add an effect (--add) or free a parameter (--free)")
+    return free_params
+
+
+def _interval_notes(obj: Objective, outcome: FitOutcome, bootstrap_replicates: int, seed: int
+                    ) -> tuple[list[str], str]:
+    """The notes on a fit and how its intervals were found: a block bootstrap (applied to ``outcome``) when the
+    model leaves more than the noise, else the Jacobian's; a note per estimate that ended at a range bound."""
     notes = []
     interval_method = "jacobian"
     if outcome.held_rms_sigma > MODEL_EXPLAINS_SIGMA and bootstrap_replicates > 0 and outcome.estimates:
@@ -193,12 +227,7 @@ def fit_records(records: Sequence[Record], params: ParameterSet | str = "table2"
         if e.at_bound:
             notes.append(f"{e.name} ended at a bound of its range [{e.lower:g}, {e.upper:g}] {e.unit}: widen it "
                          f"with --free {e.name}:LOWER:UPPER if the physics allows")
-    return FitReport(
-        added=[c.name for c in classes], free=free_params, outcome=outcome, before=before, after=after,
-        before_train_rms_sigma=before_train, before_held_rms_sigma=before_held,
-        base_set=base, model=models[0], save_name=save_name, targets=targets, baseline_sim=base_sim,
-        wall_s=time.perf_counter() - t0, notes=notes, interval_method=interval_method,
-        initial={fp.name: float(guess[fp.name]) for fp in free_params})
+    return notes, interval_method
 
 
 def guess_data(target: Target, base_sim: SimBatch, model: PlantModel) -> dict[str, Any]:

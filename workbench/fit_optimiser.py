@@ -172,34 +172,9 @@ def optimise(obj: Objective, guess: Mapping[str, float] | None = None, *, n_scre
     if guess:
         guess_u = np.array([float(fp.to_unit(guess.get(fp.name, fp.from_unit(0.5)))) for fp in obj.free])
     n_screen = n_screen if n_screen is not None else max(N_SCREEN_MIN, 8 * k + 8)
-    U0 = _starts(obj, guess_u, n_screen, rng)
-    sim0 = obj.simulate(U0)
-    cost0 = np.array([rms(r) for r in obj.residuals(sim0, "train")])
-    cost0[~sim0.ok] = np.inf
+    U0, cost0 = _screen(obj, guess_u, n_screen, rng, stop_at_rms)
     order = np.argsort(cost0)
-    if np.isfinite(cost0[order[0]]) and cost0[order[0]] > stop_at_rms:
-        # zoom: a second, finer design around the best point (resonant records have narrow basins — a
-        # stiffness or clamp compliance that puts a mode at the right time of a sweep — which a coarse design
-        # brackets but rarely hits)
-        Uz = zoom_design(U0[order[0]], n_screen, n_screen + 4, rng, jitter=(0.2, 0.8))
-        simz = obj.simulate(Uz)
-        costz = np.array([rms(r) for r in obj.residuals(simz, "train")])
-        costz[~simz.ok] = np.inf
-        U0 = np.vstack([U0, Uz])
-        cost0 = np.concatenate([cost0, costz])
-        order = np.argsort(cost0)
-    best_seen = [float(cost0[order[0]])]
-    it = [0]
-
-    def note(u: np.ndarray, cost_rms: float) -> None:
-        if cost_rms < best_seen[0] * (1 - 1e-9) or not history:
-            best_seen[0] = min(best_seen[0], cost_rms)
-        it[0] += 1
-        pt = FitHistoryPoint(it[0], obj.n_sims - sims0, best_seen[0], obj.values(u))
-        history.append(pt)
-        if on_iteration is not None:
-            on_iteration(pt)
-
+    note = _HistoryNote(obj, sims0, history, float(cost0[order[0]]), on_iteration)
     note(U0[order[0]], float(cost0[order[0]]))
     fun, jac = train_residual_and_jacobian(obj, batched=batched_jacobian)
 
@@ -234,6 +209,51 @@ def optimise(obj: Objective, guess: Mapping[str, float] | None = None, *, n_scre
         message = str(best.message)
     sim = obj.simulate(best_u[None])
     return outcome_at(obj, best_u, sim, jac if results else None, history, message, t_start, sims0)
+
+
+def _screen(obj: Objective, guess_u: np.ndarray | None, n_screen: int, rng: np.random.Generator,
+            stop_at_rms: float) -> tuple[np.ndarray, np.ndarray]:
+    """The screening points (unit box) and their training RMS (inf where the integration failed): the guess and
+    a Latin hypercube in one batch, then, unless the best is already at ``stop_at_rms``, a finer batch around it."""
+    U0 = _starts(obj, guess_u, n_screen, rng)
+    sim0 = obj.simulate(U0)
+    cost0 = np.array([rms(r) for r in obj.residuals(sim0, "train")])
+    cost0[~sim0.ok] = np.inf
+    best = int(np.argsort(cost0)[0])
+    if np.isfinite(cost0[best]) and cost0[best] > stop_at_rms:
+        # zoom: a second, finer design around the best point (resonant records have narrow basins — a
+        # stiffness or clamp compliance that puts a mode at the right time of a sweep — which a coarse design
+        # brackets but rarely hits)
+        Uz = zoom_design(U0[best], n_screen, n_screen + 4, rng, jitter=(0.2, 0.8))
+        simz = obj.simulate(Uz)
+        costz = np.array([rms(r) for r in obj.residuals(simz, "train")])
+        costz[~simz.ok] = np.inf
+        U0 = np.vstack([U0, Uz])
+        cost0 = np.concatenate([cost0, costz])
+    return U0, cost0
+
+
+class _HistoryNote:
+    """Records one :class:`FitHistoryPoint` per optimiser step (the best training RMS seen so far) and passes it
+    to ``on_iteration``."""
+
+    def __init__(self, obj: Objective, sims0: int, history: list[FitHistoryPoint], best: float,
+                 on_iteration: Callable[[FitHistoryPoint], None] | None) -> None:
+        self.obj = obj
+        self.sims0 = sims0
+        self.history = history
+        self.best_seen = best
+        self.it = 0
+        self.on_iteration = on_iteration
+
+    def __call__(self, u: np.ndarray, cost_rms: float) -> None:
+        if cost_rms < self.best_seen * (1 - 1e-9) or not self.history:
+            self.best_seen = min(self.best_seen, cost_rms)
+        self.it += 1
+        pt = FitHistoryPoint(self.it, self.obj.n_sims - self.sims0, self.best_seen, self.obj.values(u))
+        self.history.append(pt)
+        if self.on_iteration is not None:
+            self.on_iteration(pt)
 
 
 def outcome_at(obj: Objective, u: np.ndarray, sim: SimBatch, jac, history, message: str, t_start: float,
