@@ -16,7 +16,9 @@ so the sample shows the command accepted (``cmd_seq_applied``). The transaction 
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from collections import Counter
+from collections.abc import Callable
+from typing import Any, Protocol
 
 from drivers.link import LinkError
 from drivers.modbus_registers import (
@@ -28,8 +30,32 @@ from drivers.modbus_registers import (
     decode_input_block,
 )
 
-if TYPE_CHECKING:
-    from drivers.modbus_link import ModbusLink
+
+class Fc23Link(Protocol):
+    """What an FC 23 exchange uses of :class:`drivers.modbus_link.ModbusLink` (a protocol, so that this module does
+    not import the link that imports it)."""
+
+    settings: dict[str, Any]
+    stats: Counter[str]
+    url: str
+    timeout: float
+    unit: int
+    last_exception_code: int | None
+    _client: Any
+    _down: bool
+    _log: Any
+
+    def _call(self, what: str, fn: Callable[..., Any], *args: Any, budget: float | None = None, context: str = "",
+              **kwargs: Any) -> Any: ...
+
+    def _skip_stale(self, rr: Any, function_code: int, deadline: float) -> Any: ...
+
+    def _set_timeout(self, seconds: float) -> None: ...
+
+    def _phase(self, what: str, t0: float, budget: float) -> None: ...
+
+    def _read_inputs(self, budget: float | None = None, context: str = "",
+                     deadline: float | None = None) -> InputBlock: ...
 
 FC23 = 0x17
 _MIN_READ_S = 5e-4  # as drivers.modbus_link: no read is started with less than this left
@@ -39,7 +65,7 @@ class Fc23Unserved(LinkError):
     """The rig refused FC 23 (exception 01 or 02): the board falls back to FC 16 + FC 04."""
 
 
-def exchange_fc23(link: ModbusLink, words: list[int], seq: int, deadline: float) -> tuple[InputBlock, bool]:
+def exchange_fc23(link: Fc23Link, words: list[int], seq: int, deadline: float) -> tuple[InputBlock, bool]:
     """Write the command block ``words`` and read the sample in one FC 23 within ``deadline`` (monotonic s).
 
     Returns ``(block, refused)``: the decoded sample block and whether the rig refused the command (exception 03).
@@ -93,7 +119,7 @@ def exchange_fc23(link: ModbusLink, words: list[int], seq: int, deadline: float)
     return block, False
 
 
-def _block_of(link: ModbusLink, rr: Any) -> InputBlock:
+def _block_of(link: Fc23Link, rr: Any) -> InputBlock:
     regs = getattr(rr, "registers", None)
     if rr.function_code != FC23 or regs is None or len(regs) != INPUT_COUNT:
         link.stats["bad_reply"] += 1
@@ -102,7 +128,7 @@ def _block_of(link: ModbusLink, rr: Any) -> InputBlock:
     return decode_input_block(regs)
 
 
-def _next_reply(link: ModbusLink, deadline: float) -> Any:
+def _next_reply(link: Fc23Link, deadline: float) -> Any:
     """The next reply on the connection within ``deadline`` (None: nothing came)."""
     import time
 
@@ -119,7 +145,7 @@ def _next_reply(link: ModbusLink, deadline: float) -> Any:
         link._phase("past a stale reply, wait for FC23", t0, left)
 
 
-def _read_after(link: ModbusLink, deadline: float) -> InputBlock:
+def _read_after(link: Fc23Link, deadline: float) -> InputBlock:
     import time
 
     return link._read_inputs(budget=max(deadline - time.monotonic(), _MIN_READ_S), deadline=deadline)
