@@ -22,6 +22,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -204,103 +205,112 @@ def _numbalsoda_batch(model: PlantModel) -> Callable[[np.ndarray, Any, np.ndarra
     return run_batch
 
 
-def run(out_dir: Path, quick: bool) -> dict:
-    n_batch = 100 if quick else 1000
-    n_baseline = 2 if quick else 5
-    repeats = 2 if quick else 3
-    load_before = os.getloadavg()
-    params = load_parameter_set("table2")
-    model = PlantModel(params)
-    before = model.with_integrator_source(INTEGRATOR_SOURCE_BEFORE)
-    inp = sine_drive(600.0, 0.1, 20.0, dt=1e-3)
-    t0 = time.perf_counter()
-    model.simulate(sine_drive(1.0, 1.0, 0.05), dt_out=0.01)  # load/compile the kernels
-    load_s = time.perf_counter() - t0
-    before.simulate(sine_drive(1.0, 1.0, 0.05), dt_out=0.01)
+@dataclass
+class _Batch:
+    """The deviated batch every integrator runs: parameters (k3, alpha_h, beta_h deviated by up to ±50 %)."""
 
-    t0 = time.perf_counter()
-    single = model.simulate(inp, dt_out=0.01, threads=1)
-    single_s = time.perf_counter() - t0
-    t_out = single.t
+    pb: np.ndarray
+    k3: np.ndarray
+    alpha: np.ndarray
+    beta: np.ndarray
 
+    def member_params(self, params: Any, i: int) -> dict:
+        return dict(params.values, k3=self.k3[i], alpha_h=self.alpha[i], beta_h=self.beta[i])
+
+
+def _deviated_batch(model: PlantModel, params: Any, n_batch: int) -> _Batch:
     rng = np.random.default_rng(2024)
     dev = rng.uniform(-0.5, 0.5, size=(n_batch, 3))
     k3 = params["k3"] * (1 + dev[:, 0])
     alpha = np.clip(params["alpha_h"] * (1 + dev[:, 1]), 0.0, 1.0)
     beta = params["beta_h"] * (1 + dev[:, 2])
-    pb = model.param_batch(k3=k3, alpha_h=alpha, beta_h=beta)
+    return _Batch(model.param_batch(k3=k3, alpha_h=alpha, beta_h=beta), k3, alpha, beta)
 
-    # the batch: before (previous integrator) and after (current), same inputs, tolerances and threads
+
+def _batch_runners(model: PlantModel, before: PlantModel, inp: Any, pb: np.ndarray, t_out: np.ndarray
+                   ) -> tuple[dict[str, Callable[[], Any]], str]:
+    """The batch, before (previous integrator) and after (current), same inputs, tolerances and threads; and
+    numbalsoda when it is installed (else why it is skipped)."""
     runners: dict[str, Callable[[], Any]] = {
         "before": lambda: before.simulate(inp, dt_out=0.01, params=pb, rtol=RTOL),
         "member_by_member": lambda: model.simulate(inp, dt_out=0.01, params=pb, rtol=RTOL, lanes=False),
         "after": lambda: model.simulate(inp, dt_out=0.01, params=pb, rtol=RTOL),
     }
-    numbalsoda_skip = ""
     try:
         nbl = _numbalsoda_batch(model)
         nbl(pb[:2], inp, t_out, RTOL)  # compile
         runners["numbalsoda"] = lambda: nbl(pb, inp, t_out, RTOL)
     except ImportError as exc:
-        numbalsoda_skip = (f"numbalsoda not installed ({exc}); install the bench extra: pip install -e '.[bench]' "
-                           f"(needs gfortran and cmake)")
+        return runners, (f"numbalsoda not installed ({exc}); install the bench extra: pip install -e '.[bench]' "
+                         f"(needs gfortran and cmake)")
     except Exception as exc:  # a peer failing to build must not stop the benchmark
-        numbalsoda_skip = f"numbalsoda failed: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
-    best, last = _best_of(runners, repeats)
-    res_before, res_after = last["before"], last["after"]
-    batch_s = best["after"]
+        return runners, f"numbalsoda failed: {type(exc).__name__}: {str(exc).splitlines()[0] if str(exc) else ''}"
+    return runners, ""
 
-    # per attempted step, one thread, against the bare-step floor (same compiled right-hand side)
+
+def _per_attempt_s(model: PlantModel, before: PlantModel, inp: Any, pb: np.ndarray, quick: bool, repeats: int
+                   ) -> tuple[dict[str, float], float]:
+    """Seconds per attempted step, one thread, of each integrator on whole lane groups; and of the bare-step
+    floor (same compiled right-hand side)."""
     n_small = (1 if quick else 2) * LANES  # whole lane groups
-    per_attempt: dict[str, float] = {}
     best1, last1 = _best_of({
         "before": lambda: before.simulate(inp, dt_out=0.01, params=pb[:n_small], threads=1),
         "member_by_member": lambda: model.simulate(inp, dt_out=0.01, params=pb[:n_small], threads=1, lanes=False),
         "after": lambda: model.simulate(inp, dt_out=0.01, params=pb[:n_small], threads=1, lanes=True),
     }, 3 * repeats)  # short runs: more repetitions for a stable minimum on a shared machine
-    for k in best1:
-        per_attempt[k] = best1[k] / float(last1[k].n_steps.sum())
-    bare_s = _bare_step_cost_s(model, 3 * repeats, 20_000 if quick else 100_000)
+    per_attempt = {k: best1[k] / float(last1[k].n_steps.sum()) for k in best1}
+    return per_attempt, _bare_step_cost_s(model, 3 * repeats, 20_000 if quick else 100_000)
 
-    # the user's baseline: LSODA, plain Python rhs, one trajectory at a time (same tolerance as ours: 1e-6)
-    base_walls = []
-    for i in range(n_baseline):
-        prm = dict(params.values, k3=k3[i], alpha_h=alpha[i], beta_h=beta[i])
-        _, w = _baseline_run(prm, inp, t_out, RTOL)
-        base_walls.append(w)
-    base_per_run = float(np.median(base_walls))
 
-    # accuracy: a few batch members against solve_ivp at rtol 1e-9
+def _lsoda_per_run_s(params: Any, batch: _Batch, inp: Any, t_out: np.ndarray, n_baseline: int) -> float:
+    """The user's baseline: LSODA, plain Python rhs, one trajectory at a time (same tolerance as ours): median
+    seconds per run."""
+    walls = [_baseline_run(batch.member_params(params, i), inp, t_out, RTOL)[1] for i in range(n_baseline)]
+    return float(np.median(walls))
+
+
+def _accuracy(params: Any, batch: _Batch, inp: Any, t_out: np.ndarray, last: dict[str, Any]
+              ) -> tuple[list[float], list[float]]:
+    """Worst relative z3 error of a few batch members (ours, numbalsoda's) against solve_ivp at rtol 1e-9."""
     errs, errs_nbl = [], []
     for i in range(3):
-        prm = dict(params.values, k3=k3[i], alpha_h=alpha[i], beta_h=beta[i])
-        z_ref, _ = _baseline_run(prm, inp, t_out, 1e-9)
-        errs.append(float(np.max(np.abs(res_after["z3"][i] - z_ref)) / np.max(np.abs(z_ref))))
+        z_ref, _ = _baseline_run(batch.member_params(params, i), inp, t_out, 1e-9)
+        errs.append(float(np.max(np.abs(last["after"]["z3"][i] - z_ref)) / np.max(np.abs(z_ref))))
         if "numbalsoda" in last:
             errs_nbl.append(float(np.max(np.abs(last["numbalsoda"][i] - z_ref)) / np.max(np.abs(z_ref))))
+    return errs, errs_nbl
 
-    def steps(r) -> tuple[float, float, float]:
-        att = float(r.n_steps.sum())
-        rej = float(r.n_rejected.sum())
-        return att / n_batch, (att - rej) / n_batch, rej / att
 
-    att_b, acc_b, rej_b = steps(res_before)
-    att_a, acc_a, rej_a = steps(res_after)
+def _step_counts(r: Any, n_batch: int) -> tuple[float, float, float]:
+    """Attempted and accepted steps per run, and the rejection rate."""
+    att = float(r.n_steps.sum())
+    rej = float(r.n_rejected.sum())
+    return att / n_batch, (att - rej) / n_batch, rej / att
+
+
+def _results(load_before: tuple[float, ...], timing: dict[str, Any], batch_best: dict[str, float],
+             last: dict[str, Any], per_attempt: dict[str, float], bare_s: float, base_per_run: float,
+             n_baseline: int, errs: list[float], repeats: int) -> dict[str, Any]:
+    """The benchmark's figures (every speed a ratio against a baseline timed in the same run)."""
+    n_batch = int(last["after"].y.shape[0])
+    batch_s = batch_best["after"]
+    att_b, acc_b, rej_b = _step_counts(last["before"], n_batch)
+    att_a, acc_a, rej_a = _step_counts(last["after"], n_batch)
     throughput = n_batch / batch_s
-    res: dict[str, Any] = {
+    return {
         "load_average_1_5_15min_before": " ".join(f"{v:.2f}" for v in load_before),
         "timing": f"best of {repeats} interleaved repetitions on a possibly shared machine",
-        "kernel_load_s": load_s,
-        "single_mbit_a_20s_wall_s": single_s,
-        "single_ratio_vs_lsoda": base_per_run / single_s,
+        "kernel_load_s": timing["load_s"],
+        "single_mbit_a_20s_wall_s": timing["single_s"],
+        "single_ratio_vs_lsoda": base_per_run / timing["single_s"],
         "batch_size": n_batch,
-        "batch_wall_s_before": best["before"],
+        "batch_wall_s_before": batch_best["before"],
         "batch_wall_s": batch_s,
-        "batch_speedup_vs_before": best["before"] / batch_s,
+        "batch_speedup_vs_before": batch_best["before"] / batch_s,
         "batch_speedup_target": 3.0,
         "lanes": LANES,
-        "batch_wall_s_member_by_member": best["member_by_member"],
-        "lanes_speedup_vs_member_by_member": best["member_by_member"] / batch_s,
+        "batch_wall_s_member_by_member": batch_best["member_by_member"],
+        "lanes_speedup_vs_member_by_member": batch_best["member_by_member"] / batch_s,
         # load-independent part of the speed-up: attempted steps before / after (same inputs and tolerances)
         "attempt_ratio_before_over_after": att_b / att_a,
         "attempted_steps_per_run_before": att_b,
@@ -320,36 +330,70 @@ def run(out_dir: Path, quick: bool) -> dict:
         "baseline_throughput_runs_per_s": 1.0 / base_per_run,
         "batch_throughput_ratio_vs_lsoda": throughput * base_per_run,
         "accuracy_worst_rel_err_z3_vs_rtol1e-9": max(errs),
-        "batch_all_ok": bool(res_after.ok),
-        "mean_steps_per_run": float(np.mean(res_after.n_steps)),
+        "batch_all_ok": bool(last["after"].ok),
+        "mean_steps_per_run": float(np.mean(last["after"].n_steps)),
     }
+
+
+def _throughput_figure(out_dir: Path, res: dict[str, Any], batch_best: dict[str, float]) -> None:
+    """Runs per second of each integrator (log scale), ``plant_throughput.png``."""
+    from reporting.figures import pyplot
+
+    plt = pyplot()
+    n_batch = res["batch_size"]
+    labels = ["solve_ivp LSODA\n(one at a time)", "before\n(issue 14)", "member by\nmember",
+              "mfc-shm batch\n(lanes)"]
+    values = [1.0 / res["baseline_lsoda_per_run_s"], n_batch / batch_best["before"],
+              n_batch / batch_best["member_by_member"], res["batch_throughput_runs_per_s"]]
+    if "numbalsoda" in batch_best:
+        labels.insert(1, "numbalsoda\n(prange)")
+        values.insert(1, n_batch / batch_best["numbalsoda"])
+    fig, ax = plt.subplots(figsize=(7, 3.5))
+    ax.bar(labels, values)
+    ax.set_yscale("log")
+    ax.set_ylabel("20 s MBIT.a runs per second")
+    ax.set_title(f"Plant throughput: {res['batch_throughput_ratio_vs_lsoda']:.0f}x solve_ivp, "
+                 f"{res['batch_speedup_vs_before']:.2f}x before")
+    fig.tight_layout()
+    fig.savefig(out_dir / "plant_throughput.png", dpi=110)
+    plt.close(fig)
+
+
+def run(out_dir: Path, quick: bool) -> dict:
+    n_batch = 100 if quick else 1000
+    n_baseline = 2 if quick else 5
+    repeats = 2 if quick else 3
+    load_before = os.getloadavg()
+    params = load_parameter_set("table2")
+    model = PlantModel(params)
+    before = model.with_integrator_source(INTEGRATOR_SOURCE_BEFORE)
+    inp = sine_drive(600.0, 0.1, 20.0, dt=1e-3)
+    t0 = time.perf_counter()
+    model.simulate(sine_drive(1.0, 1.0, 0.05), dt_out=0.01)  # load/compile the kernels
+    timing = {"load_s": time.perf_counter() - t0}
+    before.simulate(sine_drive(1.0, 1.0, 0.05), dt_out=0.01)
+    t0 = time.perf_counter()
+    single = model.simulate(inp, dt_out=0.01, threads=1)
+    timing["single_s"] = time.perf_counter() - t0
+    t_out = single.t
+
+    batch = _deviated_batch(model, params, n_batch)
+    runners, numbalsoda_skip = _batch_runners(model, before, inp, batch.pb, t_out)
+    best, last = _best_of(runners, repeats)
+    per_attempt, bare_s = _per_attempt_s(model, before, inp, batch.pb, quick, repeats)
+    base_per_run = _lsoda_per_run_s(params, batch, inp, t_out, n_baseline)
+    errs, errs_nbl = _accuracy(params, batch, inp, t_out, last)
+
+    res = _results(load_before, timing, best, last, per_attempt, bare_s, base_per_run, n_baseline, errs, repeats)
     if "numbalsoda" in best:
         res["numbalsoda_batch_wall_s"] = best["numbalsoda"]
-        res["numbalsoda_over_ours"] = best["numbalsoda"] / batch_s
+        res["numbalsoda_over_ours"] = best["numbalsoda"] / best["after"]
         res["numbalsoda_accuracy_worst_rel_err_z3_vs_rtol1e-9"] = max(errs_nbl)
     else:
         res["numbalsoda_skipped"] = numbalsoda_skip
     res["load_average_1_5_15min_after"] = " ".join(f"{v:.2f}" for v in os.getloadavg())
     try:
-        from reporting.figures import pyplot
-
-        plt = pyplot()
-
-        labels = ["solve_ivp LSODA\n(one at a time)", "before\n(issue 14)", "member by\nmember",
-                  "mfc-shm batch\n(lanes)"]
-        values = [1.0 / base_per_run, n_batch / best["before"], n_batch / best["member_by_member"], throughput]
-        if "numbalsoda" in best:
-            labels.insert(1, "numbalsoda\n(prange)")
-            values.insert(1, n_batch / best["numbalsoda"])
-        fig, ax = plt.subplots(figsize=(7, 3.5))
-        ax.bar(labels, values)
-        ax.set_yscale("log")
-        ax.set_ylabel("20 s MBIT.a runs per second")
-        ax.set_title(f"Plant throughput: {res['batch_throughput_ratio_vs_lsoda']:.0f}x solve_ivp, "
-                     f"{res['batch_speedup_vs_before']:.2f}x before")
-        fig.tight_layout()
-        fig.savefig(out_dir / "plant_throughput.png", dpi=110)
-        plt.close(fig)
+        _throughput_figure(out_dir, res, best)
     except Exception as exc:  # the numbers matter more than the figure
         res["figure_error"] = str(exc)
     return res
