@@ -36,15 +36,69 @@ REPEATS = 3
 def _run(scenario, duration: float, out: Path, label: str, rig_kw: dict[str, Any], instrument: bool,
          spans: bool = True) -> dict:
     from board_config.board import load_board_config
-    from drivers.link import ActuatorCommand, RigSample
-    from drivers.quiet_span import QuietSpan
     from drivers.sim_link import InProcessLink
-    from firmware_sim.board import Board, TickResult
+    from firmware_sim.board import Board
     from firmware_sim.runner import BoardRunner
     from firmware_sim.usage_log import UsageLog
     from hil_stub.rig import SimulatedRig
 
     timers = {"link_s": 0.0, "board_s": 0.0, "log_s": 0.0}
+    timed_link, timed_board = _timed_classes(timers)
+    cfg = load_board_config(overrides=scenario.board_overrides, overrides_source=scenario.source)
+    rig = SimulatedRig(scenario, tick=cfg.tick_period, **rig_kw)
+    link = (timed_link if instrument else InProcessLink)(rig, tick=cfg.tick_period)
+    board = (timed_board if instrument else Board)(cfg, nominal=scenario.rig.params)
+    db = out / f"bench_board_{label}.db"
+    for suffix in ("", "-wal", "-shm"):
+        Path(str(db) + suffix).unlink(missing_ok=True)
+    with UsageLog(db) as log:
+        sink: EventSink = _TimedSink(log, timers) if instrument else log
+        runner = BoardRunner(board, link, sink=sink, rearm_times=[e.at for e in scenario.events_of("rearm")],
+                             quiet_spans=spans)
+        link.open()
+        c0 = time.process_time()
+        res = runner.run(duration)
+        cpu = time.process_time() - c0
+    truth = rig.truth()
+    out_d = _run_figures(res, cpu, truth, log.records)
+    if instrument:
+        n = res.ticks
+        out_d["breakdown_us_per_tick"] = {
+            "plant_kernels": truth["plant_seconds"] / n * 1e6,
+            "rig_python_and_link": (timers["link_s"] - truth["plant_seconds"]) / n * 1e6,
+            "board_logic": timers["board_s"] / n * 1e6,
+            "usage_log": timers["log_s"] / n * 1e6,
+            "loop_trace_scheduler": (res.wall_s - timers["link_s"] - timers["board_s"] - timers["log_s"]) / n * 1e6,
+        }
+    return out_d
+
+
+def _run_figures(res: Any, cpu: float, truth: dict[str, Any], records_logged: int) -> dict:
+    """One run's figures (times, real-time factors, plant cost, regime changes and verdicts) and, under ``_``
+    keys, its events and trace for the bit-identity check."""
+    changes = [(e.tick, e.data["from_regime"], e.data["to_regime"]) for e in res.events if e.kind == "regime_change"]
+    verdicts = [(e.data["label"], e.data["verdict"]) for e in res.events if e.kind == "mbit_result"]
+    visits = [(e.tick, e.data["verdict"]) for e in res.events if e.kind == "maintenance_verdict"]
+    return {
+        "board_time_s": res.duration_s, "ticks": res.ticks, "wall_s": res.wall_s, "cpu_s": cpu,
+        "realtime_factor_wall": res.realtime_factor, "realtime_factor_cpu": res.duration_s / cpu,
+        "us_per_tick_wall": res.wall_s / res.ticks * 1e6, "us_per_tick_cpu": cpu / res.ticks * 1e6,
+        "plant_s": truth["plant_seconds"], "plant_steps_per_tick": truth["plant_steps"] / res.ticks,
+        "plant_calls": truth["plant_blocks"], "reduced_blocks": truth["plant_reduced_blocks"],
+        "regime_changes": changes, "mbit_verdicts": verdicts, "maintenance_verdicts": visits,
+        "records_logged": records_logged,
+        "_events": [(e.kind, e.tick, e.time, e.data) for e in res.events],
+        "_trace": res.trace.data.tobytes() if res.trace is not None else b"",
+    }
+
+
+def _timed_classes(timers: dict[str, float]) -> tuple[type, type]:
+    """A link and a board that add the wall time of their calls to ``timers["link_s"]`` / ``timers["board_s"]``
+    (the instrumented run's cost breakdown)."""
+    from drivers.link import ActuatorCommand, RigSample
+    from drivers.quiet_span import QuietSpan
+    from drivers.sim_link import InProcessLink
+    from firmware_sim.board import Board, TickResult
 
     class TimedLink(InProcessLink):
         def exchange(self, command: ActuatorCommand) -> RigSample:
@@ -83,46 +137,7 @@ def _run(scenario, duration: float, out: Path, label: str, rig_kw: dict[str, Any
             finally:
                 timers["board_s"] += time.perf_counter() - t0
 
-    cfg = load_board_config(overrides=scenario.board_overrides, overrides_source=scenario.source)
-    rig = SimulatedRig(scenario, tick=cfg.tick_period, **rig_kw)
-    link = (TimedLink if instrument else InProcessLink)(rig, tick=cfg.tick_period)
-    board = (TimedBoard if instrument else Board)(cfg, nominal=scenario.rig.params)
-    db = out / f"bench_board_{label}.db"
-    for suffix in ("", "-wal", "-shm"):
-        Path(str(db) + suffix).unlink(missing_ok=True)
-    with UsageLog(db) as log:
-        sink: EventSink = _TimedSink(log, timers) if instrument else log
-        runner = BoardRunner(board, link, sink=sink, rearm_times=[e.at for e in scenario.events_of("rearm")],
-                             quiet_spans=spans)
-        link.open()
-        c0 = time.process_time()
-        res = runner.run(duration)
-        cpu = time.process_time() - c0
-    truth = rig.truth()
-    changes = [(e.tick, e.data["from_regime"], e.data["to_regime"]) for e in res.events if e.kind == "regime_change"]
-    verdicts = [(e.data["label"], e.data["verdict"]) for e in res.events if e.kind == "mbit_result"]
-    visits = [(e.tick, e.data["verdict"]) for e in res.events if e.kind == "maintenance_verdict"]
-    out_d = {
-        "board_time_s": res.duration_s, "ticks": res.ticks, "wall_s": res.wall_s, "cpu_s": cpu,
-        "realtime_factor_wall": res.realtime_factor, "realtime_factor_cpu": res.duration_s / cpu,
-        "us_per_tick_wall": res.wall_s / res.ticks * 1e6, "us_per_tick_cpu": cpu / res.ticks * 1e6,
-        "plant_s": truth["plant_seconds"], "plant_steps_per_tick": truth["plant_steps"] / res.ticks,
-        "plant_calls": truth["plant_blocks"], "reduced_blocks": truth["plant_reduced_blocks"],
-        "regime_changes": changes, "mbit_verdicts": verdicts, "maintenance_verdicts": visits,
-        "records_logged": log.records,
-        "_events": [(e.kind, e.tick, e.time, e.data) for e in res.events],
-        "_trace": res.trace.data.tobytes() if res.trace is not None else b"",
-    }
-    if instrument:
-        n = res.ticks
-        out_d["breakdown_us_per_tick"] = {
-            "plant_kernels": truth["plant_seconds"] / n * 1e6,
-            "rig_python_and_link": (timers["link_s"] - truth["plant_seconds"]) / n * 1e6,
-            "board_logic": timers["board_s"] / n * 1e6,
-            "usage_log": timers["log_s"] / n * 1e6,
-            "loop_trace_scheduler": (res.wall_s - timers["link_s"] - timers["board_s"] - timers["log_s"]) / n * 1e6,
-        }
-    return out_d
+    return TimedLink, TimedBoard
 
 
 class _TimedSink:

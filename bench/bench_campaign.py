@@ -56,6 +56,43 @@ def run(out_dir: Path, quick: bool) -> dict:
         serial_wall = serial.wall_s
 
     # baseline: the first units of the 40-50 % range (the hardest to integrate), per MBIT
+    per_mbit, per_mbit_cpu, worst_diff, n_timed = _baseline_per_mbit(spec, result, n_baseline)
+    baseline_total = sum(per_mbit[k] * len(spec.ranges) * n_runs for k in per_mbit)
+    baseline_cpu_total = sum(per_mbit_cpu[k] * len(spec.ranges) * n_runs for k in per_mbit_cpu)
+
+    probs = {f"p_{s.mbit}_{round(s.lo * 100)}_{round(s.hi * 100)}": s.probability for s in result.summary()}
+    res: dict[str, Any] = {
+        "simulations": n_sims,
+        "workers": workers,
+        "campaign_wall_s": outcome.wall_s,
+        "campaign_target_wall_s": TARGET_WALL_S,
+        "campaign_meets_target": bool(n_runs == 100 and outcome.wall_s < TARGET_WALL_S),
+        "campaign_task_time_s": outcome.compute_s,
+        "campaign_task_cpu_s": outcome.cpu_s,
+        "campaign_sims_per_s": n_sims / outcome.wall_s,
+        "campaign_in_process_wall_s": serial_wall,
+        "baseline_lsoda_per_run_s": per_mbit,
+        "baseline_runs_timed_per_mbit": n_timed,
+        "baseline_extrapolated_total_s": baseline_total,
+        "baseline_is_extrapolated": True,
+        "ratio_vs_lsoda_one_at_a_time": baseline_total / outcome.wall_s,
+        "baseline_lsoda_cpu_per_run_s": per_mbit_cpu,
+        "baseline_extrapolated_cpu_s": baseline_cpu_total,
+        "cpu_ratio_vs_lsoda": baseline_cpu_total / outcome.cpu_s if outcome.cpu_s > 0 else None,
+        "baseline_vs_batch_worst_rel_diff_z3": worst_diff,
+        "integration_failures": result.n_failed,
+        # other users' processes share the 2 cores: wall times (ours and the baseline's) scale with the load
+        "load_average_1min": os.getloadavg()[0],
+        **probs,
+    }
+    _wall_figure(res, Path(out_dir), baseline_total, outcome.wall_s, workers, n_sims)
+    return res
+
+
+def _baseline_per_mbit(spec: Any, result: Any, n_baseline: int
+                       ) -> tuple[dict[str, float], dict[str, float], float, int]:
+    """The baseline timed on the first ``n_baseline`` units of the last (hardest) range: median wall and CPU
+    seconds per run for each MBIT, the largest relative z3 difference from the campaign, and the units timed."""
     params = load_parameter_set("table2")
     rows = np.flatnonzero(result.range_index == len(spec.ranges) - 1)[:n_baseline]
     per_mbit: dict[str, float] = {}
@@ -75,34 +112,12 @@ def run(out_dir: Path, quick: bool) -> dict:
             worst_diff = max(worst_diff, float(np.max(np.abs(z3 - runs.z3_meas[row])) / scale))
         per_mbit[defn.key] = float(np.median(walls))
         per_mbit_cpu[defn.key] = float(np.median(cpus))
-    baseline_total = sum(per_mbit[k] * len(spec.ranges) * n_runs for k in per_mbit)
-    baseline_cpu_total = sum(per_mbit_cpu[k] * len(spec.ranges) * n_runs for k in per_mbit_cpu)
+    return per_mbit, per_mbit_cpu, worst_diff, int(rows.size)
 
-    probs = {f"p_{s.mbit}_{round(s.lo * 100)}_{round(s.hi * 100)}": s.probability for s in result.summary()}
-    res: dict[str, Any] = {
-        "simulations": n_sims,
-        "workers": workers,
-        "campaign_wall_s": outcome.wall_s,
-        "campaign_target_wall_s": TARGET_WALL_S,
-        "campaign_meets_target": bool(n_runs == 100 and outcome.wall_s < TARGET_WALL_S),
-        "campaign_task_time_s": outcome.compute_s,
-        "campaign_task_cpu_s": outcome.cpu_s,
-        "campaign_sims_per_s": n_sims / outcome.wall_s,
-        "campaign_in_process_wall_s": serial_wall,
-        "baseline_lsoda_per_run_s": per_mbit,
-        "baseline_runs_timed_per_mbit": int(rows.size),
-        "baseline_extrapolated_total_s": baseline_total,
-        "baseline_is_extrapolated": True,
-        "ratio_vs_lsoda_one_at_a_time": baseline_total / outcome.wall_s,
-        "baseline_lsoda_cpu_per_run_s": per_mbit_cpu,
-        "baseline_extrapolated_cpu_s": baseline_cpu_total,
-        "cpu_ratio_vs_lsoda": baseline_cpu_total / outcome.cpu_s if outcome.cpu_s > 0 else None,
-        "baseline_vs_batch_worst_rel_diff_z3": worst_diff,
-        "integration_failures": result.n_failed,
-        # other users' processes share the 2 cores: wall times (ours and the baseline's) scale with the load
-        "load_average_1min": os.getloadavg()[0],
-        **probs,
-    }
+
+def _wall_figure(res: dict[str, Any], out_dir: Path, baseline_total: float, campaign_wall: float, workers: int,
+                 n_sims: int) -> None:
+    """campaign_wall.png: the baseline's and the campaign's wall time; a failure is noted in ``res``."""
     try:
         from reporting.figures import pyplot
 
@@ -110,13 +125,12 @@ def run(out_dir: Path, quick: bool) -> dict:
 
         fig, ax = plt.subplots(figsize=(6, 3.5))
         ax.bar(["solve_ivp LSODA\none at a time\n(extrapolated)", f"campaign\n{workers} processes"],
-               [baseline_total, outcome.wall_s], color=["0.6", "tab:blue"])
+               [baseline_total, campaign_wall], color=["0.6", "tab:blue"])
         ax.set_yscale("log")
         ax.set_ylabel(f"wall time for {n_sims} MBIT simulations (s)")
         ax.set_title(f"Fig. 11 campaign: {res['ratio_vs_lsoda_one_at_a_time']:.0f}x faster than the baseline")
         fig.tight_layout()
-        fig.savefig(Path(out_dir) / "campaign_wall.png", dpi=110)
+        fig.savefig(out_dir / "campaign_wall.png", dpi=110)
         plt.close(fig)
     except Exception as exc:  # the numbers matter more than the figure
         res["figure_error"] = str(exc)
-    return res
