@@ -88,9 +88,12 @@ class BatchOutcome:
 
 
 # --- connecting --------------------------------------------------------------------------------------------------
-def connect(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s: float = 10.0) -> tuple[Any, Any, str]:
+def connect(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s: float = 10.0, *,
+            fork: bool = False) -> tuple[Any, Any, str]:
     """(client, local cluster or None, description): a LocalCluster of ``min(workers or CPUs, n_tasks)``
-    single-thread worker processes for ``local``/None, else the cluster at ``scheduler``."""
+    single-thread worker processes for ``local``/None, else the cluster at ``scheduler``. ``fork``: the local
+    workers are forked from this process (they inherit its imported modules and compiled kernels) instead of
+    spawned (a fresh interpreter each, which imports mfc-shm and loads or compiles every kernel again)."""
     try:
         from distributed import Client, LocalCluster
     except ImportError:
@@ -100,7 +103,8 @@ def connect(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s:
         import dask
 
         # non-daemon workers: a task may run its own process pool (a board's life, a health fit)
-        with dask.config.set({"distributed.worker.daemon": False}):
+        method = "fork" if fork else dask.config.get("distributed.worker.multiprocessing-method")
+        with dask.config.set({"distributed.worker.daemon": False, "distributed.worker.multiprocessing-method": method}):
             # no dashboard; the scheduler's small HTTP server on a free port (not 8787: no warning beside a 2nd run)
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
                                    scheduler_kwargs={"dashboard_address": ":0"}, memory_limit=0, silence_logs=50)

@@ -9,8 +9,9 @@ What the life needs from its workers, and how it holds on Dask:
 * a worker lost mid-visit (killed from outside) loses nothing: Dask runs its visit again on a worker (the local
   cluster's nanny starts a new worker process); said once on stderr. A visit whose workers die
   ``distributed.scheduler.allowed-failures`` + 1 times is :class:`WorkerDiedError`;
-* local workers ignore SIGINT (a terminal's Ctrl-C goes to the whole process group; the parent decides) and end
-  when their parent ends (Dask's worker processes watch their parent);
+* local workers are forked from the parent (they start with its compiled kernels), ignore SIGINT (a terminal's
+  Ctrl-C goes to the whole process group; the parent decides), die on SIGTERM and end when their parent ends (Dask's
+  worker processes watch their parent);
 * ``should_stop()`` is polled at least every 0.2 s; once true, no new visit starts, the visits are cancelled, the
   local cluster is closed and any worker process still alive after :data:`TERMINATE_GRACE_S` is killed, and the
   visits finished so far are what the run returns.
@@ -22,6 +23,7 @@ and a SIGTERM or Ctrl-C left workers running or the parent blocked in the execut
 from __future__ import annotations
 
 import contextlib
+import multiprocessing
 import os
 import signal
 import sys
@@ -70,10 +72,12 @@ def _raise_for(kind: str, message: str) -> None:
     raise VisitFailedError(message)
 
 
-def _ignore_interrupt() -> None:
-    """On a local worker: Ctrl-C is the parent's to decide (it stops the life and closes the cluster)."""
+def _worker_signals() -> None:
+    """On a local worker: Ctrl-C is the parent's to decide (it stops the life and closes the cluster); SIGTERM ends
+    the worker (a forked worker inherited the parent's handler, which would only note a stop request)."""
     with contextlib.suppress(ValueError):  # not the main thread: nothing to do
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _still_my_child(pid: int) -> bool:
@@ -93,13 +97,16 @@ class LifePool:
         from studies.batch.runner import connect
 
         self._fn = fn
-        self._client, self._cluster, self.description = connect(scheduler, max(1, workers), max(1, workers))
+        # local workers forked from the life's parent: they start with the plant's kernels the parent's checks
+        # compiled (spawned, each loaded or compiled them again: a 6-visit life took 2-4x the pool's time)
+        self._client, self._cluster, self.description = connect(scheduler, max(1, workers), max(1, workers),
+                                                                fork=True)
         try:
             from studies.batch.warm import WarmPlugin
 
             self._client.register_plugin(WarmPlugin(None), name=WarmPlugin.name)  # one thread per visit
             if self._cluster is not None:
-                self._client.run(_ignore_interrupt)
+                self._client.run(_worker_signals)
         except BaseException:
             self.close()
             raise
@@ -170,8 +177,10 @@ class LifePool:
                 if _still_my_child(pid):  # never a pid the system gave to another process since
                     with contextlib.suppress(ProcessLookupError, PermissionError):
                         os.kill(pid, signal.SIGKILL)
-                    with contextlib.suppress(ChildProcessError, OSError):
-                        os.waitpid(pid, 0)
+            deadline = time.monotonic() + TERMINATE_GRACE_S
+            while any(_still_my_child(p) for p in pids) and time.monotonic() < deadline:
+                time.sleep(0.05)
+            multiprocessing.active_children()  # reaps the killed workers through their Process objects
 
     def __enter__(self) -> LifePool:
         return self
