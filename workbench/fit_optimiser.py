@@ -216,21 +216,24 @@ def _screen(obj: Objective, guess_u: np.ndarray | None, n_screen: int, rng: np.r
     """The screening points (unit box) and their training RMS (inf where the integration failed): the guess and
     a Latin hypercube in one batch, then, unless the best is already at ``stop_at_rms``, a finer batch around it."""
     U0 = _starts(obj, guess_u, n_screen, rng)
-    sim0 = obj.simulate(U0)
-    cost0 = np.array([rms(r) for r in obj.residuals(sim0, "train")])
-    cost0[~sim0.ok] = np.inf
+    cost0 = _train_costs(obj, U0)
     best = int(np.argsort(cost0)[0])
     if np.isfinite(cost0[best]) and cost0[best] > stop_at_rms:
         # zoom: a second, finer design around the best point (resonant records have narrow basins — a
         # stiffness or clamp compliance that puts a mode at the right time of a sweep — which a coarse design
         # brackets but rarely hits)
         Uz = zoom_design(U0[best], n_screen, n_screen + 4, rng, jitter=(0.2, 0.8))
-        simz = obj.simulate(Uz)
-        costz = np.array([rms(r) for r in obj.residuals(simz, "train")])
-        costz[~simz.ok] = np.inf
         U0 = np.vstack([U0, Uz])
-        cost0 = np.concatenate([cost0, costz])
+        cost0 = np.concatenate([cost0, _train_costs(obj, Uz)])
     return U0, cost0
+
+
+def _train_costs(obj: Objective, U: np.ndarray) -> np.ndarray:
+    """The training RMS (σ units) at each row of ``U``, simulated as one batch; inf where the integration failed."""
+    sim = obj.simulate(U)
+    cost = np.array([rms(r) for r in obj.residuals(sim, "train")])
+    cost[~sim.ok] = np.inf
+    return cost
 
 
 class _HistoryNote:
