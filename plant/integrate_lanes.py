@@ -52,7 +52,7 @@ from plant.integrate_kernel_names import (
     out_lanes,
     rhs_lanes,
 )
-from plant.integrate_scalar import one
+from plant.integrate_scalar import nan_from, one
 from plant.integrate_steps import (
     dense_point,
     dense_weights,
@@ -248,12 +248,7 @@ def lane_finish(b0: int, nl: int, nout: int, W: Vector, code: IntVector, jfail: 
     for l in range(nl):
         b = b0 + l
         if code[l] != 0:
-            for jj in range(jfail[l], nout):
-                for k in range(y.shape[2]):
-                    y[b, jj, k] = np.nan
-                if record_x:
-                    for k in range(N_STATES):
-                        xs[b, jj, k] = np.nan
+            nan_from(b, jfail[l], nout, y, xs, record_x)
         elif record_x:
             for k in range(N_STATES):
                 xs[b, nout - 1, k] = W[(ROW_xc + k) * LANES + l]

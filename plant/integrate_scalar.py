@@ -131,16 +131,21 @@ def dense_outputs(b: Index, j: int, t: float, t_new: float, h_use: float, x: Vec
     return j
 
 
+def nan_from(b: Index, j: int, nout: int, y: Array3, xs: Array3, record_x: bool) -> None:
+    """NaN outputs (and recorded states) of member ``b`` from output ``j`` on: where a stopped member stopped."""
+    for jj in range(j, nout):
+        for k in range(y.shape[2]):
+            y[b, jj, k] = np.nan
+        if record_x:
+            for k in range(N_STATES):
+                xs[b, jj, k] = np.nan
+
+
 def finish(b: Index, code: int, j: int, nout: int, x: Vector, y: Array3, xs: Array3, record_x: bool) -> None:
     """After the last step: NaN outputs (and states) from output ``j`` on for a member that stopped early, else the
     final state exactly at the end of the interval (the stepper continues from it)."""
     if code != 0:
-        for jj in range(j, nout):
-            for k in range(y.shape[2]):
-                y[b, jj, k] = np.nan
-            if record_x:
-                for k in range(N_STATES):
-                    xs[b, jj, k] = np.nan
+        nan_from(b, j, nout, y, xs, record_x)
     elif record_x:
         for k in range(N_STATES):
             xs[b, nout - 1, k] = x[k]
@@ -242,6 +247,6 @@ def run_chunk(lo: int, hi: int, x0: Matrix, p: Matrix, u: Array3, u_t0: float, u
 #: the functions of this module in the order the kernel module defines them, those inlined where called, and
 #: the helpers whose bodies are written into their caller (numba's inlining would cost a reference count per array
 #: argument per attempted step, ~20 % of it: plant.integrate_splice)
-FUNCTIONS = (input_at, emit, finish, one, run_chunk_stats, run_chunk)
+FUNCTIONS = (input_at, emit, nan_from, finish, one, run_chunk_stats, run_chunk)
 INLINE = (finish,)
 SPLICED = {one: (attempt, dense_outputs)}
