@@ -54,14 +54,15 @@ from plant.integrate_kernel_names import (
 )
 from plant.integrate_scalar import nan_from, one
 from plant.integrate_steps import (
+    control_accepted,
+    control_rejected,
+    control_start,
     dense_point,
     dense_weights,
     error_ratio,
     input_position,
     log_error,
-    next_step,
     output_due,
-    remembered_log_error,
     solution5,
     stage2,
     stage3,
@@ -69,9 +70,7 @@ from plant.integrate_steps import (
     stage5,
     stage6,
     stage_times,
-    start_log_error,
     step_after_nonfinite,
-    step_after_reject,
     step_to_take,
 )
 
@@ -278,10 +277,7 @@ def lane_group(b0: int, nl: int, x0: Matrix, p: Matrix, u: Array3, u_t0: float, 
     lane_emit(b0, nl, 0, t, u, u_t0, u_dt, W, y, xs, bs, record_x, record_bus)
     lane_inputs(u, b0, nl, t, u_t0, u_dt, W)
     lane_rhs_into(t, W, ROW_k1)
-    h = min(h_max, 1e-4)
-    log_err_prev = start_log_error()
-    after_reject = False
-    pi_on = False
+    h, log_err_prev, after_reject, pi_on = control_start(h_max)
     steps = 0
     rejected = 0
     j = 1
@@ -307,14 +303,11 @@ def lane_group(b0: int, nl: int, x0: Matrix, p: Matrix, u: Array3, u_t0: float, 
                                    record_bus)
             t = t_new
             lane_accept(W)
-            h = next_step(h, h_use, log_err, log_err_prev, pi_on, after_reject, last, h_max)
-            after_reject = False
-            log_err_prev = remembered_log_error(log_err)
+            h, log_err_prev, after_reject = control_accepted(h, h_use, log_err, log_err_prev, pi_on, after_reject,
+                                                             last, h_max)
         else:
             rejected += 1
-            after_reject = True
-            pi_on = True
-            h = step_after_reject(h_use, log_err)
+            h, after_reject, pi_on = control_rejected(h_use, log_err)
             if h < h_min:
                 # the members whose error stays above tolerance at the smallest step stop here
                 for l in range(nl):

@@ -17,14 +17,15 @@ import numpy as np
 
 from plant.integrate_kernel_names import N_BUS, N_STATES, Array3, Index, IntVector, Matrix, Vector, out, rhs
 from plant.integrate_steps import (
+    control_accepted,
+    control_rejected,
+    control_start,
     dense_point,
     dense_weights,
     error_ratio,
     input_position,
     log_error,
-    next_step,
     output_due,
-    remembered_log_error,
     solution5,
     stage2,
     stage3,
@@ -32,9 +33,7 @@ from plant.integrate_steps import (
     stage5,
     stage6,
     stage_times,
-    start_log_error,
     step_after_nonfinite,
-    step_after_reject,
     step_to_take,
 )
 
@@ -170,10 +169,7 @@ def one(b: Index, x0: Matrix, p: Matrix, u: Array3, u_t0: float, u_dt: float, t_
     emit(b, 0, t, x, pb, u, bu, u_t0, u_dt, uvec, bus, dx, yv, y, xs, bs, record_x, record_bus)
     input_at(u, bu, t, u_t0, u_dt, uvec)
     rhs(t, x, pb, uvec, bus, k1)
-    h = min(h_max, 1e-4)
-    log_err_prev = start_log_error()
-    after_reject = False
-    pi_on = False
+    h, log_err_prev, after_reject, pi_on = control_start(h_max)
     steps = 0
     rejected = 0
     code = 0
@@ -201,14 +197,11 @@ def one(b: Index, x0: Matrix, p: Matrix, u: Array3, u_t0: float, u_dt: float, t_
             for k in range(N_STATES):
                 x[k] = xn[k]
                 k1[k] = k7[k]
-            h = next_step(h, h_use, log_err, log_err_prev, pi_on, after_reject, last, h_max)
-            after_reject = False
-            log_err_prev = remembered_log_error(log_err)
+            h, log_err_prev, after_reject = control_accepted(h, h_use, log_err, log_err_prev, pi_on, after_reject,
+                                                             last, h_max)
         else:
             rejected += 1
-            after_reject = True
-            pi_on = True
-            h = step_after_reject(h_use, log_err)
+            h, after_reject, pi_on = control_rejected(h_use, log_err)
             if h < h_min:
                 code = 2
                 break

@@ -127,16 +127,6 @@ def log_error(err2: float) -> float:
     return 0.5 * np.log(max(err2, 1e-300))
 
 
-def start_log_error() -> float:
-    """The previous step's log error the controller assumes before the first accepted step."""
-    return _LOG_ERR_FLOOR
-
-
-def remembered_log_error(log_err: float) -> float:
-    """An accepted step's log error as the next step's controller remembers it (at least the floor)."""
-    return max(log_err, _LOG_ERR_FLOOR)
-
-
 def next_step(h: float, h_use: float, log_err: float, log_err_prev: float, pi_on: bool, after_reject: bool,
               last: bool, h_max: float) -> float:
     """The step after an accepted one: PI controller (Gustafsson; Hairer's DOPRI5) once a step has been rejected
@@ -156,9 +146,23 @@ def next_step(h: float, h_use: float, log_err: float, log_err_prev: float, pi_on
     return min(h, h_max)
 
 
-def step_after_reject(h_use: float, log_err: float) -> float:
-    """The step after one the error control rejected."""
-    return h_use * max(_GROW_MIN, _SAFE * np.exp(-_PI_ALPHA * log_err))
+def control_start(h_max: float) -> tuple[float, float, bool, bool]:
+    """The controller at the start of a call: (first step: 0.1 ms at most ``h_max``, previous log error: the floor,
+    after a rejection: no, PI on: no — the elementary controller until the first rejection)."""
+    return min(h_max, 1e-4), _LOG_ERR_FLOOR, False, False
+
+
+def control_accepted(h: float, h_use: float, log_err: float, log_err_prev: float, pi_on: bool, after_reject: bool,
+                     last: bool, h_max: float) -> tuple[float, float, bool]:
+    """After an accepted step of ``h_use``: (next step, the log error the next step remembers — at least the floor,
+    after a rejection: no)."""
+    return (next_step(h, h_use, log_err, log_err_prev, pi_on, after_reject, last, h_max),
+            max(log_err, _LOG_ERR_FLOOR), False)
+
+
+def control_rejected(h_use: float, log_err: float) -> tuple[float, bool, bool]:
+    """After a step the error control rejected: (next step, after a rejection: yes, PI on: yes)."""
+    return h_use * max(_GROW_MIN, _SAFE * np.exp(-_PI_ALPHA * log_err)), True, True
 
 
 def step_after_nonfinite(h_use: float) -> float:
@@ -187,6 +191,6 @@ def input_position(t: float, m: int, u_t0: float, u_dt: float) -> tuple[np.uint6
 
 #: the functions of this module, in the order the kernel module defines them; all inlined where they are called
 FUNCTIONS = (stage_times, stage2, stage3, stage4, stage5, stage6, solution5, error_ratio, dense_weights, dense_point,
-             output_due, step_to_take, log_error, start_log_error, remembered_log_error, next_step,
-             step_after_reject, step_after_nonfinite, input_position)
+             output_due, step_to_take, log_error, next_step, control_start, control_accepted, control_rejected,
+             step_after_nonfinite, input_position)
 INLINE = FUNCTIONS
