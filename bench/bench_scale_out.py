@@ -45,7 +45,7 @@ def _fleet(base: Path, n: int) -> list[Path]:
     base.mkdir(parents=True, exist_ok=True)
     (base / "short.toml").write_text(short, encoding="utf-8")
     subprocess.run([SHM, "run", "--scenario", str(base / "short.toml"), "--boards", str(n), "--seed", "3", "--out",
-                    str(base / "boards")], check=True, stderr=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                    str(base / "boards"), "--force"], check=True, stderr=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                    env=os.environ | {"MPLBACKEND": "Agg"})
     return sorted(p for p in (base / "boards").glob("board*") if p.is_dir())
 

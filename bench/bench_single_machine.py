@@ -46,17 +46,13 @@ from shm_cli.common import out_dir
 from shm_cli.health_cmd import _health_locked
 from shm_cli.main import build_parser
 from shm_cli.run_lock import OutputLock
-from studies.health.assess import assess_health
-from studies.health.evaluate import LAMBDAS
-from studies.health.report import evaluation_text, four_levels_text, health_json, write_health_outputs
 
 args = build_parser().parse_args(sys.argv[1:])
 out = out_dir(args.out)
 lock = OutputLock(out, command="bench")
 lock.acquire()
 try:
-    code = _health_locked(args, out, assess_health, LAMBDAS, evaluation_text, four_levels_text, health_json,
-                          write_health_outputs)
+    code = _health_locked(args, out)
 finally:
     lock.release()
 sys.exit(code)

@@ -225,7 +225,7 @@ def test_bench_fleet_health_makes_a_short_fleet_and_compares_1_and_2_workers(mon
     short = (tmp_path / "short.toml").read_text()
     assert 'visits = { value = 5, unit = "1" }' in short and 'visit_interval = { value = 250, unit = "h" }' in short
     assert ran[0][1:] == ["run", "--scenario", str(tmp_path / "short.toml"), "--boards", "3", "--seed", "3",
-                          "--out", str(tmp_path / "boards")]
+                          "--out", str(tmp_path / "boards"), "--force"]  # a rerun over the same --out
     assert got["fleet_boards"] == 3 and got["fleet_table_equal_1_vs_2_workers"]
     assert got["fleet_speedup_2_vs_1"] == pytest.approx(2 ** 0.5)
     assert got["fleet_cores_obtained_2_workers"] == pytest.approx(60 / (100 / 2 ** 0.5))
