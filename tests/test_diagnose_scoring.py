@@ -10,7 +10,7 @@ from dataclasses import dataclass
 import pytest
 
 from workbench.candidate_fit import PREFER_PARAMETER_WITHIN
-from workbench.diagnose import Diagnosis, _rank_key, choose_winner
+from workbench.diagnose import Diagnosis, choose_winner, rank_key
 
 
 @dataclass
@@ -31,7 +31,7 @@ class Cand:
 
 
 def rank(cands):
-    return [c.effect for c in sorted(cands, key=_rank_key)]
+    return [c.effect for c in sorted(cands, key=rank_key)]
 
 
 def test_ranking_accepted_first_then_best_held_out_bic():

@@ -33,10 +33,8 @@ from __future__ import annotations
 
 import math
 import time
-from collections.abc import Callable, Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -46,57 +44,48 @@ from plant import PhysicalEffect
 from plant.effect import EffectError
 from workbench.candidate_fit import (
     AT_NOISE_FLOOR,
-    FORWARD_ABOVE,
-    MIN_REDUCTION,
     PREFER_PARAMETER_WITHIN,
     CandidateResult,
     explained,
     fit_spec,
     noise_tolerance,
     screened_out,
-    spec_guess,
-    spec_models,
 )
 from workbench.candidates import (
     PARAMETER_CANDIDATES,
-    CandidateSpec,
     ParameterCandidate,
-    ScreenResult,
-    base_values_of,
     parameter_candidate,
-    screen_effects,
-    screen_parameters,
 )
 from workbench.diagnose_discovery import discovery_section, discovery_step
-from workbench.diagnose_evidence import Judgement, judge_winner
+from workbench.diagnose_evidence import Judgement
 from workbench.diagnose_progress import DiagnoseProgress, SilentProgress
 from workbench.diagnose_rules import why_not_named
+from workbench.diagnose_settings import FIT_TOP, DiagnoseSettings
+from workbench.diagnose_stages import (
+    Nominal,
+    Selection,
+    fitting_stage,
+    naming_stage,
+    nominal_stage,
+    screening_stage,
+    selection_stage,
+)
 from workbench.diagnose_time_change import time_change
-from workbench.discover_onset import event_onset
 from workbench.effect_library import LIBRARY, resolve_candidates
 from workbench.fit import (
-    DEFAULT_BLOCKS,
-    DEFAULT_MAX_RATE_HZ,
     ChannelScore,
     FitError,
-    Objective,
     SimBatch,
     Target,
     channel_scores,
-    guess_data,
-    model_factory,
-    prepare_targets,
-    rms,
 )
 from workbench.localisation import localise, model_features
 from workbench.records import FrfRecord, Record
 from workbench.residual_tests import ResidualTests, residual_tests
 
-__all__ = ["AT_NOISE_FLOOR", "CandidateResult", "Diagnosis", "diagnose", "explained", "fit_spec",
-           "noise_tolerance"]
+__all__ = ["AT_NOISE_FLOOR", "FIT_TOP", "CandidateResult", "DiagnoseSettings", "Diagnosis", "diagnose", "explained",
+           "fit_spec", "noise_tolerance"]
 
-#: candidates of each kind fitted in full after screening (None: all)
-FIT_TOP = 3
 #: verdicts that present a cure: checked for a change during the record before they are believed
 CURE_VERDICTS = ("wrong_parameter", "missing", "combination")
 
@@ -251,31 +240,22 @@ def split_candidates(candidates: Sequence[str | type[PhysicalEffect]] | None
 
 
 def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str = "table2",
-             candidates: Sequence[str | type[PhysicalEffect]] | None = None, *, holdout: str = "blocks",
-             n_blocks: int = DEFAULT_BLOCKS, max_rate_Hz: float = DEFAULT_MAX_RATE_HZ,
-             min_reduction: float = MIN_REDUCTION, workers: int = 1, max_nfev: int = 30, seed: int = 0,
-             progress: Callable[[str, CandidateResult | None], None] | None = None,
-             batched_jacobian: bool = True, fit_top: int | None = FIT_TOP, combine: bool = True,
-             params_label: str | None = None, reporter: DiagnoseProgress | None = None,
-             emit_dir: str | Path | None = None, on_discover: Callable[[str], None] | None = None) -> Diagnosis:
+             candidates: Sequence[str | type[PhysicalEffect]] | None = None,
+             settings: DiagnoseSettings | None = None, **options: Any) -> Diagnosis:
     """Rank ``candidates`` (default: the library and every core-parameter re-estimation; names of effects, of
     core parameters or of parameter groups) by how much of the held-out residual each explains, combine, explain.
 
+    ``settings`` (:class:`workbench.diagnose_settings.DiagnoseSettings`; default the command's) says how;
+    keyword ``options`` named like its fields replace single settings (``workers=2``, ``emit_dir=...``).
     ``fit_top``: after screening, fit in full only the best this many of each kind (None: fit all).
     ``workers`` > 1 fits candidates concurrently in threads (each simulation single-threaded; the compiled
-    integrator releases the GIL). ``batched_jacobian=False`` integrates the Jacobian's columns one at a time
-    (the benchmark's baseline). ``progress(name, result)`` is called when a candidate starts (result None)
-    and when it is done. ``params_label``: how the fit command names the parameter set (default its name).
-    ``emit_dir``: when the library and the parameters fall short, run the discovery step
-    (:mod:`workbench.diagnose_discovery`) and write what it finds there as an effect file (None: no discovery;
-    ``on_discover(message)`` hears its progress).
-    ``reporter`` hears each stage start (:data:`workbench.diagnose_progress.STAGES`) and each unit of work done.
+    integrator releases the GIL). ``emit_dir``: when the library and the parameters fall short, run the discovery
+    step (:mod:`workbench.diagnose_discovery`) and write what it finds there as an effect file (None: no
+    discovery). ``reporter`` hears each stage start (:data:`workbench.diagnose_progress.STAGES`).
     """
-    from workbench.diagnose_verdict import verdict_for
-    from workbench.forward_selection import select_set
-
+    s = (settings or DiagnoseSettings()).with_options(options)
     t_start = time.perf_counter()
-    rep = reporter or SilentProgress()
+    rep = s.reporter or SilentProgress()
     rep.stage("nominal model", None, f"{len(records)} record(s)")
     base = load_parameter_set(params)
     classes, pcands = split_candidates(candidates)
@@ -284,191 +264,84 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     classes = [c for c in classes if c.name not in skipped]
     if not classes and not pcands:
         raise FitError("no candidates left to try (every candidate effect is already in the parameter set)")
-    targets = prepare_targets(records, model_factory(base, []), holdout=holdout, n_blocks=n_blocks,
-                              max_rate_Hz=max_rate_Hz)
-    base_values = base_values_of(base)
-    base_obj = Objective(targets, [tg.model for tg in targets], [])
+    timings: dict[str, float] = {}
+    nom = nominal_stage(records, base, s, timings)
     t0 = time.perf_counter()
-    base_sim = base_obj.simulate(np.zeros((1, 0)), keep_full=True)
-    if not base_sim.ok.all():
-        raise FitError("the nominal model fails to integrate on the records")
-    r0_train = base_obj.residuals(base_sim, "train")[0]
-    r0_held = base_obj.residuals(base_sim, "held")[0]
-    rss0_held = float(np.dot(r0_held, r0_held))
-    timings = {"baseline_s": time.perf_counter() - t0}
-    data = guess_data(targets[0], base_sim, targets[0].model)
-    threads = 1 if workers > 1 else None
-    base_train, base_held = rms(r0_train), rms(r0_held)
-
-    # --- screening -------------------------------------------------------------------------------------------
-    t0 = time.perf_counter()
-    effect_specs = [CandidateSpec(effects=(c,)) for c in classes]
-    param_specs = [CandidateSpec(params=(p,)) for p in pcands]
-    screened: list[ScreenResult] = []
-    starts: dict[str, dict[str, float]] = {}
-    screen_rms: dict[str, float] = {}
-    if fit_top is not None and len(effect_specs) > fit_top:
-        rep.stage("screening effects", len(effect_specs))
-        emodels = {s.label: spec_models(s, base, targets) for s in effect_specs}
-        guesses = {}
-        for s in effect_specs:
-            free, _ = s.free_parameters(base_values)
-            guesses[s.label] = spec_guess(s, data, free, base_values)
-        scr = screen_effects(targets, emodels, effect_specs, guesses, base_values, seed=seed,
-                             on_screened=rep.advance)
-        scr.sort(key=lambda r: r.train_rms_sigma)
-        effect_specs = [r.spec for r in scr[:fit_top]]
-        screened += scr[fit_top:]
-        starts.update({r.spec.label: r.start for r in scr[:fit_top]})
-        screen_rms.update({r.spec.label: r.train_rms_sigma for r in scr})
-    if param_specs:
-        rep.stage("screening parameters", None, f"{len(param_specs)} candidates in one batch")
-        scr = screen_parameters(targets, pcands, base_values, threads=None)
-        scr.sort(key=lambda r: r.train_rms_sigma)
-        top = len(scr) if fit_top is None else fit_top
-        # a screen that does not beat the nominal model at all says "not this parameter"
-        keep = (scr if fit_top is None else
-                [r for r in scr[:top] if r.train_rms_sigma < r.nominal_train_rms_sigma * (1 - 1e-3)] or scr[:1])
-        param_specs = [r.spec for r in keep]
-        screened += [r for r in scr if r not in keep]
-        starts.update({r.spec.label: r.start for r in keep})
-        screen_rms.update({r.spec.label: r.train_rms_sigma for r in scr})
+    scr = screening_stage(nom, classes, pcands, s, rep)
     timings["screening_s"] = time.perf_counter() - t0
-
-    # --- full fits -------------------------------------------------------------------------------------------
-    def one(spec: CandidateSpec) -> CandidateResult:
-        if progress:
-            progress(spec.label, None)
-        start = starts.get(spec.label) if spec.params else None
-        res = fit_spec(spec, base, targets, data, rss0_held, start=start, min_reduction=min_reduction,
-                       threads=threads, max_nfev=max_nfev, seed=seed, batched_jacobian=batched_jacobian,
-                       n_screen=2 if spec.params and start else None, rss0_train=float(np.dot(r0_train, r0_train)))
-        res.screen_train_rms_sigma = screen_rms.get(spec.label, float("nan"))
-        if progress:
-            progress(spec.label, res)
-        rep.advance(spec.label)
-        return res
-
-    todo = effect_specs + param_specs
-    rep.stage("fitting candidates", len(todo))
     t0 = time.perf_counter()
-    if workers > 1:
-        for spec in todo:  # compile (or load) every composition first, serially: the kernels cache is shared
-            spec_models(spec, base, targets)
-        with ThreadPoolExecutor(workers) as pool:
-            results = list(pool.map(one, todo))
-    else:
-        results = [one(s) for s in todo]
-    # library effects that can free more parameters (laser spot position): fit the fuller variant too when the
-    # effect is a contender; the held-out score decides whether the evidence calls for it
-    variants = []
-    for r in results:
-        if r.spec is not None and r.kind == "effect" and r.stable and r.accepted:
-            cls = r.spec.effects[0]
-            extra = cls.on_request_fit_names()
-            if extra:
-                v = CandidateSpec(effects=(cls,), extras=((cls.name, extra),))
-                variants.append(one_variant(v, r, base, targets, data, rss0_held, min_reduction, threads, max_nfev,
-                                            seed, batched_jacobian))
-    results += variants
+    results = fitting_stage(nom, scr, s, rep)
     timings["fits_s"] = time.perf_counter() - t0
     for c in results:
         timings[f"candidate_{c.effect}_s"] = c.wall_s
-    ranking = sorted(results, key=_rank_key) + [screened_out(s) for s in screened]
-    winner = choose_winner(ranking)
-    steps: list[CandidateResult] = []
-    drop_one_fits: list[CandidateResult] = []
-    term_shares: dict[str, float] = {}
-    without_sigma: dict[str, float] = {}
-    paths: list[str] = []
-    notes_early: list[str] = []
+    ranking = sorted(results, key=rank_key) + [screened_out(x) for x in scr.screened]
     t0 = time.perf_counter()
-    # forward selection whenever the winner leaves more than FORWARD_ABOVE σ, even when that is a tiny share of a
-    # large residual ("explained" for the verdict): on a sweep a second effect can hide in the last 2 σ
-    if winner is not None and combine and winner.held_rms_sigma > FORWARD_ABOVE:
-        rep.stage("combinations", None, f"forward selection from {winner.effect}")
-        # an event inside the record, with the discovery step to follow: no constant library set is the answer,
-        # so the greedy path alone (the beam and the swap were most of the step's time on a 15 s sweep)
-        onset = (None if emit_dir is None else
-                 next((t for tg, y in zip(targets, base_sim.y)
-                       if (t := event_onset(tg.t, (tg.measured - y[0]) / tg.sigma[:, None])) is not None), None))
-        sel = select_set(winner, [c for c in ranking if c is not winner], base, targets, data, rss0_held,
-                         min_reduction=min_reduction, threads=threads, max_nfev=max_nfev, seed=seed,
-                         base_held=base_held, beam=onset is None)
-        if onset is not None:
-            notes_early.append(f"forward selection took the greedy path only: the nominal model matches the records "
-                               f"to the noise until t ≈ {onset:.4g} s (an event inside the record, for the "
-                               "discovery step)")
-        winner, steps = sel.final, sel.steps
-        term_shares = sel.shares(rss0_held)
-        without_sigma = {m: r.held_rms_sigma for m, r in sel.without.items() if m in winner.members}
-        drop_one_fits = list(sel.without.values())
-        for label, final, wall in sel.tried:
-            paths.append(f"from {label}: {final.effect} ({final.held_rms_sigma:.3g} σ, ΔBIC "
-                         f"{final.delta_bic_held:.4g}, {wall:.3g} s)")
-            timings[f"forward_selection_from_{label}_s"] = wall
+    sel = selection_stage(choose_winner(ranking), ranking, nom, s, rep, timings)
     timings["forward_selection_s"] = time.perf_counter() - t0
-    best_set = winner
-    judged: Judgement | None = None
     t1 = time.perf_counter()
-    if winner is not None:  # what the verdict may name of the best set (workbench.diagnose_rules)
-        judged = judge_winner(winner, base, targets, base_held, base_obj.residuals(base_sim, "all")[0],
-                              [*results, *steps, *drop_one_fits], data, rss0_held, min_reduction=min_reduction,
-                              threads=threads, max_nfev=max_nfev, seed=seed)
-        winner = judged.named
-        if winner is not best_set:
-            steps = [s for s in steps if winner is not None and set(s.members) <= set(winner.members)]
-            term_shares, without_sigma = judged.shares(rss0_held)
+    naming_stage(sel, results, nom, s)
     timings["naming_rule_s"] = time.perf_counter() - t1
+    d = _assemble(nom, sel, ranking, skipped, rep, timings)
+    _verdict_and_discovery(d, records, params, nom, sel, s, rep, timings)
+    timings["total_s"] = time.perf_counter() - t_start
+    return d
+
+
+def _assemble(nom: Nominal, sel: Selection, ranking: list[CandidateResult], skipped: Sequence[str],
+              rep: DiagnoseProgress, timings: dict[str, float]) -> Diagnosis:
+    """Residual tests before and after, where the nominal model fails, the notes: the Diagnosis without verdict."""
     rep.stage("residual tests", None, "and where the nominal model fails")
     t1 = time.perf_counter()
+    winner, targets, base_sim = sel.winner, nom.targets, nom.base_sim
     tests_before = run_residual_tests(targets, base_sim)
     tests_after = run_residual_tests(targets, winner.outcome.sim) if winner and winner.outcome else []
     where = where_it_fails(targets, base_sim)
     timings["residual_tests_and_localisation_s"] = time.perf_counter() - t1
     notes = [f"skipped {', '.join(skipped)}: already in the parameter set"] if skipped else []
-    if any("estimated" in s for tg in targets for s in tg.sigma_source):
+    if any("estimated" in src for tg in targets for src in tg.sigma_source):
         notes.append("the noise level was estimated from the data (no noise_std in the record metadata): "
                      "errors quoted in σ are only as good as that estimate")
+    judged = sel.judged
     if judged is not None:
         notes += [f"not named in the verdict: {e.name} — {why_not_named(e)}" for e in judged.evidence
                   if why_not_named(e)]
-    notes += notes_early
-    if len(paths) > 1:
+    notes += sel.notes
+    if len(sel.paths) > 1:
         notes.append("the greedy forward selection fell short of the noise floor, so it was started again from "
-                     "other candidates (and a re-estimation swapped for an effect); paths tried: " + "; ".join(paths))
-    d = Diagnosis("", "", winner, ranking, base_train, base_held, channel_scores(targets, base_sim), where,
-                  tests_before, tests_after, targets, base_sim, base.name, timings, notes, steps,
-                  term_shares=term_shares, without_sigma=without_sigma, selection_paths=paths,
-                  best_set=best_set, evidence=judged.evidence if judged else [], judgement=judged)
+                     "other candidates (and a re-estimation swapped for an effect); paths tried: "
+                     + "; ".join(sel.paths))
+    return Diagnosis("", "", winner, ranking, nom.base_train, nom.base_held, channel_scores(targets, base_sim),
+                     where, tests_before, tests_after, targets, base_sim, nom.base.name, timings, notes, sel.steps,
+                     term_shares=sel.term_shares, without_sigma=sel.without_sigma, selection_paths=sel.paths,
+                     best_set=sel.best_set, evidence=judged.evidence if judged else [], judgement=judged)
+
+
+def _verdict_and_discovery(d: Diagnosis, records: Sequence[Record | FrfRecord], params: ParameterSet | str,
+                           nom: Nominal, sel: Selection, s: DiagnoseSettings, rep: DiagnoseProgress,
+                           timings: dict[str, float]) -> None:
+    """Write the verdict into ``d``; with an ``emit_dir``, check a cure for a change in time and run discovery."""
+    from workbench.diagnose_verdict import verdict_for
+
     rep.stage("verdict")
     t1 = time.perf_counter()
-    label = params_label or (params if isinstance(params, str) else base.name)
+    base = nom.base
+    label = s.params_label or (params if isinstance(params, str) else base.name)
     verdict_for(d, base, label)
     timings["verdict_s"] = time.perf_counter() - t1
-    if emit_dir is not None:
-        t1 = time.perf_counter()
-        if d.verdict in CURE_VERDICTS and winner is not None:  # a cure presented: constant over the record?
-            d.time_change = time_change(winner, base, targets, base_sim, data, rss0_held,
-                                        min_reduction=min_reduction, threads=threads, max_nfev=max_nfev, seed=seed)
-        timings["time_change_s"] = time.perf_counter() - t1
-        discovery_step(d, records, base, label, emit_dir, holdout=holdout, n_blocks=n_blocks,
-                       max_rate_Hz=max_rate_Hz, on_progress=on_discover)
-    else:
+    if s.emit_dir is None:
         d.discover = discovery_section(None, ran=False, reason="not asked (no directory for an effect file)")
-    timings["total_s"] = time.perf_counter() - t_start
-    return d
+        return
+    t1 = time.perf_counter()
+    if d.verdict in CURE_VERDICTS and sel.winner is not None:  # a cure presented: constant over the record?
+        d.time_change = time_change(sel.winner, base, nom.targets, nom.base_sim, nom.data, nom.rss0_held,
+                                    min_reduction=s.min_reduction, threads=nom.threads, max_nfev=s.max_nfev,
+                                    seed=s.seed)
+    timings["time_change_s"] = time.perf_counter() - t1
+    discovery_step(d, records, base, label, s.emit_dir, holdout=s.holdout, n_blocks=s.n_blocks,
+                   max_rate_Hz=s.max_rate_Hz, on_progress=s.on_discover)
 
 
-def one_variant(spec: CandidateSpec, plain: CandidateResult, base: ParameterSet, targets: Sequence[Target],
-                data: Mapping[str, Any], rss0_held: float, min_reduction: float, threads: int | None,
-                max_nfev: int, seed: int, batched_jacobian: bool) -> CandidateResult:
-    start = dict(plain.outcome.values) if plain.outcome else None
-    return fit_spec(spec, base, targets, data, rss0_held, start=start, min_reduction=min_reduction, threads=threads,
-                    max_nfev=max_nfev, seed=seed, batched_jacobian=batched_jacobian)
-
-
-def _rank_key(c: CandidateResult) -> tuple:
+def rank_key(c: CandidateResult) -> tuple:
     return (not c.accepted, -c.delta_bic_held if c.stable and c.outcome else math.inf)
 
 
