@@ -127,7 +127,9 @@ def test_a_task_on_a_dask_worker_integrates_on_one_thread(monkeypatch):
 @pytest.mark.slow
 def test_longest_first_starts_the_tasks_with_the_most_input_first():
     """8 boards on 2 workers: a long board started last would run alone at the end. With ``longest_first`` the
-    tasks start by their input's bytes, largest first (ties by key); here one worker, so start order = run order."""
+    tasks start by their input's bytes, largest first (ties by key); here one worker, so start order = run order.
+    Without it nothing about the order is promised (Dask breaks ties among equal priorities as it likes: a, c, b
+    was seen on a clean clone), only that every task runs."""
     import pickle
     import time
 
@@ -135,11 +137,14 @@ def test_longest_first_starts_the_tasks_with_the_most_input_first():
     from studies.batch.cases import CASE_FILE, RESULT_FILE
 
     tasks = [(k, {CASE_FILE: pickle.dumps(()), "pad": b"x" * n}) for k, n in (("a", 10), ("b", 3000), ("c", 900))]
-    for longest_first, want in ((True, ["b", "c", "a"]), (False, ["a", "b", "c"])):
+    for longest_first in (True, False):
         out = run_tasks(tasks, run_case_task, time.monotonic, scheduler="local", workers=1,
                         longest_first=longest_first)
         started = {r.key: pickle.loads(r.files[RESULT_FILE]) for r in out.results}
-        assert sorted(started, key=started.__getitem__) == want, longest_first
+        if longest_first:
+            assert sorted(started, key=started.__getitem__) == ["b", "c", "a"]
+        else:
+            assert sorted(started) == ["a", "b", "c"]
 
 
 # --- the real loops on a small subset: this process vs two local Dask workers (slow) ---------------------------
