@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -84,6 +85,20 @@ class Cluster:
         with Client(self.address, timeout="20s", set_as_default=False) as c:
             c.wait_for_workers(n, timeout=60)
 
+    def busy_worker(self) -> subprocess.Popen:
+        """The worker process that is running a task now (waits up to 10 s for one)."""
+        from distributed import Client
+
+        with Client(self.address, timeout="20s", set_as_default=False) as c:
+            deadline = time.monotonic() + 10
+            while time.monotonic() < deadline:
+                busy = [a for a, tasks in c.processing().items() if tasks]
+                if busy:
+                    pid = c.run(os.getpid, workers=busy[:1])[busy[0]]
+                    return next(p for p in self.workers if p.pid == pid)
+                time.sleep(0.02)
+        raise AssertionError("no worker was running a task")
+
     def close(self) -> None:
         for p in reversed(self.procs):
             if p.poll() is None:
@@ -128,14 +143,17 @@ def test_a_worker_killed_mid_run_loses_nothing(setup):
     proc = subprocess.Popen([str(BIN / "shm"), "diagnose", str(records), *DIAGNOSE, "--scheduler", cluster.address,
                              "--out", str(out)], stderr=subprocess.PIPE, text=True, env=ENV)
     assert proc.stderr is not None
-    lines = []
-    victim = cluster.workers[0]
+    lines: list[str] = []
+    victim: subprocess.Popen | None = None
     for line in proc.stderr:
         lines.append(line)
-        if "1/" in line and "tasks done" in line and victim.poll() is None:
+        # the first progress line while tasks remain (two tasks may finish in one poll, so no exact count):
+        # kill a worker that is running a task right now, so that task must be rerun
+        if victim is None and (m := re.search(r"(\d+)/(\d+) tasks done", line)) and int(m[1]) < int(m[2]):
+            victim = cluster.busy_worker()
             victim.send_signal(signal.SIGKILL)
     assert proc.wait(timeout=120) == 0, "".join(lines)
-    assert victim.poll() is not None
+    assert victim is not None and victim.poll() is not None, "".join(lines)
     assert any("1 worker(s) lost" in line and "rerun" in line for line in lines), "".join(lines)
     assert _results(out) == reference
     cost = json.loads((out / "batch.json").read_text())["cost"]
