@@ -128,7 +128,7 @@ def run_command_task(key: str, files: dict[str, bytes], shared: dict[str, bytes]
 def warm_workbench() -> None:
     """Load the commands' modules and the nominal model's compiled kernel on a worker (before its first task)."""
     import shm_cli.main  # noqa: F401  (every command's module)
-    from workbench.synth import synth_record, synth_test, truth_model
+    from workbench.simulation import synth_record, synth_test, truth_model
 
     synth_record(synth_test("mbit-b", duration_s=0.2, t_step_s=0.05), truth_model("table2", [], {}))
 

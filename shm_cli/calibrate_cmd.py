@@ -15,7 +15,7 @@ from shm_cli.output_guard import add_force_arg, check_foreign_run, locked_out
 
 if TYPE_CHECKING:
     from board_config import ParameterSet
-    from workbench.calibrate import ClaimTarget
+    from workbench.fit import ClaimTarget
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -43,7 +43,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
     from board_config import load_parameter_set
     from plant import PlantModel
     from plant.linear import static_tip_gain_closed_form
-    from workbench.calibrate import CLAIMS_FILE, load_claim_targets
+    from workbench.fit import CLAIMS_FILE, load_claim_targets
 
     if not args.name.strip():
         raise InputError("--name is empty: the saved parameter set needs a name")
@@ -71,7 +71,7 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
 def _calibrate_locked(args: argparse.Namespace, base: ParameterSet, claims: Path, targets: list[ClaimTarget],
                       out: Path) -> int:
     """Calibrate into ``out`` (its lock held): the saved set and calibration.json first, then the figure."""
-    from workbench.calibrate import DEFAULT_FREE, calibrate
+    from workbench.fit import DEFAULT_FREE, calibrate
 
     (out / "calibration.json").unlink(missing_ok=True)  # written at the end: an earlier one must not outlive a failure
 
@@ -96,7 +96,7 @@ def _calibrate_locked(args: argparse.Namespace, base: ParameterSet, claims: Path
     (out / "calibration.json").write_text(dump_json(summary))
 
     def figure() -> Path:
-        from workbench.model_figures import calibration_figure
+        from workbench.compare import calibration_figure
 
         return calibration_figure(out / "calibration.png", res.history, rows, base.name, args.name)
 

@@ -73,7 +73,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
     if wanted(args, args.records):  # a folder or 'glob': one task per record (docs/scale-out.md)
         return run_batch("compare", args, args.records)
     from workbench.compare import CompareOptions
-    from workbench.effect_probe import probe_effects
+    from workbench.fit import probe_effects
     from workbench.records import gap_notes, load_record
 
     if args.lags < 1 or args.decimate < 1:
@@ -99,9 +99,8 @@ def cmd_compare(args: argparse.Namespace) -> int:
 def _compare(args: argparse.Namespace, records: list, values: dict[str, float], options) -> int:
     from tqdm import tqdm
 
-    from workbench.compare import compare
-    from workbench.replay import SimulationFailed
-    from workbench.report import report_json, write_report
+    from workbench.compare import compare, report_json, write_report
+    from workbench.simulation import SimulationFailed
 
     comparisons = []
     failures = []
@@ -126,7 +125,7 @@ def _compare(args: argparse.Namespace, records: list, values: dict[str, float], 
 
 def _model(record, params: str, add: list[str], values: dict[str, float]):
     from board_config import CORE_PARAMETER_NAMES, load_parameter_set
-    from workbench.replay import model_for
+    from workbench.simulation import model_for
 
     pset = load_parameter_set(params)
     core = {k: v for k, v in values.items() if k in CORE_PARAMETER_NAMES}

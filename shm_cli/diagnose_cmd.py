@@ -83,8 +83,7 @@ def _diagnose(args: argparse.Namespace) -> int:
     # once, before the imports and the records (seconds on a loaded machine)
     reporter = StageReporter("diagnose")
     reporter.stage("loading", None, f"{len(args.records)} record(s)")
-    from workbench.diagnose import diagnose
-    from workbench.diagnose_report import overlay_figure, ranking_figure, write_html
+    from workbench.diagnose import diagnose, overlay_figure, ranking_figure, write_html
     from workbench.fit import FitError
     from workbench.records import gap_notes, load_record
 

@@ -79,8 +79,7 @@ def _discover(args: argparse.Namespace, out: Path) -> int:
     from board_config import load_parameter_set
     from shm_cli.main import CliError
     from workbench.discover import describe_units, discover
-    from workbench.effect_probe import probe_effects
-    from workbench.fit import FitError
+    from workbench.fit import FitError, probe_effects
     from workbench.records import check_distinct_records, gap_notes, load_record
 
     check_distinct_records(args.records)

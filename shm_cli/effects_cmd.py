@@ -51,7 +51,7 @@ def _number(v: float | None) -> float | str | None:
 
 def _parameter(cls: type[PhysicalEffect], par: Any, fitted: set[str]) -> dict[str, Any]:
     """One parameter of ``cls``: unit, default, bounds, neutral value and fit range (SI)."""
-    from workbench.effect_library import effect_free_parameters
+    from workbench.fit import effect_free_parameters
 
     if par.core_index is not None:
         return {"name": par.name, "kind": "core (Table 2, from the parameter set)", "unit": par.unit,
@@ -73,7 +73,7 @@ def describe(cls: type[PhysicalEffect], spec: str | None = None) -> dict[str, An
     """Everything ``shm effects show`` says about an effect class, JSON-able (SI units); ``spec`` is how the user
     named it (what ``--effect`` takes; default: its registered name)."""
     from plant.effect import effect_source_file, library_effects
-    from workbench.effect_library import effect_free_parameters
+    from workbench.fit import effect_free_parameters
 
     own = cls.own_parameters()
     fitted = {p.name for p in effect_free_parameters(cls)} if own and cls.role == "effect" else set()

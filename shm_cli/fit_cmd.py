@@ -6,6 +6,7 @@ import argparse
 import functools
 import sys
 from pathlib import Path
+from typing import Any
 
 from shm_cli.batch_records import run_batch, wanted
 from shm_cli.command_args import add_command, add_holdout_args, add_record_inputs
@@ -78,11 +79,15 @@ def cmd_fit(args: argparse.Namespace) -> int:
 def _fit(args: argparse.Namespace, out: Path, save: Path | None) -> int:
     from board_config import load_parameter_set
     from shm_cli.main import CliError
-    from workbench.diagnose_report import ProgressPlot, overlay_figure, write_html
-    from workbench.effect_library import resolve_candidates
-    from workbench.effect_probe import probe_effects
-    from workbench.fit import FitError, fit_records
-    from workbench.fit_report import fit_warnings, other_notes, report_dict
+    from workbench.diagnose import ProgressPlot
+    from workbench.fit import (
+        FitError,
+        fit_records,
+        other_notes,
+        probe_effects,
+        report_dict,
+        resolve_candidates,
+    )
 
     records = _load_records(args.records)
     base = load_parameter_set(args.params)
@@ -128,6 +133,23 @@ def _fit(args: argparse.Namespace, out: Path, save: Path | None) -> int:
                                "saved": str(save) if save is not None else None, "figures": []}
     (out / "fit.json").write_text(dump_json(summary), encoding="utf-8")
 
+    figures = _write_figures_and_page(out, rep, base.name, progress, deco, [("Before / after", header, rows)], notes)
+    summary = summary | {"figures": [str(f) for f in figures]} | ({"failed": deco.failed} if deco.failed else {})
+    (out / "fit.json").write_text(dump_json(summary), encoding="utf-8")
+    if args.json:
+        print(dump_json(summary))
+    return 0 if deco.ok else 1
+
+
+
+def _write_figures_and_page(out: Path, rep: Any, base_name: str, progress: list[Any], deco: Decorations,
+                            tables: list[Any], notes: list[str]) -> list[Path]:
+    """The fit's progress and overlay figures and its HTML page (a failure is recorded in ``deco``, not raised)."""
+    from workbench.diagnose import ProgressPlot, overlay_figure, write_html
+    from workbench.fit import fit_warnings
+
+    o = rep.outcome
+
     def progress_figure():
         plot = progress[0] if progress else ProgressPlot(out / "fit_progress.png", rep.before_train_rms_sigma,
                                                              rep.before_held_rms_sigma)
@@ -143,14 +165,10 @@ def _fit(args: argparse.Namespace, out: Path, save: Path | None) -> int:
     verdict = (f"Added {', '.join(rep.added) or 'nothing'}; training error {rep.before_train_rms_sigma:.4g} σ → "
                f"{o.train_rms_sigma:.4g} σ, held-out {rep.before_held_rms_sigma:.4g} σ → {o.held_rms_sigma:.4g} σ.")
     deco.attempt("fit.html", lambda: write_html(
-        out / "fit.html", f"shm fit: {base.name} + {', '.join(rep.added) or 'refit'}", verdict,
-        [("Before / after", header, rows), *_report_tables(o)],
+        out / "fit.html", f"shm fit: {base_name} + {', '.join(rep.added) or 'refit'}", verdict,
+        [*tables, *_report_tables(o)],
         figures, [w.message for w in fit_warnings(o.estimates, o.correlation)] + notes))
-    summary = summary | {"figures": [str(f) for f in figures]} | ({"failed": deco.failed} if deco.failed else {})
-    (out / "fit.json").write_text(dump_json(summary), encoding="utf-8")
-    if args.json:
-        print(dump_json(summary))
-    return 0 if deco.ok else 1
+    return figures
 
 
 def _save_set(rep, save: Path, force: bool):
@@ -175,7 +193,7 @@ def _save_set(rep, save: Path, force: bool):
 def _print_results(say, rep, header: list[str], rows: list[list[str]], notes: list[str]) -> None:
     """The before/after table and the error change (``say``), then the fit report as lmfit prints it (statistics,
     variables, correlations, warnings; always on stderr) and the notes."""
-    from workbench.fit_report import format_report
+    from workbench.fit import format_report
 
     o = rep.outcome
     say("\nbefore / after (residual RMS; σ = noise level of the channel):")
@@ -207,7 +225,7 @@ def _before_after(rep) -> tuple[list[str], list[list[str]]]:
 
 def _report_tables(o) -> list[tuple[str, list[str], list[list[str]]]]:
     """fit.html's tables of the fit report: statistics, estimates, the correlation matrix."""
-    from workbench.fit_report import fit_statistics
+    from workbench.fit import fit_statistics
 
     names = [e.name for e in o.estimates]
     return [

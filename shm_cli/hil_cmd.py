@@ -276,7 +276,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     scenario = load_scenario(args.scenario) if args.scenario else None
     seed = args.seed if args.seed is not None else (scenario.seed if scenario else 0)
     plan = fault_plan(args, seed)
-    from workbench.effect_probe import probe_effects  # an effect giving NaN: refused, not served mute
+    from workbench.fit import probe_effects  # an effect giving NaN: refused, not served mute
 
     probe_effects(args.effect, args.params or "table2", "--effect")
     hv = {"scenario": None, "present": True, "absent": False}[args.hv]

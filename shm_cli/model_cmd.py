@@ -176,7 +176,7 @@ def cmd_frf(args: argparse.Namespace) -> int:
                                               "phase_deg": np.degrees(np.unwrap(np.angle(h_z)))})
         write_csv(out / "frf_vstored_per_accel.csv", {"frequency_Hz": f, "amplitude_V_per_g": np.abs(h_v),
                                                       "phase_deg": np.degrees(np.unwrap(np.angle(h_v)))})
-        from workbench.model_figures import FRF_FIGURES, bode_figure
+        from workbench.compare import FRF_FIGURES, bode_figure
 
         for name, h in (("frf_z3_per_va", h_z * 1e6), ("frf_vstored_per_accel", h_v)):
             ylabel, title = FRF_FIGURES[name]
@@ -186,7 +186,7 @@ def cmd_frf(args: argparse.Namespace) -> int:
 
 
 def _plot_time(out: Path, name: str, resp, xy_loop: bool, title: str) -> None:
-    from workbench.model_figures import time_response_figure
+    from workbench.compare import time_response_figure
 
     time_response_figure(out / f"{name}.png", resp, xy_loop, title)
 

@@ -1,6 +1,6 @@
 """Progress of a long command on stderr: a live bar per stage on a terminal, one line per stage in a log.
 
-:class:`StageReporter` implements :class:`workbench.diagnose_progress.DiagnoseProgress`. On a terminal each stage
+:class:`StageReporter` implements :class:`workbench.diagnose._progress.DiagnoseProgress`. On a terminal each stage
 gets a tqdm bar (counted stages show n/total and the unit just done) that a ticker thread redraws every second, so
 the elapsed time keeps moving even while one long fit runs. When stderr is not a terminal (a log, a pipe) each stage
 prints one line when it starts, ending in "…" (work under way); a line ending in "…" is what the

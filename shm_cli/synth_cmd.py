@@ -105,9 +105,9 @@ def _check_drive_limits(args: argparse.Namespace, spec, base: bool) -> None:
 def cmd_synth(args: argparse.Namespace) -> int:
     from board_config import CORE_PARAMETER_NAMES, CORE_PARAMETERS, ParameterVector, load_parameter_set
     from plant import G0
-    from workbench.effect_probe import probe_effects
+    from workbench.fit import probe_effects
     from workbench.records import write_record
-    from workbench.synth import synth_frf, synth_record, synth_test, truth_model, write_frf_record
+    from workbench.simulation import synth_frf, synth_record, synth_test, truth_model, write_frf_record
 
     out = Path(args.out)
     if out.suffix.lower() not in (".csv", ".tdms"):
@@ -193,7 +193,7 @@ def _frf_noise(items: list[str]) -> dict[str, float]:
 def _warn_neutral(model) -> None:
     """Say on stderr when an injected effect sits at its neutral values: the record is then the nominal plant's
     while its header names the effect (the header also carries the values and ``truth_neutral_effects``)."""
-    from workbench.synth import neutral_effects
+    from workbench.simulation import neutral_effects
 
     units = dict(zip(model.param_names, model.param_units))
     for name, at in neutral_effects(model).items():

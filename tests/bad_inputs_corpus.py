@@ -1,5 +1,5 @@
 """The bad-input corpus (issue 12, point 10): files and command lines a lab would get wrong, with what the one-line
-error must name. Used by ``tests/test_bad_inputs.py``.
+error must name. Used by ``tests/shm_cli/test_bad_inputs.py``.
 
 A case is ``Case(id, argv, needles, code=2)``: ``argv`` may hold ``{d}`` (the corpus directory, where
 :func:`write_corpus_files` put every file) and ``{shipped}`` (the shipped configuration directory); ``needles``

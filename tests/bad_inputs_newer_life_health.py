@@ -3,7 +3,7 @@
 Same form as ``tests/bad_inputs_corpus.py`` (its :class:`Case` and :func:`case` are reused): ``{d}`` is the corpus
 directory (:func:`write_corpus_files`), ``{o}`` an output directory of the case's own. Every case fails during
 validation in the parent, before any worker or fit starts, so the corpus takes seconds. Used by
-``tests/test_bad_inputs_newer_life_health.py``.
+``tests/shm_cli/test_bad_inputs_newer_life_health.py``.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from pathlib import Path
 
 from bad_inputs_corpus import PARAMS, Case, case
 
-#: a valid life: 3 visits 400 h apart, alpha_h drifting (tests/test_health.py's tiny life)
+#: a valid life: 3 visits 400 h apart, alpha_h drifting (tests/studies/test_health.py's tiny life)
 LIFE = """[scenario]
 name = "tiny-life"
 seed = 3

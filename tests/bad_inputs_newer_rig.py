@@ -1,6 +1,6 @@
 """The bad-input corpus of the rig side added since issue 12 (issue 33): link URLs for every scheme, `shm hil serve`
 options, the scheduler-slice option, and bad writes to the rig's Modbus map. Used by
-``tests/test_bad_inputs_newer_rig.py``.
+``tests/hil_stub/test_bad_inputs_newer_rig.py``.
 
 Command-line cases are :class:`bad_inputs_corpus.Case` (``{o}``: the case's own output directory, ``{d}``: the corpus
 directory); each must end in exit 2 with one ``error:`` line naming the URL part or option and what is allowed, and

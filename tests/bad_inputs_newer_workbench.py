@@ -1,6 +1,6 @@
 """The bad-input corpus of the newer workbench commands and effect files (issue 33): what a careless or unlucky user
 gives ``shm discover``, ``fit``, ``synth``, ``compare``, ``diagnose`` and ``hil serve --effect``. Used by
-``tests/test_bad_inputs_newer_workbench.py``.
+``tests/shm_cli/test_bad_inputs_newer_workbench.py``.
 
 Cases are :class:`bad_inputs_corpus.Case` (``{d}`` the corpus directory, ``{o}`` the case's own output directory,
 ``{shipped}`` the shipped configuration); the files are written by :func:`write_newer_files`. Every case ends during

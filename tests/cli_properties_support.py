@@ -171,7 +171,7 @@ def parameter_sets(draw, where: Path) -> str:
 def library_effects() -> dict[str, list[tuple[str, float, float]]]:
     """Library effect → its parameters (name, lower, upper) from the effect classes (documented bounds)."""
     from plant.effect import resolve_effect
-    from workbench.effect_library import LIBRARY
+    from workbench.fit import LIBRARY
 
     return {n: [(p.name, p.lower, p.upper) for p in resolve_effect(n).own_parameters()] for n in LIBRARY}
 

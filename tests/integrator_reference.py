@@ -3,7 +3,7 @@
 Issue 30 (point 3) rewrote the integrators from source text into ordinary functions; they must give bit for bit what
 the string-literal integrators gave: outputs, recorded states and bus, status codes, attempted and rejected steps.
 The fixture was written with the integrators as they were before that rewrite (commit before "integrators as code")
-and is kept: any later change to the integrators that moves a bit fails ``tests/test_integrator_reference.py``.
+and is kept: any later change to the integrators that moves a bit fails ``tests/plant/test_integrator_reference.py``.
 
 Each case calls a kernel entry point (``run_chunk_stats``, ``run_chunk``, ``run_lanes``) directly with its stored
 inputs, so the fixture depends on nothing but the integrator and the composed right-hand side: the member-by-member

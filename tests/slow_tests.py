@@ -6,7 +6,7 @@ every test whose slowest case, fixture set-up included, took 2 s or more, and th
 module fixture. ``make test`` runs them all; ``make test-fast`` (the inner loop, < 1 min) does not.
 
 An entry is ``file::test`` (every parametrised case of it). A test marked ``@pytest.mark.slow`` in its file needs
-no entry here. A new test that takes seconds belongs here (or gets the decorator); ``tests/test_slow_tests.py``
+no entry here. A new test that takes seconds belongs here (or gets the decorator); ``tests/project/test_slow_tests.py``
 checks that every entry still names a test.
 """
 

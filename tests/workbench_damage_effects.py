@@ -1,6 +1,7 @@
 """Damage written outside the discovery dictionary, the way a rig engineer would write it (hard switches, no
 smoothing, its own parameter names), as the truth of the damage-form checks of ``shm discover``
-(``tests/test_discover_damage_forms.py``, issue 26 point 3): a stiffness event in section 2 at an instant inside the
+(``tests/workbench/test_discover_damage_forms.py``, issue 26 point 3): a stiffness event in section 2 at an instant
+inside the
 record, a breathing crack in section 2 (open for δ2 > 0), and a patch whose authority d_ep is lower for negative drive.
 """
 

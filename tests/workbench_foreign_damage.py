@@ -1,7 +1,7 @@
 """Damage written outside the project, for the harder not-in-the-library challenge (issue 26 point 5).
 
 Each class is a ``PhysicalEffect`` written by hand, the way a structural engineer would write the damage — not
-generated from, nor copied out of, the discovery dictionary (``workbench/discovery_dictionary.py``), and in forms the
+generated from, nor copied out of, the discovery dictionary (``workbench/discover/_dictionary.py``), and in forms the
 dictionary does not name on purpose:
 
 * a breathing crack: a section's spring is softer only while the crack is open (δ_i > 0), in section 2 and at the
@@ -14,7 +14,7 @@ dictionary does not name on purpose:
 The section force convention is the core's (``plant/effects/laminate.py``): ``bus[B_S + i]`` carries
 ``-k_i δ_i - c_i δ̇_i + …``; an effect that softens adds ``+Δk δ``. ``DAMAGE`` maps each class to its challenge
 strengths and the physics check of the diagnose verdict's first sentence (see
-:class:`workbench.discovery_challenge.PhysicsCheck`). Time events carry their instant as a fraction of the record
+:class:`workbench.challenges.discovery.PhysicsCheck`). Time events carry their instant as a fraction of the record
 (``t_event_frac``): the challenge sets ``t_event`` for each record.
 """
 

@@ -1,5 +1,5 @@
 """Physical effects that are NOT in the library, written only here, for the discovery challenge
-(:mod:`workbench.discovery_challenge`, ``tests/test_discover.py``, ``python -m bench --only discover``).
+(:mod:`workbench.challenges.discovery`, ``tests/workbench/test_discover.py``, ``python -m bench --only discover``).
 
 Each is physics a rig engineer meets, written the way an engineer would write it (not as a copy of a dictionary
 term): dry friction at the tip, a transport delay on the drive (second-order Padé), a saturating laser, a quadratic

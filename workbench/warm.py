@@ -2,7 +2,7 @@
 dictionary, compiled once per machine into numba's cache: ``python -m workbench.warm [--jobs N] [--list]``.
 
 ``shm discover`` composes the nominal model with one generated effect holding every candidate term
-(:func:`workbench.discovery_dictionary.dictionary_source`). Its source depends only on the terms' structure — which
+(:func:`workbench.discover.dictionary_source`). Its source depends only on the terms' structure — which
 signals the records move and whether the patches are driven — not on the record's values, so the kernel compiled
 here is the one a first ``shm discover`` loads: the driven dictionary with the amplifier terminal and the free one
 with the open circuit. It is the largest kernel of all (200+ terms: minutes to compile on a loaded machine, once).
@@ -16,10 +16,9 @@ from collections.abc import Sequence
 
 from plant.warm import ShippedComposition
 from plant.warm import main as plant_main
-from workbench.discover_dictionary_effect import generated_effect
-from workbench.discovery_dictionary import build_dictionary, dictionary_source
+from workbench.discover import build_dictionary, dictionary_source, generated_effect
 
-#: the signals a record's scales name (workbench.discover_dictionary_effect.signal_scales), all moving
+#: the signals a record's scales name (workbench.discover.signal_scales), all moving
 SIGNALS = (*(f"{s}{j}" for s in ("z", "zd", "delta", "ddelta") for j in (1, 2, 3)), "vc", "va", "one", "t")
 
 

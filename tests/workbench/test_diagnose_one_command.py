@@ -1,0 +1,121 @@
+"""Issue 26 point 2: one command to the answer. When the library and the core parameters fall short, ``shm diagnose``
+runs the discovery step itself and ends with one verdict — what was found in words and formula, the emitted effect
+file (inside --out, never over an existing file) and the ``shm fit … --add FILE`` command; ``--no-discover`` opts
+out; ``--json`` carries the same in its ``discover`` section. The slow tests run the command on a record whose truth
+is outside the library (free play in the root clamp, tests/workbench_foreign_effects.py)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from types import SimpleNamespace
+
+import pytest
+
+from workbench.diagnose._discovery import falls_short, final_verdict, new_effect_file
+
+FOREIGN = (Path(__file__).parents[1] / "workbench_foreign_effects.py")
+
+
+def test_the_effect_file_never_overwrites(tmp_path):
+    (tmp_path / "discovered.py").write_text("# mine\n")
+    a = new_effect_file(tmp_path)
+    b = new_effect_file(tmp_path)
+    assert a.name == "discovered_2.py" and b.name == "discovered_3.py"
+    assert (tmp_path / "discovered.py").read_text() == "# mine\n"
+
+
+def test_falls_short_is_the_verdict_saying_so():
+    assert falls_short(SimpleNamespace(verdict="partial")) and falls_short(SimpleNamespace(verdict="unexplained"))
+    for v in ("wrong_parameter", "missing", "combination", "nothing_missing"):
+        assert not falls_short(SimpleNamespace(verdict=v))
+
+
+def _disc(held_after, terms=("section 1 is softer within ±40 µm of δ1",)):
+    return SimpleNamespace(terms=[SimpleNamespace(description=t) for t in terms], held_before=8.6,
+                           held_after=held_after, message="Found: …", verdict="found")
+
+
+def test_the_final_verdict_leads_with_what_was_found(monkeypatch):
+    import workbench.diagnose._discovery as dd
+
+    monkeypatch.setattr(dd, "term_formulas", lambda disc: ["S_1 += c · clip(δ1, g)"])
+    d = SimpleNamespace(message="The library and the core parameters explain only 96 % of the excess over the noise: "
+                                "…\nLook for the rest beyond the library:\n  shm discover …",
+                        winner=SimpleNamespace(held_rms_sigma=1.89), baseline_held_rms_sigma=8.6, verdict="partial",
+                        fit_command="", next_command="shm discover …")
+    section = {"emitted": {"file": "out/discovered.py", "effect": "discovered_discovered", "class": "C"},
+               "fit_command": "shm fit rec.csv --params table2 --add out/discovered.py --save refit.toml --out fit"}
+    final_verdict(d, _disc(1.05), section)
+    first, rest = d.message.split("\n", 1)
+    assert first.startswith("Found beyond the library: section 1 is softer")
+    assert "Formula: S_1 += c · clip(δ1, g)" in first and "out/discovered.py" in first
+    assert "explain only 96 %" in rest and "shm discover" not in d.message  # one verdict: the step ran
+    assert d.message.rstrip().endswith(section["fit_command"]) and d.verdict == "discovered"
+    assert d.fit_command == section["fit_command"]
+
+
+def test_a_discovery_no_better_than_the_library_follows_it(monkeypatch):
+    import workbench.diagnose._discovery as dd
+
+    monkeypatch.setattr(dd, "term_formulas", lambda disc: ["…"])
+    d = SimpleNamespace(message="The library and the core parameters explain only 96 % …\nLook …", verdict="partial",
+                        winner=SimpleNamespace(held_rms_sigma=1.89), baseline_held_rms_sigma=8.6, fit_command="",
+                        next_command="x")
+    final_verdict(d, _disc(3.0), {"emitted": None, "fit_command": ""})
+    assert d.message.startswith("The library and the core parameters explain only 96 %")
+    assert "The discovery step ran too: Found: …" in d.message and d.verdict == "partial"
+
+
+def _synth(tmp_path, kind="mbit-b"):
+    from shm_cli.main import main
+
+    rec = tmp_path / "play.csv"
+    assert main(["synth", "--test", kind, "--effect", f"{FOREIGN}:RootClearance", "--set", "k_play=150",
+                 "--set", "g_play=4e-5", "--seed", "3", "--out", str(rec)]) == 0
+    return rec
+
+
+@pytest.mark.slow
+def test_one_command_finds_free_play_and_says_how_to_fit_it(tmp_path, capsys):
+    from shm_cli.main import main
+
+    rec = _synth(tmp_path)
+    capsys.readouterr()
+    out = tmp_path / "d"
+    assert main(["diagnose", str(rec), "--params", "table2", "--out", str(out), "--json"]) == 0
+    cap = capsys.readouterr()
+    result = json.loads(cap.out)  # one JSON document on stdout
+    first = result["message"].split("\n", 1)[0]
+    assert first.startswith("Found beyond the library: section 1"), first
+    assert "beta_h" not in first and "re-estimate it" not in result["message"]
+    disc = result["discover"]
+    assert disc["ran"] and disc["emitted"] and disc["formulas"]
+    emitted = Path(disc["emitted"]["file"])
+    assert emitted.parent == out and emitted.exists()
+    assert disc["fit_command"] == f"shm fit {rec} --params table2 --add {emitted} --save refit.toml --out fit"
+    assert disc["fit_command"] in result["message"] and result["fit_command"] == disc["fit_command"]
+    assert disc["held_rms_sigma"]["after"] <= 1.5
+    assert "Found beyond the library" in cap.err  # the text goes to stderr
+    # the command it prints works: the emitted effect refits to the noise floor
+    capsys.readouterr()
+    argv = [*disc["fit_command"].split()[1:], "--json"]
+    argv[argv.index("--out") + 1] = str(tmp_path / "fit")
+    argv[argv.index("--save") + 1] = str(tmp_path / "refit.toml")
+    assert main(argv) == 0
+    fit = json.loads(capsys.readouterr().out)
+    assert fit["held_rms_sigma"]["after"] <= 1.5
+
+
+@pytest.mark.slow
+def test_no_discover_leaves_the_command_to_the_user(tmp_path, capsys):
+    from shm_cli.main import main
+
+    rec = _synth(tmp_path)
+    capsys.readouterr()
+    out = tmp_path / "d"
+    assert main(["diagnose", str(rec), "--params", "table2", "--out", str(out), "--json", "--no-discover"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["discover"] == {"ran": False, "reason": "--no-discover", "seconds": 0.0}
+    assert result["message"].startswith("The library and the core parameters explain only ")
+    assert "shm discover" in result["next_command"] and not list(out.glob("*.py"))

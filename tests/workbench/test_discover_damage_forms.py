@@ -1,0 +1,135 @@
+"""Damage forms in shm discover's dictionary (issue 26 point 3): a core parameter's own term switched by a gate —
+the sign of a section's deflection or rate, a gap, the sign of the drive or the charge, a step or a ramp at an
+instant t0 inside the record — named in an engineer's words, with t0 fitted and reported. The truths are written
+outside the dictionary (tests/workbench_damage_effects.py: hard switches, their own parameters)."""
+
+from __future__ import annotations
+
+import itertools
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from workbench.discover import build_dictionary, dictionary_source
+from workbench.discover._dictionary import GATE_FORMS, Term
+from workbench.discover._effect_writer import describe_term, emit_effect_source, parameter_names_for
+from workbench.discover._gates import describe_damage, gate_values, gate_width, onsets
+
+DAMAGE = (Path(__file__).parents[1] / "workbench_damage_effects.py")
+
+
+def test_gate_code_agrees_with_its_numpy_values():
+    s = np.linspace(-2e-3, 2e-3, 9)
+    t = np.linspace(0.0, 3.0, 9)
+    for name, form in GATE_FORMS.items():
+        code = form.code.replace("math.tanh", "np.tanh").replace("abs(", "np.abs(").replace("max(", "np.maximum(")
+        h = gate_width(name, "m")
+        got = eval(code, {"np": np, "S": s, "G": 5e-4 if name == "on_gap" else 1.4, "H": h, "t": t})
+        want = gate_values(name, s, 5e-4 if name == "on_gap" else 1.4, t, "m")
+        assert np.allclose(got, want), name
+    # the gap gate times a stiffness is the dead zone k (δ − clip(δ, ±g)): continuous, free play within ±g
+    assert np.allclose(s * gate_values("on_gap", s, 5e-4, t, "m"), s - np.clip(s, -5e-4, 5e-4))
+
+
+def test_onsets_span_the_record():
+    got = onsets(30.0, (0.125, 0.375, 0.625, 0.875))
+    assert [t0 for t0, _ in got] == [3.75, 11.25, 18.75, 26.25]
+    assert got[0][1][0] == 0.0 and got[-1][1][1] == 30.0
+    assert all(a[1][1] == b[1][0] for a, b in itertools.pairwise(got))  # contiguous refit ranges
+
+
+def test_words_name_the_damage_as_an_engineer_would():
+    crack = describe_damage("k", 1, "on_pos", "delta2", -0.25, 0.0)
+    assert crack.startswith("a breathing crack in section 2 that opens for δ2 > 0: stiffness k2 lower by 25 %")
+    event = describe_damage("k", 1, "on_step", "one", -0.25, 20.04, 0.08)
+    assert event.startswith("section 2 lost 25 % of its stiffness at t = 20.04 ± 0.08 s")
+    patch = describe_damage("d_ep", -1, "on_neg", "va", -0.3, 0.0)
+    assert patch.startswith("a patch whose authority d_ep is 30 % lower for negative drive")
+    play = describe_damage("k", 0, "on_gap", "delta1", 0.4, 2e-5)
+    assert "section 1 is stiffer by 40 % beyond ±20 µm of δ1" in play and "free play" in play
+    ramp = describe_damage("c", 2, "on_ramp", "one", 0.01, 5.0, 0.5)
+    assert "damping c3 of section 3 rising by 1 %/s from t = 5.0 ± 0.5 s" in ramp
+    mass = describe_damage("m", 2, "on_step", "one", -0.1, 3.0)
+    assert mass.startswith("mass m3 fell by 10 % at t = 3 s")
+    term = Term("damage", 1, "one", "on_step", 20.0, "k", (15.0, 22.5))
+    assert describe_term(term, -0.25, 20.04, 1.0, 0.08) == event
+    assert term.key == "k2_step_t" and term.unit == "1"
+    assert Term("damage", 1, "one", "on_ramp", 20.0, "k").unit == "1/s"
+
+
+def test_dictionary_without_a_duration_has_no_time_gates_and_compiles():
+    scales = {f"{s}{i}": v for s, v in (("z", 1e-3), ("zd", 0.1), ("delta", 1e-3), ("ddelta", 0.1))
+              for i in (1, 2, 3)} | {"vc": 50.0, "va": 100.0}
+    terms = build_dictionary(scales)
+    assert not any(t.form in ("on_step", "on_ramp") for t in terms)
+    with_t = build_dictionary(scales | {"t": 12.0})
+    assert {t.key for t in with_t} > {t.key for t in terms}
+    assert not any(t.signal == "va" for t in build_dictionary(scales | {"t": 12.0}, driven=False)
+                   if t.placement == "damage")
+    compile(dictionary_source(with_t), "<dictionary>", "exec")
+
+
+def test_emitted_damage_file_reads_the_core_parameters_by_name(tmp_path):
+    from plant import resolve_effect
+
+    terms = [Term("damage", 1, "one", "on_step", 20.0, "k", (15.0, 22.5)),
+             Term("damage", -1, "va", "on_neg", 0.0, "d_ep"), Term("damage", 2, "one", "on_ramp", 3.0, "m", (0, 6)),
+             Term("damage", -1, "vc", "on_pos", 0.0, "beta_h"), Term("damage", -1, "one", "on_step", 4.0, "C_ep")]
+    names = parameter_names_for(terms)
+    values = {c: -0.2 for c, _ in names} | {g: t.shape for t, (_, g) in zip(terms, names) if g}
+    src = emit_effect_source(terms, values)
+    for seam in ("p[P.k2]", "x[X.delta2]", "p[P.d_ep]", "bus[B.qh1 + i]", "bus[B.va_demand]", "bus[B.z0dd]",
+                 "dx[X.ddelta3]", "p[P.beta_h]", "x[X.hq1 + i]", "p[P.C_ep]"):
+        assert seam in src, seam
+    assert "P_K" not in src and "po +" not in src
+    f = tmp_path / "damage.py"
+    f.write_text(src)
+    cls = resolve_effect(str(f))
+    assert cls.__name__ == "DiscoveredSection2StiffnessEventPlus"
+    assert cls.fit_range("g_k2_step_t").lower < 20.0 < cls.fit_range("g_k2_step_t").upper
+    assert "lost 20 % of its stiffness at t = 20 s" in describe_term(terms[0], -0.2, 20.0, 1.0)
+
+
+CASES = {
+    "event": ("Section2StiffnessEvent", {"loss_k2": 0.25, "t_event": 4.0}, "k2_step_t",
+              ("section 2 lost", "of its stiffness at t = ")),
+    "crack": ("Section2BreathingCrack", {"open_loss": 0.25}, "k2_pos_delta2",
+              ("a breathing crack in section 2 that opens for δ2 > 0",)),
+    "polarity": ("PatchWeakNegative", {"neg_loss": 0.3}, "d_ep_neg_va",
+                 ("a patch whose authority d_ep is", "lower for negative drive")),
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("case", sorted(CASES))
+def test_discover_names_damage_written_outside_it_and_its_file_refits(case, tmp_path):
+    """A 6 s sweep whose truth is damage written outside the dictionary (hard switches): discover names the damage
+    form, the relative change within 3 points and the instant within 20 ms, and the emitted file refits with
+    `shm fit --add` to the noise floor."""
+    import json
+
+    from shm_cli.main import main
+    from workbench.discover import discover
+    from workbench.records import write_record
+    from workbench.simulation import synth_record, synth_test, truth_model
+
+    cls, values, key, words = CASES[case]
+    rec = synth_record(synth_test("sweep", duration_s=6.0), truth_model("table2", [f"{DAMAGE}:{cls}"], values),
+                       noise={"z3": 2e-6}, seed=11)
+    d = discover([rec], "table2", max_terms=1)
+    assert d.verdict == "found", d.message
+    found = d.terms[0]
+    assert found.term.key == key, d.message
+    assert all(w in found.words for w in words), found.words
+    truth = -next(v for k, v in values.items() if k != "t_event")
+    assert found.coef == pytest.approx(truth, abs=0.03)
+    if "t_event" in values:
+        assert found.shape == pytest.approx(values["t_event"], abs=0.02)
+    path, emitted = tmp_path / "rec.csv", tmp_path / "damage_found.py"
+    write_record(rec, path)
+    emitted.write_text(d.effect_source(effect_name="damage_found") or "")
+    assert main(["fit", str(path), "--params", "table2", "--add", str(emitted), "--save", str(tmp_path / "r.toml"),
+                 "--out", str(tmp_path / "fit"), "--json"]) == 0
+    fit = json.loads((tmp_path / "fit" / "fit.json").read_text())
+    assert fit["held_rms_sigma"]["after"] <= 1.5

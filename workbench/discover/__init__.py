@@ -1,0 +1,26 @@
+"""Discovery of a term no library effect has: a dictionary of forms, sparse search, the emitted effect."""
+
+from __future__ import annotations
+
+from workbench.discover._dictionary import build_dictionary, dictionary_parameter_names, dictionary_source
+from workbench.discover._dictionary_effect import generated_effect, signal_scales
+from workbench.discover._effect_writer import formula, parameter_names
+from workbench.discover._gates import TIME_GATES
+from workbench.discover._onset import change_point, event_onset
+from workbench.discover._pipeline import describe_units, discover, load_emitted
+
+__all__ = [
+    "TIME_GATES",
+    "build_dictionary",
+    "change_point",
+    "describe_units",
+    "dictionary_parameter_names",
+    "dictionary_source",
+    "discover",
+    "event_onset",
+    "formula",
+    "generated_effect",
+    "load_emitted",
+    "parameter_names",
+    "signal_scales",
+]

@@ -1,0 +1,273 @@
+"""Damage forms of ``shm discover``'s dictionary: a core parameter's own contribution to the equations switched by
+a *gate* — the conditions under which real damage acts.
+
+A damage term is ``c × contribution(parameter) × gate``, where ``c`` is the parameter's relative change (1; for a
+ramp, 1/s) while the gate is open. Contributions (what the parameter adds to the equations, :data:`CONTRIBUTIONS`):
+
+=============  ==================================================================================================
+``k`` (i)      the stiffness force of section i, −k_i·δ_i on the section force S_i
+``c`` (i)      the damping force of section i, −c_i·δ̇_i on S_i
+``m`` (j)      the inertia of mass j: its acceleration divided by (1 + c) (a mass m_j·(1 + c))
+``d_ep``       the drive coupling θ_i = k_i·d_ep of every patch: the force θ_i·q_hi/C_ep and the current −θ_i·δ̇_i
+``alpha_h``    the hysteresis share: q_hi += c·α_h·(q_i − h_qi)
+``beta_h``     the Bouc-Wen β_h term of ḣ_qi
+``R_ep``       the current through R_ep (a resistance R_ep·(1 + c))
+``C_ep``       1/C_ep in the patch voltage and in the piezo force (a capacitance C_ep·(1 + c))
+=============  ==================================================================================================
+
+Gates (:data:`GATES`, code in ``S`` the gate's signal, ``G`` its shape, ``H`` a fixed smoothing width): open for a
+positive or negative signal (a breathing crack: δ_i > 0; direction-dependent damping: δ̇_i > 0; polarisation:
+the drive's or the patch voltage's sign), beyond a gap ``(|S| − G)⁺/|S|`` (free play or contact: with the stiffness
+it is exactly k·(δ − clip(δ, ±G))), a step at an instant ``G`` = t0 inside the record (a damage event), and a ramp
+from t0 (damage growing). Which gates each contribution meets is :data:`GATED_BY`; the dictionary crosses them
+(:func:`workbench.discover.build_dictionary`), so a form nobody wrote a test for is still a member.
+
+This module holds the pieces as data and text (no :class:`~workbench.discover._dictionary.Term`): the kernel lines
+of a contribution (:func:`contribution_lines`), the gate's values on arrays (:func:`gate_values`), its formula and
+words (:func:`describe_damage`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Gate:
+    """A switching condition: numba ``code`` in S, G, H and t; ``shape`` names G ("" if unused); a ramp's value is in
+    seconds (``per_second``: the coefficient is a rate)."""
+
+    name: str
+    code: str
+    shape: str = ""
+    per_second: bool = False
+    formula: str = ""
+
+
+GATES: dict[str, Gate] = {
+    "on_pos": Gate("on_pos", "0.5 * (1.0 + math.tanh(S / H))", formula="[S > 0]"),
+    "on_neg": Gate("on_neg", "0.5 * (1.0 - math.tanh(S / H))", formula="[S < 0]"),
+    "on_gap": Gate("on_gap", "max(abs(S) - G, 0.0) / max(abs(S), G)", "gap", formula="(|S| − G)⁺ / |S|"),
+    "on_step": Gate("on_step", "0.5 * (1.0 + math.tanh((t - G) / H))", "onset time", formula="[t > G]"),
+    "on_ramp": Gate("on_ramp", "max(t - G, 0.0)", "onset time", per_second=True, formula="(t − G)⁺"),
+}
+#: the gates that switch on a signal's sign or a gap (the hard forms of the search) and those in time
+SIGN_GATES = ("on_pos", "on_neg")
+TIME_GATES = ("on_step", "on_ramp")
+#: smoothing width H of a sign gate by the unit of its signal (far below any signal's scale: a switch for the
+#: record, smooth for the integrator), and of the time step (s: below a sample at the fits' 250 Hz — a 25 % loss of
+#: k2 at 20 s of a sweep, switched over 10 ms, differed from the same loss switched at once by 2.5 σ RMS, 0.06 σ
+#: over 1 ms)
+SIGN_WIDTH = {"m": 1e-7, "m/s": 1e-5, "V": 1e-2}
+STEP_WIDTH_S = 1e-3
+#: onset times a step is screened at (fractions of the record; the refit moves t0 by up to half the spacing either
+#: way, so together they span the record), and those of a ramp
+STEP_AT = (0.125, 0.375, 0.625, 0.875)
+RAMP_AT = (0.25, 0.75)
+#: gaps, fractions of the section deflection's scale
+GAP_AT = (0.3, 0.6)
+
+
+@dataclass(frozen=True)
+class Contribution:
+    """A core parameter's own term: ``per`` section, mass or (every) patch; ``hooks``: kernel lines per hook with
+    ``{A}`` the term's factor (coefficient × gate) and ``{i}`` the section/mass index (a patch's lines run in a loop
+    over ``i``); ``formula``: the term in symbols; ``what``: words."""
+
+    name: str
+    per: str
+    hooks: dict[str, tuple[str, ...]]
+    formula: str
+    what: str
+
+
+def _mass_lines(j: int) -> tuple[str, ...]:
+    acc = " + ".join(f"dx[X_DDELTA + {k}]" for k in range(j + 1)) + " + bus[B_Z0DD]"
+    lines = ("f_m = {A}", "f_m = f_m / max(1.0 + f_m, 0.05)", f"a_m = {acc}", f"dx[X_DDELTA + {j}] -= a_m * f_m")
+    return lines + ((f"dx[X_DDELTA + {j + 1}] += a_m * f_m",) if j < 2 else ())
+
+
+CONTRIBUTIONS: dict[str, Contribution] = {
+    "k": Contribution("k", "section", {"rates": ("bus[B_S + {i}] += -({A}) * p[P_K + {i}] * x[X_DELTA + {i}]",)},
+                      "S_{n} += −c · k{n} · δ{n}", "stiffness k{n} of section {n}"),
+    "c": Contribution("c", "section", {"rates": ("bus[B_S + {i}] += -({A}) * p[P_C + {i}] * x[X_DDELTA + {i}]",)},
+                      "S_{n} += −c · c{n} · δ̇{n}", "damping c{n} of section {n}"),
+    "m": Contribution("m", "mass", {}, "mass j: acceleration ÷ (1 + c)", "mass m{n}"),
+    "d_ep": Contribution("d_ep", "patch", {"rates": (
+        "f_d = ({A}) * p[P_K + i] * p[P_D_EP]", "bus[B_S + i] += f_d * bus[B_QH + i] / p[P_C_EP]",
+        "dx[X_Q + i] -= f_d * x[X_DDELTA + i]")},
+        "S_i += c · k_i d_ep q_hi / C_ep,  dq_i/dt −= c · k_i d_ep δ̇_i", "patch authority d_ep"),
+    "alpha_h": Contribution("alpha_h", "patch", {"pre": (
+        "bus[B_QH + i] += ({A}) * p[P_ALPHA_H] * (x[X_Q + i] - x[X_H + i])",)},
+        "q_hi += c · α_h (q_i − h_qi)", "hysteresis share α_h of the patches"),
+    "beta_h": Contribution("beta_h", "patch", {"post": (
+        "h_b = x[X_H + i]",
+        "dx[X_H + i] -= ({A}) * p[P_BETA_H] * abs(dx[X_Q + i]) * abs(h_b) ** (p[P_N_H] - 1.0) * h_b")},
+        "dh_qi/dt −= c · β_h |q̇_i| |h_qi|^(n−1) h_qi", "hysteresis β_h of the patches"),
+    "R_ep": Contribution("R_ep", "patch", {"rates": (
+        "f_r = {A}", "i_r = -f_r / max(1.0 + f_r, 0.05) * (bus[B_VA] - bus[B_VC + i]) / p[P_R_EP]",
+        "bus[B_IR + i] += i_r", "dx[X_Q + i] += i_r")},
+        "R_ep → R_ep (1 + c)", "patch resistance R_ep"),
+    "C_ep": Contribution("C_ep", "patch", {
+        "pre": ("f_c = {A}", "bus[B_VC + i] -= f_c / max(1.0 + f_c, 0.05) * x[X_Q + i] / p[P_C_EP]"),
+        "rates": ("f_c = {A}",
+                  "bus[B_S + i] -= f_c / max(1.0 + f_c, 0.05) * p[P_K + i] * p[P_D_EP] * bus[B_QH + i] / p[P_C_EP]")},
+        "C_ep → C_ep (1 + c) in q_i/C_ep and in the piezo force", "patch capacitance C_ep"),
+}
+
+#: the gate signals each contribution meets: "own_delta"/"own_ddelta" the section's own deflection/rate, "va" the
+#: drive, "vc" the patch voltage (its charge), "time" the step and the ramp; "gap" the gap of the section's deflection
+GATED_BY: dict[str, tuple[str, ...]] = {
+    "k": ("own_delta", "gap", "time"),
+    "c": ("own_ddelta", "own_delta", "time"),
+    "m": ("time",),
+    "d_ep": ("va", "vc", "time"),
+    "alpha_h": ("va", "vc", "time"),
+    "beta_h": ("va", "vc", "time"),
+    "R_ep": ("va", "vc", "time"),
+    "C_ep": ("va", "time"),
+}
+
+
+def param_label(param: str, index: int) -> str:
+    """The parameter as named in a term's key: ``k2``, ``m3``, ``d_ep``."""
+    return f"{param}{index + 1}" if CONTRIBUTIONS[param].per != "patch" else param
+
+
+def contribution_lines(param: str, index: int, factor: str) -> dict[str, list[str]]:
+    """Kernel lines (unindented) of ``param``'s contribution scaled by ``factor`` (numba code), per hook."""
+    con = CONTRIBUTIONS[param]
+    hooks = {"post": _mass_lines(index)} if param == "m" else con.hooks
+    out: dict[str, list[str]] = {}
+    for hook, lines in hooks.items():
+        body = [ln.replace("{A}", factor).replace("{i}", str(index)) for ln in lines]
+        out[hook] = ["for i in range(3):", *("    " + ln for ln in body)] if con.per == "patch" else body
+    return out
+
+
+def gate_width(form: str, unit: str) -> float:
+    """The fixed smoothing width H of a gate on a signal of ``unit`` (s for the time step; 0 when unused)."""
+    if form == "on_step":
+        return STEP_WIDTH_S
+    return SIGN_WIDTH.get(unit, 1e-6) if form in SIGN_GATES else 0.0
+
+
+def gate_values(form: str, s: np.ndarray, g: float, t: np.ndarray, unit: str) -> np.ndarray:
+    """The gate evaluated on arrays (NumPy): signal ``s`` (of ``unit``), shape ``g``, time ``t`` (s)."""
+    h = gate_width(form, unit)
+    s = np.broadcast_to(np.asarray(s, float), np.shape(t)) if np.ndim(s) == 0 else np.asarray(s, float)
+    if form == "on_pos":
+        return 0.5 * (1.0 + np.tanh(s / h))
+    if form == "on_neg":
+        return 0.5 * (1.0 - np.tanh(s / h))
+    if form == "on_gap":
+        return np.maximum(np.abs(s) - g, 0.0) / np.maximum(np.abs(s), g)
+    if form == "on_step":
+        return 0.5 * (1.0 + np.tanh((np.asarray(t, float) - g) / h))
+    if form == "on_ramp":
+        return np.maximum(np.asarray(t, float) - g, 0.0)
+    raise KeyError(form)
+
+
+# ----------------------------------------------------------------------------------------------------------------
+# words
+
+
+def _condition(form: str, signal: str) -> str:
+    """The gate's condition in words: 'δ2 > 0', 'negative drive'."""
+    positive = form == "on_pos"
+    if signal.startswith("ddelta"):
+        return f"δ̇{signal[-1]} {'>' if positive else '<'} 0"
+    if signal.startswith("delta"):
+        return f"δ{signal[-1]} {'>' if positive else '<'} 0"
+    if signal == "va":
+        return f"{'positive' if positive else 'negative'} drive"
+    if signal == "vc":
+        return f"{'positive' if positive else 'negative'} patch voltage (charge)"
+    return f"{signal} {'>' if positive else '<'} 0"
+
+
+def _instant(t0: float, se: float | None) -> str:
+    """'t = 20.0 ± 0.1 s' (decimals from the standard error; '20 s' without one)."""
+    if se is None or not math.isfinite(se) or se <= 0:
+        return f"t = {t0:.4g} s"
+    d = min(max(0, -math.floor(math.log10(se))), 6)
+    return f"t = {t0:.{d}f} ± {se:.{d}f} s"
+
+
+def describe_damage(param: str, index: int, form: str, signal: str, coef: float, shape: float,
+                    shape_se: float | None = None) -> str:
+    """One sentence, in an engineer's words, for the damage term ``coef`` × contribution(``param``) × gate."""
+    n = index + 1
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    pct = f"{100 * abs(coef):.3g} %"
+    lower = coef < 0
+    lh = "lower" if lower else "higher"
+    if form in SIGN_GATES:
+        cond = _condition(form, signal)
+        if param == "k" and signal.startswith("delta"):
+            if lower:
+                return (f"a breathing crack in section {n} that opens for {cond}: stiffness k{n} lower by {pct} on "
+                        "that side (bilinear stiffness)")
+            return (f"section {n} is stiffer by {pct} for {cond} (bilinear stiffness: a contact or a crack that "
+                    "closes on that side)")
+        if param == "d_ep":
+            return (f"a patch whose authority d_ep is {pct} {lh} for {cond} (polarisation-dependent coupling: a "
+                    "partly depolarised patch)")
+        if param == "c" and signal.startswith("delta"):
+            return (f"damping c{n} of section {n} {pct} {lh} while {cond} (a crack whose faces rub when it is "
+                    "open)")
+        return f"{what} {pct} {lh} for {cond} (a sign-dependent {what.split(' of ')[0]})"
+    if form == "on_gap":
+        if param == "k":
+            return (f"section {n} is {'softer' if lower else 'stiffer'} by {pct} beyond ±{_length(shape)} of δ{n}"
+                    + (": free play / contact — a clearance in its joint that closes at that gap" if not lower else
+                       ": a joint that slips past that deflection"))
+        return f"{what} {pct} {lh} beyond ±{_length(shape)} of δ{n} (past a gap)"
+    if form == "on_step":  # no finer than the step's own width: the model cannot place it closer
+        at = _instant(shape, None if shape_se is None else max(shape_se, STEP_WIDTH_S))
+        if param == "k" and lower:
+            return f"section {n} lost {pct} of its stiffness at {at} (a damage event inside the record)"
+        if param == "m":
+            return f"mass m{n} {'fell' if lower else 'grew'} by {pct} at {at} (a part lost or added during the record)"
+        return f"{what} {'dropped' if lower else 'rose'} by {pct} at {at} (an event inside the record)"
+    if form == "on_ramp":
+        rate = f"{100 * abs(coef):.3g} %/s"
+        return (f"{what} {'falling' if lower else 'rising'} by {rate} from {_instant(shape, shape_se)} on "
+                "(damage growing during the record)")
+    raise KeyError(form)
+
+
+def _length(x: float) -> str:
+    return f"{x * 1e3:.3g} mm" if abs(x) >= 1e-3 else f"{x * 1e6:.3g} µm"
+
+
+def damage_formula(param: str, index: int, form: str, signal: str, cname: str, gname: str | None) -> str:
+    """The term as a formula (for the emitted file's docstring)."""
+    gate = GATES[form].formula.replace("S", {"one": "1"}.get(signal, signal)).replace("G", gname or "g")
+    con = CONTRIBUTIONS[param].formula.format(n=index + 1)
+    return f"{con}   with c = {cname} · {gate}"
+
+
+def class_stem(param: str, index: int, form: str) -> str:
+    """CamelCase words for an emitted class: 'Section2StiffnessEvent'."""
+    base = {"k": f"Section{index + 1}Stiffness", "c": f"Section{index + 1}Damping", "m": f"Mass{index + 1}",
+            "d_ep": "PatchCoupling", "alpha_h": "PatchHysteresisShare", "beta_h": "PatchHysteresis",
+            "R_ep": "PatchResistance", "C_ep": "PatchCapacitance"}[param]
+    return base + {"on_pos": "Positive", "on_neg": "Negative", "on_gap": "BeyondGap", "on_step": "Event",
+                   "on_ramp": "Growth"}[form]
+
+
+def onsets(duration_s: float, fractions: Sequence[float]) -> list[tuple[float, tuple[float, float]]]:
+    """(t0, refit range of t0) for onsets at ``fractions`` of a record of ``duration_s``: each range reaches half way
+    to its neighbours, the first from 0 and the last to the end."""
+    out = []
+    for k, f in enumerate(fractions):
+        lo = 0.0 if k == 0 else 0.5 * (fractions[k - 1] + f)
+        hi = 1.0 if k == len(fractions) - 1 else 0.5 * (f + fractions[k + 1])
+        out.append((f * duration_s, (lo * duration_s, hi * duration_s)))
+    return out

@@ -1,0 +1,215 @@
+"""The onset of a damage event inside a record: where the residual leaves the noise (:func:`change_point`), every
+time-gated key of the dictionary probed there (:func:`onset_probe`), the best few parameters' steps and ramps chosen
+for a refit (:func:`with_onsets`) and each scanned around its onset (:func:`onset_scan`) as the refit's start."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+
+import numpy as np
+
+from plant import PlantModel
+from workbench.discover._dictionary import Term
+from workbench.discover._gates import TIME_GATES
+from workbench.discover._results import ScreenRow
+from workbench.discover._search import probe_batch
+from workbench.fit import Target
+
+#: a time-gated term's onset: found in the residual (:func:`change_point`), every time-gated key probed there
+#: (:func:`onset_probe`), the best few scanned around it (ONSET_ZOOM onsets over ± 1/ONSET_SCAN of the record and
+#: multiples of the coefficient, then zoomed in, the spacing shrinking each time, down to a few milliseconds) and
+#: refitted. Neither least squares nor a screen at fixed onsets can place t0: the error of a mistimed step rings in
+#: the lightly damped modes — a 25 % loss of k2 at 20 s of a sweep leaves 0.06 σ at the right instant, 8 σ 10 ms off,
+#: 23 σ 50 ms off, 28 σ 0.1 s off (refitted from the 18.75 s onset: 325 σ held-out; at 10 s of a 15 s sweep the
+#: linearised screen ranked damping steps first and the probes at fixed onsets ranked contact terms first)
+ONSET_SCAN = 24
+ONSET_MULTIPLIERS = (0.4, 0.8, 1.4, 2.5)
+ONSET_ZOOM = 9  # odd: the best onset so far is on the next grid
+#: half-width of the first grid around an onset found in the residual (s; that onset is within a few samples)
+ONSET_NEAR_S = 0.1
+ONSET_RESOLUTION_S = 2e-3
+#: time-gated keys refitted per round (each after a scan around its onset)
+MAX_ONSET_KEYS = 2
+
+
+def change_point(t: np.ndarray, r: np.ndarray) -> tuple[float, float]:
+    """The instant the residual ``r`` (channels × samples, in σ) leaves the noise — the first where its RMS over
+    ten samples exceeds 3 σ, when that is past the record's first 2 % (a change point by variance lags an event:
+    the error of a lost stiffness grows from 0) — else where it changes its level most (two segments of constant
+    variance, maximum likelihood); and the log-likelihood gained over one segment."""
+    e = np.sum(np.asarray(r, float) ** 2, axis=0) / max(np.shape(r)[0], 1) + 1e-12
+    n = e.size
+    if n < 20:
+        return float(t[0]), 0.0
+    win = 10
+    mean = np.convolve(e, np.ones(win) / win, mode="valid")
+    over = np.flatnonzero(mean > 9.0)
+    first = int(over[0]) + win - 2 if over.size else n  # the window's last samples made it exceed
+    c = np.cumsum(e)
+    k = np.unique(np.linspace(0.02 * n, 0.98 * n, 400).astype(int))
+    cost = k * np.log(c[k - 1] / k) + (n - k) * np.log((c[-1] - c[k - 1]) / (n - k))
+    i = int(np.argmin(cost))
+    gain = float(n * math.log(c[-1] / n) - cost[i])
+    if 0.02 * n < first < n:
+        return float(t[first]), gain
+    return float(t[k[i]]), gain
+
+
+#: an event inside the record (:func:`event_onset`): the nominal model matches the record to within this RMS (σ)
+#: before the instant its residual leaves the noise, that quiet part is at least :data:`QUIET_SHARE` of the record,
+#: and after it the residual is above :data:`LOUD_SIGMA` RMS
+QUIET_SIGMA = 1.2
+QUIET_SHARE = 0.2
+LOUD_SIGMA = 3.0
+
+
+def event_onset(t: np.ndarray, r: np.ndarray) -> float | None:
+    """The instant (s) a damage event inside the record would have happened, from the nominal model's residual
+    ``r`` (channels × samples, in σ): where it first leaves the noise (its RMS over ten samples above 3 σ, as in
+    :func:`change_point`) when the record before that is at the noise level (:data:`QUIET_SIGMA`) over at least
+    :data:`QUIET_SHARE` of it and the rest is well above it (:data:`LOUD_SIGMA`); else None (a model wrong from the
+    start, or nothing wrong)."""
+    e = np.sum(np.asarray(r, float) ** 2, axis=0) / max(np.shape(r)[0], 1)
+    n = e.size
+    win = 10
+    if n < 20 * win:
+        return None
+    over = np.flatnonzero(np.convolve(e, np.ones(win) / win, mode="valid") > 9.0)
+    if not over.size:
+        return None
+    first = int(over[0]) + win - 2
+    if first < QUIET_SHARE * n:
+        return None
+    quiet = math.sqrt(float(np.mean(e[:first])))
+    loud = math.sqrt(float(np.mean(e[first:])))
+    return float(t[first]) if quiet <= QUIET_SIGMA and loud > LOUD_SIGMA else None
+
+
+#: relative changes a step is probed at first (not the linearised coefficient: a 25 % loss of k2 is far from
+#: linear), and the total changes over the rest of the record a ramp is probed at; a key whose best probe is the
+#: largest of its sign is probed further out (:data:`EDGE_OUT`: a damping ×4 is +300 %), a loss never past
+#: :data:`MAX_LOSS` (the refit's own bound: a parameter keeps its sign)
+STEP_PROBES = (-0.3, -0.1, -0.03, 0.03, 0.1, 0.3)
+RAMP_PROBES = (-0.3, -0.1, 0.1, 0.3)
+EDGE_OUT = (3.0, 10.0)
+MAX_LOSS = -0.95
+#: how much earlier than the residual leaves the noise a step is probed (s): the error of an event needs a moment
+STEP_LEADS_S = (0.0, 0.02)
+#: multiples of each key's best probe tried next
+COEF_REFINE = (0.7, 0.85, 1.15, 1.3)
+#: rounds of probing: the first probes, then refinement and probes further out while a key's best is at its edge
+PROBE_ROUNDS = 4
+
+
+def _total_change(row: ScreenRow, coef: float, rest: float) -> float:
+    """A probe's relative change of its parameter at the record's end (a ramp's rate × the time left)."""
+    return coef * rest if row.term.form == "on_ramp" else coef
+
+
+def _next_probes(best: Mapping[str, ScreenRow], probed: Mapping[str, list[float]], refined: set[tuple[str, float]],
+                 rest: float) -> list[tuple[ScreenRow, float, float]]:
+    """Each key's next probes: its best refined by :data:`COEF_REFINE` (once per best), and, when the best is the
+    largest probe of its sign (the change may be larger), :data:`EDGE_OUT` times it (a loss up to
+    :data:`MAX_LOSS`)."""
+    out: list[tuple[ScreenRow, float, float]] = []
+    for key, b in best.items():
+        at = float(b.shape if b.shape is not None else 0.0)
+        total = _total_change(b, b.coef, rest)
+        same_sign = [v for v in probed[key] if v * total > 0]
+        coefs: list[float] = []
+        if same_sign and abs(total) >= max(abs(v) for v in same_sign) * (1 - 1e-9):
+            coefs += [b.coef * m for m in EDGE_OUT]
+        if (key, b.coef) not in refined:
+            coefs += [b.coef * m for m in COEF_REFINE]
+        for c in coefs:
+            c = max(c, MAX_LOSS / (rest if b.term.form == "on_ramp" else 1.0))
+            if all(abs(_total_change(b, c, rest) - v) > 1e-9 for v in probed[key]):
+                out.append((b, c, at))
+    return out
+
+
+def onset_probe(rows: Sequence[ScreenRow], names: Mapping[Term, tuple[str, str | None]], targets: Sequence[Target],
+                models: Sequence[PlantModel], values: Mapping[str, float], t0: float, t_end: float,
+                threads: int | None) -> tuple[list[ScreenRow], int]:
+    """Every time-gated key probed at the onset ``t0`` (s; ``t_end`` the record's end) at the relative changes of
+    :data:`STEP_PROBES` / :data:`RAMP_PROBES`, then refined and followed outwards (:func:`_next_probes`), one batch a
+    round; one row per key at its best probe (``shape`` = t0), best first, and the number of probes per record."""
+    firsts: dict[str, ScreenRow] = {}
+    for r in rows:
+        if r.term.form in TIME_GATES and names[r.term][1] is not None:
+            firsts.setdefault(r.term.key, r)
+    rest = max(t_end - t0, 1e-3)
+    flat = [(r, v, t0 - lead) for r in firsts.values() if r.term.form == "on_step" for v in STEP_PROBES
+            for lead in STEP_LEADS_S]
+    flat += [(r, v / rest, t0) for r in firsts.values() if r.term.form == "on_ramp" for v in RAMP_PROBES]
+    best: dict[str, ScreenRow] = {}
+    probed: dict[str, list[float]] = {k: [] for k in firsts}
+    refined: set[tuple[str, float]] = set()
+    n = 0
+    for _ in range(PROBE_ROUNDS):
+        if not flat:
+            break
+        settings = [{names[r.term][0]: c, str(names[r.term][1]): max(at, 0.0)} for r, c, at in flat]
+        held, train, ok = probe_batch(targets, models, values, settings, threads)
+        n += len(flat)
+        refined |= {(k, b.coef) for k, b in best.items()}
+        for (r, c, at), h, e, good in zip(flat, held, train, ok):
+            probed[r.term.key].append(_total_change(r, c, rest))
+            if good and (r.term.key not in best or e < best[r.term.key].train_rms_sigma):
+                best[r.term.key] = ScreenRow(r.term, c, float(h), float(e), max(at, 0.0))
+        flat = _next_probes(best, probed, refined, rest)
+    return sorted(best.values(), key=lambda r: r.train_rms_sigma), n
+
+
+def onset_scan(row: ScreenRow, name: tuple[str, str | None], targets: Sequence[Target],
+               models: Sequence[PlantModel], values: Mapping[str, float], span: tuple[float, float],
+               threads: int | None) -> tuple[dict[str, float], int]:
+    """The best (coefficient, onset) of a time-gated term by the training error — around the row's probed onset
+    (else a grid over ``span``, s, the record), then zoomed in — as a refit's start, and the number of probes per
+    record."""
+    cname, gname = name
+    if gname is None:
+        return {cname: row.coef}, 0
+    lo, hi = span
+    step = (hi - lo) / ONSET_SCAN
+    if row.shape is not None:  # probed on the full model at that onset: its coefficient is close already
+        step = min(step, ONSET_NEAR_S)
+        grid = [(c * row.coef, min(max(row.shape + (k / (ONSET_ZOOM - 1) * 2.0 - 1.0) * step, lo), hi))
+                for k in range(ONSET_ZOOM) for c in (0.92, 1.0, 1.08)]
+        step /= 0.5 * (ONSET_ZOOM - 1)
+    else:
+        grid = [(c * row.coef, lo + (k + 0.5) * step) for k in range(ONSET_SCAN) for c in ONSET_MULTIPLIERS]
+    best: tuple[float, float, float] | None = None  # (training RMS, coefficient, onset)
+    n = 0
+    while True:
+        _, train, ok = probe_batch(targets, models, values, [{cname: c, gname: t0} for c, t0 in grid], threads)
+        n += len(grid)
+        for (c, t0), e, good in zip(grid, train, ok):
+            if good and (best is None or e < best[0]):
+                best = (float(e), c, t0)
+        if best is None or step <= ONSET_RESOLUTION_S:
+            break
+        _, c, t0 = best
+        grid = [(c, min(max(t0 + (k / (ONSET_ZOOM - 1) * 2.0 - 1.0) * step, lo), hi)) for k in range(ONSET_ZOOM)]
+        step /= 0.5 * (ONSET_ZOOM - 1)
+    if best is None:
+        return {cname: row.coef}, n
+    return {cname: best[1], gname: best[2]}, n
+
+
+def with_onsets(todo: list[ScreenRow], leads: Sequence[ScreenRow], first: bool = False) -> list[ScreenRow]:
+    """The refit list with its time-gated rows (probed at fixed onsets: ranked too low or too high) replaced by the
+    rows of the probe at the residual's onset (:func:`onset_probe`) of its best :data:`MAX_ONSET_KEYS` *parameters*,
+    each with its step and its ramp: the probe sits at one onset, where a step a few milliseconds off rings in the
+    lightly damped modes and a ramp does not, so the probe cannot tell them apart (a k2 loss of 15 % probed 8 ms
+    early: the step 55 σ, the ramp 38 σ; scanned and refitted: the step 1 σ); the scan and the refit do. ``first``:
+    the time-gated rows lead the list (a change during the record is expected)."""
+    params: list[tuple[str, int]] = []
+    for r in leads:
+        if (r.term.param, r.term.index) not in params:
+            params.append((r.term.param, r.term.index))
+    chosen = params[:MAX_ONSET_KEYS]
+    timed = [r for r in leads if (r.term.param, r.term.index) in chosen]
+    rest = [r for r in todo if r.term.form not in TIME_GATES]
+    return timed + rest if first else rest + timed

@@ -1,0 +1,110 @@
+"""Fitting: parameters and library effects (candidates) refitted to records, with intervals and reports."""
+
+from __future__ import annotations
+
+from workbench.fit._calibrate import CLAIMS_FILE, DEFAULT_FREE, ClaimTarget, calibrate, load_claim_targets
+from workbench.fit._candidate_fit import (
+    AT_NOISE_FLOOR,
+    FORWARD_ABOVE,
+    MIN_REDUCTION,
+    PREFER_PARAMETER_WITHIN,
+    CandidateResult,
+    explained,
+    fit_spec,
+    noise_tolerance,
+    score,
+    screened_out,
+    spec_guess,
+    spec_models,
+)
+from workbench.fit._candidates import (
+    PARAMETER_CANDIDATES,
+    CandidateSpec,
+    ParameterCandidate,
+    RowsObjective,
+    ScreenResult,
+    base_values_of,
+    parameter_candidate,
+    screen_effects,
+    screen_parameters,
+)
+from workbench.fit._effect_library import (
+    CORE_PARAMETER_NAMES,
+    LIBRARY,
+    effect_free_parameters,
+    resolve_candidates,
+)
+from workbench.fit._effect_probe import probe_effects
+from workbench.fit._fitting import (
+    ChannelScore,
+    FitError,
+    FitHistoryPoint,
+    SimBatch,
+    Target,
+    channel_scores,
+    fit_records,
+    guess_data,
+    optimise,
+)
+from workbench.fit._objective import Objective, rms
+from workbench.fit._optimiser import FitOutcome, ParameterEstimate, outcome_at, train_residual_and_jacobian
+from workbench.fit._report import fit_statistics, fit_warnings, format_report, other_notes, report_dict
+from workbench.fit._targets import DEFAULT_BLOCKS, DEFAULT_MAX_RATE_HZ, model_factory, prepare_targets
+
+__all__ = [
+    "AT_NOISE_FLOOR",
+    "CLAIMS_FILE",
+    "CORE_PARAMETER_NAMES",
+    "DEFAULT_BLOCKS",
+    "DEFAULT_FREE",
+    "DEFAULT_MAX_RATE_HZ",
+    "FORWARD_ABOVE",
+    "LIBRARY",
+    "MIN_REDUCTION",
+    "PARAMETER_CANDIDATES",
+    "PREFER_PARAMETER_WITHIN",
+    "CandidateResult",
+    "CandidateSpec",
+    "ChannelScore",
+    "ClaimTarget",
+    "FitError",
+    "FitHistoryPoint",
+    "FitOutcome",
+    "Objective",
+    "ParameterCandidate",
+    "ParameterEstimate",
+    "RowsObjective",
+    "ScreenResult",
+    "SimBatch",
+    "Target",
+    "base_values_of",
+    "calibrate",
+    "channel_scores",
+    "effect_free_parameters",
+    "explained",
+    "fit_records",
+    "fit_spec",
+    "fit_statistics",
+    "fit_warnings",
+    "format_report",
+    "guess_data",
+    "load_claim_targets",
+    "model_factory",
+    "noise_tolerance",
+    "optimise",
+    "other_notes",
+    "outcome_at",
+    "parameter_candidate",
+    "prepare_targets",
+    "probe_effects",
+    "report_dict",
+    "resolve_candidates",
+    "rms",
+    "score",
+    "screen_effects",
+    "screen_parameters",
+    "screened_out",
+    "spec_guess",
+    "spec_models",
+    "train_residual_and_jacobian",
+]
