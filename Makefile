@@ -31,7 +31,7 @@ $(KERNELS): $(STAMP) $(wildcard plant/*.py plant/effects/*.py workbench/discover
 	@mkdir -p "$(@D)" && touch "$@"
 
 # Debian packages used by the integration tests (a real Modbus master, pty pairs) and headless Chromium (the HTML
-# reports are screenshot in tests/test_figures_legible.py).
+# reports are screenshot in tests/reporting/test_figures_legible.py).
 # Never fatal: the tests that need them skip with the reason printed.
 system-packages:
 	@if ! command -v mbpoll >/dev/null 2>&1 || ! command -v socat >/dev/null 2>&1; then \
@@ -70,8 +70,8 @@ test-fast: setup
 FUZZ_EXAMPLES ?= 50
 fuzz: setup
 	SHM_CLI_FUZZ=1 SHM_CLI_FUZZ_EXAMPLES=$(FUZZ_EXAMPLES) $(BIN)/pytest -n 2 --timeout=0 -q \
-	  tests/test_cli_properties.py tests/test_cli_properties_campaign.py tests/test_cli_properties_json.py \
-	  tests/test_campaign_intervals.py
+	  tests/shm_cli/test_cli_properties.py tests/shm_cli/test_cli_properties_campaign.py tests/shm_cli/test_cli_properties_json.py \
+	  tests/studies/test_campaign_intervals.py
 
 # Static types of every package (mypy; settings and the per-library exceptions in pyproject.toml [tool.mypy]).
 typecheck: setup

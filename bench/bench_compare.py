@@ -16,11 +16,9 @@ from scipy.integrate import solve_ivp
 
 from board_config import load_parameter_set
 from plant.reference import make_solve_ivp_rhs
-from workbench.compare import CompareOptions, compare
+from workbench.compare import CompareOptions, compare, write_report
 from workbench.records import Record, load_record, write_record
-from workbench.replay import model_for, replay
-from workbench.report import write_report
-from workbench.synth import synth_record, synth_test, truth_model
+from workbench.simulation import model_for, replay, synth_record, synth_test, truth_model
 
 
 def _load_time_record(path: Path) -> Record:

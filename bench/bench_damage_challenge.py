@@ -26,7 +26,7 @@ NOISES_M = (2e-6, 1e-5)
 def _one(args: tuple) -> dict:
     os.environ.setdefault("MFC_SHM_THREADS", "1")
     from plant.effect import load_effect_file
-    from workbench.discovery_challenge import DamageCase, DamageCaseResult, run_damage_case
+    from workbench.challenges.discovery import DamageCase, DamageCaseResult, run_damage_case
 
     cls_name, values, groups, strength, kind, noise, seed = args
     mod = load_effect_file(DAMAGE_FILE)
@@ -55,7 +55,7 @@ def cases(quick: bool, only: str | None = None) -> list[tuple]:
 
 def run(out_dir: Path, quick: bool, scheduler: str | None = None) -> dict:
     from studies.batch.cases import run_cases
-    from workbench.discovery_challenge import DamageCaseResult, format_damage_table, summarise_damage
+    from workbench.challenges.discovery import DamageCaseResult, format_damage_table, summarise_damage
 
     todo = cases(quick, os.environ.get("DAMAGE_CHALLENGE_ONLY"))
     results = []

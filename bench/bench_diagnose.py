@@ -16,8 +16,8 @@ import time
 from pathlib import Path
 
 from workbench.diagnose import diagnose
-from workbench.effect_library import LIBRARY
-from workbench.synth import synth_record, synth_test, truth_model
+from workbench.fit import LIBRARY
+from workbench.simulation import synth_record, synth_test, truth_model
 
 
 def _record(duration_s: float):

@@ -12,9 +12,14 @@ from pathlib import Path
 
 from bench.bench_diagnose import _record
 from board_config.parameter import freed
-from workbench.discover import discover
-from workbench.discover_dictionary_effect import generated_effect, signal_scales
-from workbench.discovery_dictionary import build_dictionary, dictionary_parameter_names, dictionary_source
+from workbench.discover import (
+    build_dictionary,
+    dictionary_parameter_names,
+    dictionary_source,
+    discover,
+    generated_effect,
+    signal_scales,
+)
 from workbench.fit import Objective, model_factory, optimise, prepare_targets
 
 

@@ -18,7 +18,7 @@ FOREIGN_FILE = Path(__file__).parents[1] / "tests" / "workbench_foreign_effects.
 def _one(args: tuple) -> dict:
     os.environ.setdefault("MFC_SHM_THREADS", "1")
     from plant.effect import load_effect_file
-    from workbench.discovery_challenge import DiscoveryCase, run_discovery_case
+    from workbench.challenges.discovery import DiscoveryCase, run_discovery_case
 
     cls_name, values, words, strength, kind, noise, seed = args
     mod = load_effect_file(FOREIGN_FILE)
@@ -26,7 +26,7 @@ def _one(args: tuple) -> dict:
     try:
         return run_discovery_case(case, kind, noise, seed).to_dict()
     except Exception as exc:  # one case's failure is a result (a miss with the reason), not the end of the run
-        from workbench.discovery_challenge import DiscoveryCaseResult
+        from workbench.challenges.discovery import DiscoveryCaseResult
 
         nan = float("nan")
         return DiscoveryCaseResult(
@@ -53,7 +53,7 @@ def cases(quick: bool) -> list[tuple]:
 
 def run(out_dir: Path, quick: bool, scheduler: str | None = None) -> dict:
     from studies.batch.cases import run_cases
-    from workbench.discovery_challenge import DiscoveryCaseResult, format_table, summarise
+    from workbench.challenges.discovery import DiscoveryCaseResult, format_table, summarise
 
     todo = cases(quick)
     results = []

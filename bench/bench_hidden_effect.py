@@ -2,7 +2,7 @@
 three strengths, wrong core parameters at two deviations, pairs of library effects at two strengths (and what
 other modules register) — at two noise levels and three test kinds (MBIT.a, MBIT.b, a 15 s voltage sweep),
 hidden in a synthetic record and diagnosed against the nominal model with every candidate (library effects and
-parameter re-estimations); plus effect-free records over many seeds. See :mod:`workbench.hidden_effect`.
+parameter re-estimations); plus effect-free records over many seeds. See :mod:`workbench.challenges.hidden_effect`.
 
 Targets (issue 11): a wrong parameter named first in ≥ 90 % of the cases that change the response by > 3 σ; both
 effects of a pair found in ≥ 80 %; a single library effect ranked first in ≥ 95 % (cases above the noise); an
@@ -18,7 +18,7 @@ import os
 import time
 from pathlib import Path
 
-from workbench.hidden_effect import (
+from workbench.challenges.hidden_effect import (
     CASE_KINDS,
     KINDS,
     NOISE_LEVELS_M,
@@ -64,7 +64,7 @@ def run_cases_logged(todo: list[tuple], log_path: Path, scheduler: str | None = 
     """Every case on ``scheduler`` (two local workers by default), each logged to ``log_path`` in case order; the
     results in case order and the number of workers."""
     from studies.batch.cases import run_cases
-    from workbench.hidden_effect import CaseResult
+    from workbench.challenges.hidden_effect import CaseResult
 
     results = []
     with log_path.open("w") as log:

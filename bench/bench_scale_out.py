@@ -18,7 +18,7 @@ import time
 from pathlib import Path
 
 from workbench.records import write_record
-from workbench.synth import synth_record, synth_test, truth_model
+from workbench.simulation import synth_record, synth_test, truth_model
 
 CANDIDATES = ["--candidates", "geometric_stiffening,m3", "--no-discover"]
 SHM = str(Path(sys.executable).parent / "shm")

@@ -1,5 +1,5 @@
 """Run a command in a subprocess and time its output lines as they arrive: the no-silence harness (issue 27.1)
-of tests/test_no_silence.py and the cold-start benchmark (bench/bench_coldstart.py).
+of tests/shm_cli/test_no_silence.py and the cold-start benchmark (bench/bench_coldstart.py).
 
 :func:`run_timed` starts the command with stdout and stderr on one pipe (what a user watching the terminal, or a
 log, sees), reads it as it comes and stamps every line (``\\n`` or ``\\r``: a progress bar's redraws count) with the

@@ -1,6 +1,6 @@
 """The one TOML writer: values, keys and simple documents as TOML text that :mod:`tomllib` reads back.
 
-Used by parameter sets (``ParameterSet.to_toml``) and by record headers (``workbench.records.meta_to_toml``).
+Used by parameter sets (``ParameterSet.to_toml``) and by record headers (``workbench.records._io.meta_to_toml``).
 The text it writes is stable (campaign stores and caches hash serialised parameter sets), so a change here is a
 change of every such hash: floats are written with ``repr`` (shortest round-tripping form), strings as basic
 strings with control characters escaped, keys bare when TOML allows it.

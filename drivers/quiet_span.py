@@ -6,7 +6,8 @@ blocks. A rig that can say, without advancing anything, which samples the next `
 would return (:meth:`QuietSpanSource.peek_quiet`) lets the board process those ticks as one array operation; the rig
 is then moved on by exactly the ticks the board took (:meth:`QuietSpanSource.commit_quiet`, at most ``n``: the board
 stops at the first tick that is not quiet, which is then exchanged and processed one by one as usual). Both sides
-guarantee the result is *bit-identical* to ``n`` single exchanges and ticks; ``tests/test_quiet_span.py`` checks it
+guarantee the result is *bit-identical* to ``n`` single exchanges and ticks; ``tests/drivers/test_quiet_span.py``
+checks it
 over every shipped scenario.
 
 Only a link that owns its rig in the same process can offer this (:class:`drivers.sim_link.InProcessLink`); a

@@ -17,7 +17,7 @@ Fault counter, once per monitor sample (``f_mon``, 100 Hz)::
     else:              count = max(count - counter_down, 0)   (-1, held at 0)
     if count > count_max:  fault latches                      (count_max = 200)
 
-Decisions (documented in docs/monitor.md and tested in tests/test_monitor_counter.py):
+Decisions (documented in docs/monitor.md and tested in tests/firmware_sim/test_monitor_counter.py):
 
 * **Both comparisons are strict** (the paper says the error "exceeds" the threshold and the counter "exceeds"
   count_max): ``eps == eps_th`` is *not* an exceedance and ``count == count_max`` is *not* a fault.

@@ -49,7 +49,7 @@ def run_case_task(key: str, files: dict[str, bytes], shared: dict[str, bytes], f
 
 def warm_kernels() -> None:
     """The nominal model's compiled kernel loaded on a worker before its first case (a 0.2 s MBIT.b record)."""
-    from workbench.synth import synth_record, synth_test, truth_model
+    from workbench.simulation import synth_record, synth_test, truth_model
 
     synth_record(synth_test("mbit-b", duration_s=0.2, t_step_s=0.05), truth_model("table2", [], {}))
 

@@ -30,7 +30,7 @@ NEAR_BOUND_SHARE = 1e-4
 
 
 def stopped_at_bound(e: Any) -> bool:
-    """True when a fit's :class:`~workbench.fit_optimiser.ParameterEstimate` ended at (or next to) its range bound."""
+    """True when a fit's :class:`~workbench.fit.ParameterEstimate` ended at (or next to) its range bound."""
     if e.at_bound:
         return True
     lo, hi = float(e.lower), float(e.upper)

@@ -103,7 +103,7 @@ def _fit_candidates(recs: Sequence[Record], params: str, extra: Sequence[str], m
                     ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """Each section stiffness (and each ``extra``) freed alone with the hysteresis pair: the fits by name and the
     candidates' JSON rows (an extra that cannot be fitted gets an ``error`` row; a section that cannot, raises)."""
-    from workbench.effect_library import CORE_PARAMETER_NAMES
+    from workbench.fit import CORE_PARAMETER_NAMES
 
     reps: dict[str, Any] = {}
     cands: list[dict[str, Any]] = []

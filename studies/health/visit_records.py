@@ -63,7 +63,7 @@ def run_identity(board_config: Mapping[str, Any]) -> dict[str, str]:
 def mbit_record(event: BoardEvent, *, visit: int, operating_hours: float | None, params: str,
                 z3_noise_m: float, scenario: str = "", run_id: int | None = None, time_offset_s: float = 0.0,
                 identity: Mapping[str, str] | None = None):
-    """The :class:`workbench.records.Record` of an ``mbit_record`` event (time from 0 at the settle's start)."""
+    """The :class:`workbench.records._io.Record` of an ``mbit_record`` event (time from 0 at the settle's start)."""
     d = event.data
     rows = np.asarray(d["rows"], dtype=float).reshape(-1, 4)
     t = np.round(rows[:, 0] - rows[0, 0], 9)  # board time differences, without their float residue
