@@ -297,7 +297,7 @@ def test_a_new_library_effect_is_one_file(one_new_library_file, table2_model):
     assert [c.strength for c in cases] == ["weak", "medium", "strong"] and cases[0].expected == (name,)
     # the library tests' parametrisation, collected afresh (a new copy of the module, as a new pytest run would
     # import it), holds it, and their checks pass
-    path = (Path(__file__).parents[1] / "test_effects_library.py")
+    path = Path(__file__).with_name("test_effects_library.py")
     spec = importlib.util.spec_from_file_location("_fresh_test_effects_library", path)
     assert spec is not None and spec.loader is not None
     lib_tests = importlib.util.module_from_spec(spec)
