@@ -1,4 +1,4 @@
-"""What every bad-input corpus test shares (tests/test_bad_inputs*.py): run ``shm`` in-process, check the one
+"""What every bad-input corpus test shares (tests/*/test_bad_inputs*.py): run ``shm`` in-process, check the one
 clear error line a case must end with, fingerprint the files a case must not touch, and drop the logging handlers
 ``shm hil serve`` leaves on pytest's closed capture stream."""
 

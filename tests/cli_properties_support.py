@@ -1,4 +1,4 @@
-"""Support of the property-based command-line tests (``tests/test_cli_properties*.py``, issue 15): hypothesis
+"""Support of the property-based command-line tests (``tests/shm_cli/test_cli_properties*.py``, issue 15): hypothesis
 profiles, running ``shm`` in-process with warnings as errors, checking what a command promised, and strategies
 that draw *valid* inputs from the documented ranges.
 
