@@ -17,6 +17,7 @@ into the cached machine code, so an edit there must recompile.
 from __future__ import annotations
 
 import ast
+import functools
 import hashlib
 import importlib
 import importlib.util
@@ -70,10 +71,22 @@ def _outside_project(module: ModuleType) -> bool:
     path = getattr(module, "__file__", None)
     if not path:
         return True
-    path = os.path.realpath(path)
+    return _path_outside_project(path)
+
+
+@functools.cache
+def _library_roots() -> tuple[str, ...]:
+    """The standard library's and site-packages' folders, resolved (fixed for the process)."""
     paths = sysconfig.get_paths()
     roots = {paths.get(k) for k in ("stdlib", "platstdlib", "purelib", "platlib")} - {None}
-    return any(path.startswith(os.path.realpath(str(r)) + os.sep) for r in roots)
+    return tuple(os.path.realpath(str(r)) + os.sep for r in roots)
+
+
+@functools.lru_cache(maxsize=4096)
+def _path_outside_project(path: str) -> bool:
+    """Whether a module file lies in the standard library or site-packages (memoised: a composition's
+    fingerprint asks this of every module its effects import, ~0.3 ms a call — 11 s of a 76 s diagnose)."""
+    return os.path.realpath(path).startswith(_library_roots())
 
 
 def _module_facts(module: ModuleType) -> tuple[str, tuple[str, ...]]:
