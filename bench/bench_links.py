@@ -72,6 +72,23 @@ def _start_stub(summary: Path, prefix: tuple[str, ...] = ()) -> tuple[subprocess
     return proc, urls
 
 
+def _stop_stub(proc: subprocess.Popen) -> None:
+    """Stop the stub as an operator would (SIGINT: it writes its summary), killed if it is not gone in 20 s."""
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=20)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait(timeout=5)
+
+
+def _paced_links(urls: dict[str, str], seconds: float, seconds_rtu: float) -> dict[str, dict]:
+    """The paced run on each of the stub's three links (Modbus TCP, serial frames and Modbus RTU on ptys)."""
+    return {"modbus_tcp": _paced_run(urls["modbus_tcp"], seconds),
+            "serial_pty": _paced_run(urls["serial_pty"], seconds),
+            "modbus_rtu_pty": _paced_run(urls["modbus_rtu"], seconds_rtu)}
+
+
 def _paced_run(url: str, seconds: float, link=None) -> dict:
     from firmware_sim.scheduler import Scheduler, WallClock
 
@@ -257,19 +274,12 @@ def _under_load(seconds: float, seconds_rtu: float) -> dict:
         with _RealTimePriority() as board_rt:
             # control under the same load: the in-process link, the same pacing — what the machine alone costs
             control = _paced_run("sim (in-process, paced, under load)", seconds, _in_process_link())
-            links = {"modbus_tcp": _paced_run(urls["modbus_tcp"], seconds),
-                     "serial_pty": _paced_run(urls["serial_pty"], seconds),
-                     "modbus_rtu_pty": _paced_run(urls["modbus_rtu"], seconds_rtu)}
+            links = _paced_links(urls, seconds, seconds_rtu)
         load_end = os.getloadavg()[0]
     finally:
         stalls = _stalls(probes)
         _stop(hogs)
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
+        _stop_stub(proc)
         summary_path.unlink(missing_ok=True)
     for res in (*links.values(), control):
         _attribute(res, stalls)
@@ -304,16 +314,9 @@ def run(out_dir: Path, quick: bool) -> dict:
     summary_path = Path(tempfile.mkstemp(prefix="shm-hil-bench-", suffix=".json")[1])
     proc, urls = _start_stub(summary_path)
     try:
-        links = {"modbus_tcp": _paced_run(urls["modbus_tcp"], seconds),
-                 "serial_pty": _paced_run(urls["serial_pty"], seconds),
-                 "modbus_rtu_pty": _paced_run(urls["modbus_rtu"], seconds_rtu)}
+        links = _paced_links(urls, seconds, seconds_rtu)
     finally:
-        proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait(timeout=5)
+        _stop_stub(proc)
     try:
         stub = json.loads(summary_path.read_text())
     except (OSError, ValueError):
