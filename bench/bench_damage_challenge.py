@@ -34,12 +34,7 @@ def _one(args: tuple) -> dict:
     try:
         return run_damage_case(case, kind, noise, seed).to_dict()
     except Exception as exc:  # one case's failure is a result (a miss with the reason), not the end of the run
-        nan = float("nan")
-        return DamageCaseResult(
-            label=cls_name, strength=strength, kind=kind, noise_m=noise, seed=seed, size_sigma=nan, counts=True,
-            verdict="error", sentence="", named=False, missing=["the run failed"], fix="none", held_before=nan,
-            held_fix=nan, passed=False, wall_s=0.0, note=f"{type(exc).__name__}: {exc}", values=dict(values),
-        ).to_dict()
+        return DamageCaseResult.failed(cls_name, strength, kind, noise, seed, values, exc).to_dict()
 
 
 def cases(quick: bool, only: str | None = None) -> list[tuple]:

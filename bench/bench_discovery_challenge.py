@@ -28,12 +28,7 @@ def _one(args: tuple) -> dict:
     except Exception as exc:  # one case's failure is a result (a miss with the reason), not the end of the run
         from workbench.challenges.discovery import DiscoveryCaseResult
 
-        nan = float("nan")
-        return DiscoveryCaseResult(
-            label=cls_name, strength=strength, kind=kind, noise_m=noise, seed=seed, size_sigma=nan, counts=True,
-            verdict="error", found=[], description="", named=False, held_before=nan, held_discover=nan,
-            held_after=nan, passed=False, wall_s=0.0, note=f"{type(exc).__name__}: {exc}", values=dict(values),
-        ).to_dict()
+        return DiscoveryCaseResult.failed(cls_name, strength, kind, noise, seed, values, exc).to_dict()
 
 
 def cases(quick: bool) -> list[tuple]:

@@ -63,7 +63,9 @@ class DiscoveryCase:
 
 
 @dataclass
-class DiscoveryCaseResult:
+class CaseOutcome:
+    """What every case of the challenge reports first: the case, the record it ran on and the verdict."""
+
     label: str
     strength: str
     kind: str
@@ -72,6 +74,21 @@ class DiscoveryCaseResult:
     size_sigma: float
     counts: bool
     verdict: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def failed_case_fields(label: str, strength: str, kind: str, noise: float, seed: int, values: Mapping[str, float],
+                       exc: BaseException) -> dict[str, Any]:
+    """The fields every result type shares for a case whose run raised ``exc`` (a counted miss with the reason)."""
+    return {"label": label, "strength": strength, "kind": kind, "noise_m": noise, "seed": seed,
+            "size_sigma": float("nan"), "counts": True, "verdict": "error", "passed": False, "wall_s": 0.0,
+            "note": f"{type(exc).__name__}: {exc}", "values": dict(values)}
+
+
+@dataclass
+class DiscoveryCaseResult(CaseOutcome):
     found: list[str]
     description: str
     named: bool
@@ -86,8 +103,13 @@ class DiscoveryCaseResult:
     named_among_twins: bool = False
     twins: list[str] = field(default_factory=list)
 
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+    @classmethod
+    def failed(cls, label: str, strength: str, kind: str, noise: float, seed: int, values: Mapping[str, float],
+               exc: BaseException) -> DiscoveryCaseResult:
+        """The result of a case whose run raised ``exc``: nothing found, a miss."""
+        nan = float("nan")
+        return cls(found=[], description="", named=False, held_before=nan, held_discover=nan, held_after=nan,
+                   **failed_case_fields(label, strength, kind, noise, seed, values, exc))
 
 
 def case_size_sigma(truth: PlantModel, nominal: PlantModel, rec, noise: float) -> float:
@@ -98,14 +120,21 @@ def case_size_sigma(truth: PlantModel, nominal: PlantModel, rec, noise: float) -
     return float(np.sqrt(np.mean((a - b) ** 2)) / noise)
 
 
+def case_record(spec: Any, effect: type[PhysicalEffect], values: Mapping[str, float], noise: float,
+                seed: int) -> tuple[Any, float]:
+    """The synthetic record of test ``spec`` on the table-2 plant with ``effect`` at ``values`` (tip noise
+    ``noise`` m, ``seed``), and the effect's size in the record (:func:`case_size_sigma`)."""
+    truth = truth_model("table2", [effect], dict(values))
+    rec = synth_record(spec, truth, noise={"z3": noise}, seed=seed, effects=[effect], values=values)
+    return rec, case_size_sigma(truth, PlantModel("table2"), rec, noise)
+
+
 def run_discovery_case(case: DiscoveryCase, kind: str, noise: float, seed: int, *,
                        workdir: str | Path | None = None, max_terms: int = 2) -> DiscoveryCaseResult:
     """One case on one record (see the module docstring)."""
     t0 = time.perf_counter()
     spec = synth_test(kind, **KINDS.get(kind, {}))
-    truth = truth_model("table2", [case.effect], dict(case.values))
-    rec = synth_record(spec, truth, noise={"z3": noise}, seed=seed, effects=[case.effect], values=case.values)
-    size = case_size_sigma(truth, PlantModel("table2"), rec, noise)
+    rec, size = case_record(spec, case.effect, case.values, noise, seed)
     d = discover([rec], "table2", max_terms=max_terms)
     description = "; ".join(t.words for t in d.terms)
     named = bool(d.terms) and all(w.lower() in description.lower() for w in case.words)
@@ -256,15 +285,7 @@ class DamageCase:
 
 
 @dataclass
-class DamageCaseResult:
-    label: str
-    strength: str
-    kind: str
-    noise_m: float
-    seed: int
-    size_sigma: float
-    counts: bool
-    verdict: str
+class DamageCaseResult(CaseOutcome):
     sentence: str
     named: bool
     missing: list[str]
@@ -280,8 +301,13 @@ class DamageCaseResult:
     def both(self) -> bool:
         return self.named and self.passed
 
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+    @classmethod
+    def failed(cls, label: str, strength: str, kind: str, noise: float, seed: int, values: Mapping[str, float],
+               exc: BaseException) -> DamageCaseResult:
+        """The result of a case whose run raised ``exc``: nothing named, no fix, a miss."""
+        nan = float("nan")
+        return cls(sentence="", named=False, missing=["the run failed"], fix="none", held_before=nan, held_fix=nan,
+                   **failed_case_fields(label, strength, kind, noise, seed, values, exc))
 
 
 def fix_held_sigma(d: Any, rec: Any, workdir: str | Path | None, *, max_nfev: int = 20) -> tuple[str, float, str]:
@@ -317,9 +343,7 @@ def run_damage_case(case: DamageCase, kind: str, noise: float, seed: int, *,
     t0 = time.perf_counter()
     spec = synth_test(kind, **KINDS.get(kind, {}))
     values = case.truth_values(spec.duration_s)
-    truth = truth_model("table2", [case.effect], values)
-    rec = synth_record(spec, truth, noise={"z3": noise}, seed=seed, effects=[case.effect], values=values)
-    size = case_size_sigma(truth, PlantModel("table2"), rec, noise)
+    rec, size = case_record(spec, case.effect, values, noise, seed)
     with tempfile.TemporaryDirectory(dir=workdir) as tmp:
         d = diagnose([rec], "table2", **(diagnose_options(tmp) | diagnose_kwargs))
         sentence = first_sentence(d.message)
