@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import ClassVar
 
 import numpy as np
+from pymodbus.framer.rtu import FramerRTU
 
 from drivers.latency_slice import request_slice
 from drivers.link import ActuatorCommand
@@ -111,16 +112,6 @@ class RawModbusTcp:
         self.sock.close()
 
 
-def _crc16(frame: bytes) -> bytes:
-    """Modbus RTU CRC (polynomial 0xA001), low byte first."""
-    crc = 0xFFFF
-    for b in frame:
-        crc ^= b
-        for _ in range(8):
-            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
-    return struct.pack("<H", crc)
-
-
 class RawModbusRtu:
     """A minimal Modbus RTU master (unit 1) on a pty's board end that times each transaction (no line time: a pty
     moves bytes at once)."""
@@ -139,7 +130,7 @@ class RawModbusRtu:
         import select
 
         frame = bytes([1]) + pdu
-        frame += _crc16(frame)
+        frame += FramerRTU.compute_CRC(frame).to_bytes(2, "big")  # the Modbus RTU CRC, low byte first
         want = self._REPLY_LEN.get(pdu[0], 5)
         t0 = time.perf_counter()
         os.write(self.fd, frame)
@@ -150,7 +141,7 @@ class RawModbusRtu:
                 want = 5  # an exception reply
             if len(buf) >= want:
                 took = time.perf_counter() - t0
-                ok = buf[want - 2: want] == _crc16(buf[: want - 2])
+                ok = FramerRTU.check_CRC(buf[: want - 2], int.from_bytes(buf[want - 2: want], "big"))
                 return took, (buf[1:want - 2] if ok else None)
             left = deadline - time.perf_counter()
             if left <= 0 or not select.select([self.fd], [], [], left)[0]:
