@@ -17,16 +17,18 @@ Regimes (seed paper, Introduction):
   SAFE once the link has been healthy for ``[safe] link_recovery``), refused while any cause persists.
 
 Each tick the rows of :data:`TRANSITIONS` whose source is the current regime are tried in priority order (lowest
-number first); the first whose trigger holds fires. Nothing else changes the regime: a test checks every observed
+number first); the first whose condition holds fires. A row carries its trigger's condition (``when``), a pure
+function of the tick (:class:`TickView`: the counted state, the inputs, the tick and its time, the timers), so a new
+rule is a :class:`Trigger`, its condition and its row. Nothing else changes the regime: a test checks every observed
 change against the table, and ``docs/board.md`` prints the table from this module.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from enum import StrEnum
-from typing import NamedTuple
+from typing import NamedTuple, TypeAlias
 
 from board_config.board import BoardConfig
 from firmware_sim.events import BoardEvent
@@ -57,55 +59,6 @@ class Trigger(StrEnum):
     HV_REMOVED = "hv_removed"  # HV equipment absent for [maintenance] hv_debounce
     REARM = "rearm"  # operator re-arm accepted (no cause of SAFE persists)
     LINK_RECOVERED = "link_recovered"  # SAFE caused by link loss only, link healthy for [safe] link_recovery
-
-
-@dataclass(frozen=True)
-class Transition:
-    """One row of the transition table."""
-
-    source: Regime
-    trigger: Trigger
-    target: Regime
-    priority: int
-    guard: str  # what must hold besides the trigger (documentation; enforced in the trigger's definition)
-    action: str  # what the board does on this transition
-
-
-S, SE, M, X = Regime.STANDBY_HARVEST, Regime.SENSING, Regime.MAINTENANCE, Regime.SAFE
-_FAULT_ACTION = "zero demand; abort MBIT/usage episode (logged); latch the cause"
-
-#: The transition table. Every regime change the board can make is one of these rows.
-TRANSITIONS: tuple[Transition, ...] = (
-    # faults: every non-SAFE regime
-    *(Transition(src, Trigger.LINK_LOST, X, 1, "", _FAULT_ACTION) for src in (S, SE, M)),
-    *(Transition(src, Trigger.SENSOR_FAULT, X, 2, "", _FAULT_ACTION) for src in (S, SE, M)),
-    *(Transition(src, Trigger.LIMIT_VIOLATION, X, 3, "", _FAULT_ACTION) for src in (S, SE, M)),
-    *(Transition(src, Trigger.OVERRUN, X, 4, "", _FAULT_ACTION) for src in (S, SE, M)),
-    # brown-out: actuation must stop (SAFE) during maintenance; forced stand-by from sensing
-    Transition(M, Trigger.BROWNOUT, X, 5, "", "zero demand; MBIT aborted (logged INCOMPLETE)"),
-    Transition(SE, Trigger.BROWNOUT, S, 5, "", "close the usage episode (summary logged, reason brownout)"),
-    # maintenance
-    Transition(S, Trigger.HV_PRESENT, M, 6, "battery >= wake_min_voltage, no brown-out",
-               "start the MBIT sequence (settle, MBIT.a, settle, MBIT.b)"),
-    Transition(SE, Trigger.HV_PRESENT, M, 6, "", "close the usage episode; start the MBIT sequence"),
-    Transition(M, Trigger.HV_REMOVED, S, 7, "", "zero demand; an unfinished MBIT is logged INCOMPLETE"),
-    # flight
-    Transition(S, Trigger.WAKE, SE, 8, "battery >= wake_min_voltage, no brown-out (else 'wake_refused' logged)",
-               "open a usage episode"),
-    Transition(SE, Trigger.QUIET, S, 9, "", "close the usage episode (summary logged)"),
-    # leaving SAFE
-    Transition(X, Trigger.LINK_RECOVERED, S, 10, "SAFE was caused by link loss only; [safe] link_recovery > 0",
-               "supervisor re-arm (logged)"),
-    Transition(X, Trigger.REARM, S, 11, "link up, sample valid, no limit violation, no brown-out, no overrun "
-               "(else 'rearm_refused' logged)",
-               "operator re-arm (logged)"),
-)
-
-#: rows per source regime in priority order
-_ROWS: dict[Regime, tuple[Transition, ...]] = {
-    r: tuple(sorted((t for t in TRANSITIONS if t.source is r), key=lambda t: t.priority)) for r in Regime
-}
-ALLOWED: frozenset[tuple[Regime, Regime]] = frozenset((t.source, t.target) for t in TRANSITIONS)
 
 
 class TickInputs(NamedTuple):
@@ -169,30 +122,175 @@ class RegimeTimers:
         )
 
 
-_FAULT_TRIGGERS = frozenset((Trigger.LINK_LOST, Trigger.SENSOR_FAULT, Trigger.LIMIT_VIOLATION, Trigger.OVERRUN))
+class TickView(NamedTuple):
+    """What a rule's condition sees: the state with this tick's counters already counted (the regime still the one
+    the tick started in), this tick's inputs, the tick number, its time ``now = tick * period`` (s) and the timers."""
+
+    state: RegimeState
+    inputs: TickInputs
+    tick: int
+    now: float
+    timers: RegimeTimers
 
 
-def _fault_causes(st: RegimeState, inp: TickInputs, tm: RegimeTimers) -> list[Trigger]:
-    causes = []
-    if st.link_fail >= tm.link_loss:
-        causes.append(Trigger.LINK_LOST)
-    if inp.sample_ok and inp.sensor_fault:
-        causes.append(Trigger.SENSOR_FAULT)
-    if inp.limit_violation:
-        causes.append(Trigger.LIMIT_VIOLATION)
-    if st.overruns >= tm.overrun:
-        causes.append(Trigger.OVERRUN)
-    return causes
+class Refused(NamedTuple):
+    """A condition's answer "does not fire, and say why": the incident (``incident``, ``detail``) is logged."""
+
+    incident: str
+    detail: str
 
 
-def _rearm_blockers(st: RegimeState, inp: TickInputs, tm: RegimeTimers) -> list[str]:
+#: a rule's condition: a pure function of the tick (True: the row fires; False or a refusal: it does not)
+Condition: TypeAlias = Callable[[TickView], "bool | Refused"]
+
+
+# --- the conditions of the triggers (each a pure function of the tick) --------------------------------------------
+def link_lost(v: TickView) -> bool:
+    """``[tick] link_loss_ticks`` consecutive failed exchanges."""
+    return v.state.link_fail >= v.timers.link_loss
+
+
+def sensor_fault(v: TickView) -> bool:
+    """A sample arrived and it is invalid."""
+    return v.inputs.sample_ok and v.inputs.sensor_fault
+
+
+def limit_violation(v: TickView) -> bool:
+    return v.inputs.limit_violation
+
+
+def overrun(v: TickView) -> bool:
+    """``[tick] overrun_ticks`` consecutive missed deadlines."""
+    return v.state.overruns >= v.timers.overrun
+
+
+#: the fault triggers and their conditions, in the table's priority order
+FAULT_CONDITIONS: tuple[tuple[Trigger, Condition], ...] = (
+    (Trigger.LINK_LOST, link_lost), (Trigger.SENSOR_FAULT, sensor_fault),
+    (Trigger.LIMIT_VIOLATION, limit_violation), (Trigger.OVERRUN, overrun))
+
+
+def fault_causes(v: TickView) -> list[Trigger]:
+    """The fault triggers that hold this tick (what SAFE latches)."""
+    return [trigger for trigger, holds in FAULT_CONDITIONS if holds(v)]
+
+
+def brownout(v: TickView) -> bool:
+    return v.inputs.brownout
+
+
+def _debounced_wake(run: int, debounce: int, refused: bool, why_refused: str) -> bool | Refused:
+    """A wake request (HV present, the wake comparator) held for ``run`` ticks fires once it has lasted ``debounce``
+    ticks, unless ``refused``; a refused request is logged once per episode (when its run reaches ``debounce``)."""
+    if refused and run == debounce:
+        return Refused("wake_refused", why_refused)
+    return run >= debounce and not refused
+
+
+def _unaffordable(inputs: TickInputs) -> bool:
+    """Waking would cost what the battery cannot give."""
+    return not inputs.energy_ok or inputs.brownout
+
+
+def hv_present(v: TickView) -> bool | Refused:
+    """HV present for ``[maintenance] hv_debounce``; from stand-by only with the energy to wake."""
+    return _debounced_wake(v.state.hv_run, v.timers.hv_debounce,
+                           v.state.regime is Regime.STANDBY_HARVEST and _unaffordable(v.inputs),
+                           "HV equipment present but the battery cannot afford waking into MAINTENANCE")
+
+
+def hv_removed(v: TickView) -> bool:
+    return v.state.hv_off_run >= v.timers.hv_debounce
+
+
+def wake(v: TickView) -> bool | Refused:
+    """The comparator above threshold for ``[wake] debounce_ticks``, with the energy to wake."""
+    return _debounced_wake(v.state.wake_run, v.timers.wake_debounce, _unaffordable(v.inputs),
+                           "wake comparator fired but the battery cannot afford waking (below wake_min_voltage or "
+                           "brown-out)")
+
+
+def quiet(v: TickView) -> bool:
+    return v.state.quiet_run >= v.timers.quiet
+
+
+def link_recovered(v: TickView) -> bool:
+    """SAFE latched for link loss only, the link healthy for ``[safe] link_recovery`` (> 0), nothing else wrong."""
+    tm = v.timers
+    return (tm.link_recovery > 0 and v.state.link_ok >= tm.link_recovery
+            and all(c == Trigger.LINK_LOST.value for c in v.state.safe_causes)
+            and not fault_causes(v) and not v.inputs.brownout)
+
+
+def rearm_blockers(v: TickView) -> list[str]:
     """What refuses an operator re-arm this tick: a fault cause, no sample, a brown-out (empty: re-arm)."""
-    blockers = [c.value for c in _fault_causes(st, inp, tm)]
-    if not inp.sample_ok:
+    blockers = [c.value for c in fault_causes(v)]
+    if not v.inputs.sample_ok:
         blockers.append("no sample")
-    if inp.brownout:
+    if v.inputs.brownout:
         blockers.append("brownout")
     return blockers
+
+
+def rearm(v: TickView) -> bool | Refused:
+    """The operator asks to re-arm and no cause of SAFE persists (else the refusal is logged)."""
+    if not v.inputs.rearm:
+        return False
+    persisting = rearm_blockers(v)
+    if persisting:
+        return Refused("rearm_refused", "re-arm refused: " + ", ".join(persisting))
+    return True
+
+
+@dataclass(frozen=True)
+class Transition:
+    """One row of the transition table: in ``source``, when ``when`` holds, go to ``target``."""
+
+    source: Regime
+    trigger: Trigger
+    target: Regime
+    priority: int
+    guard: str  # what must hold besides the trigger (documentation; enforced in the trigger's condition)
+    action: str  # what the board does on this transition
+    when: Condition  # the trigger's condition (a pure function of the tick)
+
+
+S, SE, M, X = Regime.STANDBY_HARVEST, Regime.SENSING, Regime.MAINTENANCE, Regime.SAFE
+_FAULT_ACTION = "zero demand; abort MBIT/usage episode (logged); latch the cause"
+
+#: The transition table. Every regime change the board can make is one of these rows.
+TRANSITIONS: tuple[Transition, ...] = (
+    # faults: every non-SAFE regime
+    *(Transition(src, trig, X, prio, "", _FAULT_ACTION, holds)
+      for prio, (trig, holds) in enumerate(FAULT_CONDITIONS, start=1) for src in (S, SE, M)),
+    # brown-out: actuation must stop (SAFE) during maintenance; forced stand-by from sensing
+    Transition(M, Trigger.BROWNOUT, X, 5, "", "zero demand; MBIT aborted (logged INCOMPLETE)", brownout),
+    Transition(SE, Trigger.BROWNOUT, S, 5, "", "close the usage episode (summary logged, reason brownout)", brownout),
+    # maintenance
+    Transition(S, Trigger.HV_PRESENT, M, 6, "battery >= wake_min_voltage, no brown-out",
+               "start the MBIT sequence (settle, MBIT.a, settle, MBIT.b)", hv_present),
+    Transition(SE, Trigger.HV_PRESENT, M, 6, "", "close the usage episode; start the MBIT sequence", hv_present),
+    Transition(M, Trigger.HV_REMOVED, S, 7, "", "zero demand; an unfinished MBIT is logged INCOMPLETE", hv_removed),
+    # flight
+    Transition(S, Trigger.WAKE, SE, 8, "battery >= wake_min_voltage, no brown-out (else 'wake_refused' logged)",
+               "open a usage episode", wake),
+    Transition(SE, Trigger.QUIET, S, 9, "", "close the usage episode (summary logged)", quiet),
+    # leaving SAFE
+    Transition(X, Trigger.LINK_RECOVERED, S, 10, "SAFE was caused by link loss only; [safe] link_recovery > 0",
+               "supervisor re-arm (logged)", link_recovered),
+    Transition(X, Trigger.REARM, S, 11, "link up, sample valid, no limit violation, no brown-out, no overrun "
+               "(else 'rearm_refused' logged)",
+               "operator re-arm (logged)", rearm),
+)
+
+
+def _rows_by_source() -> dict[Regime, tuple[Transition, ...]]:
+    """The rows per source regime in priority order (the order :func:`step_full` tries them)."""
+    return {r: tuple(sorted((t for t in TRANSITIONS if t.source is r), key=lambda t: t.priority)) for r in Regime}
+
+
+_ROWS = _rows_by_source()
+ALLOWED: frozenset[tuple[Regime, Regime]] = frozenset((t.source, t.target) for t in TRANSITIONS)
 
 
 #: the percepts of an uneventful tick (a good sample, nothing above threshold, no request)
@@ -271,74 +369,40 @@ def quiet_awake(state: RegimeState, timers: RegimeTimers, wake: Sequence[bool]) 
                        state.safe_causes), m
 
 
-def _debounced_wake(run: int, debounce: int, refused: bool, why_refused: str, tick: int, now: float,
-                    events: list[BoardEvent]) -> bool:
-    """A wake request (HV present, the wake comparator) held for ``run`` ticks fires once it has lasted ``debounce``
-    ticks, unless ``refused``; a refused request is logged once per episode (when its run reaches ``debounce``)."""
-    if refused and run == debounce:
-        events.append(BoardEvent("incident", tick, now, {"incident": "wake_refused", "detail": why_refused}))
-    return run >= debounce and not refused
-
-
 def step_full(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeTimers
               ) -> tuple[RegimeState, RegimeOutputs, tuple[BoardEvent, ...]]:
-    """:func:`step` without the stand-by shortcut (the reference the shortcut is tested against)."""
+    """:func:`step` without the stand-by shortcut (the reference the shortcut is tested against): count this tick,
+    then try the rows of :data:`TRANSITIONS` from the current regime in priority order; the first whose condition
+    holds fires."""
     now = tick * timers.period
     ok = inputs.sample_ok
     link_fail = 0 if ok else min(state.link_fail + 1, timers.link_loss)
     link_ok = min(state.link_ok + 1, max(timers.link_recovery, 1)) if ok else 0
     overruns = min(state.overruns + 1, timers.overrun) if inputs.overrun else 0
-    wake = ok and inputs.wake_signal and not inputs.sensor_fault
-    wake_run = min(state.wake_run + 1, timers.wake_debounce + 1) if wake else 0
-    quiet_run = min(state.quiet_run + 1, timers.quiet) if (ok and not wake) else (0 if wake else state.quiet_run)
+    woken = ok and inputs.wake_signal and not inputs.sensor_fault
+    wake_run = min(state.wake_run + 1, timers.wake_debounce + 1) if woken else 0
+    quiet_run = min(state.quiet_run + 1, timers.quiet) if (ok and not woken) else (0 if woken else state.quiet_run)
     hv_run = min(state.hv_run + 1, timers.hv_debounce + 1) if (ok and inputs.hv_present) else 0
     hv_off_run = (min(state.hv_off_run + 1, timers.hv_debounce) if (ok and not inputs.hv_present)
                   else (0 if ok else state.hv_off_run))
     regime = state.regime
     st = RegimeState(regime, state.entered_tick, link_fail, link_ok, overruns, wake_run, quiet_run, hv_run,
                      hv_off_run, state.safe_causes)
+    view = TickView(st, inputs, tick, now, timers)
 
     events: list[BoardEvent] = []
     fired: Transition | None = None
-    causes: list[Trigger] | None = None
-    unaffordable = not inputs.energy_ok or inputs.brownout  # waking would cost what the battery cannot give
     for row in _ROWS[regime]:
-        trig = row.trigger
-        if trig in _FAULT_TRIGGERS:
-            if causes is None:
-                causes = _fault_causes(st, inputs, timers)
-            hit = trig in causes
-        elif trig is Trigger.BROWNOUT:
-            hit = inputs.brownout
-        elif trig is Trigger.HV_PRESENT:
-            hit = _debounced_wake(hv_run, timers.hv_debounce, regime is Regime.STANDBY_HARVEST and unaffordable,
-                                  "HV equipment present but the battery cannot afford waking into MAINTENANCE",
-                                  tick, now, events)
-        elif trig is Trigger.HV_REMOVED:
-            hit = hv_off_run >= timers.hv_debounce
-        elif trig is Trigger.WAKE:
-            hit = _debounced_wake(wake_run, timers.wake_debounce, unaffordable, "wake comparator fired but the "
-                                  "battery cannot afford waking (below wake_min_voltage or brown-out)", tick, now,
-                                  events)
-        elif trig is Trigger.QUIET:
-            hit = quiet_run >= timers.quiet
-        elif trig is Trigger.LINK_RECOVERED:
-            hit = (timers.link_recovery > 0 and link_ok >= timers.link_recovery
-                   and all(c == Trigger.LINK_LOST.value for c in state.safe_causes)
-                   and not _fault_causes(st, inputs, timers) and not inputs.brownout)
-        else:  # Trigger.REARM: every other trigger of the table is handled above
-            persisting = _rearm_blockers(st, inputs, timers) if inputs.rearm else []
-            if persisting:
-                events.append(BoardEvent("incident", tick, now, {
-                    "incident": "rearm_refused", "detail": "re-arm refused: " + ", ".join(persisting)}))
-            hit = inputs.rearm and not persisting
-        if hit:
+        hit = row.when(view)
+        if isinstance(hit, Refused):
+            events.append(BoardEvent("incident", tick, now, {"incident": hit.incident, "detail": hit.detail}))
+        elif hit:
             fired = row
             break
 
     if fired is None:
         if regime is Regime.SAFE:  # stay in SAFE, accumulating any new cause (SAFE has no fault rows)
-            new = [c.value for c in _fault_causes(st, inputs, timers) if c.value not in st.safe_causes]
+            new = [c.value for c in fault_causes(view) if c.value not in st.safe_causes]
             if new:
                 st = st._replace(safe_causes=st.safe_causes + tuple(new))
         return st, RegimeOutputs(regime, regime is Regime.MAINTENANCE, False, None), tuple(events)
@@ -346,6 +410,7 @@ def step_full(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeT
     target = fired.target
     safe_causes: tuple[str, ...] = ()
     if target is Regime.SAFE:  # every fault cause at once; a brown-out (no fault cause, else a fault row fired) alone
+        causes = fault_causes(view)
         safe_causes = tuple(c.value for c in (causes or [fired.trigger]))
     st = RegimeState(target, tick, link_fail, link_ok, overruns, 0 if target is Regime.SENSING else wake_run,
                      0, hv_run, hv_off_run, safe_causes)
