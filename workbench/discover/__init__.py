@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from workbench.discover._dictionary import build_dictionary, dictionary_parameter_names, dictionary_source
+from workbench.discover._dictionary import build_dictionary
+from workbench.discover._dictionary_code import dictionary_parameter_names, dictionary_source
 from workbench.discover._dictionary_effect import generated_effect, signal_scales
 from workbench.discover._effect_writer import formula, parameter_names
 from workbench.discover._gates import TIME_GATES

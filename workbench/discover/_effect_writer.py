@@ -13,18 +13,10 @@ from __future__ import annotations
 import datetime as _dt
 import math
 import textwrap
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 
-from workbench.discover._dictionary import (
-    ALL_FORMS,
-    DELAY_FORMS,
-    FORMS,
-    SIGNALS,
-    Term,
-    TermSlot,
-    allocate_states,
-    hooks_source,
-)
+from workbench.discover._dictionary import ALL_FORMS, DELAY_FORMS, FORMS, SIGNALS, Term
+from workbench.discover._dictionary_code import TermSlot, allocate_states, hooks_source
 from workbench.discover._gates import TIME_GATES, class_stem, damage_formula, describe_damage
 
 
@@ -46,114 +38,147 @@ def _mass(j: int) -> str:
     return f"mass {j + 1}" + (" (the tip)" if j == 2 else " (the root)" if j == 0 else "")
 
 
+def _describe_force(term: Term, c: float, g: float, scale: float) -> str | None:
+    """A force on a mass or in a section, by form (None: a form with no words of its own)."""
+    j, p, f = term.index, term.placement, term.form
+    u = SIGNALS[term.signal].unit
+    where = _mass(j) if p == "force_mass" else f"section {j + 1}"
+    what = "force on " + where if p == "force_mass" else "force in " + where
+    rate_word = "velocity" if p == "force_mass" else "deformation rate"
+    disp = f"z{j + 1}" if p == "force_mass" else f"δ{j + 1}"
+    if f == "sign":
+        tail = ": dry (Coulomb) friction" + (" at the tip" if (j == 2 and p == "force_mass") else
+                                             f" at {where}")
+        return (f"a {what} of {_si(abs(c), 'N')} {'opposing' if c < 0 else 'along'} its {rate_word}, independent "
+                f"of speed{tail if c < 0 else ' (an energy source: suspicious)'}")
+    if f == "absx":
+        return (f"a {what} growing with the square of its {rate_word}, F = {c:.3g} N·s²/m² · |v|·v "
+                f"({_si(abs(c) * scale ** 2, 'N')} at {scale:.3g} m/s)"
+                + (": quadratic (air or squeeze-film) drag" if c < 0 else ": negative drag (suspicious)"))
+    if f == "lin" and u == "m/s":
+        return (f"a viscous {what} {'opposing' if c < 0 else 'along'} its {rate_word}, {abs(c):.3g} N·s/m: "
+                + ("extra damping" if c < 0 else "less damping than modelled"))
+    if f == "lin":
+        return (f"a linear {what} of {abs(c):.3g} N/m × {disp}: "
+                + ("a spring to the frame (stiffer than modelled)" if c < 0 else "softer than modelled"))
+    if f == "cube":
+        return (f"a cubic {what}, F = {c:.3g} N/m³ · {disp}³ ({_si(abs(c) * scale ** 3, 'N')} at "
+                f"{_si(scale, 'm')}): " + ("hardening" if c < 0 else "softening") + " with deflection")
+    if f == "square":
+        return (f"a {what} growing with the square of its displacement, {c:.3g} N/m² · {disp}², the same sign on "
+                f"both sides ({_si(c * scale ** 2, 'N')} at {_si(scale, 'm')}): a sign-asymmetric stiffness "
+                f"(the response is {'smaller' if c < 0 else 'larger'} for positive than for negative deflection)")
+    if f in ("pos", "neg"):
+        side = f"{disp} > {_si(g, 'm')}" if f == "pos" else f"{disp} < {_si(-g, 'm')}"
+        return (f"a one-sided {what} of {abs(c):.3g} N/m acting only when {side}: "
+                + ("contact with a stop (one-sided stiffness)" if c < 0 else "a support that lets go"))
+    if f == "dead":
+        return (f"a {what} of {abs(c):.3g} N/m acting only beyond ±{_si(g, 'm')} of {disp} (a dead zone): "
+                + ("a clearance that closes — stiffer at large deflection" if c < 0 else
+                   "softer at large deflection"))
+    if f == "clip":
+        return (f"{where} is {'softer' if c > 0 else 'stiffer'} by {abs(c):.3g} N/m within ±{_si(g, 'm')} of "
+                f"{disp} and as modelled beyond: "
+                + ("a clearance / free play in its joint (dead zone of the stiffness)" if c > 0 else
+                   "a preload or stiction band"))
+    return None
+
+
+def _describe_current(term: Term, c: float, g: float, scale: float) -> str | None:
+    """A current into the patch charges: a leakage, linear or not."""
+    f = term.form
+    if f == "lin":
+        return (f"a current {'out of' if c < 0 else 'into'} each patch of {abs(c):.3g} S × patch voltage: "
+                + ("a leakage conductance" if c < 0 else "negative leakage (suspicious)"))
+    return (f"a current into each patch growing with the {'square' if f == 'absx' else 'cube'} of the patch "
+            f"voltage ({_si(c * scale ** FORMS[f].power, 'A')} at {scale:.3g} V): a nonlinear leakage")
+
+
+def _describe_drive(term: Term, c: float, g: float, scale: float) -> str | None:
+    """A change of the drive the patches see, by form (None: a form with no words of its own)."""
+    f = term.form
+    if f in DELAY_FORMS:
+        return (f"a transport delay of {_si(c * g, 's')} on the drive: the patches see the commanded voltage "
+                "late (amplifier/controller latency)")
+    if f in ("pos", "neg"):
+        side = "positive" if f == "pos" else "negative"
+        return (f"a drive gain that depends on the drive's sign: {100 * c:+.3g} % more authority for {side} drive "
+                f"(beyond {g:.3g} V) than for the other side (sign-asymmetric: polarisation-dependent piezo "
+                "coefficient or a one-sided amplifier)")
+    if f == "square":
+        pct = 100 * c * 100.0
+        return (f"a drive gain that depends on the drive's sign: {pct:+.3g} % per +100 V of drive, so the response "
+                f"is larger for {'positive' if c > 0 else 'negative'} drive (sign-asymmetric: polarisation-"
+                "dependent piezo coefficient or a one-sided amplifier)")
+    if f == "cube":
+        return (f"a drive gain changing with the drive amplitude: {100 * c * scale ** 2:+.3g} % at "
+                f"{scale:.3g} V")
+    if f == "sat":
+        return (f"the drive saturates: the patches see at most about {g:.3g} V ({100 * c:.3g} % of the "
+                "saturation applied; amplifier or depolarisation limit)")
+    if f == "time":
+        return (f"the drive gain drifts by {100 * c:+.3g} %/s during the test (a coupling that changes with time: "
+                "temperature, amplifier gain)")
+    return None
+
+
+def _describe_measurement_form(term: Term, c: float, g: float, scale: float) -> str | None:
+    """A change of the laser reading alone, by signal and form, without the closing words."""
+    f = term.form
+    if term.signal == "one":
+        if f == "time":
+            return f"a laser zero drifting by {_si(c, 'm')}/s"
+        return f"a laser offset of {_si(c, 'm')}"
+    if term.signal == "zd3":
+        return f"a laser lag of {_si(-c, 's')} (reading ≈ z3 − τ ż3)"
+    if f in DELAY_FORMS:
+        kind = ("a delay" if abs(c - 1.0) < 0.25 else
+                "a first-order low-pass" if abs(c - 0.5) < 0.15 and f == "delay" else "a delay or low-pass")
+        return (f"a laser lag of {_si(c * g, 's')}: the reading follows the tip late ({kind} in the sensor "
+                f"chain: the laser's filter or the acquisition's timing; Padé time constant {_si(g, 's')}, "
+                f"{100 * c:.3g} % applied)")
+    if f == "lin":
+        return f"a laser gain error of {100 * c:+.3g} %"
+    if f == "square":
+        return (f"a quadratic laser nonlinearity: reading += {c:.3g} 1/m · z3² ({_si(c * scale ** 2, 'm')} at "
+                f"{_si(scale, 'm')})")
+    if f == "cube":
+        return (f"a cubic laser nonlinearity: reading += {c:.3g} 1/m² · z3³ ({_si(c * scale ** 3, 'm')} at "
+                f"{_si(scale, 'm')})" + (": the reading falls short at large deflection, the onset of "
+                                         "saturation" if c < 0 else ""))
+    if f == "sat":
+        return f"the laser reading saturates at about {_si(g, 'm')} ({100 * c:.3g} % of it applied)"
+    if f == "time":
+        return f"a laser gain drifting by {100 * c:+.3g} %/s"
+    return None
+
+
+def _describe_measurement(term: Term, c: float, g: float, scale: float) -> str | None:
+    """A change of the laser reading alone (the physics unchanged)."""
+    words = _describe_measurement_form(term, c, g, scale)
+    return None if words is None else words + " (measurement only: the physics is unchanged)"
+
+
+#: the words of a fitted term, one describer per placement (damage forms are described by
+#: :func:`~workbench.discover._gates.describe_damage`)
+_DESCRIBERS: dict[str, Callable[[Term, float, float, float], str | None]] = {
+    "force_mass": _describe_force,
+    "force_section": _describe_force,
+    "current": _describe_current,
+    "drive": _describe_drive,
+    "measurement": _describe_measurement,
+}
+
+
 def describe_term(term: Term, coef: float, shape: float, scale: float, shape_se: float | None = None) -> str:
     """One sentence: what the fitted term is, in words, numbers and units (``scale``: the signal's 99th percentile
     of |value| along the records, SI; ``shape_se``: the shape's standard error, said with an onset time)."""
     c, g = float(coef), float(shape)
     if term.placement == "damage":
         return describe_damage(term.param, term.index, term.form, term.signal, c, g, shape_se)
-    sig = SIGNALS[term.signal]
-    u = sig.unit
-    j = term.index
-    p = term.placement
-    f = term.form
-    where = _mass(j) if p == "force_mass" else f"section {j + 1}" if p == "force_section" else ""
-    if p == "force_mass" or p == "force_section":
-        what = "force on " + where if p == "force_mass" else "force in " + where
-        rate_word = "velocity" if p == "force_mass" else "deformation rate"
-        disp = f"z{j + 1}" if p == "force_mass" else f"δ{j + 1}"
-        if f == "sign":
-            tail = ": dry (Coulomb) friction" + (" at the tip" if (j == 2 and p == "force_mass") else
-                                                 f" at {where}")
-            return (f"a {what} of {_si(abs(c), 'N')} {'opposing' if c < 0 else 'along'} its {rate_word}, independent "
-                    f"of speed{tail if c < 0 else ' (an energy source: suspicious)'}")
-        if f == "absx":
-            return (f"a {what} growing with the square of its {rate_word}, F = {c:.3g} N·s²/m² · |v|·v "
-                    f"({_si(abs(c) * scale ** 2, 'N')} at {scale:.3g} m/s)"
-                    + (": quadratic (air or squeeze-film) drag" if c < 0 else ": negative drag (suspicious)"))
-        if f == "lin" and u == "m/s":
-            return (f"a viscous {what} {'opposing' if c < 0 else 'along'} its {rate_word}, {abs(c):.3g} N·s/m: "
-                    + ("extra damping" if c < 0 else "less damping than modelled"))
-        if f == "lin":
-            return (f"a linear {what} of {abs(c):.3g} N/m × {disp}: "
-                    + ("a spring to the frame (stiffer than modelled)" if c < 0 else "softer than modelled"))
-        if f == "cube":
-            return (f"a cubic {what}, F = {c:.3g} N/m³ · {disp}³ ({_si(abs(c) * scale ** 3, 'N')} at "
-                    f"{_si(scale, 'm')}): " + ("hardening" if c < 0 else "softening") + " with deflection")
-        if f == "square":
-            return (f"a {what} growing with the square of its displacement, {c:.3g} N/m² · {disp}², the same sign on "
-                    f"both sides ({_si(c * scale ** 2, 'N')} at {_si(scale, 'm')}): a sign-asymmetric stiffness "
-                    f"(the response is {'smaller' if c < 0 else 'larger'} for positive than for negative deflection)")
-        if f in ("pos", "neg"):
-            side = f"{disp} > {_si(g, 'm')}" if f == "pos" else f"{disp} < {_si(-g, 'm')}"
-            return (f"a one-sided {what} of {abs(c):.3g} N/m acting only when {side}: "
-                    + ("contact with a stop (one-sided stiffness)" if c < 0 else "a support that lets go"))
-        if f == "dead":
-            return (f"a {what} of {abs(c):.3g} N/m acting only beyond ±{_si(g, 'm')} of {disp} (a dead zone): "
-                    + ("a clearance that closes — stiffer at large deflection" if c < 0 else
-                       "softer at large deflection"))
-        if f == "clip":
-            return (f"{where} is {'softer' if c > 0 else 'stiffer'} by {abs(c):.3g} N/m within ±{_si(g, 'm')} of "
-                    f"{disp} and as modelled beyond: "
-                    + ("a clearance / free play in its joint (dead zone of the stiffness)" if c > 0 else
-                       "a preload or stiction band"))
-    if p == "current":
-        if f == "lin":
-            return (f"a current {'out of' if c < 0 else 'into'} each patch of {abs(c):.3g} S × patch voltage: "
-                    + ("a leakage conductance" if c < 0 else "negative leakage (suspicious)"))
-        return (f"a current into each patch growing with the {'square' if f == 'absx' else 'cube'} of the patch "
-                f"voltage ({_si(c * scale ** FORMS[f].power, 'A')} at {scale:.3g} V): a nonlinear leakage")
-    if p == "drive":
-        if f in DELAY_FORMS:
-            return (f"a transport delay of {_si(c * g, 's')} on the drive: the patches see the commanded voltage "
-                    "late (amplifier/controller latency)")
-        if f in ("pos", "neg"):
-            side = "positive" if f == "pos" else "negative"
-            return (f"a drive gain that depends on the drive's sign: {100 * c:+.3g} % more authority for {side} drive "
-                    f"(beyond {g:.3g} V) than for the other side (sign-asymmetric: polarisation-dependent piezo "
-                    "coefficient or a one-sided amplifier)")
-        if f == "square":
-            pct = 100 * c * 100.0
-            return (f"a drive gain that depends on the drive's sign: {pct:+.3g} % per +100 V of drive, so the response "
-                    f"is larger for {'positive' if c > 0 else 'negative'} drive (sign-asymmetric: polarisation-"
-                    "dependent piezo coefficient or a one-sided amplifier)")
-        if f == "cube":
-            return (f"a drive gain changing with the drive amplitude: {100 * c * scale ** 2:+.3g} % at "
-                    f"{scale:.3g} V")
-        if f == "sat":
-            return (f"the drive saturates: the patches see at most about {g:.3g} V ({100 * c:.3g} % of the "
-                    "saturation applied; amplifier or depolarisation limit)")
-        if f == "time":
-            return (f"the drive gain drifts by {100 * c:+.3g} %/s during the test (a coupling that changes with time: "
-                    "temperature, amplifier gain)")
-    if p == "measurement":
-        tail = " (measurement only: the physics is unchanged)"
-        if term.signal == "one":
-            if f == "time":
-                return f"a laser zero drifting by {_si(c, 'm')}/s" + tail
-            return f"a laser offset of {_si(c, 'm')}" + tail
-        if term.signal == "zd3":
-            return f"a laser lag of {_si(-c, 's')} (reading ≈ z3 − τ ż3)" + tail
-        if f in DELAY_FORMS:
-            kind = ("a delay" if abs(c - 1.0) < 0.25 else
-                    "a first-order low-pass" if abs(c - 0.5) < 0.15 and f == "delay" else "a delay or low-pass")
-            return (f"a laser lag of {_si(c * g, 's')}: the reading follows the tip late ({kind} in the sensor "
-                    f"chain: the laser's filter or the acquisition's timing; Padé time constant {_si(g, 's')}, "
-                    f"{100 * c:.3g} % applied)" + tail)
-        if f == "lin":
-            return f"a laser gain error of {100 * c:+.3g} %" + tail
-        if f == "square":
-            return (f"a quadratic laser nonlinearity: reading += {c:.3g} 1/m · z3² ({_si(c * scale ** 2, 'm')} at "
-                    f"{_si(scale, 'm')})" + tail)
-        if f == "cube":
-            return (f"a cubic laser nonlinearity: reading += {c:.3g} 1/m² · z3³ ({_si(c * scale ** 3, 'm')} at "
-                    f"{_si(scale, 'm')})" + (": the reading falls short at large deflection, the onset of "
-                                             "saturation" if c < 0 else "") + tail)
-        if f == "sat":
-            return f"the laser reading saturates at about {_si(g, 'm')} ({100 * c:.3g} % of it applied)" + tail
-        if f == "time":
-            return f"a laser gain drifting by {100 * c:+.3g} %/s" + tail
-    return f"{c:.3g} {term.unit} × {f}({term.signal})"
+    describer = _DESCRIBERS.get(term.placement)
+    words = describer(term, c, g, scale) if describer is not None else None
+    return words if words is not None else f"{c:.3g} {term.unit} × {term.form}({term.signal})"
 
 
 def formula(term: Term, cname: str, gname: str | None) -> str:

@@ -44,13 +44,8 @@ from board_config import ParameterSet, load_parameter_set
 from board_config.parameter import freed
 from plant import PhysicalEffect
 from plant.effect import EffectError, resolve_effect
-from workbench.discover._dictionary import (
-    DELAY_FORMS,
-    Term,
-    build_dictionary,
-    dictionary_parameter_names,
-    dictionary_source,
-)
+from workbench.discover._dictionary import DELAY_FORMS, Term, build_dictionary
+from workbench.discover._dictionary_code import dictionary_parameter_names, dictionary_source
 from workbench.discover._dictionary_effect import (
     generated_effect,
     reference_magnitudes,
