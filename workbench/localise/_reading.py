@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -60,6 +61,112 @@ def mode_shift(t: np.ndarray, u: np.ndarray, y: np.ndarray, yhat: np.ndarray, f_
     return out[0], out[1]
 
 
+@dataclass(frozen=True)
+class _Evidence:
+    """The residual ``e`` beside the modelled response ``yhat`` (and what is derived from it once for every class):
+    ``yc`` the modelled deflection from its start, ``v``/``acc`` its rate and acceleration, ``vs`` the rate's RMS,
+    ``rel_t`` the time as a share of the record, ``base`` what a plain gain error (e ≈ a + b·ŷ) explains."""
+
+    t: np.ndarray
+    e: np.ndarray
+    yhat: np.ndarray
+    u: np.ndarray
+    y: np.ndarray
+    unit: str
+    rel_t: np.ndarray
+    yc: np.ndarray
+    v: np.ndarray
+    acc: np.ndarray
+    vs: float
+    base: float
+
+
+def _evidence(t: np.ndarray, e: np.ndarray, yhat: np.ndarray, u: np.ndarray, y: np.ndarray, unit: str) -> _Evidence:
+    yc = yhat - yhat[0]
+    v = np.gradient(yhat, t)
+    return _Evidence(t, e, yhat, u, y, unit, (t - t[0]) / max(float(t[-1] - t[0]), 1e-12), yc, v, np.gradient(v, t),
+                     max(_rms(v), 1e-300), _r2(e, [yc]))
+
+
+def _sign_asymmetric(ev: _Evidence) -> Hypothesis | None:
+    """An even function of the deflection (None when either side of the deflection is too rarely visited)."""
+    e, yc, unit = ev.e, ev.yc, ev.unit
+    pos, neg = yc > 0.05 * np.ptp(yc), yc < -0.05 * np.ptp(yc)
+    sc = _r2(e, [yc, np.abs(yc)]) - ev.base
+    if not (pos.sum() > 0.1 * e.size and neg.sum() > 0.1 * e.size):
+        return None
+    ep, en = _rms(e[pos]), _rms(e[neg])
+    big, small = ("positive", "negative") if ep >= en else ("negative", "positive")
+    return Hypothesis("sign-asymmetric", sc, f"the error is {max(ep, en) / max(min(ep, en), 1e-300):.2g}× "
+                      f"larger for {big} than for {small} deflection (RMS {_fmt(max(ep, en), unit)} vs "
+                      f"{_fmt(min(ep, en), unit)}): sign-dependent physics (one-sided contact, polarisation-"
+                      "dependent coupling, asymmetric sensor)")
+
+
+def _amplitude_dependent(ev: _Evidence) -> Hypothesis:
+    """Odd growth with the deflection."""
+    e, yc = ev.e, ev.yc
+    q = np.abs(yc)
+    hi, lo = q >= np.quantile(q, 2 / 3), q <= np.quantile(q, 1 / 3)
+    ratio_hi = _rms(e[hi]) / max(_rms(yc[hi]), 1e-300)
+    ratio_lo = _rms(e[lo]) / max(_rms(yc[lo]), 1e-300)
+    return Hypothesis("amplitude-dependent", _r2(e, [yc, yc ** 3]) - ev.base,
+                      f"the relative error is {ratio_hi / max(ratio_lo, 1e-300):.2g}× larger in the largest third "
+                      f"of the deflection than in the smallest ({100 * ratio_hi:.3g} % vs {100 * ratio_lo:.3g} %): "
+                      "amplitude-dependent stiffness or damping (Duffing, drag, saturation)")
+
+
+def _rate_dependent(ev: _Evidence) -> Hypothesis:
+    e, v = ev.e, ev.v
+    fast, slow = np.abs(v) >= np.quantile(np.abs(v), 2 / 3), np.abs(v) <= np.quantile(np.abs(v), 1 / 3)
+    return Hypothesis("rate-dependent", _r2(e, [ev.yc, v, np.abs(v) * v / ev.vs]) - ev.base,
+                      f"the error follows the velocity: RMS {_fmt(_rms(e[fast]), ev.unit)} in the fastest third of "
+                      f"the motion vs {_fmt(_rms(e[slow]), ev.unit)} in the slowest (damping, drag, a lag)")
+
+
+def _switching(ev: _Evidence) -> Hypothesis:
+    """Switching at zero crossings of the velocity (a ±g square wave)."""
+    e = ev.e
+    sw = np.tanh(ev.v / (0.01 * ev.vs))
+    sc_sw = _r2(e, [ev.yc, ev.v, sw]) - _r2(e, [ev.yc, ev.v])
+    coef = float(np.dot(e - e.mean(), sw - sw.mean()) / max(np.dot(sw - sw.mean(), sw - sw.mean()), 1e-300))
+    return Hypothesis("switching at zero crossings", sc_sw,
+                      f"the residual switches by ±{_fmt(abs(coef), ev.unit)} each time the motion reverses (a square "
+                      f"wave on the sign of the velocity explains {100 * max(sc_sw, 0):.0f} % of it beyond a "
+                      "viscous term): dry friction, a clearance or backlash")
+
+
+def _time_varying(ev: _Evidence) -> Hypothesis:
+    e, yc, u = ev.e, ev.yc, ev.u
+    thirds = np.array_split(np.arange(e.size), 3)
+    # relative to the modelled response in each third (a sweep's response changes size with frequency)
+    r_first = _rms(e[thirds[0]]) / max(_rms(yc[thirds[0]]), 1e-300)
+    r_last = _rms(e[thirds[-1]]) / max(_rms(yc[thirds[-1]]), 1e-300)
+    steady = dominant_frequency(ev.t, u) is not None or np.ptp(u) == 0
+    return Hypothesis("time-varying", _r2(e, [yc, ev.rel_t * yc, ev.rel_t]) - ev.base,
+                      f"the residual grows in time: {100 * r_first:.3g} % of the response in the first third of "
+                      f"the record, {100 * r_last:.3g} % in the last ({r_last / max(r_first, 1e-300):.2g}×): "
+                      "a gain or zero drifting during the test (temperature, creep, a warming sensor)"
+                      + ("" if steady else " — but the drive changes its character in time (a sweep: time is also "
+                         "frequency); confirm on a record with a steady drive"))
+
+
+def _shifted_dynamics(ev: _Evidence, features: Sequence[tuple[float, str]]) -> Hypothesis:
+    """The error in phase with the modelled velocity/acceleration, or a measured mode away from the modelled one."""
+    sc_dyn = _r2(ev.e, [ev.yc, ev.v, ev.acc]) - ev.base
+    words = "the dynamics are shifted: the error is in phase with the modelled velocity/acceleration"
+    modes = [f for f, lab in features if lab.startswith("mode")]
+    if modes:
+        ms = mode_shift(ev.t, ev.u, ev.y, ev.yhat, modes[0])
+        if ms is not None and abs(ms[0] / ms[1] - 1) > 0.01:
+            rel = ms[0] / ms[1] - 1
+            words = (f"measured mode 1 is {abs(100 * rel):.2g} % {'lower' if rel < 0 else 'higher'} than modelled "
+                     f"({ms[0]:.3g} vs {ms[1]:.3g} Hz): a stiffness or mass is wrong, or something "
+                     f"{'softens' if rel < 0 else 'stiffens'} the structure")
+            sc_dyn = max(sc_dyn, 0.0) + 0.05
+    return Hypothesis("shifted dynamics", sc_dyn, words)
+
+
 def hypotheses(t: np.ndarray, e: np.ndarray, yhat: np.ndarray, u: np.ndarray, y: np.ndarray, sigma: float,
                unit: str = "", features: Sequence[tuple[float, str]] = (), drive_name: str = "drive"
                ) -> list[Hypothesis]:
@@ -68,74 +175,14 @@ def hypotheses(t: np.ndarray, e: np.ndarray, yhat: np.ndarray, u: np.ndarray, y:
     t, e, yhat, u = (np.asarray(a, float) for a in (t, e, yhat, u))
     if e.size < 20 or _rms(e) <= 1.5 * sigma:
         return []
-    rel_t = (t - t[0]) / max(float(t[-1] - t[0]), 1e-12)
-    yc = yhat - yhat[0]
-    v = np.gradient(yhat, t)
-    acc = np.gradient(v, t)
-    vs = max(_rms(v), 1e-300)
-    base = _r2(e, [yc])
-    out: list[Hypothesis] = []
-    # sign-asymmetric: an even function of the deflection
-    pos, neg = yc > 0.05 * np.ptp(yc), yc < -0.05 * np.ptp(yc)
-    sc = _r2(e, [yc, np.abs(yc)]) - base
-    if pos.sum() > 0.1 * e.size and neg.sum() > 0.1 * e.size:
-        ep, en = _rms(e[pos]), _rms(e[neg])
-        big, small = ("positive", "negative") if ep >= en else ("negative", "positive")
-        out.append(Hypothesis("sign-asymmetric", sc, f"the error is {max(ep, en) / max(min(ep, en), 1e-300):.2g}× "
-                              f"larger for {big} than for {small} deflection (RMS {_fmt(max(ep, en), unit)} vs "
-                              f"{_fmt(min(ep, en), unit)}): sign-dependent physics (one-sided contact, polarisation-"
-                              "dependent coupling, asymmetric sensor)"))
-    # amplitude-dependent: odd growth with the deflection
-    q = np.abs(yc)
-    hi, lo = q >= np.quantile(q, 2 / 3), q <= np.quantile(q, 1 / 3)
-    ratio_hi = _rms(e[hi]) / max(_rms(yc[hi]), 1e-300)
-    ratio_lo = _rms(e[lo]) / max(_rms(yc[lo]), 1e-300)
-    out.append(Hypothesis("amplitude-dependent", _r2(e, [yc, yc ** 3]) - base,
-                          f"the relative error is {ratio_hi / max(ratio_lo, 1e-300):.2g}× larger in the largest third "
-                          f"of the deflection than in the smallest ({100 * ratio_hi:.3g} % vs {100 * ratio_lo:.3g} %): "
-                          "amplitude-dependent stiffness or damping (Duffing, drag, saturation)"))
-    # rate-dependent
-    fast, slow = np.abs(v) >= np.quantile(np.abs(v), 2 / 3), np.abs(v) <= np.quantile(np.abs(v), 1 / 3)
-    out.append(Hypothesis("rate-dependent", _r2(e, [yc, v, np.abs(v) * v / vs]) - base,
-                          f"the error follows the velocity: RMS {_fmt(_rms(e[fast]), unit)} in the fastest third of "
-                          f"the motion vs {_fmt(_rms(e[slow]), unit)} in the slowest (damping, drag, a lag)"))
-    # switching at zero crossings of the velocity (a ±g square wave)
-    sw = np.tanh(v / (0.01 * vs))
-    sc_sw = _r2(e, [yc, v, sw]) - _r2(e, [yc, v])
-    coef = float(np.dot(e - e.mean(), sw - sw.mean()) / max(np.dot(sw - sw.mean(), sw - sw.mean()), 1e-300))
-    out.append(Hypothesis("switching at zero crossings", sc_sw,
-                          f"the residual switches by ±{_fmt(abs(coef), unit)} each time the motion reverses (a square "
-                          f"wave on the sign of the velocity explains {100 * max(sc_sw, 0):.0f} % of it beyond a "
-                          "viscous term): dry friction, a clearance or backlash"))
-    # time-varying
-    thirds = np.array_split(np.arange(e.size), 3)
-    # relative to the modelled response in each third (a sweep's response changes size with frequency)
-    r_first = _rms(e[thirds[0]]) / max(_rms(yc[thirds[0]]), 1e-300)
-    r_last = _rms(e[thirds[-1]]) / max(_rms(yc[thirds[-1]]), 1e-300)
-    steady = dominant_frequency(t, u) is not None or np.ptp(u) == 0
-    out.append(Hypothesis("time-varying", _r2(e, [yc, rel_t * yc, rel_t]) - base,
-                          f"the residual grows in time: {100 * r_first:.3g} % of the response in the first third of "
-                          f"the record, {100 * r_last:.3g} % in the last ({r_last / max(r_first, 1e-300):.2g}×): "
-                          "a gain or zero drifting during the test (temperature, creep, a warming sensor)"
-                          + ("" if steady else " — but the drive changes its character in time (a sweep: time is also "
-                             "frequency); confirm on a record with a steady drive")))
-    # shifted dynamics
-    sc_dyn = _r2(e, [yc, v, acc]) - base
-    words = "the dynamics are shifted: the error is in phase with the modelled velocity/acceleration"
-    modes = [f for f, lab in features if lab.startswith("mode")]
-    if modes:
-        ms = mode_shift(t, u, y, yhat, modes[0])
-        if ms is not None and abs(ms[0] / ms[1] - 1) > 0.01:
-            rel = ms[0] / ms[1] - 1
-            words = (f"measured mode 1 is {abs(100 * rel):.2g} % {'lower' if rel < 0 else 'higher'} than modelled "
-                     f"({ms[0]:.3g} vs {ms[1]:.3g} Hz): a stiffness or mass is wrong, or something "
-                     f"{'softens' if rel < 0 else 'stiffens'} the structure")
-            sc_dyn = max(sc_dyn, 0.0) + 0.05
-    out.append(Hypothesis("shifted dynamics", sc_dyn, words))
-    # sensor-only: a memoryless map of the deflection explains it
+    ev = _evidence(t, e, yhat, u, y, unit)
+    asymmetric = _sign_asymmetric(ev)
+    out: list[Hypothesis] = [] if asymmetric is None else [asymmetric]
+    out += [_amplitude_dependent(ev), _rate_dependent(ev), _switching(ev), _time_varying(ev),
+            _shifted_dynamics(ev, features)]
     # sensor-only: a memoryless map of the deflection explains it better than any class above
-    stat = _r2(e, [yc, yc ** 2, yc ** 3])
-    others = max(base + h.score for h in out)
+    stat = _r2(e, [ev.yc, ev.yc ** 2, ev.yc ** 3])
+    others = max(ev.base + h.score for h in out)
     out.append(Hypothesis("sensor-only (static map)", stat - others,
                           f"a static map of the deflection (offset + gain + quadratic + cubic) explains "
                           f"{100 * stat:.0f} % of the residual: a sensor error (gain, nonlinearity, offset) or a "
