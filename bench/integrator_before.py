@@ -1,9 +1,17 @@
 """The plant integrator as it was before issue 14 (Dormand–Prince 5(4), elementary step-size control
 ``h_new = h · clip(0.9 · err^(-1/5), 0.2, 5)``), kept verbatim except for a rejection counter so that
 ``bench_plant`` times the old and the new integrator on the same inputs in the same run (a ratio, not a
-remembered number). Not used by the package itself."""
+remembered number). Not used by the package itself.
 
-INTEGRATOR_SOURCE_BEFORE = r'''
+What it shares with today's member-by-member integrator to the letter is taken from there instead of written again:
+an output (``emit``) and the end of a member (``finish``: NaN from where a stopped member stopped, else the final
+state), both the same operations as the old text; the input interpolation, the step and the controller are the old
+ones, below."""
+
+from plant.integrate import kernel_source
+from plant.integrate_scalar import emit, finish, nan_from
+
+_STEPPER_BEFORE = r'''
 @numba.njit(cache=CACHE, nogil=True, error_model="numpy")
 def input_at(u, bu, t, u_t0, u_dt, uvec):
     m = u.shape[1]
@@ -25,20 +33,6 @@ def input_at(u, bu, t, u_t0, u_dt, uvec):
         f = s - i
     for k in range(u.shape[2]):
         uvec[k] = u[bu, i, k] * (1.0 - f) + u[bu, i + 1, k] * f
-
-@numba.njit(cache=CACHE, nogil=True, error_model="numpy")
-def emit(b, j, t, xo, pb, u, bu, u_t0, u_dt, uvec, bus, dx, yv, y, xs, bs, record_x, record_bus):
-    input_at(u, bu, t, u_t0, u_dt, uvec)
-    out(t, xo, pb, uvec, bus, dx, yv)
-    for k in range(yv.shape[0]):
-        y[b, j, k] = yv[k]
-    if record_x:
-        for k in range(xo.shape[0]):
-            xs[b, j, k] = xo[k]
-    if record_bus:
-        for k in range(N_BUS):
-            bs[b, j, k] = bus[k]
-
 
 @numba.njit(cache=CACHE, nogil=True, error_model="numpy")
 def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
@@ -167,18 +161,7 @@ def one(b, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max_steps,
         if steps >= max_steps:
             code = 3
             break
-    if code != 0:
-        for jj in range(j, nout):
-            for k in range(y.shape[2]):
-                y[b, jj, k] = np.nan
-            if record_x:
-                for k in range(n):
-                    xs[b, jj, k] = np.nan
-    else:
-        # leave the final state exactly at the end of the interval (the stepper continues from it)
-        if record_x:
-            for k in range(n):
-                xs[b, nout - 1, k] = x[k]
+    finish(b, code, j, nout, x, y, xs, record_x)
     status[b] = code
     nsteps[b] = steps
     nrej[b] = rejected
@@ -200,3 +183,7 @@ def run_chunk(lo, hi, x0, p, u, u_t0, u_dt, t_out, rtol, atol, h_max, h_min, max
                     y, xs, bs, record_x, record_bus, status, nsteps, nrej)
 
 '''
+
+#: the old integrator's source for :meth:`plant.PlantModel.with_integrator_source` (entry points ``run_chunk``,
+#: ``run_chunk_stats``)
+INTEGRATOR_SOURCE_BEFORE = kernel_source((emit, nan_from, finish), inline=(finish,)) + "\n\n" + _STEPPER_BEFORE
