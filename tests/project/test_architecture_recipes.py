@@ -1,14 +1,14 @@
 """The recipes of docs/architecture.md work verbatim, the way a newcomer uses them (issue 30 point 2).
 
 A fresh copy of the repository (its tracked files, as a clone has them) gets every recipe's code block at the place
-the block's first line names — ``# path`` a new file, ``# path, in NAME`` inside the table ``NAME`` after its last
-entry, ``# path, before NAME`` just above ``NAME``'s definition — all recipes at once, as one newcomer adding all of
-them would. Then, each in a fresh process started in the copy: ``ruff`` and ``mypy`` on the files the recipes wrote
-or changed, and every ``$`` command of the page (the affected tests and the recipe's own command), each expected to
-succeed, or, where the page shows ``shm: error: ...`` under it, to exit 2 with that line. Before issue 30 the library
-effect recipe broke ``import plant`` when copied into ``plant/effects`` and failed the library tests, the study
-package had no ``__init__.py`` and the command failed ruff and ignored ``--out``, while the old form of this test,
-which wrote the recipes into a separate package after ``plant`` was imported, passed.
+the block's first line names — ``# path`` a new file, ``# path, in NAME`` inside the table (or class) ``NAME`` after
+its last entry, ``# path, before NAME`` just above ``NAME``'s definition — all recipes at once, as one newcomer
+adding all of them would. Then, each in a fresh process started in the copy: ``ruff`` and ``mypy`` on the files the
+recipes wrote or changed, and every ``$`` command of the page (the affected tests and the recipe's own command),
+each expected to succeed, or, where the page shows ``shm: error: ...`` under it, to exit 2 with that line. Before
+issue 30 the library effect recipe broke ``import plant`` when copied into ``plant/effects`` and failed the library
+tests, the study package had no ``__init__.py`` and the command failed ruff and ignored ``--out``, while the old
+form of this test, which wrote the recipes into a separate package after ``plant`` was imported, passed.
 """
 
 from __future__ import annotations
@@ -85,7 +85,13 @@ def place(tree: Path, block: Block) -> Path:
     starts = [i for i, ln in enumerate(lines) if re.match(rf"^(?:def |class )?{block.name}\b", ln)]
     assert starts, f"{block.path} has no '{block.name}' for the recipe block to go {block.how}"
     at = starts[0]
-    if block.how == "in":
+    if block.how == "in" and lines[at].startswith("class "):  # after the class body's last line
+        at = next((i for i in range(at + 1, len(lines)) if lines[i].strip() and not lines[i][0].isspace()),
+                  len(lines))
+        while not lines[at - 1].strip():
+            at -= 1
+        new = block.code
+    elif block.how == "in":
         at = next(i for i in range(at + 1, len(lines)) if lines[i].rstrip() in (")", "}", "]"))
         new = block.code
     else:  # above NAME and the comment lines that document it
@@ -130,10 +136,14 @@ def test_the_page_has_every_recipe_with_its_place():
             ("studies/step_response/run.py", "new"), ("shm_cli/step_cmd.py", "new"),
             ("shm_cli/main.py", "in"), ("workbench/records/_npz_format.py", "new"),
             ("workbench/records/_io.py", "before"),
-            ("workbench/records/_io.py", "in"), ("tests/workbench/test_record_npz.py", "new")} <= places
+            ("workbench/records/_io.py", "in"), ("tests/workbench/test_record_npz.py", "new"),
+            ("firmware_sim/regimes.py", "in"), ("firmware_sim/regimes.py", "before"),
+            ("tests/firmware_sim/test_regime_overrun_cooled.py", "new")} <= places
+    assert {b.name for b in recipe_blocks(text) if b.path == "firmware_sim/regimes.py"} == {"Trigger", "TRANSITIONS"}
     commands = [c.line.split()[:2] for c in recipe_commands(text)]
     for wanted in (["shm", "effects"], ["pytest", "-q"], ["shm", "synth"], ["shm", "run"], ["shm", "step"]):
         assert wanted in commands, wanted
+    assert any("tests/firmware_sim/test_regime_overrun_cooled.py" in c.line for c in recipe_commands(text))
 
 
 def test_place_puts_a_table_entry_after_the_last_and_a_function_above_its_table(tmp_path):
@@ -142,6 +152,13 @@ def test_place_puts_a_table_entry_after_the_last_and_a_function_above_its_table(
     place(tmp_path, Block("m.py", "before", "TABLE", "def f() -> int:\n    return 2\n"))
     assert (tmp_path / "m.py").read_text() == ('A = 1\n\n\ndef f() -> int:\n    return 2\n\n\n#: the table\n'
                                                'TABLE: dict[str, int] = {\n    "a": 1,\n    "b": 2,\n}\n')
+
+
+def test_place_puts_a_class_member_after_the_last(tmp_path):
+    (tmp_path / "m.py").write_text('class K(StrEnum):\n    A = "a"\n\n    B = "b"  # b\n\n\nX = 1\n')
+    place(tmp_path, Block("m.py", "in", "K", '    C = "c"\n'))
+    assert (tmp_path / "m.py").read_text() == ('class K(StrEnum):\n    A = "a"\n\n    B = "b"  # b\n    C = "c"\n'
+                                               '\n\nX = 1\n')
 
 
 def test_the_copy_imports_its_own_packages(newcomer_tree):
