@@ -44,7 +44,8 @@ def _q(x: float, unit: str) -> str:
     return f"{x * s:.4g} {su}" if np.isfinite(x) else "—"
 
 
-def _time_section(cmp: Comparison, figs: dict[str, list[Path]]) -> str:
+def _time_header(cmp: Comparison) -> list[str]:
+    """The record's heading, what was compared, and the verdict per channel."""
     rec, rep = cmp.record, cmp.replay
     parts = [f"<h2>{html.escape(rec.name)} — {html.escape(rec.test)}</h2>"]
     parts.append(f"<p class='small'>{html.escape(rec.path)}: {rec.n_samples} samples, {rec.duration_s:.4g} s at "
@@ -60,70 +61,94 @@ def _time_section(cmp: Comparison, figs: dict[str, list[Path]]) -> str:
                           f"{(cmp.metrics[ch].eps_given or cmp.metrics[ch].eps_fitted).mean:.3g}",
                           f"{(cmp.metrics[ch].eps_given or cmp.metrics[ch].eps_fitted).frac_above_th * 100:.1f} %"]
                          for ch, v in verdicts.items()], raw=True))
+    return parts
+
+
+def _channel_evidence(cmp: Comparison, ch: str) -> list[str]:
+    """A channel's readings of the evidence (hypothesis classes) and its residual tests."""
+    parts = []
+    hyp = cmp.localisation[ch].hypotheses
+    if hyp:
+        parts.append(f"<h3>{html.escape(ch)}: readings of the evidence, most likely first</h3>")
+        parts.append(_table(["hypothesis class", "share explained beyond a gain error", "in numbers"],
+                            [[html.escape(h.kind), f"{100 * h.score:.0f} %", html.escape(h.sentence)]
+                             for h in hyp], raw=True))
+    rt = cmp.tests[ch]
+    parts.append(f"<h3>{html.escape(ch)}: residual tests (level α = {rt.level:g} per test, {rt.max_lag} lags, "
+                 f"N = {rt.n}, input {html.escape(rt.input_name)})</h3>")
+    parts.append(_table(["test", "what it checks", "statistic", "band", "p (adj.)", "verdict",
+                         "a failure points at"],
+                        [[html.escape(t.symbol), html.escape(t.title), f"{t.statistic:.4g}", f"{t.band:.4g}",
+                          f"{t.p_value:.2g}" if not t.p_value < 1e-16 else "&lt; 1e-16",
+                          f"<span class='{'na' if t.passed is None else t.verdict}'>{t.verdict}</span>",
+                          html.escape(t.points_at + (f" [{t.note}]" if t.note else ""))]
+                         for t in rt.tests], raw=True))
+    return parts
+
+
+def _channel_localisation(cmp: Comparison, ch: str) -> list[str]:
+    """Where a channel's error sits: windows over the threshold, test regimes, branches, frequency bands."""
+    loc = cmp.localisation[ch]
+    u = loc.unit
+    parts = [f"<h3>{html.escape(ch)}: windows above {_q(loc.threshold, u)} "
+             f"({cmp.options.threshold_sigma:g} σ; noise σ = {_q(loc.noise_std, u)}, "
+             f"{html.escape(loc.noise_source)}; rolling window {loc.window_s:.3g} s)</h3>"]
+    if loc.windows:
+        parts.append(_table(["start (s)", "end (s)", "regime", "peak |e|", "RMS e", "share of squared error"],
+                            [[f"{w.start_s:.4g}", f"{w.end_s:.4g}", w.regime, _q(w.peak_abs_error, u),
+                              _q(w.rms_error, u), f"{w.share_sq_error * 100:.1f} %"] for w in loc.windows]))
+    else:
+        parts.append("<p>No window exceeds the threshold.</p>")
+    parts.append("<h3>By test regime</h3>" + _table(
+        ["regime", "duration (s)", "RMS e", "mean e", "share of squared error", "time flagged", "mean ε", "max ε"],
+        [[r.label, f"{r.duration_s:.4g}", _q(r.rms_error, u), _q(r.mean_error, u),
+          f"{r.share_sq_error * 100:.1f} %", f"{r.frac_flagged * 100:.0f} %", f"{r.eps_mean:.3g}",
+          f"{r.eps_max:.3g}"] for r in loc.regimes]))
+    if loc.branches:
+        parts.append("<h3>Rising vs falling branches</h3>" + _table(
+            ["branch", "samples", "RMS e", "mean e", "mean ε", "max ε"],
+            [[b.label, b.n, _q(b.rms_error, u), _q(b.mean_error, u), f"{b.eps_mean:.3g}", f"{b.eps_max:.3g}"]
+             for b in loc.branches]))
+    parts.append("<h3>Error-carrying frequency bands (above the noise floor)</h3>" + (_table(
+        ["band", "share", "RMS content", "what sits there"],
+        [["0 Hz (offset)" if b.f_hi_Hz == 0 else f"{b.f_lo_Hz:.3g}–{b.f_hi_Hz:.3g} Hz", f"{b.share * 100:.1f} %",
+          _q(b.rms_error, u), b.near] for b in loc.bands]) if loc.bands else
+        "<p>No band rises significantly above the noise floor.</p>"))
+    return parts
+
+
+def _channel_metrics(cmp: Comparison, ch: str) -> str:
+    """A channel's metrics table: fit, errors, the paper's Eq. 4 fitted (and given), the k-step prediction."""
+    m, u = cmp.metrics[ch], cmp.localisation[ch].unit
+    rows = [["fit % (1 − NRMSE), free run", f"{m.fit_pct:.3f} %"], ["NRMSE", f"{m.nrmse:.4g}"],
+            ["RMSE", _q(m.rmse, u)], ["max |error|", _q(m.max_abs_error, u)], ["mean error", _q(m.mean_error, u)],
+            ["Eq. 4 fitted: e0, kerr, R²", f"{_q(m.eq4_fitted.e0, u)}, {m.eq4_fitted.kerr:.4g}, "
+                                           f"{m.eq4_fitted.r2:.3g}"],
+            ["ε (fitted e0/kerr): mean / p95 / max / > ε_th",
+             f"{m.eps_fitted.mean:.3g} / {m.eps_fitted.p95:.3g} / {m.eps_fitted.max:.3g} / "
+             f"{m.eps_fitted.frac_above_th * 100:.1f} %"]]
+    if m.eq4_given and m.eps_given:
+        rows += [["Eq. 4 given: e0, kerr", f"{_q(m.eq4_given.e0, u)}, {m.eq4_given.kerr:.4g}"],
+                 ["ε (given): mean / p95 / max / > ε_th",
+                  f"{m.eps_given.mean:.3g} / {m.eps_given.p95:.3g} / {m.eps_given.max:.3g} / "
+                  f"{m.eps_given.frac_above_th * 100:.1f} %"]]
+    if ch in cmp.prediction:
+        p = cmp.prediction[ch]
+        rows.append([p.label, f"fit {p.fit_pct:.3f} %, NRMSE {p.nrmse:.4g}, RMSE {_q(p.rmse, u)}"])
+    return "<h3>Metrics</h3>" + _table(["quantity", "value"], rows)
+
+
+def _time_section(cmp: Comparison, figs: dict[str, list[Path]]) -> str:
+    rep = cmp.replay
+    parts = _time_header(cmp)
     for ch in rep.channels:
         paths = figs[ch]
         parts.append(f"<h3>{html.escape(ch)}: where the model fails (one screen)</h3>")
         parts.append(_img(paths[0]))
         parts.append("<ul class='find'>" + "".join(f"<li>{html.escape(f)}</li>" for f in cmp.findings[ch]) + "</ul>")
-        hyp = cmp.localisation[ch].hypotheses
-        if hyp:
-            parts.append(f"<h3>{html.escape(ch)}: readings of the evidence, most likely first</h3>")
-            parts.append(_table(["hypothesis class", "share explained beyond a gain error", "in numbers"],
-                                [[html.escape(h.kind), f"{100 * h.score:.0f} %", html.escape(h.sentence)]
-                                 for h in hyp], raw=True))
-        rt = cmp.tests[ch]
-        parts.append(f"<h3>{html.escape(ch)}: residual tests (level α = {rt.level:g} per test, {rt.max_lag} lags, "
-                     f"N = {rt.n}, input {html.escape(rt.input_name)})</h3>")
-        parts.append(_table(["test", "what it checks", "statistic", "band", "p (adj.)", "verdict",
-                             "a failure points at"],
-                            [[html.escape(t.symbol), html.escape(t.title), f"{t.statistic:.4g}", f"{t.band:.4g}",
-                              f"{t.p_value:.2g}" if not t.p_value < 1e-16 else "&lt; 1e-16",
-                              f"<span class='{'na' if t.passed is None else t.verdict}'>{t.verdict}</span>",
-                              html.escape(t.points_at + (f" [{t.note}]" if t.note else ""))]
-                             for t in rt.tests], raw=True))
-        loc = cmp.localisation[ch]
-        u = loc.unit
-        parts.append(f"<h3>{html.escape(ch)}: windows above {_q(loc.threshold, u)} "
-                     f"({cmp.options.threshold_sigma:g} σ; noise σ = {_q(loc.noise_std, u)}, "
-                     f"{html.escape(loc.noise_source)}; rolling window {loc.window_s:.3g} s)</h3>")
-        if loc.windows:
-            parts.append(_table(["start (s)", "end (s)", "regime", "peak |e|", "RMS e", "share of squared error"],
-                                [[f"{w.start_s:.4g}", f"{w.end_s:.4g}", w.regime, _q(w.peak_abs_error, u),
-                                  _q(w.rms_error, u), f"{w.share_sq_error * 100:.1f} %"] for w in loc.windows]))
-        else:
-            parts.append("<p>No window exceeds the threshold.</p>")
-        parts.append("<h3>By test regime</h3>" + _table(
-            ["regime", "duration (s)", "RMS e", "mean e", "share of squared error", "time flagged", "mean ε", "max ε"],
-            [[r.label, f"{r.duration_s:.4g}", _q(r.rms_error, u), _q(r.mean_error, u),
-              f"{r.share_sq_error * 100:.1f} %", f"{r.frac_flagged * 100:.0f} %", f"{r.eps_mean:.3g}",
-              f"{r.eps_max:.3g}"] for r in loc.regimes]))
-        if loc.branches:
-            parts.append("<h3>Rising vs falling branches</h3>" + _table(
-                ["branch", "samples", "RMS e", "mean e", "mean ε", "max ε"],
-                [[b.label, b.n, _q(b.rms_error, u), _q(b.mean_error, u), f"{b.eps_mean:.3g}", f"{b.eps_max:.3g}"]
-                 for b in loc.branches]))
-        parts.append("<h3>Error-carrying frequency bands (above the noise floor)</h3>" + (_table(
-            ["band", "share", "RMS content", "what sits there"],
-            [["0 Hz (offset)" if b.f_hi_Hz == 0 else f"{b.f_lo_Hz:.3g}–{b.f_hi_Hz:.3g} Hz", f"{b.share * 100:.1f} %",
-              _q(b.rms_error, u), b.near] for b in loc.bands]) if loc.bands else
-            "<p>No band rises significantly above the noise floor.</p>"))
-        m = cmp.metrics[ch]
-        rows = [["fit % (1 − NRMSE), free run", f"{m.fit_pct:.3f} %"], ["NRMSE", f"{m.nrmse:.4g}"],
-                ["RMSE", _q(m.rmse, u)], ["max |error|", _q(m.max_abs_error, u)], ["mean error", _q(m.mean_error, u)],
-                ["Eq. 4 fitted: e0, kerr, R²", f"{_q(m.eq4_fitted.e0, u)}, {m.eq4_fitted.kerr:.4g}, "
-                                               f"{m.eq4_fitted.r2:.3g}"],
-                ["ε (fitted e0/kerr): mean / p95 / max / > ε_th",
-                 f"{m.eps_fitted.mean:.3g} / {m.eps_fitted.p95:.3g} / {m.eps_fitted.max:.3g} / "
-                 f"{m.eps_fitted.frac_above_th * 100:.1f} %"]]
-        if m.eq4_given and m.eps_given:
-            rows += [["Eq. 4 given: e0, kerr", f"{_q(m.eq4_given.e0, u)}, {m.eq4_given.kerr:.4g}"],
-                     ["ε (given): mean / p95 / max / > ε_th",
-                      f"{m.eps_given.mean:.3g} / {m.eps_given.p95:.3g} / {m.eps_given.max:.3g} / "
-                      f"{m.eps_given.frac_above_th * 100:.1f} %"]]
-        if ch in cmp.prediction:
-            p = cmp.prediction[ch]
-            rows.append([p.label, f"fit {p.fit_pct:.3f} %, NRMSE {p.nrmse:.4g}, RMSE {_q(p.rmse, u)}"])
-        parts.append("<h3>Metrics</h3>" + _table(["quantity", "value"], rows))
+        parts += _channel_evidence(cmp, ch)
+        parts += _channel_localisation(cmp, ch)
+        parts.append(_channel_metrics(cmp, ch))
         parts.append("<h3>Detailed figures</h3>" + "".join(_img(p) for p in paths[1:]))
     parts.append("<h3>Overlay of all channels</h3>" + _img(figs["_overlay"][0]))
     if figs["_prediction"] and rep.prediction is not None:
