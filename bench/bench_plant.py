@@ -63,48 +63,42 @@ def _best_of(fns: dict[str, Callable[[], Any]], repeats: int) -> tuple[dict[str,
 
 
 def _bare_step_kernel():
-    """A minimal fixed-step Dormand–Prince loop (6 right-hand sides per step, FSAL) around a compiled ``rhs``."""
+    """A minimal fixed-step Dormand–Prince loop (6 right-hand sides per step, FSAL) around a compiled ``rhs``, on the
+    integrators' own stage formulas (:mod:`plant.integrate_steps`, inlined as there)."""
     import numba
 
-    a21, a31, a32 = tableau._A21, tableau._A31, tableau._A32
-    a41, a42, a43 = tableau._A41, tableau._A42, tableau._A43
-    a51, a52, a53, a54 = tableau._A51, tableau._A52, tableau._A53, tableau._A54
-    a61, a62, a63, a64, a65 = tableau._A61, tableau._A62, tableau._A63, tableau._A64, tableau._A65
-    b1, b3, b4, b5, b6 = tableau._B1, tableau._B3, tableau._B4, tableau._B5, tableau._B6
-    c2, c3, c4, c5 = tableau._C2, tableau._C3, tableau._C4, tableau._C5
+    times, s2, s3, s4, s5, s6, s7 = (numba.njit(inline="always")(f) for f in (
+        tableau.stage_times, tableau.stage2, tableau.stage3, tableau.stage4, tableau.stage5, tableau.stage6,
+        tableau.solution5))
 
     @numba.njit(nogil=True, error_model="numpy")
     def bare(rhs, x0, p, u, n_bus, h, n_steps):  # pragma: no cover - compiled
         n = x0.shape[0]
         x = x0.copy()
         bus = np.zeros(n_bus)
-        k1 = np.zeros(n)
-        k2 = np.zeros(n)
-        k3 = np.zeros(n)
-        k4 = np.zeros(n)
-        k5 = np.zeros(n)
-        k6 = np.zeros(n)
-        xt = np.zeros(n)
+        w = np.zeros((7, n))  # the six stages and the stage state
+        k1, k2, k3, k4, k5, k6, xt = w[0], w[1], w[2], w[3], w[4], w[5], w[6]
         t = 0.0
         rhs(t, x, p, u, bus, k1)
         for _ in range(n_steps):
+            t2, t3, t4, t5 = times(t, h)
             for k in range(n):
-                xt[k] = x[k] + h * a21 * k1[k]
-            rhs(t + c2 * h, xt, p, u, bus, k2)
+                xt[k] = s2(x[k], h, k1[k])
+            rhs(t2, xt, p, u, bus, k2)
             for k in range(n):
-                xt[k] = x[k] + h * (a31 * k1[k] + a32 * k2[k])
-            rhs(t + c3 * h, xt, p, u, bus, k3)
+                xt[k] = s3(x[k], h, k1[k], k2[k])
+            rhs(t3, xt, p, u, bus, k3)
             for k in range(n):
-                xt[k] = x[k] + h * (a41 * k1[k] + a42 * k2[k] + a43 * k3[k])
-            rhs(t + c4 * h, xt, p, u, bus, k4)
+                xt[k] = s4(x[k], h, k1[k], k2[k], k3[k])
+            rhs(t4, xt, p, u, bus, k4)
             for k in range(n):
-                xt[k] = x[k] + h * (a51 * k1[k] + a52 * k2[k] + a53 * k3[k] + a54 * k4[k])
-            rhs(t + c5 * h, xt, p, u, bus, k5)
+                xt[k] = s5(x[k], h, k1[k], k2[k], k3[k], k4[k])
+            rhs(t5, xt, p, u, bus, k5)
             for k in range(n):
-                xt[k] = x[k] + h * (a61 * k1[k] + a62 * k2[k] + a63 * k3[k] + a64 * k4[k] + a65 * k5[k])
+                xt[k] = s6(x[k], h, k1[k], k2[k], k3[k], k4[k], k5[k])
             rhs(t + h, xt, p, u, bus, k6)
             for k in range(n):
-                x[k] = x[k] + h * (b1 * k1[k] + b3 * k3[k] + b4 * k4[k] + b5 * k5[k] + b6 * k6[k])
+                x[k] = s7(x[k], h, k1[k], k3[k], k4[k], k5[k], k6[k])
             t += h
             rhs(t, x, p, u, bus, k1)
         return x
