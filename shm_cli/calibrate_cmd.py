@@ -11,7 +11,7 @@ from typing import TYPE_CHECKING
 
 from board_config.errors import InputError
 from shm_cli.common import Decorations, add_out_arg, add_params_arg, dump_json, out_dir, output_file_arg
-from shm_cli.output_guard import add_force_arg, check_foreign_run, locked_out
+from shm_cli.output_guard import add_force_arg, check_foreign_run, check_new_file, locked_out, write_whole
 
 if TYPE_CHECKING:
     from board_config import ParameterSet
@@ -32,10 +32,10 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="do not hold the quasi-static tip gain z3/v_a at the starting set's value")
     p.add_argument("--name", default="calibrated", help="name written into the saved set")
     p.add_argument("--save", default=None, metavar="FILE.toml", type=output_file_arg,
-                   help="write the calibrated parameter set here")
+                   help="write the calibrated parameter set here (an existing file only with --force)")
     p.add_argument("--json", action="store_true", help="print the result table as JSON")
     add_out_arg(p)
-    add_force_arg(p, "another command's finished run in --out (its report is rewritten)")
+    add_force_arg(p, "the --save file, and another command's finished run in --out (its report is rewritten)")
     p.set_defaults(func=cmd_calibrate)
 
 
@@ -62,6 +62,8 @@ def cmd_calibrate(args: argparse.Namespace) -> int:
         raise InputError(f"--claims {claims}: missing key {exc} (layout: the shipped paper_claims.toml)") from None
     except (TypeError, ValueError) as exc:
         raise InputError(f"--claims {claims}: a claim is not a number: {exc}") from None
+    if args.save:  # checked before the calibration: never over a file without --force, never over the shipped sets
+        check_new_file(Path(args.save), "--save", args.force)
     check_foreign_run(Path(args.out), "calibration.json", args.force)  # another command's results stay
     out = out_dir(args.out)
     with locked_out(out, "calibrate"):  # one command per --out at a time
@@ -90,7 +92,8 @@ def _calibrate_locked(args: argparse.Namespace, base: ParameterSet, claims: Path
                "parameters": {f: res.params.values[f] for f in res.free},
                "parameters_start": {f: base.values[f] for f in res.free}}
     if args.save:
-        Path(args.save).write_text(res.params.to_toml())
+        toml = res.params.to_toml()
+        write_whole(Path(args.save), lambda tmp: tmp.write_text(toml), "--save", args.force)
         summary["saved"] = args.save
     # the numbers first (the saved set, calibration.json), then the figure: a plotting failure never loses them
     (out / "calibration.json").write_text(dump_json(summary))
