@@ -15,7 +15,7 @@ import numpy as np
 from board_config.errors import InputError
 from reporting.uncertainty_text import format_percent_change
 from studies.health.cause import effect_of
-from studies.health.estimate import DEFAULT_FREE, Visit, estimate_visits
+from studies.health.estimate import DEFAULT_FREE, Visit, VisitEstimates, VisitParameter, estimate_visits
 from studies.health.evaluate import (
     ALPHA,
     LAMBDAS,
@@ -48,16 +48,17 @@ SECTION_WORDS = {"k1": "the bending stiffness of section 1 (root)", "k2": "the b
 
 @dataclass
 class Assessment:
+    #: the health.json document (docs/health.md): JSON at the edge, written as is
     doc: dict[str, Any]
     visits: list[Visit]
-    estimates: list[dict[str, Any]]
+    estimates: list[VisitEstimates]
     trends: dict[str, Trend]
     forecast: Forecast
     boundary: Any
     #: the forecast rebuilt as of each visit (:func:`.evaluate.sweep_predictions`; with trip samples)
     sweep: list[SweepPrediction] = field(default_factory=list)
     #: each visit's estimates of the set diagnose named (None: the default set was followed)
-    followed_estimates: list[dict[str, Any]] | None = None
+    followed_estimates: list[VisitEstimates] | None = None
     #: the monitor's trip limit of each followed effect parameter (SI)
     effect_limits: dict[str, float] = field(default_factory=dict)
 
@@ -126,7 +127,7 @@ def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: floa
 
 
 def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[Visit],
-                     ests_all: list[dict[str, Any]], *, params: str, free: Sequence[str], boundary: Any,
+                     ests_all: list[VisitEstimates], *, params: str, free: Sequence[str], boundary: Any,
                      truth_ff: TrueFirstFault | None, as_of: float | None, seed: int, say: Callable[[str], None],
                      locate: str = "never", locate_diagnose: bool = False, locate_visits: int = 1,
                      evaluate: bool = False, alpha: float = ALPHA, lambdas: Sequence[float] = LAMBDAS,
@@ -165,8 +166,8 @@ def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[V
     doc["followed"] = followed.as_dict(hours) | {"effect_trip_limits": limits}
     if followed.estimates is not None:
         for vd, fe in zip(doc["visits"], followed.estimates):
-            vd["followed_estimates"] = fe["estimates"]
-            vd["followed_held_rms_sigma"] = fe["held_rms_sigma"]
+            vd["followed_estimates"] = [x.to_json() for x in fe.estimates]
+            vd["followed_held_rms_sigma"] = fe.held_rms_sigma
     doc["levels"] = levels(doc, trends, fc)
     doc["remaining_life"] = [p.to_json() for p in sweep]
     doc["truth"] = truth_document(visits, params, free, truth_ff)
@@ -195,23 +196,23 @@ def _evaluation_truth(truth_ff: TrueFirstFault | None, all_visits: Sequence[Visi
     return t_eol
 
 
-def _locate_trigger(ests: list[dict[str, Any]], trends: dict[str, Trend]) -> str | None:
+def _locate_trigger(ests: list[VisitEstimates], trends: dict[str, Trend]) -> str | None:
     """Why the latest visit calls for placing a stiffness loss (None: no reason)."""
     last = ests[-1]
-    for x in last["estimates"]:
-        if x["name"] in SECTIONS and _est_verdict(x) == "changed":
-            return f"{x['name']} changed at the latest visit"
+    for x in last.estimates:
+        if x.name in SECTIONS and _est_verdict(x) == "changed":
+            return f"{x.name} changed at the latest visit"
     for n, t in trends.items():
         if n in SECTIONS and t.significant:
             return f"significant {n} trend"
-    first = ests[0]["held_rms_sigma"]
-    if math.isfinite(first) and last["held_rms_sigma"] > 1.5 * first:
-        return (f"the health fit leaves {last['held_rms_sigma']:.2f} σ held-out residual at the latest visit "
+    first = ests[0].held_rms_sigma
+    if math.isfinite(first) and last.held_rms_sigma > 1.5 * first:
+        return (f"the health fit leaves {last.held_rms_sigma:.2f} σ held-out residual at the latest visit "
                 f"({first:.2f} σ at the first)")
     return None
 
 
-def _locate(visits: list[Visit], ests: list[dict[str, Any]], trends: dict[str, Trend], params: str, mode: str,
+def _locate(visits: list[Visit], ests: list[VisitEstimates], trends: dict[str, Trend], params: str, mode: str,
             with_diagnose: bool, say: Callable[[str], None]) -> dict[str, Any]:
     why = _locate_trigger(ests, trends) if mode == "auto" else ("asked (--locate always)" if mode == "always"
                                                                   else None)
@@ -249,11 +250,10 @@ def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, a
         vis.append({
             "visit": v.visit, "operating_hours": v.operating_hours, "board_verdict": v.verdict,
             "mbit_verdicts": v.mbit_verdicts, "records": [str(r.path) for r in v.records],
-            "held_rms_sigma": e["held_rms_sigma"],
-            "estimates": [{"name": x["name"], "value": x["value"], "stderr": x["stderr"], "unit": x["unit"],
-                           "nominal": x["nominal"], "relative": x["value"] / x["nominal"] - 1.0,
-                           "at_bound": bool(x.get("at_bound", False)),
-                           "verdict": _est_verdict(x)} for x in e["estimates"]],
+            "held_rms_sigma": e.held_rms_sigma,
+            "estimates": [{"name": x.name, "value": x.value, "stderr": x.stderr, "unit": x.unit,
+                           "nominal": x.nominal, "relative": x.relative, "at_bound": x.at_bound,
+                           "verdict": _est_verdict(x)} for x in e.estimates],
         })
     trend_doc = {}
     for n, t in trends.items():
@@ -296,9 +296,9 @@ def _visit_number(visits: list[Visit], hours: float | None, start: float, interv
     return first_no + k
 
 
-def _est_verdict(x: dict[str, Any]) -> str:
-    rel = x["value"] / x["nominal"] - 1.0
-    se = (x["stderr"] or 0.0) / abs(x["nominal"])
+def _est_verdict(x: VisitParameter) -> str:
+    rel = x.relative
+    se = (x.stderr or 0.0) / abs(x.nominal)
     if abs(rel) > max(3 * se, 0.02):
         return "changed"
     return "as nominal"

@@ -23,7 +23,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from studies.health.estimate import DEFAULT_FREE
+from studies.health.estimate import DEFAULT_FREE, VisitEstimates
 
 #: held-out RMS (σ) above which the default fit leaves more than the noise (and above this × the first visit's)
 EXCESS_SIGMA = 1.5
@@ -38,18 +38,18 @@ EFFECT_PARAMETERS: dict[str, dict[str, dict[str, float]]] = {
 }
 
 
-def excess_trigger(ests: Sequence[dict[str, Any]]) -> tuple[int, str] | None:
+def excess_trigger(ests: Sequence[VisitEstimates]) -> tuple[int, str] | None:
     """(index, reason) of the latest visit whose default fit leaves more than the noise or ran to a bound."""
-    first = ests[0]["held_rms_sigma"]
+    first = ests[0].held_rms_sigma
     limit = EXCESS_SIGMA * max(first if math.isfinite(first) else 1.0, 1.0)
     for i in range(len(ests) - 1, -1, -1):
         e = ests[i]
-        bound = [x["name"] for x in e["estimates"] if x.get("at_bound")]
+        bound = [x.name for x in e.estimates if x.at_bound]
         if bound:
             return i, (f"{', '.join(bound)} ran to {'its' if len(bound) == 1 else 'their'} fit bound (a change these "
                        "parameters cannot explain)")
-        if e["held_rms_sigma"] > limit:
-            return i, (f"the default fit leaves {e['held_rms_sigma']:.2f} σ held-out residual (more than "
+        if e.held_rms_sigma > limit:
+            return i, (f"the default fit leaves {e.held_rms_sigma:.2f} σ held-out residual (more than "
                        f"{limit:.2f} σ: {EXCESS_SIGMA:g} × max(1, the first visit's {first:.2f} σ))")
     return None
 
@@ -64,9 +64,9 @@ def reestimation_set(named: Sequence[str]) -> tuple[tuple[str, ...], tuple[str, 
     return (effects, free) if free else ((), DEFAULT_FREE)
 
 
-def base_values(first_estimates: dict[str, Any]) -> dict[str, float]:
+def base_values(first_estimates: VisitEstimates) -> dict[str, float]:
     """The first visit's fitted core values (SI) — the base the later visits are compared with."""
-    return {x["name"]: float(x["value"]) for x in first_estimates["estimates"] if not x.get("at_bound")}
+    return {x.name: float(x.value) for x in first_estimates.estimates if not x.at_bound}
 
 
 @dataclass(frozen=True)

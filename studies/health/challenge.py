@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 
 from studies.health.challenge_lives import ChallengeLife, challenge_lives, reference_life
-from studies.health.estimate import DEFAULT_FREE
+from studies.health.estimate import DEFAULT_FREE, VisitEstimates
 from studies.health.evaluate import seen_at_visits
 from studies.health.follow import Followed, effect_limits, find_and_follow, series, trends_upto
 from studies.health.forecast import forecast_trip, visit_of
@@ -216,7 +216,7 @@ def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold
     return out
 
 
-def needs_diagnosis(followed: Followed, ests: Sequence[dict[str, Any]], j: int, done: int) -> bool:
+def needs_diagnosis(followed: Followed, ests: Sequence[VisitEstimates], j: int, done: int) -> bool:
     """As of visit ``j``: diagnose when no diagnosis ran yet, or — at most :data:`MAX_DIAGNOSES` times — when the
     set in use leaves :data:`REDIAGNOSE_GROWTH` × the held-out residual it left at the visit last diagnosed (a
     second cause growing, or the first one outgrowing what was named)."""
@@ -225,7 +225,7 @@ def needs_diagnosis(followed: Followed, ests: Sequence[dict[str, Any]], j: int, 
     if done >= MAX_DIAGNOSES:
         return False
     in_use = followed.estimates if followed.estimates is not None else ests
-    return bool(in_use[j]["held_rms_sigma"] > REDIAGNOSE_GROWTH * in_use[followed.diagnosed_visit]["held_rms_sigma"])
+    return bool(in_use[j].held_rms_sigma > REDIAGNOSE_GROWTH * in_use[followed.diagnosed_visit].held_rms_sigma)
 
 
 def _bracket(hours: np.ndarray, t: float | None) -> int | None:

@@ -40,6 +40,50 @@ def stopped_at_bound(e: Any) -> bool:
     return bool(e.value - lo <= tol or hi - e.value <= tol)
 
 
+@dataclass(frozen=True, slots=True)
+class VisitParameter:
+    """One health parameter re-estimated on one visit: ``value``, ``stderr`` and ``nominal`` in ``unit`` (SI);
+    ``stderr`` None when the fit could not give one; ``nominal`` is the parameter set's value (0 for an added
+    effect's parameter, which is then read in its own unit)."""
+
+    name: str
+    value: float
+    stderr: float | None
+    nominal: float
+    unit: str
+    at_bound: bool = False
+
+    @property
+    def relative(self) -> float:
+        """Relative change from nominal (1; a core parameter only)."""
+        return self.value / self.nominal - 1.0
+
+    def to_json(self) -> dict[str, Any]:  # a JSON object at the edge (health.json's followed_estimates)
+        return {"name": self.name, "value": self.value, "stderr": self.stderr, "nominal": self.nominal,
+                "unit": self.unit, "at_bound": self.at_bound}
+
+
+@dataclass(frozen=True, slots=True)
+class VisitEstimates:
+    """One visit's re-estimation (picklable: it crosses the process pool): the parameters and the fit's quality
+    (residual rms in units of the noise σ, training and held-out blocks; wall time in s)."""
+
+    estimates: tuple[VisitParameter, ...]
+    held_rms_sigma: float
+    train_rms_sigma: float
+    fit_wall_s: float
+
+    def parameter(self, name: str) -> VisitParameter:
+        """The estimate of ``name`` (KeyError when it was not freed on this visit)."""
+        for x in self.estimates:
+            if x.name == name:
+                return x
+        raise KeyError(name)
+
+    def names(self) -> list[str]:
+        return [x.name for x in self.estimates]
+
+
 @dataclass
 class Visit:
     """One maintenance visit as the records tell it."""
@@ -84,8 +128,8 @@ def join_visit_records(records: Sequence[Record]) -> Record:
 
 
 def estimate_visit(records: Sequence[Record], params: str, free: Sequence[str] = DEFAULT_FREE,
-                   add: Sequence[str] = (), base: dict[str, float] | None = None) -> dict[str, Any]:
-    """Fit the free parameters on one visit; plain dict (picklable) with ``estimates`` and fit quality.
+                   add: Sequence[str] = (), base: dict[str, float] | None = None) -> VisitEstimates:
+    """Fit the free parameters on one visit: the estimates and the fit's quality.
     ``add``: effects added to the model (their parameters may be in ``free``; their nominal is the effect's
     default, usually 0); ``base``: core values (SI) replacing the set's (the first visit's fitted set)."""
     from board_config import load_parameter_set
@@ -100,17 +144,15 @@ def estimate_visit(records: Sequence[Record], params: str, free: Sequence[str] =
     rep = fit_records(recs, pset, add=list(add), free=list(free), max_nfev=30)
     # relative changes are against the parameter set's nominal values, not the base (the monitor's terms)
     model = PlantModel(params, terminal="amplifier", effects=list(add))
-    out = []
-    for e in rep.outcome.estimates:
-        nominal = float(model.param_value(e.name))
-        out.append({"name": e.name, "value": float(e.value), "stderr": float(e.stderr) if math.isfinite(e.stderr)
-                    else None, "nominal": nominal, "unit": e.unit, "at_bound": stopped_at_bound(e)})
-    return {"estimates": out, "held_rms_sigma": float(rep.outcome.held_rms_sigma),
-            "train_rms_sigma": float(rep.outcome.train_rms_sigma), "fit_wall_s": float(rep.wall_s)}
+    out = tuple(VisitParameter(e.name, float(e.value), float(e.stderr) if math.isfinite(e.stderr) else None,
+                               float(model.param_value(e.name)), e.unit, stopped_at_bound(e))
+                for e in rep.outcome.estimates)
+    return VisitEstimates(out, float(rep.outcome.held_rms_sigma), float(rep.outcome.train_rms_sigma),
+                          float(rep.wall_s))
 
 
 def _estimate_job(paths: list[str], params: str, free: tuple[str, ...], add: tuple[str, ...] = (),
-                  base: dict[str, float] | None = None) -> dict[str, Any]:
+                  base: dict[str, float] | None = None) -> VisitEstimates:
     from workbench.records import load_record
 
     records = []
@@ -125,14 +167,14 @@ def _estimate_job(paths: list[str], params: str, free: tuple[str, ...], add: tup
 def estimate_visits(visits: Sequence[Visit], params: str, free: Sequence[str] = DEFAULT_FREE,
                     workers: int | None = None, progress: Callable[[str], None] | None = None,
                     dask_scheduler: str | None = None, add: Sequence[str] = (),
-                    base: dict[str, float] | None = None) -> list[dict[str, Any]]:
+                    base: dict[str, float] | None = None) -> list[VisitEstimates]:
     """Every visit's estimates, in visit order (process pool of ``workers``; 1 = in this process; or the Dask
     cluster at ``dask_scheduler``, as ``shm campaign --dask-scheduler``: the records are read by the workers, so
     they need the same file system)."""
     n = workers if workers is not None else min(len(visits), os.cpu_count() or 1)
     free = tuple(free)
     paths = [[str(r.path) for r in v.records] for v in visits]
-    results: list[dict[str, Any]] = []
+    results: list[VisitEstimates] = []
     if dask_scheduler:
         from studies.campaign import connect_dask
 
@@ -162,15 +204,15 @@ def estimate_visits(visits: Sequence[Visit], params: str, free: Sequence[str] = 
     return results
 
 
-def _line(v: Visit, res: dict[str, Any]) -> str:
+def _line(v: Visit, res: VisitEstimates) -> str:
     parts = []
-    for e in res["estimates"]:
-        if e["nominal"] == 0.0:  # an added effect's parameter: in its own unit
-            se_s = f" ± {e['stderr']:.2g}" if e["stderr"] is not None else ""
-            parts.append(f"{e['name']} {e['value']:.3g}{se_s} {e['unit']}")
+    for e in res.estimates:
+        if e.nominal == 0.0:  # an added effect's parameter: in its own unit
+            se_s = f" ± {e.stderr:.2g}" if e.stderr is not None else ""
+            parts.append(f"{e.name} {e.value:.3g}{se_s} {e.unit}")
             continue
-        se = e["stderr"] / abs(e["nominal"]) if e["stderr"] is not None else None
-        bound = " (at its fit bound)" if e.get("at_bound") else ""
-        parts.append(f"{e['name']} {format_percent_change(e['value'] / e['nominal'] - 1, se)}{bound}")
+        se = e.stderr / abs(e.nominal) if e.stderr is not None else None
+        bound = " (at its fit bound)" if e.at_bound else ""
+        parts.append(f"{e.name} {format_percent_change(e.relative, se)}{bound}")
     return (f"  visit at {v.operating_hours:8.1f} h: " + ", ".join(parts)
-            + f"; held-out rms {res['held_rms_sigma']:.2f} σ ({res['fit_wall_s']:.1f} s)")
+            + f"; held-out rms {res.held_rms_sigma:.2f} σ ({res.fit_wall_s:.1f} s)")

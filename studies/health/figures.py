@@ -46,12 +46,12 @@ def plot_parameters(a: Any, path: Path) -> None:
     rng = np.random.default_rng(0)
     for ax, n in zip(axes[:, 0], names):
         t = a.trends[n]
-        src = a.estimates if any(x["name"] == n for x in a.estimates[0]["estimates"]) else a.followed_estimates
-        y = [next(x for x in e["estimates"] if x["name"] == n) for e in src]
-        own = y[0]["nominal"] == 0.0  # an added effect's parameter: in its own unit, trended as such
+        src = a.estimates if n in a.estimates[0].names() else (a.followed_estimates or [])
+        y = [e.parameter(n) for e in src]
+        own = y[0].nominal == 0.0  # an added effect's parameter: in its own unit, trended as such
         scale = 1.0 if own else 100.0
-        rel = np.array([x["value"] if own else 100 * (x["value"] / x["nominal"] - 1) for x in y])
-        se = np.array([scale * (x["stderr"] or 0) / (1.0 if own else abs(x["nominal"])) for x in y])
+        rel = np.array([x.value if own else 100 * (x.value / x.nominal - 1) for x in y])
+        se = np.array([scale * (x.stderr or 0) / (1.0 if own else abs(x.nominal)) for x in y])
         ax.errorbar(hours, rel, yerr=2 * se, fmt="o", ms=4, color="k", label="visit estimate (±2 s.e.)", zorder=3)
         med, lo, hi = t.band(hh, rng)
         ax.plot(hh, scale * med, color="C0", label=f"trend: {t.model}" + ("" if t.significant else

@@ -22,7 +22,7 @@ from studies.health.cause import (
     excess_trigger,
     reestimation_set,
 )
-from studies.health.estimate import DEFAULT_FREE
+from studies.health.estimate import DEFAULT_FREE, VisitEstimates
 from studies.health.trend import SIGMA_FLOOR, Trend, fit_trend
 
 SECTION_STIFFNESSES = ("k1", "k2", "k3")
@@ -40,7 +40,7 @@ class Followed:
     named: list[str] = field(default_factory=list)
     message: str | None = None
     #: per visit: the estimates of the followed set (None: the default set is followed)
-    estimates: list[dict[str, Any]] | None = None
+    estimates: list[VisitEstimates] | None = None
     diagnose_wall_s: float = 0.0
 
     @property
@@ -85,9 +85,9 @@ def follow_set(named: Sequence[str]) -> tuple[tuple[str, ...], tuple[str, ...]] 
     return effects, free
 
 
-def find_and_follow(ests: Sequence[dict[str, Any]], records_of: Callable[[int], Sequence[Any]], params: str,
+def find_and_follow(ests: Sequence[VisitEstimates], records_of: Callable[[int], Sequence[Any]], params: str,
                     reestimate: Callable[[tuple[str, ...], tuple[str, ...], dict[str, float]],
-                                         list[dict[str, Any]]],
+                                         list[VisitEstimates]],
                     say: Callable[[str], None] = lambda s: None) -> Followed:
     """Diagnose once, on the latest visit of ``ests`` whose default fit shows excess, and re-estimate the named
     set on every visit (``reestimate(effects, free, base)``) when it is not the default set."""
@@ -110,7 +110,7 @@ def find_and_follow(ests: Sequence[dict[str, Any]], records_of: Callable[[int], 
     return out
 
 
-def series(ests: Sequence[dict[str, Any]], names: Sequence[str]) -> tuple[dict[str, np.ndarray],
+def series(ests: Sequence[VisitEstimates], names: Sequence[str]) -> tuple[dict[str, np.ndarray],
                                                                           dict[str, np.ndarray]]:
     """Per parameter: the visits' values and standard errors — relative change from the estimate's nominal value
     (the parameter set's) for a core parameter, the value itself (SI) for an added effect's."""
@@ -118,14 +118,14 @@ def series(ests: Sequence[dict[str, Any]], names: Sequence[str]) -> tuple[dict[s
     s: dict[str, list[float]] = {n: [] for n in names}
     for e in ests:
         for n in names:
-            x = next(v for v in e["estimates"] if v["name"] == n)
-            se = x["stderr"] if x["stderr"] is not None else float("nan")
+            x = e.parameter(n)
+            se = x.stderr if x.stderr is not None else float("nan")
             if effect_of(n) is not None:
-                y[n].append(float(x["value"]))
+                y[n].append(float(x.value))
                 s[n].append(float(se))
             else:
-                y[n].append(float(x["value"]) / x["nominal"] - 1.0)
-                s[n].append(float(se) / abs(x["nominal"]))
+                y[n].append(float(x.value) / x.nominal - 1.0)
+                s[n].append(float(se) / abs(x.nominal))
     return {n: np.array(v) for n, v in y.items()}, {n: np.array(v) for n, v in s.items()}
 
 

@@ -8,15 +8,15 @@ import numpy as np
 import pytest
 
 from studies.health.cause import VisitDiagnosis, excess_trigger, reestimation_set
-from studies.health.estimate import DEFAULT_FREE
+from studies.health.estimate import DEFAULT_FREE, VisitEstimates, VisitParameter
 from studies.health.follow import Followed, find_and_follow, follow_set, series, trends_upto, why_sentence
 
 
-def _est(held: float, bound: tuple[str, ...] = (), **rel: float) -> dict:
+def _est(held: float, bound: tuple[str, ...] = (), **rel: float) -> VisitEstimates:
     nominal = {"k3": 100.0, "alpha_h": 0.5, "beta_h": 2.0}
-    return {"held_rms_sigma": held, "estimates": [
-        {"name": n, "value": nominal[n] * (1 + rel.get(n, 0.0)), "stderr": 1e-4 * nominal[n], "nominal": nominal[n],
-         "unit": "1", "at_bound": n in bound} for n in DEFAULT_FREE]}
+    return VisitEstimates(tuple(
+        VisitParameter(n, nominal[n] * (1 + rel.get(n, 0.0)), 1e-4 * nominal[n], nominal[n], "1", n in bound)
+        for n in DEFAULT_FREE), held, held, 0.0)
 
 
 def test_excess_is_the_latest_visit_beyond_the_noise_or_at_a_bound():
@@ -51,8 +51,8 @@ def test_find_and_follow_diagnoses_once_and_reestimates_the_named_set(monkeypatc
 
     def reestimate(effects, free, base):
         got.append((effects, free, base))
-        return [{"held_rms_sigma": 1.0, "estimates": [{"name": "G_leak", "value": 1e-4 * i, "stderr": 1e-8,
-                                                       "nominal": 0.0, "unit": "S"}]} for i in range(3)]
+        return [VisitEstimates((VisitParameter("G_leak", 1e-4 * i, 1e-8, 0.0, "S"),), 1.0, 1.0, 0.0)
+                for i in range(3)]
 
     f = find_and_follow(ests, lambda i: [f"record {i}"], "table2", reestimate)
     assert f.switched and f.free == ("G_leak",) and f.diagnosed_visit == 2

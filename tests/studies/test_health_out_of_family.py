@@ -129,15 +129,15 @@ def test_health_json_carries_the_latest_visit_check():
     """health.json's trend of each parameter has the check's numbers (``latest_visit_check``), null before five
     visits."""
     from studies.health.assess import _document
-    from studies.health.estimate import Visit
+    from studies.health.estimate import Visit, VisitEstimates, VisitParameter
 
     def doc_for(n: int) -> dict:
         h = np.arange(n) * 100.0
         y = 1e-4 * h
         y[-1] += 0.01
         visits = [Visit(float(x), [], visit=i + 1) for i, x in enumerate(h)]
-        ests = [{"held_rms_sigma": 1.0, "estimates": [{"name": "alpha_h", "value": 1.0 + float(v), "stderr": 1e-5,
-                                                       "nominal": 1.0, "unit": "-"}]} for v in y]
+        ests = [VisitEstimates((VisitParameter("alpha_h", 1.0 + float(v), 1e-5, 1.0, "-"),), 1.0, 1.0, 0.0)
+                for v in y]
         trends = {"alpha_h": fit_trend("alpha_h", h, y, np.full(n, 1e-5))}
         fc = forecast_trip(trends, _boundary(), h[-1], 100.0, n_paths=200, n_grid=200)
         return _document(visits, visits, ests, trends, fc, h, 100.0, None, "table2", ["alpha_h"])

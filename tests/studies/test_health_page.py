@@ -7,6 +7,7 @@ every visit, the truth, the evaluation, the figures and report.html — runs for
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import re
 
@@ -14,7 +15,7 @@ import numpy as np
 import pytest
 
 from studies.health.assess import assess_estimates
-from studies.health.estimate import Visit
+from studies.health.estimate import Visit, VisitEstimates, VisitParameter
 from studies.health.report import evaluation_text, four_levels_text, write_health_outputs
 from studies.health.trip import TripBoundary
 from studies.health.truth import true_first_fault
@@ -40,9 +41,8 @@ def _life(n: int = 12, interval: float = 100.0, alpha_rate: float = 1.6e-4, verd
         est = []
         for name, nom in NOMINAL.items():
             rel = truth[name] + rng.normal(0.0, SE[name] + 3e-4)
-            est.append({"name": name, "value": nom * (1 + rel), "stderr": SE[name] * nom, "nominal": nom,
-                        "unit": "", "at_bound": False})
-        ests.append({"estimates": est, "held_rms_sigma": 1.1, "train_rms_sigma": 1.0, "fit_wall_s": 0.0})
+            est.append(VisitParameter(name, nom * (1 + rel), SE[name] * nom, nom, ""))
+        ests.append(VisitEstimates(tuple(est), 1.1, 1.0, 0.0))
     return visits, ests
 
 
@@ -114,12 +114,13 @@ def test_a_bad_prognosis_is_scored_as_such(tmp_path):
     """The same life whose α_h speeds up after 600 h (trips at 800 h, not 1000 h): the predictions made on the slow
     part miss the α cone at λ = 0.5."""
     visits, ests = _life(n=12)
-    for v, e in zip(visits, ests):
+    for i, v in enumerate(visits):
         if v.operating_hours > 600:
             bump = 3.5e-4 * (v.operating_hours - 600)
             v.truth["relative"]["alpha_h"] += bump
-            x = next(x for x in e["estimates"] if x["name"] == "alpha_h")
-            x["value"] += bump * x["nominal"]
+            ests[i] = dataclasses.replace(ests[i], estimates=tuple(
+                dataclasses.replace(x, value=x.value + bump * x.nominal) if x.name == "alpha_h" else x
+                for x in ests[i].estimates))
     b = _boundary()
     ff = true_first_fault(visits, "table2", b)
     assert ff.operating_hours == 800.0
@@ -142,10 +143,12 @@ def test_the_board_verdicts_are_the_truth_when_the_log_has_them():
 
 def test_a_stable_laminate_gets_a_page_with_a_lower_bound(tmp_path):
     visits, ests = _life(n=6, alpha_rate=0.0)
-    for v, e in zip(visits, ests):  # nothing changes: the truth is nominal, the estimates scatter around it
+    for i, v in enumerate(visits):  # nothing changes: the truth is nominal, the estimates scatter around it
         v.truth["relative"] = {n: 0.0 for n in NOMINAL}
-        for x in e["estimates"]:
-            x["value"] = NOMINAL[x["name"]] * (1 + np.random.default_rng(int(v.operating_hours)).normal(0, 3e-4))
+        ests[i] = dataclasses.replace(ests[i], estimates=tuple(
+            dataclasses.replace(x, value=NOMINAL[x.name] * (1 + np.random.default_rng(int(v.operating_hours))
+                                                             .normal(0, 3e-4)))
+            for x in ests[i].estimates))
     b = _boundary()
     a = assess_estimates(visits, visits, [], ests, params="table2", free=("k3", "alpha_h", "beta_h"), boundary=b,
                          truth_ff=true_first_fault(visits, "table2", b), as_of=None, seed=1, say=lambda s: None)
