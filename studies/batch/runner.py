@@ -12,6 +12,7 @@ was lost with the worker) up to :data:`MAX_ATTEMPTS` times; the progress line co
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import os
 import time
 import uuid
@@ -28,7 +29,7 @@ ProgressFn = Callable[["BatchProgress"], None]
 ResultFn = Callable[["TaskResult"], None]
 #: submissions of one task before it is reported failed (a worker lost each time)
 MAX_ATTEMPTS = 4
-#: seconds between looks at the cluster's workers while waiting for results
+#: seconds between looks at the cluster's workers while no result arrives (a result is taken the moment it is done)
 POLL_S = 0.5
 
 
@@ -78,13 +79,17 @@ class BatchOutcome:
     warm_s: dict[str, float] = field(default_factory=dict)
     bytes_scattered: int = 0
     bytes_returned: int = 0
+    #: where the run's wall time went (s): connect, warm (the workers' warm-up, waited for), scatter, tasks (first
+    #: submission to last result)
+    phases_s: dict[str, float] = field(default_factory=dict)
 
     def cost(self) -> dict[str, Any]:
         task_wall = sum(r.wall_s for r in self.results)
         return {"scheduler": self.scheduler, "workers": self.n_workers, "workers_lost": self.workers_lost,
                 "reruns": self.reruns, "wall_s": self.wall_s, "task_wall_s": task_wall,
                 "task_cpu_s": sum(r.cpu_s for r in self.results), "warm_s": self.warm_s,
-                "bytes_scattered": self.bytes_scattered, "bytes_returned": self.bytes_returned}
+                "bytes_scattered": self.bytes_scattered, "bytes_returned": self.bytes_returned,
+                "phases_s": self.phases_s}
 
 
 # --- connecting --------------------------------------------------------------------------------------------------
@@ -125,6 +130,17 @@ def check_scheduler(text: str | None) -> str | None:
     raise SchedulerError(f"--scheduler {text!r}: expected local, synchronous or tcp://HOST:PORT")
 
 
+def _first_done(client: Any, futures: list[Any]) -> list[Any]:
+    """The futures done now, waiting until one is or :data:`POLL_S` passed (then maybe none: the caller looks at
+    the workers). A future cancelled with its worker's data comes back here as done, it does not raise."""
+    from distributed import wait
+    from distributed.client import FuturesCancelledError
+
+    with client.as_current(), contextlib.suppress(TimeoutError, FuturesCancelledError, asyncio.CancelledError):
+        wait(futures, timeout=POLL_S, return_when="FIRST_COMPLETED")
+    return [f for f in futures if f.done()]
+
+
 # --- running -----------------------------------------------------------------------------------------------------
 def run_tasks(tasks: list[tuple[str, dict[str, bytes]]], fn: TaskFn, options: Any, *,
               shared: dict[str, bytes] | None = None, scheduler: str | None = None, workers: int | None = None,
@@ -140,12 +156,14 @@ def run_tasks(tasks: list[tuple[str, dict[str, bytes]]], fn: TaskFn, options: An
         outcome = _run_here(tasks, fn, options, shared, warm, progress, on_result)
     else:
         client, cluster, desc = connect(scheduler, workers, len(tasks), timeout_s)
+        connect_s = time.perf_counter() - t0
         try:
             outcome = _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_result, longest_first)
         finally:
             client.close()
             if cluster is not None:
                 cluster.close()
+        outcome.phases_s = {"connect": connect_s, **outcome.phases_s}
     outcome.results.sort(key=lambda r: r.key)
     outcome.wall_s = time.perf_counter() - t0
     outcome.bytes_returned = sum(len(b) for r in outcome.results for b in r.files.values())
@@ -172,8 +190,10 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_resul
               longest_first=False) -> BatchOutcome:
     from studies.batch.warm import WarmPlugin, warm_seconds
 
+    t0 = time.perf_counter()
     client.register_plugin(WarmPlugin(warm), name=WarmPlugin.name)  # one thread per task, kernels warm
     warm_s = {w: s.get(WarmPlugin.name, 0.0) for w, s in client.run(warm_seconds).items()}
+    t1 = time.perf_counter()
     run_id = uuid.uuid4().hex[:8]
     shared_f = client.scatter([shared], broadcast=True, hash=False)[0]
     inputs = dict(zip([k for k, _ in tasks], client.scatter([f for _, f in tasks], hash=False), strict=True))
@@ -190,20 +210,15 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_resul
                              key=f"shm-{key}-{run_id}-{attempts[key]}")
 
     order = sorted(payload, key=lambda k: (-size_of[k], k)) if longest_first else sorted(payload)
+    t2 = time.perf_counter()
     pending = {submit(k): k for k in order}
     results: dict[str, TaskResult] = {}
     processing: dict[str, Any] = client.processing()
     lost = 0
     rerun: set[str] = set()
     n_workers = len(processing)
-    next_look = time.monotonic() + POLL_S
     while pending:
-        # polled, not distributed.wait: a future cancelled with its worker's data must come back here, not raise
-        done = [f for f in pending if f.done()]
-        if not done and time.monotonic() < next_look:
-            time.sleep(0.05)
-            continue
-        next_look = time.monotonic() + POLL_S
+        done = _first_done(client, list(pending))
         now = client.processing()
         gone = set(processing) - set(now)
         lost += len(gone)
@@ -234,5 +249,6 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_resul
                 on_result(results[key])
         if progress is not None and changed:
             progress(BatchProgress(len(results), len(tasks), len(now), lost, len(rerun)))
+    phases = {"warm": t1 - t0, "scatter": t2 - t1, "tasks": time.perf_counter() - t2}
     return BatchOutcome(list(results.values()), desc, n_workers, lost, len(rerun), warm_s=warm_s,
-                        bytes_scattered=scattered)
+                        bytes_scattered=scattered, phases_s=phases)
