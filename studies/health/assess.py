@@ -157,7 +157,7 @@ def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[V
     if location.get("run") and locate_visits > 1:
         for v in visits[-locate_visits:-1]:
             say(f"where? the visit at {v.operating_hours:g} h (--locate-visits)")
-            h = locate_stiffness(v.records, params, operating_hours=v.operating_hours)
+            h = locate_stiffness(v.records, params, operating_hours=v.operating_hours).to_json()
             history.append({k: h[k] for k in ("operating_hours", "section", "parameter", "distinguishable",
                                               "possible_sections", "relative", "relative_stderr", "ranking",
                                               "reason")})
@@ -214,6 +214,7 @@ def _locate_trigger(ests: list[VisitEstimates], trends: dict[str, Trend]) -> str
 
 def _locate(visits: list[Visit], ests: list[VisitEstimates], trends: dict[str, Trend], params: str, mode: str,
             with_diagnose: bool, say: Callable[[str], None]) -> dict[str, Any]:
+    """health.json's ``location`` (a JSON object: the document is built from it and written as is)."""
     why = _locate_trigger(ests, trends) if mode == "auto" else ("asked (--locate always)" if mode == "always"
                                                                   else None)
     if why is None:
@@ -230,17 +231,15 @@ def _locate(visits: list[Visit], ests: list[VisitEstimates], trends: dict[str, T
     say(f"where? ({why}) freeing k1, k2, k3{''.join(', ' + e for e in extra if e not in SECTIONS)} one at a time "
         "with alpha_h, beta_h "
         f"on the visit at {v.operating_hours:g} h")
-    loc = locate_stiffness(v.records, params, operating_hours=v.operating_hours, extra=extra)
-    loc.update({"run": True, "trigger": why, "diagnose_named": extra[0] if extra else None})
-    for c in loc["candidates"]:
-        if "error" in c:
-            say(f"  {c['name']}: could not be fitted ({c['error']})")
+    found = locate_stiffness(v.records, params, operating_hours=v.operating_hours, extra=extra)
+    for c in found.candidates:
+        if c.error is not None:
+            say(f"  {c.name}: could not be fitted ({c.error})")
         else:
-            rel = f"{100 * c['relative']:+.2f} %" if "relative" in c else "effect"
-            bound = " AT ITS FIT BOUND (a limit, not an estimate)" if c.get("at_bound") else ""
-            say(f"  {c['name']} alone: {rel}{bound}, held-out rss {c['held_rss_sigma2']:.0f} σ² "
-                f"({c['fit_wall_s']:.1f} s)")
-    return loc
+            rel = f"{100 * c.relative:+.2f} %" if c.relative is not None else "effect"
+            bound = " AT ITS FIT BOUND (a limit, not an estimate)" if c.at_bound else ""
+            say(f"  {c.name} alone: {rel}{bound}, held-out rss {c.held_rss_sigma2:.0f} σ² ({c.fit_wall_s:.1f} s)")
+    return found.to_json() | {"run": True, "trigger": why, "diagnose_named": extra[0] if extra else None}
 
 
 def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, as_of, params, free,

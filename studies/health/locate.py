@@ -17,11 +17,13 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from reporting.uncertainty_text import format_percent_change
+from studies.health.estimate import VisitParameter, join_visit_records, stopped_at_bound
 from workbench.records import Record
 
 SECTIONS: dict[str, int] = {"k1": 1, "k2": 2, "k3": 3}
@@ -34,6 +36,100 @@ MIN_DELTA_REL = 0.02
 MAX_SENSITIVITY_CORR = 0.995
 
 
+@dataclass(frozen=True, slots=True)
+class LocationCandidate:
+    """One parameter (or effect) freed alone with α_h, β_h on the visit: its fit's held-out score (residual sum of
+    squares in σ², over ``n_held`` samples; rms in σ; wall time in s) and its own estimate (None for an effect,
+    whose parameters are not a stiffness); ``error``: why an extra candidate could not be fitted (then no score)."""
+
+    name: str
+    kind: str  # "parameter" or "effect"
+    section: int | None = None
+    held_rss_sigma2: float = math.nan
+    n_held: int = 0
+    held_rms_sigma: float = math.nan
+    train_rms_sigma: float = math.nan
+    fit_wall_s: float = 0.0
+    estimate: VisitParameter | None = None
+    error: str | None = None
+
+    @property
+    def relative(self) -> float | None:
+        """The estimate's relative change from nominal (1), None without an estimate."""
+        return self.estimate.relative if self.estimate is not None else None
+
+    @property
+    def at_bound(self) -> bool:
+        return self.estimate is not None and self.estimate.at_bound
+
+    def to_json(self) -> dict[str, Any]:  # a row of health.json's location.candidates (docs/health.md)
+        if self.error is not None:
+            return {"name": self.name, "kind": self.kind, "error": self.error}
+        out: dict[str, Any] = {"name": self.name, "kind": self.kind, "section": self.section,
+                               "held_rss_sigma2": self.held_rss_sigma2, "n_held": self.n_held,
+                               "held_rms_sigma": self.held_rms_sigma, "train_rms_sigma": self.train_rms_sigma,
+                               "fit_wall_s": self.fit_wall_s}
+        e = self.estimate
+        if e is not None:
+            out.update({"value": e.value, "stderr": e.stderr, "nominal": e.nominal, "unit": e.unit,
+                        "relative": e.relative,
+                        "relative_stderr": (e.stderr / abs(e.nominal)) if e.stderr is not None else None,
+                        "at_bound": e.at_bound})
+        return out
+
+
+@dataclass(frozen=True, slots=True)
+class Placement:
+    """The location's verdict: ``distinguishable`` None (no loss to place), False (a loss the records cannot
+    place: ``separating_test`` names the test that would) or True (``section`` and its ``parameter``); the best
+    stiffness's relative change and its standard error (1)."""
+
+    section: int | None
+    parameter: str | None
+    distinguishable: bool | None
+    relative: float
+    relative_stderr: float
+    reason: str
+    separating_test: str | None = None
+
+
+@dataclass(frozen=True, slots=True)
+class Location:
+    """Where the stiffness loss is on one visit (:func:`locate_stiffness`): the candidates by held-out score, the
+    sections' sensitivity correlation, the best and runner-up's Δ held-out RSS against the noise (σ²) and the
+    placement."""
+
+    possible_sections: list[int]
+    operating_hours: float | None  # h
+    candidates: list[LocationCandidate]
+    ranking: list[str]
+    correlation_names: list[str]
+    correlation: list[list[float]]
+    delta_held_rss_sigma2: float
+    noise_held_rss_sigma2: float
+    correlation_best_runner_up: float
+    runner_up: str
+    placement: Placement
+    better_explained_by: str | None = None
+
+    def to_json(self) -> dict[str, Any]:  # health.json's location (docs/health.md): JSON at the edge
+        p = self.placement
+        out: dict[str, Any] = {
+            "possible_sections": self.possible_sections, "operating_hours": self.operating_hours,
+            "candidates": [c.to_json() for c in self.candidates], "ranking": self.ranking,
+            "sensitivity_correlation": {"names": self.correlation_names, "matrix": self.correlation},
+            "delta_held_rss_sigma2": self.delta_held_rss_sigma2, "noise_held_rss_sigma2": self.noise_held_rss_sigma2,
+            "correlation_best_runner_up": self.correlation_best_runner_up, "runner_up": self.runner_up,
+            "separating_test": p.separating_test, "section": p.section, "parameter": p.parameter,
+            "distinguishable": p.distinguishable, "relative": p.relative, "relative_stderr": p.relative_stderr,
+            "reason": p.reason}
+        if self.better_explained_by is not None:
+            out["better_explained_by"] = self.better_explained_by
+        out["at_bound"] = [c.name for c in self.candidates if c.at_bound]
+        out["at_bound_note"] = at_bound_note(self.candidates)
+        return out
+
+
 def _fit(recs: Sequence[Record], params: str, name: str, *, effect: bool, max_nfev: int) -> Any:
     from workbench.fit import fit_records
 
@@ -42,23 +138,14 @@ def _fit(recs: Sequence[Record], params: str, name: str, *, effect: bool, max_nf
     return fit_records(recs, params, free=[name, *NUISANCE], max_nfev=max_nfev)
 
 
-def _candidate(rep: Any, name: str, kind: str) -> dict[str, Any]:
-    from studies.health.estimate import stopped_at_bound
-
+def _candidate(rep: Any, name: str, kind: str) -> LocationCandidate:
     o = rep.outcome
     est = next((e for e in o.estimates if e.name == name), None)
-    out: dict[str, Any] = {"name": name, "kind": kind, "section": SECTIONS.get(name),
-                           "held_rss_sigma2": float(o.held_rss), "n_held": int(o.n_held),
-                           "held_rms_sigma": float(o.held_rms_sigma), "train_rms_sigma": float(o.train_rms_sigma),
-                           "fit_wall_s": float(rep.wall_s)}
-    if est is not None:
-        nominal = float(rep.model.param_value(name))
-        se = est.stderr if math.isfinite(est.stderr) else None
-        out.update({"value": float(est.value), "stderr": se, "nominal": nominal, "unit": est.unit,
-                    "relative": float(est.value) / nominal - 1.0,
-                    "relative_stderr": (se / abs(nominal)) if se is not None else None,
-                    "at_bound": stopped_at_bound(est)})
-    return out
+    mine = None if est is None else VisitParameter(
+        name, float(est.value), est.stderr if math.isfinite(est.stderr) else None,
+        float(rep.model.param_value(name)), est.unit, stopped_at_bound(est))
+    return LocationCandidate(name, kind, SECTIONS.get(name), float(o.held_rss), int(o.n_held),
+                             float(o.held_rms_sigma), float(o.train_rms_sigma), float(rep.wall_s), mine)
 
 
 def sensitivity_correlation(rep: Any, names: Sequence[str], rel_step: float = 0.01) -> np.ndarray:
@@ -100,13 +187,13 @@ def second_mode_hz(params: str) -> float | None:
 
 
 def _fit_candidates(recs: Sequence[Record], params: str, extra: Sequence[str], max_nfev: int
-                    ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+                    ) -> tuple[dict[str, Any], list[LocationCandidate]]:
     """Each section stiffness (and each ``extra``) freed alone with the hysteresis pair: the fits by name and the
-    candidates' JSON rows (an extra that cannot be fitted gets an ``error`` row; a section that cannot, raises)."""
+    candidates (an extra that cannot be fitted gets an ``error``; a section that cannot, raises)."""
     from workbench.fit import CORE_PARAMETER_NAMES
 
     reps: dict[str, Any] = {}
-    cands: list[dict[str, Any]] = []
+    cands: list[LocationCandidate] = []
     for name in [*SECTIONS, *[e for e in extra if e not in SECTIONS and e not in NUISANCE]]:
         effect = name not in SECTIONS and name not in CORE_PARAMETER_NAMES
         try:
@@ -114,7 +201,7 @@ def _fit_candidates(recs: Sequence[Record], params: str, extra: Sequence[str], m
         except Exception as exc:  # an extra candidate that cannot be fitted is reported, not fatal
             if name in SECTIONS:
                 raise
-            cands.append({"name": name, "kind": "effect" if effect else "parameter", "error": str(exc)})
+            cands.append(LocationCandidate(name, "effect" if effect else "parameter", error=str(exc)))
             continue
         reps[name] = rep
         cands.append(_candidate(rep, name, "effect" if effect else "parameter"))
@@ -131,90 +218,80 @@ def _separating_sweep(params: str) -> str:
             "section stiffness shifts")
 
 
-def _placement(best_k: dict[str, Any], runner: dict[str, Any], possible: list[int], corr_pair: float,
-               delta: float, noise: float, sweep: str) -> dict[str, Any]:
+def _placement(best_k: LocationCandidate, runner: LocationCandidate, possible: list[int], corr_pair: float,
+               delta: float, noise: float, sweep: str) -> Placement:
     """The location's verdict: no loss to place, a loss the records cannot place (with the test that would), or
     the section; ``delta`` and ``noise`` are held-out RSS in σ² units."""
-    rel, rse = best_k.get("relative", 0.0), best_k.get("relative_stderr") or 0.0
+    e = best_k.estimate
+    rel = e.relative if e is not None else 0.0
+    rse = (e.stderr / abs(e.nominal) if e.stderr is not None else None) if e is not None else None
+    rse = rse or 0.0
     if not abs(rel) > max(3 * rse, 0.02):
-        return {"section": None, "parameter": None, "distinguishable": None, "relative": rel, "relative_stderr": rse,
-                "reason": f"no section stiffness has moved beyond 3 standard errors or 2 % ({best_k['name']}"
-                          f" alone: {100 * rel:+.1f} %)"}
+        return Placement(None, None, None, rel, rse, f"no section stiffness has moved beyond 3 standard errors or 2 % "
+                                                     f"({best_k.name} alone: {100 * rel:+.1f} %)")
     if abs(corr_pair) >= MAX_SENSITIVITY_CORR or delta <= noise:
-        why = (f"the sensitivities of {best_k['name']} and {runner['name']} are correlated at {corr_pair:+.4f}"
+        why = (f"the sensitivities of {best_k.name} and {runner.name} are correlated at {corr_pair:+.4f}"
                if abs(corr_pair) >= MAX_SENSITIVITY_CORR else
-               f"the held-out scores of {best_k['name']} and {runner['name']} differ by {delta:.1f} σ² "
+               f"the held-out scores of {best_k.name} and {runner.name} differ by {delta:.1f} σ² "
                f"(noise {noise:.1f} σ²)")
         others = [s for s in SECTIONS.values() if s not in possible]
-        lean = (f"; the held-out score leans to section {best_k['section']} ({best_k['name']} "
+        lean = (f"; the held-out score leans to section {best_k.section} ({best_k.name} "
                 f"{100 * rel:+.0f} %) by {delta:.0f} σ² (noise {noise:.0f} σ²), which near-parallel sensitivities "
                 "do not make a placement" if abs(corr_pair) >= MAX_SENSITIVITY_CORR and delta > noise else "")
-        return {"section": None, "parameter": None, "distinguishable": False, "relative": rel,
-                "relative_stderr": rse, "separating_test": sweep,
-                "reason": f"a stiffness loss, but these records cannot tell section {best_k['section']} "
-                          f"from section {runner['section']}: {why}{lean}"
-                          + (f"; section {' or '.join(map(str, others))} is ruled out (clearly worse on "
-                             "held-out data)" if others else "")}
-    return {"section": best_k["section"], "parameter": best_k["name"], "distinguishable": True,
-            "relative": rel, "relative_stderr": rse,
-            "reason": f"{best_k['name']} alone explains the held-out data better than {runner['name']} "
-                      f"by {delta:.0f} σ² (noise {noise:.0f} σ²; sensitivity correlation "
-                      f"{corr_pair:+.3f})"}
+        return Placement(None, None, False, rel, rse,
+                         f"a stiffness loss, but these records cannot tell section {best_k.section} "
+                         f"from section {runner.section}: {why}{lean}"
+                         + (f"; section {' or '.join(map(str, others))} is ruled out (clearly worse on "
+                            "held-out data)" if others else ""), separating_test=sweep)
+    return Placement(best_k.section, best_k.name, True, rel, rse,
+                     f"{best_k.name} alone explains the held-out data better than {runner.name} "
+                     f"by {delta:.0f} σ² (noise {noise:.0f} σ²; sensitivity correlation {corr_pair:+.3f})")
 
 
 def locate_stiffness(records: Sequence[Record], params: str, *, operating_hours: float | None = None,
-                     extra: Sequence[str] = (), max_nfev: int = 30) -> dict[str, Any]:
+                     extra: Sequence[str] = (), max_nfev: int = 30) -> Location:
     """Free k1, k2, k3 (and ``extra``: core parameters or effects, e.g. ``shm diagnose``'s first name) one at a time
-    with α_h and β_h on one visit's records; the JSON-ready ``location`` (see docs/health.md)."""
-    from studies.health.estimate import join_visit_records
-
+    with α_h and β_h on one visit's records; :meth:`Location.to_json` is health.json's ``location``
+    (docs/health.md)."""
     board = all(r.meta.get("provenance", {}).get("generator") == "board" for r in records)
     recs = [join_visit_records(records)] if board else list(records)
     reps, cands = _fit_candidates(recs, params, extra, max_nfev)
-    scored = sorted((c for c in cands if "error" not in c), key=lambda c: c["held_rss_sigma2"])
+    scored = sorted((c for c in cands if c.error is None), key=lambda c: c.held_rss_sigma2)
     best = scored[0]
-    stiff = [c for c in scored if c["name"] in SECTIONS]
+    stiff = [c for c in scored if c.name in SECTIONS]
     best_k, runner = stiff[0], stiff[1]
-    corr = sensitivity_correlation(reps[best_k["name"]], list(SECTIONS))
+    corr = sensitivity_correlation(reps[best_k.name], list(SECTIONS))
     names = list(SECTIONS)
-    corr_pair = float(corr[names.index(best_k["name"]), names.index(runner["name"])])
-    delta = runner["held_rss_sigma2"] - best_k["held_rss_sigma2"]
-    noise = max(MIN_DELTA_RSS, MIN_DELTA_REL * best_k["held_rss_sigma2"])
+    corr_pair = float(corr[names.index(best_k.name), names.index(runner.name)])
+    delta = runner.held_rss_sigma2 - best_k.held_rss_sigma2
+    noise = max(MIN_DELTA_RSS, MIN_DELTA_REL * best_k.held_rss_sigma2)
     sweep = _separating_sweep(params)
     # the sections the records rule out: clearly worse on held-out data and not (anti)parallel to the best
-    possible = [best_k["section"]]
+    possible = [SECTIONS[best_k.name]]
     for c in stiff[1:]:
-        cc = float(corr[names.index(best_k["name"]), names.index(c["name"])])
-        if not (c["held_rss_sigma2"] - best_k["held_rss_sigma2"] > noise and abs(cc) < MAX_SENSITIVITY_CORR):
-            possible.append(c["section"])
-    location: dict[str, Any] = {
-        "possible_sections": sorted(possible),
-        "operating_hours": operating_hours, "candidates": cands, "ranking": [c["name"] for c in scored],
-        "sensitivity_correlation": {"names": names, "matrix": corr.tolist()},
-        "delta_held_rss_sigma2": float(delta), "noise_held_rss_sigma2": float(noise),
-        "correlation_best_runner_up": corr_pair, "runner_up": runner["name"], "separating_test": None,
-    }
-    location.update(_placement(best_k, runner, possible, corr_pair, delta, noise, sweep))
-    if best["name"] not in SECTIONS:
-        location["better_explained_by"] = best["name"]
-    location["at_bound"] = [c["name"] for c in cands if c.get("at_bound")]
-    location["at_bound_note"] = at_bound_note(cands)
-    return location
+        cc = float(corr[names.index(best_k.name), names.index(c.name)])
+        if not (c.held_rss_sigma2 - best_k.held_rss_sigma2 > noise and abs(cc) < MAX_SENSITIVITY_CORR):
+            possible.append(SECTIONS[c.name])
+    return Location(sorted(possible), operating_hours, cands, [c.name for c in scored], names, corr.tolist(),
+                    float(delta), float(noise), corr_pair, runner.name,
+                    _placement(best_k, runner, possible, corr_pair, delta, noise, sweep),
+                    better_explained_by=best.name if best.name not in SECTIONS else None)
 
 
-def at_bound_note(cands: Sequence[dict[str, Any]]) -> str | None:
+def at_bound_note(cands: Sequence[LocationCandidate]) -> str | None:
     """Words for the candidates whose fit stopped at a bound of the parameter's range (None: none did): such a
     value is where the fit was stopped, not an estimate, and its held-out score is that of a constrained fit."""
-    hit = [c for c in cands if c.get("at_bound")]
+    hit = [c for c in cands if c.at_bound]
     if not hit:
         return None
-    parts = [f"{c['name']} alone at {100 * c['relative']:+.0f} %" if "relative" in c else c["name"] for c in hit]
+    parts = [f"{c.name} alone at {100 * rel:+.0f} %" if (rel := c.relative) is not None else c.name for c in hit]
     return (f"{', '.join(parts)} stopped at the bound of the fit's range: a limit, not an estimate (that "
             f"stiffness alone cannot explain the records)")
 
 
 def location_sentence(loc: dict[str, Any]) -> str:
-    """The "where?" sentence of a location."""
+    """The "where?" sentence of a location as health.json holds it (:meth:`Location.to_json`, read back by the
+    levels and the page: the JSON document)."""
     if loc.get("distinguishable") is None:
         s = f"no stiffness loss to place ({loc['reason']})"
     elif loc["distinguishable"]:
@@ -234,7 +311,6 @@ def location_sentence(loc: dict[str, Any]) -> str:
 def diagnose_first_name(records: Sequence[Record], params: str) -> str | None:
     """What ``shm diagnose`` names first on a visit's records (its forward selection's first, else the top of its
     ranking); None when it names nothing."""
-    from studies.health.estimate import join_visit_records
     from workbench.diagnose import diagnose
 
     board = all(r.meta.get("provenance", {}).get("generator") == "board" for r in records)

@@ -3,15 +3,20 @@
 
 from __future__ import annotations
 
-from studies.health.locate import at_bound_note, location_sentence
+from studies.health.estimate import VisitParameter
+from studies.health.locate import LocationCandidate, at_bound_note, location_sentence
+
+
+def _cand(name: str, relative: float, rss: float, at_bound: bool) -> LocationCandidate:
+    return LocationCandidate(name, "parameter", int(name[1]), rss,
+                             estimate=VisitParameter(name, 1.0 + relative, None, 1.0, "N/m", at_bound))
 
 
 def _loc(**kw):
-    cands = [{"name": "k1", "section": 1, "relative": -0.30, "held_rss_sigma2": 3300.0, "at_bound": False},
-             {"name": "k2", "section": 2, "relative": 2.0, "held_rss_sigma2": 9000.0, "at_bound": True},
-             {"name": "k3", "section": 3, "relative": -0.18, "held_rss_sigma2": 1700.0, "at_bound": False}]
+    cands = [_cand("k1", -0.30, 3300.0, False), _cand("k2", 2.0, 9000.0, True), _cand("k3", -0.18, 1700.0, False)]
     loc = {"distinguishable": True, "section": 3, "parameter": "k3", "relative": -0.18, "relative_stderr": 0.004,
-           "reason": "k3 alone explains the held-out data better than k1 by 1600 σ²", "candidates": cands,
+           "reason": "k3 alone explains the held-out data better than k1 by 1600 σ²",
+           "candidates": [c.to_json() for c in cands],
            "at_bound": ["k2"], "at_bound_note": at_bound_note(cands)}
     loc.update(kw)
     return loc
@@ -23,8 +28,7 @@ def test_the_location_sentence_names_a_stiffness_at_its_bound():
 
 
 def test_no_bound_no_note():
-    cands = [{"name": "k3", "relative": -0.1, "at_bound": False}]
-    assert at_bound_note(cands) is None
+    assert at_bound_note([_cand("k3", -0.1, 100.0, False)]) is None
     assert "bound" not in location_sentence(_loc(at_bound=[], at_bound_note=None))
 
 

@@ -64,12 +64,13 @@ def test_a_k3_loss_is_placed_in_section_3(tmp_path, nominal_visit):
 
     recs = [load_record(_synth(tmp_path / f"{t}.csv", t, 500, 9, "k3=-0.12")) for t in ("mbit-a", "mbit-b")]
     loc = locate_stiffness(recs, "table2", operating_hours=500.0)
-    assert loc["distinguishable"] is True and loc["section"] == 3 and loc["parameter"] == "k3"
-    assert loc["relative"] == pytest.approx(-0.12, abs=0.005)
-    assert re.match(r"stiffness loss in section 3 \(k3 -1[12]\.\d+ ± \d\.\d+ %\)", location_sentence(loc))
+    p = loc.placement
+    assert p.distinguishable is True and p.section == 3 and p.parameter == "k3"
+    assert p.relative == pytest.approx(-0.12, abs=0.005)
+    assert re.match(r"stiffness loss in section 3 \(k3 -1[12]\.\d+ ± \d\.\d+ %\)", location_sentence(loc.to_json()))
     # nothing moved: nothing to place
     loc0 = locate_stiffness([load_record(p) for p in nominal_visit], "table2")
-    assert loc0["distinguishable"] is None and loc0["section"] is None
+    assert loc0.placement.distinguishable is None and loc0.placement.section is None
 
 
 FLIGHT = """[scenario]
