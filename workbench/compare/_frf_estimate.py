@@ -22,7 +22,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import signal
 
 #: default segment length (s): long enough to resolve a mode with a few percent damping (≈ 0.1 Hz at 1 kHz)
 DEFAULT_SEGMENT_S = 8.0
@@ -84,6 +83,8 @@ def h1_estimate(x: np.ndarray, y: np.ndarray, fs: float, nperseg: int | None = N
     n = nperseg if nperseg is not None else segment_length(x.size, fs, segment_s)
     xp, yp = _padded(x, n), _padded(y, n)
     kw = {"fs": fs, "nperseg": n, "noverlap": n // 2, "window": "hann"}
+    from scipy import signal  # here, not at the top: a second of import that shm diagnose and a worker never use
+
     f, gxy = signal.csd(xp, yp, **kw)
     _, gxx = signal.welch(xp, **kw)
     _, gyy = signal.welch(yp, **kw)
