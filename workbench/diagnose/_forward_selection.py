@@ -25,9 +25,12 @@ effect when both are fitted with the rest; a set without new physics still wins 
 from __future__ import annotations
 
 import copy
+import os
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from functools import partial
 from typing import Any
 
 from board_config import ParameterSet
@@ -35,6 +38,7 @@ from workbench.fit import (
     PREFER_PARAMETER_WITHIN,
     CandidateResult,
     CandidateSpec,
+    FitError,
     ScreenResult,
     Target,
     base_values_of,
@@ -71,6 +75,10 @@ SWAP_EFFECTS = 3
 #: of the record, was most of forward selection's time on a 15 s sweep)
 TRY_NFEV = 8
 TRY_SCREEN = 8
+#: fits of one step that do not depend on each other (a forward step's quick tries, the backward step's drop-one
+#: fits of one set) run this many at a time in threads — the compiled integrator releases the GIL, and a fit's own
+#: single simulations use one core; results are the same as one after another
+PARALLEL_FITS = 2
 
 
 class FitCache:
@@ -242,12 +250,15 @@ def _best_try(current: CandidateResult, tries_specs: Sequence[tuple[CandidateSpe
     :data:`TRY_SCREEN` screening points, no widening), ranked by ΔBIC_held, and only the best fitted in full from
     there — the full fit is what is judged and kept."""
     assert current.spec is not None and current.outcome is not None
+    specs = [current.spec.plus(spec1) for spec1, _ in tries_specs]
+    starts = [own | dict(current.outcome.values) for _, own in tries_specs]
+    _load_models(specs, base, targets)
+    quick_kw = dict(kw, min_reduction=min_reduction, max_nfev=min(max_nfev, TRY_NFEV), max_widen=0,
+                    n_screen=TRY_SCREEN)
+    tried = _in_parallel([partial(fits.fit, spec, base, targets, data, rss0_held, start=start, **quick_kw)
+                          for spec, start in zip(specs, starts)])
     quick: list[tuple[CandidateResult, CandidateSpec, dict[str, float]]] = []
-    for spec1, own in tries_specs:
-        spec = current.spec.plus(spec1)
-        start = own | dict(current.outcome.values)
-        r = fits.fit(spec, base, targets, data, rss0_held, start=start, min_reduction=min_reduction,
-                     max_nfev=min(max_nfev, TRY_NFEV), max_widen=0, n_screen=TRY_SCREEN, **kw)
+    for r, spec, start in zip(tried, specs, starts):
         score(r, current.held_rss, min_reduction, k_ref=len(current.free))
         quick.append((r, spec, start))
     if not quick:
@@ -259,6 +270,26 @@ def _best_try(current: CandidateResult, tries_specs: Sequence[tuple[CandidateSpe
                     start=start | (dict(r.outcome.values) if r.outcome is not None else {}), **kw)
     score(best, current.held_rss, min_reduction, k_ref=len(current.free))
     return best
+
+
+def _in_parallel(jobs: Sequence[Callable[[], CandidateResult]]) -> list[CandidateResult]:
+    """Run independent fits, :data:`PARALLEL_FITS` at a time (at most one per CPU); results in the jobs' order."""
+    n = min(PARALLEL_FITS, os.cpu_count() or 1, len(jobs))
+    if n <= 1:
+        return [job() for job in jobs]
+    with ThreadPoolExecutor(n) as pool:
+        return list(pool.map(lambda job: job(), jobs))
+
+
+def _load_models(specs: Sequence[CandidateSpec], base: ParameterSet, targets: Sequence[Target]) -> None:
+    """Build (compile or load) the compositions of ``specs`` one after another before they are fitted in
+    threads (a failure is left for the fit to report)."""
+    for spec in specs:
+        if targets and spec.effects:
+            try:
+                spec_models(spec, base, targets)
+            except FitError:
+                pass
 
 
 def _without(spec: CandidateSpec, name: str) -> CandidateSpec:
@@ -292,11 +323,13 @@ def _prune(current: CandidateResult, base: ParameterSet, targets: Sequence[Targe
         if best is not None:
             current = best
     drops: dict[str, tuple[CandidateResult, CandidateResult]] = {}  # member -> (the set it was dropped from, fit)
-    for name in current.members:
+    names = list(current.members)
+    for i, name in enumerate(names):
         if len(current.members) < 2:
             break
         assert current.spec is not None and current.outcome is not None  # an accepted fit keeps both
         spec = _without(current.spec, name)
+        _ahead(current, names[i:], base, targets, data, rss0_held, fits, **kw)
         r = fits.fit(spec, base, targets, data, rss0_held, start=dict(current.outcome.values), **kw)
         drops[name] = (current, r)
         if r.accepted and r.held_rss <= PRUNE_WITHIN * current.held_rss:
@@ -304,6 +337,22 @@ def _prune(current: CandidateResult, base: ParameterSet, targets: Sequence[Targe
     if without is not None:
         without.update({n: r for n, (of, r) in drops.items() if of is current and n in current.members})
     return current
+
+
+def _ahead(current: CandidateResult, names: Sequence[str], base: ParameterSet, targets: Sequence[Target],
+           data: Mapping[str, Any], rss0_held: float, fits: FitCache, **kw: Any) -> None:
+    """Fit the drop-one sets of ``current`` for the next :data:`PARALLEL_FITS` of ``names`` (members still in
+    it) together, into ``fits``: the backward step then meets them there. Only as many as run at once, so a drop
+    that changes the set wastes at most the others of its batch."""
+    assert current.spec is not None and current.outcome is not None
+    specs = [_without(current.spec, n) for n in names if n in current.members][:PARALLEL_FITS]
+    todo = [sp for sp in specs if FitCache.key(sp, kw) not in fits.fits]
+    if len(todo) < 2 or min(PARALLEL_FITS, os.cpu_count() or 1) < 2:
+        return
+    start = dict(current.outcome.values)
+    _load_models(todo, base, targets)
+    _in_parallel([partial(fits.fit, sp, base, targets, data, rss0_held, start=start, **kw) for sp in todo])
+    fits.hits -= len(todo)  # fitted ahead, not met again
 
 
 def at_noise_floor(c: CandidateResult) -> bool:
