@@ -144,31 +144,20 @@ def exchange_through_outage(link, make_command: Callable[[int], ActuatorCommand]
     return outcomes
 
 
+def maintenance_scenario(name: str, description: str, maintenance_s: float, *, verdict: str = "PASS",
+                         rig: str = "", board: str = "", parked_after_s: float = 0.5) -> str:
+    """A scenario file's text: a parked second, one maintenance visit of ``maintenance_s`` s, the HV removed for
+    ``parked_after_s`` s. ``rig`` adds lines to ``[rig]``; ``board`` adds ``[board.*]`` tables (text, ending in a
+    blank line)."""
+    phases = "\n".join(f'[[phase]]\nname = "{n}"\nkind = "{k}"\nduration = {{ value = {s:g}, unit = "s" }}\n'
+                       for n, k, s in (("parked", "ground", 1), ("maintenance", "maintenance", maintenance_s),
+                                       ("disconnected", "ground", parked_after_s)))
+    return (f'\n[scenario]\nname = "{name}"\ndescription = "{description}"\nseed = 1\nexpect_verdict = "{verdict}"\n'
+            f'\n[rig]\nparams = "table2"\nbattery_initial_voltage = {{ value = 3.0, unit = "V" }}\n{rig}\n{board}'
+            f"{phases}")
+
+
 #: a parked second, one maintenance visit (MBIT.a, MBIT.b, verdict) of 28 s and the HV removed: the shortest scenario
 #: whose board run ends with a clean PASS verdict (tests that run `shm hil serve` and `shm run --link` as processes)
-SHORT_MAINTENANCE_SCENARIO = """
-[scenario]
-name = "maintenance-short"
-description = "A parked second, a maintenance visit (MBIT.a, MBIT.b, verdict), HV removed."
-seed = 1
-expect_verdict = "PASS"
-
-[rig]
-params = "table2"
-battery_initial_voltage = { value = 3.0, unit = "V" }
-
-[[phase]]
-name = "parked"
-kind = "ground"
-duration = { value = 1, unit = "s" }
-
-[[phase]]
-name = "maintenance"
-kind = "maintenance"
-duration = { value = 28, unit = "s" }
-
-[[phase]]
-name = "disconnected"
-kind = "ground"
-duration = { value = 0.5, unit = "s" }
-"""
+SHORT_MAINTENANCE_SCENARIO = maintenance_scenario(
+    "maintenance-short", "A parked second, a maintenance visit (MBIT.a, MBIT.b, verdict), HV removed.", 28)

@@ -23,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from links_support import maintenance_scenario
 from test_links_board import EndpointAway
 
 from drivers import open_link
@@ -32,35 +33,9 @@ from hil_stub.truth import build_truth_rig
 
 pytestmark = pytest.mark.integration
 
-SCENARIO = """
-[scenario]
-name = "maintenance-mbit-b"
-description = "A short maintenance visit (MBIT.b only) for the link fault matrix."
-seed = 1
-expect_verdict = "PASS"
-
-[rig]
-params = "table2"
-battery_initial_voltage = { value = 3.0, unit = "V" }
-
-[board.maintenance]
-sequence = ["b"]
-
-[[phase]]
-name = "parked"
-kind = "ground"
-duration = { value = 1, unit = "s" }
-
-[[phase]]
-name = "maintenance"
-kind = "maintenance"
-duration = { value = 16, unit = "s" }
-
-[[phase]]
-name = "disconnected"
-kind = "ground"
-duration = { value = 0.5, unit = "s" }
-"""
+SCENARIO = maintenance_scenario("maintenance-mbit-b",
+                                "A short maintenance visit (MBIT.b only) for the link fault matrix.", 16,
+                                board='[board.maintenance]\nsequence = ["b"]\n\n')
 
 LINKS = ("serial", "modbus-tcp", "modbus-rtu")
 #: fault name -> (LinkFaults, URL timeout s or None for the link's default, links on which the fault rate leaves

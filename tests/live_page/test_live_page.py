@@ -27,6 +27,7 @@ import urllib.request
 from pathlib import Path
 
 import pytest
+from links_support import maintenance_scenario
 from live_page_browser import CHROMIUM, READ_PAGE, Browser
 
 REPO = Path(__file__).resolve().parents[2]
@@ -39,40 +40,11 @@ pytestmark = [pytest.mark.slow, pytest.mark.integration,
 #: 8 s of board time: parked 1 s, HV for 6 s (debounce 0.5 s, settle 1 s, MBIT.b 3 s, verdict), parked 1 s, on a
 #: degraded laminate so that the fault counter climbs and latches. A loaded test machine must not end the visit
 #: with a SAFE for tick overruns: this test is about the page, so the overrun limit is out of reach.
-SCENARIO = """
-[scenario]
-name = "live_short"
-description = "A short maintenance visit on a degraded laminate for the live page's tests: MBIT.b only."
-seed = 1
-expect_verdict = "FAULT"
-
-[rig]
-params = "table2"
-battery_initial_voltage = { value = 3.0, unit = "V" }
-deviations = { k3 = -0.35, alpha_h = 0.35, beta_h = -0.35 }
-
-[board.tick]
-overrun_ticks = { value = 10000, unit = "count" }
-
-[board.maintenance]
-sequence = ["b"]
-settle = { value = 1.0, unit = "s" }
-
-[[phase]]
-name = "parked"
-kind = "ground"
-duration = { value = 1, unit = "s" }
-
-[[phase]]
-name = "maintenance"
-kind = "maintenance"
-duration = { value = 6, unit = "s" }
-
-[[phase]]
-name = "disconnected"
-kind = "ground"
-duration = { value = 1, unit = "s" }
-"""
+SCENARIO = maintenance_scenario(
+    "live_short", "A short maintenance visit on a degraded laminate for the live page's tests: MBIT.b only.", 6,
+    verdict="FAULT", rig="deviations = { k3 = -0.35, alpha_h = 0.35, beta_h = -0.35 }\n", parked_after_s=1,
+    board='[board.tick]\noverrun_ticks = { value = 10000, unit = "count" }\n\n'
+          '[board.maintenance]\nsequence = ["b"]\nsettle = { value = 1.0, unit = "s" }\n\n')
 
 
 class LiveRun:
