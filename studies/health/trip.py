@@ -27,6 +27,9 @@ BETA_GRID = (-0.6, -0.3, 0.0, 0.3, 0.6)
 ALPHA_SPAN = (-0.6, 0.6)
 N_HALVINGS = 12
 NOISE_STD_M = 2e-6  # the rig's laser noise (1 sigma), as the board sees it
+# The MBIT batches integrate on the threads every batch uses (``threads=None``: ``$MFC_SHM_THREADS``, else the CPU
+# count), not a fixed 2: inside a Dask task a worker is one core and its warm-up sets one thread per task
+# (studies.batch.warm), so two threads there competed with the next worker's task for the same core.
 
 
 def _cache_dir() -> Path:
@@ -53,7 +56,7 @@ def fault_batch_values(params: str, columns: dict[str, np.ndarray], effects: tup
     for defn in spec.mbits:
         t, z3_model = nominal_prediction(spec, defn)
         res = model.simulate(mbit_sequence(defn).to_inputs(), dt_out=1.0 / spec.monitor.f_mon, params=batch,
-                             rtol=spec.rtol, threads=2)
+                             rtol=spec.rtol, threads=None)
         z3 = np.array(res["z3_meas"], dtype=float) + rng.normal(0.0, NOISE_STD_M, (n, t.size))
         eps = normalised_error(z3_model[None, :], z3, spec.monitor.e0z, spec.monitor.kerr_z)
         fault |= evaluate(eps, spec.monitor, t).detected & (res.status == 0)
@@ -105,7 +108,7 @@ def fault_batch(params: str, devs: np.ndarray, seed: int = 1) -> np.ndarray:
     for defn in spec.mbits:
         t, z3_model = nominal_prediction(spec, defn)
         res = model.simulate(mbit_sequence(defn).to_inputs(), dt_out=1.0 / spec.monitor.f_mon, params=batch,
-                             rtol=spec.rtol, threads=2)
+                             rtol=spec.rtol, threads=None)
         z3 = np.array(res["z3_meas"], dtype=float) + rng.normal(0.0, NOISE_STD_M, (devs.shape[0], t.size))
         eps = normalised_error(z3_model[None, :], z3, spec.monitor.e0z, spec.monitor.kerr_z)
         fault |= evaluate(eps, spec.monitor, t).detected & (res.status == 0)
