@@ -1,0 +1,397 @@
+"""The rounds of ``shm discover``'s forward selection as named stages (:func:`search_round`): the sensitivity batch
+(:func:`sensitivities`), the held-out linear screen (:func:`linear_screen`), the fast path that confirms a screen
+already at the noise floor on the full model (:func:`fast_path`), the nonlinear probes and onsets
+(:func:`probe_screen`), the refits (:func:`refit_term`, :func:`refit_best`) and keeping the best
+(:func:`keep_best`); then the backward step (:func:`backward_step`) and the terms the records cannot tell apart
+(:func:`twins_of`). :func:`workbench.discover._pipeline.discover` prepares the search (:class:`SearchSetup`), runs
+the rounds on a :class:`SearchProgress` and judges what they kept.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from board_config.parameter import freed
+from plant import PlantModel
+from workbench.discover._dictionary import DELAY_FORMS, Term
+from workbench.discover._effect_writer import describe_term
+from workbench.discover._gates import TIME_GATES
+from workbench.discover._onset import change_point, onset_probe, onset_scan, with_onsets
+from workbench.discover._results import DiscoverError, ScreenRow, excess_share_removed, noise_free_match
+from workbench.discover._search import (
+    SearchState,
+    free_for,
+    nonlinear_check,
+    other_delay_order,
+    refine,
+    refit_list,
+)
+from workbench.fit import FitOutcome, Objective, Target, explained, noise_tolerance, rms
+
+#: a term is kept when its refit removes at least this share of the held-out energy left above the noise
+MIN_SHARE = 0.25
+#: integrator tolerance of the sensitivity batch (tighter than the fits: differences of near-equal runs)
+SENS_RTOL = 1e-7
+#: on the fast path, up to this many further rows that also reach the noise floor on the screen are refitted too
+FAST_ALSO = 3
+#: at most this many twins are named per kept term
+MAX_TWINS = 2
+#: a twin's held-out RMS may exceed the chosen term's by this share (model tolerance) plus three standard
+#: deviations of the RMS of white noise over the held-out samples
+TWIN_MODEL_SHARE = 0.02
+
+
+@dataclass(frozen=True)
+class SearchSetup:
+    """What every round searches with: the records cut into targets, the dictionary's terms and parameter names,
+    the models holding the dictionary effect, each signal's scale (SI), each term's sensitivity step ``eps`` and
+    the nominal model's residuals (σ) with the number of held-out samples."""
+
+    targets: list[Target]
+    models: list[PlantModel]
+    terms: list[Term]
+    names: list[tuple[str, str | None]]
+    scales: dict[str, float]
+    eps: np.ndarray
+    n_held: int
+    train_before: float
+    held_before: float
+
+
+@dataclass(frozen=True)
+class SearchSettings:
+    """How the rounds search (see :func:`workbench.discover._pipeline.discover`'s arguments)."""
+
+    n_refit: int
+    max_nfev: int
+    threads: int | None
+    expect_change: bool
+    say: Callable[[str], None]
+
+
+@dataclass
+class SearchProgress:
+    """What the rounds have kept so far: the current model (``state``), the kept parameters' standard errors, its
+    residuals (σ), the refit that kept the last term, the first round's screen, the per-round log, each kept term's
+    twins, the timings (s) and the simulations run."""
+
+    state: SearchState
+    current_train: float
+    current_held: float
+    n_sims: int
+    timings: dict[str, float]
+    stderr: dict[str, float] = field(default_factory=dict)
+    outcome: FitOutcome | None = None
+    screen_rows: list[ScreenRow] = field(default_factory=list)
+    rounds: list[dict[str, Any]] = field(default_factory=list)
+    twins: dict[int, list[dict[str, Any]]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SensitivityBatch:
+    """The measured channels of the current model (member 0) and with each candidate term ``cand[j]`` switched on
+    by its ``eps`` (member j + 1), per target; ``ok``: which members integrated."""
+
+    cand: list[int]
+    ys: list[np.ndarray]
+    ok: np.ndarray
+
+
+@dataclass(frozen=True)
+class BestRefit:
+    """The refit with the lowest held-out RMS (σ) so far, and its term's index in the dictionary."""
+
+    held_rms_sigma: float
+    index: int
+    outcome: FitOutcome
+
+
+def sensitivities(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings) -> SensitivityBatch:
+    """One batch: member 0 is the current model, member k + 1 switches candidate term k on with eps_k."""
+    terms, names, eps, values = setup.terms, setup.names, setup.eps, progress.state.values
+    cand = [k for k in range(len(terms)) if k not in progress.state.kept]
+    names_free = [freed(names[k][0], terms[k].unit, -1e300, 1e300, False, "discover") for k in cand]
+    obj = Objective(setup.targets, setup.models, names_free, base_values=values, rtol=SENS_RTOL,
+                    threads=settings.threads)
+    # unit box of a linear [-1e300, 1e300] range: u = 0.5 + v / 2e300 — set the values directly instead
+    P_rows = []
+    for i in range(len(setup.targets)):
+        P = np.tile(obj._p0[i], (len(cand) + 1, 1))
+        for j, k in enumerate(cand):
+            P[j + 1, obj._cols[i][j]] += eps[k]
+        P_rows.append(P)
+    ys, ok = [], np.ones(len(cand) + 1, bool)
+    for tg, m, P in zip(setup.targets, setup.models, P_rows):
+        res = m.simulate(tg.inputs, t_out=tg.t, params=P, rtol=SENS_RTOL, threads=settings.threads,
+                         max_steps=Objective.max_steps(tg))
+        y = res.y[:, :, tg.out_idx(m)].transpose(0, 2, 1)
+        ok &= (res.status == 0) & np.all(np.isfinite(y), axis=(1, 2))
+        ys.append(y)
+    progress.n_sims += (len(cand) + 1) * len(setup.targets)
+    return SensitivityBatch(cand, ys, ok)
+
+
+def linear_screen(setup: SearchSetup, batch: SensitivityBatch) -> list[ScreenRow]:
+    """Each candidate's coefficient by least squares on the training blocks, ranked by the held-out residual left."""
+    r_tr: list[np.ndarray] = []
+    r_he: list[np.ndarray] = []
+    X_tr: list[np.ndarray] = []
+    X_he: list[np.ndarray] = []
+    cand, eps = batch.cand, setup.eps
+    for tg, y in zip(setup.targets, batch.ys):
+        for part, rr, XX in (("train", r_tr, X_tr), ("held", r_he, X_he)):
+            mask = tg.train if part == "train" else tg.held
+            meas = tg.measured[:, mask] / tg.sigma[:, None]
+            y0 = y[0][:, mask] / tg.sigma[:, None]
+            rr.append((meas - y0).ravel())
+            sens = (y[1:, :, :][:, :, mask] - y[0][None, :, mask]) / tg.sigma[None, :, None]
+            XX.append(sens.reshape(sens.shape[0], -1) / eps[cand][:, None])
+    r_tr_v, r_he_v = np.concatenate(r_tr), np.concatenate(r_he)
+    Xtr, Xhe = np.concatenate(X_tr, axis=1), np.concatenate(X_he, axis=1)
+    rows = []
+    for j, k in enumerate(cand):
+        if not batch.ok[j + 1]:
+            continue
+        x = Xtr[j]
+        den = float(x @ x)
+        if not den > 0 or not np.isfinite(den):
+            continue
+        a = float(x @ r_tr_v) / den
+        rows.append(ScreenRow(setup.terms[k], a, rms(r_he_v - a * Xhe[j]), rms(r_tr_v - a * x)))
+    rows.sort(key=lambda r: r.held_rms_sigma)
+    return rows
+
+
+def refit_term(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings,
+               row: ScreenRow) -> FitOutcome | None:
+    """``row``'s term refitted on the full nonlinear model with the kept terms (None when the refit fails)."""
+    terms, names, targets, models = setup.terms, setup.names, setup.targets, setup.models
+    state, threads, max_nfev = progress.state, settings.threads, settings.max_nfev
+    k = terms.index(row.term)
+    start = dict(state.values)
+    start[names[k][0]] = row.coef
+    if row.term.form in TIME_GATES:  # an onset time: start the refit from a scan around its onset
+        scan, n_probes = onset_scan(row, names[k], targets, models, state.values, (0.0, setup.scales["t"]),
+                                    threads)
+        start.update(scan)
+        progress.n_sims += n_probes * len(targets)
+    free = free_for(terms, names, [*state.kept, k], start, k)
+    robj = Objective(targets, models, free, base_values=state.values, threads=threads)
+    out = refine(robj, start, max_nfev)
+    progress.n_sims += robj.n_sims
+    if not out.ok:
+        return None
+    # a coefficient at its range bound: widen once (the linearised start underestimated it)
+    if any(e.at_bound and e.name.startswith("a_") for e in out.estimates):
+        start2 = dict(start) | out.values
+        free2 = free_for(terms, names, [*state.kept, k], start2, k)
+        robj2 = Objective(targets, models, free2, base_values=state.values, threads=threads)
+        out2 = refine(robj2, start2, max_nfev)
+        progress.n_sims += robj2.n_sims
+        if out2.ok and out2.train_rms_sigma < out.train_rms_sigma:
+            out = out2
+    return out
+
+
+def _tried(row: ScreenRow, out: FitOutcome) -> dict[str, Any]:
+    return {"term": row.term.key, "held_rms_sigma": out.held_rms_sigma, "train_rms_sigma": out.train_rms_sigma}
+
+
+def fast_path(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, rows: list[ScreenRow],
+              tried: list[dict[str, Any]]) -> BestRefit | None:
+    """The linearised screen already reaches the noise floor with one term: confirm it on the full model before
+    probing every term nonlinearly — the best row, for a delay the best row of its other Padé order (the linearised
+    screen barely tells them apart; a strong delay needs the second order), and the next rows that also explain the
+    records on the screen: a term acting through the (hysteretic) structure is linearised less exactly than one in
+    the measurement, so its refit, not its screen value, says whether it is a twin. Refits are logged in ``tried``."""
+    held_before, n_held = setup.held_before, setup.n_held
+    also = [r for r in rows[1:1 + FAST_ALSO] if explained(r.held_rms_sigma, held_before, n_held)]
+    todo: list[ScreenRow] = []
+    for row in [rows[0], *other_delay_order(rows, rows[0]), *also]:
+        if all(row is not r for r in todo):
+            todo.append(row)
+    best: BestRefit | None = None
+    for row in todo:
+        out = refit_term(setup, progress, settings, row)
+        if out is not None and explained(out.held_rms_sigma, held_before, n_held):
+            tried.append(_tried(row, out))
+            if best is None or out.held_rms_sigma < best.held_rms_sigma:
+                best = BestRefit(out.held_rms_sigma, setup.terms.index(row.term), out)
+    return best
+
+
+def probe_screen(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, rows: list[ScreenRow],
+                 batch: SensitivityBatch) -> tuple[list[ScreenRow], list[ScreenRow]]:
+    """The screen re-ranked on the full model (probes of the hard forms), and the time-gated rows probed where the
+    residual changes its level (a damage event)."""
+    targets, models, terms, values = setup.targets, setup.models, setup.terms, progress.state.values
+    t_hat = max((change_point(tg.t, (tg.measured - y[0]) / tg.sigma[:, None]) for tg, y in zip(targets, batch.ys)),
+                key=lambda cp: cp[1])[0]
+    onset_rows, n_probes = onset_probe(rows, dict(zip(terms, setup.names)), targets, models, values, t_hat,
+                                       setup.scales["t"], settings.threads)
+    progress.n_sims += n_probes * len(targets)
+    rows, n_probes = nonlinear_check(rows, terms, targets, models, values, setup.names, settings.threads)
+    progress.n_sims += n_probes * len(targets)
+    return rows, onset_rows
+
+
+def refit_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, todo: list[ScreenRow],
+               tried: list[dict[str, Any]]) -> BestRefit | None:
+    """The best few refitted on the full nonlinear model, until one reaches the noise floor (logged in ``tried``)."""
+    best: BestRefit | None = None
+    for row in todo:
+        k = setup.terms.index(row.term)
+        out = refit_term(setup, progress, settings, row)
+        if out is None:
+            continue
+        tried.append(_tried(row, out))
+        if best is None or out.held_rms_sigma < best.held_rms_sigma:
+            best = BestRefit(out.held_rms_sigma, k, out)
+        if out.held_rms_sigma <= 1.0 + noise_tolerance(setup.n_held):  # at the noise floor: nothing can do better
+            break
+    return best
+
+
+def keep_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, best: BestRefit,
+              rows: list[ScreenRow], tried: list[dict[str, Any]], linearised: bool) -> bool:
+    """Keep the round's best refit when it removes at least :data:`MIN_SHARE` of the excess over the noise (its
+    twins named); False when it does not and the search stops."""
+    h_new, k_new, out = best.held_rms_sigma, best.index, best.outcome
+    term = setup.terms[k_new]
+    progress.twins[k_new] = twins_of(term, h_new, rows, tried, setup.n_held, setup.scales, linearised=linearised)
+    gain = excess_share_removed(progress.current_held, h_new, noise_tolerance(setup.n_held))
+    settings.say(f"  best refit: {term.key}: held-out {progress.current_held:.4g} σ → {h_new:.4g} σ "
+                 + (f"({100 * gain:.0f} % of the excess removed)" if gain is not None else
+                    "(no excess over the noise)"))
+    if gain is None or gain < MIN_SHARE or h_new >= progress.current_held:
+        return False
+    progress.state.kept.append(k_new)
+    progress.state.values.update(out.values)
+    progress.stderr.update({e.name: e.stderr for e in out.estimates})
+    progress.current_train, progress.current_held = out.train_rms_sigma, h_new
+    progress.outcome = out
+    return True
+
+
+def search_round(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, round_no: int) -> bool:
+    """One round of forward selection: sensitivities, screen, probes, refits, keep the best; False when the search
+    stops (explained, at the noise floor, nothing kept, or the current model fails to integrate)."""
+    held_before, n_held, timings = setup.held_before, setup.n_held, progress.timings
+    if explained(progress.current_held, held_before, n_held) and round_no > 0:
+        return False
+    if held_before <= 1.0 + noise_tolerance(n_held) or noise_free_match(setup.targets, held_before):
+        return False  # at the noise floor (or a noise-free record matched numerically): among 200 terms one fits noise
+    t0 = time.perf_counter()
+    batch = sensitivities(setup, progress, settings)
+    if not batch.ok[0]:
+        if round_no == 0:
+            raise DiscoverError("the current model fails to integrate on the records")
+        # the model with the kept terms integrated in the refit but not at the sensitivities' tighter tolerance
+        # (a stiff hard-form term): keep what was found, say why the search stopped
+        settings.say(f"round {round_no + 1}: the model with the kept terms fails to integrate at rtol "
+                     f"{SENS_RTOL:g}; the search stops with what it kept")
+        progress.rounds.append({"stopped": f"the model with the kept terms fails to integrate at rtol {SENS_RTOL:g}"})
+        return False
+    rows = linear_screen(setup, batch)
+    best: BestRefit | None = None
+    tried: list[dict[str, Any]] = []
+    fast = bool(rows) and explained(rows[0].held_rms_sigma, held_before, n_held) and not settings.expect_change
+    if fast:
+        t1 = time.perf_counter()
+        best = fast_path(setup, progress, settings, rows, tried)
+        timings["refit_s"] += time.perf_counter() - t1
+    onset_rows: list[ScreenRow] = []
+    if best is None:
+        rows, onset_rows = probe_screen(setup, progress, settings, rows, batch)
+    timings["screen_s"] += time.perf_counter() - t0
+    if round_no == 0:
+        progress.screen_rows = rows[:12]
+    settings.say(f"round {round_no + 1}: screened {len(rows)} terms in {time.perf_counter() - t0:.2g} s; best "
+                 + ("by the linearised screen, confirmed on the full model" if best is not None else
+                    "on the full model at the screened coefficients") + " (held-out): "
+                 + ", ".join(f"{r.term.key} {r.held_rms_sigma:.3g} σ" for r in rows[:4]))
+    t0 = time.perf_counter()
+    if best is None:
+        todo = with_onsets(refit_list(rows, settings.n_refit), onset_rows, first=settings.expect_change)
+        best = refit_best(setup, progress, settings, todo, tried)
+    timings["refit_s"] += time.perf_counter() - t0
+    progress.rounds.append({"screened": [(r.term.key, r.held_rms_sigma) for r in rows[:settings.n_refit]],
+                            "refitted": tried})
+    if best is None:
+        return False
+    return keep_best(setup, progress, settings, best, rows, tried, linearised=fast)
+
+
+def backward_step(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings) -> None:
+    """A later term alone may explain more than the set its first pick led to (a strong stop at the tip was first
+    taken for a clearance in section 3, and the stop found second carried the record alone): the set is replaced by
+    the first kept term after the first that alone leaves less held-out error."""
+    state, names, terms = progress.state, setup.names, setup.terms
+    if not (len(state.kept) > 1 and progress.current_held > 1.0 + noise_tolerance(setup.n_held)):
+        return
+    t0 = time.perf_counter()
+    for k in state.kept[1:]:
+        start = dict(state.values) | {names[j][0]: 0.0 for j in state.kept if j != k}
+        robj = Objective(setup.targets, setup.models, free_for(terms, names, [k], start, k), base_values=start,
+                         threads=settings.threads)
+        alone = refine(robj, start, settings.max_nfev)
+        progress.n_sims += robj.n_sims
+        if alone.ok and alone.held_rms_sigma < progress.current_held:
+            settings.say(f"backward step: {terms[k].key} alone leaves {alone.held_rms_sigma:.4g} σ held-out, the "
+                         f"set {progress.current_held:.4g} σ: the set is replaced by it")
+            progress.rounds.append({"backward": {"kept_alone": terms[k].key, "held_rms_sigma": alone.held_rms_sigma,
+                                                 "set_held_rms_sigma": progress.current_held}})
+            state.kept = [k]
+            state.values = start | alone.values
+            progress.stderr.update({e.name: e.stderr for e in alone.estimates})
+            progress.current_train, progress.current_held = alone.train_rms_sigma, alone.held_rms_sigma
+            progress.outcome = alone
+            break
+    progress.timings["refit_s"] += time.perf_counter() - t0
+
+
+def twin_tolerance(n_held: int) -> float:
+    """Factor on the chosen term's held-out RMS within which another term explains the records as well."""
+    return 1.0 + TWIN_MODEL_SHARE + 3.0 / math.sqrt(2.0 * max(n_held, 1))
+
+
+def twins_of(chosen: Term, held: float, rows: Sequence[ScreenRow], tried: Sequence[dict[str, Any]], n_held: int,
+             scales: Mapping[str, float], linearised: bool) -> list[dict[str, Any]]:
+    """Other terms that explain the records as well as ``chosen`` (held-out RMS ``held``) within the noise
+    (:func:`twin_tolerance`): refitted ones by their refit; when the chosen term came from the linearised screen
+    (``linearised``: the fast path), the rest by that screen against the chosen term's own screen value. Same-key
+    terms (another shape of the same form) and the other Padé order of the same delay are not twins."""
+    tol = twin_tolerance(n_held)
+    refitted = {t["term"]: t["held_rms_sigma"] for t in tried}
+    mine = next((r.held_rms_sigma for r in rows if r.term.key == chosen.key), held)
+    out: list[dict[str, Any]] = []
+    seen = {chosen.key}
+    for r in rows:
+        key = r.term.key
+        same_delay = ((r.term.placement, r.term.signal) == (chosen.placement, chosen.signal)
+                      and {r.term.form, chosen.form} <= set(DELAY_FORMS))  # the same delay, another Padé order
+        if key in seen or same_delay:
+            continue
+        seen.add(key)
+        if key in refitted:
+            h, how = refitted[key], "refitted"
+            ok = h <= max(held, 1.0) * tol
+        elif not linearised:  # screened on the full model at a linearised coefficient: not comparable to a refit
+            continue
+        else:
+            h, how = r.held_rms_sigma, "screen"
+            ok = h <= max(mine, 1.0) * tol  # the screen against the chosen term's own screen value
+        if ok:
+            scale = scales.get(r.term.signal, 1.0)
+            out.append({"key": key, "placement": r.term.placement, "index": r.term.index, "signal": r.term.signal,
+                        "form": r.term.form, "held_rms_sigma": h, "judged_by": how,
+                        "words": describe_term(r.term, r.coef, r.term.shape, scale)})
+        if len(out) >= MAX_TWINS:
+            break
+    return out
