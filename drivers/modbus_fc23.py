@@ -16,49 +16,46 @@ so the sample shows the command accepted (``cmd_seq_applied``). The transaction 
 
 from __future__ import annotations
 
+import time
 from collections import Counter
 from collections.abc import Callable
+from dataclasses import dataclass
 from typing import Any, Protocol
 
+from drivers.incident_log import IncidentLog
 from drivers.link import LinkError
-from drivers.modbus_registers import (
-    COMMAND_START,
-    INPUT_COUNT,
-    MIRROR_START,
-    InputBlock,
-    ModbusExceptionCode,
-    decode_input_block,
-)
-
-
-class Fc23Link(Protocol):
-    """What an FC 23 exchange uses of :class:`drivers.modbus_link.ModbusLink` (a protocol, so that this module does
-    not import the link that imports it)."""
-
-    settings: dict[str, Any]
-    stats: Counter[str]
-    url: str
-    timeout: float
-    unit: int
-    last_exception_code: int | None
-    _client: Any
-    _down: bool
-    _log: Any
-
-    def _call(self, what: str, fn: Callable[..., Any], *args: Any, budget: float | None = None, context: str = "",
-              **kwargs: Any) -> Any: ...
-
-    def _skip_stale(self, rr: Any, function_code: int, deadline: float) -> Any: ...
-
-    def _set_timeout(self, seconds: float) -> None: ...
-
-    def _phase(self, what: str, t0: float, budget: float) -> None: ...
-
-    def _read_inputs(self, budget: float | None = None, context: str = "",
-                     deadline: float | None = None) -> InputBlock: ...
+from drivers.modbus_registers import INPUT_COUNT, InputBlock, ModbusExceptionCode, decode_input_block
 
 FC23 = 0x17
 _MIN_READ_S = 5e-4  # as drivers.modbus_link: no read is started with less than this left
+
+
+@dataclass(frozen=True)
+class Fc23Exchange:
+    """What one FC 23 exchange may use of its link (:meth:`drivers.modbus_link.ModbusLink.fc23_exchange` hands it
+    over, each operation bound to the link; this module reaches nothing else of it). Times in s (monotonic)."""
+
+    url: str
+    rtu: bool  # Modbus RTU: a lost reply is checked by reading the sample (no side effect)
+    budget_s: float  # the link's exchange budget (for the messages)
+    stats: Counter[str]  # the link's counters
+    log: IncidentLog  # the link's rate-limited warnings
+    #: one FC 23 request (write the words to holding 0-7, read the sample mirror) within a budget: the reply;
+    #: ``LinkError`` when none came (the link has counted it, and closed the connection if it broke)
+    send: Callable[[list[int], float], Any]
+    is_down: Callable[[], bool]  # the last failure closed the connection
+    #: a reply with another function code (a late one) skipped while the deadline lasts: the reply to keep
+    skip_stale: Callable[[Any, int, float], Any]
+    next_reply: Callable[[float], Any]  # the next reply on the connection before the deadline (None: nothing came)
+    read_sample: Callable[[float, float], InputBlock]  # the sample by FC 04 within (budget, deadline)
+    record_exception: Callable[[int | None], None]  # a Modbus exception reply's code, kept by the link
+
+
+class Fc23Link(Protocol):
+    """A link that can run FC 23 exchanges (:class:`drivers.modbus_link.ModbusLink`; a protocol, so that this module
+    does not import the link that imports it)."""
+
+    def fc23_exchange(self) -> Fc23Exchange: ...
 
 
 class Fc23Unserved(LinkError):
@@ -71,84 +68,67 @@ def exchange_fc23(link: Fc23Link, words: list[int], seq: int, deadline: float) -
     Returns ``(block, refused)``: the decoded sample block and whether the rig refused the command (exception 03).
     Raises :class:`Fc23Unserved` when the rig does not serve FC 23 (the caller falls back), ``LinkError`` otherwise.
     """
-    import time
-
-    rtu = link.settings["kind"] == "rtu"
+    x = link.fc23_exchange()
     left = deadline - time.monotonic()
     if left < _MIN_READ_S:  # the process was descheduled past its budget before the request went out
-        link.stats["timeouts"] += 1
-        raise LinkError(f"{link.url}: no time left for the FC23 transaction ({1e3 * left:.1f} ms of the "
-                        f"{1e3 * link.timeout:.1f} ms exchange budget)")
+        x.stats["timeouts"] += 1
+        raise LinkError(f"{x.url}: no time left for the FC23 transaction ({1e3 * left:.1f} ms of the "
+                        f"{1e3 * x.budget_s:.1f} ms exchange budget)")
     try:
-        rr = link._call("write command, read sample (FC23)", link._client.readwrite_registers,
-                        read_address=MIRROR_START, read_count=INPUT_COUNT, write_address=COMMAND_START, values=words,
-                        budget=left)
+        rr = x.send(words, left)
     except LinkError:
-        if not rtu or link._down or deadline - time.monotonic() < _MIN_READ_S:
+        if not x.rtu or x.is_down() or deadline - time.monotonic() < _MIN_READ_S:
             raise
         # RTU: the reply is lost or late; a read has no side effect — does the rig show the command applied?
-        block = _read_after(link, deadline)
+        block = _read_after(x, deadline)
         if block.cmd_seq_applied != seq & 0xFFFFFFFF:
-            raise LinkError(f"{link.url}: the FC23 reply was lost and the rig reports command seq "
+            raise LinkError(f"{x.url}: the FC23 reply was lost and the rig reports command seq "
                             f"{block.cmd_seq_applied} applied, not {seq}") from None
-        link.stats["ack_lost_but_applied"] += 1
+        x.stats["ack_lost_but_applied"] += 1
         return block, False
-    rr = link._skip_stale(rr, FC23, deadline)
+    rr = x.skip_stale(rr, FC23, deadline)
     if rr.isError():
-        code = getattr(rr, "exception_code", None)
-        link.last_exception_code = code
-        link.stats["exception_replies"] += 1
-        if code == ModbusExceptionCode.ILLEGAL_VALUE:
-            link.stats["refused"] += 1
-            link._log.warn("refused", "%s: rig refused command seq %d: exception 03", link.url, seq)
-            if deadline - time.monotonic() < _MIN_READ_S:
-                raise LinkError(f"{link.url}: command seq {seq} refused (exception 03) and no time left to read "
-                                "the sample")
-            return _read_after(link, deadline), True
-        if code in (ModbusExceptionCode.ILLEGAL_FUNCTION, ModbusExceptionCode.ILLEGAL_ADDRESS):
-            raise Fc23Unserved(f"{link.url}: the rig refused FC 23 with exception {code:02d}; using FC 16 + FC 04")
-        raise LinkError(f"{link.url}: FC23 refused with Modbus exception {code}")
-    block = _block_of(link, rr)
+        return _refused(x, rr, seq, deadline)
+    block = _block_of(x, rr)
     if block.cmd_seq_applied != seq & 0xFFFFFFFF and deadline - time.monotonic() >= _MIN_READ_S:
         # the late reply to the previous tick's FC 23 (same function code; its sample shows the older command):
         # the real reply is on its way — wait for it within the budget, once
-        link.stats["stale_skipped"] += 1
-        later = _next_reply(link, deadline)
+        x.stats["stale_skipped"] += 1
+        later = x.next_reply(deadline)
         if later is not None and not later.isError():
-            block = _block_of(link, later)
+            block = _block_of(x, later)
     return block, False
 
 
-def _block_of(link: Fc23Link, rr: Any) -> InputBlock:
+def _refused(x: Fc23Exchange, rr: Any, seq: int, deadline: float) -> tuple[InputBlock, bool]:
+    """An exception reply: exception 03 (command refused) reads the sample; 01 or 02 raise
+    :class:`Fc23Unserved`; any other is a ``LinkError``."""
+    code = getattr(rr, "exception_code", None)
+    x.record_exception(code)
+    x.stats["exception_replies"] += 1
+    if code == ModbusExceptionCode.ILLEGAL_VALUE:
+        x.stats["refused"] += 1
+        x.log.warn("refused", "%s: rig refused command seq %d: exception 03", x.url, seq)
+        if deadline - time.monotonic() < _MIN_READ_S:
+            raise LinkError(f"{x.url}: command seq {seq} refused (exception 03) and no time left to read "
+                            "the sample")
+        return _read_after(x, deadline), True
+    if code in (ModbusExceptionCode.ILLEGAL_FUNCTION, ModbusExceptionCode.ILLEGAL_ADDRESS):
+        raise Fc23Unserved(f"{x.url}: the rig refused FC 23 with exception {code:02d}; using FC 16 + FC 04")
+    raise LinkError(f"{x.url}: FC23 refused with Modbus exception {code}")
+
+
+def _block_of(x: Fc23Exchange, rr: Any) -> InputBlock:
     regs = getattr(rr, "registers", None)
     if rr.function_code != FC23 or regs is None or len(regs) != INPUT_COUNT:
-        link.stats["bad_reply"] += 1
-        raise LinkError(f"{link.url}: unexpected reply to FC23 (function {rr.function_code}, "
+        x.stats["bad_reply"] += 1
+        raise LinkError(f"{x.url}: unexpected reply to FC23 (function {rr.function_code}, "
                         f"{0 if regs is None else len(regs)} registers)")
     return decode_input_block(regs)
 
 
-def _next_reply(link: Fc23Link, deadline: float) -> Any:
-    """The next reply on the connection within ``deadline`` (None: nothing came)."""
-    import time
-
-    transaction = link._client.transaction
-    tid = getattr(transaction, "request_transaction_id", 0) or 0
-    left = deadline - time.monotonic()
-    link._set_timeout(left)
-    t0 = time.monotonic()
-    try:
-        return transaction.sync_get_response(link.unit, tid)
-    except Exception:  # nothing more within the budget
-        return None
-    finally:
-        link._phase("past a stale reply, wait for FC23", t0, left)
-
-
-def _read_after(link: Fc23Link, deadline: float) -> InputBlock:
-    import time
-
-    return link._read_inputs(budget=max(deadline - time.monotonic(), _MIN_READ_S), deadline=deadline)
+def _read_after(x: Fc23Exchange, deadline: float) -> InputBlock:
+    return x.read_sample(max(deadline - time.monotonic(), _MIN_READ_S), deadline)
 
 
 def fc23_announced(words: list[int] | Any) -> bool:

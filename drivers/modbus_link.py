@@ -55,12 +55,13 @@ from pymodbus.exceptions import ConnectionException, ModbusException
 from pymodbus.framer import FramerType
 
 from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, LinkError, RigSample
-from drivers.modbus_fc23 import Fc23Unserved, exchange_fc23, fc23_announced
+from drivers.modbus_fc23 import Fc23Exchange, Fc23Unserved, exchange_fc23, fc23_announced
 from drivers.modbus_identity import ID_COUNT, ID_START, RigMismatchError, rig_identity_problem
 from drivers.modbus_registers import (
     COMMAND_START,
     INPUT_COUNT,
     INPUT_START,
+    MIRROR_START,
     InputBlock,
     ModbusExceptionCode,
     decode_input_block,
@@ -272,24 +273,29 @@ class ModbusLink(ReconnectingLink):
         pymodbus' TCP client does not always check it). Skip
         such a stale reply (the other function code of the exchange) and wait for the real one while the exchange
         budget lasts, so a late reply costs one exchange, not a cascade."""
-        if rr.isError() or rr.function_code == function_code:
-            return rr
-        transaction = self._client.transaction
-        tid = getattr(transaction, "request_transaction_id", 0) or 0
         while rr.function_code != function_code and not rr.isError():
             self.stats["stale_skipped"] += 1
-            left = deadline - time.monotonic()
-            if left <= 0:
+            later = self._next_reply(deadline, f"past a stale reply, wait for FC{function_code:02d}")
+            if later is None:
                 return rr
-            self._set_timeout(left)
-            t0 = time.monotonic()
-            try:
-                rr = transaction.sync_get_response(self.unit, tid)
-            except Exception:  # asyncio.TimeoutError: nothing more within the budget
-                return rr
-            finally:
-                self._phase(f"past a stale reply, wait for FC{function_code:02d}", t0, left)
+            rr = later
         return rr
+
+    def _next_reply(self, deadline: float, what: str = "past a stale reply, wait for FC23") -> Any:
+        """The next reply on the connection before ``deadline`` (monotonic s); None when nothing came in time."""
+        left = deadline - time.monotonic()
+        if left <= 0:
+            return None
+        transaction = self._client.transaction
+        tid = getattr(transaction, "request_transaction_id", 0) or 0
+        self._set_timeout(left)
+        t0 = time.monotonic()
+        try:
+            return transaction.sync_get_response(self.unit, tid)
+        except Exception:  # asyncio.TimeoutError: nothing more within the budget
+            return None
+        finally:
+            self._phase(what, t0, left)
 
     def _read_inputs(self, budget: float | None = None, context: str = "",
                      deadline: float | None = None) -> InputBlock:
@@ -365,6 +371,21 @@ class ModbusLink(ReconnectingLink):
             self._flush_input()
             self._phase("flush input", t0, 0.0)
         return words
+
+    def fc23_exchange(self) -> Fc23Exchange:
+        """What :func:`drivers.modbus_fc23.exchange_fc23` may use of this link, its operations bound here."""
+        return Fc23Exchange(self.url, self.settings["kind"] == "rtu", self.timeout, self.stats, self._log,
+                            self._send_fc23, lambda: self._down, self._skip_stale, self._next_reply,
+                            lambda budget, deadline: self._read_inputs(budget=budget, deadline=deadline),
+                            self._keep_exception_code)
+
+    def _send_fc23(self, words: list[int], budget: float) -> Any:
+        return self._call("write command, read sample (FC23)", self._client.readwrite_registers,
+                          read_address=MIRROR_START, read_count=INPUT_COUNT, write_address=COMMAND_START,
+                          values=words, budget=budget)
+
+    def _keep_exception_code(self, code: int | None) -> None:
+        self.last_exception_code = code
 
     def _try_fc23(self, command: ActuatorCommand, words: list[int], deadline: float) -> RigSample | None:
         """The exchange as one FC 23; None when the rig turns out not to serve it (then FC 16 + FC 04 from now on)."""
