@@ -379,9 +379,9 @@ def step_full(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeT
     link_fail = 0 if ok else min(state.link_fail + 1, timers.link_loss)
     link_ok = min(state.link_ok + 1, max(timers.link_recovery, 1)) if ok else 0
     overruns = min(state.overruns + 1, timers.overrun) if inputs.overrun else 0
-    woken = ok and inputs.wake_signal and not inputs.sensor_fault
-    wake_run = min(state.wake_run + 1, timers.wake_debounce + 1) if woken else 0
-    quiet_run = min(state.quiet_run + 1, timers.quiet) if (ok and not woken) else (0 if woken else state.quiet_run)
+    wake = ok and inputs.wake_signal and not inputs.sensor_fault
+    wake_run = min(state.wake_run + 1, timers.wake_debounce + 1) if wake else 0
+    quiet_run = min(state.quiet_run + 1, timers.quiet) if (ok and not wake) else (0 if wake else state.quiet_run)
     hv_run = min(state.hv_run + 1, timers.hv_debounce + 1) if (ok and inputs.hv_present) else 0
     hv_off_run = (min(state.hv_off_run + 1, timers.hv_debounce) if (ok and not inputs.hv_present)
                   else (0 if ok else state.hv_off_run))
@@ -394,11 +394,11 @@ def step_full(state: RegimeState, inputs: TickInputs, tick: int, timers: RegimeT
     fired: Transition | None = None
     for row in _ROWS[regime]:
         hit = row.when(view)
-        if isinstance(hit, Refused):
-            events.append(BoardEvent("incident", tick, now, {"incident": hit.incident, "detail": hit.detail}))
-        elif hit:
+        if hit is True:
             fired = row
             break
+        if hit is not False:  # a refusal: the row does not fire, the incident is logged
+            events.append(BoardEvent("incident", tick, now, {"incident": hit.incident, "detail": hit.detail}))
 
     if fired is None:
         if regime is Regime.SAFE:  # stay in SAFE, accumulating any new cause (SAFE has no fault rows)
