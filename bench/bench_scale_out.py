@@ -84,6 +84,18 @@ def _fleet_health(base: Path, n: int) -> dict:
             "fleet_table_equal_1_vs_2_workers": same}
 
 
+def _fixed_part(cost: dict, n: int) -> dict:
+    """Where a run's wall went beside its tasks' steady work (s): connect, the warm-up waited for, scatter, what a
+    worker's first task took beyond the others (imports, kernels, fonts the warm-up left), and the rest of the tasks
+    phase beyond the steady work shared over the workers (waiting, the last wave, results coming back)."""
+    ph, w = cost.get("phases_s", {}), max(1, cost["workers"])
+    first = ph.get("first_task_extra", 0.0)
+    steady = (cost["task_wall_s"] - w * first) / w
+    parts = {"connect": ph.get("connect", 0.0), "warm": ph.get("warm", 0.0), "scatter": ph.get("scatter", 0.0),
+             "first_task_extra": first, "tasks_beyond_steady": ph.get("tasks", 0.0) - first - steady}
+    return {"fixed_s": cost["wall_s"] - steady, "fixed_parts_s": parts, "steady_task_mean_s": steady * w / n}
+
+
 def run(out_dir: Path, quick: bool) -> dict:
     n = 8 if quick else 40
     base = Path(out_dir) / "scale_out"
@@ -106,6 +118,10 @@ def run(out_dir: Path, quick: bool) -> dict:
         "bytes_per_task": (one["bytes_scattered"] + one["bytes_returned"]) / n,
         "summary_equal_1_vs_2_workers": same,
         "command_wall_1_worker_s": one["command_wall_s"], "command_wall_2_workers_s": two["command_wall_s"],
+        # the fixed part of each run (s) and its pieces; the steady task time of the 2-worker run against the
+        # 1-worker run's says how much slower a task ran beside another one (shared cores, caches)
+        "fixed_1_worker": _fixed_part(one, n), "fixed_2_workers": _fixed_part(two, n),
+        "task_wall_mean_2_workers_s": two["task_wall_s"] / n,
         **_fleet_health(base / "fleet", 4 if quick else 8),
         "load_average_1min": os.getloadavg()[0],
     }

@@ -80,7 +80,7 @@ class BatchOutcome:
     bytes_scattered: int = 0
     bytes_returned: int = 0
     #: where the run's wall time went (s): connect, warm (the workers' warm-up, waited for), scatter, tasks (first
-    #: submission to last result)
+    #: submission to last result; first_task_extra of it: a worker's first task beyond the others' median)
     phases_s: dict[str, float] = field(default_factory=dict)
 
     def cost(self) -> dict[str, Any]:
@@ -128,6 +128,22 @@ def check_scheduler(text: str | None) -> str | None:
     if text in (None, "", "local", "synchronous") or (text is not None and "://" in text):
         return text
     raise SchedulerError(f"--scheduler {text!r}: expected local, synchronous or tcp://HOST:PORT")
+
+
+def first_task_extra(arrived: list[TaskResult]) -> float:
+    """How much longer (s) a worker's first task ran than the median of the others, averaged over the workers
+    (``arrived`` in completion order): what the warm-up left to the first task (imports, kernels, fonts)."""
+    first: dict[str, float] = {}
+    rest: list[float] = []
+    for r in arrived:
+        if r.worker and r.worker not in first:
+            first[r.worker] = r.wall_s
+        else:
+            rest.append(r.wall_s)
+    if not first or not rest:
+        return 0.0
+    median = sorted(rest)[len(rest) // 2]
+    return sum(first.values()) / len(first) - median
 
 
 def _first_done(client: Any, futures: list[Any]) -> list[Any]:
@@ -249,6 +265,7 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_resul
                 on_result(results[key])
         if progress is not None and changed:
             progress(BatchProgress(len(results), len(tasks), len(now), lost, len(rerun)))
-    phases = {"warm": t1 - t0, "scatter": t2 - t1, "tasks": time.perf_counter() - t2}
+    phases = {"warm": t1 - t0, "scatter": t2 - t1, "tasks": time.perf_counter() - t2,
+              "first_task_extra": first_task_extra(list(results.values()))}
     return BatchOutcome(list(results.values()), desc, n_workers, lost, len(rerun), warm_s=warm_s,
                         bytes_scattered=scattered, phases_s=phases)

@@ -173,3 +173,14 @@ def test_a_life_on_the_synchronous_scheduler_runs_its_visits_in_this_process(mon
     monkeypatch.setattr(life_mod, "run_visit", lambda *a: a[1])  # the visit's number
     result = life_mod.run_life(load_scenario("aging"), seed=1, params="table2", workers=2, scheduler="synchronous")
     assert result.visits == list(range(1, 25)) and not result.interrupted
+
+
+def test_first_task_extra_is_a_workers_first_task_beyond_the_others_median() -> None:
+    from studies.batch import TaskResult
+    from studies.batch.runner import first_task_extra
+
+    arrived = [TaskResult("a", 0, "", wall_s=3.0, worker="w1"), TaskResult("b", 0, "", wall_s=2.0, worker="w2"),
+               TaskResult("c", 0, "", wall_s=1.0, worker="w1"), TaskResult("d", 0, "", wall_s=1.2, worker="w2"),
+               TaskResult("e", 0, "", wall_s=0.8, worker="w1")]
+    assert first_task_extra(arrived) == pytest.approx(2.5 - 1.0)
+    assert first_task_extra(arrived[:1]) == 0.0
