@@ -12,34 +12,12 @@ import sqlite3
 from pathlib import Path
 
 from bad_inputs_corpus import PARAMS, Case, case
+from scenario_text_support import life_scenario, linear_law
 
 #: a valid life: 3 visits 400 h apart, alpha_h drifting (tests/studies/test_health.py's tiny life)
-LIFE = """[scenario]
-name = "tiny-life"
-seed = 3
+LIFE = life_scenario("tiny-life", 3, 400, rig='params = "table2"\n', sep="\n")
 
-[rig]
-params = "table2"
-
-[life]
-visits = { value = 3, unit = "1" }
-visit_interval = { value = 400, unit = "h" }
-
-[[life.law]]
-parameter = "alpha_h"
-kind = "linear"
-rate = { value = 2e-4, unit = "1/h" }
-
-[[phase]]
-kind = "ground"
-duration = { value = 0.5, unit = "s" }
-
-[[phase]]
-kind = "maintenance"
-duration = { value = 29, unit = "s" }
-"""
-
-_LAW = '[[life.law]]\nparameter = "alpha_h"\nkind = "linear"\nrate = { value = 2e-4, unit = "1/h" }\n'
+_LAW = linear_law()
 
 
 def _v(old: str, new: str) -> str:

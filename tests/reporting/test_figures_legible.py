@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 import pytest
 from matplotlib.image import imread
+from scenario_text_support import gust, life_scenario, linear_law, phases
 
 from reporting.figure_layout import count_axis, few_ticks, hide_colliding_texts, legend_clear_of_data
 from reporting.figure_legibility import Finding, check_figure, describe
@@ -148,7 +149,7 @@ def test_figures_are_written_only_by_save_figure() -> None:
 # ------------------------------------------------------------------------------------------------------------------
 # every figure the CLI writes (slow: one module fixture runs each command once)
 
-SHORT_RUN = """
+SHORT_RUN = ("""
 [scenario]
 name = "figures-short"
 seed = 2
@@ -164,67 +165,18 @@ quiet_period = { value = 1.0, unit = "s" }
 settle = { value = 0.2, unit = "s" }
 hv_debounce = { value = 0.1, unit = "s" }
 
-[[phase]]
-kind = "flight"
-duration = { value = 3.0, unit = "s" }
-vibration_rms = { value = 0.5, unit = "m/s^2" }
-
-[[phase]]
-kind = "maintenance"
-duration = { value = 24.5, unit = "s" }
-
-[[phase]]
-kind = "ground"
-duration = { value = 0.5, unit = "s" }
-
-[[event]]
-kind = "gust"
-at = { value = 0.5, unit = "s" }
-peak = { value = 12.0, unit = "m/s^2" }
-duration = { value = 0.5, unit = "s" }
-"""
+""" + phases(("flight", "3.0", "", 'vibration_rms = { value = 0.5, unit = "m/s^2" }\n'), ("maintenance", "24.5"),
+             ("ground", "0.5"), sep="\n") + "\n" + gust("0.5", "12.0", "0.5"))
 
 #: a short life (docs/scenarios.md [life]): 8 visits 200 h apart, the monitor's first FAULT at about 1200 h, so that
 #: shm health --evaluate has the visits before it to score
-SHORT_LIFE = """
-[scenario]
-name = "figures-life"
-seed = 1
-
-[rig]
-params = "table2"
-battery_initial_voltage = { value = 3.0, unit = "V" }
-
-[life]
-visits = { value = 8, unit = "1" }
-visit_interval = { value = 200, unit = "h" }
-first_visit = { value = 0, unit = "h" }
-flights_between_visits = { value = 2, unit = "1" }
-
-[[life.law]]
-parameter = "k3"
-kind = "linear"
-rate = { value = -2.0e-4, unit = "1/h" }
-
-[[life.law]]
-parameter = "alpha_h"
-kind = "power"
-amplitude = { value = 0.15, unit = "1" }
-reference = { value = 1200, unit = "h" }
-exponent = { value = 1.5, unit = "1" }
-
-[[phase]]
-kind = "ground"
-duration = { value = 1, unit = "s" }
-
-[[phase]]
-kind = "maintenance"
-duration = { value = 30, unit = "s" }
-
-[[phase]]
-kind = "ground"
-duration = { value = 1, unit = "s" }
-"""
+SHORT_LIFE = "\n" + life_scenario(
+    "figures-life", 8, 200, seed=1, rig='params = "table2"\nbattery_initial_voltage = { value = 3.0, unit = "V" }\n',
+    more_life='first_visit = { value = 0, unit = "h" }\nflights_between_visits = { value = 2, unit = "1" }\n',
+    laws=(linear_law("k3", "-2.0e-4"),
+          '[[life.law]]\nparameter = "alpha_h"\nkind = "power"\namplitude = { value = 0.15, unit = "1" }\n'
+          'reference = { value = 1200, unit = "h" }\nexponent = { value = 1.5, unit = "1" }\n'),
+    visit=(("ground", "1"), ("maintenance", "30"), ("ground", "1")), sep="\n")
 
 
 @dataclass

@@ -9,6 +9,7 @@ import subprocess
 import sys
 
 import pytest
+from scenario_text_support import gust, life_scenario, phases
 
 from board_config.errors import ConfigError
 from board_config.scenario import load_scenario
@@ -73,42 +74,12 @@ def test_a_k3_loss_is_placed_in_section_3(tmp_path, nominal_visit):
     assert loc0.placement.distinguishable is None and loc0.placement.section is None
 
 
-FLIGHT = """[scenario]
-name = "short-flight"
-[[phase]]
-name = "taxi"
-kind = "ground"
-duration = { value = 1, unit = "s" }
-[[phase]]
-name = "cruise"
-kind = "flight"
-duration = { value = 3, unit = "s" }
-[[event]]
-kind = "gust"
-at = { value = 2, unit = "s" }
-peak = { value = 15.0, unit = "m/s^2" }
-duration = { value = 1.2, unit = "s" }
-[[phase]]
-kind = "maintenance"
-duration = { value = 30, unit = "s" }
-"""
+FLIGHT = ('[scenario]\nname = "short-flight"\n' + phases(("ground", "1", "taxi"), ("flight", "3", "cruise"))
+          + gust("2", "15.0", "1.2") + phases(("maintenance", "30")))
 
-LIFE = """[scenario]
-name = "tick-life"
-seed = 3
-[life]
-visits = { value = 2, unit = "1" }
-visit_interval = { value = 100, unit = "h" }
-flights_between_visits = { value = 40, unit = "1" }
-tick_flights = { value = TICK, unit = "1" }
-flight_scenario = "flight.toml"
-[[phase]]
-kind = "ground"
-duration = { value = 0.5, unit = "s" }
-[[phase]]
-kind = "maintenance"
-duration = { value = 29, unit = "s" }
-"""
+LIFE = life_scenario("tick-life", 2, 100, laws=(), more_life=(
+    'flights_between_visits = { value = 40, unit = "1" }\ntick_flights = { value = TICK, unit = "1" }\n'
+    'flight_scenario = "flight.toml"\n'))
 
 
 def test_ticked_flights_run_the_board_through_the_flight_phases_before_each_visit(tmp_path):
@@ -125,8 +96,8 @@ def test_ticked_flights_run_the_board_through_the_flight_phases_before_each_visi
     life = run_life(sc, seed=3, params="table2", workers=1)
     v1, v2 = life.visits
     assert v1.flights is None  # entry into service: no flights before the first visit
-    assert v2.flights["ticked"] == 2 and v2.flights["board_time_s"] == pytest.approx(8.0)
-    assert v2.flights["events"]  # the board ran (and logged) through the flights
+    assert v2.flights is not None and v2.flights.ticked == 2 and v2.flights.board_time_s == pytest.approx(8.0)
+    assert v2.flights.events  # the board ran (and logged) through the flights
     start = [next(e.time for e in v.events if e.kind == "mbit_start") for v in (v1, v2)]
     assert start[1] - start[0] == pytest.approx(8.0, abs=0.02)  # the visit comes after the ticked flights
     assert "after 2 ticked flight(s)" in visit_line(v2) and [v.verdict for v in life.visits] == ["PASS", "PASS"]

@@ -18,28 +18,13 @@ import time
 from pathlib import Path
 
 import pytest
+from scenario_text_support import life_scenario
 
 ROOT = Path(__file__).resolve().parents[2]
 pytestmark = pytest.mark.slow
 
 #: 12 short visits (each ~1-5 s wall): a signal lands while visits are running on both workers
-LIFE = """[scenario]
-name = "signal-life"
-seed = 3
-[life]
-visits = { value = 12, unit = "1" }
-visit_interval = { value = 50, unit = "h" }
-[[life.law]]
-parameter = "alpha_h"
-kind = "linear"
-rate = { value = 2e-4, unit = "1/h" }
-[[phase]]
-kind = "ground"
-duration = { value = 0.5, unit = "s" }
-[[phase]]
-kind = "maintenance"
-duration = { value = 29, unit = "s" }
-"""
+LIFE = life_scenario("signal-life", 12, 50)
 
 
 def _children(pid: int) -> list[int]:
