@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import logging
 import shutil
+import struct
 import time
 from collections.abc import Callable
 
+from drivers import open_link
 from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, RigSample
+from hil_stub.faults import FaultPlan, LinkFaults
+from hil_stub.service import HilService
 
 logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
 
@@ -142,6 +146,33 @@ def exchange_through_outage(link, make_command: Callable[[int], ActuatorCommand]
             break
         time.sleep(pause_s)
     return outcomes
+
+
+def outcomes_through_injected_outage(endpoint: str, query: str) -> tuple[list[bool], dict[str, int]]:
+    """A lock-step stub whose ``endpoint`` (``"modbus-tcp"`` or ``"serial"``) drops the link from 0.1 s to 0.4 s of
+    rig time, and the board's link (the endpoint's URL + ``query``) exchanging through it: the outcomes
+    (:func:`exchange_through_outage`) and the endpoint's counters."""
+    plan = FaultPlan(link=LinkFaults(disconnect_at_s=0.1, disconnect_for_s=0.3))
+    with HilService(FakeRig(), mode="lockstep", plan=plan) as hil:
+        srv = hil.add_modbus_tcp("127.0.0.1:0") if endpoint == "modbus-tcp" else hil.add_serial("pty")
+        link = open_link(srv.board_url + query)
+        link.open()
+        try:
+            outcomes = exchange_through_outage(link, cmd)
+        finally:
+            link.close()
+    return outcomes, srv.stats
+
+
+def rtu_crc(frame: bytes) -> bytes:
+    """The Modbus RTU CRC-16 of ``frame`` (polynomial 0xA001, little-endian), computed here bit by bit so that the
+    tests check the stub's frames against a CRC of their own."""
+    crc = 0xFFFF
+    for b in frame:
+        crc ^= b
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+    return struct.pack("<H", crc)
 
 
 def maintenance_scenario(name: str, description: str, maintenance_s: float, *, verdict: str = "PASS",

@@ -4,7 +4,7 @@ exception replies, unit-id silence, refused set-points, faults, a restarting ser
 from __future__ import annotations
 
 import pytest
-from links_support import FakeRig, cmd, exchange_errors, exchange_through_outage, first_reply
+from links_support import FakeRig, cmd, exchange_errors, first_reply, outcomes_through_injected_outage
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ModbusIOException
 from pymodbus.framer import FramerType
@@ -250,17 +250,9 @@ def test_rtu_late_reply_arriving_with_the_real_one_costs_nothing():
 
 
 def test_injected_disconnect_at_a_rig_time_then_back():
-    plan = FaultPlan(link=LinkFaults(disconnect_at_s=0.1, disconnect_for_s=0.3))
-    with HilService(FakeRig(), mode="lockstep", plan=plan) as hil:
-        srv = hil.add_modbus_tcp("127.0.0.1:0")
-        link = open_link(srv.board_url + "&timeout=0.05")
-        link.open()
-        try:
-            outcomes = exchange_through_outage(link, cmd)
-        finally:
-            link.close()
+    outcomes, stats = outcomes_through_injected_outage("modbus-tcp", "&timeout=0.05")
     assert False in outcomes and outcomes[-1] is True and outcomes.index(False) >= 9
-    assert srv.stats["disconnects"] == 1
+    assert stats["disconnects"] == 1
 
 
 def _mbap(tid: int, unit: int, pdu: bytes) -> bytes:

@@ -12,7 +12,7 @@ import termios
 import tty
 
 import pytest
-from links_support import FakeRig, cmd, missing_tools
+from links_support import FakeRig, cmd, missing_tools, rtu_crc
 from pymodbus.client import ModbusTcpClient
 
 from drivers import open_link
@@ -84,20 +84,11 @@ def test_an_out_of_range_finite_demand_still_reaches_the_rig_as_documented() -> 
     assert hil.host.refused_count == 1 and srv.stats["nonfinite_refused"] == 0
 
 
-def _crc(frame: bytes) -> bytes:
-    crc = 0xFFFF
-    for b in frame:
-        crc ^= b
-        for _ in range(8):
-            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
-    return struct.pack("<H", crc)
-
-
 def _rtu(fd: int, pdu: bytes) -> bytes:
     import select
 
     frame = bytes([1]) + pdu
-    os.write(fd, frame + _crc(frame))
+    os.write(fd, frame + rtu_crc(frame))
     buf = b""
     while select.select([fd], [], [], 1.0)[0]:
         buf += os.read(fd, 256)
@@ -120,7 +111,7 @@ def test_rtu_refuses_a_nan_write_before_the_rig() -> None:
             pdu = struct.pack(">BHHB", 16, COMMAND_START, len(words), 2 * len(words)) + \
                 b"".join(struct.pack(">H", w) for w in words)
             reply = _rtu(fd, pdu)
-            assert reply[:3] == bytes([1, 16 | 0x80, 3]) and reply[3:5] == _crc(reply[:3])
+            assert reply[:3] == bytes([1, 16 | 0x80, 3]) and reply[3:5] == rtu_crc(reply[:3])
             pdu23 = struct.pack(">BHHHHB", 23, MIRROR_START, INPUT_COUNT, COMMAND_START, len(words), 2 * len(words)) \
                 + b"".join(struct.pack(">H", w) for w in words)
             reply = _rtu(fd, pdu23)

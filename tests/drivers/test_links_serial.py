@@ -8,7 +8,7 @@ import threading
 
 import pytest
 import serial
-from links_support import FakeRig, cmd, exchange_errors, exchange_through_outage, first_reply, wait_for
+from links_support import FakeRig, cmd, exchange_errors, first_reply, outcomes_through_injected_outage, wait_for
 
 from drivers import LinkError, open_link
 from drivers.framing import (
@@ -288,14 +288,6 @@ def test_reply_latency_within_and_beyond_the_timeout():
 
 
 def test_injected_disconnect_at_a_rig_time_then_back():
-    plan = FaultPlan(link=LinkFaults(disconnect_at_s=0.1, disconnect_for_s=0.3))
-    with HilService(FakeRig(), mode="lockstep", plan=plan) as hil:
-        srv = hil.add_serial("pty")
-        link = open_link(srv.board_url + "?timeout=0.05")
-        link.open()
-        try:
-            outcomes = exchange_through_outage(link, cmd)
-        finally:
-            link.close()
+    outcomes, stats = outcomes_through_injected_outage("serial", "?timeout=0.05")
     assert outcomes[:9] == [True] * 9 and False in outcomes and outcomes[-1] is True
-    assert srv.stats["disconnects"] == 1 and srv.stats["reopened"] == 1
+    assert stats["disconnects"] == 1 and stats["reopened"] == 1

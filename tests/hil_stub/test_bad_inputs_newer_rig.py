@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from bad_inputs_newer_rig import REGISTER_CASES, RegisterCase, newer_rig_cases
 from bad_inputs_support import assert_one_clear_line, no_leftover_log_handlers, run_shm  # noqa: F401 (autouse fixture)
-from links_support import FakeRig
+from links_support import FakeRig, rtu_crc
 
 from hil_stub.service import HilService
 
@@ -61,25 +61,16 @@ def _tcp(port: int, pdu: bytes) -> bytes:
     return buf[7:]
 
 
-def _crc(frame: bytes) -> bytes:
-    crc = 0xFFFF
-    for b in frame:
-        crc ^= b
-        for _ in range(8):
-            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
-    return struct.pack("<H", crc)
-
-
 def _rtu(fd: int, pdu: bytes) -> bytes:
     import select
 
     termios.tcflush(fd, termios.TCIFLUSH)
     frame = bytes([1]) + pdu
-    os.write(fd, frame + _crc(frame))
+    os.write(fd, frame + rtu_crc(frame))
     buf = b""
     while len(buf) < 5 and select.select([fd], [], [], 2.0)[0]:
         buf += os.read(fd, 256)
-    assert len(buf) >= 5 and buf[3:5] == _crc(buf[:3]), buf
+    assert len(buf) >= 5 and buf[3:5] == rtu_crc(buf[:3]), buf
     return buf[1:3]
 
 
