@@ -244,6 +244,7 @@ def _locate(visits: list[Visit], ests: list[VisitEstimates], trends: dict[str, T
 
 def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, as_of, params, free,
               location: dict[str, Any] | None = None) -> dict[str, Any]:
+    """health.json (docs/health.md) from the typed results: the JSON document at the edge."""
     vis = []
     for v, e in zip(visits, ests):
         vis.append({
@@ -303,6 +304,8 @@ def _est_verdict(x: VisitParameter) -> str:
     return "as nominal"
 
 
+# The four levels are written from health.json itself (``doc``, and its ``location`` and ``followed`` sections,
+# ``loc`` and ``fol`` below: the JSON document at the edge, docs/health.md), so the words say what the file holds.
 def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[str, str]:
     """Rytter's four levels in words: detected? where? how much? how long?"""
     last = doc["visits"][-1]

@@ -149,6 +149,19 @@ def first_natural_frequency(record: Any) -> float:
         return f0
 
 
+@dataclass(frozen=True, slots=True)
+class VisitPrediction:
+    """The trip forecast made as of one visit (0-based ``as_of_visit``, at ``hours`` h): whether its trend was
+    significant, its 90 % interval in visits (0-based; None: beyond the horizon) and each sample path's trip time
+    moved to the visit that would see it (h; inf beyond the horizon)."""
+
+    as_of_visit: int
+    hours: float
+    significant: bool
+    interval_visits: list[int | None]
+    samples_seen: np.ndarray
+
+
 # --- one life -------------------------------------------------------------------------------------------------
 def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold: float | None = None,
                        n_paths: int = 400, n_grid: int = 500) -> dict[str, Any]:
@@ -169,8 +182,8 @@ def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold
     followed = Followed()
     diagnoses = 0
     limits: dict[str, float] = {}
-    preds = []
-    base_preds = []
+    preds: list[VisitPrediction] = []
+    base_preds: list[VisitPrediction] = []
     last = life.visits if k_true is None else k_true  # predictions only before the first FAULT
     for j in range(MIN_VISITS - 1, last):
         hh = hours[: j + 1]
@@ -188,9 +201,8 @@ def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold
         fc = forecast_trip(trends, boundary, float(hh[-1]), life.interval, seed=life.seed + j, n_paths=n_paths,
                            n_grid=n_grid, effect_limits=limits)
         seen = seen_at_visits(fc.trip_samples, hours[0], life.interval)
-        preds.append({"as_of_visit": j, "hours": float(hh[-1]), "significant": fc.significant,
-                      "interval_visits": _interval_visits(fc.trip_samples, hours[0], life.interval),
-                      "samples_seen": seen})
+        preds.append(VisitPrediction(j, float(hh[-1]), fc.significant,
+                                     _interval_visits(fc.trip_samples, hours[0], life.interval), seen))
         if f1_threshold is not None:
             base_preds.append(_baseline_prediction(hh, f1[: j + 1] / f1[0] - 1, f1_threshold, life, j))
     out: dict[str, Any] = {"life": life.name, "kind": life.kind, "visits": life.visits, "interval_h": life.interval,
@@ -241,7 +253,7 @@ def _interval_visits(samples: np.ndarray, start: float, interval: float) -> list
 
 
 def _baseline_prediction(hh: np.ndarray, f1_rel: np.ndarray, thr: float, life: ChallengeLife, j: int
-                         ) -> dict[str, Any]:
+                         ) -> VisitPrediction:
     tr = fit_trend("f1", hh, f1_rel, np.full(hh.size, 1e-3))
     rng = np.random.default_rng(life.seed + 1000 + j)
     grid = np.linspace(hh[-1], hh[-1] + 20 * life.interval + 4 * hh[-1], 500)
@@ -254,25 +266,24 @@ def _baseline_prediction(hh: np.ndarray, f1_rel: np.ndarray, thr: float, life: C
     cross = (paths <= thr) if thr < 0 else (paths >= thr)
     hit = cross.any(axis=1)
     trips = np.where(hit, grid[np.argmax(cross, axis=1)], np.inf)
-    return {"as_of_visit": j, "hours": float(hh[-1]), "significant": tr.significant,
-            "interval_visits": _interval_visits(trips, 0.0, life.interval),
-            "samples_seen": seen_at_visits(trips, 0.0, life.interval)}
+    return VisitPrediction(j, float(hh[-1]), tr.significant, _interval_visits(trips, 0.0, life.interval),
+                           seen_at_visits(trips, 0.0, life.interval))
 
 
-def _score(preds: list[dict[str, Any]], life: ChallengeLife, k_true: int | None, hours: np.ndarray
+def _score(preds: list[VisitPrediction], life: ChallengeLife, k_true: int | None, hours: np.ndarray
            ) -> dict[str, Any]:
     if k_true is None:
         return {"predictions": len(preds), "covered": None, "alpha_lambda": None, "prognostic_horizon_h": None}
-    sig = [p for p in preds if p["significant"]]
-    covered = [interval_covers(p["interval_visits"], k_true) for p in sig]
+    sig = [p for p in preds if p.significant]
+    covered = [interval_covers(p.interval_visits, k_true) for p in sig]
     t_eol = float(hours[k_true])
-    times = [p["hours"] for p in sig]
-    samples = [p["samples_seen"] for p in sig]
+    times = [p.hours for p in sig]
+    samples = [p.samples_seen for p in sig]
     return {"predictions": len(sig), "covered": int(sum(covered)), "coverage": (sum(covered) / len(covered))
             if covered else None,
             "alpha_lambda": alpha_lambda(times, samples, t_eol), "prognostic_horizon_h": prognostic_horizon(
                 times, samples, t_eol),
-            "intervals": [p["interval_visits"] for p in sig]}
+            "intervals": [p.interval_visits for p in sig]}
 
 
 # --- the whole challenge --------------------------------------------------------------------------------------
@@ -289,6 +300,8 @@ def f1_alarm_threshold(params: str = "table2") -> float:
 
 @dataclass
 class ChallengeResult:
+    # each life's result and the summary are the challenge's JSON document (written as is by shm health-challenge;
+    # a life's result crosses the process pool and the scale-out runner as that JSON-ready dict)
     lives: list[dict[str, Any]]
     summary: dict[str, Any]
     wall_s: float

@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 import os
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -36,6 +36,50 @@ def visit_seed(seed: int, visit: int) -> int:
     return int(np.random.SeedSequence([int(seed), int(visit)]).generate_state(1)[0])
 
 
+@dataclass(frozen=True, slots=True)
+class VisitMbit:
+    """One MBIT's result at a visit, as the board's ``mbit_result`` event gives it: its verdict, the monitor's
+    largest counter and residual (1) and the board time of its FAULT (s; None without one)."""
+
+    mbit: str
+    label: str
+    verdict: str
+    max_count: int
+    max_eps: float
+    fault_time_s: float | None
+
+    @classmethod
+    def from_event(cls, data: Mapping[str, Any]) -> VisitMbit:
+        return cls(data["mbit"], data["label"], data["verdict"], data["max_count"], data["max_eps"],
+                   data.get("fault_time_s"))
+
+    def to_json(self) -> dict[str, Any]:  # a row of life.json's visits[].mbits
+        return {"label": self.label, "verdict": self.verdict, "max_count": self.max_count, "max_eps": self.max_eps,
+                "fault_time_s": self.fault_time_s}
+
+
+@dataclass(frozen=True, slots=True)
+class TickedFlights:
+    """The flights the board ticked before a visit: how many, their board time (s), the events they logged by
+    kind, and of those the incidents and usage summaries."""
+
+    ticked: int
+    board_time_s: float
+    events: dict[str, int]
+
+    @property
+    def incidents(self) -> int:
+        return self.events.get("incident", 0)
+
+    @property
+    def usage_summaries(self) -> int:
+        return self.events.get("usage_summary", 0)
+
+    def to_json(self) -> dict[str, Any]:  # life.json's visits[].ticked_flights
+        return {"ticked": self.ticked, "board_time_s": self.board_time_s, "events": self.events,
+                "incidents": self.incidents, "usage_summaries": self.usage_summaries}
+
+
 @dataclass
 class VisitRun:
     visit: int
@@ -45,8 +89,8 @@ class VisitRun:
     events: list[BoardEvent]
     wall_s: float
     verdict: str = "NONE"
-    mbits: list[dict[str, Any]] = field(default_factory=list)
-    flights: dict[str, Any] | None = None  # the ticked flights before this visit (tick_flights > 0), summarised
+    mbits: list[VisitMbit] = field(default_factory=list)
+    flights: TickedFlights | None = None  # the ticked flights before this visit (tick_flights > 0)
 
 
 _PROCESS_CACHE: dict[str, Any] = {}
@@ -82,16 +126,14 @@ def run_visit(source: str, visit: int, hours: float, deviations: dict[str, float
     finally:
         link.close()
     verdicts = [e.data["verdict"] for e in res.events if e.kind == "maintenance_verdict"]
-    mbits = [dict(e.data) for e in res.events if e.kind == "mbit_result"]
+    mbits = [VisitMbit.from_event(e.data) for e in res.events if e.kind == "mbit_result"]
     flights = None
     if flight_end > 0:
         during = [e for e in res.events if e.time < flight_end]
         kinds: dict[str, int] = {}
         for e in during:
             kinds[e.kind] = kinds.get(e.kind, 0) + 1
-        flights = {"ticked": sc.life.tick_flights if sc.life else 0, "board_time_s": flight_end,
-                   "events": kinds, "incidents": kinds.get("incident", 0),
-                   "usage_summaries": kinds.get("usage_summary", 0)}
+        flights = TickedFlights(sc.life.tick_flights if sc.life else 0, flight_end, kinds)
     return VisitRun(visit, hours, dict(deviations), seed, list(res.events), time.perf_counter() - t0,
                     verdicts[-1] if verdicts else "NONE", mbits, flights)
 
@@ -250,9 +292,9 @@ def write_life_log(result: LifeResult, scenario: Scenario, out: Path, *, seed: i
         "wall_s": result.wall_s, "visits": [
             {"visit": v.visit, "operating_hours": v.operating_hours, "verdict": v.verdict, "seed": v.seed,
              "truth_deviations": v.deviations, "wall_s": v.wall_s,
-             "mbits": [{k: m.get(k) for k in ("label", "verdict", "max_count", "max_eps", "fault_time_s")}
-                       for m in v.mbits], "ticked_flights": v.flights,
-             "records": [f"records/visit-{v.visit:03d}_mbit-{m['mbit']}.csv" for m in v.mbits]}
+             "mbits": [m.to_json() for m in v.mbits],
+             "ticked_flights": v.flights.to_json() if v.flights is not None else None,
+             "records": [f"records/visit-{v.visit:03d}_mbit-{m.mbit}.csv" for m in v.mbits]}
             for v in result.visits],
         "first_fault_visit": first,
         "first_fault_operating_hours": result.first_fault_hours(),
@@ -266,13 +308,12 @@ def write_life_log(result: LifeResult, scenario: Scenario, out: Path, *, seed: i
 
 def visit_line(v: VisitRun) -> str:
     """One timeline line per visit."""
-    mb = ", ".join(f"{m['label']} {m['verdict']} (max eps {m['max_eps']:.3f}, counter {m['max_count']})"
-                   for m in v.mbits)
+    mb = ", ".join(f"{m.label} {m.verdict} (max eps {m.max_eps:.3f}, counter {m.max_count})" for m in v.mbits)
     devs = ", ".join(f"{k} {100 * d:+.1f} %" for k, d in sorted(v.deviations.items()))
     fl = ""
-    if v.flights:
+    if v.flights is not None:
         f = v.flights
-        fl = (f"  after {f['ticked']} ticked flight(s) ({f['board_time_s']:g} s of board time: "
-              f"{f['incidents']} incident(s), {f['usage_summaries']} usage summary record(s))")
+        fl = (f"  after {f.ticked} ticked flight(s) ({f.board_time_s:g} s of board time: "
+              f"{f.incidents} incident(s), {f.usage_summaries} usage summary record(s))")
     return (f"visit {v.visit:3d} at {v.operating_hours:8.1f} h  [{devs}]  {mb}  -> {v.verdict}{fl}  "
             f"({v.wall_s:.1f} s)")

@@ -11,6 +11,9 @@ from typing import Any
 from reporting.html_page import img_tag, page, table
 from reporting.uncertainty_text import format_percent_change
 
+# Every ``dict[str, Any]`` below is health.json as written (docs/health.md) or one of its sections: the page is
+# rendered from the JSON document at the edge, so that it shows exactly what the linked file holds.
+
 CSS = """
 body{font-family:system-ui,-apple-system,'Segoe UI',Roboto,sans-serif;color:#1d2430;background:#f5f6f8;margin:0}
 main{max-width:1080px;margin:0 auto;padding:18px 24px 40px}

@@ -26,7 +26,7 @@ def four_levels_text(a: Assessment) -> str:
 
 
 def evaluation_text(ev: dict[str, Any]) -> str:
-    """The --evaluate scores in a few lines."""
+    """The --evaluate scores in a few lines (``ev``: health.json's ``evaluation``, the JSON document)."""
     ph = ev["prognostic_horizon_hours"]
     lines = [f"EVALUATED  against the true first FAULT at {ev['true_first_fault_hours']:g} h (visit "
              f"{ev.get('true_first_fault_visit')}; {ev.get('truth_source')}): {ev['dated_predictions']} dated "

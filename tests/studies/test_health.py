@@ -208,7 +208,7 @@ def test_a_life_is_reproducible_by_seed_whatever_the_workers(tmp_path):
 
     def results(seed, workers):
         life = run_life(sc, seed=seed, params="table2", workers=workers)
-        return ([(v.visit, v.operating_hours, v.verdict, [(m["label"], m["verdict"], m["max_count"], m["max_eps"])
+        return ([(v.visit, v.operating_hours, v.verdict, [(m.label, m.verdict, m.max_count, m.max_eps)
                                                            for m in v.mbits]) for v in life.visits],
                 [e.data["rows"] for v in life.visits for e in v.events if e.kind == "mbit_record"])
 

@@ -63,7 +63,7 @@ def test_the_challenge_and_evaluate_judge_alpha_lambda_alike():
     met, ``--evaluate`` missed."""
     import numpy as np
 
-    from studies.health.challenge import ChallengeLife, _score
+    from studies.health.challenge import ChallengeLife, VisitPrediction, _score
     from studies.health.evaluate import SweepPrediction, evaluate_sweep
 
     hours = np.arange(0.0, 1100.0, 100.0)
@@ -72,8 +72,7 @@ def test_the_challenge_and_evaluate_judge_alpha_lambda_alike():
     challenge_preds, sweep = [], []
     for t, m in medians.items():
         s = np.full(50, m)
-        challenge_preds.append({"hours": t, "significant": True, "interval_visits": [int(m // 100)] * 2,
-                                "samples_seen": s})
+        challenge_preds.append(VisitPrediction(int(t // 100), t, True, [int(m // 100)] * 2, s))
         sweep.append(SweepPrediction(as_of_hours=t, visits_used=int(t // 100) + 1, significant=True,
                                      trip_hours_median=m, trip_interval_90=[m, m], lower_bound_hours=None,
                                      rul_median_hours=m - t, rul_interval_90=[m - t, m - t], samples=s))
