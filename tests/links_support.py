@@ -6,7 +6,8 @@ import logging
 import shutil
 import struct
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from typing import Any
 
 from drivers import open_link
 from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, RigSample
@@ -148,13 +149,25 @@ def exchange_through_outage(link, make_command: Callable[[int], ActuatorCommand]
     return outcomes
 
 
+def _add_endpoint(hil: HilService, endpoint: str) -> Any:
+    return hil.add_modbus_tcp("127.0.0.1:0") if endpoint == "modbus-tcp" else hil.add_serial("pty")
+
+
+def lockstep_stub(endpoint: str) -> Iterator[tuple[HilService, Any, FakeRig]]:
+    """A lock-step stub around a :class:`FakeRig` with one ``endpoint`` (``"modbus-tcp"`` or ``"serial"`` on a
+    pty), for a fixture to ``yield from``: the service, the endpoint, the rig."""
+    rig = FakeRig()
+    with HilService(rig, mode="lockstep") as hil:
+        yield hil, _add_endpoint(hil, endpoint), rig
+
+
 def outcomes_through_injected_outage(endpoint: str, query: str) -> tuple[list[bool], dict[str, int]]:
     """A lock-step stub whose ``endpoint`` (``"modbus-tcp"`` or ``"serial"``) drops the link from 0.1 s to 0.4 s of
     rig time, and the board's link (the endpoint's URL + ``query``) exchanging through it: the outcomes
     (:func:`exchange_through_outage`) and the endpoint's counters."""
     plan = FaultPlan(link=LinkFaults(disconnect_at_s=0.1, disconnect_for_s=0.3))
     with HilService(FakeRig(), mode="lockstep", plan=plan) as hil:
-        srv = hil.add_modbus_tcp("127.0.0.1:0") if endpoint == "modbus-tcp" else hil.add_serial("pty")
+        srv = _add_endpoint(hil, endpoint)
         link = open_link(srv.board_url + query)
         link.open()
         try:

@@ -4,7 +4,7 @@ exception replies, unit-id silence, refused set-points, faults, a restarting ser
 from __future__ import annotations
 
 import pytest
-from links_support import FakeRig, cmd, exchange_errors, first_reply, outcomes_through_injected_outage
+from links_support import FakeRig, cmd, exchange_errors, first_reply, lockstep_stub, outcomes_through_injected_outage
 from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from pymodbus.exceptions import ModbusIOException
 from pymodbus.framer import FramerType
@@ -53,10 +53,7 @@ def test_open_without_a_server_is_a_link_error():
 
 @pytest.fixture
 def tcp_lockstep():
-    rig = FakeRig()
-    with HilService(rig, mode="lockstep") as hil:
-        srv = hil.add_modbus_tcp("127.0.0.1:0")
-        yield hil, srv, rig
+    yield from lockstep_stub("modbus-tcp")
 
 
 @pytest.fixture

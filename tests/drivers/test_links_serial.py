@@ -8,7 +8,15 @@ import threading
 
 import pytest
 import serial
-from links_support import FakeRig, cmd, exchange_errors, first_reply, outcomes_through_injected_outage, wait_for
+from links_support import (
+    FakeRig,
+    cmd,
+    exchange_errors,
+    first_reply,
+    lockstep_stub,
+    outcomes_through_injected_outage,
+    wait_for,
+)
 
 from drivers import LinkError, open_link
 from drivers.framing import (
@@ -145,10 +153,7 @@ def test_resynchronises_after_garbage_stale_truncated_and_oversized_replies():
 
 @pytest.fixture
 def lockstep_pty():
-    rig = FakeRig()
-    with HilService(rig, mode="lockstep") as hil:
-        srv = hil.add_serial("pty")
-        yield hil, srv, rig
+    yield from lockstep_stub("serial")
 
 
 def test_lockstep_round_trip_over_a_real_pty(lockstep_pty):
