@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import shutil
 import struct
+import subprocess
 import time
 from collections.abc import Callable, Iterator
 from typing import Any
@@ -175,6 +176,18 @@ def outcomes_through_injected_outage(endpoint: str, query: str) -> tuple[list[bo
         finally:
             link.close()
     return outcomes, srv.stats
+
+
+def link_url_printed_by(proc: subprocess.Popen, lines: int) -> str:
+    """The ``--link`` URL a started ``shm hil serve`` prints on stdout (read up to ``lines`` lines); when there is
+    none, the stub is killed and the test fails."""
+    assert proc.stdout is not None
+    for _ in range(lines):
+        line = proc.stdout.readline()
+        if "board: --link " in line:
+            return line.split("board: --link ", 1)[1].strip()
+    proc.kill()
+    raise AssertionError("the stub printed no --link URL")
 
 
 def rtu_crc(frame: bytes) -> bytes:

@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from links_support import link_url_printed_by
 from test_links_fault_matrix import SCENARIO
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -41,13 +42,7 @@ def _serve(scen: Path, kind: str, fault: str, summary: Path) -> tuple[subprocess
            "--scenario", str(scen), "--seed", "3", *FAULT[fault], "--status-every", "0", "--summary", str(summary)]
     with (summary.parent / "stub.err").open("w") as err:  # the stub's incidents, kept for a failing case
         proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=err, text=True, cwd=ROOT)
-    assert proc.stdout is not None
-    for _ in range(30):
-        line = proc.stdout.readline()
-        if "board: --link " in line:
-            return proc, line.split("board: --link ", 1)[1].strip()
-    proc.kill()
-    raise AssertionError("the stub printed no --link URL")
+    return proc, link_url_printed_by(proc, 30)
 
 
 def _hogs() -> list[subprocess.Popen]:

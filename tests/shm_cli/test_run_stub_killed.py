@@ -14,7 +14,7 @@ import time
 from pathlib import Path
 
 import pytest
-from links_support import SHORT_MAINTENANCE_SCENARIO
+from links_support import SHORT_MAINTENANCE_SCENARIO, link_url_printed_by
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -25,13 +25,7 @@ def _serve(scen: Path) -> tuple[subprocess.Popen, str]:
         [sys.executable, "-m", "shm_cli.main", "hil", "serve", "--modbus-tcp", "127.0.0.1:0", "--clock", "lockstep",
          "--scenario", str(scen), "--duration", "600", "--status-every", "0"],
         stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True, cwd=ROOT)
-    assert serve.stdout is not None
-    for _ in range(20):
-        line = serve.stdout.readline()
-        if "board: --link " in line:
-            return serve, line.split("board: --link ", 1)[1].strip()
-    serve.kill()
-    raise AssertionError("the stub printed no --link URL")
+    return serve, link_url_printed_by(serve, 20)
 
 
 @pytest.mark.slow
