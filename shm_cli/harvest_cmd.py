@@ -169,7 +169,7 @@ def _print_summary(setup: Any, run: Any, summary: dict[str, Any], out: Path) -> 
     from studies.harvest.outputs import format_duration, verdict
 
     print(f"parameter set {summary['parameter_set']}, coupling {setup.coupling} "
-          f"({setup.terminal()}), cell {run.battery['name']}")
+          f"({setup.terminal()}), cell {run.battery.spec.name}")
     print(f"simulated {run.t_end:.1f} s in {run.wall_s:.1f} s wall ({run.n_steps} steps)")
     print(f"cell: {run.v_bat[0]:.4f} V -> {run.v_bat[-1]:.4f} V, SoC {run.soc[0]:.4f} -> {run.soc[-1]:.4f}, "
           f"charge gained {run.q_d_start - run.q_d_end:.4g} C")

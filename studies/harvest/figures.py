@@ -28,10 +28,10 @@ def plot_charge_curve(run: Any, path: Path) -> Path:
     proj = run.projection
     if proj is not None and proj.t_path.size and math.isfinite(proj.t_full_s) and proj.t_full_s < 20 * run.t_end:
         ax.plot(proj.t_path / 60.0, proj.v_path, "--", color="tab:blue", zorder=3, label="projected (quasi-steady)")
-    lo = min(float(np.nanmin(run.v_bat)), run.battery["cutoff_voltage_V"]) - 0.1
-    ax.set_ylim(lo, run.battery["full_voltage_V"] + 0.25)
+    lo = min(float(np.nanmin(run.v_bat)), run.battery.spec.cutoff_voltage) - 0.1
+    ax.set_ylim(lo, run.battery.spec.full_voltage + 0.25)
     ax.axvline(PAPER_CLAIM_S / 60.0, color="k", ls=":", lw=1, label="paper: full within 10 min")
-    ax.axhline(run.battery["full_voltage_V"], color="g", ls="--", lw=0.8, label="full")
+    ax.axhline(run.battery.spec.full_voltage, color="g", ls="--", lw=0.8, label="full")
     ax.set_xlabel("time (min)")
     ax.set_ylabel("cell voltage (V)")
     ax.set_title(f"{s.coupling}: {s.accel / G0:g} g, {s.freq:g} Hz, R_bint {s.r_int:g} ohm")

@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from plant.battery import TheveninBattery
 from plant.model import SimulationResult
 from plant.signals import G0
 from studies.harvest.audit import PowerAudit, power_audit
@@ -75,7 +76,7 @@ class HarvestRun:
     """Result of :func:`run_harvest` (SI units; see the field comments)."""
 
     setup: HarvestSetup
-    battery: dict[str, Any]
+    battery: TheveninBattery  # the cell charged (its spec: name, cut-off and full voltage, V)
     t: np.ndarray  # s, recorded samples
     v_bat: np.ndarray  # V, open-circuit voltage
     v_bat_term: np.ndarray  # V
@@ -93,7 +94,8 @@ class HarvestRun:
     q_below_cutoff: float  # C drawn below the cut-off
     n_steps: int
     wall_s: float
-    meta: dict[str, Any] = field(default_factory=dict)
+    effects: tuple[str, ...] = ()  # the plant's effects
+    parameter_set: str = ""  # the plant's parameter set
 
     @property
     def stored_gain_v_per_g(self) -> float:
@@ -108,8 +110,9 @@ class HarvestRun:
         return self.projection.t_full_s if self.projection is not None else math.nan
 
     def summary(self) -> dict[str, Any]:
+        """harvest_summary.json (the JSON document at the edge)."""
         return {
-            "setup": self.setup.as_dict(), "battery": self.battery, "t_end_s": self.t_end,
+            "setup": self.setup.as_dict(), "battery": self.battery.describe(), "t_end_s": self.t_end,
             "v_bat_start_V": float(self.v_bat[0]), "v_bat_end_V": float(self.v_bat[-1]),
             "soc_start": float(self.soc[0]), "soc_end": float(self.soc[-1]),
             "charge_gained_C": self.q_d_start - self.q_d_end,
@@ -123,7 +126,8 @@ class HarvestRun:
             "mean_charging_current_A": float(self.chunks["i_mean_A"][-1]),
             "charge_below_cutoff_C": self.q_below_cutoff,
             "audit": self.audit.as_dict(), "n_steps": self.n_steps, "wall_s": self.wall_s,
-            "what_it_would_take": self.requirements().to_json(), **self.meta,
+            "what_it_would_take": self.requirements().to_json(), "effects": list(self.effects),
+            "parameter_set": self.parameter_set,
         }
 
     def requirements(self, target_s: float = PAPER_CLAIM_S) -> HarvestRequirements:
@@ -280,11 +284,11 @@ def run_harvest(setup: HarvestSetup, progress: ProgressFn | None = None, chunk_s
         projection = project_time_to_full(setup, float(x[so]), t_end, model=model, battery=battery, x_now=x)
     cat = {k: np.concatenate(v) for k, v in recorder.rec.items()}
     return HarvestRun(
-        setup=setup, battery=battery.describe(), t=cat["t"], v_bat=cat["v_bat"], v_bat_term=cat["v_bat_term"],
+        setup=setup, battery=battery, t=cat["t"], v_bat=cat["v_bat"], v_bat_term=cat["v_bat_term"],
         soc=cat["soc_bat"], v_stored=cat["v_stored"], chunks={k: np.array(v) for k, v in recorder.cols.items()},
         tail=recorder.tail,
         reached_full=t_full is not None, t_full_s=t_full, projection=projection, audit=audit, t_end=t_end,
         q_d_start=float(x0[so]), q_d_end=float(x[so]), q_below_cutoff=float(x[s_below] - x0[s_below]),
         n_steps=steps, wall_s=time.perf_counter() - wall0,
-        meta={"effects": list(model.effect_names), "parameter_set": model.params.name},
+        effects=tuple(model.effect_names), parameter_set=model.params.name,
     )
