@@ -17,7 +17,7 @@ from __future__ import annotations
 import csv
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -60,7 +60,6 @@ class CampaignResult:
     values: np.ndarray  # (N, P) parameter values (SI)
     mbits: dict[str, MbitRuns]
     param_units: tuple[str, ...] = ()
-    meta: dict[str, Any] = field(default_factory=dict)
 
     @classmethod
     def from_batches(cls, spec: CampaignSpec, batches: list[dict[str, np.ndarray]],
@@ -120,7 +119,8 @@ class CampaignResult:
         return self._stat(key, np.isin(self.range_index, inside), lo, hi)
 
     def paper_comparison(self) -> list[dict[str, Any]]:
-        """The paper's stated probabilities against ours (pooled on the paper's ranges)."""
+        """The paper's stated probabilities against ours (pooled on the paper's ranges): the rows of
+        paper_comparison.csv (column name → cell, the file at the edge)."""
         rows = []
         for key, claims in PAPER_FAULT_PROBABILITY.items():
             if key not in self.mbits:
@@ -175,6 +175,7 @@ class CampaignResult:
         return paths
 
     def run_rows(self) -> list[dict[str, Any]]:
+        """The rows of runs.csv (column name → cell, the file at the edge)."""
         rows = []
         units = self.param_units or ("SI",) * len(self.spec.deviated)
         for n in range(self.run_index.size):
@@ -217,6 +218,7 @@ def _unit_tag(unit: str) -> str:
 
 
 def write_rows(path: Path, rows: list[dict[str, Any]]) -> None:
+    """A CSV file of ``rows`` (column name → cell; the header from the first row), written atomically."""
     tmp = path.with_name(f".{path.name}.tmp")
     with tmp.open("w", newline="") as fh:
         if rows:

@@ -51,7 +51,7 @@ class RocTable:
     def p_detection(self) -> np.ndarray:
         return self.detections / self.n_degraded if self.n_degraded else np.full(self.detections.shape, np.nan)
 
-    def rows(self) -> list[dict[str, Any]]:
+    def rows(self) -> list[dict[str, Any]]:  # the ROC table's CSV rows (column name → cell): the file's edge
         out = []
         for i, e in enumerate(self.eps_th):
             for j, c in enumerate(self.count_max):

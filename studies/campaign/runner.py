@@ -56,6 +56,7 @@ class CampaignOutcome:
     notes: list[str] = field(default_factory=list)
     wall_s: float = 0.0
     executor: str = ""
+    #: per MBIT key, its sequence's clamp report as campaign.json shows it (the JSON document's section)
     clamp: dict[str, Any] = field(default_factory=dict)
     compute_s: float = 0.0  # summed task wall time over all workers (s)
     cpu_s: float = 0.0  # summed task CPU time over all workers (s): what the work costs, whatever the load

@@ -58,7 +58,7 @@ class DetectionStat:
     def range_label(self) -> str:
         return f"{self.lo * 100:g}-{self.hi * 100:g}%"
 
-    def row(self) -> dict[str, Any]:
+    def row(self) -> dict[str, Any]:  # a row of fig11_table.csv (column name → cell): the file's edge
         lo, hi = self.interval
         return {"mbit": self.mbit, "label": self.label, "range_lo_pct": self.lo * 100, "range_hi_pct": self.hi * 100,
                 "n_runs": self.n_runs, "n_failed": self.n_failed, "n_detected": self.n_detected,

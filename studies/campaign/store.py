@@ -108,6 +108,7 @@ class ResultStore:
 
 
 def _differences(old: dict[str, Any], new: dict[str, Any]) -> str:
+    """The keys two campaign specs differ in (both as the store's manifest.json holds them: JSON documents)."""
     keys = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
     if not keys:
         return "different fingerprint"
