@@ -10,7 +10,7 @@ export NUMBA_CACHE_DIR ?= $(HOME)/.cache/mfc-shm/numba
 export MPLBACKEND := Agg
 export PYTHONHASHSEED := 0
 
-.PHONY: setup system-packages run test test-fast test-realtime lint typecheck bench bench-extra mutate clean fuzz
+.PHONY: setup system-packages run test test-fast test-slow test-realtime lint typecheck bench bench-extra mutate clean fuzz
 
 KERNELS := $(NUMBA_CACHE_DIR)/.shipped-kernels
 setup: $(STAMP) system-packages $(KERNELS)
@@ -53,7 +53,12 @@ run: setup
 test: setup typecheck
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
-	$(BIN)/pytest -n 2 --timeout=600 -m "not realtime"
+	$(BIN)/pytest -n 2 --timeout=600 -m "not realtime and not heavy"
+
+# The long versions of behaviours `make test` covers with a smaller case (the whole library as candidates, the
+# challenge's own records; minutes each when their compositions compile cold; docs/testing.md lists them).
+test-slow: setup
+	$(BIN)/pytest -n 2 --timeout=1800 -m heavy
 
 # The paced wall-clock fault matrix (board and stub on real clocks over pty/TCP/RTU): ~17 s of waiting per case.
 # Best run with real-time priority: `chrt -f 10 make test-realtime` (docs/real-rig.md).
@@ -62,7 +67,7 @@ test-realtime: setup
 
 # Inner loop: unit and property tests only (no sockets, ptys, subprocesses or long end-to-end runs).
 test-fast: setup
-	$(BIN)/pytest -n 2 --timeout=600 -m "not slow and not integration and not realtime" -q
+	$(BIN)/pytest -n 2 --timeout=600 -m "not slow and not integration and not realtime and not heavy" -q
 
 # Long property-based run over the command line (issue 15): many more valid inputs than `make test` draws, and
 # `shm campaign` for every n = 1..500. Hypothesis keeps its example database in .cache/hypothesis (git-ignored),
