@@ -27,6 +27,7 @@ def _shade_regimes(ax, t: np.ndarray, code: np.ndarray, scale: float) -> None:
         ax.axvspan(t[a] * scale, t[b] * scale, color=REGIME_COLOURS[c], lw=0)
 
 
+# ``summary``: summary.json as written (the JSON document at the edge, partial when a step failed; issue 29 pt 1)
 def overview_plot(path: Path, cols: dict[str, np.ndarray], summary: dict[str, Any]) -> None:
     plt = pyplot()
     t = cols["time_s"]

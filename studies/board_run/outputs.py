@@ -35,6 +35,8 @@ class RunContext:
     run_id: int | None
 
 
+# ``summary``: summary.json itself (the JSON document at the edge): written once before the figures and again after,
+# with whatever steps succeeded, so it stays a document rather than a result object (issue 29 pt 1)
 def _minimal_summary(ctx: RunContext) -> dict[str, Any]:
     """The summary's identity and size when the full summary could not be built."""
     return {"scenario": ctx.scenario.name, "seed": ctx.seed, "params": ctx.params, "link": ctx.link_url,

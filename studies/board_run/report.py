@@ -23,7 +23,8 @@ INCIDENT_COLUMNS = [("time_s", "time (s)"), ("incident", "incident"), ("regime",
 
 
 def write_plots_and_report(out: Path, summary: dict[str, Any], result, timeline: list[str]) -> list[str]:
-    """Write the PNGs and ``report.html``; return the file names written."""
+    """Write the PNGs and ``report.html``; return the file names written (``summary``: summary.json as written, the
+    JSON document at the edge)."""
     from board_config import load_monitor_settings
 
     figures: list[str] = []

@@ -11,7 +11,7 @@ import numpy as np
 from reporting.csv_columns import write_csv
 
 
-def closing_line(s: dict[str, Any]) -> str:
+def closing_line(s: dict[str, Any]) -> str:  # ``s``: summary.json as written (the JSON document at the edge)
     """The timeline's last line: ticks, time, final regime, verdict (against the expected one), incidents, the
     exchanges that got no sample (when any: ``link_stats.lost_exchanges``), battery."""
     v = s["maintenance_verdicts"]

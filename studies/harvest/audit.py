@@ -57,7 +57,7 @@ class PowerAudit:
                 return r
         raise KeyError(f"no audit row '{name}' (rows: {', '.join(r.name for r in self.rows)})")
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> dict[str, Any]:  # JSON at the edge (harvest_summary.json's audit)
         return {
             "duration_s": self.duration_s, "coupling": self.coupling,
             "rows": [{"name": r.name, "energy_J": r.energy_J, "mean_power_W": r.energy_J / self.duration_s,

@@ -28,7 +28,7 @@ class ChargeRateCurve:
     settle_s: float
     average_s: float
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> dict[str, Any]:  # JSON at the edge (harvest_summary.json)
         return {"q_d_C": self.q_d, "v_oc_V": self.v_oc, "i_mean_A": self.i_mean, "p_in_mean_W": self.p_in_mean,
                 "p_cell_mean_W": self.p_cell_mean, "settle_s": self.settle_s, "average_s": self.average_s}
 
@@ -97,7 +97,7 @@ class Projection:
     t_path: np.ndarray = field(default_factory=lambda: np.zeros(0))  # s, projected charge curve (from t_now)
     v_path: np.ndarray = field(default_factory=lambda: np.zeros(0))  # V, open-circuit voltage along it
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> dict[str, Any]:  # JSON at the edge (harvest_summary.json)
         k = max(1, self.t_path.size // 200)
         return {"t_full_s": self.t_full_s, "remaining_s": self.remaining_s, "stall_voltage_V": self.stall_voltage_V,
                 "method": self.method, "is_projection": True, "curve": self.curve.as_dict(),

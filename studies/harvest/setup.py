@@ -114,7 +114,7 @@ class HarvestSetup:
         vals[0, :, 2] = self.accel * np.sin(2.0 * np.pi * self.freq * t)
         return InputSignals(t0, dt, vals)
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> dict[str, Any]:  # JSON at the edge (harvest_summary.json's setup)
         return {
             "params": self.params if isinstance(self.params, str) else self.params.name,
             "coupling": self.coupling, "terminal": self.terminal(), "accel_m_s2": self.accel,

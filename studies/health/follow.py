@@ -47,7 +47,7 @@ class Followed:
     def switched(self) -> bool:
         return self.estimates is not None
 
-    def as_dict(self, hours: Sequence[float]) -> dict[str, Any]:
+    def as_dict(self, hours: Sequence[float]) -> dict[str, Any]:  # health.json's ``followed`` (JSON at the edge)
         d = self.diagnosed_visit
         return {"free": list(self.free), "effects": list(self.effects), "switched": self.switched,
                 "diagnosed_visit_hours": None if d is None else float(hours[d]), "trigger": self.trigger,

@@ -44,7 +44,7 @@ class Forecast:
     trip_samples: np.ndarray  # sampled trip hours (inf: beyond the horizon)
     significant: bool
 
-    def as_dict(self) -> dict[str, Any]:
+    def as_dict(self) -> dict[str, Any]:  # JSON at the edge (health.json's forecast)
         return {"trip_operating_hours": self.trip_operating_hours, "trip_interval_90": self.trip_interval_90,
                 "rul_hours": self.rul_hours, "p_fault_next_visit": self.p_fault_next_visit,
                 "lower_bound_hours": self.lower_bound_hours, "last_visit_hours": self.last_hours,

@@ -15,6 +15,8 @@ from reporting.html_page import img_tag, page, table
 from studies.health.page import CSS
 
 
+# ``summary``: life.json as written (:func:`.life.write_life_log`; the JSON document at the edge), so that a life's
+# report can be rebuilt from its files
 def plot_life(summary: dict[str, Any], path: Path) -> None:
     """Truth deviations (%) and each MBIT's largest normalised error against operating hours; FAULTs marked."""
     plt = pyplot()

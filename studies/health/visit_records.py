@@ -67,7 +67,7 @@ def mbit_record(event: BoardEvent, *, visit: int, operating_hours: float | None,
     d = event.data
     rows = np.asarray(d["rows"], dtype=float).reshape(-1, 4)
     t = np.round(rows[:, 0] - rows[0, 0], 9)  # board time differences, without their float residue
-    meta: dict[str, Any] = {
+    meta: dict[str, Any] = {  # the record file's JSON header (the format's edge)
         "test": d["test"], "description": f"{d['label']} as the board ran it (visit {visit})",
         "sample_rate_Hz": float(d["rate_Hz"]), "terminal": "amplifier", "inputs": ["v_ch1_V", "v_ch2_V"],
         "params": params, "channels": {"z3_m": {"sensor": "laser (tip)", "noise_std": float(z3_noise_m)}},
