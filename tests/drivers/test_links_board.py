@@ -23,7 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from links_support import LinkWrapper, wait_for
+from links_support import LinkWrapper, maintenance_scenario, wait_for
 
 from drivers import open_link
 from drivers.sim_link import InProcessLink
@@ -32,33 +32,13 @@ from hil_stub.truth import build_truth_rig
 
 pytestmark = pytest.mark.integration
 
-SCENARIO = """
-[scenario]
-name = "maintenance-short"
-description = "The shipped maintenance scenario with trimmed parked/disconnected phases."
-seed = 1
-expect_verdict = "{expect}"
 
-[rig]
-params = "table2"
-deviations = {deviations}
-battery_initial_voltage = {{ value = 3.0, unit = "V" }}
 
-[[phase]]
-name = "parked"
-kind = "ground"
-duration = {{ value = 1, unit = "s" }}
-
-[[phase]]
-name = "maintenance"
-kind = "maintenance"
-duration = {{ value = 28, unit = "s" }}
-
-[[phase]]
-name = "disconnected"
-kind = "ground"
-duration = {{ value = 0.5, unit = "s" }}
-{extra}"""
+def scenario_text(expect: str, deviations: str, maintenance_s: float = 28) -> str:
+    """The shipped maintenance scenario with trimmed parked/disconnected phases, ``deviations`` (a TOML table)."""
+    return maintenance_scenario(
+        "maintenance-short", "The shipped maintenance scenario with trimmed parked/disconnected phases.",
+        maintenance_s, verdict=expect, rig=f"deviations = {deviations}\n")
 
 
 def scenario(tmp_path: Path, degraded: bool = False, extra: str = ""):
@@ -66,7 +46,7 @@ def scenario(tmp_path: Path, degraded: bool = False, extra: str = ""):
 
     dev = "{ k3 = -0.35, alpha_h = 0.35, beta_h = -0.35 }" if degraded else "{}"
     path = tmp_path / ("degraded-short.toml" if degraded else "maintenance-short.toml")
-    path.write_text(SCENARIO.format(expect="FAULT" if degraded else "PASS", deviations=dev, extra=extra))
+    path.write_text(scenario_text("FAULT" if degraded else "PASS", dev) + extra)
     return load_scenario(path)
 
 

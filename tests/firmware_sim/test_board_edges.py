@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from links_support import FakeRig, LinkWrapper
-from test_links_board import SCENARIO, run_board, scenario, verdicts
+from test_links_board import run_board, scenario, scenario_text, verdicts
 
 from drivers.link import LinkError
 from drivers.sim_link import InProcessLink
@@ -79,8 +79,7 @@ def test_a_finished_verdict_stands_through_a_later_outage(tmp_path: Path):
     from board_config.scenario import load_scenario
 
     path = tmp_path / "degraded-long.toml"  # the degraded laminate, HV present 3 s longer than the visit needs
-    path.write_text(SCENARIO.format(expect="FAULT", deviations="{ k3 = -0.35, alpha_h = 0.35, beta_h = -0.35 }",
-                                    extra="").replace("value = 28, unit", "value = 31, unit"))
+    path.write_text(scenario_text("FAULT", "{ k3 = -0.35, alpha_h = 0.35, beta_h = -0.35 }", maintenance_s=31))
     scen = load_scenario(path)
     ref = run_board(scen, InProcessLink(build_truth_rig(scen, seed=1)))
     assert verdicts(ref)[1] == ["FAULT"]
