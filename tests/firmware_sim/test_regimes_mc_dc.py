@@ -96,16 +96,20 @@ def test_timers_are_the_documented_config_values():
 
 # --- faults: every non-SAFE regime -------------------------------------------------------------------------
 
+def _safe_at_the_nth_consecutive(src, fault: TickInputs, n: int, trigger: Trigger, cause: str) -> None:
+    """From ``src``, ``n - 1`` ticks of ``fault`` keep the regime, the ``n``-th goes SAFE with ``trigger`` and
+    ``cause``; one good tick in between restarts the count."""
+    r = in_regime(src).feed(fault, times=n - 1)
+    assert r.regime is src
+    r.feed(fault)
+    assert (r.regime, r.outs[-1].trigger, r.state.safe_causes) == (X, trigger, (cause,))
+    r = in_regime(src).feed(fault, times=n - 1).feed(HOLD[src]).feed(fault, times=n - 1)
+    assert r.regime is src
+
+
 @pytest.mark.parametrize("src", [S, SE, M])
 def test_link_lost_after_exactly_link_loss_consecutive_failures(src):
-    lost = with_(src, sample_ok=False)
-    r = in_regime(src).feed(lost, times=T.link_loss - 1)
-    assert r.regime is src
-    r.feed(lost)
-    assert r.regime is X and r.outs[-1].trigger is Trigger.LINK_LOST and r.state.safe_causes == ("link_lost",)
-    # interrupted by one good exchange: the count restarts
-    r = in_regime(src).feed(lost, times=T.link_loss - 1).feed(HOLD[src]).feed(lost, times=T.link_loss - 1)
-    assert r.regime is src
+    _safe_at_the_nth_consecutive(src, with_(src, sample_ok=False), T.link_loss, Trigger.LINK_LOST, "link_lost")
 
 
 @pytest.mark.parametrize("src", [S, SE, M])
@@ -124,13 +128,7 @@ def test_limit_violation_is_immediate(src):
 
 @pytest.mark.parametrize("src", [S, SE, M])
 def test_five_consecutive_overruns_go_safe(src):
-    over = with_(src, overrun=True)
-    r = in_regime(src).feed(over, times=T.overrun - 1)
-    assert r.regime is src
-    r.feed(over)
-    assert (r.regime, r.outs[-1].trigger, r.state.safe_causes) == (X, Trigger.OVERRUN, ("overrun",))
-    r = in_regime(src).feed(over, times=T.overrun - 1).feed(HOLD[src]).feed(over, times=T.overrun - 1)
-    assert r.regime is src
+    _safe_at_the_nth_consecutive(src, with_(src, overrun=True), T.overrun, Trigger.OVERRUN, "overrun")
     # the documented value: five
     tm = RegimeTimers.from_config(CFG)
     r = Run(tm).feed(TickInputs(overrun=True), times=4)
