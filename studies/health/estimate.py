@@ -84,6 +84,17 @@ class VisitEstimates:
         return [x.name for x in self.estimates]
 
 
+@dataclass(frozen=True, slots=True)
+class VisitTruth:
+    """The truth a source carries for a visit (a simulated life or synthetic records), see :mod:`.truth`: each
+    parameter's relative deviation from ``params``' nominal value (a life's log), or its SI value (a synthetic
+    record's header); a parameter not named is at its nominal value."""
+
+    params: str
+    relative: dict[str, float] | None = None
+    values: dict[str, float] | None = None
+
+
 @dataclass
 class Visit:
     """One maintenance visit as the records tell it."""
@@ -93,10 +104,8 @@ class Visit:
     visit: int | None = None
     verdict: str | None = None  # the board's verdict, when the log is at hand
     mbit_verdicts: dict[str, str] = field(default_factory=dict)
-    #: the truth when the source carries it (a simulated life or synthetic records): ``{"params": the truth's
-    #: nominal set, "relative": {name: deviation}}`` (a life's log) or ``{"params": ..., "values": {name: SI value}}``
-    #: (a synthetic record's header); see :mod:`.truth`
-    truth: dict[str, Any] | None = None
+    #: the truth when the source carries it (a simulated life or synthetic records)
+    truth: VisitTruth | None = None
 
 
 def join_visit_records(records: Sequence[Record]) -> Record:

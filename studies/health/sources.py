@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from board_config.errors import InputError
-from studies.health.estimate import Visit
+from studies.health.estimate import Visit, VisitTruth
 from workbench.records import Record, load_record
 
 
@@ -158,13 +158,13 @@ def load_visits(sources: Sequence[str | Path]) -> list[Visit]:
     return visits
 
 
-def _truth_of(recs: Sequence[Record], life_devs: dict | None) -> dict | None:
+def _truth_of(recs: Sequence[Record], life_devs: dict | None) -> VisitTruth | None:
     """The visit's truth: the life's deviations from its log, else a synthetic record's ``truth_values``."""
     if life_devs is not None:
-        return {"params": str(recs[0].meta.get("params", "table2")), "relative": dict(life_devs)}
+        return VisitTruth(str(recs[0].meta.get("params", "table2")), relative=dict(life_devs))
     for r in recs:
         prov = r.meta.get("provenance", {})
         if "truth_values" in prov or prov.get("generator") == "shm synth":
-            return {"params": str(prov.get("truth_params", r.meta.get("params", "table2"))),
-                    "values": dict(prov.get("truth_values") or {})}
+            return VisitTruth(str(prov.get("truth_params", r.meta.get("params", "table2"))),
+                              values=dict(prov.get("truth_values") or {}))
     return None

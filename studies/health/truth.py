@@ -42,10 +42,10 @@ def truth_relative(visit: Visit, params: str, names: Sequence[str]) -> dict[str,
         return None
     out: dict[str, float] = {}
     for n in names:
-        if "relative" in t:
-            value = _nominal(t["params"], n) * (1.0 + float(t["relative"].get(n, 0.0)))
+        if t.relative is not None:
+            value = _nominal(t.params, n) * (1.0 + float(t.relative.get(n, 0.0)))
         else:
-            value = float(t["values"].get(n, _nominal(t["params"], n)))
+            value = float((t.values or {}).get(n, _nominal(t.params, n)))
         out[n] = value / _nominal(params, n) - 1.0
     return out
 

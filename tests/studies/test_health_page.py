@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from studies.health.assess import assess_estimates
-from studies.health.estimate import Visit, VisitEstimates, VisitParameter
+from studies.health.estimate import Visit, VisitEstimates, VisitParameter, VisitTruth
 from studies.health.report import evaluation_text, four_levels_text, write_health_outputs
 from studies.health.trip import TripBoundary
 from studies.health.truth import true_first_fault
@@ -37,7 +37,7 @@ def _life(n: int = 12, interval: float = 100.0, alpha_rate: float = 1.6e-4, verd
         h = i * interval
         truth = {"k3": -2e-4 * h, "alpha_h": alpha_rate * h, "beta_h": -1e-4 * h}
         verdict = ("FAULT" if truth["alpha_h"] >= 0.15 else "PASS") if verdicts else None
-        visits.append(Visit(h, [], i + 1, verdict, {}, {"params": "table2", "relative": truth}))
+        visits.append(Visit(h, [], i + 1, verdict, {}, VisitTruth("table2", relative=truth)))
         est = []
         for name, nom in NOMINAL.items():
             rel = truth[name] + rng.normal(0.0, SE[name] + 3e-4)
@@ -117,7 +117,8 @@ def test_a_bad_prognosis_is_scored_as_such(tmp_path):
     for i, v in enumerate(visits):
         if v.operating_hours > 600:
             bump = 3.5e-4 * (v.operating_hours - 600)
-            v.truth["relative"]["alpha_h"] += bump
+            assert v.truth is not None and v.truth.relative is not None
+            v.truth.relative["alpha_h"] += bump
             ests[i] = dataclasses.replace(ests[i], estimates=tuple(
                 dataclasses.replace(x, value=x.value + bump * x.nominal) if x.name == "alpha_h" else x
                 for x in ests[i].estimates))
@@ -144,7 +145,7 @@ def test_the_board_verdicts_are_the_truth_when_the_log_has_them():
 def test_a_stable_laminate_gets_a_page_with_a_lower_bound(tmp_path):
     visits, ests = _life(n=6, alpha_rate=0.0)
     for i, v in enumerate(visits):  # nothing changes: the truth is nominal, the estimates scatter around it
-        v.truth["relative"] = {n: 0.0 for n in NOMINAL}
+        v.truth = VisitTruth("table2", relative={n: 0.0 for n in NOMINAL})
         ests[i] = dataclasses.replace(ests[i], estimates=tuple(
             dataclasses.replace(x, value=NOMINAL[x.name] * (1 + np.random.default_rng(int(v.operating_hours))
                                                              .normal(0, 3e-4)))
