@@ -20,13 +20,16 @@ import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from board_config.scenario import Scenario, load_scenario
 from firmware_sim.events import BoardEvent
 from studies.health.laws import deviations_at
+
+if TYPE_CHECKING:
+    from plant import PlantModel
 
 SECONDS_PER_HOUR = 3600.0
 
@@ -93,7 +96,8 @@ class VisitRun:
     flights: TickedFlights | None = None  # the ticked flights before this visit (tick_flights > 0)
 
 
-_PROCESS_CACHE: dict[str, Any] = {}
+#: the nominal plant model of each parameter set, built once per worker process
+_PROCESS_CACHE: dict[str, PlantModel] = {}
 
 
 def run_visit(source: str, visit: int, hours: float, deviations: dict[str, float], seed: int, params: str,
@@ -243,7 +247,8 @@ def run_life(scenario: Scenario, *, seed: int, params: str, workers: int | None 
 def write_life_log(result: LifeResult, scenario: Scenario, out: Path, *, seed: int, params: str,
                    link_url: str = "sim", board_config: dict | None = None, status: str = "finished",
                    final_dir: Path | None = None) -> dict[str, Any]:
-    """usage.db (one run, its ``status``), the visit records and their links, life.json. Returns the life summary.
+    """usage.db (one run, its ``status``), the visit records and their links, life.json. Returns the life summary
+    (life.json's document, the JSON at the edge the life report is drawn from).
     ``final_dir``: where the files will live once moved there (``out`` is then a staging folder)."""
     from firmware_sim.usage_log import UsageLog
     from studies.health.visit_records import VisitRecordWriter, run_identity
