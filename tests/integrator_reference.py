@@ -72,6 +72,16 @@ def cases(model: Any) -> dict[str, dict[str, Any]]:
                      "settings": settings}
 
     uniform = np.arange(16) * 0.02
+
+    def add_failures(name: str, entry: int, members: int, *, negative_c3: int, blown_up: int) -> None:
+        """``members`` deviated members, one with a negative c3 and one starting at 1e200: both must fail."""
+        p = _deviated(model, rng, members)
+        p[negative_c3, c3] = -50.0
+        x0 = np.tile(model.x0_nominal, (members, 1))
+        x0[blown_up, 0] = 1e200
+        add(name, entry, p, _drive(0.3, 1e-3, np.array([600.0])), uniform, x0=x0, max_steps=20_000,
+            record_bus=False)
+
     add("scalar_shared_input", 0, _deviated(model, rng, 3), _drive(0.3, 1e-3, np.array([600.0])), uniform)
     t_rand = np.concatenate([[0.0], np.sort(rng.uniform(0.0, 0.3, 17)), [0.3]])
     add("scalar_member_inputs_nonuniform_out", 0, _deviated(model, rng, 2),
@@ -79,12 +89,7 @@ def cases(model: Any) -> dict[str, dict[str, Any]]:
     add("scalar_one_sample_input", 0, _deviated(model, rng, 1), np.array([[[300.0, -300.0, 0.2]]]), uniform,
         record_x=False, record_bus=False)
     add("run_chunk_entry", 1, _deviated(model, rng, 2), _drive(0.3, 1e-3, np.array([400.0])), uniform)
-    p = _deviated(model, rng, 3)
-    p[1, c3] = -50.0
-    x0 = np.tile(model.x0_nominal, (3, 1))
-    x0[2, 0] = 1e200
-    add("scalar_failures", 0, p, _drive(0.3, 1e-3, np.array([600.0])), uniform, x0=x0, max_steps=20_000,
-        record_bus=False)
+    add_failures("scalar_failures", 0, 3, negative_c3=1, blown_up=2)
     add("scalar_step_too_small", 0, _deviated(model, rng, 2), _drive(0.3, 1e-3, np.array([600.0])), uniform,
         rtol=1e-13, h_min=1e-3, record_bus=False)
     p = _deviated(model, rng, 20)
@@ -93,12 +98,7 @@ def cases(model: Any) -> dict[str, dict[str, Any]]:
         u_dt=5e-3)
     add("lanes_work_item_inside_batch", 2, _deviated(model, rng, 21), np.array([[[300.0, -300.0, 0.2]]]), uniform,
         lo=16, hi=21, record_bus=False)
-    p = _deviated(model, rng, 16)
-    p[3, c3] = -50.0
-    x0 = np.tile(model.x0_nominal, (16, 1))
-    x0[5, 0] = 1e200
-    add("lanes_failures_and_rerun", 2, p, _drive(0.3, 1e-3, np.array([600.0])), uniform, x0=x0, max_steps=20_000,
-        record_bus=False)
+    add_failures("lanes_failures_and_rerun", 2, 16, negative_c3=3, blown_up=5)
     add("lanes_step_too_small", 2, _deviated(model, rng, 16), _drive(0.3, 1e-3, np.array([600.0])), uniform,
         rtol=1e-13, h_min=1e-3, record_x=False, record_bus=False)
     assert all(v["x0"].shape[1] == n for v in out.values())
