@@ -352,7 +352,6 @@ def _ahead(current: CandidateResult, names: Sequence[str], base: ParameterSet, t
     start = dict(current.outcome.values)
     _load_models(todo, base, targets)
     _in_parallel([partial(fits.fit, sp, base, targets, data, rss0_held, start=start, **kw) for sp in todo])
-    fits.hits -= len(todo)  # fitted ahead, not met again
 
 
 def at_noise_floor(c: CandidateResult) -> bool:
