@@ -8,6 +8,7 @@ import sys
 
 import numpy as np
 import pytest
+from scenario_text_support import life_scenario
 
 from board_config.errors import ConfigError
 from board_config.scenario import load_scenario, parse_scenario
@@ -199,11 +200,7 @@ def test_a_life_is_reproducible_by_seed_whatever_the_workers(tmp_path):
     from studies.health.life import run_life
 
     toml = tmp_path / "tiny.toml"
-    toml.write_text('[scenario]\nname = "tiny-life"\nseed = 3\n[life]\nvisits = { value = 3, unit = "1" }\n'
-                    'visit_interval = { value = 400, unit = "h" }\n[[life.law]]\nparameter = "alpha_h"\n'
-                    'kind = "linear"\nrate = { value = 2e-4, unit = "1/h" }\n[[phase]]\nkind = "ground"\n'
-                    'duration = { value = 0.5, unit = "s" }\n[[phase]]\nkind = "maintenance"\n'
-                    'duration = { value = 29, unit = "s" }\n')
+    toml.write_text(life_scenario("tiny-life", 3, 400))
     sc = load_scenario(toml)
 
     def results(seed, workers):

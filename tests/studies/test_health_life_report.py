@@ -8,6 +8,7 @@ import subprocess
 import sys
 
 import pytest
+from scenario_text_support import life_scenario
 
 from studies.health.life_report import write_life_report
 
@@ -49,11 +50,7 @@ def test_a_life_without_fault_says_never(tmp_path):
 @pytest.mark.slow
 def test_shm_run_on_a_life_writes_the_report(tmp_path):
     toml = tmp_path / "tiny.toml"
-    toml.write_text('[scenario]\nname = "tiny-life"\nseed = 3\n[life]\nvisits = { value = 3, unit = "1" }\n'
-                    'visit_interval = { value = 400, unit = "h" }\n[[life.law]]\nparameter = "alpha_h"\n'
-                    'kind = "linear"\nrate = { value = 2e-4, unit = "1/h" }\n[[phase]]\nkind = "ground"\n'
-                    'duration = { value = 0.5, unit = "s" }\n[[phase]]\nkind = "maintenance"\n'
-                    'duration = { value = 29, unit = "s" }\n')
+    toml.write_text(life_scenario("tiny-life", 3, 400))
     out = tmp_path / "run"
     r = subprocess.run([sys.executable, "-m", "shm_cli.main", "run", "--scenario", str(toml), "--out", str(out)],
                        capture_output=True, text=True)
