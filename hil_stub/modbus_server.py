@@ -7,8 +7,10 @@ every valid request and never blocks it:
 * reads of input registers / discrete inputs / the coil are filled from the host's latest snapshot;
 * writes of holding registers are checked with :func:`~drivers.modbus_registers.check_holding_write` (whole
   values only, writable entries only, set-points inside Table 1) and refused with exception 02 or 03 — a
-  refused write changes nothing; an accepted write of the command block is posted to the host (in lockstep
-  mode the plant step runs in a worker thread, awaited, so the loop stays free).
+  refused write changes nothing; an accepted write of the command block is posted to the host and answered on
+  the loop's thread (in lockstep mode the plant step too, tens of microseconds; only a new board run's fresh rig
+  is awaited from a worker thread). With the realtime clock on the same loop (:class:`~hil_stub.service.HilService`
+  ``rig_clock="loop"``) a request costs the stub one wake-up: no thread hand-over, no GIL hand-over.
 
 Behaviour the spec wants and pymodbus does not do by itself, added here: an unknown function code is answered
 with exception 01 and a bad quantity / byte count with 03, echoing the function code (pymodbus answers both with
@@ -91,6 +93,11 @@ class _CheckingHandler(ServerRequestHandler):
             if used:
                 return used
         return super().callback_data(data, addr)
+
+    def handle_later(self) -> None:
+        """The request's task, created on the loop's own thread (pymodbus: ``run_coroutine_threadsafe``, a write to
+        the loop's self-pipe and one more trip through ``epoll`` per request)."""
+        self.loop.create_task(self.handle_request())
 
 
 class _TcpServer(ModbusTcpServer):
@@ -278,7 +285,7 @@ class ModbusRigServer:
         new[address - HOLDING_START: address - HOLDING_START + len(values)] = values
         cmd = decode_command_block(new[COMMAND_START - HOLDING_START: COMMAND_END - HOLDING_START])
         self.stats["commands"] += 1
-        if host.mode == "lockstep":  # the plant step runs in a worker thread; the loop stays free
+        if host.mode == "lockstep" and host.starts_again(cmd.seq):  # building a rig: in a worker thread, the loop free
             delivery = await asyncio.get_running_loop().run_in_executor(None, host.submit, cmd, self.kind)
         else:
             delivery = host.submit(cmd, self.kind)
@@ -417,7 +424,7 @@ class ModbusRigServer:
             rtu.rig = self
             self._server = rtu
             await rtu.serve_forever(background=True)
-        if self._watch_task is None:
+        if self._watch_task is None and self.faulter.faults.disconnect_at_s is not None:  # else no wake-ups for it
             self._watch_task = asyncio.get_running_loop().create_task(self._watch())
 
     async def _stop_server(self) -> None:

@@ -35,6 +35,8 @@ reply, as the in-process link behaves.
 
 from __future__ import annotations
 
+import asyncio
+import contextlib
 import logging
 import math
 import threading
@@ -153,6 +155,9 @@ class RigHost:
         self._tick = 0
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
+        self._loop: asyncio.AbstractEventLoop | None = None  #: the event loop the clock runs on (or None)
+        self._tick_handle: asyncio.TimerHandle | None = None
+        self._next_t: float | None = None  #: the clock time the next realtime tick is due
         self._link_down_fn = getattr(endpoint, "link_down", None)
         self._restart = restart
         self._last_seq: int | None = None
@@ -227,6 +232,14 @@ class RigHost:
         return Delivery.REFUSED if why is not None else Delivery.ACCEPTED
 
     # ------------------------------------------------------------------------------------------ board runs
+    def starts_again(self, seq: int) -> bool:
+        """Whether a command with sequence number ``seq`` would start the lockstep rig again for a new board run
+        (building a rig: seconds, not the plant step's microseconds)."""
+        last = self._last_seq
+        seq &= 0xFFFFFFFF
+        return (self.mode == "lockstep" and self._restart is not None and last is not None and seq < last
+                and not (last >= 0xFFFF0000 and seq < 0x10000) and self._tick > 0)
+
     def _note_board_run(self, seq: int, source: str) -> None:
         """Count a new board run when the command counter starts again; restart a lockstep rig for it."""
         last, self._last_seq = self._last_seq, seq
@@ -287,49 +300,96 @@ class RigHost:
                 self._step_locked()
         return self._snapshot
 
-    def start(self) -> None:
-        """Start the realtime loop thread (no-op in lockstep mode)."""
-        if self.mode != "realtime" or self._thread is not None:
+    def start(self, loop: asyncio.AbstractEventLoop | None = None, due: float | None = None) -> None:
+        """Start the realtime clock (no-op in lockstep mode): on ``loop``, the thread that runs the servers' event
+        loop (one serving thread: no GIL hand-over and no second thread to wake between a request and its reply), or
+        without one in a thread of its own (``rig-clock``); ``due``: the next tick's clock time (None: anchored at
+        the first command)."""
+        if self.mode != "realtime" or self._thread is not None or self._loop is not None:
             return
         self._stop.clear()
+        self._next_t = due
+        if loop is not None:
+            self._loop = loop
+            self.clock_slice_note = "the rig clock runs on the Modbus event loop's thread"
+            loop.call_soon_threadsafe(self._on_loop)
+            return
         self._thread = threading.Thread(target=self._run, name="rig-clock", daemon=True)
         self._thread.start()
         if self.clock_slice_s is not None and self._thread.native_id is not None:
             self.clock_slice_note = request_slice(self.clock_slice_s, self._thread.native_id).note
 
+    def run_clock_on(self, loop: asyncio.AbstractEventLoop) -> None:
+        """Move a realtime clock running in its own thread onto ``loop``, its schedule kept."""
+        if self._thread is None:
+            return
+        self.stop()
+        self.start(loop, due=self._next_t)
+
     def stop(self) -> None:
         self._stop.set()
+        if self._loop is not None:
+            loop, self._loop = self._loop, None
+            if not loop.is_closed():  # cancel the pending tick on the loop's own thread
+                with contextlib.suppress(RuntimeError):
+                    asyncio.run_coroutine_threadsafe(self._cancel_tick(), loop).result(2.0)
         if self._thread is not None:
             self._thread.join(timeout=2.0)
             self._thread = None
 
-    def _run(self) -> None:
+    async def _cancel_tick(self) -> None:
+        if self._tick_handle is not None:
+            self._tick_handle.cancel()
+            self._tick_handle = None
+
+    def _due(self) -> float | None:
+        """The clock time the next tick is due; None while the clock stands still (before the first command)."""
+        if self._next_t is None and self._clock_running:
+            # first command: anchor the schedule half a tick later, so that the board's commands (one per tick, at
+            # the same phase) arrive mid-tick and a little jitter never moves one into another tick
+            self._next_t = self.clock() + 0.5 * self.dt
+        return self._next_t
+
+    def _tick_due(self, due: float) -> None:
+        """The tick due at ``due`` (clock time), its pacing recorded, the next one scheduled."""
         clock = self.clock
-        next_t = clock()
-        waiting = True
+        start = clock()
+        try:
+            self.tick()
+        except Exception as exc:  # the clock must survive a bad plant step
+            self.incident(f"rig tick failed: {exc!r}")
+        end = clock()
+        self.pacing.record(max(0.0, start - due), end - start, self.keep_lateness)
+        next_t = due + self.dt
+        if end > next_t:
+            self.pacing.deadline_misses += 1
+            behind = int((end - next_t) / self.dt)
+            if behind > 5:  # a long stall: skip the lost ticks instead of racing to catch up
+                self.incident(f"rig loop stalled {behind} ticks; re-anchoring the schedule")
+                next_t += behind * self.dt
+        self._next_t = next_t
+
+    def _on_loop(self) -> None:
+        """The realtime clock on the event loop: the tick due now, then a timer for the next one (every 1 ms
+        before the first command, as the thread polls)."""
+        self._tick_handle = None
+        loop = self._loop
+        if loop is None or self._stop.is_set():
+            return
+        due = self._due()
+        if due is not None and due - self.clock() <= 0:
+            self._tick_due(due)
+            due = self._next_t
+        delay = 1e-3 if due is None else max(0.0, due - self.clock())
+        self._tick_handle = loop.call_later(delay, self._on_loop)
+
+    def _run(self) -> None:
         while not self._stop.is_set():
-            if waiting:
-                if not self._clock_running:
-                    self._stop.wait(0.001)
-                    continue
-                # first command: anchor the schedule half a tick later, so that the board's commands (one per
-                # tick, at the same phase) arrive mid-tick and a little jitter never moves one into another tick
-                next_t = clock() + 0.5 * self.dt
-                waiting = False
-            delay = next_t - clock()
+            due = self._due()
+            if due is None:
+                self._stop.wait(0.001)
+                continue
+            delay = due - self.clock()
             if delay > 0:
                 self._stop.wait(delay)
-            start = clock()
-            try:
-                self.tick()
-            except Exception as exc:  # the loop must survive a bad plant step
-                self.incident(f"rig tick failed: {exc!r}")
-            end = clock()
-            self.pacing.record(max(0.0, start - next_t), end - start, self.keep_lateness)
-            next_t += self.dt
-            if end > next_t:
-                self.pacing.deadline_misses += 1
-                behind = int((end - next_t) / self.dt)
-                if behind > 5:  # a long stall: skip the lost ticks instead of racing to catch up
-                    self.incident(f"rig loop stalled {behind} ticks; re-anchoring the schedule")
-                    next_t += behind * self.dt
+            self._tick_due(due)

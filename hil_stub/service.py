@@ -26,6 +26,7 @@ from collections.abc import Callable
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Any, TypeVar
 
+from board_config.errors import InputError
 from drivers.link import RigEndpoint
 from drivers.modbus_registers import MAP_VERSION
 from hil_stub.faults import FaultPlan, SensorFaultRig
@@ -33,6 +34,9 @@ from hil_stub.frame_server import FrameServer
 from hil_stub.loop_thread import LoopThread
 from hil_stub.modbus_server import ModbusRigServer
 from hil_stub.rig_host import RigHost
+
+#: where the realtime rig clock can run (:class:`HilService` ``rig_clock``)
+RIG_CLOCKS = ("loop", "thread")
 
 _Server = TypeVar("_Server", FrameServer, ModbusRigServer)
 
@@ -47,7 +51,13 @@ class HilService:
 
     def __init__(self, endpoint: RigEndpoint, *, mode: str = "realtime", dt: float = 0.01,
                  plan: FaultPlan | None = None, start: str = "first-command", keep_lateness: bool = False,
-                 restart: Callable[[], RigEndpoint] | None = None, clock_slice_s: float | None = None) -> None:
+                 restart: Callable[[], RigEndpoint] | None = None, clock_slice_s: float | None = None,
+                 rig_clock: str = "loop") -> None:
+        if rig_clock not in RIG_CLOCKS:
+            raise InputError(f"rig clock {rig_clock!r}: allowed {', '.join(RIG_CLOCKS)}")
+        #: where the realtime rig clock runs with a Modbus server: on its event loop's thread ("loop") or in a thread
+        #: of its own ("thread"; always so without a Modbus server)
+        self.rig_clock = rig_clock
         self.plan = plan or FaultPlan()
         self.endpoint = self._with_faults(endpoint)
         self._build = restart if mode == "lockstep" else None
@@ -96,6 +106,8 @@ class HilService:
         self.servers.append(server)
         if self._started:
             server.start()
+            if isinstance(server, ModbusRigServer) and self.rig_clock == "loop":
+                self.host.run_clock_on(self.loop.loop)
         return server
 
     def add_serial(self, where: str = "pty", *, link_path: str | None = None,
@@ -129,7 +141,8 @@ class HilService:
         try:
             for srv in self.servers:
                 srv.start()
-            self.host.start()
+            on_loop = self.rig_clock == "loop" and any(isinstance(s, ModbusRigServer) for s in self.servers)
+            self.host.start(self.loop.loop if on_loop else None)
             self._build_spare()
         except Exception:
             self.stop()

@@ -158,6 +158,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--clock-slice-ms", type=sched_slice_arg, default=None, metavar="MS",
                    help="CPU time slice of the rig clock thread (the physics step), apart from the serving threads "
                         "(default: the same as --sched-slice-ms; 0: the kernel's default; docs/real-rig.md)")
+    r.add_argument("--rig-clock", choices=("loop", "thread"), default="loop",
+                   help="where the realtime rig clock runs when a Modbus endpoint is served: on the Modbus event "
+                        "loop's thread (default: one serving thread, no GIL hand-over between a request and its "
+                        "reply) or in a thread of its own (as before; docs/real-rig.md)")
     _add_fault_options(s.add_argument_group("fault injection (seeded by --seed)"))
     from shm_cli.live_args import add_live_args
 
@@ -288,7 +292,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
     rig = build()
     # lockstep: every board run gets the rig from t = 0 (docs/real-rig.md); a real-time rig plays its scenario once
     clock_slice = None if args.clock_slice_ms is None else args.clock_slice_ms / 1e3
-    service = HilService(rig, mode=args.clock, plan=plan, start=args.start, restart=build, clock_slice_s=clock_slice)
+    service = HilService(rig, mode=args.clock, plan=plan, start=args.start, restart=build, clock_slice_s=clock_slice,
+                         rig_clock=args.rig_clock)
     for where in args.serial:
         service.add_serial(where, baudrate=args.baud)
     for where in args.modbus_tcp:
