@@ -16,9 +16,10 @@ phase is recorded with the result.
 Every phase runs three times, back to back: with the kernel's default time slice (``shm hil serve --sched-slice-ms
 0``, the client as it is), with the short slice for every thread of the stub (``--sched-slice-ms 0.2``; the client's
 sending thread asks for the same, as ``shm run --link`` does for the board's link thread: :mod:`drivers.latency_slice`)
-and with the short slice for the serving threads only (``--clock-slice-ms 0``: the rig clock thread, whose physics step
-holds the GIL, keeps the kernel's default). All at normal priority, as are the hogs; on a kernel without EEVDF custom
-slices the variants are the same code path (the note says so). On TCP the stub also reports its answer time from the
+and with the short slice but the rig clock in a thread of its own (``--rig-clock thread``, the stub before the clock
+moved onto the Modbus event loop: one more thread to wake and the GIL handed over between the two). All at normal
+priority, as are the hogs; on a kernel without EEVDF custom slices the first two variants are the same code path (the
+note says so). On TCP the stub also reports its answer time from the
 kernel's receive timestamp of each request (``answer_time_from_kernel_rx``: its own wake-up included, which the
 event loop's clock cannot see).
 
@@ -227,13 +228,14 @@ def _phase(port: int | str, seconds: float, first_seq: int, client_slice_s: floa
 
 
 def _stub_phase(seconds: float, summary: Path, n_hogs: int, rtu: bool = False, slice_s: float = 2e-4,
-                clock_slice_s: float | None = None) -> dict:
+                clock_slice_s: float | None = None, extra: tuple[str, ...] = ()) -> dict:
     """A fresh stub (``--sched-slice-ms`` from ``slice_s``, ``--clock-slice-ms`` from ``clock_slice_s`` unless
     None), warmed up, then ``seconds`` of paced transactions with ``n_hogs`` CPU hogs beside it; the client's times
     and the stub's own answer times (request bytes in -> reply out, and on TCP from the kernel's receive timestamp
     -> reply out; from its --summary)."""
     clock = () if clock_slice_s is None else ("--clock-slice-ms", f"{1e3 * clock_slice_s:g}")
-    stub, port = start_stub(("--summary", str(summary), "--sched-slice-ms", f"{1e3 * slice_s:g}", *clock), rtu=rtu)
+    stub, port = start_stub(("--summary", str(summary), "--sched-slice-ms", f"{1e3 * slice_s:g}", *clock, *extra),
+                            rtu=rtu)
     hogs: list[subprocess.Popen] = []
     try:
         paced_transactions(port, 0.5)  # warm-up: connection, first ticks, kernels
@@ -263,11 +265,14 @@ def _stub_phase(seconds: float, summary: Path, n_hogs: int, rtu: bool = False, s
 
 
 #: the variants measured side by side, (serving threads' slice, rig clock thread's slice; None: the same) in s: the
-#: kernel's default slice everywhere, the short one for every thread of the stub, and the short one for the serving
-#: threads only (the rig clock keeps the kernel's default: a physics step holding the GIL is not cut short);
+#: kernel's default slice everywhere, the short one for every thread of the stub (the rig clock on the Modbus event
+#: loop, the stub's default), and the short one with the rig clock in a thread of its own (``--rig-clock thread``, the
+#: stub before: a second thread to wake, the GIL handed over between it and the loop; see :data:`VARIANT_ARGS`);
 #: ``SHM_BENCH_SLICES_MS="0,0.2,0.5"`` measures those slices for every thread instead (named ``slice_0.5ms``)
 VARIANTS: dict[str, tuple[float, float | None]] = {"default_slice": (0.0, None), "short_slice": (2e-4, None),
-                                                   "short_slice_not_clock": (2e-4, 0.0)}
+                                                   "short_slice_clock_thread": (2e-4, None)}
+#: further `shm hil serve` options of a variant
+VARIANT_ARGS: dict[str, tuple[str, ...]] = {"short_slice_clock_thread": ("--rig-clock", "thread")}
 
 
 def _variants() -> dict[str, tuple[float, float | None]]:
@@ -305,7 +310,7 @@ def run(out_dir: Path, quick: bool) -> dict:
         for variant, (slice_s, clock_slice_s) in variants.items():  # back to back: the same machine state for all
             res[f"{variant}_{phase}"] = _stub_phase(seconds, out_dir / f"stub_latency_{variant}_{phase}.json",
                                                     n_hogs if loaded else 0, rtu=rtu, slice_s=slice_s,
-                                                    clock_slice_s=clock_slice_s)
+                                                    clock_slice_s=clock_slice_s, extra=VARIANT_ARGS.get(variant, ()))
     for variant in variants:
         for phase in phases:
             r = res[f"{variant}_{phase}"]
