@@ -10,6 +10,7 @@ of the reason. Every case must fail during validation, before any heavy simulati
 from __future__ import annotations
 
 import re
+import shlex
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -17,6 +18,8 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 SHIPPED = ROOT / "board_config"
+#: the corpora's command-line cases, one a line (tests/data/bad_inputs/*.txt; the format is in each file's head)
+CASE_TABLES = ROOT / "tests" / "data" / "bad_inputs"
 
 
 @dataclass(frozen=True)
@@ -34,6 +37,19 @@ class Case:
 def case(id: str, argv: str | list[str], *needles: str, code: int = 2) -> Case:
     args = tuple(argv.split()) if isinstance(argv, str) else tuple(argv)
     return Case(id, args, tuple(needles), code)
+
+
+def case_table(name: str) -> list[Case]:
+    """The cases of the table ``tests/data/bad_inputs/<name>``: ``id | command line (shell words) | needle ...``,
+    a last field ``exit=N`` for an exit code other than 2; blank lines and ``#`` comments skipped."""
+    cases = []
+    for line in (CASE_TABLES / name).read_text(encoding="utf-8").splitlines():
+        if not line.strip() or line.startswith("#"):
+            continue
+        id, argv, *needles = line.split(" | ")
+        code = int(needles.pop()[len("exit="):]) if needles and needles[-1].startswith("exit=") else 2
+        cases.append(case(id, shlex.split(argv), *needles, code=code))
+    return cases
 
 
 # ------------------------------------------------------------------------------------------------------------
@@ -335,267 +351,19 @@ def _file_cases() -> list[Case]:
 
 
 def _option_cases() -> list[Case]:
-    c = case
-    out = "--out {o}"
-    return [
-        # shm run
-        c("run-seed-neg", f"run --seed -1 --quiet {out}", "--seed", "-1"),
-        c("run-seed-text", f"run --seed one --quiet {out}", "--seed", "one"),
-        c("run-seed-huge", f"run --seed 99999999999999 --quiet {out}", "--seed", "99999999999999"),
-        c("run-duration-zero", f"run --duration-s 0 --quiet {out}", "--duration-s", "0"),
-        c("run-duration-neg", f"run --duration-s -5 --quiet {out}", "--duration-s", "-5"),
-        c("run-duration-nan", f"run --duration-s nan --quiet {out}", "--duration-s", "nan"),
-        c("run-duration-inf", f"run --duration-s inf --quiet {out}", "--duration-s", "inf"),
-        c("run-duration-huge", f"run --duration-s 1e13 --quiet {out}", "--duration-s", "memory"),
-        c("run-timeline-neg", f"run --timeline-every-s -1 --quiet {out}", "--timeline-every-s", "-1"),
-        c("run-timeline-nan", f"run --timeline-every-s nan --quiet {out}", "--timeline-every-s", "nan"),
-        c("run-scenario-missing", f"run --scenario {{d}}/nope.toml --quiet {out}", "nope.toml"),
-        c("run-scenario-unknown", f"run --scenario no-such --quiet {out}", "no-such", "unknown scenario"),
-        c("run-scenario-dir", f"run --scenario {{d}} --quiet {out}", "is a directory"),
-        c("run-params-unknown", f"run --params no-such-set --quiet {out}", "no-such-set"),
-        c("run-board-missing", f"run --board-config {{d}}/nope.toml --quiet {out}", "nope.toml"),
-        c("run-link-scheme", f"run --link carrier-pigeon://x --quiet {out}", "carrier-pigeon://x"),
-        c("run-link-noport", f"run --link modbus-tcp://127.0.0.1 --quiet {out}", "modbus-tcp://127.0.0.1",
-          code=1),  # an unreachable peer: the job failed, not the input
-        c("run-link-badport", f"run --link socket://127.0.0.1:99999 --quiet {out}", "99999"),
-        c("run-link-textport", f"run --link modbus-tcp://127.0.0.1:http --quiet {out}", "http"),
-        c("run-link-empty", ["run", "--link", "", "--quiet", "--out", "{o}"], "--link", "empty"),
-        c("run-live-badport", f"run --live 70000 --quiet {out}", "--live", "70000"),
-        c("run-live-nohost", f"run --live :8765 --quiet {out}", "--live", "no host"),
-        c("run-live-linger-alone", f"run --live-linger 3 --quiet {out}", "--live-linger", "--live"),
-        c("run-live-life", f"run --scenario aging --live 0 --quiet {out}", "--live", "aging", "life"),
-        c("run-out-file", "run --quiet --out {d}/a_file", "--out", "a_file", "not a directory"),
-        c("run-out-under-file", "run --quiet --out {d}/a_file/sub", "--out", "a_file", "not a directory"),
-        c("run-finished-dir", "run --quiet --out {d}/finished_run", "finished_run", "--force"),
-        c("run-append-foreign", "run --quiet --append --out {d}/foreign_run", "usage.db", "another application"),
-        c("run-append-force", f"run --quiet --append --force {out}", "--force", "not allowed"),
-        c("run-log-sync", f"run --log-sync maybe --quiet {out}", "--log-sync", "maybe"),
-        c("run-realtime-virtual", f"run --realtime --virtual --quiet {out}", "--virtual", "not allowed"),
-        # shm log
-        c("log-limit-neg", "log show --db {d}/finished_run/usage.db --limit -1", "--limit", "-1"),
-        c("log-limit-text", "log show --db {d}/finished_run/usage.db --limit many", "--limit", "many"),
-        c("log-run-zero", "log show --db {d}/finished_run/usage.db --run 0", "--run", "0"),
-        c("log-db-missing", "log show --db {d}/nope.db", "nope.db", "no such"),
-        c("log-db-notsqlite", "log show --db {d}/notsqlite.db", "notsqlite.db", "not a usage log"),
-        c("log-db-foreign", "log show --db {d}/foreign.db", "foreign.db", "not a usage log"),
-        c("log-db-dir", "log show --db {d}", "not a usage log"),
-        c("log-db-csv", "log show --db {d}/good.csv", "good.csv", "not a usage log"),
-        c("log-export-foreign", "log export --db {d}/foreign.db", "foreign.db", "not a usage log"),
-        c("log-export-table", "log export --db {d}/foreign.db --table nope", "foreign.db"),
-        c("log-tables-and-table", "log show --db {d}/finished_run/usage.db --tables --table runs", "--tables",
-          "--table"),
-        # shm effects
-        c("effects-show-unknown", "effects show warp", "warp", "unknown effect"),
-        c("effects-show-missing-file", "effects show {d}/nope_effect.py", "nope_effect.py", "does not exist"),
-        c("effects-show-not-an-effect", "effects show os:path", "os:path", "not a PhysicalEffect"),
-        c("effects-show-csv-file", "effects show {d}/good.csv", "good.csv"),
-        c("effects-show-bad-prefix", ["effects", "show", "geometric_stiffening as 2x"], "2x"),
-        c("effects-show-empty", ["effects", "show", ""], "effect"),
-        c("effects-no-subcommand", "effects", "subcommand"),
-        # shm synth
-        c("synth-amp-1MV", "synth --test sine --amplitude 1e6 --out {o}/x.csv", "1e+06", "-500", "1500"),
-        c("synth-amp-neg", "synth --test sine --amplitude -300 --out {o}/x.csv", "--amplitude", "-300"),
-        c("synth-amp-nan", "synth --test sine --amplitude nan --out {o}/x.csv", "--amplitude", "nan"),
-        c("synth-bias-over", "synth --test sine --amplitude 600 --bias-v 1000 --out {o}/x.csv", "1600",
-          "1500"),
-        c("synth-bias-inf", "synth --test sine --bias-v inf --out {o}/x.csv", "--bias-v", "inf"),
-        c("synth-base-huge", "synth --test sine --drive base --amplitude 1e4 --out {o}/x.csv", "10000 g",
-          "100 g"),
-        c("synth-freq-zero", "synth --test sine --freq-hz 0 --out {o}/x.csv", "--freq-hz", "0"),
-        c("synth-freq-neg", "synth --test sine --freq-hz -2 --out {o}/x.csv", "--freq-hz", "-2"),
-        c("synth-rate-zero", "synth --test sine --rate-hz 0 --out {o}/x.csv", "--rate-hz", "0"),
-        c("synth-duration-neg", "synth --test sine --duration-s -1 --out {o}/x.csv", "--duration-s", "-1"),
-        c("synth-duration-huge", "synth --test sine --duration-s 1e12 --out {o}/x.csv", "1e+12", "memory"),
-        c("synth-rate-huge", "synth --test sine --rate-hz 1e15 --out {o}/x.csv", "1e+15", "memory"),
-        c("synth-nfreqs-one", "synth --test frf --n-freqs 1 --out {o}/x.csv", "--n-freqs", "1"),
-        c("synth-nfreqs-huge", "synth --test frf --n-freqs 100000000 --out {o}/x.csv", "--n-freqs"),
-        c("synth-f1-below-f0", "synth --test sweep --f0-hz 10 --f1-hz 5 --out {o}/x.csv", "f1", "f0"),
-        c("synth-seed-neg", "synth --test step --seed -3 --out {o}/x.csv", "--seed", "-3"),
-        c("synth-test-unknown", "synth --test lunar --out {o}/x.csv", "--test", "lunar"),
-        c("synth-out-suffix", "synth --test step --out {d}/o_synth/x.xlsx", "x.xlsx", ".csv"),
-        c("synth-out-dir", "synth --test step --out {d}", "--out", "directory"),
-        c("synth-out-under-file", "synth --test step --out {d}/a_file/x.csv", "--out", "a_file"),
-        c("synth-set-syntax", "synth --test step --set k3 --out {o}/x.csv", "--set", "NAME=VALUE"),
-        c("synth-set-text", "synth --test step --set k3=stiff --out {o}/x.csv", "k3", "stiff"),
-        c("synth-set-unknown", "synth --test step --set warp=1 --out {o}/x.csv", "warp"),
-        c("synth-set-nan", "synth --test step --set k3=nan --out {o}/x.csv", "k3", "nan"),
-        c("synth-deviation-low", "synth --test step --deviation k3=-2 --out {o}/x.csv", "k3", "-1"),
-        c("synth-deviation-unknown", "synth --test step --deviation warp=0.1 --out {o}/x.csv", "warp"),
-        c("synth-noise-neg", "synth --test step --noise z3=-1e-6 --out {o}/x.csv", "z3", "noise"),
-        c("synth-noise-chan", "synth --test step --noise flux=1 --out {o}/x.csv", "flux"),
-        c("synth-effect-unknown", "synth --test step --effect warp_drive --out {o}/x.csv", "warp_drive"),
-        c("synth-channel-unknown", "synth --test step --channels z9 --out {o}/x.csv", "z9"),
-        c("synth-base-step", "synth --test step --drive base --out {o}/x.csv", "step", "base"),
-        # shm model
-        c("model-frf-points-zero", "model frf --points 0 --out {o}", "--points", "0"),
-        c("model-frf-points-huge", "model frf --points 10000000000 --out {o}", "--points"),
-        c("model-frf-fmin-neg", "model frf --f-min-hz -1 --out {o}", "--f-min-hz", "-1"),
-        c("model-frf-fmax-nan", "model frf --f-max-hz nan --out {o}", "--f-max-hz", "nan"),
-        c("model-frf-order", "model frf --f-min-hz 100 --f-max-hz 10 --out {o}", "--f-min-hz", "--f-max-hz"),
-        c("model-frf-out-file", "model frf --out {d}/a_file", "--out", "a_file"),
-        c("model-step-amp-huge", "model step --amplitude-v 1e6 --out {o}", "--amplitude-v", "1500"),
-        c("model-step-duration-neg", "model step --duration-s -2 --out {o}", "--duration-s", "-2"),
-        c("model-step-duration-huge", "model step --duration-s 1e12 --out {o}", "--duration-s"),
-        c("model-loop-freq-zero", "model loop --freq-hz 0 --out {o}", "--freq-hz", "0"),
-        c("model-loop-cycles-neg", "model loop --cycles -1 --out {o}", "--cycles", "-1"),
-        c("model-loop-cycles-huge", "model loop --cycles 1e12 --out {o}", "--cycles"),
-        c("model-info-params-missing", "model info --params {d}/nope.toml", "nope.toml"),
-        c("model-info-params-dir", "model info --params {d}", "is a directory"),
-        c("model-info-params-csv", "model info --params {d}/good.csv", "good.csv"),
-        # shm harvest
-        c("harvest-accel-neg", "harvest --accel-g -0.1 --out {o}", "acceleration", "-0.1"),
-        c("harvest-accel-nan", "harvest --accel-g nan --out {o}", "--accel-g", "nan"),
-        c("harvest-freq-zero", "harvest --freq-hz 0 --out {o}", "frequency", "0"),
-        c("harvest-rint-neg", "harvest --r-int-ohm -1 --out {o}", "resistance", "-1"),
-        c("harvest-duration-neg", "harvest --duration-s -600 --out {o}", "duration", "-600"),
-        c("harvest-duration-huge", "harvest --duration-s 1e15 --out {o}", "duration", "range"),
-        c("harvest-battery-unknown", "harvest --battery AA-cell --out {o}", "AA-cell"),
-        c("harvest-from-v", "harvest --from-v 9 --out {o}", "start voltage", "9"),
-        c("harvest-diode-neg", "harvest --diode-drop-v -0.5 --out {o}", "diode", "-0.5"),
-        c("harvest-current-neg", "harvest --board-current-ma -1 --out {o}", "board load current", "-0.001 A"),
-        c("harvest-out-file", "harvest --out {d}/a_file", "--out", "a_file"),
-        # shm campaign
-        c("campaign-n-zero", "campaign --n 0 --out {o} --no-progress", "--n", "0"),
-        c("campaign-n-huge", "campaign --n 10000000000000 --out {o} --no-progress", "--n"),
-        c("campaign-workers-zero", "campaign --n 2 --workers 0 --out {o} --no-progress", "--workers", "0"),
-        c("campaign-batch-zero", "campaign --n 2 --batch-size 0 --out {o} --no-progress", "--batch-size", "0"),
-        c("campaign-noise-neg", "campaign --n 2 --noise-um -1 --out {o} --no-progress", "--noise-um", "-1"),
-        c("campaign-noise-nan", "campaign --n 2 --noise-um nan --out {o} --no-progress", "--noise-um", "nan"),
-        c("campaign-ranges-text", "campaign --n 2 --ranges a:b:c --out {o} --no-progress", "--ranges", "a:b:c"),
-        c("campaign-ranges-order", "campaign --n 2 --ranges 50:0:10 --out {o} --no-progress", "--ranges"),
-        c("campaign-ranges-step0", "campaign --n 2 --ranges 0:50:0 --out {o} --no-progress", "--ranges"),
-        c("campaign-mbit", "campaign --n 2 --mbit c --out {o} --no-progress", "--mbit", "c"),
-        c("campaign-deviate", "campaign --n 2 --deviate warp --out {o} --no-progress", "warp"),
-        c("campaign-mbit-config", "campaign --n 2 --mbit-config {d}/nope.toml --out {o} --no-progress",
-          "nope.toml"),
-        c("campaign-dask-timeout", "campaign --n 2 --dask-timeout-s -1 --out {o} --no-progress",
-          "--dask-timeout-s", "-1"),
-        c("campaign-out-file", "campaign --n 2 --out {d}/a_file --no-progress", "--out", "a_file"),
-        c("campaign-roc-from", "campaign-roc --from {d}/nope", "nope"),
-        c("campaign-roc-pct", "campaign-roc --from {d} --healthy-max-pct 150", "--healthy-max-pct", "150"),
-        c("campaign-roc-eps", "campaign-roc --from {d} --eps-th x:y:z", "--eps-th"),
-        # shm hil serve
-        c("hil-baud-neg", "hil serve --serial pty --baud -9600", "--baud", "-9600"),
-        c("hil-baud-zero", "hil serve --serial pty --baud 0", "--baud", "0"),
-        c("hil-unit-zero", "hil serve --modbus-tcp 127.0.0.1:0 --unit 0", "--unit", "0"),
-        c("hil-unit-big", "hil serve --modbus-tcp 127.0.0.1:0 --unit 300", "--unit", "300"),
-        c("hil-drop-over", "hil serve --serial pty --drop 2", "--drop", "2"),
-        c("hil-drop-neg", "hil serve --serial pty --drop -0.1", "--drop", "-0.1"),
-        c("hil-corrupt-nan", "hil serve --serial pty --corrupt nan", "--corrupt", "nan"),
-        c("hil-latency-neg", "hil serve --serial pty --latency-ms -1", "--latency-ms", "-1"),
-        c("hil-jitter-neg", "hil serve --serial pty --jitter-ms -1", "--jitter-ms", "-1"),
-        c("hil-duration-neg", "hil serve --serial pty --duration -5", "--duration", "-5"),
-        c("hil-status-neg", "hil serve --serial pty --status-every -1", "--status-every", "-1"),
-        c("hil-disconnect-for", "hil serve --serial pty --disconnect-at 1 --disconnect-for -1", "--disconnect-for"),
-        c("hil-no-endpoint", "hil serve", "endpoint"),
-        c("hil-tcp-port-text", "hil serve --modbus-tcp 127.0.0.1:http", "127.0.0.1:http"),
-        c("hil-tcp-port-big", "hil serve --modbus-tcp 127.0.0.1:70000", "70000"),
-        c("hil-serial-bad-path", "hil serve --serial {d}/no/such/tty", "no/such/tty"),
-        c("hil-scenario-unknown", "hil serve --serial pty --scenario no-such", "no-such"),
-        c("hil-params-bad", "hil serve --serial pty --params {d}/p_nan.toml", "p_nan.toml"),
-        c("hil-noise-syntax", "hil serve --serial pty --noise z3", "--noise", "z3"),
-        c("hil-deviation-text", "hil serve --serial pty --deviation k3=lots", "k3", "lots"),
-        c("hil-stuck-chan", "hil serve --serial pty --stuck flux", "flux"),
-        c("hil-effect", "hil serve --serial pty --effect warp_drive", "warp_drive"),
-        c("hil-summary-dir", "hil serve --serial pty --summary {d}", "--summary"),
-        # shm compare / diagnose / fit / health / calibrate options
-        c("compare-missing", "compare {d}/nope.csv --out {o}", "nope.csv", "not found"),
-        c("compare-level", "compare {d}/good.csv --level 2 --out {o}", "--level", "2"),
-        c("compare-level-zero", "compare {d}/good.csv --level 0 --out {o}", "--level", "0"),
-        c("compare-lags", "compare {d}/good.csv --lags 0 --out {o}", "--lags", "at least 1"),
-        c("compare-decimate", "compare {d}/good.csv --decimate 0 --out {o}", "--decimate", "at least 1"),
-        c("compare-skip-neg", "compare {d}/good.csv --skip-s -1 --out {o}", "--skip-s", ">= 0"),
-        c("compare-sigma", "compare {d}/good.csv --threshold-sigma -3 --out {o}", "--threshold-sigma"),
-        c("compare-window", "compare {d}/good.csv --window-s 0 --out {o}", "--window-s", "0"),
-        c("compare-horizon", "compare {d}/good.csv --horizon-s nan --out {o}", "--horizon-s", "nan"),
-        c("compare-interval", "compare {d}/good.csv --interval-s -0.01 --out {o}", "--interval-s"),
-        c("compare-add", "compare {d}/good.csv --add warp_drive --out {o}", "warp_drive"),
-        c("compare-set", "compare {d}/good.csv --set k3=abc --out {o}", "k3", "abc"),
-        c("compare-eq4", "compare {d}/good.csv --eq4 z3=x --out {o}", "--eq4"),
-        c("compare-out-file", "compare {d}/good.csv --out {d}/a_file", "--out", "a_file"),
-        c("discover-max-terms", "discover {d}/good.csv --max-terms 0 --out {o}", "--max-terms", "0"),
-        c("discover-refit", "discover {d}/good.csv --refit -2 --out {o}", "--refit", "-2"),
-        c("discover-blocks-odd", "discover {d}/good.csv --blocks 3 --out {o}", "--blocks", "3"),
-        c("discover-rate", "discover {d}/good.csv --max-rate-hz -5 --out {o}", "--max-rate-hz", "-5"),
-        c("discover-add-unknown", "discover {d}/good.csv --add warp_drive --out {o}", "warp_drive"),
-        c("discover-emit-dir", "discover {d}/good.csv --emit {d} --out {o}", "--emit"),
-        c("discover-emit-not-py", "discover {d}/good.csv --emit {o}/effect.txt --out {o}", "--emit", ".py"),
-        c("discover-params", "discover {d}/good.csv --params {d}/nope.toml --out {o}", "nope.toml"),
-        c("discover-missing-record", "discover {d}/nope.csv --out {o}", "nope.csv"),
-        c("discover-out-file", "discover {d}/good.csv --out {d}/a_file", "--out", "a_file"),
-        c("diagnose-blocks-odd", "diagnose {d}/good.csv --blocks 3 --out {o}", "--blocks", "3"),
-        c("diagnose-blocks-zero", "diagnose {d}/good.csv --blocks 0 --out {o}", "--blocks", "0"),
-        c("diagnose-fit-top", "diagnose {d}/good.csv --fit-top -1 --out {o}", "--fit-top", ">= 0"),
-        c("diagnose-rate", "diagnose {d}/good.csv --max-rate-hz 0 --out {o}", "--max-rate-hz", "0"),
-        c("diagnose-min-red", "diagnose {d}/good.csv --min-reduction -1 --out {o}", "--min-reduction"),
-        c("diagnose-workers", "diagnose {d}/good.csv --workers 0 --out {o}", "--workers", "0"),
-        c("diagnose-candidates", "diagnose {d}/good.csv --candidates warp_drive --out {o}", "warp_drive"),
-        c("diagnose-out-file", "diagnose {d}/good.csv --out {d}/a_file", "--out", "a_file"),
-        c("fit-free-unknown", "fit {d}/good.csv --free warp --save {o}/x.toml", "warp"),
-        c("fit-free-range", "fit {d}/good.csv --free k3:30:10 --save {o}/x.toml", "k3"),
-        c("fit-nfev", "fit {d}/good.csv --free k3 --max-nfev 0 --save {o}/x.toml", "--max-nfev", "0"),
-        c("fit-blocks", "fit {d}/good.csv --free k3 --blocks -2 --save {o}/x.toml", "--blocks", "-2"),
-        c("fit-save-dir", "fit {d}/good.csv --free k3 --save {d}", "--save"),
-        c("fit-save-under-file", "fit {d}/good.csv --free k3 --save {d}/a_file/x.toml", "--save", "a_file"),
-        c("health-as-of", "health {d}/good.csv --as-of -5 --out {o}", "--as-of", "-5"),
-        c("health-workers", "health {d}/good.csv --workers 0 --out {o}", "--workers", "0"),
-        c("health-missing", "health {d}/nope_dir --out {o}", "nope_dir"),
-        c("health-out-file", "health {d}/good.csv --out {d}/a_file", "--out", "a_file"),
-        c("calibrate-claims", "calibrate --claims {d}/nope.toml --out {o}", "nope.toml"),
-        c("calibrate-claims-bad", "calibrate --claims {d}/p_syntax.toml --out {o}", "p_syntax.toml"),
-        c("calibrate-damping", "calibrate --min-damping -1 --out {o}", "--min-damping", "-1"),
-        c("calibrate-free", "calibrate --free warp --out {o}", "warp"),
-        c("calibrate-out-file", "calibrate --out {d}/a_file", "--out", "a_file"),
-        # files that are not text at all, and empty names
-        c("run-scenario-latin1", f"run --scenario {{d}}/latin1.toml --quiet {out}", "latin1.toml", "utf-8"),
-        c("run-params-random", f"run --params {{d}}/random.toml --quiet {out}", "random.toml", "utf-8"),
-        c("run-board-random", f"run --board-config {{d}}/random.toml --quiet {out}", "random.toml", "utf-8"),
-        c("model-info-params-latin1", "model info --params {d}/latin1.toml", "latin1.toml", "utf-8"),
-        c("campaign-mbit-config-random", "campaign --n 2 --mbit-config {d}/random.toml --out {o} --no-progress",
-          "random.toml", "utf-8"),
-        c("campaign-monitor-config-bad", "campaign --n 2 --monitor-config {d}/p_syntax.toml --out {o} --no-progress",
-          "p_syntax.toml", "toml"),
-        c("run-params-empty", ["run", "--params", "", "--quiet", "--out", "{o}"], "--params", "empty"),
-        c("run-scenario-empty", ["run", "--scenario", " ", "--quiet", "--out", "{o}"], "--scenario", "empty"),
-        c("campaign-ranges-billion", "campaign --n 2 --ranges 0:1e9:1 --out {o} --no-progress", "--ranges", "1e+09",
-          "at most"),
-        c("calibrate-name-empty", ["calibrate", "--name", "", "--out", "{o}"], "--name", "empty"),
-        c("calibrate-save-under-file", "calibrate --save {d}/a_file/x.toml --out {o}", "--save", "a_file"),
-        c("synth-frf-extreme-freq", "synth --test frf --f0-hz 1e-300 --f1-hz 1e300 --out {o}/x.csv", "--f0-hz",
-          "1e-300"),
-        c("synth-freq-over-table1", "synth --test sine --freq-hz 20000 --out {o}/x.csv", "--freq-hz", "10 kHz"),
-        c("log-table-empty", ["log", "show", "--db", "{d}/finished_run/usage.db", "--table", ""], "usage.db"),
-        c("run-out-empty", ["run", "--quiet", "--out", ""], "--out", "empty"),
-        c("synth-out-empty", ["synth", "--test", "step", "--out", ""], "--out", "empty"),
-        c("model-out-devnull", "model frf --out /dev/null", "--out", "not a directory"),
-        c("hil-noise-negative", "hil serve --serial pty --noise z3=-1 --duration 0.2", "--noise", "z3"),
-        c("hil-deviation-low", "hil serve --serial pty --deviation k3=-5 --duration 0.2", "--deviation", "k3"),
-        c("campaign-deviate-twice", "campaign --n 2 --deviate k3,k3 --out {o} --no-progress", "--deviate", "twice"),
-        c("campaign-roc-from-csv", "campaign-roc --from {d}/good.csv", "good.csv"),
-        c("fit-save-suffix", "fit {d}/good.csv --free k3 --save {o}/x.txt", "--save", "x.txt"),
-        c("compare-set-negative", "compare {d}/good.csv --set k3=-5 --out {o}", "k3", "-5"),
-        c("compare-params-csv", "compare {d}/good.csv --params {d}/good.csv --out {o}", "good.csv", "toml"),
-        c("run-scenario-is-params", "run --scenario {d}/p_nan.toml --quiet --out {o}", "p_nan.toml", "meta"),
-        c("run-board-is-scenario", "run --board-config {d}/s_neg_seed.toml --quiet --out {o}", "s_neg_seed.toml",
-          "phase"),
-        c("fit-seed-negative", "fit {d}/good.csv --free k3 --seed -1 --save {o}/x.toml", "--seed", "-1"),
-        c("diagnose-seed-negative", "diagnose {d}/good.csv --seed -1 --out {o}", "--seed", "-1"),
-        c("campaign-seed-huge", "campaign --n 2 --seed 99999999999999999999 --out {o} --no-progress", "--seed",
-          "99999999999999999999"),
-        c("health-seed-huge", "health {d}/good.csv --seed 99999999999999999999 --out {o}", "--seed"),
-        # argparse itself
-        c("no-command", [], "command"),
-        c("unknown-command", "frobnicate", "frobnicate"),
-        c("unknown-option", "model info --frobnicate", "--frobnicate"),
-    ]
+    return case_table("options.txt")
+
+
+def unique_ids(cases: list[Case]) -> list[Case]:
+    """``cases``, after checking that no two share an id (the ids name the tests)."""
+    ids = [c.id for c in cases]
+    dup = {i for i in ids if ids.count(i) > 1}
+    assert not dup, f"duplicate case ids: {dup}"
+    return cases
 
 
 def all_cases() -> list[Case]:
-    cases = _file_cases() + _option_cases()
-    ids = [c.id for c in cases]
-    dup = {i for i in ids if ids.count(i) > 1}
-    assert not dup, dup
-    return cases
+    return unique_ids(_file_cases() + _option_cases())
 
 
 def one_line_error(err: str) -> str:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import sqlite3
 from pathlib import Path
 
-from bad_inputs_corpus import PARAMS, Case, case
+from bad_inputs_corpus import PARAMS, Case, case, case_table, unique_ids
 from scenario_text_support import life_scenario, linear_law
 
 #: a valid life: 3 visits 400 h apart, alpha_h drifting (tests/studies/test_health.py's tiny life)
@@ -188,69 +188,9 @@ def write_corpus_files(d: Path) -> None:
 
 
 def _life_cases() -> list[Case]:
-    cases = [case(f"life-{name}", ["run", "--scenario", f"{{d}}/{name}", "--quiet", "--out", "{o}"], *needles)
-             for name, (_, needles) in LIVES.items()]
-    life = "run --scenario {d}/life.toml --quiet"
-    cases += [
-        case("life-params-nosuch", f"{life} --params nosuch --out {{o}}", "--params", "nosuch", "unknown"),
-        case("life-params-unit-typo", f"{life} --params {{d}}/p_wrong_unit.toml --out {{o}}", "p_wrong_unit.toml",
-             "k3", "unit"),
-        case("life-params-syntax", f"{life} --params {{d}}/p_syntax.toml --out {{o}}", "p_syntax.toml", "toml"),
-        case("life-duration", f"{life} --duration-s 5 --out {{o}}", "--duration-s", "[life]"),
-        case("life-realtime", f"{life} --realtime --out {{o}}", "--realtime", "[life]"),
-        case("life-append", f"{life} --append --out {{o}}", "--append", "[life]"),
-        case("life-link", f"{life} --link modbus-tcp://127.0.0.1:5020 --out {{o}}", "--link", "simulated"),
-        case("life-seed-negative", f"{life} --seed -1 --out {{o}}", "--seed"),
-        case("life-seed-huge", f"{life} --seed 99999999999 --out {{o}}", "--seed"),
-        case("life-board-missing", f"{life} --board-config {{d}}/nope_board.toml --out {{o}}", "nope_board.toml"),
-        case("life-out-file", f"{life} --out {{d}}/a_file", "--out", "a_file"),
-        case("life-out-earlier", f"{life} --out {{d}}/earlier_life", "earlier run", "--force"),
-    ]
-    return cases
-
-
-def _health_cases() -> list[Case]:
-    h = "health {d}/life_run"
-    c = case
-    return [
-        c("health-params-nosuch", f"{h} --params nosuch --out {{o}}", "--params", "nosuch"),
-        c("health-params-unit-typo", f"{h} --params {{d}}/p_wrong_unit.toml --out {{o}}", "p_wrong_unit.toml",
-          "k3", "unit"),
-        c("health-params-syntax", f"{h} --params {{d}}/p_syntax.toml --out {{o}}", "p_syntax.toml"),
-        c("health-params-empty", ["health", "{d}/life_run", "--params", " ", "--out", "{o}"], "--params", "empty"),
-        c("health-same-dir-twice", f"{h} {{d}}/life_run --out {{o}}", "life_run", "twice"),
-        c("health-dir-and-its-record", f"{h} {{d}}/life_run/records/visit-002_mbit-b.csv --out {{o}}",
-          "visit-002_mbit-b.csv", "twice"),
-        c("health-dir-and-its-db", f"{h} {{d}}/life_run/usage.db --out {{o}}", "usage.db", "twice"),
-        c("health-same-file-twice", "health {d}/synth_a.csv {d}/synth_a.csv --out {o}", "synth_a.csv", "twice"),
-        c("health-same-visit-copy", f"{h} {{d}}/same_visit_copy.csv --out {{o}}", "mbit-b", "100 h", "twice"),
-        c("health-synth-same-visit", "health {d}/synth_a.csv {d}/synth_a_again.csv --out {o}", "synth_a",
-          "twice"),
-        c("health-hours-1e9", f"{h} {{d}}/hours_1e9.csv --out {{o}}", "hours_1e9.csv", "operating_hours",
-          "plausible"),
-        c("health-hours-nan", f"{h} {{d}}/hours_nan.csv --out {{o}}", "hours_nan.csv", "operating_hours"),
-        c("health-hours-negative", f"{h} {{d}}/hours_neg.csv --out {{o}}", "hours_neg.csv", "operating_hours"),
-        c("health-other-run", f"{h} {{d}}/other_run.csv --out {{o}}", "other_run.csv", "another run", "run-2"),
-        c("health-other-board", f"{h} {{d}}/other_board.csv --out {{o}}", "other_board.csv", "another board",
-          "cfg-board2"),
-        c("health-record-without-run", f"{h} {{d}}/no_uid.csv --out {{o}}", "no_uid.csv", "another run"),
-        c("health-visit-number-clash", f"{h} {{d}}/visit_clash.csv --out {{o}}", "visit_clash.csv", "visit 2"),
-        c("health-out-foreign-report", f"{h} --out {{d}}/compare_out", "compare_out", "report.html", "--force"),
-        c("health-out-run", f"{h} --out {{d}}/run_out", "run_out", "summary.json", "--force"),
-        c("health-out-earlier-life", f"{h} --out {{d}}/earlier_life", "earlier_life", "life.json"),
-        c("health-free-unknown", f"{h} --free nosuch_param --out {{o}}", "--free", "nosuch_param"),
-        c("health-as-of-nan", f"{h} --as-of nan --out {{o}}", "--as-of"),
-        c("health-alpha", f"{h} --alpha 2 --out {{o}}", "--alpha"),
-        c("health-lambda", f"{h} --lambda 1.5 --out {{o}}", "--lambda"),
-        c("health-locate-visits", f"{h} --locate-visits 0 --out {{o}}", "--locate-visits"),
-        c("health-workers", f"{h} --workers 0 --out {{o}}", "--workers"),
-        c("health-dir-no-records", "health {d}/compare_out --out {o}", "compare_out", "no visit records"),
-        c("health-flight-toml-as-source", "health {d}/life.toml --out {o}", "life.toml"),
-    ]
+    return [case(f"life-{name}", ["run", "--scenario", f"{{d}}/{name}", "--quiet", "--out", "{o}"], *needles)
+            for name, (_, needles) in LIVES.items()] + case_table("life_options.txt")
 
 
 def all_cases() -> list[Case]:
-    cases = _life_cases() + _health_cases()
-    ids = [x.id for x in cases]
-    assert len(ids) == len(set(ids)), "duplicate case ids"
-    return cases
+    return unique_ids(_life_cases() + case_table("health_options.txt"))

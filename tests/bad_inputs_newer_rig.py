@@ -14,117 +14,24 @@ from __future__ import annotations
 import struct
 from dataclasses import dataclass
 
-from bad_inputs_corpus import Case, case
+from bad_inputs_corpus import Case, case_table, unique_ids
 
 from drivers.modbus_registers import COMMAND_START, INPUT_COUNT, MIRROR_START
-
-OUT = "--quiet --out {o}"
-
-
-def _link(id: str, url: str, *needles: str) -> Case:
-    return case(f"rig-{id}", ["run", "--link", url, "--quiet", "--out", "{o}"], url, *needles)
 
 
 def link_url_cases() -> list[Case]:
     """A bad URL for every scheme: host, port, IPv6 brackets, path, query values, unknown options and schemes."""
-    return [
-        # modbus-tcp://
-        _link("tcp-v6-bracket", "modbus-tcp://[::1:5020", "closing ']'", "[ADDRESS]:PORT"),
-        _link("tcp-v6-bare", "modbus-tcp://::1:5020", "brackets"),
-        _link("tcp-v6-garbage", "modbus-tcp://[zz]:502", "not an IPv6 address"),
-        _link("tcp-host-space", "modbus-tcp://my rig:502", "'my rig'", "host name or IP address"),
-        _link("tcp-ipv4-bad", "modbus-tcp://300.1.1.1:502", "300.1.1.1", "IPv4"),
-        _link("tcp-userinfo", "modbus-tcp://admin@rig:502", "user information"),
-        _link("tcp-path", "modbus-tcp://127.0.0.1:502/holding", "/holding", "means nothing"),
-        _link("tcp-port-zero", "modbus-tcp://127.0.0.1:0", "65535"),
-        _link("tcp-port-empty", "modbus-tcp://127.0.0.1:", "65535"),
-        _link("tcp-unit-nan", "modbus-tcp://127.0.0.1:5020?unit=nan", "unit"),
-        _link("tcp-unit-zero", "modbus-tcp://127.0.0.1:5020?unit=0", "unit=0", "[1, 247]"),
-        _link("tcp-timeout-inf", "modbus-tcp://127.0.0.1:5020?timeout=inf", "timeout"),
-        _link("tcp-timeout-text", "modbus-tcp://127.0.0.1:5020?timeout=soon", "timeout", "not a number"),
-        _link("tcp-fc23-two", "modbus-tcp://127.0.0.1:5020?fc23=2", "fc23", "[0, 1]"),
-        _link("tcp-unknown-option", "modbus-tcp://127.0.0.1:5020?speed=1", "speed", "unknown option"),
-        _link("tcp-rtu-option", "modbus-tcp://127.0.0.1:5020?baud=9600", "baud", "unknown option"),
-        # modbus-rtu:
-        _link("rtu-parity", "modbus-rtu:/dev/null?parity=X", "parity", "N, E, O"),
-        _link("rtu-stopbits", "modbus-rtu:/dev/null?stopbits=3", "stopbits", "[1, 2]"),
-        _link("rtu-baud-text", "modbus-rtu:/dev/null?baud=fast", "baud", "not a number"),
-        _link("rtu-baud-low", "modbus-rtu:/dev/null?baud=10", "baud", "[300, 4e+06]"),
-        _link("rtu-no-path", "modbus-rtu:?baud=9600", "PATH"),
-        _link("rtu-unknown-option", "modbus-rtu:/dev/null?bogus=1", "bogus", "unknown option"),
-        # socket:// and rfc2217://
-        _link("socket-v6-bracket", "socket://[::1", "closing ']'"),
-        _link("socket-no-port", "socket://127.0.0.1", "no port"),
-        _link("socket-option", "socket://127.0.0.1:7000?bogus=1", "bogus", "logging"),
-        _link("rfc2217-port", "rfc2217://127.0.0.1:99999", "99999"),
-        _link("rfc2217-host", "rfc2217://rig_#1:2217", "rig_"),
-        # serial:
-        _link("serial-protocol", "serial:carrier://x", "carrier://", "unknown serial url protocol"),
-        _link("serial-option", "serial:/dev/null?speed=9600", "speed", "unknown option"),
-        _link("serial-baud-neg", "serial:/dev/null?baud=-5", "baud", "[50, 2e+07]"),
-        _link("serial-parity", "serial:/dev/null?parity=Q", "parity", "N, E, O"),
-        _link("serial-socket-port", "serial:socket://127.0.0.1:http", "'http'", "65535"),
-        _link("serial-loop-option", "serial:loop://?bogus=1", "bogus", "loop://"),
-        _link("serial-empty", "serial:", "no port given"),
-        # sim
-        _link("sim-seed-negative", "sim://?seed=-1", "seed=-1", "0 .. 2^32-1"),
-        _link("sim-seed-huge", "sim://?seed=4294967296", "4294967296", "0 .. 2^32-1"),
-        _link("sim-seed-text", "sim://?seed=abc", "seed", "integer"),
-        _link("sim-host", "sim://rig?seed=1", "'rig' after sim://"),
-        _link("sim-unknown-option", "sim://?sede=1", "sede", "unknown option"),
-        _link("sim-blank-unknown", "sim://?colour=", "colour", "unknown option"),
-        _link("sim-scenario", "sim:no-such-scenario", "no-such-scenario", "unknown scenario"),
-        _link("sim-coupling", "sim://?coupling=tight", "coupling", "allowed"),
-        _link("sim-params", "sim://?params=nosuch", "nosuch", "unknown parameter set"),
-        # unknown schemes
-        _link("scheme-simulator", "simulator", "unknown link URL", "known schemes"),
-        _link("scheme-ftp", "ftp://rig:21", "unknown link URL"),
-        _link("scheme-http", "http://rig:80/modbus", "unknown link URL"),
-    ]
+    return case_table("rig_link_urls.txt")
 
 
 def hil_option_cases() -> list[Case]:
     """`shm hil serve` endpoints and options refused at parse time (before the rig is built), and `shm run`'s and
     `shm hil serve`'s --sched-slice-ms."""
-    c = case
-    return [
-        c("rig-hil-tcp-v6-bracket", "hil serve --modbus-tcp [::1:0", "[::1:0", "closing ']'"),
-        c("rig-hil-tcp-v6", "hil serve --modbus-tcp [::1]:0", "[::1]:0", "IPv6 is not served"),
-        c("rig-hil-tcp-host", "hil serve --modbus-tcp bad!host:0", "bad!host", "host name or IP address"),
-        c("rig-hil-tcp-ipv4", "hil serve --modbus-tcp 256.0.0.1:0", "256.0.0.1", "IPv4"),
-        c("rig-hil-tcp-no-host", "hil serve --modbus-tcp :0", "--modbus-tcp", "no host"),
-        c("rig-hil-tcp-no-port", "hil serve --modbus-tcp 127.0.0.1", "127.0.0.1", "no port"),
-        c("rig-hil-serial-socket-v6", "hil serve --serial socket://[::1", "socket://[::1", "closing ']'"),
-        c("rig-hil-serial-socket-port", "hil serve --serial socket://127.0.0.1:x", "'x'", "not a number"),
-        c("rig-hil-serial-protocol", "hil serve --serial foo://x", "foo://x", "socket://HOST:PORT"),
-        c("rig-hil-rtu-missing", "hil serve --modbus-rtu {d}/no/such/tty", "no/such/tty", "no such serial device"),
-        c("rig-hil-slice-negative", "hil serve --serial pty --sched-slice-ms -1", "--sched-slice-ms", "0.1 .. 100"),
-        c("rig-hil-slice-big", "hil serve --serial pty --sched-slice-ms 500", "--sched-slice-ms", "500"),
-        c("rig-hil-slice-tiny", "hil serve --serial pty --sched-slice-ms 0.01", "--sched-slice-ms", "0.01"),
-        c("rig-hil-slice-text", "hil serve --serial pty --sched-slice-ms fast", "--sched-slice-ms", "fast"),
-        c("rig-hil-slice-nan", "hil serve --serial pty --sched-slice-ms nan", "--sched-slice-ms", "nan"),
-        c("rig-hil-clock", "hil serve --serial pty --clock warp", "--clock", "warp"),
-        c("rig-hil-start", "hil serve --serial pty --start later", "--start", "later"),
-        c("rig-hil-hv", "hil serve --serial pty --hv maybe", "--hv", "maybe"),
-        c("rig-hil-parity", "hil serve --modbus-rtu pty --parity X", "--parity", "X"),
-        c("rig-hil-noise-nan", "hil serve --serial pty --noise z3=nan", "--noise", "z3=nan"),
-        c("rig-hil-deviation-inf", "hil serve --serial pty --deviation k3=inf", "--deviation", "k3"),
-        c("rig-hil-stuck-when", "hil serve --serial pty --stuck z3@soon", "--stuck", "soon"),
-        c("rig-hil-stuck-negative", "hil serve --serial pty --stuck z3@-1", "--stuck", ">= 0"),
-        c("rig-hil-latency-inf", "hil serve --serial pty --latency-ms inf", "--latency-ms", "inf"),
-        c("rig-hil-disconnect-nan", "hil serve --serial pty --disconnect-at nan", "--disconnect-at", "nan"),
-        c("rig-run-slice-negative", f"run --link modbus-tcp://127.0.0.1:1 --sched-slice-ms -1 {OUT}",
-          "--sched-slice-ms", "0.1 .. 100"),
-        c("rig-run-slice-big", f"run --link modbus-tcp://127.0.0.1:1 --sched-slice-ms 1000 {OUT}", "--sched-slice-ms",
-          "1000"),
-    ]
+    return case_table("rig_hil_options.txt")
 
 
 def newer_rig_cases() -> list[Case]:
-    cases = link_url_cases() + hil_option_cases()
-    ids = [c.id for c in cases]
-    assert len(ids) == len(set(ids)), "duplicate case ids"
-    return cases
+    return unique_ids(link_url_cases() + hil_option_cases())
 
 
 # ------------------------------------------------------------------------------------------------------------

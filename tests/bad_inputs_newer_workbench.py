@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from bad_inputs_corpus import Case, _record, _rows, case
+from bad_inputs_corpus import Case, _record, _rows, case, case_table, unique_ids
 
 # ------------------------------------------------------------------------------------------------------------
 # effect files
@@ -163,65 +163,7 @@ def _effect_cases() -> list[Case]:
 
 
 def _option_cases() -> list[Case]:
-    c = case
-    return [
-        # files the user did not name as an output, or did not ask to replace
-        c("discover-emit-existing", "discover {d}/good.csv --emit {d}/victim.py --out {o}", "--emit", "victim.py",
-          "already exists", "--force"),
-        c("discover-emit-is-add", "discover {d}/good.csv --add {d}/e_dup_a.py --emit {d}/e_dup_a.py --force --out {o}",
-          "--emit", "--add", "e_dup_a.py", "refined"),
-        c("discover-emit-shipped", "discover {d}/good.csv --emit {shipped}/params/mine.py --out {o}", "--emit",
-          "shipped configuration"),
-        c("discover-emit-library-effect", "discover {d}/good.csv --emit {shipped}/../plant/effects/air_damping.py "
-          "--force --out {o}", "--emit", "own package 'plant'", "--force does not apply"),
-        c("fit-save-existing-scenario", "fit {d}/good.csv --free k3 --save {d}/myscen.toml", "--save", "myscen.toml",
-          "already exists"),
-        c("fit-save-shipped-table2", "fit {d}/good.csv --free k3 --save {shipped}/params/table2.toml --force",
-          "--save", "table2.toml", "shipped configuration", "--force does not apply"),
-        c("fit-save-shipped-new", "fit {d}/good.csv --free k3 --save {shipped}/params/my_new_set.toml", "--save",
-          "shipped configuration"),
-        c("fit-save-shipped-scenario", "fit {d}/good.csv --free k3 --save {shipped}/scenarios/maintenance.toml",
-          "--save", "shipped configuration"),
-        c("synth-out-existing", "synth --test step --out {d}/good.csv", "--out", "good.csv", "already exists"),
-        c("synth-out-existing-copy", "synth --test sine --out {d}/good_copy.csv", "--out", "good_copy.csv"),
-        c("synth-out-shipped", "synth --test step --out {shipped}/params/rec.csv --force", "--out", "shipped"),
-        c("compare-out-finished-run", "compare {d}/good.csv --out {d}/run_done", "--out", "run_done",
-          "finished shm run", "--force"),
-        c("compare-out-finished-diagnose", "compare {d}/good.csv --out {d}/diagnose_done", "--out", "diagnose_done",
-          "shm diagnose"),
-        c("compare-out-finished-health", "compare {d}/good.csv --out {d}/health_done", "health_done", "shm health"),
-        c("compare-out-finished-fit", "compare {d}/good.csv --out {d}/fit_done", "fit_done", "shm fit"),
-        # one --out per command at a time
-        c("compare-out-busy", "compare {d}/good.csv --out {d}/busy", "--out", "busy", "in use"),
-        c("diagnose-out-busy", "diagnose {d}/good.csv --out {d}/busy", "--out", "busy", "in use"),
-        c("discover-out-busy", "discover {d}/good.csv --out {d}/busy", "--out", "busy", "in use"),
-        c("fit-out-busy", "fit {d}/good.csv --free k3 --out {d}/busy", "--out", "busy", "in use"),
-        # one record as training and held-out data
-        c("discover-same-record", "discover {d}/good.csv {d}/good.csv --holdout records --out {o}", "good.csv",
-          "same file"),
-        c("discover-copied-record", "discover {d}/good.csv {d}/good_copy.csv --holdout records --out {o}",
-          "good_copy.csv", "copy", "good.csv"),
-        c("fit-same-record", "fit {d}/good.csv {d}/good.csv --holdout records --free k3 --save {o}/x.toml",
-          "good.csv", "same file"),
-        c("fit-copied-record", "fit {d}/good.csv {d}/good_copy.csv --free k3 --save {o}/x.toml", "good_copy.csv",
-          "copy"),
-        c("fit-same-record-relative", ["fit", "{d}/good.csv", "{d}/./good.csv", "--free", "k3", "--save",
-                                       "{o}/x.toml"], "good.csv", "same file"),
-        c("diagnose-same-record", "diagnose {d}/good.csv {d}/good.csv --holdout records --out {o}", "good.csv",
-          "same file"),
-        c("diagnose-copied-record", "diagnose {d}/good_copy.csv {d}/good.csv --out {o}", "good.csv", "copy"),
-        # options of the newer commands
-        c("discover-emit-bad-stem", "discover {d}/good.csv --emit {o}/my-effect.py --out {o}", "--emit",
-          "identifier"),
-        c("discover-max-terms-big", "discover {d}/good.csv --max-terms 9 --out {o}", "--max-terms", "9"),
-        c("discover-holdout-records-one", "discover {d}/good.csv --holdout records --out {o}", "holdout",
-          "two records"),
-        c("fit-nothing", "fit {d}/good.csv --save {o}/x.toml", "nothing to fit"),
-        c("fit-save-not-toml", "fit {d}/good.csv --free k3 --save {o}/x.json", "--save", ".toml"),
-        c("synth-out-suffix", "synth --test step --out {o}/x.parquet", "--out", ".csv"),
-        c("synth-frf-tdms", "synth --test frf --out {o}/x.tdms", "frf", ".csv"),
-        c("compare-add-file-missing", "compare {d}/good.csv --add {d}/no_effect.py --out {o}", "no_effect.py"),
-    ]
+    return case_table("workbench_options.txt")
 
 
 #: cases that compile a kernel of their own (tens of seconds on a cold cache): run with the slow tests
@@ -230,8 +172,4 @@ SLOW_CASES = (case("fit-effect-e_nan_guess.py", "fit {d}/good.csv --add {d}/e_na
 
 
 def all_newer_cases() -> list[Case]:
-    cases = _effect_cases() + _option_cases() + list(SLOW_CASES)
-    ids = [x.id for x in cases]
-    dup = {i for i in ids if ids.count(i) > 1}
-    assert not dup, dup
-    return cases
+    return unique_ids(_effect_cases() + _option_cases() + list(SLOW_CASES))

@@ -8,7 +8,7 @@ import hashlib
 import logging
 import os
 import re
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -54,6 +54,22 @@ def assert_one_clear_line(case: Any, code: int, cap: Any, forbidden: tuple[str, 
     for word in ("bug in mfc-shm", *forbidden):
         assert word not in line, line
     return line
+
+
+def written_corpus(tmp_path_factory: Any, name: str, write: Callable[[Path], None]) -> Path:
+    """A fresh directory ``name`` with a corpus's files written by ``write`` (for a module-scoped fixture)."""
+    d = tmp_path_factory.mktemp(name)
+    write(d)
+    return Path(d)
+
+
+def run_to_one_clear_line(case: Any, corpus: Path, capsys: Any, monkeypatch: Any,
+                          forbidden: tuple[str, ...] = ()) -> str:
+    """``shm`` on ``case`` over the corpus directory ``corpus`` (``SHM_DEBUG`` unset), in this process: it ended with
+    the case's exit code and one clear error line (:func:`assert_one_clear_line`); that line, lower-case."""
+    monkeypatch.delenv("SHM_DEBUG", raising=False)
+    code = run_shm(case.resolved(corpus))
+    return assert_one_clear_line(case, code, capsys.readouterr(), forbidden)
 
 
 def file_hashes(d: Path) -> dict[str, str]:

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from bad_inputs_newer_rig import REGISTER_CASES, RegisterCase, newer_rig_cases
-from bad_inputs_support import assert_one_clear_line, no_leftover_log_handlers, run_shm  # noqa: F401 (autouse fixture)
+from bad_inputs_support import no_leftover_log_handlers, run_shm, run_to_one_clear_line  # noqa: F401 (autouse fixture)
 from links_support import FakeRig, rtu_crc
 
 from hil_stub.service import HilService
@@ -38,10 +38,7 @@ def test_the_corpus_covers_every_scheme_and_the_register_map() -> None:
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
 def test_bad_rig_input_is_one_clear_line(case, corpus: Path, capsys, monkeypatch) -> None:
-    monkeypatch.delenv("SHM_DEBUG", raising=False)
-    code = run_shm(case.resolved(corpus))
-    cap = capsys.readouterr()
-    assert_one_clear_line(case, code, cap)
+    run_to_one_clear_line(case, corpus, capsys, monkeypatch)
     out = corpus / "out" / case.id
     assert not (out / "usage.db").exists()  # refused before the run started: nothing written
 

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 from bad_inputs_corpus import all_cases, write_corpus_files
-from bad_inputs_support import assert_one_clear_line, no_leftover_log_handlers, run_shm  # noqa: F401 (autouse fixture)
+from bad_inputs_support import no_leftover_log_handlers, run_shm, run_to_one_clear_line, written_corpus  # noqa: F401 (autouse fixture)
 
 CASES = all_cases()
 ROOT = Path(__file__).resolve().parents[2]
@@ -24,9 +24,7 @@ ROOT = Path(__file__).resolve().parents[2]
 
 @pytest.fixture(scope="module")
 def corpus(tmp_path_factory) -> Path:
-    d = tmp_path_factory.mktemp("bad_inputs")
-    write_corpus_files(d)
-    return d
+    return written_corpus(tmp_path_factory, "bad_inputs", write_corpus_files)
 
 
 def test_the_corpus_is_large_and_covers_every_command() -> None:
@@ -38,10 +36,7 @@ def test_the_corpus_is_large_and_covers_every_command() -> None:
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
 def test_bad_input_is_one_clear_line(case, corpus: Path, capsys, monkeypatch) -> None:
-    monkeypatch.delenv("SHM_DEBUG", raising=False)
-    code = run_shm(case.resolved(corpus))
-    cap = capsys.readouterr()
-    assert_one_clear_line(case, code, cap)
+    run_to_one_clear_line(case, corpus, capsys, monkeypatch)
 
 
 def test_a_closed_pipe_is_quiet(tmp_path: Path) -> None:

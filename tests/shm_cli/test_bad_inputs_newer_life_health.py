@@ -17,7 +17,7 @@ from types import SimpleNamespace
 
 import pytest
 from bad_inputs_newer_life_health import LIFE, all_cases, board_record, write_corpus_files
-from bad_inputs_support import assert_one_clear_line, one_error_line, run_shm
+from bad_inputs_support import one_error_line, run_shm, run_to_one_clear_line, written_corpus
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -31,9 +31,7 @@ def _snapshot(d: Path) -> dict[str, str]:
 
 @pytest.fixture(scope="module")
 def corpus(tmp_path_factory) -> Path:
-    d = tmp_path_factory.mktemp("bad_inputs_life_health")
-    write_corpus_files(d)
-    return d
+    return written_corpus(tmp_path_factory, "bad_inputs_life_health", write_corpus_files)
 
 
 def test_the_corpus_is_large_and_covers_lives_and_health() -> None:
@@ -43,11 +41,8 @@ def test_the_corpus_is_large_and_covers_lives_and_health() -> None:
 
 @pytest.mark.parametrize("case", CASES, ids=[c.id for c in CASES])
 def test_bad_input_is_one_clear_line_and_touches_nothing(case, corpus: Path, capsys, monkeypatch) -> None:
-    monkeypatch.delenv("SHM_DEBUG", raising=False)
     before = _snapshot(corpus)
-    code = run_shm(case.resolved(corpus))
-    cap = capsys.readouterr()
-    assert_one_clear_line(case, code, cap, forbidden=("brokenprocesspool",))
+    run_to_one_clear_line(case, corpus, capsys, monkeypatch, forbidden=("brokenprocesspool",))
     assert _snapshot(corpus) == before, "a pre-existing file changed"
 
 

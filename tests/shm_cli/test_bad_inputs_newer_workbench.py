@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from bad_inputs_newer_workbench import SLOW_CASES, all_newer_cases, write_newer_files
-from bad_inputs_support import assert_one_clear_line, file_hashes, no_leftover_log_handlers, run_shm  # noqa: F401 (autouse fixture)
+from bad_inputs_support import file_hashes, no_leftover_log_handlers, run_shm, run_to_one_clear_line  # noqa: F401 (autouse fixture)
 
 CASES = all_newer_cases()
 PARAMS = [pytest.param(c, id=c.id, marks=[pytest.mark.slow] if c in SLOW_CASES else []) for c in CASES]
@@ -40,11 +40,8 @@ def test_the_corpus_is_large_and_covers_the_newer_commands() -> None:
 
 @pytest.mark.parametrize("case", PARAMS)
 def test_bad_input_is_one_clear_line_and_touches_nothing(case, corpus: Path, capsys, monkeypatch) -> None:
-    monkeypatch.delenv("SHM_DEBUG", raising=False)
     before = file_hashes(corpus)
-    code = run_shm(case.resolved(corpus))
-    cap = capsys.readouterr()
-    assert_one_clear_line(case, code, cap)
+    run_to_one_clear_line(case, corpus, capsys, monkeypatch)
     after = file_hashes(corpus)
     changed = [p for p, h in before.items() if after.get(p) != h]
     assert not changed, f"files there before the case were changed or removed: {changed}"
