@@ -27,21 +27,19 @@ def _sweep(effect: str, values: dict[str, float], seed: int = 4, duration_s: flo
     return synth_record(spec, truth_model("table2", [f"{FOREIGN}:{effect}"], values), noise={"z3": 2e-6}, seed=seed)
 
 
+def _tip_effect_file(cls: str, name: str, parameter: str, rates: str) -> str:
+    """An effect file's text: class ``cls`` (effect ``name``) with one ``parameter`` and a one-line ``rates`` hook on
+    the tip force."""
+    return (f"\nfrom plant import Parameter, PhysicalEffect\nfrom plant.layout import B_FM, B_Z\n\n\n"
+            f"class {cls}(PhysicalEffect):\n    name = \"{name}\"\n    parameters = ({parameter},)\n\n"
+            f"    @staticmethod\n    def rates(t, x, p, bus, dx, so, po):\n        {rates}\n")
+
+
 def test_effect_from_a_file_path(tmp_path):
     f = tmp_path / "cable.py"
-    f.write_text('''
-from plant import Parameter, PhysicalEffect
-from plant.layout import B_FM, B_Z
-
-
-class Cable(PhysicalEffect):
-    name = "file_cable"
-    parameters = (Parameter("k_file_cable", "N/m", 0.0, 0.0, 50.0, "cable stiffness"),)
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        bus[B_FM + 2] -= p[po] * bus[B_Z + 2]
-''')
+    f.write_text(_tip_effect_file(
+        "Cable", "file_cable", 'Parameter("k_file_cable", "N/m", 0.0, 0.0, 50.0, "cable stiffness")',
+        "bus[B_FM + 2] -= p[po] * bus[B_Z + 2]"))
     cls = resolve_effect(str(f))
     assert cls is resolve_effect(f"{f}:Cable") and cls.name == "file_cable"
     assert effect_source_file(cls) == str(f.resolve())
@@ -164,19 +162,9 @@ def test_discover_cli_bad_input(tmp_path, capsys):
 
 def test_synth_names_the_effect_whose_hook_produced_nan(tmp_path, capsys):
     f = tmp_path / "broken.py"
-    f.write_text('''
-from plant import Parameter, PhysicalEffect
-from plant.layout import B_FM, B_Z
-
-
-class Broken(PhysicalEffect):
-    name = "broken_divider"
-    parameters = (Parameter("d_zero", "m", 0.0, 0.0, 1.0, "a divisor that may be zero"),)
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        bus[B_FM + 2] += bus[B_Z + 2] / p[po]
-''')
+    f.write_text(_tip_effect_file("Broken", "broken_divider",
+                                  'Parameter("d_zero", "m", 0.0, 0.0, 1.0, "a divisor that may be zero")',
+                                  "bus[B_FM + 2] += bus[B_Z + 2] / p[po]"))
     code = main(["synth", "--test", "mbit-b", "--effect", str(f), "--out", str(tmp_path / "r.csv")])
     err = capsys.readouterr().err
     assert code == 2 and "effect 'broken_divider'" in err and "hook 'rates'" in err
