@@ -5,7 +5,9 @@ minus the task's own time) and bytes moved (scattered inputs, returned reports),
 
 The commands run as subprocesses (``shm diagnose DIR --scheduler tcp://...``, ``shm health --fleet ... --scheduler
 tcp://...``) against a ``distributed.LocalCluster`` started here with the wanted number of single-thread worker
-processes. Noisy on a shared machine: quote as such.
+processes: cold workers (each run's warm-up loads the rooms and kernels: seconds per worker inside the run), and
+for the diagnose also preloaded ones (``--preload shm_cli.batch_records``: a standing cluster's workers loaded them
+when they started). Each run's fixed part and its pieces are reported. Noisy on a shared machine: quote as such.
 """
 
 from __future__ import annotations
@@ -50,14 +52,17 @@ def _fleet(base: Path, n: int) -> list[Path]:
     return sorted(p for p in (base / "boards").glob("board*") if p.is_dir())
 
 
-def _on_cluster(argv: list[str], out: Path, n_workers: int, doc_name: str) -> dict:
-    """``shm ARGV --scheduler <a fresh LocalCluster of n_workers> --out OUT``: its cost document and wall time."""
+def _on_cluster(argv: list[str], out: Path, n_workers: int, doc_name: str, preload: bool = False) -> dict:
+    """``shm ARGV --scheduler <a fresh LocalCluster of n_workers> --out OUT``: its cost document and wall time.
+    ``preload``: the workers load the commands' rooms and kernels when they start (``dask worker --preload
+    shm_cli.batch_records``, a standing cluster), not in the run."""
     import dask
     from distributed import LocalCluster
 
     with dask.config.set({"distributed.worker.daemon": False}), \
             LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None,
-                         memory_limit=0, silence_logs=50) as cluster:
+                         memory_limit=0, silence_logs=50,
+                         preload=["shm_cli.batch_records"] if preload else []) as cluster:
         t0 = time.perf_counter()
         subprocess.run([SHM, *argv, "--scheduler", cluster.scheduler_address, "--out", str(out)], check=True,
                        stderr=subprocess.DEVNULL, stdout=subprocess.DEVNULL, env=os.environ | {"MPLBACKEND": "Agg"})
@@ -105,6 +110,9 @@ def run(out_dir: Path, quick: bool) -> dict:
     one = _on_cluster(argv, base / "one", 1, "batch.json")
     two = _on_cluster(argv, base / "two", 2, "batch.json")
     same = (base / "one" / "summary.csv").read_bytes() == (base / "two" / "summary.csv").read_bytes()
+    # the same on a standing cluster whose workers loaded the rooms and kernels when they started
+    one_p = _on_cluster(argv, base / "one_preloaded", 1, "batch.json", preload=True)
+    two_p = _on_cluster(argv, base / "two_preloaded", 2, "batch.json", preload=True)
     return {
         "records": n,
         "wall_1_worker_s": one["wall_s"], "wall_2_workers_s": two["wall_s"],
@@ -122,6 +130,11 @@ def run(out_dir: Path, quick: bool) -> dict:
         # 1-worker run's says how much slower a task ran beside another one (shared cores, caches)
         "fixed_1_worker": _fixed_part(one, n), "fixed_2_workers": _fixed_part(two, n),
         "task_wall_mean_2_workers_s": two["task_wall_s"] / n,
+        "preloaded_wall_1_worker_s": one_p["wall_s"], "preloaded_wall_2_workers_s": two_p["wall_s"],
+        "preloaded_speedup_2_vs_1": one_p["wall_s"] / two_p["wall_s"],
+        "preloaded_fixed_1_worker": _fixed_part(one_p, n), "preloaded_fixed_2_workers": _fixed_part(two_p, n),
+        "preloaded_summary_equal": (base / "one_preloaded" / "summary.csv").read_bytes() == (
+            base / "one" / "summary.csv").read_bytes() == (base / "two_preloaded" / "summary.csv").read_bytes(),
         **_fleet_health(base / "fleet", 4 if quick else 8),
         "load_average_1min": os.getloadavg()[0],
     }

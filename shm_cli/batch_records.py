@@ -128,23 +128,33 @@ def run_command_task(key: str, files: dict[str, bytes], shared: dict[str, bytes]
 
 #: the rooms each command imports when it runs (imported by the warm-up, so a worker's first task is not seconds
 #: longer than the others: 2.4 s against 0.55 s of CPU for a diagnose task before)
-COMMAND_MODULES = {"diagnose": ("workbench.diagnose", "workbench.fit"), "fit": ("workbench.fit", "workbench.diagnose"),
-                   "compare": ("workbench.compare", "workbench.fit"), "discover": ("workbench.discover",)}
+COMMAND_MODULES = {"diagnose": ("workbench.diagnose", "workbench.fit", "workbench.localise"),
+                   "fit": ("workbench.fit", "workbench.diagnose"),
+                   "compare": ("workbench.compare", "workbench.fit", "workbench.localise"),
+                   "discover": ("workbench.discover",)}
 
 
 def warm_workbench(command: str | None = None) -> None:
-    """Load the commands' modules, ``command``'s rooms and the report figures' plotting module, and compile or load
-    the nominal model's kernel on a worker (before its first task)."""
+    """Load the commands' modules and ``command``'s rooms, draw one figure in memory (fonts, math text), and compile
+    or load the nominal model's kernel on a worker (before its first task)."""
     import importlib
 
     import shm_cli.main  # noqa: F401  (every command's module)
-    from reporting.figures import pyplot
+    from reporting.figures import warm_up
     from workbench.simulation import synth_record, synth_test, truth_model
 
     for name in COMMAND_MODULES.get(command or "", ()):
         importlib.import_module(name)
-    pyplot()
+    warm_up()  # fonts and the math-text parser of the first report
     synth_record(synth_test("mbit-b", duration_s=0.2, t_step_s=0.05), truth_model("table2", [], {}))
+
+
+def dask_setup(worker: Any) -> None:
+    """``dask worker --preload shm_cli.batch_records`` (or ``LocalCluster(preload=[...])``): every command's rooms
+    and kernels loaded when the worker starts, once for the worker's life, instead of in each run's warm-up (seconds
+    per worker that a run on a standing cluster then does not wait for; docs/scale-out.md)."""
+    for command in COMMAND_MODULES:
+        warm_workbench(command)
 
 
 # --- in the command's process ------------------------------------------------------------------------------------

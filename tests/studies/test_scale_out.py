@@ -184,3 +184,17 @@ def test_first_task_extra_is_a_workers_first_task_beyond_the_others_median() -> 
                TaskResult("e", 0, "", wall_s=0.8, worker="w1")]
     assert first_task_extra(arrived) == pytest.approx(2.5 - 1.0)
     assert first_task_extra(arrived[:1]) == 0.0
+
+
+def test_a_preloaded_worker_has_every_commands_rooms_before_a_run() -> None:
+    """``dask worker --preload shm_cli.batch_records`` runs its dask_setup: the rooms, the figure fonts and the nominal
+    kernel loaded once for the worker's life (a fresh interpreter, as a worker is)."""
+    import subprocess
+    import sys
+
+    code = ("import sys, shm_cli.batch_records as b; b.dask_setup(None); "
+            "print(' '.join(m for m in ('workbench.diagnose', 'workbench.localise', 'workbench.compare', "
+            "'workbench.discover', 'matplotlib.pyplot') if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)
+    assert out.stdout.split() == ["workbench.diagnose", "workbench.localise", "workbench.compare",
+                                  "workbench.discover", "matplotlib.pyplot"]
