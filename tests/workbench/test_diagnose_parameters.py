@@ -98,16 +98,12 @@ class _TipSpring(PhysicalEffect):
         bus[B_FM + 2] -= p[po] * bus[B_Z + 2]
 
 
-class _NarrowTipSpring(PhysicalEffect):
-    """The same spring, but its own bounds stop short of the truth."""
+class _NarrowTipSpring(_TipSpring):
+    """The same spring (its rates), but its own bounds stop short of the truth."""
 
     name = "tip_spring_narrow"
     description = "spring tip to frame, k below 1 N/m"
     parameters = (Parameter("k_tip_n", "N/m", 0.5, 0.0, 1.0, "tip stiffness"),)
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        bus[B_FM + 2] -= p[po] * bus[B_Z + 2]
 
 
 def test_a_candidate_at_its_own_bound_loses_its_claim():
