@@ -330,8 +330,8 @@ class RigHost:
         self._stop.set()
         if self._loop is not None:
             loop, self._loop = self._loop, None
-            if not loop.is_closed():  # cancel the pending tick on the loop's own thread
-                with contextlib.suppress(RuntimeError):
+            if not loop.is_closed():  # cancel the pending tick on the loop's own thread (a tick due stops anyway)
+                with contextlib.suppress(RuntimeError, TimeoutError):
                     asyncio.run_coroutine_threadsafe(self._cancel_tick(), loop).result(2.0)
         if self._thread is not None:
             self._thread.join(timeout=2.0)
