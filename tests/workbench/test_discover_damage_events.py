@@ -6,15 +6,12 @@ written outside the dictionary: ``tests/workbench_damage_effects.py``."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pytest
+from discover_damage_support import DAMAGE, discover_one_damage
 
 from workbench.discover._dictionary import Term
 from workbench.discover._onset import MAX_LOSS, _next_probes, with_onsets
 from workbench.discover._results import ScreenRow
-
-DAMAGE = (Path(__file__).parents[1] / "workbench_damage_effects.py")
 
 
 def _row(param: str, index: int, form: str, coef: float, train: float, shape: float = 2.0) -> ScreenRow:
@@ -61,19 +58,10 @@ CASES = {
 def test_discover_finds_an_event_at_its_instant_on_a_short_sweep(case):
     """A 4 s sweep with the event hidden: discover keeps the step of the right parameter, its size and its instant
     (within 10 ms), at the noise floor."""
-    from workbench.discover import discover
-    from workbench.simulation import synth_record, synth_test, truth_model
-
     cls, values, key, size, tol, words = CASES[case]
-    rec = synth_record(synth_test("sweep", duration_s=4.0), truth_model("table2", [f"{DAMAGE}:{cls}"], values),
-                       noise={"z3": 2e-6}, seed=3)
-    d = discover([rec], "table2", max_terms=1)
-    assert d.verdict == "found", d.message
-    found = d.terms[0]
-    assert found.term.key == key, d.message
+    _, _, found = discover_one_damage(cls, values, key, words, duration_s=4.0, seed=3)
     assert found.coef == pytest.approx(size, abs=tol)
     assert found.shape == pytest.approx(values["t_event"], abs=0.01)
-    assert all(w in found.words for w in words), found.words
 
 
 @pytest.mark.slow

@@ -6,17 +6,15 @@ outside the dictionary (tests/workbench_damage_effects.py: hard switches, their 
 from __future__ import annotations
 
 import itertools
-from pathlib import Path
 
 import numpy as np
 import pytest
+from discover_damage_support import discover_one_damage
 
 from workbench.discover import build_dictionary, dictionary_source
 from workbench.discover._dictionary import GATE_FORMS, Term
 from workbench.discover._effect_writer import describe_term, emit_effect_source, parameter_names_for
 from workbench.discover._gates import describe_damage, gate_values, gate_width, onsets
-
-DAMAGE = (Path(__file__).parents[1] / "workbench_damage_effects.py")
 
 
 def test_gate_code_agrees_with_its_numpy_values():
@@ -110,18 +108,10 @@ def test_discover_names_damage_written_outside_it_and_its_file_refits(case, tmp_
     import json
 
     from shm_cli.main import main
-    from workbench.discover import discover
     from workbench.records import write_record
-    from workbench.simulation import synth_record, synth_test, truth_model
 
     cls, values, key, words = CASES[case]
-    rec = synth_record(synth_test("sweep", duration_s=6.0), truth_model("table2", [f"{DAMAGE}:{cls}"], values),
-                       noise={"z3": 2e-6}, seed=11)
-    d = discover([rec], "table2", max_terms=1)
-    assert d.verdict == "found", d.message
-    found = d.terms[0]
-    assert found.term.key == key, d.message
-    assert all(w in found.words for w in words), found.words
+    rec, d, found = discover_one_damage(cls, values, key, words, duration_s=6.0, seed=11)
     truth = -next(v for k, v in values.items() if k != "t_event")
     assert found.coef == pytest.approx(truth, abs=0.03)
     if "t_event" in values:
