@@ -60,6 +60,13 @@ RECORD_HEADER = """# format = "mfc-shm-record/1"
 """
 
 
+def variant(text: str, old: str, new: str) -> str:
+    """``text`` with its first ``old`` replaced by ``new`` (``old`` must be there: a corpus file that silently equals
+    the good one would test nothing)."""
+    assert old in text, old
+    return text.replace(old, new, 1)
+
+
 def _rows(n: int = 40) -> list[str]:
     rows = ["time_s,v_ch1_V,v_ch2_V,z3_mm"]
     for k in range(n):
@@ -165,8 +172,7 @@ _TABLE2 = (SHIPPED / "params" / "table2.toml").read_text()
 
 
 def _param_variant(old: str, new: str) -> str:
-    assert old in _TABLE2, old
-    return _TABLE2.replace(old, new, 1)
+    return variant(_TABLE2, old, new)
 
 
 #: parameter-set files: name -> (content, needles)
@@ -198,8 +204,7 @@ _MAINT = (SHIPPED / "scenarios" / "maintenance.toml").read_text()
 
 
 def _scn_variant(old: str, new: str) -> str:
-    assert old in _MAINT, old
-    return _MAINT.replace(old, new, 1)
+    return variant(_MAINT, old, new)
 
 
 #: scenario files: name -> (content, needles)
@@ -245,8 +250,7 @@ _BOARD = (SHIPPED / "board.toml").read_text()
 
 
 def _board_variant(old: str, new: str) -> str:
-    assert old in _BOARD, old
-    return _BOARD.replace(old, new, 1)
+    return variant(_BOARD, old, new)
 
 
 #: board configuration files: name -> (content, needles)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import sqlite3
 from pathlib import Path
 
-from bad_inputs_corpus import PARAMS, Case, case, case_table, unique_ids
+from bad_inputs_corpus import PARAMS, Case, case, case_table, unique_ids, variant
 from scenario_text_support import life_scenario, linear_law
 
 #: a valid life: 3 visits 400 h apart, alpha_h drifting (tests/studies/test_health.py's tiny life)
@@ -21,8 +21,7 @@ _LAW = linear_law()
 
 
 def _v(old: str, new: str) -> str:
-    assert old in LIFE, old
-    return LIFE.replace(old, new, 1)
+    return variant(LIFE, old, new)
 
 
 def _law(text: str) -> str:
