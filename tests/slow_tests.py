@@ -105,7 +105,7 @@ SLOW_TESTS: frozenset[str] = frozenset({
     "test_health.py::test_every_completed_mbit_leaves_a_record_linked_in_the_log",  # 30 s
     "test_health.py::test_health_bad_input_is_one_line_and_exit_2",  # 56 s
     "test_health.py::test_prognosis_challenge_fast_subset",  # 21 s (without the effect life; was 79 s with it)
-    "test_health.py::test_prognosis_challenge_fast_subset_follows_a_growing_leakage_to_its_cause",  # 53 s at load 2-4, 110 s at load 5
+    "test_health.py::test_prognosis_challenge_fast_subset_follows_a_growing_leakage_to_its_cause",  # 53 s
     "test_health.py::test_stable_laminate_gets_no_trend_and_a_lower_bound_not_a_date",  # 84 s
     "test_health_locate.py::test_a_k2_loss_is_not_placed_in_section_3",  # 145 s
     "test_health_locate.py::test_a_k3_loss_is_placed_in_section_3",  # 59 s
