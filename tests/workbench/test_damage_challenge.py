@@ -135,8 +135,8 @@ def test_damage_cases_set_the_event_instant_per_record():
 def test_smoke_one_damage_case_through_diagnose(tmp_path):
     """One short case end to end: a 30 % crack in section 2 on MBIT.b (3 s) at 10 µm; the scorer's fields are
     filled from the real verdict (what it scores is measured by the bench, not asserted here). Three candidates
-    (k2, the stiffness group, thermal drift) instead of the library: the same stages (screening, fits, the
-    discovery step's emitted file, its refit) at a fraction of the fits."""
+    (k2, the stiffness group, thermal drift) instead of the library: the same stages (screening, fits, the first
+    sentence scored, the fix refitted) at a fraction of the fits."""
     mod = load_effect_file(DAMAGE_FILE)
     case = DamageCase("BreathingCrackSection2", mod.BreathingCrackSection2, {"a_crack2": 0.3},
                       mod.DAMAGE["BreathingCrackSection2"][1], "strong")
