@@ -54,6 +54,8 @@ from drivers.link import FLAG_LIMIT_REFUSED, ActuatorCommand, RigEndpoint, RigSa
 log = logging.getLogger("hil_stub.rig")
 
 BOARD_CURRENT_MAX = 10.0  # A (the simulated rig's own bound; the board draws milliamps)
+#: the resolution of an asyncio timer on Linux (s): ``epoll_wait`` takes whole milliseconds, rounded up
+LOOP_TIMER_RESOLUTION_S = 1e-3
 
 
 class Delivery(Enum):
@@ -371,16 +373,18 @@ class RigHost:
 
     def _on_loop(self) -> None:
         """The realtime clock on the event loop: the tick due now, then a timer for the next one (every 1 ms
-        before the first command, as the thread polls)."""
+        before the first command, as the thread polls). The loop's timer wakes up to 1 ms late (``epoll`` counts
+        milliseconds, rounded up), so it is set :data:`LOOP_TIMER_RESOLUTION_S` early and a tick due within that runs
+        at once: up to 1 ms early (lateness 0) instead of up to 1 ms late."""
         self._tick_handle = None
         loop = self._loop
         if loop is None or self._stop.is_set():
             return
         due = self._due()
-        if due is not None and due - self.clock() <= 0:
+        if due is not None and due - self.clock() <= LOOP_TIMER_RESOLUTION_S:
             self._tick_due(due)
             due = self._next_t
-        delay = 1e-3 if due is None else max(0.0, due - self.clock())
+        delay = 1e-3 if due is None else max(0.0, due - self.clock() - LOOP_TIMER_RESOLUTION_S)
         self._tick_handle = loop.call_later(delay, self._on_loop)
 
     def _run(self) -> None:

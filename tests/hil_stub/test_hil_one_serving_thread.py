@@ -5,6 +5,7 @@ step runs inline (no worker thread per transaction); ``rig_clock="thread"`` keep
 from __future__ import annotations
 
 import threading
+import time
 
 import pytest
 from pymodbus.client import ModbusTcpClient
@@ -58,3 +59,27 @@ def test_an_unknown_rig_clock_is_refused_by_name() -> None:
 
     with pytest.raises(InputError, match="rig clock 'fast'"):
         HilService(FakeRig(), rig_clock="fast")
+
+
+def test_the_clock_on_a_loop_waits_for_the_first_command_then_paces_at_100_hz() -> None:
+    from hil_stub.loop_thread import LoopThread
+    from hil_stub.rig_host import RigHost
+
+    loop = LoopThread()
+    host = RigHost(FakeRig(), mode="realtime", keep_lateness=True)
+    try:
+        host.start(loop.loop)
+        assert not wait_for(lambda: host.pacing.ticks > 0, timeout=0.1)  # stands still until a command
+        host.submit(ActuatorCommand(1, 10.0, 0.0))
+        t0 = time.perf_counter()
+        assert wait_for(lambda: host.pacing.ticks >= 30, timeout=5)
+        took = time.perf_counter() - t0
+    finally:
+        host.stop()
+        loop.close()
+    ticks = host.pacing.ticks
+    assert took >= 0.29 - 0.005 * 30  # paced, not run flat out (a tick may run up to 1 ms early)
+    assert host.snapshot.sample.t == pytest.approx(0.01 * host.snapshot.tick) and len(host.pacing.lateness_samples) \
+        == ticks
+    time.sleep(0.05)
+    assert host.pacing.ticks == ticks  # stopped: no tick after stop()
