@@ -146,3 +146,12 @@ def test_smoke_one_damage_case_through_diagnose(tmp_path):
     assert r.fix.startswith(("emitted", "named", "none")) and (math.isfinite(r.held_fix) or r.note)
     assert r.named == check_physics(r.sentence, case.check(3.0))[0]
     assert r.passed == (r.held_fix <= 1.5)
+
+
+def test_the_challenge_gives_diagnose_a_folder_for_its_discovery_step(tmp_path):
+    """Without ``emit_dir`` diagnose skips discovery, and the challenge scored the library's verdict alone (the
+    options had been looked up among diagnose()'s parameters, which moved into its settings object)."""
+    from workbench.challenges.discovery import diagnose_options
+    from workbench.diagnose._settings import DiagnoseSettings
+
+    assert DiagnoseSettings().with_options(diagnose_options(tmp_path)).emit_dir == str(tmp_path)

@@ -28,7 +28,6 @@ refitted by the fit engine; else the named candidate's own held-out error). The 
 
 from __future__ import annotations
 
-import inspect
 import re
 import tempfile
 import time
@@ -328,11 +327,8 @@ def fix_held_sigma(d: Any, rec: Any, workdir: str | Path | None, *, max_nfev: in
 
 def diagnose_options(workdir: str | Path) -> dict[str, Any]:
     """Keyword arguments for :func:`workbench.diagnose.diagnose` that send what it writes (an emitted effect
-    file) to ``workdir``, for whichever such option the function has."""
-    from workbench.diagnose import diagnose
-
-    names = inspect.signature(diagnose).parameters
-    return {n: str(workdir) for n in ("emit_dir", "out_dir", "workdir", "out") if n in names}
+    file) to ``workdir``: its settings' ``emit_dir`` (without it diagnose runs no discovery step at all)."""
+    return {"emit_dir": str(workdir)}
 
 
 def run_damage_case(case: DamageCase, kind: str, noise: float, seed: int, *,
