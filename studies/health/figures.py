@@ -71,7 +71,7 @@ def plot_parameters(a: Any, path: Path) -> None:
             ax.plot(hh, 100 * lo_l, "r--")
             ax.set_ylim(min(-12, rel.min() - 2), max(20, min(100 * float(np.max(hi)), 60) + 2))
         ax.axvline(hours[-1], color="0.6", ls=":", lw=1)
-        ax.set_ylabel(f"{n} ({y[0]['unit']})" if own else "change (%)")
+        ax.set_ylabel(f"{n} ({y[0].unit})" if own else "change (%)")
         ax.set_title(LABEL.get(n, n), fontsize=9, loc="left")
         ax.grid(alpha=0.3)
         ax.set_xlim(hours[0] - 10, h_end)
