@@ -4,19 +4,22 @@ against time. Drawn with the report layer (:mod:`reporting.figures`, :mod:`repor
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from reporting.figures import pyplot, save_figure
 from reporting.prognostics_figures import plot_remaining_life
 
+if TYPE_CHECKING:
+    from studies.health.assess import Assessment
+
 #: how each health parameter is called on the page
 LABEL = {"k3": "k3 (tip section stiffness)", "alpha_h": "α_h (hysteresis linearity)",
          "beta_h": "β_h (hysteresis shape)"}
 
 
-def _h_end(a: Any, hours: np.ndarray) -> float:
+def _h_end(a: Assessment, hours: np.ndarray) -> float:
     fc = a.forecast
     end = hours[-1] * 1.6 + 100.0
     if fc.trip_interval_90 and fc.trip_interval_90[1] is not None:
@@ -27,14 +30,14 @@ def _h_end(a: Any, hours: np.ndarray) -> float:
     return float(min(fc.horizon_hours, end))
 
 
-def _truth_series(a: Any, name: str) -> tuple[np.ndarray, np.ndarray] | None:
+def _truth_series(a: Assessment, name: str) -> tuple[np.ndarray, np.ndarray] | None:
     rows = (a.doc.get("truth") or {}).get("visits") or []
     if not rows or any(name not in r["relative"] for r in rows):
         return None
     return (np.array([r["operating_hours"] for r in rows]), np.array([100 * r["relative"][name] for r in rows]))
 
 
-def plot_parameters(a: Any, path: Path) -> None:
+def plot_parameters(a: Assessment, path: Path) -> None:
     """One panel per health parameter: the visit estimates (±2 s.e.), the chosen trend and its 90 % band, the truth
     when the records carry it, and on α_h the monitor's trip limits."""
     plt = pyplot()
@@ -80,7 +83,7 @@ def plot_parameters(a: Any, path: Path) -> None:
     save_figure(fig, path, dpi=110)
 
 
-def plot_forecast(a: Any, path: Path) -> None:
+def plot_forecast(a: Assessment, path: Path) -> None:
     """P(the monitor has said FAULT by h) with the 90 % interval of the trip time, the last visit, and the first
     FAULT (the board's, or the truth's) when known."""
     plt = pyplot()
@@ -110,7 +113,7 @@ def plot_forecast(a: Any, path: Path) -> None:
     save_figure(fig, path, dpi=110)
 
 
-def plot_life_remaining(a: Any, path: Path) -> None:
+def plot_life_remaining(a: Assessment, path: Path) -> None:
     """Remaining life against time from :attr:`Assessment.sweep`, with the truth's cone when known."""
     rows = a.doc.get("remaining_life") or []
     ev = a.doc.get("evaluation")
