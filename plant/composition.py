@@ -19,17 +19,9 @@ from typing import Any
 
 from board_config import CORE_PARAMETER_NAMES
 from plant import layout as L
-from plant.effect import (
-    HOOKS,
-    EffectError,
-    OutputSpec,
-    Parameter,
-    PhysicalEffect,
-    SignalSpec,
-    StateSpec,
-    hook_function,
-    hook_style,
-)
+from plant.effect import OutputSpec, PhysicalEffect, SignalSpec, StateSpec
+from plant.effect_declarations import EffectError, Parameter
+from plant.effect_hooks import HOOKS, hook_function, hook_style
 
 _TABLE_TYPES: dict[tuple[str, tuple[str, ...]], type] = {}
 
