@@ -25,7 +25,10 @@ from typing import Any, cast
 
 import numpy as np
 
-#: the bench's scenario: two maintenance visits (MBIT.a and MBIT.b each), 120 s of board time
+#: the bench's phases: name, kind, duration (s); two maintenance visits (MBIT.a and MBIT.b each), 120 s of board time
+PHASES = (("parked", "ground", 3), ("visit 1", "maintenance", 55), ("between", "ground", 4),
+          ("visit 2", "maintenance", 55), ("parked again", "ground", 3))
+#: the bench's scenario file
 SCENARIO = """
 [scenario]
 name = "bench_live_page"
@@ -35,32 +38,12 @@ seed = 1
 [rig]
 params = "table2"
 battery_initial_voltage = { value = 3.0, unit = "V" }
-
+""" + "".join(f"""
 [[phase]]
-name = "parked"
-kind = "ground"
-duration = { value = 3, unit = "s" }
-
-[[phase]]
-name = "visit 1"
-kind = "maintenance"
-duration = { value = 55, unit = "s" }
-
-[[phase]]
-name = "between"
-kind = "ground"
-duration = { value = 4, unit = "s" }
-
-[[phase]]
-name = "visit 2"
-kind = "maintenance"
-duration = { value = 55, unit = "s" }
-
-[[phase]]
-name = "parked again"
-kind = "ground"
-duration = { value = 3, unit = "s" }
-"""
+name = "{name}"
+kind = "{kind}"
+duration = {{ value = {duration_s}, unit = "s" }}
+""" for name, kind, duration_s in PHASES)
 
 
 class TickRecorder:
