@@ -1,15 +1,18 @@
 """The library effects' workbench declarations are the same after they moved onto the parameters (issue 30 point 1).
 
 Before, each library effect declared its neutral values, fit ranges and challenge strengths in class tables
-(``neutral``, ``fit_ranges``, ``extra_ranges``, ``challenge_strengths``) beside its parameters. The table below was
-captured from those class tables (and from ``workbench.fit._effect_library.effect_free_parameters``, ``library_order``,
-``short_name``) on main before the move; every value is read here only through the typed declaration that now holds
-it — the parameter's ``neutral``, ``fit``, ``fit_by_default`` and ``challenge`` — and the readers every consumer uses.
+(``neutral``, ``fit_ranges``, ``extra_ranges``, ``challenge_strengths``) beside its parameters. The table
+``tests/data/effect_declarations_before.json`` was captured from those class tables (and from
+``workbench.fit._effect_library.effect_free_parameters``, ``library_order``, ``short_name``) on main before the move;
+every value is read here only through the typed declaration that now holds it — the parameter's ``neutral``, ``fit``,
+``fit_by_default`` and ``challenge`` — and the readers every consumer uses.
 """
 
 from __future__ import annotations
 
+import json
 import re
+from pathlib import Path
 from typing import NamedTuple
 
 import pytest
@@ -19,6 +22,7 @@ from plant.effect import PhysicalEffect, library_effects
 from workbench.challenges.hidden_effect import STRENGTHS
 from workbench.fit import effect_free_parameters
 
+PINNED = Path(__file__).parents[1] / "data" / "effect_declarations_before.json"
 #: (name, lower, upper, log, linthresh) of a fit range
 Range = tuple[str, float, float, bool, float | None]
 
@@ -32,50 +36,11 @@ class Declared(NamedTuple):
     strengths: tuple[dict[str, float], ...]  # weak, medium, strong
 
 
+#: the pinned table, in library order
 BEFORE: dict[str, Declared] = {
-    'piezo_creep': Declared(
-        order=1, short='creep', neutral={'gamma_creep': 0.0},
-        fitted=[('gamma_creep', 0.0, 0.5, False, 0.001), ('tau_creep', 0.03, 100.0, True, None)],
-        on_request=[],
-        strengths=({'gamma_creep': 0.01, 'tau_creep': 0.5}, {'gamma_creep': 0.03, 'tau_creep': 1.0},
-                   {'gamma_creep': 0.1, 'tau_creep': 2.0})),
-    'geometric_stiffening': Declared(
-        order=2, short='stiffening', neutral={'kappa_nl': 0.0},
-        fitted=[('kappa_nl', -10000.0, 200000.0, False, 100.0)],
-        on_request=[],
-        strengths=({'kappa_nl': 2000.0}, {'kappa_nl': 10000.0}, {'kappa_nl': 50000.0})),
-    'air_damping': Declared(
-        order=3, short='air_damp', neutral={'c_air': 0.0},
-        fitted=[('c_air', 0.0, 1.0, False, 0.001)],
-        on_request=[],
-        strengths=({'c_air': 0.02}, {'c_air': 0.08}, {'c_air': 0.3})),
-    'dielectric_leakage': Declared(
-        order=4, short='leakage', neutral={'G_leak': 0.0},
-        fitted=[('G_leak', 0.0, 0.002, False, 1e-07)],
-        on_request=[],
-        strengths=({'G_leak': 2e-06}, {'G_leak': 1e-05}, {'G_leak': 5e-05})),
-    'amplifier_current_limit': Declared(
-        order=5, short='amp_limit', neutral={'I_max': 10.0},
-        fitted=[('I_max', 0.001, 10.0, True, None)],
-        on_request=[],
-        strengths=({'I_max': 0.2}, {'I_max': 0.05}, {'I_max': 0.008})),
-    'laser_sensor': Declared(
-        order=6, short='laser', neutral={'z_offset': 0.0, 'spot_offset': 0.0, 'tau_sensor': 0.0},
-        fitted=[('z_offset', -0.002, 0.002, False, 1e-07), ('tau_sensor', 0.0, 0.02, False, 0.0001)],
-        on_request=[('spot_offset', 0.0, 0.5, False, None)],
-        strengths=({'z_offset': 5e-06, 'tau_sensor': 0.001}, {'z_offset': 2e-05, 'tau_sensor': 0.003},
-                   {'z_offset': 0.0001, 'tau_sensor': 0.01})),
-    'root_compliance': Declared(
-        order=7, short='root_compl', neutral={'clamp_compliance': 0.0},
-        fitted=[('clamp_compliance', 0.0001, 0.02, True, None)],
-        on_request=[],
-        strengths=({'clamp_compliance': 0.001}, {'clamp_compliance': 0.004}, {'clamp_compliance': 0.015})),
-    'thermal_drift': Declared(
-        order=8, short='thermal', neutral={'dT_dt': 0.0},
-        fitted=[('dT_dt', -2.0, 2.0, False, 0.001)],
-        on_request=[],
-        strengths=({'dT_dt': 0.05}, {'dT_dt': 0.2}, {'dT_dt': 1.0})),
-}
+    name: Declared(d["order"], d["short"], d["neutral"], [tuple(r) for r in d["fitted"]],
+                   [tuple(r) for r in d["on_request"]], tuple(d["strengths"]))
+    for name, d in json.loads(PINNED.read_text(encoding="utf-8")).items()}
 
 
 def _range(cls: type[PhysicalEffect], name: str) -> Range:
