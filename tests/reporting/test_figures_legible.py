@@ -31,7 +31,10 @@ from shm_cli.main import main
 # the checker on figures with one known fault each (fast), and the placement helpers that clear them
 
 
-def _kinds(fig: Any) -> set[str]:
+def _kinds(fig: Any, lay_out: bool = False) -> set[str]:
+    """The kinds of finding on ``fig`` (after ``tight_layout`` with ``lay_out``); the figure is closed."""
+    if lay_out:
+        fig.tight_layout()
     found = {f.kind for f in check_figure(fig)}
     pyplot().close(fig)
     return found
@@ -42,19 +45,24 @@ def _axes(figsize: tuple[float, float] = (5, 3)) -> tuple[Any, Any]:
     return fig, ax
 
 
+def _diagonal() -> tuple[Any, Any]:
+    """Axes holding one line from (0, 0) to (1, 1): a plain figure to put texts on."""
+    fig, ax = _axes()
+    ax.plot([0, 1], [0, 1])
+    return fig, ax
+
+
 def test_a_plain_figure_has_no_findings() -> None:
     fig, ax = _axes()
     ax.plot(np.linspace(0, 1, 50), np.linspace(0, 1, 50) ** 2, label="data")
     ax.set_xlabel("time (s)")
     ax.set_title("plain")
     ax.legend(loc="upper left")
-    fig.tight_layout()
-    assert _kinds(fig) == set()
+    assert _kinds(fig, lay_out=True) == set()
 
 
 def test_overlapping_and_crowded_texts_are_found_and_named() -> None:
-    fig, ax = _axes()
-    ax.plot([0, 1], [0, 1])
+    fig, ax = _diagonal()
     ax.text(0.5, 0.5, "first label")
     ax.text(0.5, 0.5, "second label")
     found = check_figure(fig)
@@ -65,18 +73,15 @@ def test_overlapping_and_crowded_texts_are_found_and_named() -> None:
     t = np.linspace(596, 600, 400)
     ax.plot(t, np.sin(t))
     ax.set_xticks(np.arange(596, 600.01, 0.5))
-    fig.tight_layout()
-    assert "text overlap" in _kinds(fig)
+    assert "text overlap" in _kinds(fig, lay_out=True)
     fig, ax = _axes((3, 2))
     ax.plot(t, np.sin(t))
     few_ticks(ax.xaxis, 4)
-    fig.tight_layout()
-    assert _kinds(fig) == set()
+    assert _kinds(fig, lay_out=True) == set()
 
 
 def test_text_outside_the_figure_and_non_finite_numbers_are_found() -> None:
-    fig, ax = _axes()
-    ax.plot([0, 1], [0, 1])
+    fig, ax = _diagonal()
     fig.text(0.98, 0.5, "a long note running off the edge")
     ax.text(0.2, 0.2, "+nan %, ΔBIC -inf")
     assert _kinds(fig) == {"text outside the figure", "non-finite number"}
@@ -115,8 +120,7 @@ def test_fractional_ticks_on_a_count_axis_are_found_and_integer_ticks_pass() -> 
     fig, ax = _axes()
     ax.plot([0, 1, 2], [3.0, 2.0, 1.5], "o-")
     ax.set_xlabel("iteration")
-    fig.tight_layout()
-    assert _kinds(fig) == {"fractional ticks on a count axis"}
+    assert _kinds(fig, lay_out=True) == {"fractional ticks on a count axis"}
     fig, ax = _axes()
     ax.plot([0, 1, 2], [3.0, 2.0, 1.5], "o-")
     count_axis(ax.xaxis)
@@ -124,8 +128,7 @@ def test_fractional_ticks_on_a_count_axis_are_found_and_integer_ticks_pass() -> 
 
 
 def test_colliding_labels_are_hidden_most_important_kept() -> None:
-    fig, ax = _axes()
-    ax.plot([0, 1], [0, 1])
+    fig, ax = _diagonal()
     big, small, apart = ax.text(0.5, 0.5, "58%"), ax.text(0.5, 0.5, "26%"), ax.text(0.1, 0.9, "16%")
     fig.canvas.draw()
     assert hide_colliding_texts([big, small, apart]) == [big, apart] and not small.get_visible()
