@@ -135,6 +135,7 @@ def _numbalsoda_batch(model: PlantModel) -> Callable[[np.ndarray, Any, np.ndarra
     from plant import layout as L
 
     rhs = model.kernels().rhs
+    input_position = numba.njit(inline="always")(tableau.input_position)  # the integrators' input interpolation
     n = model.n_states
     n_p = len(model.param_names)
     n_bus = L.N_BUS
@@ -159,16 +160,8 @@ def _numbalsoda_batch(model: PlantModel) -> Callable[[np.ndarray, Any, np.ndarra
         uvec = d[o_u:o_samples]
         for k in range(n):
             x[k] = xs[k] * d[o_s + k]
-        s = (t - d[0]) / d[1]
-        if s <= 0.0:
-            i = 0
-            fr = 0.0
-        elif s >= m - 1:
-            i = m - 2
-            fr = 1.0
-        else:
-            i = int(s)
-            fr = s - i
+        i_u, fr = input_position(t, m, d[0], d[1])
+        i = int(i_u)
         for k in range(3):
             uvec[k] = samples[o_samples + 3 * i + k] * (1.0 - fr) + samples[o_samples + 3 * (i + 1) + k] * fr
         rhs(t, x, d[o_p:o_s], uvec, d[o_bus:o_u], dx)
