@@ -23,6 +23,16 @@ PARAMS_DIR = Path(__file__).resolve().parent / "params"
 
 _POS: dict[str, Any] = {"lower": 0.0, "lower_open": True}
 _NONNEG: dict[str, Any] = {"lower": 0.0}
+#: the beam's three sections, root to tip (the index 1..3 of m_i, k_i, c_i)
+_SECTIONS = ("Root", "Intermediate", "Tip")
+
+
+def _per_section(symbol: str, unit: str, bounds: dict[str, Any], what: str
+                 ) -> tuple[tuple[str, str, dict[str, Any], str], ...]:
+    """The rows of a per-section parameter: ``symbol1`` .. ``symbol3``, root to tip."""
+    return tuple((f"{symbol}{i}", unit, bounds, f"{section} {what}") for i, section in enumerate(_SECTIONS, 1))
+
+
 #: The core parameters (seed paper Table 2), in the order of the core parameter block (``core_index``): name, SI
 #: unit, physical bounds, description. The one declaration of each: the plant's layout indices (``plant.layout``)
 #: and the core effects' parameters are taken from here; the values come from a parameter set (``table2.toml``).
@@ -32,15 +42,9 @@ CORE_PARAMETERS: tuple[Parameter, ...] = tuple(
         ("R_ep", "ohm", _POS, "Patch resistance"),
         ("C_ep", "F", _POS, "Patch capacitance"),
         ("d_ep", "m/V", _POS, "Patch piezoelectric coefficient"),
-        ("m1", "kg", _POS, "Root section mass"),
-        ("m2", "kg", _POS, "Intermediate section mass"),
-        ("m3", "kg", _POS, "Tip section mass"),
-        ("k1", "N/m", _POS, "Root bending stiffness"),
-        ("k2", "N/m", _POS, "Intermediate bending stiffness"),
-        ("k3", "N/m", _POS, "Tip bending stiffness"),
-        ("c1", "N*s/m", _NONNEG, "Root structural damping"),
-        ("c2", "N*s/m", _NONNEG, "Intermediate structural damping"),
-        ("c3", "N*s/m", _NONNEG, "Tip structural damping"),
+        *_per_section("m", "kg", _POS, "section mass"),
+        *_per_section("k", "N/m", _POS, "bending stiffness"),
+        *_per_section("c", "N*s/m", _NONNEG, "structural damping"),
         ("alpha_h", "1", {"lower": 0.0, "upper": 1.0}, "Bouc-Wen linearity factor"),
         ("A_h", "1", {}, "Bouc-Wen dissipation gain"),
         ("n_h", "1", _POS, "Bouc-Wen exponent n"),
