@@ -198,18 +198,7 @@ def test_roc_reuses_stored_traces_and_agrees_with_the_verdicts(tmp_path):
 # --- the command line --------------------------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("args, message", [
-    (["--ranges", "0:50:0"], "STEP must be positive"),
-    (["--ranges", "0:45:10"], "does not divide"),
-    (["--n", "0"], "--n must be a positive integer"),
-    (["--mbit", "c"], "unknown MBIT 'c'"),
-    (["--params", "no_such_set"], "unknown parameter set"),
-    (["--dask-scheduler", "tcp://127.0.0.1:9", "--dask-timeout-s", "1"], "cannot reach the Dask scheduler"),
-])
-def test_cli_bad_input_is_a_clear_error(tmp_path, capsys, args, message):
-    code = main(["campaign", "--no-progress", "--out", str(tmp_path / "o"), *args])
-    err = capsys.readouterr().err
-    assert code == 2 and "shm: error:" in err and message in err
+# the command's bad options and their one-line errors: the bad-input corpus (tests/data/bad_inputs/options.txt)
 
 
 def test_cli_runs_writes_the_fig11_files_and_roc(tmp_path, capsys):

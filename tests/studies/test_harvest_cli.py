@@ -56,27 +56,7 @@ def test_coupled_coupling_table2_text_report(tmp_path, capsys):
     assert summary["time_to_full_s"] is None  # infinite -> null in JSON
 
 
-@pytest.mark.parametrize("argv,needle", [
-    (["--r-int-ohm", "0"], "internal resistance R_bint = 0.0 ohm outside the allowed range (0, 1e+06] ohm"),
-    (["--r-int-ohm", "-3"], "R_bint = -3.0 ohm outside the allowed range"),
-    (["--accel-g", "-0.1"], "base acceleration amplitude = -0.1 g outside the allowed range (0, 50] g"),
-    (["--accel-g", "1000"], "base acceleration amplitude = 1000.0 g outside the allowed range (0, 50] g"),
-    (["--freq-hz", "0"], "excitation frequency = 0.0 Hz outside the allowed range (0, 500] Hz"),
-    (["--from-v", "1.5"], "start voltage 1.5 V outside the ML2032 open-circuit-voltage table [2, 3.1] V"),
-    (["--from-v", "3.4"], "start voltage 3.4 V outside the ML2032 open-circuit-voltage table [2, 3.1] V"),
-    (["--battery", "CR2032"], "unknown battery (known: ML2032)"),
-    (["--diode-drop-v", "-0.3"], "diode forward drop = -0.3 V outside the allowed range [0, 5] V"),
-    (["--board-current-ma", "-1"], "board load current = -0.001 A outside the allowed range [0, 1] A"),
-    (["--duration-s", "0"], "duration = 0.0 s outside the allowed range (0, 1e+07] s"),
-    (["--eq8-literal"], "--eq8-literal applies to --coupling paper only"),
-    (["--params", "no_such_set"], "unknown parameter set"),
-])
-def test_bad_input_exits_2_naming_value_and_range(tmp_path, capsys, argv, needle):
-    rc = main(["harvest", *argv, "--out", str(tmp_path / "bad")])
-    err = capsys.readouterr().err
-    assert rc == 2
-    assert err.startswith("shm: error: ")
-    assert needle in err, err
+# the command's bad options and their one-line errors: the bad-input corpus (tests/data/bad_inputs/options.txt)
 
 
 def test_help_lists_the_couplings(capsys):
