@@ -22,7 +22,7 @@ STEP = step_drive(300.0, 0.4, t_step=0.05, dt=1e-3)
 
 USER_EFFECTS = '''
 from plant import OutputSpec, Parameter, PhysicalEffect, SignalSpec, StateSpec
-from plant.layout import B_FM, B_USER, B_Z
+from plant.layout import B_USER
 
 
 class TipSpringNamed(PhysicalEffect):
@@ -32,17 +32,6 @@ class TipSpringNamed(PhysicalEffect):
     @staticmethod
     def rates(t, x, p, bus, dx, X, P, B):
         bus[B.fm3] -= p[P.k_tip] * bus[B.z3]
-
-
-class TipSpringOffsets(PhysicalEffect):
-    """The same spring against the seam before the slot tables."""
-
-    name = "tip_spring_offsets"
-    parameters = (Parameter("k_tip_old", "N/m", 0.0, 0.0, 1e4, "tip-to-frame stiffness"),)
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        bus[B_FM + 2] -= p[po] * bus[B_Z + 2]
 
 
 class SpringForce(PhysicalEffect):
@@ -115,7 +104,8 @@ def user_module(tmp_path_factory):
 
 def test_named_and_offsets_hooks_give_the_same_model(user_module):
     named = PlantModel("table2", effects=[f"{user_module}:TipSpringNamed"], effect_params={"k_tip": 4.0})
-    old = PlantModel("table2", effects=[f"{user_module}:TipSpringOffsets"], effect_params={"k_tip_old": 4.0})
+    # the same spring against the seam before the slot tables (offset arithmetic)
+    old = PlantModel("table2", effects=["tip_effects_support:TipSpring"], effect_params={"k_tip": 4.0})
     a = named.simulate(STEP, dt_out=1e-3)
     b = old.simulate(STEP, dt_out=1e-3)
     np.testing.assert_array_equal(a.y, b.y)

@@ -7,9 +7,9 @@ from __future__ import annotations
 import json
 
 import pytest
+from tip_effects_support import TipSpring
 
-from plant import Parameter, PhysicalEffect
-from plant.layout import B_FM, B_Z
+from plant import Parameter
 from shm_cli.main import main
 from workbench.diagnose import diagnose
 from workbench.fit import effect_free_parameters, explained
@@ -88,17 +88,13 @@ def test_a_range_bound_widens_up_to_the_parameters_own_bounds():
     assert a.upper == 1.0 and widen(a, True, None, 1.0) is None  # α_h cannot pass 1
 
 
-class _TipSpring(PhysicalEffect):
+class _TipSpring(TipSpring):
     name = "tip_spring_truth"
     description = "spring tip to frame"
     parameters = (Parameter("k_tip_t", "N/m", 0.0, 0.0, 100.0, "tip stiffness"),)
 
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        bus[B_FM + 2] -= p[po] * bus[B_Z + 2]
 
-
-class _NarrowTipSpring(_TipSpring):
+class _NarrowTipSpring(TipSpring):
     """The same spring (its rates), but its own bounds stop short of the truth."""
 
     name = "tip_spring_narrow"

@@ -6,16 +6,19 @@ from __future__ import annotations
 import itertools
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
+import tip_effects_support
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from tip_effects_support import TipSpring
 
 from board_config import load_parameter_set
 from board_config.parameter import freed
 from plant import Parameter, PhysicalEffect, PlantModel
-from plant.layout import B_FM, B_Z, B_ZD
+from plant.layout import B_FM, B_Z
 from shm_cli.main import main
 from workbench.fit import FitError, fit_records
 from workbench.fit._fitting import block_masks
@@ -82,19 +85,8 @@ def test_fit_library_effect_error_falls_and_set_loads(tmp_path):
 
 
 def test_user_effect_defined_here_is_fitted_and_error_falls():
-    class TipCable(PhysicalEffect):
-        """A sensor cable hanging from the tip: spring k_c and viscous drag c_c on the tip mass."""
-
-        name = "tip_cable"
-        description = "Cable at the tip: F_m3 += −k_c z3 − c_c ż3"
-        origin = "instrumentation cable clipped to the laminate tip"
-        signature = "stroke slightly lower, ringing damped faster"
-        parameters = (Parameter("k_cable", "N/m", 0.0, 0.0, 50.0, "cable stiffness"),
-                      Parameter("c_cable", "N*s/m", 0.0, 0.0, 0.5, "cable damping"))
-
-        @staticmethod
-        def rates(t, x, p, bus, dx, so, po):
-            bus[B_FM + 2] -= p[po] * bus[B_Z + 2] + p[po + 1] * bus[B_ZD + 2]
+    class TipCable(tip_effects_support.TipCable):
+        """The cable of the user's effect file, defined here (inside a function)."""
 
     rec = _record([TipCable], {"k_cable": 3.0, "c_cable": 0.01})
     rep = fit_records([rec], "table2", add=[TipCable])
@@ -109,25 +101,7 @@ def test_user_effect_defined_here_is_fitted_and_error_falls():
 
 def test_cli_fit_user_effect_from_a_file(tmp_path, monkeypatch, capsys):
     mod = tmp_path / "my_rig_effects.py"
-    mod.write_text('''
-from plant import Parameter, PhysicalEffect
-from plant.layout import B_FM, B_Z, B_ZD
-
-
-class TipCable(PhysicalEffect):
-    """A sensor cable hanging from the tip: spring k_c and viscous drag c_c on the tip mass."""
-
-    name = "tip_cable"
-    description = "Cable at the tip"
-    origin = "instrumentation cable clipped to the laminate tip"
-    signature = "stroke slightly lower, ringing damped faster"
-    parameters = (Parameter("k_cable", "N/m", 0.0, 0.0, 50.0, "cable stiffness"),
-                  Parameter("c_cable", "N*s/m", 0.0, 0.0, 0.5, "cable damping"))
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        bus[B_FM + 2] -= p[po] * bus[B_Z + 2] + p[po + 1] * bus[B_ZD + 2]
-''')
+    mod.write_text(Path(tip_effects_support.__file__).read_text())  # a user's effect file
     monkeypatch.syspath_prepend(str(tmp_path))
     rec = _record(["my_rig_effects:TipCable"], {"k_cable": 3.0, "c_cable": 0.01})
     path = write_record(rec, tmp_path / "cable.csv")
@@ -172,23 +146,13 @@ def test_fit_bad_input(tmp_path, capsys):
         def rates(t, x, p, bus, dx, so, po):
             bus[B_FM + 2] += p[po] * (0.0 * bus[B_Z + 2] + (x[0] - x[0]) / 0.0)
 
-    with pytest.raises(FitError, match=r"nan_effect.*non-finite"):
-        fit_records([rec], "table2", add=[NanEffect])
-
-    class BadGuess(PhysicalEffect):
+    class BadGuess(TipSpring):
         name = "bad_guess"
         parameters = (Parameter("g_b", "1", 0.0, 0.0, 2.0, "gain"),)
-
-        @staticmethod
-        def rates(t, x, p, bus, dx, so, po):
-            bus[B_FM + 2] -= p[po] * bus[B_Z + 2]
 
         @classmethod
         def guess(cls, data=None):
             return {"g_b": np.array([0.1, 0.2])}
-
-    with pytest.raises(FitError, match=r"bad_guess.*'g_b'.*shape"):
-        fit_records([rec], "table2", add=[BadGuess])
 
     class BadHook(PhysicalEffect):
         name = "bad_hook"
@@ -198,8 +162,10 @@ def test_fit_bad_input(tmp_path, capsys):
         def rates(t, x, p, bus, dx, so, po):
             bus[B_FM + 2] -= len(json.dumps([1.0])) * p[po]  # a Python module call: not numba-compilable
 
-    with pytest.raises(FitError, match=r"bad_hook.*hook 'rates' does not compile"):
-        fit_records([rec], "table2", add=[BadHook])
+    for broken, message in ((NanEffect, r"nan_effect.*non-finite"), (BadGuess, r"bad_guess.*'g_b'.*shape"),
+                            (BadHook, r"bad_hook.*hook 'rates' does not compile")):
+        with pytest.raises(FitError, match=message):
+            fit_records([rec], "table2", add=[broken])
     path = write_record(rec, tmp_path / "r.csv")
     assert main(["fit", str(path), "--add", "no_such_effect", "--save", str(tmp_path / "x.toml")]) == 2
     assert "unknown effect 'no_such_effect'" in capsys.readouterr().err
