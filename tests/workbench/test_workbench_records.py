@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -11,6 +12,8 @@ from workbench.records import FrfRecord, Record, RecordError, load_record, write
 from workbench.records._io import write_csv_record
 from workbench.records._units import G0, split_column
 
+#: record texts load_record must refuse, one a line, with the reason
+BAD_TEXTS = Path(__file__).parents[1] / "data" / "bad_record_texts.txt"
 HEADER = """# format = "mfc-shm-record/1"
 # test = "mbit-b"
 # sample_rate_Hz = 100.0
@@ -90,66 +93,18 @@ def test_sidecar_metadata_and_conflict(tmp_path: Path) -> None:
         load_record(p2)
 
 
-@pytest.mark.parametrize(
-    ("body", "header", "pattern"),
-    [
-        # non-monotonic time: names the line (header 8 lines + column line -> data starts at line 10)
-        ("time_s,v_ch1_V,z3_mm\n0,1,0\n0.01,2,0\n0.005,3,0\n", HEADER.replace("[channels.z3_mm]", "[notes]")
-         .replace('# sensor = "laser E1"\n# position_m = 0.38\n# noise_std = 0.002\n', ""),
-         r"line 9.*column 'time_s'.*not strictly increasing \(0\.01 s then 0\.005 s\)"),
-        # NaN
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,nan,0\n", "", r"line 3.*column 'v_ch1_V'.*not finite"),
-        # Inf
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,1,inf\n", "", r"line 3.*column 'z3_m'.*not finite"),
-        # unknown unit
-        ("time_s,v_ch1_V,z3_furlong\n0,1,0\n0.01,1,1\n", "", r"column 'z3_furlong'.*unknown unit 'furlong'"),
-        # no unit at all
-        ("time_s,v_ch1_V,z3\n0,1,0\n0.01,1,1\n", "", r"column 'z3'.*no unit suffix"),
-        # wrong dimension for a known quantity
-        ("time_s,v_ch1_V,z3_V\n0,1,0\n0.01,1,1\n", "", r"column 'z3_V'.*'z3' is measured in m"),
-        # a short row (mismatched lengths)
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,1\n", "", r"line 3.*has 2 fields but the header has 3"),
-        # a long row
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,1,2,3\n", "", r"line 3.*has 4 fields"),
-        # text in a number field
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,abc,2\n", "", r"line 3, column 'v_ch1_V'.*'abc' is not a number"),
-        # empty field
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,,2\n", "", r"line 3, column 'v_ch1_V'.*empty field"),
-        # missing input channel named in metadata
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,1,2\n", '# inputs = ["v_ch1_V", "z0dd_m_s2"]\n',
-         r"column 'z0dd_m_s2'.*metadata key 'inputs'.*missing"),
-        # missing output channel named in metadata
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,1,2\n", '# outputs = ["z1_m"]\n', r"column 'z1_m'.*missing"),
-        # no input at all
-        ("time_s,z3_m\n0,0\n0.01,2\n", "", r"no input channel"),
-        # no output
-        ("time_s,v_ch1_V\n0,0\n0.01,2\n", "", r"no measured output"),
-        # time not first
-        ("v_ch1_V,time_s,z3_m\n0,0,0\n1,0.01,2\n", "", r"first column must be the time"),
-        # sample rate inconsistent
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,1,2\n", "# sample_rate_Hz = 1000.0\n", r"sample_rate_Hz = 1000.*100 Hz"),
-        # unknown metadata key
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,1,2\n", '# sampel_rate = 3\n', r"metadata key 'sampel_rate'.*unknown"),
-        # channel metadata for a column that is not there
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,1,2\n", '# [channels.z2_m]\n# sensor = "x"\n',
-         r"metadata key 'channels.z2_m'.*does not have"),
-        # broken TOML header
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,1,2\n", "# test = \n", r"header is not valid TOML"),
-        # duplicated quantity
-        ("time_s,v_ch1_V,z3_m,z3_mm\n0,1,0,0\n0.01,1,2,2\n", "", r"column 'z3_mm'.*appears twice"),
-        # one data row only
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n", "", r"at least 2 samples"),
-        # no data
-        ("time_s,v_ch1_V,z3_m\n", "", r"no data rows"),
-        # va and channel voltages together
-        ("time_s,va_V,v_ch1_V,z3_m\n0,1,0,0\n0.01,1,2,2\n", "", r"either the differential drive 'va'"),
-        # bad terminal
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,1,2\n", '# terminal = "battery"\n', r"unknown terminal 'battery'"),
-        # bad segment
-        ("time_s,v_ch1_V,z3_m\n0,1,0\n0.01,1,2\n", '# [[segments]]\n# start_s = 1.0\n# end_s = 0.5\n# label = "x"\n',
-         r"segments\[0\].*must be after start_s"),
-    ],
-)
+def _bad_texts() -> list[Any]:
+    """The cases of ``tests/data/bad_record_texts.txt`` (its head says the form) as pytest params named by their id."""
+    cases = []
+    for line in BAD_TEXTS.read_text(encoding="utf-8").splitlines():
+        if line.strip() and not line.startswith("#"):
+            id, header, body, pattern = line.split(" | ")
+            header, body = ("" if header == "-" else header).replace("\\n", "\n"), body.replace("\\n", "\n")
+            cases.append(pytest.param(body, header, pattern, id=id))
+    return cases
+
+
+@pytest.mark.parametrize(("body", "header", "pattern"), _bad_texts())
 def test_validation_errors_name_file_place_and_reason(tmp_path: Path, body: str, header: str, pattern: str) -> None:
     p = _csv(tmp_path, body, header=header)
     with pytest.raises(RecordError, match=pattern) as info:
