@@ -128,20 +128,17 @@ _COMMON_PARAMETERS: tuple[Parameter, ...] = (
       for k in range(N_OCV_NODES)),
 )
 
+#: the power audit's energy accumulators (states in J, integrated from 0; the module docstring says what each
+#: books), in state order; studies.harvest.audit reads them by these names
+ENERGY_ACCUMULATORS: tuple[str, ...] = (
+    "E_base_in", "E_damping", "E_hysteresis", "E_other_effects", "E_R_ep", "E_rectifier_in", "E_diodes",
+    "E_controller", "E_R_bint", "E_board", "E_battery",
+)
+
 _STATES: tuple[StateSpec, ...] = (
     StateSpec("bat_qd", "C", 1.0, 0.0),
     StateSpec("bat_q_below_cutoff", "C", 1e-3, 0.0),
-    StateSpec("E_base_in", "J", 1e-6, 0.0),
-    StateSpec("E_damping", "J", 1e-6, 0.0),
-    StateSpec("E_hysteresis", "J", 1e-6, 0.0),
-    StateSpec("E_other_effects", "J", 1e-6, 0.0),
-    StateSpec("E_R_ep", "J", 1e-6, 0.0),
-    StateSpec("E_rectifier_in", "J", 1e-6, 0.0),
-    StateSpec("E_diodes", "J", 1e-6, 0.0),
-    StateSpec("E_controller", "J", 1e-6, 0.0),
-    StateSpec("E_R_bint", "J", 1e-6, 0.0),
-    StateSpec("E_board", "J", 1e-6, 0.0),
-    StateSpec("E_battery", "J", 1e-6, 0.0),
+    *(StateSpec(name, "J", 1e-6, 0.0) for name in ENERGY_ACCUMULATORS),
 )
 
 _OUTPUTS: tuple[OutputSpec, ...] = (

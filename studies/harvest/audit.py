@@ -10,12 +10,9 @@ from typing import Any
 import numpy as np
 
 from plant.battery import TheveninBattery
+from plant.effects.harvesting import ENERGY_ACCUMULATORS
 from plant.model import PlantModel
 from studies.harvest.setup import AUDIT_TOLERANCE
-
-_ACCUMULATORS = ("E_base_in", "E_damping", "E_hysteresis", "E_other_effects", "E_R_ep", "E_rectifier_in",
-                 "E_diodes", "E_controller", "E_R_bint", "E_board", "E_battery")
-
 
 
 @dataclass(frozen=True)
@@ -88,7 +85,7 @@ def power_audit(model: PlantModel, battery: TheveninBattery, x_start: np.ndarray
     the cell, change of mechanical (kinetic + elastic) and electrical (``C_ep``) energy.
     ``e_stored_*`` = (E_mech, E_elec) in J.
     """
-    idx = {n: model.state_names.index(n) for n in _ACCUMULATORS}
+    idx = {n: model.state_names.index(n) for n in ENERGY_ACCUMULATORS}
     e = {n: float(x_end[i] - x_start[i]) for n, i in idx.items()}
     so = model.state_names.index("bat_qd")
     d_mech = float(e_stored_end[0] - e_stored_start[0])
