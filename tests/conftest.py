@@ -3,15 +3,13 @@
 from __future__ import annotations
 
 import os
-import sys
-from pathlib import Path
 
 import pytest
 
-# The tests mirror the packages (tests/<package>/test_*.py, no __init__: each file is imported by its own name).
-# A few tests reuse another room's test module (the mutation sample, the board scenarios of test_links_board): every
-# room is on the path from the start, so such an import does not depend on which room pytest collected first.
-sys.path[1:1] = sorted(str(p) for p in Path(__file__).parent.iterdir() if p.is_dir() and p.name.isidentifier())
+# The tests mirror the packages (tests/<package>/test_*.py, no __init__: each file is imported by its own name, its
+# folder put on the path by pytest). What tests of several rooms share lives in a support module here in tests/
+# (on the path with this conftest); a test module imports from its own room only (the mutation sample, which runs
+# other rooms' tests, loads them from their files).
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 os.environ.setdefault("MFC_SHM_THREADS", "1")

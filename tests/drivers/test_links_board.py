@@ -19,11 +19,11 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
-from links_support import LinkWrapper, maintenance_scenario, wait_for
+from board_run_support import run_board, scenario, verdicts
+from links_support import LinkWrapper, wait_for
 
 from drivers import open_link
 from drivers.sim_link import InProcessLink
@@ -32,46 +32,6 @@ from hil_stub.truth import build_truth_rig
 
 pytestmark = pytest.mark.integration
 
-
-
-def scenario_text(expect: str, deviations: str, maintenance_s: float = 28) -> str:
-    """The shipped maintenance scenario with trimmed parked/disconnected phases, ``deviations`` (a TOML table)."""
-    return maintenance_scenario(
-        "maintenance-short", "The shipped maintenance scenario with trimmed parked/disconnected phases.",
-        maintenance_s, verdict=expect, rig=f"deviations = {deviations}\n")
-
-
-def scenario(tmp_path: Path, degraded: bool = False, extra: str = ""):
-    from board_config.scenario import load_scenario
-
-    dev = "{ k3 = -0.35, alpha_h = 0.35, beta_h = -0.35 }" if degraded else "{}"
-    path = tmp_path / ("degraded-short.toml" if degraded else "maintenance-short.toml")
-    path.write_text(scenario_text("FAULT" if degraded else "PASS", dev) + extra)
-    return load_scenario(path)
-
-
-def run_board(scen, link, duration: float | None = None, realtime: bool = False):
-    from board_config.board import load_board_config
-    from firmware_sim.board import Board
-    from firmware_sim.runner import BoardRunner
-    from firmware_sim.scheduler import Scheduler, VirtualClock, WallClock
-
-    cfg = load_board_config(None, overrides=scen.board_overrides, overrides_source=scen.source)
-    runner = BoardRunner(Board(cfg, nominal=scen.rig.params), link,
-                         scheduler=Scheduler(cfg.tick_rate, WallClock() if realtime else VirtualClock()),
-                         rearm_times=[e.at for e in scen.events_of("rearm")])
-    link.open()
-    try:
-        return runner.run(scen.duration if duration is None else duration)
-    finally:
-        link.close()
-
-
-def verdicts(result):
-    mbits = [(e.data["label"], e.data["verdict"], e.data["max_count"], e.data["n_exceed"], e.data["max_eps"])
-             for e in result.events if e.kind == "mbit_result"]
-    final = [e.data["verdict"] for e in result.events if e.kind == "maintenance_verdict"]
-    return mbits, final
 
 
 def in_process(scen):

@@ -14,8 +14,8 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
+from board_run_support import run_board, scenario, scenario_text, verdicts
 from links_support import FakeRig, LinkWrapper
-from test_links_board import run_board, scenario, scenario_text, verdicts
 
 from drivers.link import LinkError
 from drivers.sim_link import InProcessLink

@@ -12,7 +12,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-from test_links_board import scenario, verdicts
+from board_run_support import scenario, verdicts
 
 from drivers.sim_link import InProcessLink
 from hil_stub.truth import build_truth_rig

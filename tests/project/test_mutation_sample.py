@@ -7,18 +7,36 @@ check mutates every line; this sample keeps the most important catches from sile
 
 from __future__ import annotations
 
+import importlib.util
 import inspect
+import sys
 import textwrap
 import types
+from pathlib import Path
 
 import pytest
-import test_framing_properties as framing_tests
-import test_power_mc_dc as power_tests
-import test_regimes_mc_dc as regimes_tests
-import test_registers_properties as registers_tests
 
 from drivers import framing, modbus_registers
 from firmware_sim import power_manager, regimes
+
+
+def load_room_tests(room: str, name: str) -> types.ModuleType:
+    """The test module ``tests/<room>/<name>.py`` under its own name, as pytest imports it: the one pytest collected
+    when it did, else imported from its file here (and kept in ``sys.modules``, where pytest then finds it)."""
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, Path(__file__).parents[1] / room / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+framing_tests = load_room_tests("drivers", "test_framing_properties")
+registers_tests = load_room_tests("drivers", "test_registers_properties")
+power_tests = load_room_tests("firmware_sim", "test_power_mc_dc")
+regimes_tests = load_room_tests("firmware_sim", "test_regimes_mc_dc")
 
 
 def plant(monkeypatch, module: types.ModuleType, func: str, old: str, new: str, *users: types.ModuleType) -> None:
