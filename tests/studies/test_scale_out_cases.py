@@ -13,7 +13,7 @@ import types
 from pathlib import Path
 
 import pytest
-from test_scale_out_cluster import _timeless
+from timings_support import timeless
 
 import studies.batch.cases as cases_mod
 from studies.batch import TaskResult
@@ -158,8 +158,8 @@ def test_hidden_effect_subset_is_the_same_in_this_process_and_on_two_local_worke
     local, n_local = b.run_cases_logged(subset, tmp_path / "local.jsonl", "local")
     assert (n_here, n_local) == (1, 2)
     assert [r.effect for r in here] == [r.effect for r in local] == [t[0].label for t in subset]
-    dump = [json.dumps(_timeless(r.to_dict()), sort_keys=True) for r in here]
-    assert dump == [json.dumps(_timeless(r.to_dict()), sort_keys=True) for r in local]
+    dump = [json.dumps(timeless(r.to_dict()), sort_keys=True) for r in here]
+    assert dump == [json.dumps(timeless(r.to_dict()), sort_keys=True) for r in local]
     logged = [json.loads(line) for line in (tmp_path / "local.jsonl").read_text().splitlines()]
     assert [x["effect"] for x in logged] == [t[0].label for t in subset]
 
@@ -173,7 +173,7 @@ def test_health_challenge_subset_is_the_same_in_this_process_and_on_two_local_wo
     here = run_challenge(lives, workers=2, scheduler="synchronous")
     local = run_challenge(lives, workers=2, scheduler="local", progress=lines.append)
     assert [x["life"] for x in local.lives] == [x["life"] for x in here.lives] == [life.name for life in lives]
-    assert _timeless(local.lives) == _timeless(here.lives)
+    assert timeless(local.lives) == timeless(here.lives)
     assert json.dumps(local.summary, sort_keys=True, default=str) == json.dumps(here.summary, sort_keys=True,
                                                                                 default=str)
     assert [ln.split()[0] for ln in lines] == [life.name for life in lives]

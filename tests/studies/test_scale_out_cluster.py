@@ -15,6 +15,7 @@ import time
 from pathlib import Path
 
 import pytest
+from timings_support import timeless
 
 from shm_cli.main import main
 from workbench.records import write_record
@@ -38,20 +39,10 @@ def _records(folder: Path) -> Path:
     return folder
 
 
-def _timeless(doc):
-    """A document without its timings (wall and CPU seconds differ from run to run, nothing else may)."""
-    if isinstance(doc, dict):
-        return {k: _timeless(v) for k, v in doc.items()
-                if not (k in ("timings_s", "wall_s", "load_s", "integrator_s", "cost") or k.endswith("_wall_s"))}
-    if isinstance(doc, list):
-        return [_timeless(v) for v in doc]
-    return doc
-
-
 def _results(out: Path) -> dict[str, object]:
     got: dict[str, object] = {"summary.csv": (out / "summary.csv").read_bytes()}
     for p in sorted(out.glob("*/diagnosis.json")):
-        got[p.parent.name] = _timeless(json.loads(p.read_text()))
+        got[p.parent.name] = timeless(json.loads(p.read_text()))
     return got
 
 

@@ -8,7 +8,7 @@ import json
 from pathlib import Path
 
 import pytest
-from test_scale_out_cluster import _timeless
+from timings_support import timeless
 
 from shm_cli.fleet_cmd import BOARD_GLOB
 from shm_cli.main import main
@@ -53,6 +53,6 @@ def test_fleet_health_local_workers_equal_the_in_process_run(fleet, capsys):
     assert (tmp / "ref" / "fleet.csv").read_bytes() == (tmp / "local" / "fleet.csv").read_bytes()
     for b in ("board000", "board001"):
         ref = json.loads((tmp / "ref" / b / "health.json").read_text())
-        assert _timeless(ref) == _timeless(json.loads((tmp / "local" / b / "health.json").read_text()))
+        assert timeless(ref) == timeless(json.loads((tmp / "local" / b / "health.json").read_text()))
         assert (tmp / "local" / b / "report.html").stat().st_size > 1000
     assert "board000" in (tmp / "local" / "fleet.html").read_text()
