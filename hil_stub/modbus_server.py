@@ -57,9 +57,11 @@ from drivers.modbus_registers import (
     encode_input_block,
     initial_holding_block,
 )
-from hil_stub import kernel_rx_time, protocol_ptymaster
+from hil_stub import modbus_hot_path as hot
+from hil_stub import protocol_ptymaster
 from hil_stub.faults import LinkFaults, ReplyFaulter
 from hil_stub.loop_thread import LoopThread
+from hil_stub.modbus_handler import CheckingSerialServer, CheckingTcpServer
 from hil_stub.modbus_requests import check_request_pdu
 from hil_stub.pty_port import PtyPort
 from hil_stub.rig_host import Delivery, RigHost
@@ -71,49 +73,6 @@ def _bits(*values: bool) -> int:
     return sum(1 << i for i, v in enumerate(values) if v)
 
 
-class _CheckingHandler(ServerRequestHandler):
-    """pymodbus' per-connection request handler, with :func:`check_request_pdu` in front (TCP MBAP or RTU)."""
-
-    def connection_made(self, transport: asyncio.BaseTransport) -> None:
-        super().connection_made(transport)
-        rig: ModbusRigServer | None = getattr(self.server, "rig", None)
-        if rig is not None and rig.kind == "tcp":
-            rig.kernel_stamps = kernel_rx_time.install(transport)
-
-    def callback_data(self, data: bytes, addr: tuple | None = None) -> int:
-        rig: ModbusRigServer | None = getattr(self.server, "rig", None)
-        if rig is not None:
-            stamp = kernel_rx_time.take_rx(self.transport)
-            if stamp is not None:
-                rig.kernel_received_at = stamp
-            stale = rig.stale_request_bytes(data)
-            if stale:  # answer the newest request; the ones before it, its master has given up on
-                return stale + self.callback_data(data[stale:], addr)
-            used = rig.precheck(self, data)
-            if used:
-                return used
-        return super().callback_data(data, addr)
-
-    def handle_later(self) -> None:
-        """The request's task, created on the loop's own thread (pymodbus: ``run_coroutine_threadsafe``, a write to
-        the loop's self-pipe and one more trip through ``epoll`` per request)."""
-        self.loop.create_task(self.handle_request())
-
-
-class _TcpServer(ModbusTcpServer):
-    rig: ModbusRigServer | None = None  # the server whose precheck runs first (read by _CheckingHandler)
-
-    def callback_new_connection(self):
-        return _CheckingHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
-
-
-class _SerialServer(ModbusSerialServer):
-    rig: ModbusRigServer | None = None
-
-    def callback_new_connection(self):
-        return _CheckingHandler(self, self.trace_packet, self.trace_pdu, self.trace_connect)
-
-
 class ModbusRigServer:
     """Serve the host's rig over Modbus TCP (``kind="tcp"``, ``where="HOST:PORT"``, port 0 = any free one) or
     RTU (``kind="rtu"``, ``where`` = a serial device path, or ``"pty"`` for a built-in pty: the server serves
@@ -122,7 +81,7 @@ class ModbusRigServer:
 
     def __init__(self, host: RigHost, kind: str, where: str, *, loop: LoopThread, unit: int = 1,
                  faults: LinkFaults | None = None, seed: int = 0, stream: int = 2, baudrate: int = 115200,
-                 parity: str = "N", map_version: int = MAP_VERSION) -> None:
+                 parity: str = "N", map_version: int = MAP_VERSION, hot_path: bool = True) -> None:
         if kind not in ("tcp", "rtu"):
             raise ValueError(f"Modbus server kind {kind!r}: allowed tcp, rtu")
         if not 1 <= unit <= 247:
@@ -148,6 +107,8 @@ class ModbusRigServer:
         self._holding = initial_holding_block(host.limits.voltage_min, host.limits.voltage_max, host.dt,
                                               self.map_version)
         self._watch_task: asyncio.Task | None = None
+        self.hot_path = hot_path and kind == "tcp"  #: FC 03/04/16/23 on TCP answered by :mod:`.modbus_hot_path`
+        self._tables: hot.RegisterTables | None = None
         self._disconnect_done = False
         self._silence = False
         self._fc23_silence = False  # the write part of an FC 23 found the rig's link down: its reply is withheld
@@ -342,18 +303,37 @@ class ModbusRigServer:
         the one worth answering — the others are counted (``stale_requests_skipped``) and not served."""
         if self.kind != "tcp":
             return 0
-        frames: list[int] = []  # start offsets of complete MBAP frames
-        off = 0
-        while len(data) - off >= 8:
-            (_tid, pid, length) = struct.unpack(">HHH", data[off: off + 6])
-            if pid != 0 or not 2 <= length <= 254 or off + 6 + length > len(data):
-                break
-            frames.append(off)
-            off += 6 + length
+        frames = hot.frame_starts(data)
         if len(frames) < 2:
             return 0
         self.stats["stale_requests_skipped"] += len(frames) - 1
         return frames[-1]
+
+    def answer_hot(self, handler: ServerRequestHandler, data: bytes) -> int:
+        """Answer a well-formed FC 03/04/16/23 request for our unit from the register tables now (the same hook, faults
+        and statistics as pymodbus' path, :mod:`hil_stub.modbus_hot_path`); the bytes used (0: left to pymodbus)."""
+        req = hot.parse_mbap(data) if self._tables is not None else None
+        lf = self.faulter.faults
+        if (req is None or req.fc not in hot.HOT_FUNCTIONS or req.unit not in (self.unit, 255) or lf.processing_s
+                or lf.latency_s or lf.jitter_s):
+            return 0
+        assert self._tables is not None
+        if self.host.mode == "lockstep" and (seq := self._tables.command_seq(req, data)) is not None \
+                and self.host.starts_again(seq):  # a fresh rig is built in a worker thread: pymodbus awaits it
+            return 0
+        self._trace_packet(False, data)
+        self.stats["requests"] += 1
+        self.stats["hot_path_answers"] += 1
+        try:
+            reply = self._tables.answer(req, data)
+        except Exception as exc:  # as pymodbus answers a failing datastore
+            log.error("%s: request failed on the hot path: %r", self.describe(), exc)
+            reply = hot.exception_adu(req.tid, req.unit, req.fc, hot.DEVICE_FAILURE)
+        self._wire = self.faulter.draw_action()
+        reply = self._trace_packet(True, reply)
+        if reply:
+            handler.send(reply)
+        return req.end
 
     def precheck(self, handler: ServerRequestHandler, data: bytes) -> int:
         """Answer a malformed request (see :func:`check_request_pdu`) before pymodbus does; return the bytes used
@@ -402,7 +382,7 @@ class ModbusRigServer:
     async def _start(self) -> None:
         device = self._device()
         if self.kind == "tcp":
-            tcp = _TcpServer(device, address=(self._tcp_host, self.port), trace_pdu=self._trace_pdu,
+            tcp = CheckingTcpServer(device, address=(self._tcp_host, self.port), trace_pdu=self._trace_pdu,
                              trace_packet=self._trace_packet)
             tcp.rig = self
             self._server = tcp
@@ -411,6 +391,7 @@ class ModbusRigServer:
             if not isinstance(listener, asyncio.Server):
                 raise OSError(f"{self.describe()}: cannot listen on {self._tcp_host}:{self.port}")
             self.port = listener.sockets[0].getsockname()[1]  # keep the same port across restarts
+            self._tables = hot.RegisterTables.of_server(tcp, self._action) if self.hot_path else None
         else:
             if self._pty is not None:
                 assert self._pty.master is not None
@@ -418,7 +399,7 @@ class ModbusRigServer:
                 path = protocol_ptymaster.url_for(self._pty.master)
             else:
                 path = self.serial_path
-            rtu = _SerialServer(device, framer=FramerType.RTU, port=path, baudrate=self.baudrate,
+            rtu = CheckingSerialServer(device, framer=FramerType.RTU, port=path, baudrate=self.baudrate,
                                 parity=self.parity, trace_pdu=self._trace_pdu, trace_packet=self._trace_packet,
                                 reconnect_delay=0.2)
             rtu.rig = self

@@ -52,12 +52,13 @@ class HilService:
     def __init__(self, endpoint: RigEndpoint, *, mode: str = "realtime", dt: float = 0.01,
                  plan: FaultPlan | None = None, start: str = "first-command", keep_lateness: bool = False,
                  restart: Callable[[], RigEndpoint] | None = None, clock_slice_s: float | None = None,
-                 rig_clock: str = "loop") -> None:
+                 rig_clock: str = "loop", hot_path: bool = True) -> None:
         if rig_clock not in RIG_CLOCKS:
             raise InputError(f"rig clock {rig_clock!r}: allowed {', '.join(RIG_CLOCKS)}")
         #: where the realtime rig clock runs with a Modbus server: on its event loop's thread ("loop") or in a thread
         #: of its own ("thread"; always so without a Modbus server)
         self.rig_clock = rig_clock
+        self.hot_path = hot_path  #: Modbus TCP FC 03/04/16/23 answered by :mod:`hil_stub.modbus_hot_path`
         self.plan = plan or FaultPlan()
         self.endpoint = self._with_faults(endpoint)
         self._build = restart if mode == "lockstep" else None
@@ -121,7 +122,8 @@ class HilService:
                        map_version: int = MAP_VERSION) -> ModbusRigServer:
         """Serve the rig over Modbus TCP; ``map_version=1`` serves the map without the sample mirror and FC 23."""
         srv = ModbusRigServer(self.host, "tcp", address, loop=self.loop, unit=unit, faults=self.plan.link,
-                              seed=self.plan.seed, stream=len(self.servers) + 1, map_version=map_version)
+                              seed=self.plan.seed, stream=len(self.servers) + 1, map_version=map_version,
+                              hot_path=self.hot_path)
         return self._add(srv)
 
     def add_modbus_rtu(self, path: str = "pty", *, unit: int = 1, baudrate: int = 115200,

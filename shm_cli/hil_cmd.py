@@ -158,6 +158,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     r.add_argument("--clock-slice-ms", type=sched_slice_arg, default=None, metavar="MS",
                    help="CPU time slice of the rig clock thread (the physics step), apart from the serving threads "
                         "(default: the same as --sched-slice-ms; 0: the kernel's default; docs/real-rig.md)")
+    r.add_argument("--modbus-path", choices=("hot", "pymodbus"), default="hot",
+                   help="who answers Modbus TCP FC 03/04/16/23: the stub's own hot path (default: answered in the data "
+                        "callback from the register tables) or pymodbus' request chain, as before (docs/real-rig.md)")
     r.add_argument("--rig-clock", choices=("loop", "thread"), default="loop",
                    help="where the realtime rig clock runs when a Modbus endpoint is served: on the Modbus event "
                         "loop's thread (default: one serving thread, no GIL hand-over between a request and its "
@@ -293,7 +296,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
     # lockstep: every board run gets the rig from t = 0 (docs/real-rig.md); a real-time rig plays its scenario once
     clock_slice = None if args.clock_slice_ms is None else args.clock_slice_ms / 1e3
     service = HilService(rig, mode=args.clock, plan=plan, start=args.start, restart=build, clock_slice_s=clock_slice,
-                         rig_clock=args.rig_clock)
+                         rig_clock=args.rig_clock, hot_path=args.modbus_path == "hot")
     for where in args.serial:
         service.add_serial(where, baudrate=args.baud)
     for where in args.modbus_tcp:
