@@ -93,6 +93,7 @@ SLOW_TESTS: frozenset[str] = frozenset({
     "test_fit.py::test_free_parameter_unit_box_round_trip",  # 2 s
     "test_fit.py::test_user_effect_defined_here_is_fitted_and_error_falls",  # 64 s
     "test_framing_properties.py::test_any_split_of_good_frames_gives_them_all_and_no_errors",  # 5 s
+    "test_framing_properties.py::test_fuzz_decoder_never_raises_and_stays_bounded",  # 3 s
     "test_harvest_audit.py::test_coupled_books_close_within_1_percent",  # 68 s
     "test_harvest_audit.py::test_paper_mode_creates_energy_and_the_audit_shows_how_much",  # 77 s
     "test_harvest_audit.py::test_paper_mode_does_not_load_the_beam_but_coupled_mode_damps_it",  # 3 s
@@ -113,7 +114,6 @@ SLOW_TESTS: frozenset[str] = frozenset({
     "test_integrator.py::test_deviated_member_matches_solve_ivp_rtol_1e9",  # 61 s
     "test_integrator.py::test_error_falls_with_the_tolerance",  # 6 s
     "test_integrator.py::test_failures_are_reported_as_integration_failed",  # 136 s
-    "test_links_framing.py::test_fuzz_decoder_never_raises_and_stays_bounded",  # 3 s
     "test_monitor_counter.py::test_always_a_fault_after_enough_consecutive_exceedances",  # 3 s
     "test_monitor_counter.py::test_counter_never_negative_and_steps_are_up_down_or_floor",  # 3 s
     "test_monitor_counter.py::test_fault_latches",  # 6 s
