@@ -11,8 +11,10 @@ from __future__ import annotations
 
 import re
 import shlex
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -85,6 +87,25 @@ def _replace_row(k: int, text: str) -> str:
     return _record(rows)
 
 
+FRF_HEADER = """# format = "mfc-shm-frf/1"
+# [frf]
+# drive = "va"
+# amplitude = 100.0
+# amplitude_unit = "V"
+"""
+
+
+def _frf(rows: str, head: str = FRF_HEADER, columns: str = "frequency_Hz,z3_amp_m_per_V,z3_phase_deg") -> str:
+    """An FRF table file: ``head`` (its TOML header lines), the column line, ``rows``."""
+    return f"{head}{columns}\n{rows}"
+
+
+def _wrong_headers() -> dict[str, tuple[str, tuple[str, ...]]]:
+    """Good rows under a wrong TOML header: the records of ``tests/data/bad_inputs/record_headers.toml``."""
+    table = tomllib.loads((CASE_TABLES / "record_headers.toml").read_text(encoding="utf-8"))
+    return {name: (_record(header=f["header"]), tuple(f["needles"])) for name, f in table.items()}
+
+
 #: record files: name -> (content or bytes, needles of the error). Line numbers: 3 header lines, the column line
 #: is line 4, data row k (1-based) is line 4 + k.
 RECORDS: dict[str, tuple[str | bytes, tuple[str, ...]]] = {
@@ -114,26 +135,7 @@ RECORDS: dict[str, tuple[str | bytes, tuple[str, ...]]] = {
     "no_input.csv": (_record([",".join(r.split(",")[::3]) for r in _rows()]), ("no_input.csv", "no input channel")),
     "no_output.csv": (_record([",".join(r.split(",")[:3]) for r in _rows()]),
                       ("no_output.csv", "no measured output")),
-    "bad_toml_header.csv": (_record(header="# format = \n# test = mbit-b\n"), ("bad_toml_header.csv", "toml")),
-    "unknown_meta_key.csv": (_record(header=RECORD_HEADER + "# colour = \"red\"\n"),
-                             ("unknown_meta_key.csv", "colour", "unknown key")),
-    "bad_format_tag.csv": (_record(header="# format = \"mfc-shm-record/9\"\n"),
-                           ("bad_format_tag.csv", "format", "unsupported format")),
-    "bad_rate_meta.csv": (_record(header="# sample_rate_Hz = -100.0\n"),
-                          ("bad_rate_meta.csv", "sample_rate_Hz", "positive")),
-    "rate_mismatch.csv": (_record(header="# sample_rate_Hz = 1000.0\n"),
-                          ("rate_mismatch.csv", "sample_rate_Hz", "time column has 100")),
-    "bad_terminal.csv": (_record(header="# terminal = \"toaster\"\n"), ("bad_terminal.csv", "terminal", "toaster")),
-    "bad_hours.csv": (_record(header="# operating_hours = -5\n"), ("bad_hours.csv", "operating_hours", ">= 0")),
-    "bad_segment.csv": (_record(header="# [[segments]]\n# start_s = 1.0\n# end_s = 0.5\n# label = \"x\"\n"),
-                        ("bad_segment.csv", "segments[0]", "after start_s")),
-    "bad_channel_key.csv": (_record(header="# [channels.z3_mm]\n# colour = \"red\"\n"),
-                            ("bad_channel_key.csv", "channels.z3_mm.colour", "unknown key")),
-    "channel_not_there.csv": (_record(header="# [channels.z2_mm]\n# sensor = \"x\"\n"),
-                              ("channel_not_there.csv", "channels.z2_mm", "does not have")),
-    "bad_noise_std.csv": (_record(header="# [channels.z3_mm]\n# noise_std = -1.0\n"),
-                          ("bad_noise_std.csv", "noise_std", "non-negative")),
-    "input_missing.csv": (_record(header="# inputs = [\"va_V\"]\n"), ("input_missing.csv", "va_V", "missing")),
+    **_wrong_headers(),
     "both_drives.csv": (_record([r + ",0" if i else r + ",va_V" for i, r in enumerate(_rows())]),
                         ("both_drives.csv", "either", "va")),
     "latin1.csv": (_record().replace("mbit-b", "mbit-b\u00e9").encode("latin-1"), ("latin1.csv", "utf-8")),
@@ -143,145 +145,47 @@ RECORDS: dict[str, tuple[str | bytes, tuple[str, ...]]] = {
     "record.xlsx": ("not a record", ("record.xlsx", "unknown record type")),
     "corrupt.tdms": (b"TDSm" + bytes(200), ("corrupt.tdms", "not a readable TDMS")),
     "empty.tdms": (b"", ("empty.tdms", "tdms")),
-    "frf_negative_freq.csv": (
-        "# format = \"mfc-shm-frf/1\"\n# [frf]\n# drive = \"va\"\n# amplitude = 100.0\n# amplitude_unit = \"V\"\n"
-        "frequency_Hz,z3_amp_m_per_V,z3_phase_deg\n-1,1e-6,0\n2,1e-6,-10\n",
-        ("frf_negative_freq.csv", "line 7", "frequency", "positive")),
-    "frf_no_frf_table.csv": (
-        "# format = \"mfc-shm-frf/1\"\nfrequency_Hz,z3_amp_m_per_V,z3_phase_deg\n1,1e-6,0\n2,1e-6,-10\n",
-        ("frf_no_frf_table.csv", "frf", "drive")),
-    "frf_bad_drive.csv": (
-        "# format = \"mfc-shm-frf/1\"\n# [frf]\n# drive = \"wind\"\n# amplitude = 100.0\n# amplitude_unit = \"V\"\n"
-        "frequency_Hz,z3_amp_m_per_V,z3_phase_deg\n1,1e-6,0\n2,1e-6,-10\n",
-        ("frf_bad_drive.csv", "frf.drive", "wind")),
-    "frf_unsorted.csv": (
-        "# format = \"mfc-shm-frf/1\"\n# [frf]\n# drive = \"va\"\n# amplitude = 100.0\n# amplitude_unit = \"V\"\n"
-        "frequency_Hz,z3_amp_m_per_V,z3_phase_deg\n2,1e-6,0\n1,1e-6,-10\n",
-        ("frf_unsorted.csv", "line 8", "increasing")),
-    "frf_no_phase.csv": (
-        "# format = \"mfc-shm-frf/1\"\n# [frf]\n# drive = \"va\"\n# amplitude = 100.0\n# amplitude_unit = \"V\"\n"
-        "frequency_Hz,z3_amp_m_per_V\n1,1e-6\n2,1e-6\n",
-        ("frf_no_phase.csv", "z3", "phase")),
+    "frf_negative_freq.csv": (_frf("-1,1e-6,0\n2,1e-6,-10\n"), ("frf_negative_freq.csv", "line 7", "frequency",
+                                                                 "positive")),
+    "frf_no_frf_table.csv": (_frf("1,1e-6,0\n2,1e-6,-10\n", head='# format = "mfc-shm-frf/1"\n'),
+                             ("frf_no_frf_table.csv", "frf", "drive")),
+    "frf_bad_drive.csv": (_frf("1,1e-6,0\n2,1e-6,-10\n", head=FRF_HEADER.replace('"va"', '"wind"')),
+                          ("frf_bad_drive.csv", "frf.drive", "wind")),
+    "frf_unsorted.csv": (_frf("2,1e-6,0\n1,1e-6,-10\n"), ("frf_unsorted.csv", "line 8", "increasing")),
+    "frf_no_phase.csv": (_frf("1,1e-6\n2,1e-6\n", columns="frequency_Hz,z3_amp_m_per_V"),
+                         ("frf_no_phase.csv", "z3", "phase")),
 }
 SIDECARS = {
     "sidecar_conflict.meta.toml": 'test = "sine"\n',
     "sidecar_bad.meta.toml": "test = = 3\n",
 }
 
-_TABLE2 = (SHIPPED / "params" / "table2.toml").read_text()
+
+def _changed(base: str, change: dict[str, Any]) -> str:
+    """The shipped file ``base`` changed as a table of ``tests/data/bad_inputs/config_files.toml`` says (its head
+    lists the changes)."""
+    if "content" in change:
+        return str(change["content"])
+    text = variant(base, *change["replace"]) if "replace" in change else base
+    if "drop_lines_starting" in change:
+        text = "\n".join(ln for ln in text.splitlines() if not ln.startswith(change["drop_lines_starting"])) + "\n"
+    if "cut_from" in change:
+        text = "\n".join(text.split(change["cut_from"])[0].splitlines()) + "\n"
+    return text + change.get("append", "")
 
 
-def _param_variant(old: str, new: str) -> str:
-    return variant(_TABLE2, old, new)
+_CONFIG_FILES = tomllib.loads((CASE_TABLES / "config_files.toml").read_text(encoding="utf-8"))
 
 
-#: parameter-set files: name -> (content, needles)
-PARAMS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "p_syntax.toml": (_TABLE2 + "\nthis is = = not toml\n", ("p_syntax.toml", "toml")),
-    "p_negative_mass.toml": (_param_variant("value = 1.16e-3", "value = -1.16e-3"), ("p_negative_mass.toml", "m1")),
-    "p_zero_stiffness.toml": (_param_variant("value = 21.28", "value = 0.0"), ("p_zero_stiffness.toml", "k3")),
-    "p_nan.toml": (_param_variant("value = 0.098", "value = nan"), ("p_nan.toml", "c1")),
-    "p_inf.toml": (_param_variant("value = 1500.0", "value = inf"), ("p_inf.toml", "R_ep")),
-    "p_string_value.toml": (_param_variant("value = 332.98", "value = \"stiff\""), ("p_string_value.toml", "k1")),
-    "p_wrong_unit.toml": (_param_variant('unit = "N/m",   method = "MEM", definition = "Stiffness related to tip',
-                                         'unit = "lbf/in",   method = "MEM", definition = "Stiffness related to tip'),
-                          ("p_wrong_unit.toml", "k3", "unit")),
-    "p_unknown_param.toml": (_TABLE2.replace("[parameters]\n", "[parameters]\nflux_capacitor = { value = 1.21, "
-                                             "unit = \"1\" }\n", 1), ("p_unknown_param.toml", "flux_capacitor")),
-    "p_missing_param.toml": ("\n".join(ln for ln in _TABLE2.splitlines() if not ln.startswith("k3 ")) + "\n",
-                             ("p_missing_param.toml", "k3")),
-    "p_unknown_section.toml": (_TABLE2 + "\n[extras]\nx = 1\n",
-                               ("p_unknown_section.toml", "extras", "unknown section")),
-    "p_no_parameters.toml": ("[meta]\nname = \"x\"\n", ("p_no_parameters.toml", "parameters", "missing")),
-    "p_value_missing.toml": (_param_variant("value = 1.06e-5,", ""), ("p_value_missing.toml", "C_ep")),
-    "p_effects_not_array.toml": (_TABLE2 + "\neffects = 3\n", ("p_effects_not_array.toml", "effects")),
-    "p_unknown_effect.toml": (_TABLE2 + "\n[[effects]]\nname = \"warp_drive\"\n",
-                              ("warp_drive", "unknown effect")),
-    "p_empty.toml": ("", ("p_empty.toml", "parameters")),
-}
-
-_MAINT = (SHIPPED / "scenarios" / "maintenance.toml").read_text()
+def _config_files(kind: str, shipped: Path) -> dict[str, tuple[str, tuple[str, ...]]]:
+    base = shipped.read_text()
+    return {name: (_changed(base, change), tuple(change["needles"])) for name, change in _CONFIG_FILES[kind].items()}
 
 
-def _scn_variant(old: str, new: str) -> str:
-    return variant(_MAINT, old, new)
-
-
-#: scenario files: name -> (content, needles)
-SCENARIOS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "s_syntax.toml": (_MAINT + "\n[[phase]\n", ("s_syntax.toml", "toml")),
-    "s_neg_duration.toml": (_scn_variant("duration = { value = 3, unit", "duration = { value = -3, unit"),
-                            ("s_neg_duration.toml", "phase[0].duration")),
-    "s_zero_duration.toml": (_scn_variant("duration = { value = 55, unit", "duration = { value = 0, unit"),
-                             ("s_zero_duration.toml", "phase[1].duration")),
-    "s_nan_duration.toml": (_scn_variant("duration = { value = 2, unit", "duration = { value = nan, unit"),
-                            ("s_nan_duration.toml", "phase[2].duration")),
-    "s_wrong_unit.toml": (_scn_variant('duration = { value = 3, unit = "s"', 'duration = { value = 3, unit = "min"'),
-                          ("s_wrong_unit.toml", "phase[0].duration", "unit")),
-    "s_bad_kind.toml": (_scn_variant('kind = "ground"', 'kind = "orbit"'), ("s_bad_kind.toml", "phase[0].kind",
-                                                                           "orbit")),
-    "s_bad_verdict.toml": (_scn_variant('expect_verdict = "PASS"', 'expect_verdict = "MAYBE"'),
-                           ("s_bad_verdict.toml", "expect_verdict", "MAYBE")),
-    "s_neg_seed.toml": (_scn_variant("seed = 1", "seed = -4"), ("s_neg_seed.toml", "seed")),
-    "s_float_seed.toml": (_scn_variant("seed = 1", "seed = 1.5"), ("s_float_seed.toml", "seed")),
-    "s_unknown_key.toml": (_scn_variant("seed = 1", "seed = 1\ncolour = \"red\""), ("s_unknown_key.toml", "colour")),
-    "s_unknown_params.toml": (_scn_variant('params = "table2"', 'params = "no_such_set"'),
-                              ("s_unknown_params.toml", "no_such_set")),
-    "s_battery_low.toml": (_scn_variant("value = 3.0, unit = \"V\"", "value = 0.5, unit = \"V\""),
-                           ("s_battery_low.toml", "battery_initial_voltage")),
-    "s_battery_huge.toml": (_scn_variant("value = 3.0, unit = \"V\"", "value = 300.0, unit = \"V\""),
-                            ("s_battery_huge.toml", "battery_initial_voltage")),
-    "s_no_phase.toml": ("\n".join(_MAINT.split("[[phase]]")[0].splitlines()) + "\n", ("s_no_phase.toml", "phase")),
-    "s_board_override_bad.toml": (_MAINT + "\n[board.tick]\nrate = { value = -100.0, unit = \"Hz\" }\n",
-                                  ("s_board_override_bad.toml", "tick.rate")),
-    "s_board_override_unknown.toml": (_MAINT + "\n[board.warp]\nfactor = { value = 9.0, unit = \"1\" }\n",
-                                      ("s_board_override_unknown.toml", "warp")),
-    "s_deviation_range.toml": (_scn_variant('params = "table2"', 'params = "table2"\ndeviations = { k3 = -7.0 }'),
-                               ("s_deviation_range.toml", "k3")),
-    "s_unknown_effect.toml": (_scn_variant('params = "table2"', 'params = "table2"\neffects = ["warp_drive"]'),
-                              ("s_unknown_effect.toml", "warp_drive")),
-    "s_huge_duration.toml": (_scn_variant("duration = { value = 55, unit", "duration = { value = 1e15, unit"),
-                             ("s_huge_duration.toml",)),
-    "s_event_after_end.toml": (_MAINT + "\n[[event]]\nkind = \"rearm\"\nat = { value = -5, unit = \"s\" }\n",
-                               ("s_event_after_end.toml", "event[0].at")),
-}
-
-_BOARD = (SHIPPED / "board.toml").read_text()
-
-
-def _board_variant(old: str, new: str) -> str:
-    return variant(_BOARD, old, new)
-
-
-#: board configuration files: name -> (content, needles)
-BOARDS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "b_syntax.toml": (_BOARD + "\n[tick\n", ("b_syntax.toml", "toml")),
-    "b_neg_rate.toml": (_board_variant("value = 100.0, unit = \"Hz\"", "value = -100.0, unit = \"Hz\""),
-                        ("b_neg_rate.toml", "tick.rate")),
-    "b_zero_rate.toml": (_board_variant("value = 100.0, unit = \"Hz\"", "value = 0.0, unit = \"Hz\""),
-                         ("b_zero_rate.toml", "tick.rate")),
-    "b_nan_current.toml": (_board_variant("value = 8.0e-6", "value = nan"), ("b_nan_current.toml",
-                                                                            "power.current_standby")),
-    "b_wrong_unit.toml": (_board_variant("value = 2.0,  unit = \"V\",     definition = \"Wake threshold",
-                                         "value = 2.0,  unit = \"mV\",     definition = \"Wake threshold"),
-                          ("b_wrong_unit.toml", "wake.patch_voltage", "unit")),
-    "b_unknown_section.toml": (_BOARD + "\n[turbo]\nboost = { value = 1.0, unit = \"1\" }\n",
-                               ("b_unknown_section.toml", "turbo")),
-    "b_unknown_key.toml": (_board_variant("[tick]\n", "[tick]\nwarp = { value = 1.0, unit = \"1\" }\n"),
-                           ("b_unknown_key.toml", "tick.warp")),
-    "b_missing_key.toml": ("\n".join(ln for ln in _BOARD.splitlines() if not ln.startswith("stale_ticks")) + "\n",
-                           ("b_missing_key.toml", "stale_ticks")),
-    "b_float_count.toml": (_board_variant("link_loss_ticks = { value = 2,", "link_loss_ticks = { value = 2.5,"),
-                           ("b_float_count.toml", "tick.link_loss_ticks")),
-    "b_neg_count.toml": (_board_variant("overrun_ticks   = { value = 5,", "overrun_ticks   = { value = -5,"),
-                         ("b_neg_count.toml", "tick.overrun_ticks")),
-    "b_bad_sequence.toml": (_board_variant('sequence    = ["a", "b"]', 'sequence    = ["a", "z"]'),
-                            ("b_bad_sequence.toml", "sequence")),
-    "b_string_value.toml": (_board_variant("value = 0.05,   unit = \"m\"", "value = \"far\",   unit = \"m\""),
-                            ("b_string_value.toml", "sensors.z3_limit")),
-    "b_brownout_order.toml": (_board_variant("value = 2.30,   unit = \"V\"", "value = 2.95,   unit = \"V\""),
-                              ("b_brownout_order.toml", "brownout")),
-}
+#: parameter-set, scenario and board configuration files: name -> (content, needles)
+PARAMS = _config_files("params", SHIPPED / "params" / "table2.toml")
+SCENARIOS = _config_files("scenario", SHIPPED / "scenarios" / "maintenance.toml")
+BOARDS = _config_files("board", SHIPPED / "board.toml")
 
 
 def write_corpus_files(d: Path) -> None:
