@@ -24,7 +24,9 @@ kernel's receive timestamp of each request (``answer_time_from_kernel_rx``: its 
 event loop's clock cannot see).
 
 ``--quick``: 3 s per phase (a smoke run, not for quoting); full: 12 s per phase (12 runs, ~5 min on a quiet machine).
-``SHM_BENCH_STUB_PHASES=under_load,rtu_under_load`` runs only the phases named.
+``SHM_BENCH_STUB_PHASES=under_load,rtu_under_load`` runs only the phases named, ``SHM_BENCH_STUB_VARIANTS=short_slice,
+short_slice_pymodbus_path`` only the variants named (the stub's hot Modbus TCP path against pymodbus' request chain,
+``--modbus-path pymodbus``, back to back).
 """
 
 from __future__ import annotations
@@ -169,21 +171,26 @@ _FC04 = struct.pack(">BHH", 4, INPUT_START, INPUT_COUNT)
 def paced_transactions(where: int | str, seconds: float, first_seq: int = 1) -> dict[str, list[float]]:
     """At 100 Hz for ``seconds``: FC 23 per tick, FC 16 + FC 04 every 10th tick, over TCP (``where`` a port) or RTU
     (a pty path). Times (s) per function; a lost reply is recorded as NaN."""
-    client: RawModbusTcp | RawModbusRtu = RawModbusTcp(where) if isinstance(where, int) else RawModbusRtu(where)
-    times: dict[str, list[float]] = {"fc23": [], "fc16": [], "fc04": []}
+    return paced_side_by_side([where], seconds, first_seq)[0]
+
+
+def paced_side_by_side(wheres: list[int | str], seconds: float, first_seq: int = 1) -> list[dict[str, list[float]]]:
+    """:func:`paced_transactions` against several stubs at once: each tick, one board tick's transactions with each
+    (the order turned round every tick), so every stub meets the same machine at the same moments."""
+    clients: list[RawModbusTcp | RawModbusRtu] = [RawModbusTcp(w) if isinstance(w, int) else RawModbusRtu(w)
+                                                  for w in wheres]
+    times: list[dict[str, list[float]]] = [{"fc23": [], "fc16": [], "fc04": []} for _ in clients]
     n = round(seconds / TICK_S)
     t_next = time.perf_counter()
     try:
         for i in range(n):
             k = first_seq + i
             words = encode_command_block(_command(k))
-            if i % 10 == 9:
-                for name, pdu in (("fc16", _fc16(words)), ("fc04", _FC04)):
-                    took, reply = client.transact(pdu)
-                    times[name].append(took if reply is not None and reply[0] & 0x80 == 0 else math.nan)
-            else:
-                took, reply = client.transact(_fc23(words))
-                times["fc23"].append(took if reply is not None and reply[0] & 0x80 == 0 else math.nan)
+            pdus = (("fc16", _fc16(words)), ("fc04", _FC04)) if i % 10 == 9 else (("fc23", _fc23(words)),)
+            for j in (range(len(clients)) if i % 2 == 0 else reversed(range(len(clients)))):
+                for name, pdu in pdus:
+                    took, reply = clients[j].transact(pdu)
+                    times[j][name].append(took if reply is not None and reply[0] & 0x80 == 0 else math.nan)
             t_next += TICK_S
             delay = t_next - time.perf_counter()
             if delay > 0:
@@ -191,7 +198,8 @@ def paced_transactions(where: int | str, seconds: float, first_seq: int = 1) -> 
             elif delay < -0.1:  # this process was stalled: do not race to catch up
                 t_next = time.perf_counter()
     finally:
-        client.close()
+        for client in clients:
+            client.close()
     return times
 
 
@@ -210,21 +218,21 @@ def _cpu_hogs(n: int) -> list[subprocess.Popen]:
                              stderr=subprocess.DEVNULL) for _ in range(n)]
 
 
-def _phase(port: int | str, seconds: float, first_seq: int, client_slice_s: float) -> dict:
-    """``seconds`` of paced transactions from a thread of their own, which asks for ``client_slice_s`` (0: the
-    kernel's default slice) as the board's link thread does."""
+def _phase(ports: list[int | str], seconds: float, first_seq: int, client_slice_s: float) -> list[dict]:
+    """``seconds`` of paced transactions (side by side with several stubs) from a thread of their own, which asks for
+    ``client_slice_s`` (0: the kernel's default slice) as the board's link thread does; one result per stub."""
     load = os.getloadavg()[0]
     out: dict = {}
 
     def client() -> None:
         out["slice"] = request_slice(client_slice_s).note
-        out["times"] = paced_transactions(port, seconds, first_seq)
+        out["times"] = paced_side_by_side(ports, seconds, first_seq)
 
     worker = threading.Thread(target=client, name="bench-client")
     worker.start()
     worker.join()
-    return {"load_avg_1min_before": load, "client_slice": out["slice"],
-            **{name: latency_stats(t) for name, t in out["times"].items()}}
+    return [{"load_avg_1min_before": load, "client_slice": out["slice"],
+             **{name: latency_stats(t) for name, t in times.items()}} for times in out["times"]]
 
 
 def _stub_phase(seconds: float, summary: Path, n_hogs: int, rtu: bool = False, slice_s: float = 2e-4,
@@ -233,35 +241,52 @@ def _stub_phase(seconds: float, summary: Path, n_hogs: int, rtu: bool = False, s
     None), warmed up, then ``seconds`` of paced transactions with ``n_hogs`` CPU hogs beside it; the client's times
     and the stub's own answer times (request bytes in -> reply out, and on TCP from the kernel's receive timestamp
     -> reply out; from its --summary)."""
+    return _stubs_phase(seconds, [(summary, extra)], n_hogs, rtu, slice_s, clock_slice_s)[0]
+
+
+def _stubs_phase(seconds: float, stubs: list[tuple[Path, tuple[str, ...]]], n_hogs: int, rtu: bool = False,
+                 slice_s: float = 2e-4, clock_slice_s: float | None = None) -> list[dict]:
+    """:func:`_stub_phase` for several fresh stubs at once (each: its --summary file and further options), served
+    side by side by one client (:func:`paced_side_by_side`); one result per stub."""
     clock = () if clock_slice_s is None else ("--clock-slice-ms", f"{1e3 * clock_slice_s:g}")
-    stub, port = start_stub(("--summary", str(summary), "--sched-slice-ms", f"{1e3 * slice_s:g}", *clock, *extra),
-                            rtu=rtu)
+    started = [start_stub(("--summary", str(summary), "--sched-slice-ms", f"{1e3 * slice_s:g}", *clock, *extra),
+                          rtu=rtu) for summary, extra in stubs]
+    ports = [port for _stub, port in started]
     hogs: list[subprocess.Popen] = []
     try:
-        paced_transactions(port, 0.5)  # warm-up: connection, first ticks, kernels
+        paced_side_by_side(ports, 0.5)  # warm-up: connection, first ticks, kernels
         hogs = _cpu_hogs(n_hogs)
         if hogs:
             time.sleep(1.0)
-        res = _phase(port, seconds, 1000, slice_s)
+        results = _phase(ports, seconds, 1000, slice_s)
     finally:
         for h in hogs:
             h.kill()
         for h in hogs:
             h.wait(timeout=10)
-        stub.terminate()
-        try:
-            stub.wait(timeout=20)
-        except subprocess.TimeoutExpired:
-            stub.kill()
+        for stub, _port in started:
+            stub.terminate()
+        for stub, _port in started:
+            try:
+                stub.wait(timeout=20)
+            except subprocess.TimeoutExpired:
+                stub.kill()
+    for res, (summary, _extra) in zip(results, stubs, strict=True):
+        _add_stub_summary(res, summary)
+    return results
+
+
+def _add_stub_summary(res: dict, summary: Path) -> None:
+    """The stub's own answer times and time slice, from its --summary file, into ``res``."""
     try:
         stub_summary = json.loads(summary.read_text())
         server = next(iter(stub_summary["servers"].values()))
         res["stub_answer_time"] = server.get("answer_time", {})
         res["stub_answer_time_from_kernel_rx"] = server.get("answer_time_from_kernel_rx", {})
         res["stub_slice"] = stub_summary.get("sched_slice", {})
+        res["stub_hot_path_answers"] = server.get("hot_path_answers", 0)
     except (OSError, ValueError, StopIteration, KeyError):
         res["stub_answer_time"] = {}
-    return res
 
 
 #: the variants measured side by side, (serving threads' slice, rig clock thread's slice; None: the same) in s: the
@@ -270,12 +295,28 @@ def _stub_phase(seconds: float, summary: Path, n_hogs: int, rtu: bool = False, s
 #: stub before: a second thread to wake, the GIL handed over between it and the loop; see :data:`VARIANT_ARGS`);
 #: ``SHM_BENCH_SLICES_MS="0,0.2,0.5"`` measures those slices for every thread instead (named ``slice_0.5ms``)
 VARIANTS: dict[str, tuple[float, float | None]] = {"default_slice": (0.0, None), "short_slice": (2e-4, None),
-                                                   "short_slice_clock_thread": (2e-4, None)}
-#: further `shm hil serve` options of a variant
-VARIANT_ARGS: dict[str, tuple[str, ...]] = {"short_slice_clock_thread": ("--rig-clock", "thread")}
+                                                   "short_slice_clock_thread": (2e-4, None),
+                                                   "short_slice_pymodbus_path": (2e-4, None)}
+#: further `shm hil serve` options of a variant; ``short_slice_pymodbus_path``: every Modbus TCP request through
+#: pymodbus' request chain, the stub before its hot path (:mod:`hil_stub.modbus_hot_path`; on RTU the same code path)
+VARIANT_ARGS: dict[str, tuple[str, ...]] = {"short_slice_clock_thread": ("--rig-clock", "thread"),
+                                            "short_slice_pymodbus_path": ("--modbus-path", "pymodbus")}
+
+
+def _named(variable: str, table: dict) -> dict:
+    """The entries of ``table`` named in the environment ``variable`` (comma-separated; {} when unset); a
+    ``ValueError`` naming the unknown ones."""
+    names = [n for n in os.environ.get(variable, "").split(",") if n]
+    unknown = sorted(set(names) - set(table))
+    if unknown:
+        raise ValueError(f"{variable}: unknown name(s) {', '.join(unknown)}; allowed {', '.join(table)}")
+    return {n: table[n] for n in names}
 
 
 def _variants() -> dict[str, tuple[float, float | None]]:
+    named = _named("SHM_BENCH_STUB_VARIANTS", VARIANTS)
+    if named:
+        return named
     extra = os.environ.get("SHM_BENCH_SLICES_MS", "")
     if not extra:
         return VARIANTS
@@ -293,11 +334,12 @@ PHASES = {"idle": (False, False), "under_load": (False, True), "rtu_idle": (True
 
 def _phases() -> dict[str, tuple[bool, bool]]:
     """:data:`PHASES`, or those named in ``SHM_BENCH_STUB_PHASES`` (comma-separated; e.g. ``under_load``)."""
-    names = [n for n in os.environ.get("SHM_BENCH_STUB_PHASES", "").split(",") if n]
-    unknown = sorted(set(names) - set(PHASES))
-    if unknown:
-        raise ValueError(f"SHM_BENCH_STUB_PHASES: unknown phase(s) {', '.join(unknown)}; allowed {', '.join(PHASES)}")
-    return {n: PHASES[n] for n in names} if names else PHASES
+    return _named("SHM_BENCH_STUB_PHASES", PHASES) or PHASES
+
+
+#: the side-by-side comparison of the two Modbus TCP request paths (short slice, rig clock on the loop): two stubs at
+#: once, one client alternating between them tick by tick, so both meet the same busy machine at the same moments
+SIDE_BY_SIDE: dict[str, tuple[str, ...]] = {"hot_path": (), "pymodbus_path": ("--modbus-path", "pymodbus")}
 
 
 def run(out_dir: Path, quick: bool) -> dict:
@@ -306,26 +348,39 @@ def run(out_dir: Path, quick: bool) -> dict:
     res: dict = {"seconds_per_phase": seconds, "cpu_hogs": n_hogs, "nice": os.nice(0)}
     variants = _variants()
     phases = _phases()
+    names: list[str] = []
     for phase, (rtu, loaded) in phases.items():
         for variant, (slice_s, clock_slice_s) in variants.items():  # back to back: the same machine state for all
-            res[f"{variant}_{phase}"] = _stub_phase(seconds, out_dir / f"stub_latency_{variant}_{phase}.json",
-                                                    n_hogs if loaded else 0, rtu=rtu, slice_s=slice_s,
-                                                    clock_slice_s=clock_slice_s, extra=VARIANT_ARGS.get(variant, ()))
-    for variant in variants:
-        for phase in phases:
-            r = res[f"{variant}_{phase}"]
-            for name in ("fc23", "fc16", "fc04"):
-                res[f"{variant}_{phase}_{name}_p50_ms"] = round(r[name].get("p50_ms", math.nan), 3)
-                res[f"{variant}_{phase}_{name}_p99_ms"] = round(r[name].get("p99_ms", math.nan), 3)
-            st = r["stub_answer_time"]
-            res[f"{variant}_{phase}_stub_answer_p50_ms"] = round(st.get("p50_ms", math.nan), 3)
-            res[f"{variant}_{phase}_stub_answer_p99_ms"] = round(st.get("p99_ms", math.nan), 3)
-            kt = r.get("stub_answer_time_from_kernel_rx", {})
-            if kt:
-                res[f"{variant}_{phase}_stub_answer_from_kernel_rx_p50_ms"] = round(kt.get("p50_ms", math.nan), 3)
-                res[f"{variant}_{phase}_stub_answer_from_kernel_rx_p99_ms"] = round(kt.get("p99_ms", math.nan), 3)
+            names.append(f"{variant}_{phase}")
+            res[names[-1]] = _stub_phase(seconds, out_dir / f"stub_latency_{variant}_{phase}.json",
+                                         n_hogs if loaded else 0, rtu=rtu, slice_s=slice_s,
+                                         clock_slice_s=clock_slice_s, extra=VARIANT_ARGS.get(variant, ()))
+        if not rtu:
+            both = _stubs_phase(seconds, [(out_dir / f"stub_latency_side_by_side_{phase}_{name}.json", extra)
+                                          for name, extra in SIDE_BY_SIDE.items()], n_hogs if loaded else 0)
+            for name, r in zip(SIDE_BY_SIDE, both, strict=True):
+                names.append(f"side_by_side_{phase}_{name}")
+                res[names[-1]] = r
+    for key in names:
+        _flatten(res, key)
     res["target_p99_ms"] = 1.5
     if "under_load" in phases:
-        for variant in variants:
-            res[f"{variant}_under_load_fc23_p99_within_target"] = bool(res[f"{variant}_under_load_fc23_p99_ms"] <= 1.5)
+        for key in names:
+            if key.endswith("under_load") or key.startswith("side_by_side_under_load"):
+                res[f"{key}_fc23_p99_within_target"] = bool(res[f"{key}_fc23_p99_ms"] <= 1.5)
     return res
+
+
+def _flatten(res: dict, key: str) -> None:
+    """The headline numbers of one measured stub (``res[key]``) as flat ``{key}_...`` entries of ``res``."""
+    r = res[key]
+    for name in ("fc23", "fc16", "fc04"):
+        res[f"{key}_{name}_p50_ms"] = round(r[name].get("p50_ms", math.nan), 3)
+        res[f"{key}_{name}_p99_ms"] = round(r[name].get("p99_ms", math.nan), 3)
+    st = r["stub_answer_time"]
+    res[f"{key}_stub_answer_p50_ms"] = round(st.get("p50_ms", math.nan), 3)
+    res[f"{key}_stub_answer_p99_ms"] = round(st.get("p99_ms", math.nan), 3)
+    kt = r.get("stub_answer_time_from_kernel_rx", {})
+    if kt:
+        res[f"{key}_stub_answer_from_kernel_rx_p50_ms"] = round(kt.get("p50_ms", math.nan), 3)
+        res[f"{key}_stub_answer_from_kernel_rx_p99_ms"] = round(kt.get("p99_ms", math.nan), 3)
