@@ -42,7 +42,10 @@ def damage_event_case(out_dir: Path) -> dict:
             "cpu_s": round(cpu, 1), "load_average_1min_before": round(load, 2),
             "target_wall_s": 60.0, "meets_target": bool(wall <= 60.0), "verdict": d.verdict,
             "forward_selection_s": round(d.timings.get("forward_selection_s", 0.0), 1),
-            "discover_s": round(d.timings.get("discover_s", 0.0), 1), "first_line": d.message.split(". ", 1)[0]}
+            "discover_s": round(d.timings.get("discover_s", 0.0), 1),
+            # the discovery step's own stages (on an event its probes and refits of the time-gated terms are "screen")
+            "discover_stages_s": {k: round(float(v), 1) for k, v in (d.discover or {}).get("timings_s", {}).items()},
+            "first_line": d.message.split(". ", 1)[0]}
 
 
 def run(out_dir: Path, quick: bool) -> dict:
