@@ -44,7 +44,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from typing import Any
+from operator import attrgetter
+from typing import Any, Generic, TypeVar, overload
 
 import numpy as np
 
@@ -62,6 +63,26 @@ from hil_stub.sim_url import parse_sim_url
 from hil_stub.truth_plant import TruthComposition, TruthPlant
 
 __all__ = ["COUPLING_TERMINALS", "SimulatedRig", "open_sim_link"]
+
+_T = TypeVar("_T")
+
+
+class _Forward(Generic[_T]):
+    """A read-only attribute of the rig that is an attribute of one of its parts (``"settings.seed"``:
+    ``rig.settings.seed``), for operators, the HIL server and reports."""
+
+    def __init__(self, path: str, doc: str = "") -> None:
+        self._get = attrgetter(path)
+        self.__doc__ = doc or f"The rig's {path}."
+
+    @overload
+    def __get__(self, rig: None, owner: type) -> _Forward[_T]: ...
+
+    @overload
+    def __get__(self, rig: object, owner: type | None = None) -> _T: ...
+
+    def __get__(self, rig: object | None, owner: type | None = None) -> _T | _Forward[_T]:
+        return self if rig is None else self._get(rig)
 
 
 class SimulatedRig:
@@ -238,70 +259,22 @@ class SimulatedRig:
         self._sample = span.sample(m - 1)
 
     # --- extras for operators, the HIL server and reports -------------------------------------------
-    @property
-    def t(self) -> float:
-        """Rig time (s)."""
-        return self.plant.t
-
-    @property
-    def seed(self) -> int:
-        return self.settings.seed
-
-    @property
-    def params(self) -> ParameterSet:
-        return self.settings.params
-
-    @property
-    def deviations(self) -> dict[str, float]:
-        return self.settings.deviations
-
-    @property
-    def effects(self) -> tuple[str, ...]:
-        return self.settings.effects
-
-    @property
-    def effect_params(self) -> dict[str, float]:
-        return self.settings.effect_params
-
-    @property
-    def coupling(self) -> str:
-        return self.settings.coupling
-
-    @property
-    def limits(self) -> MfcLimits:
-        return self.amplifier.limits
-
-    @property
-    def watchdog(self) -> float:
-        return self.amplifier.watchdog
-
-    @property
-    def z3_noise(self) -> float:
-        return self.sensors.noise.z3
-
-    @property
-    def accel_noise(self) -> float:
-        return self.sensors.noise.accel
-
-    @property
-    def v_patch_noise(self) -> float:
-        return self.sensors.noise.v_patch
-
-    @property
-    def refused_commands(self) -> int:
-        return self.amplifier.refused_commands
-
-    @property
-    def watchdog_trips(self) -> int:
-        return self.amplifier.watchdog_trips
-
-    @property
-    def blocks(self) -> int:
-        return self.plant.blocks
-
-    @property
-    def reduced_blocks(self) -> int:
-        return self.plant.reduced_blocks
+    t = _Forward[float]("plant.t", "Rig time (s).")
+    seed = _Forward[int]("settings.seed")
+    params = _Forward[ParameterSet]("settings.params")
+    deviations = _Forward[dict[str, float]]("settings.deviations")
+    effects = _Forward[tuple[str, ...]]("settings.effects")
+    effect_params = _Forward[dict[str, float]]("settings.effect_params")
+    coupling = _Forward[str]("settings.coupling")
+    limits = _Forward[MfcLimits]("amplifier.limits")
+    watchdog = _Forward[float]("amplifier.watchdog")
+    z3_noise = _Forward[float]("sensors.noise.z3")
+    accel_noise = _Forward[float]("sensors.noise.accel")
+    v_patch_noise = _Forward[float]("sensors.noise.v_patch")
+    refused_commands = _Forward[int]("amplifier.refused_commands")
+    watchdog_trips = _Forward[int]("amplifier.watchdog_trips")
+    blocks = _Forward[int]("plant.blocks")
+    reduced_blocks = _Forward[int]("plant.reduced_blocks")
 
     def _segment(self) -> Segment:
         """The scheduled environment state now (cached until its next change)."""
