@@ -26,7 +26,9 @@ event loop's clock cannot see).
 ``--quick``: 3 s per phase (a smoke run, not for quoting); full: 12 s per phase (12 runs, ~5 min on a quiet machine).
 ``SHM_BENCH_STUB_PHASES=under_load,rtu_under_load`` runs only the phases named, ``SHM_BENCH_STUB_VARIANTS=short_slice,
 short_slice_pymodbus_path`` only the variants named (the stub's hot Modbus TCP path against pymodbus' request chain,
-``--modbus-path pymodbus``, back to back).
+``--modbus-path pymodbus``, back to back; ``none``: only the side-by-side phase). The side-by-side phase (Modbus TCP)
+serves both request paths at once from two stubs, one client alternating between them tick by tick: on a busy machine
+the only fair comparison, since back-to-back runs meet different loads.
 """
 
 from __future__ import annotations
@@ -314,6 +316,8 @@ def _named(variable: str, table: dict) -> dict:
 
 
 def _variants() -> dict[str, tuple[float, float | None]]:
+    if os.environ.get("SHM_BENCH_STUB_VARIANTS") == "none":  # the side-by-side comparison alone
+        return {}
     named = _named("SHM_BENCH_STUB_VARIANTS", VARIANTS)
     if named:
         return named
