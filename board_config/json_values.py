@@ -1,11 +1,28 @@
-"""The one JSON sanitiser: numbers and containers of numpy made plain Python, non-finite floats made ``null``."""
+"""The one JSON sanitiser: numbers and containers of numpy made plain Python, non-finite floats made ``null``; and
+:class:`JsonFields`, the one ``to_dict`` of a result dataclass whose JSON form is its fields by name."""
 
 from __future__ import annotations
 
 import math
-from typing import Any
+from dataclasses import asdict
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from _typeshed import DataclassInstance
+
+
+class JsonFields:
+    """Base of a result dataclass whose JSON form is its fields by name, in declaration order (base classes'
+    fields first), nested dataclasses as dicts: ``dataclasses.asdict``. Values are not sanitised
+    (:func:`to_jsonable` does that at the edge)."""
+
+    __slots__ = ()
+
+    def to_dict(self) -> dict[str, Any]:
+        """The fields by name (``dataclasses.asdict``); the subclass must be a dataclass."""
+        return asdict(cast("DataclassInstance", self))
 
 
 def to_jsonable(obj: Any) -> Any:

@@ -20,11 +20,12 @@ from __future__ import annotations
 import math
 import time
 from collections.abc import Callable
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from board_config.json_values import JsonFields
 from plant.battery import TheveninBattery
 from plant.model import SimulationResult
 from plant.signals import G0
@@ -35,9 +36,9 @@ from studies.harvest.setup import PAPER_CLAIM_S, PAPER_GAIN_V_PER_G, HarvestSetu
 
 
 @dataclass(frozen=True)
-class HarvestRequirements:
+class HarvestRequirements(JsonFields):
     """What a full recharge within ``target_s`` would take (:meth:`HarvestRun.requirements`); the summary's
-    ``what_it_would_take``."""
+    ``what_it_would_take`` (its fields by name: ``to_dict``)."""
 
     target_s: float
     """Time allowed for the full recharge (s)."""
@@ -65,10 +66,6 @@ class HarvestRequirements:
     """The paper's stored-voltage gain (V/g)."""
     measured_gain_V_per_g: float
     """This run's peak terminal voltage per g (V/g)."""
-
-    def to_json(self) -> dict[str, Any]:
-        """The fields by name, as ``harvest_summary.json`` writes them."""
-        return asdict(self)
 
 
 @dataclass
@@ -126,7 +123,7 @@ class HarvestRun:
             "mean_charging_current_A": float(self.chunks["i_mean_A"][-1]),
             "charge_below_cutoff_C": self.q_below_cutoff,
             "audit": self.audit.as_dict(), "n_steps": self.n_steps, "wall_s": self.wall_s,
-            "what_it_would_take": self.requirements().to_json(), "effects": list(self.effects),
+            "what_it_would_take": self.requirements().to_dict(), "effects": list(self.effects),
             "parameter_set": self.parameter_set,
         }
 

@@ -32,12 +32,13 @@ import re
 import tempfile
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from board_config.json_values import JsonFields
 from plant import PhysicalEffect, PlantModel
 from workbench.discover import discover
 from workbench.fit import FitError, fit_records
@@ -62,7 +63,7 @@ class DiscoveryCase:
 
 
 @dataclass
-class CaseOutcome:
+class CaseOutcome(JsonFields):
     """What every case of the challenge reports first: the case, the record it ran on and the verdict."""
 
     label: str
@@ -73,9 +74,6 @@ class CaseOutcome:
     size_sigma: float
     counts: bool
     verdict: str
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
 
 
 def failed_case_fields(label: str, strength: str, kind: str, noise: float, seed: int, values: Mapping[str, float],

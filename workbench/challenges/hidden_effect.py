@@ -26,12 +26,13 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from dataclasses import asdict, dataclass, field
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from board_config import load_parameter_set
+from board_config.json_values import JsonFields
 from plant.effect import EffectError, registered_effects, resolve_effect
 from plant.effect_declarations import STRENGTH_NAMES
 from workbench.diagnose import diagnose
@@ -159,7 +160,7 @@ def null_case() -> HiddenCase:
 
 
 @dataclass
-class CaseResult:
+class CaseResult(JsonFields):
     """One hidden case and what diagnose made of it."""
 
     effect: str  # the case label ("none" for an effect-free record)
@@ -185,9 +186,6 @@ class CaseResult:
     all_found: bool = False
     #: a pair's effects, each alone: RMS change of the noise-free tip reading in noise σ
     member_sizes_sigma: dict[str, float] = field(default_factory=dict)
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
 
 
 def _inputs(kind: str):

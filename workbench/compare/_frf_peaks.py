@@ -21,10 +21,11 @@ Pure logic: arrays in, :class:`FrfPeak` out (frequencies in Hz, magnitudes in th
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
+
+from board_config.json_values import JsonFields
 
 #: points either side of the discrete maximum that a coarse grid's local fit always uses
 NEIGHBOURS = 2
@@ -40,7 +41,7 @@ MIN_DAMPING = 1e-3
 
 
 @dataclass(frozen=True)
-class FrfPeak:
+class FrfPeak(JsonFields):
     """One resonance peak of a frequency response.
 
     ``frequency_Hz`` is the natural frequency of the locally fitted mode (|pole| / 2π) — what a mode table
@@ -56,9 +57,6 @@ class FrfPeak:
     spacing_Hz: float
     n_points: int
     method: str
-
-    def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
 
     def describe(self) -> str:
         zeta = f", ζ {100 * self.damping_ratio:.1f} %" if math.isfinite(self.damping_ratio) else ""

@@ -15,7 +15,7 @@ grow with amplitude). The threshold ε_th comes from the monitor's settings (``b
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import nnls
@@ -23,6 +23,7 @@ from scipy.optimize import nnls
 from board_config import load_monitor_settings
 from board_config.error_law import normalised_error  # the one Eq. 5/11 implementation (the monitor uses it too)
 from board_config.errors import InputError
+from board_config.json_values import JsonFields
 
 
 def _as_float_pair(measured: np.ndarray, model: np.ndarray) -> np.ndarray:
@@ -97,7 +98,7 @@ class EpsStats:
 
 
 @dataclass(frozen=True)
-class ChannelMetrics:
+class ChannelMetrics(JsonFields):
     """Agreement of one channel (free-run simulation unless stated). Units: the channel's SI unit."""
 
     channel: str
@@ -113,9 +114,6 @@ class ChannelMetrics:
     eps_fitted: EpsStats
     eq4_given: Eq4Fit | None
     eps_given: EpsStats | None
-
-    def to_dict(self) -> dict:
-        return asdict(self)
 
 
 def channel_metrics(channel: str, unit: str, t: np.ndarray, measured: np.ndarray, model: np.ndarray, *,
