@@ -56,13 +56,9 @@ REOPEN_PAUSE_S = 0.2
 class _Channel(ABC):
     """A byte pipe the server owns: the URL the board opens to reach it, and a line for the operator."""
 
-    @property
     @abstractmethod
-    def board_url(self) -> str: ...
-
-    @property
-    @abstractmethod
-    def description(self) -> str: ...
+    def endpoint(self) -> tuple[str, str]:
+        """(the URL the board opens, a line for the operator), as they are now (a port picked at open, a pty's name)."""
 
     @abstractmethod
     def open(self) -> None: ...
@@ -81,13 +77,8 @@ class _PtyChannel(_Channel):
     def __init__(self, link: Path | None) -> None:
         self.pty = PtyPort(link)
 
-    @property
-    def board_url(self) -> str:
-        return f"serial:{self.pty.link}"
-
-    @property
-    def description(self) -> str:
-        return f"serial frames on pty {self.pty.slave_name} (stable link {self.pty.link})"
+    def endpoint(self) -> tuple[str, str]:
+        return f"serial:{self.pty.link}", f"serial frames on pty {self.pty.slave_name} (stable link {self.pty.link})"
 
     def open(self) -> None:
         self.pty.open()
@@ -109,13 +100,8 @@ class _SerialChannel(_Channel):
         self.baudrate = baudrate
         self.port: serial.SerialBase | None = None
 
-    @property
-    def board_url(self) -> str:
-        return f"serial:{self.where}"
-
-    @property
-    def description(self) -> str:
-        return f"serial frames on {self.where}"
+    def endpoint(self) -> tuple[str, str]:
+        return f"serial:{self.where}", f"serial frames on {self.where}"
 
     def open(self) -> None:
         self.port = serial.serial_for_url(self.url, baudrate=self.baudrate, timeout=0.01, write_timeout=0.1)
@@ -141,13 +127,8 @@ class _TcpListenChannel(_Channel):
         self.listener: socket.socket | None = None
         self.client: socket.socket | None = None
 
-    @property
-    def board_url(self) -> str:
-        return f"socket://{self.host}:{self.port}"
-
-    @property
-    def description(self) -> str:
-        return f"serial frames on tcp {self.host}:{self.port}"
+    def endpoint(self) -> tuple[str, str]:
+        return f"socket://{self.host}:{self.port}", f"serial frames on tcp {self.host}:{self.port}"
 
     def open(self) -> None:
         ls = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
@@ -231,10 +212,10 @@ class FrameServer:
     @property
     def board_url(self) -> str:
         """The URL the board passes to ``shm run --link``."""
-        return self._channel.board_url
+        return self._channel.endpoint()[0]
 
     def describe(self) -> str:
-        return self._channel.description
+        return self._channel.endpoint()[1]
 
     # ------------------------------------------------------------------------------------------ lifecycle
     def start(self) -> None:
