@@ -106,7 +106,8 @@ def test_without_an_emitted_file_the_fix_is_the_named_winner_or_nothing(tmp_path
 
 def _result(named: bool, passed: bool, size: float = 50.0) -> DamageCaseResult:
     return DamageCaseResult("X", "weak", "sweep", 2e-6, 1, size, size > 3.0, "partial", "s.", named,
-                            [] if named else ["any of crack"], "named k2", 40.0, 1.0 if passed else 9.0, passed, 1.0)
+                            [] if named else ["any of crack"], "named k2", 40.0, 1.0 if passed else 9.0,
+                            passed=passed, wall_s=1.0)
 
 
 def test_summary_counts_only_cases_above_3_sigma_and_needs_both():

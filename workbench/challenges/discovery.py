@@ -32,9 +32,9 @@ import re
 import tempfile
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import KW_ONLY, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Self
 
 import numpy as np
 
@@ -64,7 +64,9 @@ class DiscoveryCase:
 
 @dataclass
 class CaseOutcome(JsonFields):
-    """What every case of the challenge reports first: the case, the record it ran on and the verdict."""
+    """What every case of the challenge reports: the case, the record it ran on and the verdict first; then whether
+    it passed, its wall time (s), a note and the truth values (keyword-only: each result type's own fields follow
+    the verdict in its constructor, and in its JSON after these)."""
 
     label: str
     strength: str
@@ -74,14 +76,35 @@ class CaseOutcome(JsonFields):
     size_sigma: float
     counts: bool
     verdict: str
+    _: KW_ONLY
+    passed: bool
+    wall_s: float
+    note: str = ""
+    values: dict[str, float] = field(default_factory=dict)
+
+    @classmethod
+    def failed(cls, label: str, strength: str, kind: str, noise: float, seed: int, values: Mapping[str, float],
+               exc: BaseException) -> Self:
+        """The result of a case whose run raised ``exc``: a counted miss with the reason, the type's own fields
+        as :meth:`nothing_found` gives them."""
+        return cls(label, strength, kind, noise, seed, float("nan"), True, "error", **cls.nothing_found(),
+                   passed=False, wall_s=0.0, note=f"{type(exc).__name__}: {exc}", values=dict(values))
+
+    @classmethod
+    def nothing_found(cls) -> dict[str, Any]:
+        """The result type's own fields for a case whose run failed."""
+        raise NotImplementedError(f"{cls.__name__} does not say what a failed run found")
+
+    def case_columns(self, label_width: int) -> str:
+        """The columns every challenge table starts with (:func:`case_columns_head`): case, strength, test kind,
+        noise (µm), size (σ)."""
+        return (f"{self.label:{label_width}} {self.strength:7} {self.kind:7} {self.noise_m * 1e6:5.3g}µ "
+                f"{self.size_sigma:8.3g}")
 
 
-def failed_case_fields(label: str, strength: str, kind: str, noise: float, seed: int, values: Mapping[str, float],
-                       exc: BaseException) -> dict[str, Any]:
-    """The fields every result type shares for a case whose run raised ``exc`` (a counted miss with the reason)."""
-    return {"label": label, "strength": strength, "kind": kind, "noise_m": noise, "seed": seed,
-            "size_sigma": float("nan"), "counts": True, "verdict": "error", "passed": False, "wall_s": 0.0,
-            "note": f"{type(exc).__name__}: {exc}", "values": dict(values)}
+def case_columns_head(label_width: int) -> str:
+    """The head of :meth:`CaseOutcome.case_columns`."""
+    return f"{'case':{label_width}} {'str':7} {'test':7} {'noise':>6} {'size σ':>8}"
 
 
 @dataclass
@@ -92,21 +115,16 @@ class DiscoveryCaseResult(CaseOutcome):
     held_before: float
     held_discover: float
     held_after: float
-    passed: bool
-    wall_s: float
-    note: str = ""
-    values: dict[str, float] = field(default_factory=dict)
     #: the right words only among the terms the records cannot tell from the one found (not counted as named)
     named_among_twins: bool = False
     twins: list[str] = field(default_factory=list)
 
     @classmethod
-    def failed(cls, label: str, strength: str, kind: str, noise: float, seed: int, values: Mapping[str, float],
-               exc: BaseException) -> DiscoveryCaseResult:
-        """The result of a case whose run raised ``exc``: nothing found, a miss."""
+    def nothing_found(cls) -> dict[str, Any]:
+        """A failed run: nothing found, nothing named, no held-out error."""
         nan = float("nan")
-        return cls(found=[], description="", named=False, held_before=nan, held_discover=nan, held_after=nan,
-                   **failed_case_fields(label, strength, kind, noise, seed, values, exc))
+        return {"found": [], "description": "", "named": False, "held_before": nan, "held_discover": nan,
+                "held_after": nan}
 
 
 def case_size_sigma(truth: PlantModel, nominal: PlantModel, rec, noise: float) -> float:
@@ -190,12 +208,10 @@ def summarise(results: Sequence[DiscoveryCaseResult]) -> dict[str, Any]:
 
 
 def format_table(results: Sequence[DiscoveryCaseResult]) -> str:
-    head = f"{'case':22} {'str':7} {'test':7} {'noise':>6} {'size σ':>8} {'found':28} {'held σ':>14} {'named':>5}"
-    lines = [head]
+    lines = [f"{case_columns_head(22)} {'found':28} {'held σ':>14} {'named':>5}"]
     for r in results:
-        lines.append(f"{r.label:22} {r.strength:7} {r.kind:7} {r.noise_m * 1e6:5.3g}µ {r.size_sigma:8.3g} "
-                     f"{('/'.join(r.found) or '-')[:28]:28} {r.held_before:6.3g}→{r.held_after:<6.3g} "
-                     f"{'yes' if r.named else 'no':>5}")
+        lines.append(f"{r.case_columns(22)} {('/'.join(r.found) or '-')[:28]:28} "
+                     f"{r.held_before:6.3g}→{r.held_after:<6.3g} {'yes' if r.named else 'no':>5}")
     return "\n".join(lines)
 
 
@@ -289,22 +305,17 @@ class DamageCaseResult(CaseOutcome):
     fix: str  # "emitted FILE" | "named WINNER" | "none"
     held_before: float
     held_fix: float
-    passed: bool
-    wall_s: float
-    note: str = ""
-    values: dict[str, float] = field(default_factory=dict)
 
     @property
     def both(self) -> bool:
         return self.named and self.passed
 
     @classmethod
-    def failed(cls, label: str, strength: str, kind: str, noise: float, seed: int, values: Mapping[str, float],
-               exc: BaseException) -> DamageCaseResult:
-        """The result of a case whose run raised ``exc``: nothing named, no fix, a miss."""
+    def nothing_found(cls) -> dict[str, Any]:
+        """A failed run: nothing named, no fix, no held-out error."""
         nan = float("nan")
-        return cls(sentence="", named=False, missing=["the run failed"], fix="none", held_before=nan, held_fix=nan,
-                   **failed_case_fields(label, strength, kind, noise, seed, values, exc))
+        return {"sentence": "", "named": False, "missing": ["the run failed"], "fix": "none", "held_before": nan,
+                "held_fix": nan}
 
 
 def fix_held_sigma(d: Any, rec: Any, workdir: str | Path | None, *, max_nfev: int = 20) -> tuple[str, float, str]:
@@ -381,11 +392,9 @@ def summarise_damage(results: Sequence[DamageCaseResult]) -> dict[str, Any]:
 
 
 def format_damage_table(results: Sequence[DamageCaseResult]) -> str:
-    head = (f"{'case':24} {'str':7} {'test':7} {'noise':>6} {'size σ':>8} {'named':>5} {'fix':28} "
-            f"{'held σ':>15} {'both':>4}  first sentence")
-    lines = [head]
+    lines = [f"{case_columns_head(24)} {'named':>5} {'fix':28} {'held σ':>15} {'both':>4}  first sentence"]
     for r in results:
-        lines.append(f"{r.label:24} {r.strength:7} {r.kind:7} {r.noise_m * 1e6:5.3g}µ {r.size_sigma:8.3g} "
-                     f"{'yes' if r.named else 'no':>5} {r.fix[:28]:28} {r.held_before:7.3g}→{r.held_fix:<7.3g} "
+        lines.append(f"{r.case_columns(24)} {'yes' if r.named else 'no':>5} {r.fix[:28]:28} "
+                     f"{r.held_before:7.3g}→{r.held_fix:<7.3g} "
                      f"{('yes' if r.both else 'no') if r.counts else '(-)':>4}  {r.sentence[:160]}")
     return "\n".join(lines)
