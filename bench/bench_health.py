@@ -61,8 +61,7 @@ def run(out_dir: Path, quick: bool, scheduler: str | None = None) -> dict:
     challenge_wall = time.perf_counter() - t0
     import json
 
-    (out_dir / "health_challenge.json").write_text(json.dumps({"summary": ch.summary, "lives": ch.lives,
-                                                                "f1_threshold": ch.f1_threshold}, indent=1,
+    (out_dir / "health_challenge.json").write_text(json.dumps(ch.to_json(), indent=1,
                                                                default=lambda o: o.tolist() if hasattr(o, "tolist")
                                                                else str(o)))
     return {
@@ -70,6 +69,6 @@ def run(out_dir: Path, quick: bool, scheduler: str | None = None) -> dict:
         "life_visit_wall_s_mean": sum(one) / len(one), "serial_4_visits_wall_s": serial4,
         "serial_24_visits_extrapolated_s": serial4 * 6, "first_fault_visit": first,
         "health": health, "challenge_lives": len(ch.lives), "challenge_wall_s": challenge_wall,
-        "challenge": ch.summary, "f1_alarm_threshold_rel": ch.f1_threshold,
+        "challenge": ch.summary.to_json(), "f1_alarm_threshold_rel": ch.f1_threshold,
         "load_average_1min": os.getloadavg()[0],
     }

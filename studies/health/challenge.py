@@ -28,21 +28,30 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from studies.health.challenge_lives import ChallengeLife, challenge_lives, reference_life
+from studies.health.challenge_results import (
+    ChallengeResult,
+    LifeChallengeResult,
+    StepVerdict,
+    VisitPrediction,
+    score_predictions,
+    summarise,
+)
 from studies.health.estimate import DEFAULT_FREE, VisitEstimates
 from studies.health.evaluate import seen_at_visits
 from studies.health.follow import Followed, effect_limits, find_and_follow, series, trends_upto
 from studies.health.forecast import forecast_trip, visit_of
-from studies.health.metrics import alpha_lambda, interval_covers, prognostic_horizon
-from studies.health.trend import fit_trend
+from studies.health.trend import Trend, fit_trend
 from studies.health.trip import HEALTH_PARAMS, fault_batch_values, trip_boundary
+
+if TYPE_CHECKING:
+    from workbench.records import Record
 
 __all__ = ["ChallengeLife", "challenge_lives", "reference_life", "run_challenge", "run_life_challenge"]
 
@@ -91,7 +100,7 @@ def truth_faults(life: ChallengeLife, params: str, devs: Sequence[dict[str, floa
 
 
 def simulate_visit_records(life: ChallengeLife, params: str, devs: list[dict[str, float]],
-                           effect_values: Sequence[dict[str, float]] | None = None):
+                           effect_values: Sequence[dict[str, float]] | None = None) -> list[Record]:
     """One joined visit record per visit (truth deviations ``devs``, the added effects' parameter values), with
     the life's laser noise."""
     from plant import InputSignals, PlantModel
@@ -121,7 +130,7 @@ def simulate_visit_records(life: ChallengeLife, params: str, devs: list[dict[str
     return recs
 
 
-def first_natural_frequency(record: Any) -> float:
+def first_natural_frequency(record: Record) -> float:
     """f1 (Hz) from MBIT.b's step response in a joined visit record: a damped sine fitted to the first 0.6 s after
     the step (the feature-only baseline's feature)."""
     from scipy.optimize import curve_fit
@@ -149,23 +158,10 @@ def first_natural_frequency(record: Any) -> float:
         return f0
 
 
-@dataclass(frozen=True, slots=True)
-class VisitPrediction:
-    """The trip forecast made as of one visit (0-based ``as_of_visit``, at ``hours`` h): whether its trend was
-    significant, its 90 % interval in visits (0-based; None: beyond the horizon) and each sample path's trip time
-    moved to the visit that would see it (h; inf beyond the horizon)."""
-
-    as_of_visit: int
-    hours: float
-    significant: bool
-    interval_visits: list[int | None]
-    samples_seen: np.ndarray
-
-
 # --- one life -------------------------------------------------------------------------------------------------
 def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold: float | None = None,
-                       n_paths: int = 400, n_grid: int = 500) -> dict[str, Any]:
-    """Simulate, estimate, predict sequentially and score one life (a plain dict; picklable)."""
+                       n_paths: int = 400, n_grid: int = 500) -> LifeChallengeResult:
+    """Simulate, estimate, predict sequentially and score one life (picklable)."""
     from studies.health.estimate import estimate_visit
 
     t0 = time.perf_counter()
@@ -205,27 +201,23 @@ def run_life_challenge(life: ChallengeLife, params: str = "table2", f1_threshold
                                      _interval_visits(fc.trip_samples, hours[0], life.interval), seen))
         if f1_threshold is not None:
             base_preds.append(_baseline_prediction(hh, f1[: j + 1] / f1[0] - 1, f1_threshold, life, j))
-    out: dict[str, Any] = {"life": life.name, "kind": life.kind, "visits": life.visits, "interval_h": life.interval,
-                           "noise_um": life.noise_m * 1e6, "true_first_fault_visit": k_true,
-                           "true_first_fault_hours": None if k_true is None else float(hours[k_true]),
-                           "f1_Hz": f1.tolist(), "wall_s": 0.0}
-    out["physics"] = _score(preds, life, k_true, hours)
-    out["baseline"] = _score(base_preds, life, k_true, hours) if f1_threshold is not None else None
-    out["followed"] = followed.as_dict([float(h) for h in hours])
-    out["group"] = life.group
-    out["effects"] = list(life.effects)
-    # final-visit verdicts: stable and sudden lives
-    final = trends_upto(hours, y, s, len(hours))
-    out["final_significant"] = {p: t.significant for p, t in final.items()}
-    out["final_models"] = {p: t.model for p, t in final.items()}
-    if life.kind == "sudden" and life.step_parameter is not None and life.step_parameter in final:
-        t = final[life.step_parameter]
-        ok = t.model == "change_point" and t.best.tau is not None and \
-            _bracket(hours, life.step_hours) == _bracket(hours, t.best.tau)
-        out["step_placed"] = bool(ok)
-        out["step_tau_h"] = t.best.tau
-    out["wall_s"] = time.perf_counter() - t0
-    return out
+    final = trends_upto(hours, y, s, len(hours))  # final-visit verdicts: stable and sudden lives
+    return LifeChallengeResult(
+        life.name, life.kind, life.group, tuple(life.effects), life.visits, life.interval, life.noise_m * 1e6,
+        tuple(float(h) for h in hours), k_true, f1.tolist(), score_predictions(preds, k_true, hours),
+        score_predictions(base_preds, k_true, hours) if f1_threshold is not None else None, followed,
+        {p: t.significant for p, t in final.items()}, {p: t.model for p, t in final.items()},
+        _step_verdict(life, hours, final), time.perf_counter() - t0)
+
+
+def _step_verdict(life: ChallengeLife, hours: np.ndarray, final: Mapping[str, Trend]) -> StepVerdict | None:
+    """A sudden damage's step parameter at the last visit: change point placed between the right visits?"""
+    if life.kind != "sudden" or life.step_parameter is None or life.step_parameter not in final:
+        return None
+    t = final[life.step_parameter]
+    ok = t.model == "change_point" and t.best.tau is not None and \
+        _bracket(hours, life.step_hours) == _bracket(hours, t.best.tau)
+    return StepVerdict(bool(ok), t.best.tau)
 
 
 def needs_diagnosis(followed: Followed, ests: Sequence[VisitEstimates], j: int, done: int) -> bool:
@@ -270,22 +262,6 @@ def _baseline_prediction(hh: np.ndarray, f1_rel: np.ndarray, thr: float, life: C
                            seen_at_visits(trips, 0.0, life.interval))
 
 
-def _score(preds: list[VisitPrediction], life: ChallengeLife, k_true: int | None, hours: np.ndarray
-           ) -> dict[str, Any]:
-    if k_true is None:
-        return {"predictions": len(preds), "covered": None, "alpha_lambda": None, "prognostic_horizon_h": None}
-    sig = [p for p in preds if p.significant]
-    covered = [interval_covers(p.interval_visits, k_true) for p in sig]
-    t_eol = float(hours[k_true])
-    times = [p.hours for p in sig]
-    samples = [p.samples_seen for p in sig]
-    return {"predictions": len(sig), "covered": int(sum(covered)), "coverage": (sum(covered) / len(covered))
-            if covered else None,
-            "alpha_lambda": alpha_lambda(times, samples, t_eol), "prognostic_horizon_h": prognostic_horizon(
-                times, samples, t_eol),
-            "intervals": [p.interval_visits for p in sig]}
-
-
 # --- the whole challenge --------------------------------------------------------------------------------------
 def f1_alarm_threshold(params: str = "table2") -> float:
     """The baseline's alarm: relative f1 change of the reference life at its first FAULT (truth, noise-free)."""
@@ -298,60 +274,6 @@ def f1_alarm_threshold(params: str = "table2") -> float:
     return first_natural_frequency(recs[k]) / first_natural_frequency(recs[0]) - 1.0
 
 
-@dataclass
-class ChallengeResult:
-    # each life's result and the summary are the challenge's JSON document (written as is by shm health-challenge;
-    # a life's result crosses the process pool and the scale-out runner as that JSON-ready dict)
-    lives: list[dict[str, Any]]
-    summary: dict[str, Any]
-    wall_s: float
-    f1_threshold: float
-    extra: dict[str, Any] = field(default_factory=dict)
-
-
-def summarise(lives: Sequence[dict[str, Any]]) -> dict[str, Any]:
-    def agg(key: str, group: str | None = None) -> dict[str, Any]:
-        tr = [x[key] for x in lives if x["kind"] == "trend" and x[key] is not None and
-              x[key].get("coverage") is not None and (group is None or x.get("group") == group)]
-        n_pred = sum(t["predictions"] for t in tr)
-        n_cov = sum(t["covered"] for t in tr)
-        al = [t["alpha_lambda"] for t in tr if t["alpha_lambda"] is not None]
-        ph = [t["prognostic_horizon_h"] for t in tr]
-        return {"lives_scored": len(tr), "predictions": n_pred,
-                "coverage": n_cov / n_pred if n_pred else None,
-                "alpha_lambda": (sum(al) / len(al)) if al else None, "alpha_lambda_lives": len(al),
-                "prognostic_horizon_h_median": float(np.median([p for p in ph if p is not None]))
-                if any(p is not None for p in ph) else None,
-                "lives_with_a_horizon": sum(p is not None for p in ph)}
-
-    stable = [x for x in lives if x["kind"] == "stable"]
-    sudden = [x for x in lives if x["kind"] == "sudden"]
-    return {
-        "physics": agg("physics"), "baseline": agg("baseline") if all(x["baseline"] is not None for x in lives)
-        else None,
-        "stable_no_trend": (sum(not any(x["final_significant"].values()) for x in stable) / len(stable))
-        if stable else None, "stable_lives": len(stable),
-        "sudden_placed": (sum(bool(x.get("step_placed")) for x in sudden) / len(sudden)) if sudden else None,
-        "sudden_lives": len(sudden),
-        "trend_lives_without_fault": [x["life"] for x in lives if x["kind"] == "trend" and
-                                      x["true_first_fault_visit"] is None],
-        "by_group": {g: {"physics": agg("physics", g), "baseline": agg("baseline", g)
-                         if all(x["baseline"] is not None for x in lives) else None}
-                     for g in sorted({x.get("group", "core") for x in lives if x["kind"] == "trend"})},
-        "effect_cause_followed": _cause_followed(lives),
-    }
-
-
-def _cause_followed(lives: Sequence[dict[str, Any]]) -> dict[str, Any] | None:
-    """Lives where an added effect degrades: the share whose re-estimated set became that effect's parameters."""
-    eff = [x for x in lives if x.get("effects")]
-    if not eff:
-        return None
-    right = [x["life"] for x in eff if x["followed"]["switched"] and set(x["followed"]["effects"]) == set(x["effects"])]
-    return {"lives": len(eff), "followed_to_the_effect": len(right) / len(eff),
-            "not_followed": [x["life"] for x in eff if x["life"] not in right]}
-
-
 def run_challenge(lives: Sequence[ChallengeLife], params: str = "table2", workers: int | None = None,
                   progress: Callable[[str], None] | None = None, scheduler: str | None = None) -> ChallengeResult:
     """Every life (process pool of ``workers``; with ``scheduler``, one task per life on the scale-out runner:
@@ -360,11 +282,11 @@ def run_challenge(lives: Sequence[ChallengeLife], params: str = "table2", worker
     trip_boundary(params)  # computed (or loaded) once before the workers start
     thr = f1_alarm_threshold(params)
     n = workers if workers is not None else min(len(lives), os.cpu_count() or 1)
-    out: list[dict[str, Any]] = []
+    out: list[LifeChallengeResult] = []
     if scheduler is not None:
         from studies.batch.cases import run_cases
 
-        def shown(x: dict[str, Any]) -> None:  # each life in life order, as soon as the lives before it are in
+        def shown(x: LifeChallengeResult) -> None:  # each life in life order, as soon as the lives before it are in
             if progress:
                 progress(_life_line(x))
         out = run_cases(run_life_challenge, [(life, params, thr) for life in lives], scheduler=scheduler,
@@ -384,19 +306,20 @@ def run_challenge(lives: Sequence[ChallengeLife], params: str = "table2", worker
     return ChallengeResult(out, summarise(out), time.perf_counter() - t0, thr)
 
 
-def _life_line(x: dict[str, Any]) -> str:
-    ph = x["physics"]
-    cov = "" if ph.get("coverage") is None else f"coverage {ph['covered']}/{ph['predictions']}"
-    al = "" if ph.get("alpha_lambda") is None else f", alpha-lambda {'ok' if ph['alpha_lambda'] else 'missed'}"
+def _life_line(x: LifeChallengeResult) -> str:
+    ph = x.physics
+    cov = "" if ph.coverage is None else f"coverage {ph.covered}/{ph.predictions}"
+    al = "" if ph.alpha_lambda is None else f", alpha-lambda {'ok' if ph.alpha_lambda else 'missed'}"
     extra = ""
-    if x["kind"] == "stable":
-        extra = "no significant trend" if not any(x["final_significant"].values()) else \
-            f"FALSE TREND {x['final_models']}"
-    if x["kind"] == "sudden":
-        extra = f"step placed: {x.get('step_placed')} (tau {x.get('step_tau_h')})"
-    fault = x["true_first_fault_visit"]  # 0-based index; printed as the visit number (1 = entry into service)
-    fol = x.get("followed") or {}
-    if fol.get("switched"):
-        extra += f" [followed: {', '.join(fol['free'])} from {fol['diagnosed_visit_hours']:g} h]"
-    return (f"  {x['life']:<34} first FAULT visit {fault + 1 if fault is not None else '-':>4}  {cov}{al} {extra}"
-            f"  ({x['wall_s']:.1f} s)")
+    if x.kind == "stable":
+        extra = "no significant trend" if not any(x.final_significant.values()) else \
+            f"FALSE TREND {x.final_models}"
+    if x.kind == "sudden":
+        placed, tau = (None, None) if x.step is None else (x.step.placed, x.step.tau_h)
+        extra = f"step placed: {placed} (tau {tau})"
+    fault = x.true_first_fault_visit  # 0-based index; printed as the visit number (1 = entry into service)
+    d = x.followed.diagnosed_visit
+    if x.followed.switched and d is not None:
+        extra += f" [followed: {', '.join(x.followed.free)} from {x.hours[d]:g} h]"
+    return (f"  {x.life:<34} first FAULT visit {fault + 1 if fault is not None else '-':>4}  {cov}{al} {extra}"
+            f"  ({x.wall_s:.1f} s)")

@@ -114,21 +114,23 @@ def test_prognosis_challenge_fast_subset():
     damage): the physics-based forecast holds the true first FAULT visit, the stable laminate shows no trend, the
     step is placed between the right visits, and the feature-only baseline is scored on the same lives."""
     s = _smoke_challenge(effect_group=False)
-    assert s["physics"]["lives_scored"] == 1 and s["physics"]["predictions"] >= 2
-    assert s["physics"]["coverage"] >= 0.85
-    assert s["stable_no_trend"] == 1.0 and s["sudden_placed"] == 1.0
-    assert s["baseline"] is not None and s["baseline"]["predictions"] >= 1
-    assert s["physics"]["coverage"] >= s["baseline"]["coverage"]
+    assert s.physics.lives_scored == 1 and s.physics.predictions >= 2
+    assert s.physics.coverage is not None and s.physics.coverage >= 0.85
+    assert s.stable_no_trend == 1.0 and s.sudden_placed == 1.0
+    assert s.baseline is not None and s.baseline.predictions >= 1
+    assert s.baseline.coverage is not None and s.physics.coverage >= s.baseline.coverage
 
 
 def test_prognosis_challenge_fast_subset_follows_a_growing_leakage_to_its_cause():
     """The smoke size's patch whose leakage grows: followed to its cause (G_leak re-estimated and trended), and the
     physics-based forecast holds the true first FAULT visit."""
     s = _smoke_challenge(effect_group=True)
-    assert s["effect_cause_followed"]["followed_to_the_effect"] == 1.0
-    assert s["by_group"]["effect"]["physics"]["coverage"] >= 0.85
-    assert s["physics"]["lives_scored"] == 1 and s["physics"]["predictions"] >= 2
-    assert s["physics"]["coverage"] >= 0.85 and s["physics"]["coverage"] >= s["baseline"]["coverage"]
+    assert s.effect_cause_followed is not None and s.effect_cause_followed.followed_to_the_effect == 1.0
+    effect = s.by_group["effect"].physics
+    assert effect.coverage is not None and effect.coverage >= 0.85
+    assert s.physics.lives_scored == 1 and s.physics.predictions >= 2
+    assert s.baseline is not None and s.baseline.coverage is not None
+    assert s.physics.coverage is not None and s.physics.coverage >= 0.85 and s.physics.coverage >= s.baseline.coverage
 
 
 def test_metrics_follow_progpy_definitions():

@@ -63,7 +63,7 @@ def test_the_challenge_and_evaluate_judge_alpha_lambda_alike():
     met, ``--evaluate`` missed."""
     import numpy as np
 
-    from studies.health.challenge import ChallengeLife, VisitPrediction, _score
+    from studies.health.challenge_results import VisitPrediction, score_predictions
     from studies.health.evaluate import SweepPrediction, evaluate_sweep
 
     hours = np.arange(0.0, 1100.0, 100.0)
@@ -76,8 +76,7 @@ def test_the_challenge_and_evaluate_judge_alpha_lambda_alike():
         sweep.append(SweepPrediction(as_of_hours=t, visits_used=int(t // 100) + 1, significant=True,
                                      trip_hours_median=m, trip_interval_90=[m, m], lower_bound_hours=None,
                                      rul_median_hours=m - t, rul_interval_90=[m - t, m - t], samples=s))
-    life = ChallengeLife("t", (), visits=11)
-    scored = _score(challenge_preds, life, 10, hours)
+    scored = score_predictions(challenge_preds, 10, hours)
     ev = evaluate_sweep(sweep, 1000.0, lambdas=(0.5,))
     assert ev["alpha_lambda"][0]["prediction_hours"] == 700.0
-    assert scored["alpha_lambda"] is ev["alpha_lambda"][0]["ok"] is False
+    assert scored.alpha_lambda is ev["alpha_lambda"][0]["ok"] is False

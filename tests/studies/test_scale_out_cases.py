@@ -172,10 +172,10 @@ def test_health_challenge_subset_is_the_same_in_this_process_and_on_two_local_wo
     lines: list[str] = []
     here = run_challenge(lives, workers=2, scheduler="synchronous")
     local = run_challenge(lives, workers=2, scheduler="local", progress=lines.append)
-    assert [x["life"] for x in local.lives] == [x["life"] for x in here.lives] == [life.name for life in lives]
-    assert timeless(local.lives) == timeless(here.lives)
-    assert json.dumps(local.summary, sort_keys=True, default=str) == json.dumps(here.summary, sort_keys=True,
-                                                                                default=str)
+    assert [x.life for x in local.lives] == [x.life for x in here.lives] == [life.name for life in lives]
+    assert timeless(local.to_json()["lives"]) == timeless(here.to_json()["lives"])
+    assert json.dumps(local.summary.to_json(), sort_keys=True, default=str) == json.dumps(
+        here.summary.to_json(), sort_keys=True, default=str)
     assert [ln.split()[0] for ln in lines] == [life.name for life in lives]
 
 
