@@ -154,6 +154,8 @@ _COMMANDS = st.builds(lambda k, v: encode_command_block(ActuatorCommand(seq=k, v
                       st.integers(1, 10_000), st.floats(-1500.0, 1500.0))
 
 
+@pytest.mark.integration
+@pytest.mark.slow  # ~5 s: 120 requests to two stubs, the dropped replies waited out
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(fc=st.sampled_from([3, 4, 16, 23]), address=_ADDRESSES, count=st.integers(1, 125),
        words=st.one_of(_COMMANDS, _WORDS), read_address=_ADDRESSES, tid=st.integers(0, 0xFFFF),
@@ -167,6 +169,7 @@ def test_the_hot_path_answers_byte_for_byte_as_pymodbus(twin_stubs, fc, address,
     assert {k: v for k, v in hot_stats.items() if k != "hot_path_answers"} == dict(old_stats)
 
 
+@pytest.mark.integration
 def test_the_hot_path_answers_the_board_exchanges_and_leaves_the_rest_to_pymodbus(twin_stubs):
     hot, old, hot_stats, old_stats = twin_stubs
     before = hot_stats["hot_path_answers"]
@@ -187,6 +190,7 @@ def test_the_hot_path_answers_the_board_exchanges_and_leaves_the_rest_to_pymodbu
     assert hot_stats["other_unit_ignored"] >= 1 and hot_stats["stale_requests_skipped"] >= 1
 
 
+@pytest.mark.integration
 def test_a_delay_leaves_the_request_to_pymodbus():
     """--processing-ms makes the action hook wait: such a stub answers through pymodbus, not the hot path."""
     plan = FaultPlan(link=LinkFaults(processing_s=0.001))
@@ -206,6 +210,7 @@ def realtime_stub() -> Iterator[tuple[HilService, int, dict]]:
         yield hil, srv.port, srv.stats
 
 
+@pytest.mark.integration
 def test_pymodbus_client_exchanges_with_the_hot_path(realtime_stub):
     _hil, port, stats = realtime_stub
     client = ModbusTcpClient("127.0.0.1", port=port, timeout=2.0)
@@ -230,6 +235,7 @@ def test_pymodbus_client_exchanges_with_the_hot_path(realtime_stub):
     assert stats["hot_path_answers"] == 3 + 2 * 2 + 2 and stats["commands"] == 5  # FC 23 x3, FC 16+04 x2, 2 reads
 
 
+@pytest.mark.integration
 @pytest.mark.skipif(shutil.which("mbpoll") is None, reason="mbpoll is not installed")
 def test_mbpoll_reads_the_input_registers(realtime_stub):
     _hil, port, stats = realtime_stub
