@@ -41,7 +41,8 @@ RUN_MARKERS: dict[str, str] = {
 }
 
 
-def add_force_arg(p: argparse.ArgumentParser, what: str) -> None:
+def add_force_arg(p: argparse._ActionsContainer, what: str) -> None:
+    """``--force`` on ``p`` (a parser, or a group of options that exclude each other)."""
     p.add_argument("--force", action="store_true", help=f"replace {what} when it exists (refused otherwise)")
 
 

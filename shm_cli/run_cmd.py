@@ -43,6 +43,7 @@ from shm_cli.common import (
 )
 from shm_cli.live_args import add_live_args, attach_live_board, refuse_live_for_a_life, start_live
 from shm_cli.output_folder import last_visit_number, previous_run, remove_run_outputs
+from shm_cli.output_guard import add_force_arg
 from shm_cli.stop_signal import StopOnSignal, StoppableScheduler
 from studies.board_run.timeline import format_event
 
@@ -92,9 +93,7 @@ def register(sub: argparse._SubParsersAction) -> None:
     keep.add_argument("--append", action="store_true",
                       help="add this run to the usage.db already in --out (must be an mfc-shm usage log); the "
                            "other files are rewritten for this run")
-    keep.add_argument("--force", action="store_true",
-                      help="replace an earlier run's files in --out (without it a directory holding a run is "
-                           "refused)")
+    add_force_arg(keep, "an earlier run in --out")
     p.add_argument("--log-sync", choices=("normal", "full"), default="normal",
                    help="SQLite synchronous mode of the usage log: normal (every committed record survives a killed "
                         "process; default) or full (also an OS crash or power cut; one fsync per record)")
