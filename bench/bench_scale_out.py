@@ -86,7 +86,56 @@ def _fleet_health(base: Path, n: int) -> dict:
             "fleet_cores_obtained_2_workers": two["task_cpu_s"] / two["wall_s"],
             "fleet_per_task_overhead_s": (one["wall_s"] - one["task_wall_s"]) / len(boards),
             "fleet_bytes_scattered": one["bytes_scattered"], "fleet_bytes_returned": one["bytes_returned"],
-            "fleet_table_equal_1_vs_2_workers": same}
+            "fleet_table_equal_1_vs_2_workers": same,
+            # why the speed-up is what it is, from the runs' own per-task cost records (CPU, not the noisy ratio)
+            "fleet_speedup_explained": explain_speedup(one, two)}
+
+
+def list_makespan(durations: list[float], workers: int) -> float:
+    """When the last task ends (s) if the tasks start in this order, each on the first worker free (what Dask does
+    with one thread per worker)."""
+    free = [0.0] * workers
+    for d in durations:
+        i = free.index(min(free))
+        free[i] += d
+    return max(free)
+
+
+def explain_speedup(one: dict, two: dict, workers: int = 2) -> dict:
+    """The speed-up ``workers`` vs 1 the 1-worker run's own cost record allows (Amdahl): its serial part (connect,
+    the warm-up waited for, scatter, a worker's first task beyond the others — paid once per worker, in parallel) and
+    its tasks' times in their start order, shared over the workers first free (the imbalance of the last wave); and
+    what the run on ``workers`` lost beyond that: its tasks ran slower beside each other (wall and own-thread CPU,
+    summed over the same tasks) and the workers' own threads (event loop, heartbeats, profiler) took CPU beside the
+    task. Empty when the cost has no per-task record."""
+    tasks1 = sorted(one.get("tasks") or [], key=lambda t: t.get("start_s") or 0.0)
+    tasks2 = two.get("tasks") or []
+    if not tasks1 or not tasks2:
+        return {}
+    ph1, ph2 = one.get("phases_s", {}), two.get("phases_s", {})
+    first = max(0.0, ph1.get("first_task_extra", 0.0))
+    serial = ph1.get("connect", 0.0) + ph1.get("warm", 0.0) + ph1.get("scatter", 0.0) + first
+    steady = [t["wall_s"] for t in tasks1]
+    steady[0] -= first
+    makespan = list_makespan(steady, workers)
+    ideal_wall = serial + makespan
+
+    def other_threads(tasks: list[dict]) -> float:
+        own = sum(t["thread_cpu_s"] for t in tasks)
+        return (sum(t["cpu_s"] for t in tasks) - own) / own if own else 0.0
+
+    return {"serial_s": serial, "serial_parts_s": {k: ph1.get(k, 0.0) for k in ("connect", "warm", "scatter")}
+            | {"first_task_extra": first}, "task_wall_s": {t["key"]: t["wall_s"] for t in tasks1},
+            "tasks_s": sum(steady), "makespan_on_workers_s": makespan,
+            "imbalance": makespan / (sum(steady) / workers),
+            "ideal_wall_s": ideal_wall, "ideal_speedup": one["wall_s"] / ideal_wall,
+            "task_wall_slowdown": sum(t["wall_s"] for t in tasks2) / sum(t["wall_s"] for t in tasks1),
+            "task_thread_cpu_slowdown": sum(t["thread_cpu_s"] for t in tasks2) / max(
+                1e-9, sum(t["thread_cpu_s"] for t in tasks1)),
+            "worker_threads_cpu_share_1_worker": other_threads(tasks1),
+            "worker_threads_cpu_share_workers": other_threads(tasks2),
+            "measured_speedup": one["wall_s"] / two["wall_s"],
+            "serial_s_workers_run": sum(ph2.get(k, 0.0) for k in ("connect", "warm", "scatter", "first_task_extra"))}
 
 
 def _fixed_part(cost: dict, n: int) -> dict:
@@ -133,6 +182,7 @@ def run(out_dir: Path, quick: bool) -> dict:
         "preloaded_wall_1_worker_s": one_p["wall_s"], "preloaded_wall_2_workers_s": two_p["wall_s"],
         "preloaded_speedup_2_vs_1": one_p["wall_s"] / two_p["wall_s"],
         "preloaded_fixed_1_worker": _fixed_part(one_p, n), "preloaded_fixed_2_workers": _fixed_part(two_p, n),
+        "speedup_explained": explain_speedup(one, two),
         "preloaded_summary_equal": (base / "one_preloaded" / "summary.csv").read_bytes() == (
             base / "one" / "summary.csv").read_bytes() == (base / "two_preloaded" / "summary.csv").read_bytes(),
         **_fleet_health(base / "fleet", 4 if quick else 8),

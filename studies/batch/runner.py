@@ -49,6 +49,10 @@ class TaskResult:
     wall_s: float = 0.0
     cpu_s: float = 0.0
     worker: str = ""
+    #: CPU of the task's own thread (s; ``cpu_s`` is the whole worker process's: its Dask threads too) and when the
+    #: task started (epoch s, the worker's clock): the per-task record of the run's cost
+    thread_cpu_s: float = 0.0
+    started: float = 0.0
 
 
 @dataclass
@@ -85,11 +89,15 @@ class BatchOutcome:
 
     def cost(self) -> dict[str, Any]:
         task_wall = sum(r.wall_s for r in self.results)
+        t0 = min((r.started for r in self.results if r.started), default=0.0)
+        per_task = [{"key": r.key, "worker": r.worker, "start_s": r.started - t0 if r.started else None,
+                     "wall_s": r.wall_s, "cpu_s": r.cpu_s, "thread_cpu_s": r.thread_cpu_s} for r in self.results]
         return {"scheduler": self.scheduler, "workers": self.n_workers, "workers_lost": self.workers_lost,
                 "reruns": self.reruns, "wall_s": self.wall_s, "task_wall_s": task_wall,
                 "task_cpu_s": sum(r.cpu_s for r in self.results), "warm_s": self.warm_s,
                 "bytes_scattered": self.bytes_scattered, "bytes_returned": self.bytes_returned,
-                "phases_s": self.phases_s}
+                "task_thread_cpu_s": sum(r.thread_cpu_s for r in self.results),
+                "phases_s": self.phases_s, "tasks": per_task}
 
 
 # --- connecting --------------------------------------------------------------------------------------------------
@@ -157,6 +165,19 @@ def _first_done(client: Any, futures: list[Any]) -> list[Any]:
     return [f for f in futures if f.done()]
 
 
+def timed_task(fn: TaskFn, key: str, files: dict[str, bytes], shared: dict[str, bytes], options: Any) -> Any:
+    """``fn(key, files, shared, options)``, its result stamped with when it started and the CPU of this thread
+    alone (what the task itself used, apart from the worker's own threads: event loop, heartbeats, profiler); its
+    wall and process CPU too when ``fn`` left them unset."""
+    started, t0, c0, th0 = time.time(), time.perf_counter(), time.process_time(), time.thread_time()
+    result = fn(key, files, shared, options)
+    if isinstance(result, TaskResult):
+        result.started, result.thread_cpu_s = started, time.thread_time() - th0
+        if not result.wall_s and not result.cpu_s:
+            result.wall_s, result.cpu_s = time.perf_counter() - t0, time.process_time() - c0
+    return result
+
+
 # --- running -----------------------------------------------------------------------------------------------------
 def run_tasks(tasks: list[tuple[str, dict[str, bytes]]], fn: TaskFn, options: Any, *,
               shared: dict[str, bytes] | None = None, scheduler: str | None = None, workers: int | None = None,
@@ -194,7 +215,7 @@ def _run_here(tasks, fn, options, shared, warm, progress, on_result) -> BatchOut
         warm_s["this process"] = time.perf_counter() - t0
     results = []
     for i, (key, files) in enumerate(sorted(tasks, key=lambda t: t[0])):
-        results.append(fn(key, files, shared, options))
+        results.append(timed_task(fn, key, files, shared, options))
         if on_result is not None:
             on_result(results[-1])
         if progress is not None:
@@ -221,7 +242,7 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_resul
     def submit(key: str) -> Any:
         attempts[key] += 1
         # longest first (by its input's bytes) when asked: the last wave is then the short tasks
-        return client.submit(fn, key, inputs[key], shared_f, options, pure=False,
+        return client.submit(timed_task, fn, key, inputs[key], shared_f, options, pure=False,
                              priority=size_of[key] if longest_first else 0,
                              key=f"shm-{key}-{run_id}-{attempts[key]}")
 

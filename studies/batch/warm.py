@@ -16,11 +16,33 @@ WARM_S: dict[str, float] = {}
 #: per thread and is meant to have one core (``--nthreads 1``, one worker per core), so a task that split its
 #: batches over every CPU of the machine would compete with the next worker's task for the same cores
 TASK_THREADS = "1"
+#: the worker's periodic callbacks of its statistical profiler (``distributed.worker.profile``: the task thread's
+#: stack sampled every 10 ms of wall time, for the dashboard): 4-18 % of a health task's CPU on a thread beside the
+#: task, which on a full machine is taken from the next worker's task (docs/scale-out.md, "Why the fleet lagged")
+PROFILER_CALLBACKS = ("profile", "profile-cycle")
 
 
 def warm_seconds() -> dict[str, float]:
     """What the warm-up cost on this worker (s); run on every worker with ``client.run``."""
     return dict(WARM_S)
+
+
+def profiler_running() -> bool:
+    """Whether this worker's statistical profiler still samples its tasks; run with ``client.run``."""
+    from distributed import get_worker
+
+    callbacks = get_worker().periodic_callbacks
+    return any(name in callbacks and callbacks[name].is_running() for name in PROFILER_CALLBACKS)
+
+
+def stop_profiler(worker: Any) -> None:
+    """Stop the worker's statistical profiler for the worker's life (removed from its periodic callbacks, so a
+    worker that starts them after its plugins' setup does not restart it)."""
+    callbacks = getattr(worker, "periodic_callbacks", {})
+    for name in PROFILER_CALLBACKS:
+        pc = callbacks.pop(name, None)
+        if pc is not None:
+            pc.stop()
 
 
 def task_threads() -> str | None:
@@ -30,7 +52,8 @@ def task_threads() -> str | None:
 
 class WarmPlugin(WorkerPlugin):
     """On every worker before it runs a task — a worker that joins later too: one integration thread per task
-    (:data:`TASK_THREADS`, whatever the worker inherited), then ``warm()`` if given."""
+    (:data:`TASK_THREADS`, whatever the worker inherited), no statistical profiler beside the task, then ``warm()``
+    if given."""
 
     name = "mfc-shm-warm"
 
@@ -39,6 +62,7 @@ class WarmPlugin(WorkerPlugin):
 
     def setup(self, worker: Any) -> None:
         os.environ["MFC_SHM_THREADS"] = TASK_THREADS
+        stop_profiler(worker)
         t0 = time.perf_counter()
         if self.warm is not None:
             self.warm()
