@@ -5,13 +5,22 @@ from __future__ import annotations
 import argparse
 import functools
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from shm_cli.batch_records import run_batch, wanted
 from shm_cli.command_args import add_command, add_holdout_args, add_record_inputs
 from shm_cli.common import Decorations, dump_json, out_dir, output_file_arg, seed_int
 from shm_cli.output_guard import add_force_arg, check_new_file, locked_out, write_whole
+
+if TYPE_CHECKING:
+    from board_config import ParameterSet
+    from workbench.diagnose import ProgressPlot
+    from workbench.fit import FitHistoryPoint, FitOutcome, FitReport, FitStatistics
+
+#: fit.html's tables: (title, header, rows)
+Table = tuple[str, list[str], list[list[str]]]
 
 
 def register(sub: argparse._SubParsersAction) -> None:
@@ -103,7 +112,7 @@ def _fit(args: argparse.Namespace, out: Path, save: Path | None) -> int:
         print(f"{'iter':>5} {'sims':>6} {'train error (σ)':>16}  parameters", file=sys.stderr)
         progress.append(ProgressPlot(out / "fit_progress.png", train, held))
 
-    def on_iteration(pt) -> None:
+    def on_iteration(pt: FitHistoryPoint) -> None:
         vals = "  ".join(f"{k}={v:.4g}" for k, v in pt.values.items())
         print(f"{pt.iteration:5d} {pt.n_sims:6d} {pt.train_rms_sigma:16.4g}  {vals}", file=sys.stderr, flush=True)
         if progress and "fit_progress.png" not in deco.failed:  # a live figure that fails must not stop the fit
@@ -142,15 +151,15 @@ def _fit(args: argparse.Namespace, out: Path, save: Path | None) -> int:
 
 
 
-def _write_figures_and_page(out: Path, rep: Any, base_name: str, progress: list[Any], deco: Decorations,
-                            tables: list[Any], notes: list[str]) -> list[Path]:
+def _write_figures_and_page(out: Path, rep: FitReport, base_name: str, progress: list[ProgressPlot],
+                            deco: Decorations, tables: list[Table], notes: list[str]) -> list[Path]:
     """The fit's progress and overlay figures and its HTML page (a failure is recorded in ``deco``, not raised)."""
     from workbench.diagnose import ProgressPlot, overlay_figure, write_html
     from workbench.fit import fit_warnings
 
     o = rep.outcome
 
-    def progress_figure():
+    def progress_figure() -> Path:
         plot = progress[0] if progress else ProgressPlot(out / "fit_progress.png", rep.before_train_rms_sigma,
                                                              rep.before_held_rms_sigma)
         plot.draw(held_after=o.held_rms_sigma)
@@ -171,7 +180,7 @@ def _write_figures_and_page(out: Path, rep: Any, base_name: str, progress: list[
     return figures
 
 
-def _save_set(rep, save: Path, force: bool):
+def _save_set(rep: FitReport, save: Path, force: bool) -> ParameterSet:
     """Write the fitted parameter set to ``save`` (atomically) and check that it loads as `shm run` will load it."""
     from board_config import load_parameter_set
     from plant import PlantModel
@@ -190,7 +199,8 @@ def _save_set(rep, save: Path, force: bool):
     return pset
 
 
-def _print_results(say, rep, header: list[str], rows: list[list[str]], notes: list[str]) -> None:
+def _print_results(say: Callable[[str], None], rep: FitReport, header: list[str], rows: list[list[str]],
+                   notes: list[str]) -> None:
     """The before/after table and the error change (``say``), then the fit report as lmfit prints it (statistics,
     variables, correlations, warnings; always on stderr) and the notes."""
     from workbench.fit import format_report
@@ -216,14 +226,14 @@ def _output_dir(out: str | None, save: Path | None) -> Path:
     return out_dir(".", option="--out (default: the current directory)")
 
 
-def _before_after(rep) -> tuple[list[str], list[list[str]]]:
+def _before_after(rep: FitReport) -> tuple[list[str], list[list[str]]]:
     header = ["record", "channel", "part", "RMS before", "before (σ)", "RMS after", "after (σ)", "fit %"]
     rows = [[b.record, b.channel, b.part, f"{b.rms:.4g} {b.unit}", f"{b.rms_sigma:.3g}", f"{a.rms:.4g} {a.unit}",
              f"{a.rms_sigma:.3g}", f"{b.fit_pct:.2f} → {a.fit_pct:.2f}"] for b, a in zip(rep.before, rep.after)]
     return header, rows
 
 
-def _report_tables(o) -> list[tuple[str, list[str], list[list[str]]]]:
+def _report_tables(o: FitOutcome) -> list[Table]:
     """fit.html's tables of the fit report: statistics, estimates, the correlation matrix."""
     from workbench.fit import fit_statistics
 
@@ -239,7 +249,7 @@ def _report_tables(o) -> list[tuple[str, list[str], list[list[str]]]]:
     ]
 
 
-def _statistics_rows(s) -> list[list[str]]:
+def _statistics_rows(s: FitStatistics) -> list[list[str]]:
     return [["# data points (training samples × channels)", f"{s.n_data}"], ["# variables", f"{s.n_variables}"],
             ["chi-square (Σ r², r in noise σ)", f"{s.chi_square:.6g}"],
             ["reduced chi-square (≈ 1 at the noise floor)", f"{s.reduced_chi_square:.6g}"],

@@ -39,6 +39,7 @@ from workbench.fit._fitting import (
     ChannelScore,
     FitError,
     FitHistoryPoint,
+    FitReport,
     SimBatch,
     Target,
     channel_scores,
@@ -48,7 +49,14 @@ from workbench.fit._fitting import (
 )
 from workbench.fit._objective import Objective, rms
 from workbench.fit._optimiser import FitOutcome, ParameterEstimate, outcome_at, train_residual_and_jacobian
-from workbench.fit._report import fit_statistics, fit_warnings, format_report, other_notes, report_dict
+from workbench.fit._report import (
+    FitStatistics,
+    fit_statistics,
+    fit_warnings,
+    format_report,
+    other_notes,
+    report_dict,
+)
 from workbench.fit._targets import DEFAULT_BLOCKS, DEFAULT_MAX_RATE_HZ, model_factory, prepare_targets
 
 __all__ = [
@@ -70,6 +78,8 @@ __all__ = [
     "FitError",
     "FitHistoryPoint",
     "FitOutcome",
+    "FitReport",
+    "FitStatistics",
     "Objective",
     "ParameterCandidate",
     "ParameterEstimate",
