@@ -172,7 +172,7 @@ def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[V
     doc["remaining_life"] = [p.to_json() for p in sweep]
     doc["truth"] = truth_document(visits, params, free, truth_ff)
     t_eol = truth_ff.operating_hours if truth_ff is not None else None  # h; assess_health checks it is known
-    doc["evaluation"] = (evaluate_sweep(sweep, t_eol, alpha=alpha, lambdas=lambdas)
+    doc["evaluation"] = (evaluate_sweep(sweep, t_eol, alpha=alpha, lambdas=lambdas).to_json()
                          | {"truth_source": truth_ff.source, "true_first_fault_visit": truth_ff.visit}
                          if evaluate and truth_ff is not None and t_eol is not None else None)
     return Assessment(doc, visits, ests, trends, fc, boundary, sweep, followed.estimates, limits)

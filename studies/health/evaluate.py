@@ -110,30 +110,65 @@ def sweep_predictions(hours: Sequence[float], rel: Mapping[str, Sequence[float]]
     return out
 
 
+@dataclass(frozen=True, slots=True)
+class ScoredPrediction:
+    """One prediction made before the true first FAULT (``t_eol``), scored: the true remaining life (h) and, for a
+    dated one (significant trend), whether it is within α of the truth, its relative accuracy and whether its 90 %
+    interval holds the truth (None for an undated one)."""
+
+    prediction: SweepPrediction
+    rul_true_hours: float
+    within_alpha: bool | None
+    relative_accuracy: float | None
+    covered: bool | None
+
+    def to_json(self) -> dict[str, Any]:  # a row of health.json's evaluation.predictions
+        return self.prediction.to_json() | {
+            "rul_true_hours": self.rul_true_hours, "within_alpha": self.within_alpha,
+            "relative_accuracy": self.relative_accuracy, "covered": self.covered}
+
+
+@dataclass(frozen=True, slots=True)
+class SweepEvaluation:
+    """The scores of the swept predictions against the true first FAULT (h): each prediction's, the α-λ verdict at
+    each λ point (:func:`.metrics.alpha_lambda_point`'s), the prognostic horizon (h), the mean relative accuracy and
+    the 90 % interval's coverage over the dated predictions."""
+
+    alpha: float
+    beta: float
+    lambdas: list[float]
+    true_first_fault_hours: float
+    predictions: list[ScoredPrediction]
+    dated_predictions: int
+    first_prediction_hours: float | None
+    alpha_lambda: list[dict[str, float | bool | None]]
+    alpha_lambda_all_met: bool | None
+    prognostic_horizon_hours: float | None
+    relative_accuracy_mean: float | None
+    coverage_90: float | None
+
+    def to_json(self) -> dict[str, Any]:  # health.json's evaluation (docs/health.md), before its truth keys
+        return {f.name: [p.to_json() for p in self.predictions] if f.name == "predictions"
+                else getattr(self, f.name) for f in fields(self)}
+
+
 def evaluate_sweep(preds: Sequence[SweepPrediction], t_eol: float, *, alpha: float = ALPHA, beta: float = BETA,
-                   lambdas: Sequence[float] = LAMBDAS) -> dict[str, Any]:
-    """The scores of the predictions made before ``t_eol`` (h, the true first FAULT visit) — JSON-ready."""
+                   lambdas: Sequence[float] = LAMBDAS) -> SweepEvaluation:
+    """The scores of the predictions made before ``t_eol`` (h, the true first FAULT visit)."""
     before = [p for p in preds if p.as_of_hours < t_eol - 1e-9]
     dated = [p for p in before if p.significant]
     times = [p.as_of_hours for p in dated]
     samples = [p.samples for p in dated]
-    rows = []
-    for p in before:
-        rows.append(p.to_json() | {
-            "rul_true_hours": t_eol - p.as_of_hours,
-            "within_alpha": within_alpha(p.samples, p.as_of_hours, t_eol, alpha, beta) if p.significant else None,
-            "relative_accuracy": relative_accuracy(p.samples, p.as_of_hours, t_eol) if p.significant else None,
-            "covered": interval_covers(p.trip_interval_90, t_eol) if p.significant else None})
-    ras = [r["relative_accuracy"] for r in rows if r["relative_accuracy"] is not None]
-    covered = [r["covered"] for r in rows if r["covered"] is not None]
+    rows = [ScoredPrediction(
+        p, t_eol - p.as_of_hours,
+        within_alpha(p.samples, p.as_of_hours, t_eol, alpha, beta) if p.significant else None,
+        relative_accuracy(p.samples, p.as_of_hours, t_eol) if p.significant else None,
+        interval_covers(p.trip_interval_90, t_eol) if p.significant else None) for p in before]
+    ras = [r.relative_accuracy for r in rows if r.relative_accuracy is not None]
+    covered = [r.covered for r in rows if r.covered is not None]
     points = [alpha_lambda_point(times, samples, t_eol, lam=lam, alpha=alpha, beta=beta) for lam in lambdas]
-    return {
-        "alpha": alpha, "beta": beta, "lambdas": list(lambdas), "true_first_fault_hours": t_eol,
-        "predictions": rows, "dated_predictions": len(dated), "first_prediction_hours": times[0] if times else None,
-        "alpha_lambda": points,
-        "alpha_lambda_all_met": all(pt["ok"] for pt in points) if points and all(pt["ok"] is not None
-                                                                                  for pt in points) else None,
-        "prognostic_horizon_hours": prognostic_horizon(times, samples, t_eol, alpha=alpha, beta=beta),
-        "relative_accuracy_mean": float(np.mean(ras)) if ras else None,
-        "coverage_90": (sum(covered) / len(covered)) if covered else None,
-    }
+    return SweepEvaluation(
+        alpha, beta, list(lambdas), t_eol, rows, len(dated), times[0] if times else None, points,
+        all(pt["ok"] for pt in points) if points and all(pt["ok"] is not None for pt in points) else None,
+        prognostic_horizon(times, samples, t_eol, alpha=alpha, beta=beta),
+        float(np.mean(ras)) if ras else None, (sum(covered) / len(covered)) if covered else None)

@@ -78,5 +78,5 @@ def test_the_challenge_and_evaluate_judge_alpha_lambda_alike():
                                      rul_median_hours=m - t, rul_interval_90=[m - t, m - t], samples=s))
     scored = score_predictions(challenge_preds, 10, hours)
     ev = evaluate_sweep(sweep, 1000.0, lambdas=(0.5,))
-    assert ev["alpha_lambda"][0]["prediction_hours"] == 700.0
-    assert scored.alpha_lambda is ev["alpha_lambda"][0]["ok"] is False
+    assert ev.alpha_lambda[0]["prediction_hours"] == 700.0
+    assert scored.alpha_lambda is ev.alpha_lambda[0]["ok"] is False
