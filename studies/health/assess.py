@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
@@ -26,7 +26,13 @@ from studies.health.evaluate import (
 )
 from studies.health.follow import Followed, effect_limits, find_and_follow, series, trends_upto
 from studies.health.forecast import Forecast, forecast_trip, visit_of
-from studies.health.locate import SECTIONS, diagnose_first_name, locate_stiffness, location_sentence
+from studies.health.locate import (
+    SECTIONS,
+    LocationRun,
+    diagnose_first_name,
+    locate_stiffness,
+    location_sentence,
+)
 from studies.health.sources import load_visits
 from studies.health.trend import Trend
 from studies.health.trip import HEALTH_PARAMS, trip_boundary
@@ -153,15 +159,12 @@ def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[V
                               {n: list(v) for n, v in s_all.items()}, boundary, interval, seed=seed,
                               effect_limits=limits)
     location = _locate(visits, ests, trends, params, locate, locate_diagnose, say)
-    history = []
-    if location.get("run") and locate_visits > 1:
+    if location.found is not None and locate_visits > 1:
+        history = []
         for v in visits[-locate_visits:-1]:
             say(f"where? the visit at {v.operating_hours:g} h (--locate-visits)")
-            h = locate_stiffness(v.records, params, operating_hours=v.operating_hours).to_json()
-            history.append({k: h[k] for k in ("operating_hours", "section", "parameter", "distinguishable",
-                                              "possible_sections", "relative", "relative_stderr", "ranking",
-                                              "reason")})
-        location["history"] = [*history, {k: location[k] for k in history[0]}] if history else []
+            history.append(locate_stiffness(v.records, params, operating_hours=v.operating_hours))
+        location = replace(location, history=history)
     doc = _document(visits, all_visits, ests, trends, fc, hours, interval, as_of, params, free, location)
     doc["followed"] = followed.as_dict(hours) | {"effect_trip_limits": limits}
     if followed.estimates is not None:
@@ -213,13 +216,14 @@ def _locate_trigger(ests: list[VisitEstimates], trends: dict[str, Trend]) -> str
 
 
 def _locate(visits: list[Visit], ests: list[VisitEstimates], trends: dict[str, Trend], params: str, mode: str,
-            with_diagnose: bool, say: Callable[[str], None]) -> dict[str, Any]:
-    """health.json's ``location`` (a JSON object: the document is built from it and written as is)."""
+            with_diagnose: bool, say: Callable[[str], None]) -> LocationRun:
+    """Place the stiffness loss on the latest visit when ``mode`` asks for it (auto: when a trigger says so)."""
     why = _locate_trigger(ests, trends) if mode == "auto" else ("asked (--locate always)" if mode == "always"
                                                                   else None)
     if why is None:
-        return {"run": False, "reason": "not asked (--locate never)" if mode == "never" else
-                "no stiffness change, trend or excess residual at the latest visit (--locate always forces it)"}
+        return LocationRun("not asked (--locate never)" if mode == "never" else
+                           "no stiffness change, trend or excess residual at the latest visit (--locate always "
+                           "forces it)")
     v = visits[-1]
     extra: list[str] = []
     if with_diagnose:
@@ -239,11 +243,11 @@ def _locate(visits: list[Visit], ests: list[VisitEstimates], trends: dict[str, T
             rel = f"{100 * c.relative:+.2f} %" if c.relative is not None else "effect"
             bound = " AT ITS FIT BOUND (a limit, not an estimate)" if c.at_bound else ""
             say(f"  {c.name} alone: {rel}{bound}, held-out rss {c.held_rss_sigma2:.0f} σ² ({c.fit_wall_s:.1f} s)")
-    return found.to_json() | {"run": True, "trigger": why, "diagnose_named": extra[0] if extra else None}
+    return LocationRun(found=found, trigger=why, diagnose_named=extra[0] if extra else None)
 
 
 def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, as_of, params, free,
-              location: dict[str, Any] | None = None) -> dict[str, Any]:
+              location: LocationRun | None = None) -> dict[str, Any]:
     """health.json (docs/health.md) from the typed results: the JSON document at the edge."""
     vis = []
     for v, e in zip(visits, ests):
@@ -280,7 +284,7 @@ def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, a
     doc = {
         "params": params, "free": list(free), "as_of_hours": as_of, "visits_used": len(visits),
         "visits_later_not_used": len(later), "visits": vis, "trend": trend_doc, "forecast": f,
-        "location": location,
+        "location": None if location is None else location.to_json(),
         "board_first_fault": None if first_fault is None else {"visit": first_fault.visit,
                                                                "operating_hours": first_fault.operating_hours},
     }

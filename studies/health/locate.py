@@ -130,6 +130,33 @@ class Location:
         return out
 
 
+#: what health.json's location.history keeps of each visit's placement
+HISTORY_KEYS = ("operating_hours", "section", "parameter", "distinguishable", "possible_sections", "relative",
+                "relative_stderr", "ranking", "reason")
+
+
+@dataclass(frozen=True, slots=True)
+class LocationRun:
+    """Whether the stiffness loss was placed and why: ``found`` (None: not run, ``reason`` says why not), the
+    ``trigger`` that asked for it, what shm diagnose named first (with --locate-diagnose) and the earlier visits'
+    placements (--locate-visits; None: not asked)."""
+
+    reason: str | None = None
+    found: Location | None = None
+    trigger: str | None = None
+    diagnose_named: str | None = None
+    history: list[Location] | None = None
+
+    def to_json(self) -> dict[str, Any]:  # health.json's location (docs/health.md): JSON at the edge
+        if self.found is None:
+            return {"run": False, "reason": self.reason}
+        out = self.found.to_json() | {"run": True, "trigger": self.trigger, "diagnose_named": self.diagnose_named}
+        if self.history is not None:
+            rows = [h.to_json() for h in self.history]
+            out["history"] = [{k: r[k] for k in HISTORY_KEYS} for r in [*rows, out]] if rows else []
+        return out
+
+
 def _fit(recs: Sequence[Record], params: str, name: str, *, effect: bool, max_nfev: int) -> Any:
     from workbench.fit import fit_records
 
