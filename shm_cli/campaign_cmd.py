@@ -255,7 +255,7 @@ def _write_numbers(args: argparse.Namespace, spec: CampaignSpec, outcome: Campai
         "summary": [s.row() for s in result.summary()],
         "paper_comparison": result.paper_comparison(),
         "integration_failures": result.n_failed,
-        "clamp": outcome.clamp,
+        "clamp": {key: report.describe() for key, report in outcome.clamp.items()},
         "executor": outcome.executor,
         "wall_s": outcome.wall_s,
         "task_time_s": outcome.compute_s,

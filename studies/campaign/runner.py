@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from board_config.errors import InputError
+from firmware_sim.mbit import ClampReport
 from studies.campaign.results import CampaignResult
 from studies.campaign.spec import BatchSpec, CampaignSpec
 from studies.campaign.store import ResultStore
@@ -56,8 +57,8 @@ class CampaignOutcome:
     notes: list[str] = field(default_factory=list)
     wall_s: float = 0.0
     executor: str = ""
-    #: per MBIT key, its sequence's clamp report as campaign.json shows it (the JSON document's section)
-    clamp: dict[str, Any] = field(default_factory=dict)
+    #: per MBIT key, its sequence's clamp report (campaign.json shows each one's describe())
+    clamp: dict[str, ClampReport] = field(default_factory=dict)
     compute_s: float = 0.0  # summed task wall time over all workers (s)
     cpu_s: float = 0.0  # summed task CPU time over all workers (s): what the work costs, whatever the load
 
@@ -271,7 +272,7 @@ def run_campaign(
     model = model_from_toml(spec.params_toml)
     for m in spec.mbits:
         nominal_prediction(spec, m)  # fails fast here, and forked workers inherit it
-    clamp = {m.key: mbit_sequence(m).clamp.describe() for m in spec.mbits}
+    clamp = {m.key: mbit_sequence(m).clamp for m in spec.mbits}
     notes = [mbit_sequence(m).clamp.message(m.label) for m in spec.mbits if mbit_sequence(m).clamp.clamped]
     store = ResultStore(out_dir, spec, fresh=fresh)
     batches = spec.batches()
