@@ -35,7 +35,7 @@ from studies.health.locate import (
 )
 from studies.health.sources import load_visits
 from studies.health.trend import Trend
-from studies.health.trip import HEALTH_PARAMS, trip_boundary
+from studies.health.trip import HEALTH_PARAMS, TripBoundary, trip_boundary
 from studies.health.truth import TrueFirstFault, true_first_fault, truth_document
 
 #: what an added effect is, in words (the Where? level)
@@ -60,7 +60,7 @@ class Assessment:
     estimates: list[VisitEstimates]
     trends: dict[str, Trend]
     forecast: Forecast
-    boundary: Any
+    boundary: TripBoundary
     #: the forecast rebuilt as of each visit (:func:`.evaluate.sweep_predictions`; with trip samples)
     sweep: list[SweepPrediction] = field(default_factory=list)
     #: each visit's estimates of the set diagnose named (None: the default set was followed)
@@ -133,7 +133,7 @@ def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: floa
 
 
 def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[Visit],
-                     ests_all: list[VisitEstimates], *, params: str, free: Sequence[str], boundary: Any,
+                     ests_all: list[VisitEstimates], *, params: str, free: Sequence[str], boundary: TripBoundary,
                      truth_ff: TrueFirstFault | None, as_of: float | None, seed: int, say: Callable[[str], None],
                      locate: str = "never", locate_diagnose: bool = False, locate_visits: int = 1,
                      evaluate: bool = False, alpha: float = ALPHA, lambdas: Sequence[float] = LAMBDAS,
@@ -246,8 +246,9 @@ def _locate(visits: list[Visit], ests: list[VisitEstimates], trends: dict[str, T
     return LocationRun(found=found, trigger=why, diagnose_named=extra[0] if extra else None)
 
 
-def _document(visits, all_visits, ests, trends, fc: Forecast, hours, interval, as_of, params, free,
-              location: LocationRun | None = None) -> dict[str, Any]:
+def _document(visits: list[Visit], all_visits: list[Visit], ests: list[VisitEstimates], trends: dict[str, Trend],
+              fc: Forecast, hours: list[float], interval: float, as_of: float | None, params: str,
+              free: Sequence[str], location: LocationRun | None = None) -> dict[str, Any]:
     """health.json (docs/health.md) from the typed results: the JSON document at the edge."""
     vis = []
     for v, e in zip(visits, ests):
