@@ -18,13 +18,16 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from reporting.uncertainty_text import format_percent_change
 from studies.health.estimate import VisitParameter, join_visit_records, stopped_at_bound
 from workbench.records import Record
+
+if TYPE_CHECKING:
+    from workbench.fit import FitReport
 
 SECTIONS: dict[str, int] = {"k1": 1, "k2": 2, "k3": 3}
 NUISANCE: tuple[str, ...] = ("alpha_h", "beta_h")
@@ -157,7 +160,7 @@ class LocationRun:
         return out
 
 
-def _fit(recs: Sequence[Record], params: str, name: str, *, effect: bool, max_nfev: int) -> Any:
+def _fit(recs: Sequence[Record], params: str, name: str, *, effect: bool, max_nfev: int) -> FitReport:
     from workbench.fit import fit_records
 
     if effect:
@@ -165,7 +168,7 @@ def _fit(recs: Sequence[Record], params: str, name: str, *, effect: bool, max_nf
     return fit_records(recs, params, free=[name, *NUISANCE], max_nfev=max_nfev)
 
 
-def _candidate(rep: Any, name: str, kind: str) -> LocationCandidate:
+def _candidate(rep: FitReport, name: str, kind: str) -> LocationCandidate:
     o = rep.outcome
     est = next((e for e in o.estimates if e.name == name), None)
     mine = None if est is None else VisitParameter(
@@ -175,7 +178,7 @@ def _candidate(rep: Any, name: str, kind: str) -> LocationCandidate:
                              float(o.held_rms_sigma), float(o.train_rms_sigma), float(rep.wall_s), mine)
 
 
-def sensitivity_correlation(rep: Any, names: Sequence[str], rel_step: float = 0.01) -> np.ndarray:
+def sensitivity_correlation(rep: FitReport, names: Sequence[str], rel_step: float = 0.01) -> np.ndarray:
     """Correlation matrix of the response's sensitivities to ``names`` (relative steps of ``rel_step`` around the
     fit ``rep``'s optimum), over all samples of the records, in σ units."""
     from workbench.fit import Objective
@@ -214,12 +217,12 @@ def second_mode_hz(params: str) -> float | None:
 
 
 def _fit_candidates(recs: Sequence[Record], params: str, extra: Sequence[str], max_nfev: int
-                    ) -> tuple[dict[str, Any], list[LocationCandidate]]:
+                    ) -> tuple[dict[str, FitReport], list[LocationCandidate]]:
     """Each section stiffness (and each ``extra``) freed alone with the hysteresis pair: the fits by name and the
     candidates (an extra that cannot be fitted gets an ``error``; a section that cannot, raises)."""
     from workbench.fit import CORE_PARAMETER_NAMES
 
-    reps: dict[str, Any] = {}
+    reps: dict[str, FitReport] = {}
     cands: list[LocationCandidate] = []
     for name in [*SECTIONS, *[e for e in extra if e not in SECTIONS and e not in NUISANCE]]:
         effect = name not in SECTIONS and name not in CORE_PARAMETER_NAMES
