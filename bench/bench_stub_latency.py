@@ -25,8 +25,8 @@ event loop's clock cannot see).
 
 ``--quick``: 3 s per phase (a smoke run, not for quoting); full: 12 s per phase (12 runs, ~5 min on a quiet machine).
 ``SHM_BENCH_STUB_PHASES=under_load,rtu_under_load`` runs only the phases named, ``SHM_BENCH_STUB_VARIANTS=short_slice,
-short_slice_pymodbus_path`` only the variants named (the stub's hot Modbus TCP path against pymodbus' request chain,
-``--modbus-path pymodbus``, back to back; ``none``: only the side-by-side phase). The side-by-side phase (Modbus TCP)
+short_slice_pymodbus_path`` only the variants named (the stub's hot Modbus path against pymodbus' request chain,
+``--modbus-path pymodbus``, back to back; ``none``: only the side-by-side phase). The side-by-side phase (each phase)
 serves both request paths at once from two stubs, one client alternating between them tick by tick: on a busy machine
 the only fair comparison, since back-to-back runs meet different loads.
 """
@@ -299,8 +299,8 @@ def _add_stub_summary(res: dict, summary: Path) -> None:
 VARIANTS: dict[str, tuple[float, float | None]] = {"default_slice": (0.0, None), "short_slice": (2e-4, None),
                                                    "short_slice_clock_thread": (2e-4, None),
                                                    "short_slice_pymodbus_path": (2e-4, None)}
-#: further `shm hil serve` options of a variant; ``short_slice_pymodbus_path``: every Modbus TCP request through
-#: pymodbus' request chain, the stub before its hot path (:mod:`hil_stub.modbus_hot_path`; on RTU the same code path)
+#: further `shm hil serve` options of a variant; ``short_slice_pymodbus_path``: every Modbus request through
+#: pymodbus' request chain, the stub before its hot path (:mod:`hil_stub.modbus_hot_path`)
 VARIANT_ARGS: dict[str, tuple[str, ...]] = {"short_slice_clock_thread": ("--rig-clock", "thread"),
                                             "short_slice_pymodbus_path": ("--modbus-path", "pymodbus")}
 
@@ -341,7 +341,7 @@ def _phases() -> dict[str, tuple[bool, bool]]:
     return _named("SHM_BENCH_STUB_PHASES", PHASES) or PHASES
 
 
-#: the side-by-side comparison of the two Modbus TCP request paths (short slice, rig clock on the loop): two stubs at
+#: the side-by-side comparison of the two Modbus request paths (short slice, rig clock on the loop): two stubs at
 #: once, one client alternating between them tick by tick, so both meet the same busy machine at the same moments
 SIDE_BY_SIDE: dict[str, tuple[str, ...]] = {"hot_path": (), "pymodbus_path": ("--modbus-path", "pymodbus")}
 
@@ -359,12 +359,11 @@ def run(out_dir: Path, quick: bool) -> dict:
             res[names[-1]] = _stub_phase(seconds, out_dir / f"stub_latency_{variant}_{phase}.json",
                                          n_hogs if loaded else 0, rtu=rtu, slice_s=slice_s,
                                          clock_slice_s=clock_slice_s, extra=VARIANT_ARGS.get(variant, ()))
-        if not rtu:
-            both = _stubs_phase(seconds, [(out_dir / f"stub_latency_side_by_side_{phase}_{name}.json", extra)
-                                          for name, extra in SIDE_BY_SIDE.items()], n_hogs if loaded else 0)
-            for name, r in zip(SIDE_BY_SIDE, both, strict=True):
-                names.append(f"side_by_side_{phase}_{name}")
-                res[names[-1]] = r
+        both = _stubs_phase(seconds, [(out_dir / f"stub_latency_side_by_side_{phase}_{name}.json", extra)
+                                      for name, extra in SIDE_BY_SIDE.items()], n_hogs if loaded else 0, rtu=rtu)
+        for name, r in zip(SIDE_BY_SIDE, both, strict=True):
+            names.append(f"side_by_side_{phase}_{name}")
+            res[names[-1]] = r
     for key in names:
         _flatten(res, key)
     res["target_p99_ms"] = 1.5

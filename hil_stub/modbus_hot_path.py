@@ -1,18 +1,19 @@
-"""The stub's hot Modbus TCP path: FC 03, 04, 16 and 23 answered in the connection's data callback, straight from the
-register tables pymodbus' server holds (issue 29, point 2).
+"""The stub's hot Modbus path: FC 03, 04, 16 and 23 (over TCP and RTU) answered in the connection's data callback,
+straight from the register tables pymodbus' server holds (issue 29, point 2).
 
 Why hand-written (measured, docs/real-rig.md "The stub's answer time"): pymodbus 3.16 answers a request in steps —
 framer, request PDU object, ``call_soon`` for the handler, a task for ``handle_request``, the ``SimCore`` /
 ``SimRuntime`` awaits, a response PDU object, the framer again — so every request costs two more turns of the event
 loop and some hundred microseconds of Python; under a CPU hog per core each extra turn is a chance to lose the CPU.
-Here the request is parsed from its MBAP header, checked and answered before the data callback returns: one wake-up,
-no task, no PDU objects. pymodbus stays the Modbus library of the links and of every other function code and
-transport: the tables are pymodbus' own (the same lists, the same address / read-only checks of ``SimRuntime``), and
-the same ``action`` hook of :class:`hil_stub.modbus_server.ModbusRigServer` runs for every access, so the register map,
-exception codes, fault injection and statistics are those of the pymodbus path. What may wait (a ``--processing-ms``
-/ ``--latency-ms`` delay, building a fresh lockstep rig) is left to pymodbus: the hook never awaits on this path.
+Here the request is parsed from its MBAP header (TCP) or taken as the one whole frame with a good CRC (RTU), checked
+and answered before the data callback returns: one wake-up, no task, no PDU objects. pymodbus stays the Modbus library
+of the links and of every other function code and malformed, partial or foreign frame: the tables are pymodbus' own
+(the same lists, the same address / read-only checks of ``SimRuntime``), and the same ``action`` hook of
+:class:`hil_stub.modbus_server.ModbusRigServer` runs for every access, so the register map, exception codes, fault
+injection and statistics are those of the pymodbus path. What may wait (a ``--processing-ms`` / ``--latency-ms``
+delay, building a fresh lockstep rig) is left to pymodbus: the hook never awaits on this path.
 
-The MBAP helpers are pure (bytes in, bytes or offsets out).
+The frame helpers are pure (bytes in, bytes or offsets out).
 """
 
 from __future__ import annotations
@@ -20,6 +21,8 @@ from __future__ import annotations
 import struct
 from collections.abc import Awaitable, Callable, Coroutine
 from typing import Any, NamedTuple
+
+from pymodbus.framer.rtu import FramerRTU
 
 from drivers.modbus_registers import COMMAND_END, COMMAND_START, HOLDING_COUNT, HOLDING_START, decode_command_block
 
@@ -42,16 +45,18 @@ Block = tuple[int, int, list[int], list[int]]
 Action = Callable[[int, int, int, int, list[int], Any], Awaitable[Any]]
 
 
-class MbapRequest(NamedTuple):
-    """The head of one complete MBAP frame."""
+class Request(NamedTuple):
+    """Where one complete request frame's parts are."""
 
-    tid: int  #: transaction id (echoed)
+    tid: int | None  #: the MBAP transaction id (echoed); None on RTU
     unit: int  #: unit id (echoed)
     fc: int  #: function code
-    end: int  #: the frame's length in bytes (MBAP header + PDU)
+    pdu_start: int  #: the PDU (function code + data) is ``data[pdu_start:pdu_end]``
+    pdu_end: int
+    end: int  #: the frame's length in bytes
 
 
-def parse_mbap(data: bytes) -> MbapRequest | None:
+def parse_mbap(data: bytes) -> Request | None:
     """The first MBAP frame of ``data`` if it is complete and well formed (protocol id 0, length 2..254), else None
     (a partial frame waits for more bytes; a malformed one is pymodbus' to handle). Pure."""
     if len(data) < 8:
@@ -59,33 +64,57 @@ def parse_mbap(data: bytes) -> MbapRequest | None:
     tid, pid, length, unit, fc = _HEADER.unpack_from(data)
     if pid != 0 or not 2 <= length <= 254 or len(data) < 6 + length:
         return None
-    return MbapRequest(tid, unit, fc, 6 + length)
+    return Request(tid, unit, fc, 7, 6 + length, 6 + length)
+
+
+def parse_rtu(data: bytes) -> Request | None:
+    """``data`` as one whole Modbus RTU frame (unit id, PDU, CRC low byte first) if its CRC is good, else None (a
+    partial frame, several frames or line noise: pymodbus' framer hunts through them). Pure."""
+    if len(data) < 4 or FramerRTU.compute_CRC(data[:-2]) != int.from_bytes(data[-2:], "big"):
+        return None
+    return Request(None, data[0], data[1], 1, len(data) - 2, len(data))
 
 
 def frame_starts(data: bytes) -> list[int]:
     """The start offsets of the complete, well-formed MBAP frames at the head of ``data``, in order. Pure."""
     starts: list[int] = []
     off = 0
-    while (req := parse_mbap(data[off:off + 260])) is not None:
+    while (req := parse_mbap(data[off:off + 261])) is not None:
         starts.append(off)
         off += req.end
     return starts
 
 
-def exception_adu(tid: int, unit: int, fc: int, code: int) -> bytes:
-    """A Modbus TCP exception reply: the function code with its high bit set, then the exception code. Pure."""
-    return struct.pack(">HHHBBB", tid, 0, 3, unit, (fc | 0x80) & 0xFF, code)
+def exception_pdu(fc: int, code: int) -> bytes:
+    """An exception reply: the function code with its high bit set, then the exception code. Pure."""
+    return bytes(((fc | 0x80) & 0xFF, code))
 
 
-def registers_adu(tid: int, unit: int, fc: int, registers: list[int]) -> bytes:
-    """A Modbus TCP reply carrying registers (FC 03, 04, 23): byte count, then the 16-bit words. Pure."""
+def registers_pdu(fc: int, registers: list[int]) -> bytes:
+    """A reply carrying registers (FC 03, 04, 23): byte count, then the 16-bit words. Pure."""
     n = len(registers)
-    return struct.pack(f">HHHBBB{n}H", tid, 0, 3 + 2 * n, unit, fc, 2 * n, *registers)
+    return struct.pack(f">BB{n}H", fc, 2 * n, *registers)
 
 
-def write_adu(tid: int, unit: int, address: int, count: int) -> bytes:
-    """The Modbus TCP reply to FC 16: the address and quantity written. Pure."""
-    return struct.pack(">HHHBBHH", tid, 0, 6, unit, 16, address, count)
+def write_pdu(address: int, count: int) -> bytes:
+    """The reply to FC 16: the address and quantity written. Pure."""
+    return struct.pack(">BHH", 16, address, count)
+
+
+def mbap_adu(tid: int, unit: int, pdu: bytes) -> bytes:
+    """A Modbus TCP frame: MBAP header (transaction id, protocol 0, length, unit id), then the PDU. Pure."""
+    return struct.pack(">HHHB", tid, 0, len(pdu) + 1, unit) + pdu
+
+
+def rtu_adu(unit: int, pdu: bytes) -> bytes:
+    """A Modbus RTU frame: unit id, PDU, CRC (low byte first). Pure."""
+    frame = bytes((unit,)) + pdu
+    return frame + FramerRTU.compute_CRC(frame).to_bytes(2, "big")
+
+
+def reply_adu(req: Request, pdu: bytes) -> bytes:
+    """The reply frame to ``req`` carrying ``pdu`` (its transaction id and unit id echoed). Pure."""
+    return rtu_adu(req.unit, pdu) if req.tid is None else mbap_adu(req.tid, req.unit, pdu)
 
 
 def run_now(coro: Coroutine[Any, Any, Any]) -> Any:
@@ -145,39 +174,39 @@ class RegisterTables:
         """Write holding registers (FC 16 / 23); None, or the exception code (nothing written)."""
         return self._access(fc, self.holding, address, len(values), values)
 
-    def command_seq(self, req: MbapRequest, data: bytes) -> int | None:
-        """The board tick (``seq``) of the command block a write request would leave, if it writes into the command
-        block (None otherwise, or if it cannot be decoded: the write is then refused on the way)."""
-        if req.fc == 16:
-            address, count, _ = _WRITE.unpack_from(data, 8)
-            first = 13
-        elif req.fc == 23:
-            _ra, _rq, address, count, _ = _READ_WRITE.unpack_from(data, 8)
-            first = 17
+    def command_seq(self, pdu: bytes) -> int | None:
+        """The board tick (``seq``) of the command block a write request (its PDU) would leave, if it writes into the
+        command block (None otherwise, or if it cannot be decoded: the write is then refused on the way)."""
+        if pdu[0] == 16:
+            address, count, _ = _WRITE.unpack_from(pdu, 1)
+            first = 6
+        elif pdu[0] == 23:
+            _ra, _rq, address, count, _ = _READ_WRITE.unpack_from(pdu, 1)
+            first = 10
         else:
             return None
         if not (address < COMMAND_END and address + count > COMMAND_START):
             return None
         start, _, registers, _ = self.holding
         block = registers[HOLDING_START - start: HOLDING_START - start + HOLDING_COUNT]  # as the action hook merges
-        block[address - HOLDING_START: address - HOLDING_START + count] = struct.unpack_from(f">{count}H", data, first)
+        block[address - HOLDING_START: address - HOLDING_START + count] = struct.unpack_from(f">{count}H", pdu, first)
         try:
             return decode_command_block(block[COMMAND_START - HOLDING_START: COMMAND_END - HOLDING_START]).seq
         except (ValueError, struct.error):
             return None
 
-    def answer(self, req: MbapRequest, data: bytes) -> bytes:
-        """The reply ADU to a hot request whose PDU :func:`hil_stub.modbus_requests.check_request_pdu` accepted."""
-        tid, unit, fc = req.tid, req.unit, req.fc
+    def answer(self, pdu: bytes) -> bytes:
+        """The reply PDU to a hot request PDU that :func:`hil_stub.modbus_requests.check_request_pdu` accepted."""
+        fc = pdu[0]
         if fc in (3, 4):
-            address, count = _READ.unpack_from(data, 8)
+            address, count = _READ.unpack_from(pdu, 1)
             got = self.read(fc, address, count)
         elif fc == 16:
-            address, count, _ = _WRITE.unpack_from(data, 8)
-            code = self.write(16, address, list(struct.unpack_from(f">{count}H", data, 13)))
-            return exception_adu(tid, unit, fc, code) if code is not None else write_adu(tid, unit, address, count)
+            address, count, _ = _WRITE.unpack_from(pdu, 1)
+            code = self.write(16, address, list(struct.unpack_from(f">{count}H", pdu, 6)))
+            return exception_pdu(fc, code) if code is not None else write_pdu(address, count)
         else:  # 23: the write, then the read
-            r_addr, r_count, w_addr, w_count, _ = _READ_WRITE.unpack_from(data, 8)
-            code = self.write(23, w_addr, list(struct.unpack_from(f">{w_count}H", data, 17)))
+            r_addr, r_count, w_addr, w_count, _ = _READ_WRITE.unpack_from(pdu, 1)
+            code = self.write(23, w_addr, list(struct.unpack_from(f">{w_count}H", pdu, 10)))
             got = code if code is not None else self.read(23, r_addr, r_count)
-        return exception_adu(tid, unit, fc, got) if isinstance(got, int) else registers_adu(tid, unit, fc, got)
+        return exception_pdu(fc, got) if isinstance(got, int) else registers_pdu(fc, got)

@@ -107,7 +107,7 @@ class ModbusRigServer:
         self._holding = initial_holding_block(host.limits.voltage_min, host.limits.voltage_max, host.dt,
                                               self.map_version)
         self._watch_task: asyncio.Task | None = None
-        self.hot_path = hot_path and kind == "tcp"  #: FC 03/04/16/23 on TCP answered by :mod:`.modbus_hot_path`
+        self.hot_path = hot_path  #: FC 03/04/16/23 answered by :mod:`.modbus_hot_path` (else by pymodbus)
         self._tables: hot.RegisterTables | None = None
         self._disconnect_done = False
         self._silence = False
@@ -312,25 +312,27 @@ class ModbusRigServer:
     def answer_hot(self, handler: ServerRequestHandler, data: bytes) -> int:
         """Answer a well-formed FC 03/04/16/23 request for our unit from the register tables now (the same hook, faults
         and statistics as pymodbus' path, :mod:`hil_stub.modbus_hot_path`); the bytes used (0: left to pymodbus)."""
-        req = hot.parse_mbap(data) if self._tables is not None else None
+        tcp = self.kind == "tcp"
+        req = (hot.parse_mbap(data) if tcp else hot.parse_rtu(data)) if self._tables is not None else None
         lf = self.faulter.faults
-        if (req is None or req.fc not in hot.HOT_FUNCTIONS or req.unit not in (self.unit, 255) or lf.processing_s
-                or lf.latency_s or lf.jitter_s):
+        if (req is None or req.fc not in hot.HOT_FUNCTIONS or not (req.unit == self.unit or (tcp and req.unit == 255))
+                or lf.processing_s or lf.latency_s or lf.jitter_s):
             return 0
         assert self._tables is not None
-        if self.host.mode == "lockstep" and (seq := self._tables.command_seq(req, data)) is not None \
+        pdu = data[req.pdu_start:req.pdu_end]
+        if self.host.mode == "lockstep" and (seq := self._tables.command_seq(pdu)) is not None \
                 and self.host.starts_again(seq):  # a fresh rig is built in a worker thread: pymodbus awaits it
             return 0
         self._trace_packet(False, data)
         self.stats["requests"] += 1
         self.stats["hot_path_answers"] += 1
         try:
-            reply = self._tables.answer(req, data)
+            reply = self._tables.answer(pdu)
         except Exception as exc:  # as pymodbus answers a failing datastore
             log.error("%s: request failed on the hot path: %r", self.describe(), exc)
-            reply = hot.exception_adu(req.tid, req.unit, req.fc, hot.DEVICE_FAILURE)
+            reply = hot.exception_pdu(req.fc, hot.DEVICE_FAILURE)
         self._wire = self.faulter.draw_action()
-        reply = self._trace_packet(True, reply)
+        reply = self._trace_packet(True, hot.reply_adu(req, reply))
         if reply:
             handler.send(reply)
         return req.end
@@ -391,7 +393,6 @@ class ModbusRigServer:
             if not isinstance(listener, asyncio.Server):
                 raise OSError(f"{self.describe()}: cannot listen on {self._tcp_host}:{self.port}")
             self.port = listener.sockets[0].getsockname()[1]  # keep the same port across restarts
-            self._tables = hot.RegisterTables.of_server(tcp, self._action) if self.hot_path else None
         else:
             if self._pty is not None:
                 assert self._pty.master is not None
@@ -405,6 +406,7 @@ class ModbusRigServer:
             rtu.rig = self
             self._server = rtu
             await rtu.serve_forever(background=True)
+        self._tables = hot.RegisterTables.of_server(self._server, self._action) if self.hot_path else None
         if self._watch_task is None and self.faulter.faults.disconnect_at_s is not None:  # else no wake-ups for it
             self._watch_task = asyncio.get_running_loop().create_task(self._watch())
 

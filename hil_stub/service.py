@@ -58,7 +58,7 @@ class HilService:
         #: where the realtime rig clock runs with a Modbus server: on its event loop's thread ("loop") or in a thread
         #: of its own ("thread"; always so without a Modbus server)
         self.rig_clock = rig_clock
-        self.hot_path = hot_path  #: Modbus TCP FC 03/04/16/23 answered by :mod:`hil_stub.modbus_hot_path`
+        self.hot_path = hot_path  #: Modbus FC 03/04/16/23 answered by :mod:`hil_stub.modbus_hot_path`
         self.plan = plan or FaultPlan()
         self.endpoint = self._with_faults(endpoint)
         self._build = restart if mode == "lockstep" else None
@@ -130,7 +130,7 @@ class HilService:
                        parity: str = "N", map_version: int = MAP_VERSION) -> ModbusRigServer:
         srv = ModbusRigServer(self.host, "rtu", path, loop=self.loop, unit=unit, faults=self.plan.link,
                               seed=self.plan.seed, stream=len(self.servers) + 1, baudrate=baudrate, parity=parity,
-                              map_version=map_version)
+                              map_version=map_version, hot_path=self.hot_path)
         return self._add(srv)
 
     def start(self) -> None:

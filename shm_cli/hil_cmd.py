@@ -159,8 +159,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                    help="CPU time slice of the rig clock thread (the physics step), apart from the serving threads "
                         "(default: the same as --sched-slice-ms; 0: the kernel's default; docs/real-rig.md)")
     r.add_argument("--modbus-path", choices=("hot", "pymodbus"), default="hot",
-                   help="who answers Modbus TCP FC 03/04/16/23: the stub's own hot path (default: answered in the data "
-                        "callback from the register tables) or pymodbus' request chain, as before (docs/real-rig.md)")
+                   help="who answers Modbus FC 03/04/16/23 (TCP and RTU): the stub's own hot path (default: answered "
+                        "in the data callback from the register tables) or pymodbus' request chain, as before "
+                        "(docs/real-rig.md)")
     r.add_argument("--rig-clock", choices=("loop", "thread"), default="loop",
                    help="where the realtime rig clock runs when a Modbus endpoint is served: on the Modbus event "
                         "loop's thread (default: one serving thread, no GIL hand-over between a request and its "

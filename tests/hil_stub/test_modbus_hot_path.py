@@ -1,22 +1,27 @@
-"""The stub's hot Modbus TCP path (issue 29, point 2; hil_stub/modbus_hot_path.py): its MBAP parser on partial,
-concatenated and malformed frames, its replies as pymodbus' own framer reads them, and the served stub answering byte
-for byte as pymodbus' request chain does (the same register map, exception codes, unit-id echo, transaction-id echo,
-stale-request skipping and seeded drop/corrupt faults), with pymodbus' client and mbpoll over loopback."""
+"""The stub's hot Modbus path (issue 29, point 2; hil_stub/modbus_hot_path.py): its MBAP and RTU parsers on partial,
+concatenated, corrupted and malformed frames, its replies as pymodbus' own framers read them, and the served stub
+answering byte for byte as pymodbus' request chain does over TCP and RTU (the same register map, exception codes,
+unit-id echo, transaction-id echo, stale-request skipping and seeded drop/corrupt faults), with pymodbus' client and
+mbpoll over loopback."""
 
 from __future__ import annotations
 
+import os
+import select
 import shutil
 import socket
 import struct
 import subprocess
+import termios
 import time
+import tty
 from collections.abc import Iterator
 
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from pymodbus.client import ModbusTcpClient
-from pymodbus.framer import FramerSocket
+from pymodbus.framer import FramerRTU, FramerSocket
 from pymodbus.pdu import DecodePDU
 
 from drivers.link import ActuatorCommand
@@ -30,7 +35,16 @@ from drivers.modbus_registers import (
     encode_command_block,
 )
 from hil_stub.faults import FaultPlan, LinkFaults
-from hil_stub.modbus_hot_path import exception_adu, frame_starts, parse_mbap, registers_adu, write_adu
+from hil_stub.modbus_hot_path import (
+    exception_pdu,
+    frame_starts,
+    mbap_adu,
+    parse_mbap,
+    parse_rtu,
+    registers_pdu,
+    rtu_adu,
+    write_pdu,
+)
 from hil_stub.service import HilService
 from tests.links_support import FakeRig
 
@@ -38,8 +52,7 @@ _PDU = st.binary(min_size=1, max_size=60)
 _WORDS = st.lists(st.integers(0, 0xFFFF), min_size=1, max_size=40)
 
 
-def _adu(tid: int, unit: int, pdu: bytes) -> bytes:
-    return struct.pack(">HHHB", tid, 0, len(pdu) + 1, unit) + pdu
+_adu = mbap_adu
 
 
 # ------------------------------------------------------------------------------------------ the parser (pure)
@@ -66,6 +79,19 @@ def test_a_bad_length_is_not_a_frame(tid, length, rest):
     assert parse_mbap(data) is None and frame_starts(data) == []
 
 
+@given(st.integers(0, 247), _PDU, st.data())
+def test_an_rtu_frame_is_read_whole_and_a_flipped_bit_is_not_a_frame(unit, pdu, data):
+    frame = rtu_adu(unit, pdu)
+    req = parse_rtu(frame)
+    assert req is not None and (req.tid, req.unit, req.fc, req.end) == (None, unit, pdu[0], len(frame))
+    assert frame[req.pdu_start:req.pdu_end] == pdu
+    bit = data.draw(st.integers(0, 8 * len(frame) - 1))
+    broken = bytearray(frame)
+    broken[bit // 8] ^= 1 << (bit % 8)
+    assert parse_rtu(bytes(broken)) is None  # CRC-16 catches every single-bit error
+    assert parse_rtu(frame + frame) is None  # two frames at once: pymodbus' framer hunts through them
+
+
 @given(st.integers(1, 0xFFFF), _PDU)
 def test_a_protocol_id_other_than_modbus_is_not_a_frame(pid, pdu):
     frame = bytearray(_adu(1, 1, pdu))
@@ -73,29 +99,37 @@ def test_a_protocol_id_other_than_modbus_is_not_a_frame(pid, pdu):
     assert parse_mbap(bytes(frame)) is None
 
 
-def _decoded(adu: bytes):
-    used, pdu = FramerSocket(DecodePDU(False)).handleFrame(adu, 0, 0)
+def _decoded(adu: bytes, rtu: bool):
+    framer = FramerRTU(DecodePDU(False)) if rtu else FramerSocket(DecodePDU(False))
+    used, pdu = framer.handleFrame(adu, 0, 0)
     assert used == len(adu)
     return pdu
 
 
-@given(st.integers(0, 0xFFFF), st.integers(0, 255), st.sampled_from([3, 4, 23]), _WORDS)
-def test_register_replies_read_back_with_pymodbus_framer(tid, unit, fc, words):
-    pdu = _decoded(registers_adu(tid, unit, fc, words))
-    assert (pdu.function_code, pdu.transaction_id, pdu.dev_id, pdu.registers) == (fc, tid, unit, words)
+def _framed(tid: int, unit: int, pdu: bytes, rtu: bool) -> bytes:
+    return rtu_adu(unit, pdu) if rtu else mbap_adu(tid, unit, pdu)
 
 
-@given(st.integers(0, 0xFFFF), st.integers(0, 255), st.integers(0, 0xFFFF), st.integers(1, 123))
-def test_write_replies_read_back_with_pymodbus_framer(tid, unit, address, count):
-    pdu = _decoded(write_adu(tid, unit, address, count))
-    assert (pdu.function_code, pdu.transaction_id, pdu.dev_id, pdu.address, pdu.count) == (16, tid, unit, address,
-                                                                                            count)
+@given(st.integers(0, 0xFFFF), st.integers(1, 247), st.sampled_from([3, 4, 23]), _WORDS, st.booleans())
+def test_register_replies_read_back_with_pymodbus_framers(tid, unit, fc, words, rtu):
+    pdu = _decoded(_framed(tid, unit, registers_pdu(fc, words), rtu), rtu)
+    assert (pdu.function_code, pdu.dev_id, pdu.registers) == (fc, unit, words)
+    assert rtu or pdu.transaction_id == tid
 
 
-@given(st.integers(0, 0xFFFF), st.integers(0, 255), st.sampled_from([3, 4, 16, 23]), st.integers(1, 4))
-def test_exception_replies_read_back_with_pymodbus_framer(tid, unit, fc, code):
-    pdu = _decoded(exception_adu(tid, unit, fc, code))
-    assert (pdu.function_code, pdu.exception_code, pdu.transaction_id, pdu.dev_id) == (fc | 0x80, code, tid, unit)
+@given(st.integers(0, 0xFFFF), st.integers(1, 247), st.integers(0, 0xFFFF), st.integers(1, 123), st.booleans())
+def test_write_replies_read_back_with_pymodbus_framers(tid, unit, address, count, rtu):
+    pdu = _decoded(_framed(tid, unit, write_pdu(address, count), rtu), rtu)
+    assert (pdu.function_code, pdu.dev_id, pdu.address, pdu.count) == (16, unit, address, count)
+    assert rtu or pdu.transaction_id == tid
+
+
+@given(st.integers(0, 0xFFFF), st.integers(1, 247), st.sampled_from([3, 4, 16, 23]), st.integers(1, 4),
+       st.booleans())
+def test_exception_replies_read_back_with_pymodbus_framers(tid, unit, fc, code, rtu):
+    pdu = _decoded(_framed(tid, unit, exception_pdu(fc, code), rtu), rtu)
+    assert (pdu.function_code, pdu.exception_code, pdu.dev_id) == (fc | 0x80, code, unit)
+    assert rtu or pdu.transaction_id == tid
 
 
 # ------------------------------------------------------------------------------------------ served: hot == pymodbus
@@ -167,6 +201,52 @@ def test_the_hot_path_answers_byte_for_byte_as_pymodbus(twin_stubs, fc, address,
     chunks = (adu[:split], adu[split:]) if 0 < split < len(adu) else (adu,)
     assert hot.ask(*chunks) == old.ask(*chunks)
     assert {k: v for k, v in hot_stats.items() if k != "hot_path_answers"} == dict(old_stats)
+
+
+class _RawRtu:
+    """A bare Modbus RTU master on a stub's pty: send a frame, read the reply (or nothing within a short wait)."""
+
+    def __init__(self, path: str) -> None:
+        self.fd = os.open(path, os.O_RDWR | os.O_NOCTTY)
+        tty.setraw(self.fd)
+        termios.tcflush(self.fd, termios.TCIOFLUSH)
+
+    def ask(self, frame: bytes, wait_s: float = 0.15) -> bytes:
+        os.write(self.fd, frame)
+        out = b""
+        deadline = time.monotonic() + wait_s
+        while True:
+            want = 5 if len(out) < 3 or out[1] & 0x80 else (8 if out[1] in (6, 16) else 5 + out[2])
+            left = deadline - time.monotonic()
+            if len(out) >= want or left <= 0 or not select.select([self.fd], [], [], left)[0]:
+                return out
+            out += os.read(self.fd, 512)
+
+
+@pytest.fixture(scope="module")
+def twin_rtu_stubs() -> Iterator[tuple[_RawRtu, _RawRtu, dict, dict]]:
+    """:func:`twin_stubs` over Modbus RTU on two ptys."""
+    plan = FaultPlan(link=LinkFaults(drop=0.1, corrupt=0.1), seed=5)
+    with HilService(FakeRig(), mode="lockstep", plan=plan) as hot, \
+            HilService(FakeRig(), mode="lockstep", plan=plan, hot_path=False) as old:
+        hot_srv, old_srv = hot.add_modbus_rtu("pty"), old.add_modbus_rtu("pty")
+        a, b = _RawRtu(hot_srv.board_path), _RawRtu(old_srv.board_path)
+        yield a, b, hot_srv.stats, old_srv.stats
+        os.close(a.fd)
+        os.close(b.fd)
+
+
+@pytest.mark.integration
+@pytest.mark.slow  # ~4 s: 40 requests to two stubs on ptys, the dropped replies waited out
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(fc=st.sampled_from([3, 4, 16, 23]), address=_ADDRESSES, count=st.integers(1, 125),
+       words=st.one_of(_COMMANDS, _WORDS), read_address=_ADDRESSES)
+def test_the_hot_path_answers_rtu_byte_for_byte_as_pymodbus(twin_rtu_stubs, fc, address, count, words, read_address):
+    hot, old, hot_stats, old_stats = twin_rtu_stubs
+    frame = rtu_adu(1, _request(fc, address, count, words, read_address))
+    assert hot.ask(frame) == old.ask(frame)
+    assert {k: v for k, v in hot_stats.items() if k != "hot_path_answers"} == dict(old_stats)
+    assert hot_stats["hot_path_answers"] == hot_stats["requests"]
 
 
 @pytest.mark.integration
