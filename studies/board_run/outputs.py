@@ -12,9 +12,15 @@ import json
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from studies.board_run.summary import build_summary, closing_line, write_traces
+
+if TYPE_CHECKING:
+    from board_config.board import BoardConfig
+    from board_config.scenario import Scenario
+    from firmware_sim.board import Board
+    from firmware_sim.runner import RunResult
 
 
 @dataclass
@@ -22,12 +28,13 @@ class RunContext:
     """What a finished board run hands to its outputs (as :func:`build_summary` takes it)."""
 
     link_url: str
-    scenario: Any
+    scenario: Scenario
     seed: int
     params: str
-    cfg: Any
-    board: Any
-    result: Any
+    cfg: BoardConfig
+    board: Board
+    result: RunResult
+    #: the in-process simulated rig (its describe() and truth() go into summary.json); None on a real link
     rig: Any
     setup_s: float
     paced: bool

@@ -4,11 +4,17 @@ per-tick traces."""
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from reporting.csv_columns import write_csv
+
+if TYPE_CHECKING:
+    from board_config.board import BoardConfig
+    from board_config.scenario import Scenario
+    from firmware_sim.board import Board
+    from firmware_sim.runner import RunResult
 
 
 def closing_line(s: dict[str, Any]) -> str:  # ``s``: summary.json as written (the JSON document at the edge)
@@ -26,8 +32,9 @@ def closing_line(s: dict[str, Any]) -> str:  # ``s``: summary.json as written (t
             f"incidents {s['incidents']}{link}; battery {s['battery_last_V']:.3f} V")
 
 
-def build_summary(link: str, scenario, seed, params, cfg, board, result, rig, setup_s, paced, db_path, run_id
-                  ) -> dict[str, Any]:
+def build_summary(link: str, scenario: Scenario, seed: int, params: str, cfg: BoardConfig, board: Board,
+                  result: RunResult, rig: Any, setup_s: float, paced: bool, db_path: Path,
+                  run_id: int | None) -> dict[str, Any]:
     """The run's summary (``summary.json``): what ran, the board's events by kind, the verdicts against the
     scenario's expectation, time, charge and energy by regime, and the simulated rig's description."""
     ev = result.events

@@ -190,8 +190,8 @@ class CampaignSpec:
                 out.append(BatchSpec(self, r_idx, start, min(start + self.batch_size, self.n_runs)))
         return out
 
-    def describe(self) -> dict[str, Any]:
-        """JSON-able description (unit-suffixed keys)."""
+    def describe(self) -> dict[str, Any]:  # the "spec" of manifest.json and campaign.json (JSON at the edge)
+        """JSON-able description (unit-suffixed keys); :meth:`fingerprint` hashes it."""
         return {
             "store_version": STORE_VERSION,
             "params": self.params_name,
