@@ -19,7 +19,10 @@ import queue
 import sys
 import threading
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from firmware_sim.events import BoardEvent
 
 #: the events a visit record writer acts on (everything else is not queued)
 RECORD_EVENTS = frozenset({"mbit_start", "mbit_record", "mbit_result"})
@@ -44,7 +47,7 @@ class BackgroundRecorder:
             raise self._init_error
         sys.setswitchinterval(min(self._switch, _SWITCH_INTERVAL_S))
 
-    def __call__(self, ev: Any) -> None:
+    def __call__(self, ev: BoardEvent) -> None:
         if ev.kind in RECORD_EVENTS:
             self._queue.put(ev)
 

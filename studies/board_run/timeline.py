@@ -4,7 +4,10 @@ summaries, MBITs and verdicts, periodic telemetry)."""
 from __future__ import annotations
 
 import json
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from firmware_sim.events import BoardEvent
 
 
 def _fmt_v(v: Any) -> str:
@@ -14,7 +17,7 @@ def _fmt_v(v: Any) -> str:
         return "? V"
 
 
-def format_event(ev: Any, incidents: int = 0) -> str | None:
+def format_event(ev: BoardEvent, incidents: int = 0) -> str | None:
     """One timeline line for a board event (None: not shown)."""
     d = ev.data
     t = f"{ev.time:9.2f} s  "

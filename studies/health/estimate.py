@@ -15,7 +15,7 @@ import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -23,13 +23,16 @@ from board_config.errors import InputError
 from reporting.uncertainty_text import format_percent_change
 from workbench.records import Record, record_from_arrays
 
+if TYPE_CHECKING:
+    from workbench.fit import ParameterEstimate
+
 DEFAULT_FREE: tuple[str, ...] = ("k3", "alpha_h", "beta_h")
 #: share of a parameter's fit range within which an estimate counts as stopped at the bound (the optimiser's own
 #: flag needs 1e-6 in its internal coordinate: a fit that ends at +199.99 % of a +200 % bound escaped it)
 NEAR_BOUND_SHARE = 1e-4
 
 
-def stopped_at_bound(e: Any) -> bool:
+def stopped_at_bound(e: ParameterEstimate) -> bool:
     """True when a fit's :class:`~workbench.fit.ParameterEstimate` ended at (or next to) its range bound."""
     if e.at_bound:
         return True

@@ -18,11 +18,14 @@ file, key or option and what is allowed (a :class:`~board_config.errors.ConfigEr
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING
 
 from board_config.errors import ConfigError, InputError
 from board_config.parameter import DEVIATION_RANGE, ParameterError
 from board_config.scenario import Scenario
+
+if TYPE_CHECKING:
+    from plant import PlantModel
 
 #: the latest operating time a visit may have (h): about 114 years of continuous operation — any airframe's life
 MAX_OPERATING_HOURS = 1.0e6
@@ -68,7 +71,7 @@ def _check_flight(scenario: Scenario) -> None:
         raise ConfigError(scenario.source, "life.flight_scenario", str(exc)) from None
 
 
-def _plant(scenario: Scenario, params: str, params_option: str | None) -> Any:
+def _plant(scenario: Scenario, params: str, params_option: str | None) -> PlantModel:
     from plant import PlantModel
 
     try:
@@ -83,7 +86,7 @@ def _plant(scenario: Scenario, params: str, params_option: str | None) -> Any:
         raise InputError(text) from None
 
 
-def _check_visits(scenario: Scenario, model: Any) -> None:
+def _check_visits(scenario: Scenario, model: PlantModel) -> None:
     """Each visit's deviations: in range before any clipping, and inside the parameters' bounds."""
     from studies.health.laws import law_value
 

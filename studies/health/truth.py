@@ -15,12 +15,15 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass
 from functools import cache
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from studies.health.estimate import Visit
 from studies.health.trip import HEALTH_PARAMS, TripBoundary
+
+if TYPE_CHECKING:
+    from plant import PlantModel
 
 
 @cache
@@ -29,7 +32,7 @@ def _nominal(params: str, name: str) -> float:
 
 
 @cache
-def _model(params: str) -> Any:
+def _model(params: str) -> PlantModel:
     from plant import PlantModel
 
     return PlantModel(params, terminal="amplifier")
