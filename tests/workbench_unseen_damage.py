@@ -1,0 +1,211 @@
+"""Damage forms the project never tested against (issue 26: "we will check on damage cases you do not see").
+
+Written by hand, outside the discovery dictionary and deliberately *unlike* the project's own damage cases
+(``tests/workbench_foreign_damage.py``, ``tests/workbench_damage_effects.py``): other sections, other switching
+variables, smooth instead of sharp switches, switching points away from zero, damping instead of stiffness, ramps
+instead of steps. Each class is a plain :class:`plant.effect.PhysicalEffect`; ``UNSEEN`` maps it to its strength on a
+short sweep and the physics the verdict's first sentence must name (groups of words; every group must be met by one
+of its words, case-insensitive), plus, for a time event, the instant and the tolerance on it.
+
+Section force convention as in the core (``plant/effects/laminate.py``): ``bus[B_S + i]`` carries
+``-k_i δ_i - c_i δ̇_i + …``; an effect that softens adds ``+Δk δ``.
+"""
+
+from __future__ import annotations
+
+import math
+
+from plant.effect import Parameter, PhysicalEffect
+from plant.layout import B_QH, B_S, B_VA, P_C, P_C_EP, P_D_EP, P_K, X_DDELTA, X_DELTA
+
+
+class VelocityCrackSection2(PhysicalEffect):
+    """A crack in section 2 whose faces separate while the section opens (δ̇2 > 0): then it carries (1 − a) k2 δ2."""
+
+    name = "unseen_velocity_crack_s2"
+    parameters = (Parameter("a_vel2", "1", 0.0, 0.0, 0.9, "share of k2 lost while δ̇2 > 0"),)
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        if x[X_DDELTA + 1] > 0.0:
+            bus[B_S + 1] += p[po] * p[P_K + 1] * x[X_DELTA + 1]
+
+
+class SmoothCrackRoot(PhysicalEffect):
+    """A root crack that opens gradually for δ1 > 0: the lost share of k1 is a (1 + tanh(δ1 / w)) / 2."""
+
+    name = "unseen_smooth_crack_root"
+    parameters = (Parameter("a_sm1", "1", 0.0, 0.0, 0.9, "share of k1 lost with the crack wide open"),
+                  Parameter("w_sm1", "m", 2e-4, 1e-7, 1e-2, "width of the crack's opening in δ1"))
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        d = x[X_DELTA]
+        bus[B_S] += p[po] * 0.5 * (1.0 + math.tanh(d / p[po + 1])) * p[P_K] * d
+
+
+class CrackSection3Negative(PhysicalEffect):
+    """A crack in section 3 (next to the tip mass) open for δ3 < 0: (1 − a) k3 there."""
+
+    name = "unseen_crack_s3"
+    parameters = (Parameter("a_cr3", "1", 0.0, 0.0, 0.9, "share of k3 lost while δ3 < 0"),)
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        d = x[X_DELTA + 2]
+        if d < 0.0:
+            bus[B_S + 2] += p[po] * p[P_K + 2] * d
+
+
+class DampingStepSection3(PhysicalEffect):
+    """From t_on section 3 dissipates (1 + r) times more (a delamination starts to rub)."""
+
+    name = "unseen_c3_step"
+    parameters = (Parameter("r_c3", "1", 0.0, 0.0, 20.0, "relative damping added"),
+                  Parameter("t_on", "s", 1.0, 0.0, 1e4, "instant it starts"))
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        if t >= p[po + 1]:
+            bus[B_S + 2] -= p[po] * p[P_C + 2] * x[X_DDELTA + 2]
+
+
+class RampLossRoot(PhysicalEffect):
+    """The root loses stiffness gradually: from t_start over 5 s its k1 falls linearly by a share f, then stays."""
+
+    name = "unseen_k1_ramp"
+    parameters = (Parameter("f_ramp", "1", 0.0, 0.0, 0.9, "share of k1 lost at the end of the ramp"),
+                  Parameter("t_start", "s", 1.0, 0.0, 1e4, "instant the loss starts"))
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        share = min(max((t - p[po + 1]) / 5.0, 0.0), 1.0)
+        bus[B_S] += share * p[po] * p[P_K] * x[X_DELTA]
+
+
+class PatchWeakBelowOffset(PhysicalEffect):
+    """Patches partly depoled: below a drive of v_off (not zero) their piezo force is (1 − b) of d_ep's."""
+
+    name = "unseen_patch_offset"
+    parameters = (Parameter("b_off", "1", 0.0, 0.0, 0.9, "share of d_ep lost below v_off"),
+                  Parameter("v_off", "V", 0.0, -1e3, 1e3, "drive below which the patch is weak"))
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        if bus[B_VA] < p[po + 1]:
+            for i in range(3):
+                bus[B_S + i] -= p[po] * p[P_K + i] * p[P_D_EP] * bus[B_QH + i] / p[P_C_EP]
+
+
+class BilinearOffsetSection2(PhysicalEffect):
+    """A bilinear section 2 switching at δ_s ≠ 0: beyond δ2 > δ_s its spring is (1 − a) k2 for the part beyond."""
+
+    name = "unseen_bilinear_s2"
+    parameters = (Parameter("a_bl2", "1", 0.0, 0.0, 0.9, "share of k2 lost beyond the switching point"),
+                  Parameter("d_sw2", "m", 0.0, -1e-2, 1e-2, "switching deflection"))
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        d = x[X_DELTA + 1] - p[po + 1]
+        if d > 0.0:
+            bus[B_S + 1] += p[po] * p[P_K + 1] * d
+
+
+class GapSection3(PhysicalEffect):
+    """Free play of ±g in the joint of section 3 with hard edges: within the play the joint's share f of k3 carries
+    nothing; beyond it the joint takes up the load again (the lost force saturates at f k3 g)."""
+
+    name = "unseen_gap_s3"
+    parameters = (Parameter("f_gap3", "1", 0.0, 0.0, 1.0, "share of k3 carried by the joint"),
+                  Parameter("g_gap3", "m", 1e-4, 1e-8, 1e-2, "half-width of the play"))
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        g = p[po + 1]
+        bus[B_S + 2] += p[po] * p[P_K + 2] * min(max(x[X_DELTA + 2], -g), g)
+
+
+class StiffnessStepRoot(PhysicalEffect):
+    """At t_crack the root (section 1) loses a share f of k1 at once."""
+
+    name = "unseen_k1_step"
+    parameters = (Parameter("f_k1", "1", 0.0, 0.0, 0.9, "share of k1 lost"),
+                  Parameter("t_crack", "s", 1.0, 0.0, 1e4, "instant of the loss"))
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        if t >= p[po + 1]:
+            bus[B_S] += p[po] * p[P_K] * x[X_DELTA]
+
+
+_S1 = ("section 1", "k1", "root")
+_S2 = ("section 2", "k2")
+_S3 = ("section 3", "k3")
+_ONE_SIDED = ("crack", "one-sided", "one side", "breathing", "bilinear", "only while", "only for", "only when",
+              "opens", "> 0", "< 0", "sign of")
+_STIFF = ("stiff", "softer", "k1", "k2", "k3")
+_DAMP = ("damping", "dissipat", "c3")
+_GAP = ("free play", "clearance", "play", "dead zone", "gap", "loose")
+
+#: (strength values on the sweep, word groups, (name of the time parameter, tolerance s) or None).
+#: Time parameters are given as fractions of the record ("<name>_frac") and set per record.
+UNSEEN: dict[str, tuple[type[PhysicalEffect], dict[str, float], tuple[tuple[str, ...], ...],
+                        tuple[str, float] | None]] = {
+    "velocity_crack_s2": (VelocityCrackSection2, {"a_vel2": 0.25},
+                          (_S2, ("velocity", "δ̇2", "opening", "moving", "rate")), None),
+    "smooth_crack_root": (SmoothCrackRoot, {"a_sm1": 0.3, "w_sm1": 2e-4}, (_S1, _ONE_SIDED), None),
+    "crack_s3_negative": (CrackSection3Negative, {"a_cr3": 0.2}, (_S3, _ONE_SIDED), None),
+    "damping_step_s3": (DampingStepSection3, {"r_c3": 2.0, "t_on_frac": 0.5}, (_S3, _DAMP), ("t_on", 0.2)),
+    "ramp_loss_root": (RampLossRoot, {"f_ramp": 0.2, "t_start_frac": 0.25}, (_S1, _STIFF), ("t_start", 3.0)),
+    "patch_offset": (PatchWeakBelowOffset, {"b_off": 0.25, "v_off": 60.0},
+                     (("d_ep", "drive", "patch", "authority", "piezo"),
+                      ("negative", "polarity", "'s sign", "sign of", "polaris", "one-sided", "below", "< ")), None),
+    "bilinear_offset_s2": (BilinearOffsetSection2, {"a_bl2": 0.3, "d_sw2": 3e-4}, (_S2, _ONE_SIDED), None),
+    "gap_s3": (GapSection3, {"f_gap3": 0.5, "g_gap3": 1e-4}, (_S3, _GAP), None),
+    "k1_step": (StiffnessStepRoot, {"f_k1": 0.2, "t_crack_frac": 0.6}, (_S1, _STIFF), ("t_crack", 0.2)),
+}
+
+
+def truth_values(label: str, duration_s: float) -> dict[str, float]:
+    """The case's parameter values on a record of ``duration_s`` (time fractions turned into instants, s)."""
+    return {(k[:-5] if k.endswith("_frac") else k): (v * duration_s if k.endswith("_frac") else v)
+            for k, v in UNSEEN[label][1].items()}
+
+
+def run_unseen(label: str, *, kind: str = "sweep", duration_s: float = 10.0, noise_m: float = 2e-6, seed: int = 1,
+               workdir: str | None = None) -> dict[str, object]:
+    """One unseen case through the one-command walk: synth → ``diagnose`` (discovery on, files into a temporary
+    folder) → the first sentence scored → the emitted file (or the named fix) refitted as ``shm fit --add`` does.
+    Returns the row of the report: sentence, named, missing, fix, held-out σ before and after, wall time."""
+    import tempfile
+    import time
+
+    import numpy as np
+
+    from workbench.challenges.discovery import (
+        PhysicsCheck,
+        case_record,
+        check_physics,
+        first_sentence,
+        fix_held_sigma,
+    )
+    from workbench.diagnose import diagnose
+    from workbench.simulation import synth_test
+
+    cls, _, groups, timing = UNSEEN[label]
+    spec = synth_test(kind, duration_s=duration_s) if kind == "sweep" else synth_test(kind)
+    values = truth_values(label, spec.duration_s)
+    check = PhysicsCheck(groups, values[timing[0]] if timing else None, timing[1] if timing else 0.0)
+    t0 = time.perf_counter()
+    rec, size = case_record(spec, cls, values, noise_m, seed)
+    with tempfile.TemporaryDirectory(dir=workdir) as tmp:
+        d = diagnose([rec], "table2", emit_dir=tmp)
+        sentence = first_sentence(d.message)
+        named, missing = check_physics(sentence, check)
+        fix, held, note = fix_held_sigma(d, rec, tmp)
+        message = d.message
+    return {"label": label, "kind": kind, "seed": seed, "size_sigma": size, "verdict": d.verdict,
+            "sentence": sentence, "named": named, "missing": missing, "fix": fix,
+            "held_before": float(d.baseline_held_rms_sigma), "held_fix": float(held),
+            "passed": bool(np.isfinite(held) and held <= 1.5), "note": note, "wall_s": time.perf_counter() - t0,
+            "message": message}
