@@ -171,7 +171,7 @@ def assess_estimates(visits: list[Visit], all_visits: list[Visit], extra: list[V
         for vd, fe in zip(doc["visits"], followed.estimates):
             vd["followed_estimates"] = [x.to_json() for x in fe.estimates]
             vd["followed_held_rms_sigma"] = fe.held_rms_sigma
-    doc["levels"] = levels(doc, trends, fc)
+    doc["levels"] = levels(doc, trends, fc).to_json()
     doc["remaining_life"] = [p.to_json() for p in sweep]
     doc["truth"] = truth_document(visits, params, free, truth_ff)
     t_eol = truth_ff.operating_hours if truth_ff is not None else None  # h; assess_health checks it is known
@@ -289,7 +289,7 @@ def _document(visits: list[Visit], all_visits: list[Visit], ests: list[VisitEsti
         "board_first_fault": None if first_fault is None else {"visit": first_fault.visit,
                                                                "operating_hours": first_fault.operating_hours},
     }
-    doc["levels"] = levels(doc, trends, fc)
+    doc["levels"] = levels(doc, trends, fc).to_json()
     return doc
 
 
@@ -309,10 +309,21 @@ def _est_verdict(x: VisitParameter) -> str:
     return "as nominal"
 
 
+@dataclass(frozen=True, slots=True)
+class FourLevels:
+    """Rytter's four levels in words (:func:`levels`): detected? where? how much? how long?"""
+    detected: str
+    where: str
+    how_much: str
+    how_long: str
+
+    def to_json(self) -> dict[str, str]:  # health.json's levels (docs/health.md)
+        return {"detected": self.detected, "where": self.where, "how_much": self.how_much, "how_long": self.how_long}
+
+
 # The four levels are written from health.json itself (``doc``, and its ``location`` and ``followed`` sections,
 # ``loc`` and ``fol`` below: the JSON document at the edge, docs/health.md), so the words say what the file holds.
-def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[str, str]:
-    """Rytter's four levels in words: detected? where? how much? how long?"""
+def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> FourLevels:
     last = doc["visits"][-1]
     bv = last["board_verdict"]
     board = f"; the board's monitor said {bv} at this visit" if bv else ""
@@ -333,7 +344,7 @@ def levels(doc: dict[str, Any], trends: dict[str, Trend], fc: Forecast) -> dict[
                                      if loc.get("run") and loc.get("distinguishable") is not None else "")
     if loc.get("run") and loc.get("distinguishable") is not None:
         how_much += _stiffness_loss_words(loc)
-    return {"detected": detected, "where": where, "how_much": how_much, "how_long": _how_long(doc, fc)}
+    return FourLevels(detected, where, how_much, _how_long(doc, fc))
 
 
 def _detected_where(doc: dict[str, Any], trends: dict[str, Trend], board: str) -> tuple[str, str]:

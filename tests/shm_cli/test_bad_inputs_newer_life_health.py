@@ -60,7 +60,7 @@ def test_health_says_already_faulty_when_the_board_said_fault_without_a_trend() 
     fc = SimpleNamespace(already_faulty=False, significant=False, trip_operating_hours=None, lower_bound_hours=900.0,
                          last_hours=200.0, rul_hours=None, p_fault_next_visit=None, horizon_hours=2000.0,
                          next_visit_hours=300.0)
-    text = levels(doc, {}, fc)["how_long"]  # type: ignore[arg-type]
+    text = levels(doc, {}, fc).how_long  # type: ignore[arg-type]
     assert text.startswith("already faulty") and "visit 3 (200 h)" in text, text
     assert "no significant trend" not in text
     assert doc["forecast"]["already_faulty"] is True  # type: ignore[index]

@@ -47,7 +47,7 @@ def test_an_estimate_at_its_bound_is_said_in_how_much():
     fc = Forecast(None, None, None, None, 1000.0, 0.0, 100.0, 2000.0, False, np.zeros(1), np.zeros(1),
                   np.zeros(1), False)
     lv = levels(doc, trends, fc)
-    assert "k3 +200 ± ? % — at its fit bound: a limit, not an estimate" in lv["how_much"]
+    assert "k3 +200 ± ? % — at its fit bound: a limit, not an estimate" in lv.how_much
 
 
 def test_a_fit_that_ended_next_to_its_bound_counts_as_at_the_bound():
