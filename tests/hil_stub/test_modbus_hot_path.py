@@ -16,6 +16,7 @@ import termios
 import time
 import tty
 from collections.abc import Iterator
+from contextlib import contextmanager
 
 import pytest
 from hypothesis import HealthCheck, given, settings
@@ -45,6 +46,7 @@ from hil_stub.modbus_hot_path import (
     rtu_adu,
     write_pdu,
 )
+from hil_stub.modbus_server import ModbusRigServer
 from hil_stub.service import HilService
 from tests.links_support import FakeRig
 
@@ -158,14 +160,21 @@ class _Raw:
         return out
 
 
-@pytest.fixture(scope="module")
-def twin_stubs() -> Iterator[tuple[_Raw, _Raw, dict, dict]]:
-    """Two lockstep stubs, the same rig and seeded faults (drop and corrupt 10 % each): one answering FC 03/04/16/23
-    on the hot path, one through pymodbus; a raw client on each, and their counters."""
+@contextmanager
+def _twins(rtu: bool) -> Iterator[tuple[ModbusRigServer, ModbusRigServer]]:
+    """Two lockstep stubs, the same rig and seeded faults (drop and corrupt 10 % each), serving Modbus TCP on loopback
+    or RTU on a pty: one answering FC 03/04/16/23 on the hot path, one through pymodbus."""
     plan = FaultPlan(link=LinkFaults(drop=0.1, corrupt=0.1), seed=5)
     with HilService(FakeRig(), mode="lockstep", plan=plan) as hot, \
             HilService(FakeRig(), mode="lockstep", plan=plan, hot_path=False) as old:
-        hot_srv, old_srv = hot.add_modbus_tcp("127.0.0.1:0"), old.add_modbus_tcp("127.0.0.1:0")
+        yield tuple(hil.add_modbus_rtu("pty") if rtu else hil.add_modbus_tcp("127.0.0.1:0")  # type: ignore[misc]
+                    for hil in (hot, old))
+
+
+@pytest.fixture(scope="module")
+def twin_stubs() -> Iterator[tuple[_Raw, _Raw, dict, dict]]:
+    """:func:`_twins` over TCP: a raw client on each, and their counters."""
+    with _twins(rtu=False) as (hot_srv, old_srv):
         a, b = _Raw(hot_srv.port), _Raw(old_srv.port)
         yield a, b, hot_srv.stats, old_srv.stats
         a.sock.close()
@@ -225,11 +234,8 @@ class _RawRtu:
 
 @pytest.fixture(scope="module")
 def twin_rtu_stubs() -> Iterator[tuple[_RawRtu, _RawRtu, dict, dict]]:
-    """:func:`twin_stubs` over Modbus RTU on two ptys."""
-    plan = FaultPlan(link=LinkFaults(drop=0.1, corrupt=0.1), seed=5)
-    with HilService(FakeRig(), mode="lockstep", plan=plan) as hot, \
-            HilService(FakeRig(), mode="lockstep", plan=plan, hot_path=False) as old:
-        hot_srv, old_srv = hot.add_modbus_rtu("pty"), old.add_modbus_rtu("pty")
+    """:func:`_twins` over RTU on two ptys: a raw master on each, and their counters."""
+    with _twins(rtu=True) as (hot_srv, old_srv):
         a, b = _RawRtu(hot_srv.board_path), _RawRtu(old_srv.board_path)
         yield a, b, hot_srv.stats, old_srv.stats
         os.close(a.fd)
