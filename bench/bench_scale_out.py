@@ -59,7 +59,9 @@ def _on_cluster(argv: list[str], out: Path, n_workers: int, doc_name: str, prelo
     import dask
     from distributed import LocalCluster
 
-    with dask.config.set({"distributed.worker.daemon": False}), \
+    # the cluster's own processes check their event loops every second (the recommended standing cluster,
+    # docs/scale-out.md; at Dask's default 20 ms the scheduler and nannies here took ~5 % of a core beside the run)
+    with dask.config.set({"distributed.worker.daemon": False, "distributed.admin.tick.interval": "1000ms"}), \
             LocalCluster(n_workers=n_workers, threads_per_worker=1, processes=True, dashboard_address=None,
                          memory_limit=0, silence_logs=50,
                          preload=["shm_cli.batch_records"] if preload else []) as cluster:

@@ -109,6 +109,8 @@ def connect(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s:
     spawned (a fresh interpreter each, which imports mfc-shm and loads or compiles every kernel again)."""
     try:
         from distributed import Client, LocalCluster
+
+        from studies.batch.warm import TICK_MS
     except ImportError:
         raise SchedulerError("--scheduler needs Dask: pip install 'mfc-shm[cluster]'") from None
     if scheduler in (None, "", "local"):
@@ -117,7 +119,9 @@ def connect(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s:
 
         # non-daemon workers: a task may run its own process pool (a board's life, a health fit)
         method = "fork" if fork else dask.config.get("distributed.worker.multiprocessing-method")
-        with dask.config.set({"distributed.worker.daemon": False, "distributed.worker.multiprocessing-method": method}):
+        # the scheduler's, nannies' and workers' event-loop check every second, not every 20 ms (studies.batch.warm)
+        with dask.config.set({"distributed.worker.daemon": False, "distributed.worker.multiprocessing-method": method,
+                              "distributed.admin.tick.interval": f"{TICK_MS:g}ms"}):
             # no dashboard; the scheduler's small HTTP server on a free port (not 8787: no warning beside a 2nd run)
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
                                    scheduler_kwargs={"dashboard_address": ":0"}, memory_limit=0, silence_logs=50)

@@ -20,6 +20,9 @@ TASK_THREADS = "1"
 #: stack sampled every 10 ms of wall time, for the dashboard): 4-18 % of a health task's CPU on a thread beside the
 #: task, which on a full machine is taken from the next worker's task (docs/scale-out.md, "Why the fleet lagged")
 PROFILER_CALLBACKS = ("profile", "profile-cycle")
+#: the event loop's health check ("tick": Dask's default every 20 ms, to warn when the loop was stuck > 3 s) every
+#: second instead: at 20 ms it costs ~2 % of a core per worker, scheduler and nanny, all the time (docs/scale-out.md)
+TICK_MS = 1000.0
 
 
 def warm_seconds() -> dict[str, float]:
@@ -45,6 +48,20 @@ def stop_profiler(worker: Any) -> None:
             pc.stop()
 
 
+def slow_tick(worker: Any) -> None:
+    """Check the worker's event loop every :data:`TICK_MS` instead of every 20 ms (a stuck loop is still reported)."""
+    pc = getattr(worker, "periodic_callbacks", {}).get("tick")
+    if pc is not None:
+        pc.callback_time = max(pc.callback_time, TICK_MS)
+
+
+def tick_ms(dask_worker: Any = None) -> float:
+    """The worker's event-loop check interval (ms); run with ``client.run``."""
+    from distributed import get_worker
+
+    return float((dask_worker or get_worker()).periodic_callbacks["tick"].callback_time)
+
+
 def task_threads() -> str | None:
     """The integrator's thread setting on this worker (``$MFC_SHM_THREADS``); run with ``client.run``."""
     return os.environ.get("MFC_SHM_THREADS")
@@ -52,8 +69,8 @@ def task_threads() -> str | None:
 
 class WarmPlugin(WorkerPlugin):
     """On every worker before it runs a task — a worker that joins later too: one integration thread per task
-    (:data:`TASK_THREADS`, whatever the worker inherited), no statistical profiler beside the task, then ``warm()``
-    if given."""
+    (:data:`TASK_THREADS`, whatever the worker inherited), no statistical profiler beside the task, its event loop
+    checked every second, then ``warm()`` if given."""
 
     name = "mfc-shm-warm"
 
@@ -63,6 +80,7 @@ class WarmPlugin(WorkerPlugin):
     def setup(self, worker: Any) -> None:
         os.environ["MFC_SHM_THREADS"] = TASK_THREADS
         stop_profiler(worker)
+        slow_tick(worker)
         t0 = time.perf_counter()
         if self.warm is not None:
             self.warm()

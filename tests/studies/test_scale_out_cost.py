@@ -12,7 +12,7 @@ import pytest
 from bench.bench_scale_out import explain_speedup, list_makespan
 from studies.batch import TaskResult, run_tasks
 from studies.batch.cases import run_cases
-from studies.batch.warm import profiler_running
+from studies.batch.warm import TICK_MS, profiler_running, tick_ms
 
 
 def _burn(key: str, files: dict[str, bytes], shared: dict[str, bytes], options: float) -> TaskResult:
@@ -67,3 +67,11 @@ def test_a_dask_worker_runs_its_tasks_without_the_statistical_profiler() -> None
     4-18 % of a fleet task's CPU on a second thread, taken from the other worker's task on a full machine."""
     results, _ = run_cases(profiler_running, [()], scheduler="local", workers=1, warm=None)
     assert results == [False]
+
+
+@pytest.mark.slow
+def test_a_dask_worker_checks_its_event_loop_every_second_not_every_20_ms() -> None:
+    """Dask's event-loop health check ran every 20 ms: ~2 % of a core per worker (and per scheduler, nanny) for the
+    whole run, beside the tasks. Every second still reports a loop stuck for seconds."""
+    results, _ = run_cases(tick_ms, [()], scheduler="local", workers=1, warm=None)
+    assert results == [TICK_MS] and TICK_MS >= 1000
