@@ -16,8 +16,7 @@ ramp, 1/s) while the gate is open. Contributions (what the parameter adds to the
 =============  ==================================================================================================
 
 Gates (:data:`GATES`, code in ``S`` the gate's signal, ``G`` its shape, ``H`` a fixed smoothing width): open for a
-positive or negative signal (a breathing crack: δ_i > 0; a stiffness or damping that depends on the direction of
-motion: δ̇_i > 0; polarisation:
+positive or negative signal (a breathing crack: δ_i > 0; direction-dependent damping: δ̇_i > 0; polarisation:
 the drive's or the patch voltage's sign), beyond a gap ``(|S| − G)⁺/|S|`` (free play or contact: with the stiffness
 it is exactly k·(δ − clip(δ, ±G))), a step at an instant ``G`` = t0 inside the record (a damage event), and a ramp
 from t0 (damage growing). Which gates each contribution meets is :data:`GATED_BY`; the dictionary crosses them
@@ -123,7 +122,7 @@ CONTRIBUTIONS: dict[str, Contribution] = {
 #: the gate signals each contribution meets: "own_delta"/"own_ddelta" the section's own deflection/rate, "va" the
 #: drive, "vc" the patch voltage (its charge), "time" the step and the ramp; "gap" the gap of the section's deflection
 GATED_BY: dict[str, tuple[str, ...]] = {
-    "k": ("own_delta", "own_ddelta", "gap", "time"),
+    "k": ("own_delta", "gap", "time"),
     "c": ("own_ddelta", "own_delta", "time"),
     "m": ("time",),
     "d_ep": ("va", "vc", "time"),
@@ -216,9 +215,6 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
                         "that side (bilinear stiffness)")
             return (f"section {n} is stiffer by {pct} for {cond} (bilinear stiffness: a contact or a crack that "
                     "closes on that side)")
-        if param == "k":  # switched by the section's rate: softer while it opens (or closes) than the other way
-            return (f"section {n}'s stiffness k{n} is {pct} {lh} while {cond} (a crack that opens with the motion: "
-                    "stiffness depending on the direction of the deflection's rate)")
         if param == "d_ep":
             return (f"a patch whose authority d_ep is {pct} {lh} for {cond} (polarisation-dependent coupling: a "
                     "partly depolarised patch)")
