@@ -23,7 +23,7 @@ def _row(key: str, form: str, param: str = "k", index: int = 1) -> ScreenRow:
     return ScreenRow(term, 0.1, 50.0, 50.0, 2.0 if form in ("on_step", "on_ramp") else None)
 
 
-def _flow(monkeypatch: pytest.MonkeyPatch, timed_held: float) -> tuple[list[str], object]:
+def _flow(monkeypatch: pytest.MonkeyPatch, timed_held: float, ramp_held: float = 60.0) -> tuple[list[str], object]:
     """event_first with its probes and refits replaced by fakes: what it called, in order, and its best refit."""
     calls: list[str] = []
     timed = [_row("k1_step", "on_step"), _row("k1_ramp", "on_ramp")]
@@ -40,12 +40,15 @@ def _flow(monkeypatch: pytest.MonkeyPatch, timed_held: float) -> tuple[list[str]
     def refit_best(setup, progress, settings, todo, tried):
         calls.append("refit " + ",".join(r.term.form for r in todo))
         held = timed_held if todo[0].term.form == "on_step" else 30.0
+        if todo[0].term.form == "on_step":
+            tried += [{"term": todo[0].term.key, "held_rms_sigma": held},
+                      {"term": todo[1].term.key, "held_rms_sigma": ramp_held}]
         return rounds.BestRefit(held, 0, SimpleNamespace(held_rms_sigma=held))
 
     monkeypatch.setattr(rounds, "onset_screen", onset_screen)
     monkeypatch.setattr(rounds, "nonlinear_screen", nonlinear_screen)
     monkeypatch.setattr(rounds, "refit_best", refit_best)
-    setup = SimpleNamespace(n_held=10_000)
+    setup = SimpleNamespace(n_held=10_000, terms=[timed[0].term])
     settings = SimpleNamespace(n_refit=4)
     _, best = rounds.event_first(setup, None, settings, constant, None, [])
     return calls, best
@@ -61,6 +64,12 @@ def test_without_a_time_gated_term_at_the_noise_floor_the_other_rows_are_probed_
     calls, best = _flow(monkeypatch, timed_held=80.0)
     assert calls == ["onset probe", "refit on_step,on_ramp", "nonlinear probes", "refit lin,lin"]
     assert best.held_rms_sigma == 30.0  # the best over both refit lists
+
+
+def test_a_refitted_twin_within_the_tolerance_gets_the_rows_probed_for_the_order_twins_are_named_in(monkeypatch):
+    calls, best = _flow(monkeypatch, timed_held=1.0, ramp_held=1.01)
+    assert calls == ["onset probe", "refit on_step,on_ramp", "nonlinear probes"]
+    assert best.held_rms_sigma == 1.0
 
 
 @pytest.mark.slow

@@ -263,17 +263,27 @@ def event_evident(setup: SearchSetup, batch: SensitivityBatch) -> bool:
 
 
 def event_first(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, rows: list[ScreenRow],
-                batch: SensitivityBatch, tried: list[dict[str, Any]]) -> tuple[list[ScreenRow], BestRefit | None]:
+                batch: SensitivityBatch, tried: list[dict[str, Any]],
+                by_screen: bool = False) -> tuple[list[ScreenRow], BestRefit | None]:
     """The round's probes and refits when an event is evident (:func:`event_evident`): the time-gated rows probed
     at the residual's onset and refitted first; only when none of them reaches the noise floor are the other rows
     probed on the full model and refitted (in the order :func:`with_onsets` gives them, the time-gated rows last,
     already refitted). The same term is kept as with every row probed first and the time-gated rows refitted last,
     unless a term constant in time reaches the noise floor too (then the refit list's first such term was kept,
     now the event); what it saves on a damage event is the nonlinear probes of every row and the refits of the
-    constant terms (on a 15 s sweep with a k2 loss: 35 refits and ~330 probes of the record)."""
+    constant terms (on a 15 s sweep with a k2 loss: 35 refits and ~330 probes of the record). When another
+    refitted time-gated term comes within the twins' tolerance, or the twins are judged by the screen
+    (``by_screen``: the fast path was tried first), the rows are probed on the full model all the same (the twins
+    are named from them, in their order)."""
     timed = with_onsets([], onset_screen(setup, progress, settings, rows, batch), first=True)
     best = refit_best(setup, progress, settings, timed, tried)
     if best is not None and best.held_rms_sigma <= 1.0 + noise_tolerance(setup.n_held):
+        # another refit within the twins' tolerance: its twins are named in the order of the rows probed on
+        # the full model (:func:`twins_of`), so probe them as the full path would
+        chosen = setup.terms[best.index].key
+        limit = max(best.held_rms_sigma, 1.0) * twin_tolerance(setup.n_held)
+        if by_screen or any(t["term"] != chosen and t["held_rms_sigma"] <= limit for t in tried):
+            rows = nonlinear_screen(setup, progress, settings, rows)
         return rows, best
     rows = nonlinear_screen(setup, progress, settings, rows)
     rest = with_onsets(refit_list(rows, settings.n_refit), [], first=False)
@@ -352,7 +362,7 @@ def search_round(setup: SearchSetup, progress: SearchProgress, settings: SearchS
     how = "by the linearised screen, confirmed on the full model"
     event = best is None and not settings.expect_change and event_evident(setup, batch)
     if event:  # the probes and refits interleave (their time is counted as the screen's)
-        rows, best = event_first(setup, progress, settings, rows, batch, tried)
+        rows, best = event_first(setup, progress, settings, rows, batch, tried, by_screen=fast)
         how = "an event inside the record: the time-gated terms probed at its onset and refitted first; best"
     elif best is None:
         rows, onset_rows = probe_screen(setup, progress, settings, rows, batch)
