@@ -19,148 +19,158 @@ from plant.effect import Parameter, PhysicalEffect
 from plant.layout import B_QH, B_S, B_VA, P_C, P_C_EP, P_D_EP, P_K, X_DDELTA, X_DELTA
 
 
-class VelocityCrackSection2(PhysicalEffect):
+def effect(class_name: str, name: str, rates, *parameters: Parameter) -> type[PhysicalEffect]:
+    """A :class:`PhysicalEffect` class named ``class_name`` whose ``rates`` hook is the module-level function
+    ``rates`` (its docstring is the class's)."""
+    return type(class_name, (PhysicalEffect,), {"__doc__": rates.__doc__, "__module__": __name__, "name": name,
+                                                "parameters": parameters, "rates": staticmethod(rates)})
+
+
+def _velocity_crack_section2(t, x, p, bus, dx, so, po):
     """A crack in section 2 whose faces separate while the section opens (δ̇2 > 0): then it carries (1 − a) k2 δ2.
     The switch is smoothed over 1 mm/s of δ̇2 (2 % of its RMS on a sweep): switched at once, the force jumps by
     a k2 δ2 at every turn of the motion and the truth plant exhausts its step budget on a 10 s sweep."""
-
-    name = "unseen_velocity_crack_s2"
-    parameters = (Parameter("a_vel2", "1", 0.0, 0.0, 0.9, "share of k2 lost while δ̇2 > 0"),)
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        bus[B_S + 1] += p[po] * 0.5 * (1.0 + math.tanh(x[X_DDELTA + 1] / 1e-3)) * p[P_K + 1] * x[X_DELTA + 1]
+    bus[B_S + 1] += p[po] * 0.5 * (1.0 + math.tanh(x[X_DDELTA + 1] / 1e-3)) * p[P_K + 1] * x[X_DELTA + 1]
 
 
-class SmoothCrackRoot(PhysicalEffect):
+VelocityCrackSection2 = effect("VelocityCrackSection2", "unseen_velocity_crack_s2", _velocity_crack_section2,
+                               Parameter("a_vel2", "1", 0.0, 0.0, 0.9, "share of k2 lost while δ̇2 > 0"))
+
+
+def _smooth_crack_root(t, x, p, bus, dx, so, po):
     """A root crack that opens gradually for δ1 > 0: the lost share of k1 is a (1 + tanh(δ1 / w)) / 2."""
-
-    name = "unseen_smooth_crack_root"
-    parameters = (Parameter("a_sm1", "1", 0.0, 0.0, 0.9, "share of k1 lost with the crack wide open"),
-                  Parameter("w_sm1", "m", 2e-4, 1e-7, 1e-2, "width of the crack's opening in δ1"))
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        d = x[X_DELTA]
-        bus[B_S] += p[po] * 0.5 * (1.0 + math.tanh(d / p[po + 1])) * p[P_K] * d
+    bus[B_S] += p[po] * 0.5 * (1.0 + math.tanh(x[X_DELTA] / p[po + 1])) * p[P_K] * x[X_DELTA]
 
 
-class CrackSection3Negative(PhysicalEffect):
+SmoothCrackRoot = effect("SmoothCrackRoot", "unseen_smooth_crack_root", _smooth_crack_root,
+                         Parameter("a_sm1", "1", 0.0, 0.0, 0.9, "share of k1 lost with the crack wide open"),
+                         Parameter("w_sm1", "m", 2e-4, 1e-7, 1e-2, "width of the crack's opening in δ1"))
+
+
+def _crack_section3_negative(t, x, p, bus, dx, so, po):
     """A crack in section 3 (next to the tip mass) open for δ3 < 0: (1 − a) k3 there."""
-
-    name = "unseen_crack_s3"
-    parameters = (Parameter("a_cr3", "1", 0.0, 0.0, 0.9, "share of k3 lost while δ3 < 0"),)
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        d = x[X_DELTA + 2]
-        if d < 0.0:
-            bus[B_S + 2] += p[po] * p[P_K + 2] * d
+    d = x[X_DELTA + 2]
+    if d < 0.0:
+        bus[B_S + 2] += p[po] * p[P_K + 2] * d
 
 
-class DampingStepSection3(PhysicalEffect):
+CrackSection3Negative = effect("CrackSection3Negative", "unseen_crack_s3", _crack_section3_negative,
+                               Parameter("a_cr3", "1", 0.0, 0.0, 0.9, "share of k3 lost while δ3 < 0"))
+
+
+def _damping_step_section3(t, x, p, bus, dx, so, po):
     """From t_on section 3 dissipates (1 + r) times more (a delamination starts to rub)."""
-
-    name = "unseen_c3_step"
-    parameters = (Parameter("r_c3", "1", 0.0, 0.0, 20.0, "relative damping added"),
-                  Parameter("t_on", "s", 1.0, 0.0, 1e4, "instant it starts"))
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        if t >= p[po + 1]:
-            bus[B_S + 2] -= p[po] * p[P_C + 2] * x[X_DDELTA + 2]
+    on = 1.0 if t >= p[po + 1] else 0.0  # the rub starts at once
+    bus[B_S + 2] -= on * p[po] * p[P_C + 2] * x[X_DDELTA + 2]
 
 
-class RampLossRoot(PhysicalEffect):
+DampingStepSection3 = effect("DampingStepSection3", "unseen_c3_step", _damping_step_section3,
+                             Parameter("r_c3", "1", 0.0, 0.0, 20.0, "relative damping added"),
+                             Parameter("t_on", "s", 1.0, 0.0, 1e4, "instant it starts"))
+
+
+def _ramp_loss_root(t, x, p, bus, dx, so, po):
     """The root loses stiffness gradually: from t_start over 5 s its k1 falls linearly by a share f, then stays."""
-
-    name = "unseen_k1_ramp"
-    parameters = (Parameter("f_ramp", "1", 0.0, 0.0, 0.9, "share of k1 lost at the end of the ramp"),
-                  Parameter("t_start", "s", 1.0, 0.0, 1e4, "instant the loss starts"))
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        share = min(max((t - p[po + 1]) / 5.0, 0.0), 1.0)
-        bus[B_S] += share * p[po] * p[P_K] * x[X_DELTA]
+    share = min(max((t - p[po + 1]) / 5.0, 0.0), 1.0)
+    bus[B_S] += share * p[po] * p[P_K] * x[X_DELTA]
 
 
-class PatchWeakBelowOffset(PhysicalEffect):
+RampLossRoot = effect("RampLossRoot", "unseen_k1_ramp", _ramp_loss_root,
+                      Parameter("f_ramp", "1", 0.0, 0.0, 0.9, "share of k1 lost at the end of the ramp"),
+                      Parameter("t_start", "s", 1.0, 0.0, 1e4, "instant the loss starts"))
+
+
+def _patch_weak_below_offset(t, x, p, bus, dx, so, po):
     """Patches partly depoled: below a drive of v_off (not zero) their piezo force is (1 − b) of d_ep's."""
-
-    name = "unseen_patch_offset"
-    parameters = (Parameter("b_off", "1", 0.0, 0.0, 0.9, "share of d_ep lost below v_off"),
-                  Parameter("v_off", "V", 0.0, -1e3, 1e3, "drive below which the patch is weak"))
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        if bus[B_VA] < p[po + 1]:
-            for i in range(3):
-                bus[B_S + i] -= p[po] * p[P_K + i] * p[P_D_EP] * bus[B_QH + i] / p[P_C_EP]
+    if bus[B_VA] < p[po + 1]:
+        for i in range(3):
+            bus[B_S + i] -= p[po] * p[P_K + i] * p[P_D_EP] * bus[B_QH + i] / p[P_C_EP]
 
 
-class BilinearOffsetSection2(PhysicalEffect):
+PatchWeakBelowOffset = effect("PatchWeakBelowOffset", "unseen_patch_offset", _patch_weak_below_offset,
+                              Parameter("b_off", "1", 0.0, 0.0, 0.9, "share of d_ep lost below v_off"),
+                              Parameter("v_off", "V", 0.0, -1e3, 1e3, "drive below which the patch is weak"))
+
+
+def _bilinear_offset_section2(t, x, p, bus, dx, so, po):
     """A bilinear section 2 switching at δ_s ≠ 0: beyond δ2 > δ_s its spring is (1 − a) k2 for the part beyond."""
-
-    name = "unseen_bilinear_s2"
-    parameters = (Parameter("a_bl2", "1", 0.0, 0.0, 0.9, "share of k2 lost beyond the switching point"),
-                  Parameter("d_sw2", "m", 0.0, -1e-2, 1e-2, "switching deflection"))
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        d = x[X_DELTA + 1] - p[po + 1]
-        if d > 0.0:
-            bus[B_S + 1] += p[po] * p[P_K + 1] * d
+    d = x[X_DELTA + 1] - p[po + 1]
+    if d > 0.0:
+        bus[B_S + 1] += p[po] * p[P_K + 1] * d
 
 
-class GapSection3(PhysicalEffect):
+BilinearOffsetSection2 = effect("BilinearOffsetSection2", "unseen_bilinear_s2", _bilinear_offset_section2,
+                                Parameter("a_bl2", "1", 0.0, 0.0, 0.9, "share of k2 lost beyond the switching point"),
+                                Parameter("d_sw2", "m", 0.0, -1e-2, 1e-2, "switching deflection"))
+
+
+def _gap_section3(t, x, p, bus, dx, so, po):
     """Free play of ±g in the joint of section 3 with hard edges: within the play the joint's share f of k3 carries
     nothing; beyond it the joint takes up the load again (the lost force saturates at f k3 g)."""
-
-    name = "unseen_gap_s3"
-    parameters = (Parameter("f_gap3", "1", 0.0, 0.0, 1.0, "share of k3 carried by the joint"),
-                  Parameter("g_gap3", "m", 1e-4, 1e-8, 1e-2, "half-width of the play"))
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        g = p[po + 1]
-        bus[B_S + 2] += p[po] * p[P_K + 2] * min(max(x[X_DELTA + 2], -g), g)
+    g = p[po + 1]
+    bus[B_S + 2] += p[po] * p[P_K + 2] * min(max(x[X_DELTA + 2], -g), g)
 
 
-class StiffnessStepRoot(PhysicalEffect):
+GapSection3 = effect("GapSection3", "unseen_gap_s3", _gap_section3,
+                     Parameter("f_gap3", "1", 0.0, 0.0, 1.0, "share of k3 carried by the joint"),
+                     Parameter("g_gap3", "m", 1e-4, 1e-8, 1e-2, "half-width of the play"))
+
+
+def _stiffness_step_root(t, x, p, bus, dx, so, po):
     """At t_crack the root (section 1) loses a share f of k1 at once."""
+    bus[B_S] += (t >= p[po + 1]) * p[po] * p[P_K] * x[X_DELTA]
 
-    name = "unseen_k1_step"
-    parameters = (Parameter("f_k1", "1", 0.0, 0.0, 0.9, "share of k1 lost"),
-                  Parameter("t_crack", "s", 1.0, 0.0, 1e4, "instant of the loss"))
 
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        if t >= p[po + 1]:
-            bus[B_S] += p[po] * p[P_K] * x[X_DELTA]
+StiffnessStepRoot = effect("StiffnessStepRoot", "unseen_k1_step", _stiffness_step_root,
+                           Parameter("f_k1", "1", 0.0, 0.0, 0.9, "share of k1 lost"),
+                           Parameter("t_crack", "s", 1.0, 0.0, 1e4, "instant of the loss"))
 
 
 _S1 = ("section 1", "k1", "root")
 _S2 = ("section 2", "k2")
 _S3 = ("section 3", "k3")
-_ONE_SIDED = ("crack", "one-sided", "one side", "breathing", "bilinear", "only while", "only for", "only when",
-              "opens", "> 0", "< 0", "sign of")
+_ONE_SIDED = (
+    "crack",
+    "one-sided",
+    "one side",
+    "breathing",
+    "bilinear",
+    "only while",
+    "only for",
+    "only when",
+    "opens",
+    "> 0",
+    "< 0",
+    "sign of",
+)
 _STIFF = ("stiff", "softer", "k1", "k2", "k3")
 _DAMP = ("damping", "dissipat", "c3")
 _GAP = ("free play", "clearance", "play", "dead zone", "gap", "loose")
 
 #: (strength values on the sweep, word groups, (name of the time parameter, tolerance s) or None).
 #: Time parameters are given as fractions of the record ("<name>_frac") and set per record.
-UNSEEN: dict[str, tuple[type[PhysicalEffect], dict[str, float], tuple[tuple[str, ...], ...],
-                        tuple[str, float] | None]] = {
-    "velocity_crack_s2": (VelocityCrackSection2, {"a_vel2": 0.25},
-                          (_S2, ("velocity", "δ̇2", "opening", "moving", "rate")), None),
+UNSEEN: dict[
+    str, tuple[type[PhysicalEffect], dict[str, float], tuple[tuple[str, ...], ...], tuple[str, float] | None]
+] = {
+    "velocity_crack_s2": (
+        VelocityCrackSection2,
+        {"a_vel2": 0.25},
+        (_S2, ("velocity", "δ̇2", "opening", "moving", "rate")),
+        None,
+    ),
     "smooth_crack_root": (SmoothCrackRoot, {"a_sm1": 0.3, "w_sm1": 2e-4}, (_S1, _ONE_SIDED), None),
     "crack_s3_negative": (CrackSection3Negative, {"a_cr3": 0.2}, (_S3, _ONE_SIDED), None),
     "damping_step_s3": (DampingStepSection3, {"r_c3": 2.0, "t_on_frac": 0.5}, (_S3, _DAMP), ("t_on", 0.2)),
     "ramp_loss_root": (RampLossRoot, {"f_ramp": 0.2, "t_start_frac": 0.25}, (_S1, _STIFF), ("t_start", 3.0)),
-    "patch_offset": (PatchWeakBelowOffset, {"b_off": 0.25, "v_off": 60.0},
-                     (("d_ep", "drive", "patch", "authority", "piezo"),
-                      ("negative", "polarity", "'s sign", "sign of", "polaris", "one-sided", "below", "< ")), None),
+    "patch_offset": (
+        PatchWeakBelowOffset,
+        {"b_off": 0.25, "v_off": 60.0},
+        (
+            ("d_ep", "drive", "patch", "authority", "piezo"),
+            ("negative", "polarity", "'s sign", "sign of", "polaris", "one-sided", "below", "< "),
+        ),
+        None,
+    ),
     "bilinear_offset_s2": (BilinearOffsetSection2, {"a_bl2": 0.3, "d_sw2": 3e-4}, (_S2, _ONE_SIDED), None),
     "gap_s3": (GapSection3, {"f_gap3": 0.5, "g_gap3": 1e-4}, (_S3, _GAP), None),
     "k1_step": (StiffnessStepRoot, {"f_k1": 0.2, "t_crack_frac": 0.6}, (_S1, _STIFF), ("t_crack", 0.2)),
@@ -169,12 +179,21 @@ UNSEEN: dict[str, tuple[type[PhysicalEffect], dict[str, float], tuple[tuple[str,
 
 def truth_values(label: str, duration_s: float) -> dict[str, float]:
     """The case's parameter values on a record of ``duration_s`` (time fractions turned into instants, s)."""
-    return {(k[:-5] if k.endswith("_frac") else k): (v * duration_s if k.endswith("_frac") else v)
-            for k, v in UNSEEN[label][1].items()}
+    return {
+        (k[:-5] if k.endswith("_frac") else k): (v * duration_s if k.endswith("_frac") else v)
+        for k, v in UNSEEN[label][1].items()
+    }
 
 
-def run_unseen(label: str, *, kind: str = "sweep", duration_s: float = 10.0, noise_m: float = 2e-6, seed: int = 1,
-               workdir: str | None = None) -> dict[str, object]:
+def run_unseen(
+    label: str,
+    *,
+    kind: str = "sweep",
+    duration_s: float = 10.0,
+    noise_m: float = 2e-6,
+    seed: int = 1,
+    workdir: str | None = None,
+) -> dict[str, object]:
     """One unseen case through the one-command walk: synth → ``diagnose`` (discovery on, files into a temporary
     folder) → the first sentence scored → the emitted file (or the named fix) refitted as ``shm fit --add`` does.
     Returns the row of the report: sentence, named, missing, fix, held-out σ before and after, wall time."""
@@ -205,8 +224,20 @@ def run_unseen(label: str, *, kind: str = "sweep", duration_s: float = 10.0, noi
         named, missing = check_physics(sentence, check)
         fix, held, note = fix_held_sigma(d, rec, tmp)
         message = d.message
-    return {"label": label, "kind": kind, "seed": seed, "size_sigma": size, "verdict": d.verdict,
-            "sentence": sentence, "named": named, "missing": missing, "fix": fix,
-            "held_before": float(d.baseline_held_rms_sigma), "held_fix": float(held),
-            "passed": bool(np.isfinite(held) and held <= 1.5), "note": note, "wall_s": time.perf_counter() - t0,
-            "message": message}
+    return {
+        "label": label,
+        "kind": kind,
+        "seed": seed,
+        "size_sigma": size,
+        "verdict": d.verdict,
+        "sentence": sentence,
+        "named": named,
+        "missing": missing,
+        "fix": fix,
+        "held_before": float(d.baseline_held_rms_sigma),
+        "held_fix": float(held),
+        "passed": bool(np.isfinite(held) and held <= 1.5),
+        "note": note,
+        "wall_s": time.perf_counter() - t0,
+        "message": message,
+    }
