@@ -9,8 +9,8 @@ from __future__ import annotations
 import pytest
 from workbench_unseen_damage import UNSEEN, run_unseen
 
-#: cases that pass the walk today (first sentence names the physics, the fix ≤ 1.5 σ held out): see the module
-#: docstring of tests/workbench_unseen_damage.py and docs/workbench.md for the ones that do not
+#: cases that pass the walk today (first sentence names the physics, the fix ≤ 1.5 σ held out): the module docstring
+#: of tests/workbench_unseen_damage.py lists the ones that do not, with what their first sentence says
 PASSING = ("k1_step",)
 
 
