@@ -33,8 +33,15 @@ error of its fix (the emitted file refitted as ``shm fit --add`` does).
 * bilinear_offset_s2 (352 σ): "Partly found …: a one-sided force on mass 2 of 22.4 N/m acting only when
   z2 > 548 µm: a support that lets go; and a patch whose authority d_ep is 3.72 % lower for positive drive" —
   wrong (truth: k2 30 % lower beyond δ2 > 0.3 mm; the stiffness gates switch at δ = 0 only); the fix 15.0 σ; 122 s.
-* velocity_crack_s2: not run — switched at once, the truth plant exhausts its step budget on a 10 s sweep (now
-  smoothed over 1 mm/s; not measured since).
+* velocity_crack_s2 (308 σ; the switch smoothed over 1 mm/s — switched at once the truth plant exhausted its step
+  budget on the 10 s sweep): "Partly found beyond the library: stiffness k2 of section 2 falling by 2.36 %/s from
+  t = 3 ± 3 s on" — wrong: a ramp that never happened (the dictionary has no stiffness switched by the sign of the
+  section's rate); the fix 108 σ; 77 s.
+
+Score: 2 of 9 pass both (k1_step, gap_s3); 5 of 9 name the right physics in the first sentence (k1_step,
+damping_step_s3, smooth_crack_root, gap_s3, ramp_loss_root). Twice (crack_s3_negative, velocity_crack_s2) the first
+sentence names a damage event or growth in time that never happened: on a sweep, time is also frequency, and a step
+or ramp of a section's stiffness absorbs part of a sign-switched stiffness.
 
 
 Section force convention as in the core (``plant/effects/laminate.py``): ``bus[B_S + i]`` carries
