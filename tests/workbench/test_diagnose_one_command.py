@@ -55,6 +55,24 @@ def test_the_final_verdict_leads_with_what_was_found(monkeypatch):
     assert d.fit_command == section["fit_command"]
 
 
+def test_terms_short_of_a_cure_are_named_as_a_part_with_their_share_not_as_a_finding(monkeypatch):
+    import workbench.diagnose._discovery as dd
+
+    monkeypatch.setattr(dd, "term_formulas", lambda disc: ["K_3 *= 1 - a·[t > t0]"])
+    d = SimpleNamespace(message="The library and the core parameters explain only 60 % …\nLook …",
+                        verdict="unexplained",
+                        winner=None, baseline_held_rms_sigma=565.0, fit_command="", next_command="x")
+    disc = SimpleNamespace(terms=[SimpleNamespace(description="section 3 lost 11.1 % of its stiffness at t = 0.73 s")],
+                           held_before=565.0, held_after=91.2, message="Partly found: …", verdict="partial")
+    final_verdict(d, disc, {"emitted": None, "fit_command": ""})
+    first = d.message.split("\n", 1)[0].split(". ", 1)[0]
+    assert first.startswith("Explained only in part") and "Found" not in first
+    assert "section 3 lost 11.1 %" in first and "91.2 σ of 565 σ" in first
+    assert "97 % of the excess over the noise" in first  # 1 − (91.2² − 1)/(565² − 1)
+    assert d.verdict == "partly_discovered"
+    assert dd.excess_share(8.6, 1.0) == 1.0 and dd.excess_share(1.0, 3.0) == 0.0
+
+
 def test_a_discovery_no_better_than_the_library_follows_it(monkeypatch):
     import workbench.diagnose._discovery as dd
 

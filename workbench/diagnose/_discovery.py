@@ -110,6 +110,26 @@ def _library_sentence(d: Any, confirmed: bool) -> str:
     return first
 
 
+def excess_share(before_sigma: float, after_sigma: float) -> float:
+    """The share (0–1) of the held-out error's excess over the noise (its mean square above 1 σ²) that a model
+    explains, from the held-out RMS in noise σ before and after it."""
+    excess = before_sigma ** 2 - 1.0
+    if excess <= 0.0:
+        return 0.0
+    return min(1.0, max(0.0, 1.0 - max(after_sigma ** 2 - 1.0, 0.0) / excess))
+
+
+def partial_sentence(disc: Any, found: str) -> str:
+    """The first sentence when the discovery's best terms do not reach a cure: not a finding but the share they
+    explain (point 1 of issue 26 for the dictionary as for the library: a claim only at the noise floor), the
+    closest terms named as such."""
+    share = excess_share(disc.held_before, disc.held_after)
+    return (f"Explained only in part: the library, the core parameters and the closest terms found beyond the "
+            f"library ({found}) leave {disc.held_after:.4g} σ of {disc.held_before:.4g} σ held out — "
+            f"{100.0 * share:.0f} % of the excess over the noise; a cure reaches {CURE_AT_MOST_SIGMA:g} σ, so "
+            "something else is missing or the form is only close")
+
+
 def final_verdict(d: Any, disc: Any, section: dict[str, Any]) -> None:
     """Rewrite ``d.verdict``/``d.message``/``d.fit_command``/``d.next_command`` around the discovery: the first
     sentence names what was found when it explains the records better than the library's named set; otherwise the
@@ -121,10 +141,9 @@ def final_verdict(d: Any, disc: Any, section: dict[str, Any]) -> None:
         # at the noise floor by the cure's 1.5 σ, or by the discovery's own criterion (the one every candidate is judged
         # by: within the noise tolerance of its held-out samples, or below 3 σ with at most 1 % of the excess left)
         at_floor = disc.verdict == "found" or disc.held_after <= CURE_AT_MOST_SIGMA
-        head = (("Found beyond the library: " if at_floor else "Partly found beyond the library: ") + found
-                + f". Held-out error {disc.held_before:.4g} σ → {disc.held_after:.4g} σ (noise floor 1 σ"
-                + ("" if at_floor else f"; above the {CURE_AT_MOST_SIGMA:g} σ of a cure: something else is missing "
-                   "too") + "). Formula: " + "; ".join(term_formulas(disc)) + ".")
+        head = ((f"Found beyond the library: {found}. Held-out error {disc.held_before:.4g} σ → "
+                 f"{disc.held_after:.4g} σ (noise floor 1 σ)") if at_floor else partial_sentence(disc, found))
+        head += ". Formula: " + "; ".join(term_formulas(disc)) + "."
         if emitted:
             head += f" Written to {emitted['file']} (effect {emitted['effect']}, class {emitted['class']})."
         elif section.get("load_error"):
