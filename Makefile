@@ -25,7 +25,7 @@ $(STAMP): pyproject.toml
 # plant/warm.py: tens of seconds each, shm discover's dictionary minutes, printed as they go), so that a fresh clone's
 # first command loads machine code instead of compiling. Again when the plant, the discover dictionary, a shipped
 # parameter set or scenario changes (it skips what is cached).
-$(KERNELS): $(STAMP) $(wildcard plant/*.py plant/effects/*.py workbench/discover*.py board_config/params/*.toml \
+$(KERNELS): $(STAMP) $(wildcard plant/*.py plant/effects/*.py workbench/discover/*.py board_config/params/*.toml \
                                 board_config/scenarios/*.toml)
 	$(BIN)/python -m workbench.warm
 	@mkdir -p "$(@D)" && touch "$@"
