@@ -119,6 +119,8 @@ def connect(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s:
 
         # non-daemon workers: a task may run its own process pool (a board's life, a health fit)
         method = "fork" if fork else dask.config.get("distributed.worker.multiprocessing-method")
+        if fork:
+            quiet_forked_workers()
         # the scheduler's, nannies' and workers' event-loop check every second, not every 20 ms (studies.batch.warm)
         with dask.config.set({"distributed.worker.daemon": False, "distributed.worker.multiprocessing-method": method,
                               "distributed.admin.tick.interval": f"{TICK_MS:g}ms"}):
@@ -133,6 +135,19 @@ def connect(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s:
                              f"{timeout_s:g} s ({exc})") from None
     except Exception as exc:  # malformed address and other connection errors
         raise SchedulerError(f"--scheduler: cannot connect to {scheduler!r}: {type(exc).__name__}: {exc}") from None
+
+
+def quiet_forked_workers() -> None:
+    """Dask's own records below WARNING are not made at all in this process while it forks workers: a nanny forks
+    its worker from a thread of this process at any moment (a restart too), and a record another thread was writing
+    then leaves that handler's stream locked in the child, whose first ``logger.info`` ("Start worker at …") waits on
+    it for ever (seen under pytest, whose root logger writes to a file: a LifePool start hung 10 minutes). The
+    cluster's logs are silenced to CRITICAL on screen anyway (``silence_logs``)."""
+    import logging
+
+    dask_logger = logging.getLogger("distributed")
+    if dask_logger.getEffectiveLevel() < logging.WARNING:
+        dask_logger.setLevel(logging.WARNING)
 
 
 def check_scheduler(text: str | None) -> str | None:

@@ -69,3 +69,14 @@ def _running(pid: int) -> bool:
     except OSError:
         return False
     return state != "Z"
+
+
+def test_dask_makes_no_info_records_while_it_forks_workers() -> None:
+    """A forked worker whose parent's thread was writing a Dask info record hung on that stream's lock (a LifePool
+    start waited 10 minutes under pytest): the pool's forking process makes no Dask record below WARNING."""
+    import logging
+
+    logging.getLogger("distributed").setLevel(logging.INFO)
+    with LifePool(_task, 1) as pool:
+        assert logging.getLogger("distributed.worker").getEffectiveLevel() >= logging.WARNING
+        assert pool.run([("a",)], lambda i, r: None) is False
