@@ -24,7 +24,14 @@ from typing import Any, NamedTuple
 
 from pymodbus.framer.rtu import FramerRTU
 
-from drivers.modbus_registers import COMMAND_END, COMMAND_START, HOLDING_COUNT, HOLDING_START, decode_command_block
+from drivers.modbus_registers import (
+    COMMAND_END,
+    COMMAND_START,
+    HOLDING_COUNT,
+    HOLDING_START,
+    ModbusExceptionCode,
+    decode_command_block,
+)
 
 #: the function codes answered here (a board's exchange: FC 23, or FC 16 + FC 04; FC 03 reads the holding block)
 HOT_FUNCTIONS = frozenset({3, 4, 16, 23})
@@ -35,8 +42,8 @@ _READ_WRITE = struct.Struct(">HHHHB")  # FC 23: read address, read quantity, wri
 _FLAG_TYPE = 2**4 - 1  # pymodbus.simulator.simutils.SimUtils.RunTimeFlag_TYPE
 _FLAG_INVALID = 1  # DataType.INVALID
 _FLAG_READONLY = 2**4  # SimUtils.RunTimeFlag_READONLY
-ILLEGAL_ADDRESS = 0x02
-DEVICE_FAILURE = 0x04
+ILLEGAL_ADDRESS = ModbusExceptionCode.ILLEGAL_ADDRESS
+DEVICE_FAILURE = ModbusExceptionCode.DEVICE_FAILURE
 
 #: one pymodbus ``SimRuntime`` block: (first address, register count, the registers, their flags)
 Block = tuple[int, int, list[int], list[int]]

@@ -32,7 +32,6 @@ from collections import Counter, deque
 
 from pymodbus.constants import ExcCodes
 from pymodbus.framer import FramerType
-from pymodbus.framer.rtu import FramerRTU
 from pymodbus.server import ModbusSerialServer, ModbusTcpServer
 from pymodbus.server.requesthandler import ServerRequestHandler
 from pymodbus.simulator import DataType, SimData, SimDevice
@@ -340,33 +339,30 @@ class ModbusRigServer:
     def precheck(self, handler: ServerRequestHandler, data: bytes) -> int:
         """Answer a malformed request (see :func:`check_request_pdu`) before pymodbus does; return the bytes used
         (0: not handled here). Requests for other unit ids are left to the unit filter (silence)."""
-        if self.kind == "tcp":
-            if len(data) < 8:
-                return 0
-            tid, pid, length, unit = struct.unpack(">HHHB", data[:7])
-            end = 6 + length
-            if pid != 0 or length < 2 or len(data) < end:
-                return 0
-            code = check_request_pdu(data[7:end])
-            if code is None:
-                return 0
-            if unit == self.unit or unit == 255:
-                handler.send(struct.pack(">HHHBBB", tid, 0, 3, unit, (data[7] | 0x80) & 0xFF, code))
-        else:
-            if len(data) < 4 or FramerRTU.compute_CRC(data[:-2]) != int.from_bytes(data[-2:], "big"):
-                return 0  # not one complete frame with a good CRC: pymodbus hunts / waits as usual
-            end = len(data)
-            unit = data[0]
-            code = check_request_pdu(data[1:-2])
-            if code is None:
-                return 0
-            if unit == self.unit:
-                frame = bytes([unit, (data[1] | 0x80) & 0xFF, code])
-                handler.send(frame + FramerRTU.compute_CRC(frame).to_bytes(2, "big"))
+        tcp = self.kind == "tcp"
+        req = self._whole_tcp_frame(data) if tcp else hot.parse_rtu(data)
+        if req is None:
+            return 0  # not one complete frame (on RTU: with a good CRC): pymodbus hunts / waits as usual
+        code = check_request_pdu(data[req.pdu_start:req.pdu_end])
+        if code is None:
+            return 0
+        if req.unit == self.unit or (tcp and req.unit == 255):
+            handler.send(hot.reply_adu(req, hot.exception_pdu(req.fc, code)))
         self.stats[f"exception_{code:02d}"] += 1
-        self.host.incident(f"{self.describe()}: malformed request (function {data[7 if self.kind == 'tcp' else 1]}) "
-                           f"answered with exception {code:02d}")
-        return end
+        self.host.incident(f"{self.describe()}: malformed request (function {req.fc}) answered with exception "
+                           f"{code:02d}")
+        return req.end
+
+    @staticmethod
+    def _whole_tcp_frame(data: bytes) -> hot.Request | None:
+        """The first MBAP frame of ``data`` when complete with protocol id 0 and a length of at least 2 (any length
+        above: a too-long PDU is answered with its exception here, where :func:`hot.parse_mbap` leaves it)."""
+        if len(data) < 8:
+            return None
+        tid, pid, length, unit, fc = struct.unpack_from(">HHHBB", data)
+        if pid != 0 or length < 2 or len(data) < 6 + length:
+            return None
+        return hot.Request(tid, unit, fc, 7, 6 + length, 6 + length)
 
     def service_time_summary(self, from_kernel: bool = False) -> dict[str, float | int]:
         """p50 / p99 / max (ms) of :attr:`service_times` (``from_kernel``: :attr:`kernel_service_times`) and their
