@@ -150,7 +150,8 @@ def prepare_search(records: Sequence[Record | FrfRecord], params: ParameterSet |
     for k, (cname, gname) in enumerate(names):
         state.values[cname] = 0.0
         if gname is not None:
-            state.values[gname] = terms[k].shape if terms[k].shape > 0 else 1.0
+            shaped = terms[k].shape > 0 or terms[k].shape_range is not None  # a switching point may be 0
+            state.values[gname] = terms[k].shape if shaped else 1.0
     ref = reference_magnitudes(targets[0].model, scales)
     eps = np.array([ref[t.placement] / max(term_scale(t, sig, targets), 1e-300) for t in terms])
     base_obj = Objective(targets, models, [], base_values=state.values)

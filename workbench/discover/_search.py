@@ -161,9 +161,10 @@ def free_for(terms: Sequence[Term], names: list[tuple[str, str | None]], idx: Se
         if shapes_free and gname is not None and k == new:
             g = start[gname]
             rng = terms[k].shape_range
-            if rng is not None:  # an onset: a window as wide as its term's range, centred on the (scanned) start
-                half = 0.5 * (rng[1] - rng[0])
-                out.append(freed(gname, terms[k].shape_unit, max(g - half, 0.0), g + half, False, "discover"))
+            if rng is not None:  # an onset or a switching point: a window as wide as its term's range, centred on
+                half = 0.5 * (rng[1] - rng[0])  # the (scanned) start; an onset stays ≥ 0, a switching point not
+                lo_g = max(g - half, min(rng[0], 0.0))
+                out.append(freed(gname, terms[k].shape_unit, lo_g, g + half, False, "discover"))
                 continue
             lo, hi = (g / 20.0, g * 2.0) if terms[k].form == "sign" else (g / 4.0, g * 4.0)
             out.append(freed(gname, terms[k].shape_unit, lo, hi, True, "discover"))
