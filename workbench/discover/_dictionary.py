@@ -24,7 +24,9 @@ few fractions each; the refit frees them.
 parameter's own contribution (k_i·δ_i, c_i·δ̇_i, the masses' inertia, d_ep's coupling, α_h, β_h, R_ep, C_ep) times
 a switching gate (the sign of the section's deflection or rate, beyond a gap, the sign of the drive or the patch
 voltage, a step at an instant t0 inside the record, a ramp from t0); the coefficient is the parameter's relative
-change while the gate is open, the gate's signal is the term's ``signal`` and its gap or onset time its ``shape``.
+change while the gate is open, the gate's signal is the term's ``signal`` and its switching point, gap or onset time
+its ``shape`` (a section's stiffness switched by its own deflection is a bilinear spring: a hinge at the switching
+point, continuous there).
 
 :func:`build_dictionary` lists the terms for a model and records; :func:`form_values` evaluates a form on arrays
 (NumPy) for scaling. The code a set of terms becomes (the hooks of a :class:`~plant.PhysicalEffect`: the whole
@@ -46,6 +48,7 @@ from workbench.discover._gates import (
     GATES,
     RAMP_AT,
     STEP_AT,
+    SWITCH_RANGE,
     gate_values,
     onsets,
     param_label,
@@ -133,8 +136,8 @@ class Term:
     """One candidate correction: ``coefficient × form(signal)`` added at ``placement`` (mass/section ``index``,
     0-based; -1 when it does not apply). ``shape`` is the form's constant (SI, the signal's unit; for a delay, s).
     A damage term (placement ``damage``) is ``coefficient × contribution(param) × gate(signal)``, the gate being
-    its form; ``shape_range`` is where the refit may move its shape (an onset time: linear), None for a factor
-    of four either way."""
+    its form; ``shape_range`` is where the refit may move its shape (an onset time or a switching point: linear),
+    None for a factor of four either way."""
 
     placement: str
     index: int
@@ -279,7 +282,8 @@ def build_dictionary(scales: Mapping[str, float], *, driven: bool = True) -> lis
 def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Term]:
     """Every core parameter's contribution crossed with the gates it meets (:data:`~workbench.discover._gates.
     GATED_BY`): sign gates on the section's own deflection or rate, on the drive (when ``driven``) or the patch
-    voltage; gaps at :data:`~workbench.discover._gates.GAP_AT` of the deflection's scale; steps and ramps at onsets
+    voltage (switching at 0, refitted within ± :data:`~workbench.discover._gates.SWITCH_RANGE` of the signal's
+    scale); gaps at :data:`~workbench.discover._gates.GAP_AT` of the deflection's scale; steps and ramps at onsets
     spanning the record (``scales["t"]``, the longest record's duration; no time gates without it)."""
     terms: list[Term] = []
 
@@ -302,5 +306,6 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                     if ok(sig):
                         terms += [Term("damage", index, sig, "on_gap", f * scales[sig], param) for f in GAP_AT]
                 elif ok(sig) and (driven or sig != "va"):
-                    terms += [Term("damage", index, sig, g, 0.0, param) for g in ("on_pos", "on_neg")]
+                    rng = (-SWITCH_RANGE * scales[sig], SWITCH_RANGE * scales[sig])
+                    terms += [Term("damage", index, sig, g, 0.0, param, rng) for g in ("on_pos", "on_neg")]
     return terms

@@ -12,7 +12,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 from workbench.discover._dictionary import ALL_FORMS, GATE_FORMS, SIGNALS, Term, n_form_states
-from workbench.discover._gates import contribution_lines, gate_width
+from workbench.discover._gates import SIGN_GATES, contribution_lines, gate_code, gate_width, is_hinge
 
 
 def allocate_states(term: Term, specs: list[tuple[str, float]]) -> int | None:
@@ -56,7 +56,8 @@ def _value_code(slot: TermSlot) -> str:
     w = f"x[so + {slot.state}]" if slot.state is not None else "0.0"
     v = f"x[so + {slot.state + 1}]" if slot.state is not None and n_form_states(term.form) > 1 else "0.0"
     h = _lit(gate_width(term.form, SIGNALS[term.signal].unit)) if term.form in GATE_FORMS else "0.0"
-    expr = form.code.replace("G", g).replace("W", w).replace("V", v).replace("H", h)
+    code = gate_code(term.form, term.param, term.signal) if term.placement == "damage" else form.code
+    expr = code.replace("G", g).replace("W", w).replace("V", v).replace("H", h)
     expr = expr.replace("S", f"({s})")
     return f"p[po + {slot.coef}] * ({expr})"
 
@@ -89,7 +90,8 @@ def hook_bodies(slots: Sequence[TermSlot], guard: bool = False) -> dict[str, lis
             else:
                 bodies["rates"].extend("        " + ln for ln in state_lines)
         if term.placement == "damage":
-            for hook, lines in contribution_lines(term.param, term.index, value).items():
+            hinge = is_hinge(term.param, term.form, term.signal)
+            for hook, lines in contribution_lines(term.param, term.index, value, hinge).items():
                 if guard:
                     bodies[hook].append(f"        if p[po + {slot.coef}] != 0.0:")
                     bodies[hook].extend("            " + ln for ln in lines)
@@ -179,7 +181,8 @@ def dictionary_parameter_names(terms: Sequence[Term]) -> list[tuple[str, str | N
 def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDictionary",
                       effect_name: str = "discovery_dictionary") -> str:
     """Source of one effect holding every term: a coefficient per term (default 0 = neutral) and, for a shaped form,
-    its shape as a parameter (placeholder default 1; the workbench sets it per record). The source depends only on
+    its shape as a parameter (placeholder default 1, a switching point's 0 and unbounded below; the workbench sets
+    it per record). The source depends only on
     the terms' structure (placement, index, signal, form), so the compiled kernel is cached across records and
     runs; a term whose coefficient is 0 is skipped at run time."""
     slots: list[TermSlot] = []
@@ -191,7 +194,9 @@ def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDiction
         gi = None
         if gname is not None:
             gi = len(params)
-            params.append(f"        Parameter({gname!r}, {term.shape_unit!r}, 1.0, 0.0, math.inf, "
+            signed = term.form in SIGN_GATES  # a switching point: either side of zero
+            params.append(f"        Parameter({gname!r}, {term.shape_unit!r}, {0.0 if signed else 1.0}, "
+                          f"{'-math.inf' if signed else '0.0'}, math.inf, "
                           f"'shape of {term.key}'),")
         slots.append(TermSlot(term, ci, gi, allocate_states(term, specs)))
     states = "\n".join(f"        StateSpec('w_{k}', {u!r}, {sc!r})," for k, (u, sc) in enumerate(specs))

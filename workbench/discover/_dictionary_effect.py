@@ -74,6 +74,7 @@ def term_scale(term: Term, sig: dict[str, list[np.ndarray]], targets: Sequence[T
     vals = []
     for s, tg in zip(sig[term.signal], targets):
         dt = float(np.median(np.diff(tg.t))) if tg.t.size > 1 else 1.0
-        vals.append(form_values(term.form, s, term.shape if term.shape > 0 else 1.0, tg.t, dt))
+        shaped = term.shape > 0 or term.shape_range is not None  # a switching point may be 0 (or below)
+        vals.append(form_values(term.form, s, term.shape if shaped else 1.0, tg.t, dt))
     v = np.concatenate(vals)
     return float(np.sqrt(np.mean(v * v)))

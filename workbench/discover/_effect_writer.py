@@ -17,7 +17,15 @@ from collections.abc import Callable, Mapping, Sequence
 
 from workbench.discover._dictionary import ALL_FORMS, DELAY_FORMS, FORMS, SIGNALS, Term
 from workbench.discover._dictionary_code import TermSlot, allocate_states, hooks_source
-from workbench.discover._gates import TIME_GATES, class_stem, damage_formula, describe_damage
+from workbench.discover._gates import (
+    SIGN_GATES,
+    SWITCH_RANGE,
+    TIME_GATES,
+    class_stem,
+    damage_formula,
+    describe_damage,
+    gate_width,
+)
 
 
 def _si(x: float, unit: str) -> str:
@@ -297,13 +305,28 @@ def _r(x: float) -> float:
     return float(f"{x:.6g}")
 
 
+def _switch_range(term: Term, g: float) -> tuple[float, float]:
+    """Where a sign gate's switching point ``g`` may lie: its term's refit range (± the signal's scale × 0.8 around
+    0), else a range from the gate's width (10⁴ widths: 1 mm, 0.1 m/s, 100 V) — either way reaching ``g``."""
+    if term.shape_range is not None:
+        lo, hi = term.shape_range
+    else:
+        half = 1e4 * gate_width(term.form, SIGNALS[term.signal].unit) / SWITCH_RANGE
+        lo, hi = -half, half
+    return min(lo, g), max(hi, g)
+
+
 def _shape_parameter(term: Term, gname: str, g: float) -> str:
     """The source line of a term's shape parameter: bounds a factor of 20 either way, an onset time from 0 to
-    ten times its refit range past it."""
+    ten times its refit range past it, a switching point its refit range widened by its width either way."""
     if term.form in TIME_GATES:
         lo, hi = term.shape_range or (0.0, max(g, 1.0))
         bounds = (0.0, _r(max(g, hi) + 10 * (hi - lo)))
         unit = "s"
+    elif term.form in SIGN_GATES:
+        lo, hi = _switch_range(term, g)
+        bounds = (_r(lo - (hi - lo)), _r(hi + (hi - lo)))
+        unit = SIGNALS[term.signal].unit
     else:
         bounds = (_r(g / 20), _r(g * 20))
         unit = "s" if term.form in DELAY_FORMS else SIGNALS[term.signal].unit
@@ -314,11 +337,16 @@ def _shape_parameter(term: Term, gname: str, g: float) -> str:
 
 def _shape_fit_range(term: Term, g: float) -> str:
     """The ``FitRange`` a refit of the emitted file searches a shape over: around the discovered value, an onset time
-    linearly (a quarter of its term's refit range either way, within the record), a gap or delay in log."""
+    linearly (a quarter of its term's refit range either way, within the record), a switching point linearly (a
+    quarter of its range either way), a gap or delay in log."""
     if term.form in TIME_GATES:
         lo, hi = term.shape_range or (0.0, max(2 * g, 1.0))
         half = max(0.25 * (hi - lo), 1e-3)
         return f"FitRange({_r(max(g - half, 0.0))!r}, {_r(g + half)!r})"
+    if term.form in SIGN_GATES:  # a switching point, either sign: linearly, a quarter of its range either way
+        lo, hi = _switch_range(term, g)
+        half = 0.25 * (hi - lo)
+        return f"FitRange({_r(g - half)!r}, {_r(g + half)!r})"
     lo_g, hi_g = (_r(g / 10), _r(g * 2)) if term.form == "sign" else (_r(g / 4), _r(g * 4))
     return f"FitRange({lo_g!r}, {hi_g!r}, log=True)"
 

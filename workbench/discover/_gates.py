@@ -49,8 +49,8 @@ class Gate:
 
 
 GATES: dict[str, Gate] = {
-    "on_pos": Gate("on_pos", "0.5 * (1.0 + math.tanh(S / H))", formula="[S > 0]"),
-    "on_neg": Gate("on_neg", "0.5 * (1.0 - math.tanh(S / H))", formula="[S < 0]"),
+    "on_pos": Gate("on_pos", "0.5 * (1.0 + math.tanh((S - G) / H))", "switching point", formula="[S > G]"),
+    "on_neg": Gate("on_neg", "0.5 * (1.0 - math.tanh((S - G) / H))", "switching point", formula="[S < G]"),
     "on_gap": Gate("on_gap", "max(abs(S) - G, 0.0) / max(abs(S), G)", "gap", formula="(|S| − G)⁺ / |S|"),
     "on_step": Gate("on_step", "0.5 * (1.0 + math.tanh((t - G) / H))", "onset time", formula="[t > G]"),
     "on_ramp": Gate("on_ramp", "max(t - G, 0.0)", "onset time", per_second=True, formula="(t − G)⁺"),
@@ -70,6 +70,9 @@ STEP_AT = (0.125, 0.375, 0.625, 0.875)
 RAMP_AT = (0.25, 0.75)
 #: gaps, fractions of the section deflection's scale
 GAP_AT = (0.3, 0.6)
+#: a sign gate is screened switching at 0 and its switching point G refitted linearly within ± this fraction of
+#: its signal's scale (the 99th percentile of |signal|): a crack or a depoled patch that switches off zero
+SWITCH_RANGE = 0.8
 
 
 @dataclass(frozen=True)
@@ -138,10 +141,30 @@ def param_label(param: str, index: int) -> str:
     return f"{param}{index + 1}" if CONTRIBUTIONS[param].per != "patch" else param
 
 
-def contribution_lines(param: str, index: int, factor: str) -> dict[str, list[str]]:
-    """Kernel lines (unindented) of ``param``'s contribution scaled by ``factor`` (numba code), per hook."""
+def is_hinge(param: str, form: str, signal: str) -> bool:
+    """Whether the term is a section's stiffness gated by the sign of its own deflection: a bilinear spring, whose
+    lost force c·k·(δ − G)⁺ (resp. (δ − G)⁻) is continuous at the switching point G (a hinge, not a step of k·δ)."""
+    return param == "k" and form in SIGN_GATES and signal.startswith("delta")
+
+
+#: the hinge's gate (code in S, G, H): (S − G) times the smoothed step at G, so the stiffness line drops its δ; at
+#: G = 0 it is exactly δ·[δ > 0] (resp. δ·[δ < 0]), the step gate times k·δ — no division by δ anywhere
+HINGE_CODE = {"on_pos": "(S - G) * 0.5 * (1.0 + math.tanh((S - G) / H))",
+              "on_neg": "(S - G) * 0.5 * (1.0 - math.tanh((S - G) / H))"}
+#: the stiffness line of a hinge: the gate carries the deflection beyond the switching point
+_HINGE_LINES = {"rates": ("bus[B_S + {i}] += -({A}) * p[P_K + {i}]",)}
+
+
+def gate_code(form: str, param: str, signal: str) -> str:
+    """Numba code (in S, G, H, t) of the gate of a damage term: the hinge for a bilinear spring, else the gate's."""
+    return HINGE_CODE[form] if is_hinge(param, form, signal) else GATES[form].code
+
+
+def contribution_lines(param: str, index: int, factor: str, hinge: bool = False) -> dict[str, list[str]]:
+    """Kernel lines (unindented) of ``param``'s contribution scaled by ``factor`` (numba code), per hook; ``hinge``:
+    the stiffness line without its deflection (the factor is the hinge, :data:`HINGE_CODE`)."""
     con = CONTRIBUTIONS[param]
-    hooks = {"post": _mass_lines(index)} if param == "m" else con.hooks
+    hooks = {"post": _mass_lines(index)} if param == "m" else _HINGE_LINES if hinge else con.hooks
     out: dict[str, list[str]] = {}
     for hook, lines in hooks.items():
         body = [ln.replace("{A}", factor).replace("{i}", str(index)) for ln in lines]
@@ -156,14 +179,14 @@ def gate_width(form: str, unit: str) -> float:
     return SIGN_WIDTH.get(unit, 1e-6) if form in SIGN_GATES else 0.0
 
 
-def gate_values(form: str, s: np.ndarray, g: float, t: np.ndarray, unit: str) -> np.ndarray:
-    """The gate evaluated on arrays (NumPy): signal ``s`` (of ``unit``), shape ``g``, time ``t`` (s)."""
+def gate_values(form: str, s: np.ndarray, g: float, t: np.ndarray, unit: str, hinge: bool = False) -> np.ndarray:
+    """The gate evaluated on arrays (NumPy): signal ``s`` (of ``unit``), shape ``g``, time ``t`` (s); ``hinge``: a
+    sign gate as the bilinear spring's hinge (s − g)·[s ≷ g] (of the signal's unit)."""
     h = gate_width(form, unit)
     s = np.broadcast_to(np.asarray(s, float), np.shape(t)) if np.ndim(s) == 0 else np.asarray(s, float)
-    if form == "on_pos":
-        return 0.5 * (1.0 + np.tanh(s / h))
-    if form == "on_neg":
-        return 0.5 * (1.0 - np.tanh(s / h))
+    if form in SIGN_GATES:
+        step = 0.5 * (1.0 + np.tanh((s - g) / h)) if form == "on_pos" else 0.5 * (1.0 - np.tanh((s - g) / h))
+        return (s - g) * step if hinge else step
     if form == "on_gap":
         return np.maximum(np.abs(s) - g, 0.0) / np.maximum(np.abs(s), g)
     if form == "on_step":
@@ -177,18 +200,69 @@ def gate_values(form: str, s: np.ndarray, g: float, t: np.ndarray, unit: str) ->
 # words
 
 
-def _condition(form: str, signal: str) -> str:
-    """The gate's condition in words: 'δ2 > 0', 'negative drive'."""
-    positive = form == "on_pos"
+def _switch_value(signal: str, g: float) -> str:
+    """A switching point in the signal's unit, signed: '0.3 mm', '−12 µm', '+60 V', '4.2 mm/s'."""
+    sign = "−" if g < 0 else ""
     if signal.startswith("ddelta"):
-        return f"δ̇{signal[-1]} {'>' if positive else '<'} 0"
+        return f"{sign}{abs(g) * 1e3:.3g} mm/s"
     if signal.startswith("delta"):
-        return f"δ{signal[-1]} {'>' if positive else '<'} 0"
-    if signal == "va":
-        return f"{'positive' if positive else 'negative'} drive"
-    if signal == "vc":
-        return f"{'positive' if positive else 'negative'} patch voltage (charge)"
-    return f"{signal} {'>' if positive else '<'} 0"
+        return sign + (f"{abs(g) * 1e3:.3g} mm" if abs(g) >= 1e-4 else _length(abs(g)))
+    if signal in ("va", "vc"):
+        return f"{'−' if g < 0 else '+'}{abs(g):.3g} V"
+    return f"{g:.3g}"
+
+
+def _condition(form: str, signal: str, g: float = 0.0) -> str:
+    """The gate's condition after 'for' or 'while': 'δ2 > 0', 'δ2 > 0.3 mm', 'negative drive', 'the drive is
+    below +60 V' (``g``: the switching point, 0 unless it is named)."""
+    positive = form == "on_pos"
+    op = ">" if positive else "<"
+    at = "0" if g == 0.0 else _switch_value(signal, g)
+    if signal.startswith("ddelta"):
+        return f"δ̇{signal[-1]} {op} {at}"
+    if signal.startswith("delta"):
+        return f"δ{signal[-1]} {op} {at}"
+    if signal in ("va", "vc"):
+        what = "drive" if signal == "va" else "patch voltage (charge)"
+        if g == 0.0:
+            return f"{'positive' if positive else 'negative'} {what}"
+        return f"the {what} is {'above' if positive else 'below'} {at}"
+    return f"{signal} {op} {at}"
+
+
+def named_switch(shape: float, shape_se: float | None) -> float:
+    """The switching point to say in words: ``shape`` when it is away from 0 by more than twice its standard error
+    (or has none), else 0 (the gate switches at the signal's sign)."""
+    if shape == 0.0 or not math.isfinite(shape):
+        return 0.0
+    if shape_se is None or not math.isfinite(shape_se):
+        return shape
+    return shape if abs(shape) > 2.0 * shape_se else 0.0
+
+
+def _describe_sign(param: str, index: int, form: str, signal: str, coef: float, g: float) -> str:
+    """Words for a sign gate switching at ``g`` (0: at the signal's sign)."""
+    n = index + 1
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    pct = f"{100 * abs(coef):.3g} %"
+    lower = coef < 0
+    lh = "lower" if lower else "higher"
+    cond = _condition(form, signal, g)
+    when = "while" if g != 0.0 and signal in ("va", "vc") else "for"
+    if param == "k" and signal.startswith("delta"):
+        at = "" if g == 0.0 else f" switching at {_switch_value(signal, g)}"
+        side = "on that side" if g == 0.0 else "beyond that deflection"
+        if lower:
+            return (f"a breathing crack in section {n} that opens for {cond}: stiffness k{n} lower by {pct} {side} "
+                    f"(bilinear stiffness{at})")
+        return (f"section {n} is stiffer by {pct} for {cond} (bilinear stiffness{at}: a contact or a crack that "
+                "closes on that side)")
+    if param == "d_ep":
+        return (f"a patch whose authority d_ep is {pct} {lh} {when} {cond} (polarisation-dependent coupling: a "
+                "partly depolarised patch)")
+    if param == "c" and signal.startswith("delta"):
+        return f"damping c{n} of section {n} {pct} {lh} while {cond} (a crack whose faces rub when it is open)"
+    return f"{what} {pct} {lh} {when} {cond} (a sign-dependent {what.split(' of ')[0]})"
 
 
 def _instant(t0: float, se: float | None) -> str:
@@ -208,20 +282,7 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
     lower = coef < 0
     lh = "lower" if lower else "higher"
     if form in SIGN_GATES:
-        cond = _condition(form, signal)
-        if param == "k" and signal.startswith("delta"):
-            if lower:
-                return (f"a breathing crack in section {n} that opens for {cond}: stiffness k{n} lower by {pct} on "
-                        "that side (bilinear stiffness)")
-            return (f"section {n} is stiffer by {pct} for {cond} (bilinear stiffness: a contact or a crack that "
-                    "closes on that side)")
-        if param == "d_ep":
-            return (f"a patch whose authority d_ep is {pct} {lh} for {cond} (polarisation-dependent coupling: a "
-                    "partly depolarised patch)")
-        if param == "c" and signal.startswith("delta"):
-            return (f"damping c{n} of section {n} {pct} {lh} while {cond} (a crack whose faces rub when it is "
-                    "open)")
-        return f"{what} {pct} {lh} for {cond} (a sign-dependent {what.split(' of ')[0]})"
+        return _describe_sign(param, index, form, signal, coef, named_switch(shape, shape_se))
     if form == "on_gap":
         if param == "k":
             return (f"section {n} is {'softer' if lower else 'stiffer'} by {pct} beyond ±{_length(shape)} of δ{n}"
@@ -248,7 +309,11 @@ def _length(x: float) -> str:
 
 def damage_formula(param: str, index: int, form: str, signal: str, cname: str, gname: str | None) -> str:
     """The term as a formula (for the emitted file's docstring)."""
-    gate = GATES[form].formula.replace("S", {"one": "1"}.get(signal, signal)).replace("G", gname or "g")
+    g = gname or "g"
+    if is_hinge(param, form, signal):  # the bilinear spring: the lost force beyond the switching point
+        n = index + 1
+        return f"S_{n} += −{cname} · k{n} · (δ{n} − {g}){'⁺' if form == 'on_pos' else '⁻'}"
+    gate = GATES[form].formula.replace("S", {"one": "1"}.get(signal, signal)).replace("G", g)
     con = CONTRIBUTIONS[param].formula.format(n=index + 1)
     return f"{con}   with c = {cname} · {gate}"
 
