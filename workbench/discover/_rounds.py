@@ -9,9 +9,8 @@ the rounds on a :class:`SearchProgress` and judges what they kept.
 
 from __future__ import annotations
 
-import math
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -19,8 +18,8 @@ import numpy as np
 
 from board_config.parameter import freed
 from plant import PlantModel
-from workbench.discover._dictionary import DELAY_FORMS, Term
-from workbench.discover._effect_writer import describe_term
+from workbench.discover._dictionary import Term
+from workbench.discover._event_check import event_twin, invariant_siblings, is_timed, onset_issue
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._onset import change_point, event_onset, onset_probe, onset_scan, with_onsets
 from workbench.discover._results import DiscoverError, ScreenRow, excess_share_removed, noise_free_match
@@ -32,6 +31,7 @@ from workbench.discover._search import (
     refine,
     refit_list,
 )
+from workbench.discover._twins import MAX_TWINS, twin_tolerance, twins_of
 from workbench.fit import FitOutcome, Objective, Target, explained, noise_tolerance, rms
 
 #: a term is kept when its refit removes at least this share of the held-out energy left above the noise
@@ -40,11 +40,6 @@ MIN_SHARE = 0.25
 SENS_RTOL = 1e-7
 #: on the fast path, up to this many further rows that also reach the noise floor on the screen are refitted too
 FAST_ALSO = 3
-#: at most this many twins are named per kept term
-MAX_TWINS = 2
-#: a twin's held-out RMS may exceed the chosen term's by this share (model tolerance) plus three standard
-#: deviations of the RMS of white noise over the held-out samples
-TWIN_MODEL_SHARE = 0.02
 
 
 @dataclass(frozen=True)
@@ -91,6 +86,8 @@ class SearchProgress:
     screen_rows: list[ScreenRow] = field(default_factory=list)
     rounds: list[dict[str, Any]] = field(default_factory=list)
     twins: dict[int, list[dict[str, Any]]] = field(default_factory=dict)
+    #: every refit of the current round (the time-gated term chosen first is checked against them)
+    refits: list[BestRefit] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -221,6 +218,7 @@ def fast_path(setup: SearchSetup, progress: SearchProgress, settings: SearchSett
         out = refit_term(setup, progress, settings, row)
         if out is not None and explained(out.held_rms_sigma, held_before, n_held):
             tried.append(_tried(row, out))
+            progress.refits.append(BestRefit(out.held_rms_sigma, setup.terms.index(row.term), out))
             if best is None or out.held_rms_sigma < best.held_rms_sigma:
                 best = BestRefit(out.held_rms_sigma, setup.terms.index(row.term), out)
     return best
@@ -303,6 +301,7 @@ def refit_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSet
         if out is None:
             continue
         tried.append(_tried(row, out))
+        progress.refits.append(BestRefit(out.held_rms_sigma, k, out))
         if best is None or out.held_rms_sigma < best.held_rms_sigma:
             best = BestRefit(out.held_rms_sigma, k, out)
         if out.held_rms_sigma <= 1.0 + noise_tolerance(setup.n_held):  # at the noise floor: nothing can do better
@@ -310,13 +309,70 @@ def refit_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSet
     return best
 
 
+def plausible_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, best: BestRefit | None,
+                   rows: list[ScreenRow], tried: list[dict[str, Any]]) -> tuple[BestRefit | None, BestRefit | None]:
+    """A time-gated best refit leads only when it is plausible and better (:mod:`workbench.discover._event_check`):
+    the members of its parameter constant in time are refitted too (logged in ``tried``) and the best one within
+    the twins' tolerance is kept instead; an event short of the noise floor that does not look like one gives way
+    to the round's best refit constant in time (or to nothing). Returns the refit to keep and the event it
+    displaced as a twin (else None)."""
+    if best is None or not is_timed(setup.terms[best.index]):
+        return best, None
+    term = setup.terms[best.index]
+    done = {t["term"] for t in tried}
+    for row in invariant_siblings(rows, term):
+        if row.term.key not in done:
+            refit_best(setup, progress, settings, [row], tried)
+    constant = [b for b in progress.refits if not is_timed(setup.terms[b.index])]
+    limit = max(best.held_rms_sigma, 1.0) * twin_tolerance(setup.n_held)
+    close = [b for b in constant if (setup.terms[b.index].param, setup.terms[b.index].index)
+             == (term.param, term.index) and b.held_rms_sigma <= limit]
+    if close:
+        alt = min(close, key=lambda b: b.held_rms_sigma)
+        twin = best.held_rms_sigma <= max(alt.held_rms_sigma, 1.0) * twin_tolerance(setup.n_held)
+        settings.say(f"  {term.key} ({best.held_rms_sigma:.4g} σ) and {setup.terms[alt.index].key} "
+                     f"({alt.held_rms_sigma:.4g} σ, constant in time) "
+                     + ("explain the records alike: the constant one is kept, the event named as what the records "
+                        "cannot tell it from" if twin else "— the one constant in time explains more: it is kept"))
+        return alt, (best if twin else None)
+    if best.held_rms_sigma <= 1.0 + noise_tolerance(setup.n_held):
+        return best, None
+    why = onset_issue(setup.targets, best.outcome, setup.names[best.index][1] or "")
+    if why is None:
+        return best, None
+    fallback = min(constant, key=lambda b: b.held_rms_sigma, default=None)
+    settings.say(f"  {term.key} ({best.held_rms_sigma:.4g} σ) is not named as an event: {why}"
+                 + (f"; the best refit constant in time is kept instead: {setup.terms[fallback.index].key}"
+                    if fallback is not None else ""))
+    return fallback, None
+
+
+def refit_twins(setup: SearchSetup, progress: SearchProgress, twins: list[dict[str, Any]],
+                displaced: BestRefit | None) -> list[dict[str, Any]]:
+    """``twins`` with each time-gated one in the words of its own refit (its onset fitted, not the screen's), the
+    ``displaced`` event first."""
+    refits = {setup.terms[b.index].key: b for b in progress.refits if is_timed(setup.terms[b.index])}
+    if displaced is not None:
+        first = setup.terms[displaced.index].key
+        twins = [{"key": first}, *(t for t in twins if t["key"] != first)][:MAX_TWINS]
+    out = []
+    for t in twins:
+        b = refits.get(t["key"])
+        out.append(event_twin(setup.terms[b.index], b.outcome, setup.names[b.index], setup.scales)
+                   if b is not None else t)
+    return out
+
+
 def keep_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, best: BestRefit,
-              rows: list[ScreenRow], tried: list[dict[str, Any]], linearised: bool) -> bool:
+              rows: list[ScreenRow], tried: list[dict[str, Any]], linearised: bool,
+              displaced: BestRefit | None = None) -> bool:
     """Keep the round's best refit when it removes at least :data:`MIN_SHARE` of the excess over the noise (its
-    twins named); False when it does not and the search stops."""
+    twins named; ``displaced``: the event it was kept instead of, named first); False when it does not and the
+    search stops."""
     h_new, k_new, out = best.held_rms_sigma, best.index, best.outcome
     term = setup.terms[k_new]
-    progress.twins[k_new] = twins_of(term, h_new, rows, tried, setup.n_held, setup.scales, linearised=linearised)
+    twins = twins_of(term, h_new, rows, tried, setup.n_held, setup.scales, linearised=linearised)
+    progress.twins[k_new] = refit_twins(setup, progress, twins, displaced)
     gain = excess_share_removed(progress.current_held, h_new, noise_tolerance(setup.n_held))
     settings.say(f"  best refit: {term.key}: held-out {progress.current_held:.4g} σ → {h_new:.4g} σ "
                  + (f"({100 * gain:.0f} % of the excess removed)" if gain is not None else
@@ -340,6 +396,7 @@ def search_round(setup: SearchSetup, progress: SearchProgress, settings: SearchS
     if held_before <= 1.0 + noise_tolerance(n_held) or noise_free_match(setup.targets, held_before):
         return False  # at the noise floor (or a noise-free record matched numerically): among 200 terms one fits noise
     t0 = time.perf_counter()
+    progress.refits = []
     batch = sensitivities(setup, progress, settings)
     if not batch.ok[0]:
         if round_no == 0:
@@ -376,12 +433,13 @@ def search_round(setup: SearchSetup, progress: SearchProgress, settings: SearchS
     if best is None and not event:
         todo = with_onsets(refit_list(rows, settings.n_refit), onset_rows, first=settings.expect_change)
         best = refit_best(setup, progress, settings, todo, tried)
+    best, displaced = plausible_best(setup, progress, settings, best, rows, tried)
     timings["refit_s"] += time.perf_counter() - t0
     progress.rounds.append({"screened": [(r.term.key, r.held_rms_sigma) for r in rows[:settings.n_refit]],
                             "refitted": tried})
     if best is None:
         return False
-    return keep_best(setup, progress, settings, best, rows, tried, linearised=fast)
+    return keep_best(setup, progress, settings, best, rows, tried, linearised=fast, displaced=displaced)
 
 
 def backward_step(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings) -> None:
@@ -410,44 +468,3 @@ def backward_step(setup: SearchSetup, progress: SearchProgress, settings: Search
             progress.outcome = alone
             break
     progress.timings["refit_s"] += time.perf_counter() - t0
-
-
-def twin_tolerance(n_held: int) -> float:
-    """Factor on the chosen term's held-out RMS within which another term explains the records as well."""
-    return 1.0 + TWIN_MODEL_SHARE + 3.0 / math.sqrt(2.0 * max(n_held, 1))
-
-
-def twins_of(chosen: Term, held: float, rows: Sequence[ScreenRow], tried: Sequence[dict[str, Any]], n_held: int,
-             scales: Mapping[str, float], linearised: bool) -> list[dict[str, Any]]:
-    """Other terms that explain the records as well as ``chosen`` (held-out RMS ``held``) within the noise
-    (:func:`twin_tolerance`): refitted ones by their refit; when the chosen term came from the linearised screen
-    (``linearised``: the fast path), the rest by that screen against the chosen term's own screen value. Same-key
-    terms (another shape of the same form) and the other Padé order of the same delay are not twins."""
-    tol = twin_tolerance(n_held)
-    refitted = {t["term"]: t["held_rms_sigma"] for t in tried}
-    mine = next((r.held_rms_sigma for r in rows if r.term.key == chosen.key), held)
-    out: list[dict[str, Any]] = []
-    seen = {chosen.key}
-    for r in rows:
-        key = r.term.key
-        same_delay = ((r.term.placement, r.term.signal) == (chosen.placement, chosen.signal)
-                      and {r.term.form, chosen.form} <= set(DELAY_FORMS))  # the same delay, another Padé order
-        if key in seen or same_delay:
-            continue
-        seen.add(key)
-        if key in refitted:
-            h, how = refitted[key], "refitted"
-            ok = h <= max(held, 1.0) * tol
-        elif not linearised:  # screened on the full model at a linearised coefficient: not comparable to a refit
-            continue
-        else:
-            h, how = r.held_rms_sigma, "screen"
-            ok = h <= max(mine, 1.0) * tol  # the screen against the chosen term's own screen value
-        if ok:
-            scale = scales.get(r.term.signal, 1.0)
-            out.append({"key": key, "placement": r.term.placement, "index": r.term.index, "signal": r.term.signal,
-                        "form": r.term.form, "held_rms_sigma": h, "judged_by": how,
-                        "words": describe_term(r.term, r.coef, r.term.shape, scale)})
-        if len(out) >= MAX_TWINS:
-            break
-    return out

@@ -1,0 +1,161 @@
+"""Issue 26 point 1 for the dictionary's time gates: a damage *event* leads a round of ``shm discover`` only when it
+is plausible and better (:mod:`workbench.discover._event_check`, :func:`workbench.discover._rounds.plausible_best`).
+
+Seen on damage written outside the project: a crack in section 3 open for δ3 < 0 on a 10 s sweep was named "section
+3 lost 11.1 % of its stiffness at t = 0.73 ± 0.04 s" (91 σ left) — k3 × [δ3 < 0], a member of the dictionary, was
+ranked 17th by the probes and never refitted; a crack open for δ2 > 0 on a one-way step test was named a loss at the
+test's own step instant (its sign-gated twin never refitted: the step reached the noise floor first)."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+import workbench.discover._rounds as rounds
+from workbench.discover._dictionary import Term
+from workbench.discover._event_check import invariant_siblings, onset_issue
+from workbench.discover._results import ScreenRow
+
+T = np.linspace(0.0, 10.0, 2501)
+SIGMA = 2e-6
+
+
+def _target(measured: np.ndarray) -> SimpleNamespace:
+    return SimpleNamespace(t=T, measured=measured[None, :], sigma=np.array([SIGMA]), channels=["z3"])
+
+
+def _outcome(simulated: np.ndarray, t0: float, se: float = 0.002, at_bound: bool = False, held: float = 1.0,
+             coef: float = -0.1) -> SimpleNamespace:
+    est = [SimpleNamespace(name="a", value=coef, stderr=0.001, at_bound=False),
+           SimpleNamespace(name="g", value=t0, stderr=se, at_bound=at_bound)]
+    return SimpleNamespace(estimates=est, sim=SimpleNamespace(y=[simulated[None, None, :]]), held_rms_sigma=held,
+                           train_rms_sigma=held, values={e.name: e.value for e in est})
+
+
+def _record(rng: np.random.Generator, misfit_before: float) -> tuple[np.ndarray, np.ndarray]:
+    """A measured signal and a model of it: the model matches to the noise after 4 s and, before it, misses by
+    ``misfit_before`` σ (a sine)."""
+    truth = 1e-3 * np.sin(2 * np.pi * 1.3 * T)
+    measured = truth + SIGMA * rng.standard_normal(T.size)
+    model = truth - np.where(T < 4.0, misfit_before * SIGMA * np.sqrt(2) * np.sin(2 * np.pi * 7 * T), 0.0)
+    return measured, model
+
+
+def test_an_event_is_plausible_when_the_model_matches_the_record_right_before_its_onset():
+    rng = np.random.default_rng(1)
+    measured, model = _record(rng, 0.0)
+    assert onset_issue([_target(measured)], _outcome(model, 4.0), "g") is None
+
+
+def test_an_event_whose_model_misses_the_record_before_its_onset_is_no_event():
+    rng = np.random.default_rng(2)
+    measured, model = _record(rng, 20.0)
+    why = onset_issue([_target(measured)], _outcome(model, 4.0), "g")
+    assert why is not None and "before its onset" in why
+
+
+@pytest.mark.parametrize(("t0", "se", "at_bound", "words"), [
+    (0.1, 0.002, False, "edge"), (9.95, 0.002, False, "edge"), (5.0, 3.0, False, "not placed"),
+    (5.0, 0.002, True, "bound")])
+def test_an_onset_at_the_edge_at_a_bound_or_as_uncertain_as_the_record_is_no_event(t0, se, at_bound, words):
+    rng = np.random.default_rng(3)
+    measured, model = _record(rng, 0.0)
+    why = onset_issue([_target(measured)], _outcome(model, t0, se=se, at_bound=at_bound), "g")
+    assert why is not None and words in why
+
+
+def _terms() -> list[Term]:
+    rng = (0.0, 10.0)
+    return [Term("damage", 2, "one", "on_step", 5.0, "k", rng), Term("damage", 2, "delta3", "on_neg", 0.0, "k"),
+            Term("damage", 2, "delta3", "on_pos", 0.0, "k"), Term("damage", 1, "delta2", "on_neg", 0.0, "k"),
+            Term("force_mass", 2, "z3", "lin")]
+
+
+def _choose(monkeypatch: pytest.MonkeyPatch, event_held: float, refit_held: dict[str, float],
+            misfit_before: float = 0.0) -> tuple[object, object, list[str], list[str]]:
+    """plausible_best on a round whose best refit is k3's step (``event_held`` σ) with the refits of the other
+    terms faked (``refit_held``: held-out σ by key): what it keeps, what it displaced, what it refitted, what it
+    said."""
+    terms = _terms()
+    rng_ = np.random.default_rng(4)
+    measured, model = _record(rng_, misfit_before)
+    targets = [_target(measured)]
+    names = [("a", "g"), ("b", None), ("c", None), ("d", None), ("e", None)]
+    setup = SimpleNamespace(terms=terms, names=names, targets=targets, n_held=5000, scales={})
+    event = rounds.BestRefit(event_held, 0, _outcome(model, 4.0, held=event_held))
+    progress = SimpleNamespace(refits=[event])
+    said: list[str] = []
+    settings = SimpleNamespace(say=said.append)
+    refitted: list[str] = []
+
+    def refit_best(setup_, progress_, settings_, todo, tried):
+        for row in todo:
+            refitted.append(row.term.key)
+            h = refit_held[row.term.key]
+            out = SimpleNamespace(held_rms_sigma=h, train_rms_sigma=h, estimates=[], values={})
+            tried.append({"term": row.term.key, "held_rms_sigma": h})
+            progress_.refits.append(rounds.BestRefit(h, terms.index(row.term), out))
+
+    monkeypatch.setattr(rounds, "refit_best", refit_best)
+    rows = [ScreenRow(t, -0.1, 400.0, 200.0) for t in terms]
+    tried = [{"term": terms[0].key, "held_rms_sigma": event_held}]
+    kept, displaced = rounds.plausible_best(setup, progress, settings, event, rows, tried)
+    return kept, displaced, refitted, said
+
+
+def test_the_constant_members_of_the_events_parameter_are_refitted_and_a_twin_within_the_noise_is_kept(
+        monkeypatch):
+    """The step of k3 reaches the noise floor (1.0 σ); k3 × [δ3 < 0], never refitted by the round, is refitted
+    and comes within the twins' tolerance: the crack is kept, the event becomes its twin."""
+    kept, displaced, refitted, said = _choose(monkeypatch, 1.0, {"k3_neg_delta3": 1.02, "k3_pos_delta3": 30.0})
+    assert sorted(refitted) == ["k3_neg_delta3", "k3_pos_delta3"]  # the same parameter only, constant in time
+    assert kept.index == 1 and displaced is not None and displaced.index == 0
+    assert any("constant in time" in s for s in said)
+
+
+def test_an_event_at_the_noise_floor_far_better_than_every_constant_member_is_kept(monkeypatch):
+    kept, displaced, refitted, _ = _choose(monkeypatch, 1.0, {"k3_neg_delta3": 40.0, "k3_pos_delta3": 30.0})
+    assert kept.index == 0 and displaced is None and refitted
+
+
+def test_an_event_short_of_the_noise_floor_that_misses_the_record_before_its_onset_gives_way(monkeypatch):
+    """The step leaves 90 σ and its model misses the record by 20 σ before its onset: no event is named; the
+    round's best refit constant in time is kept instead (here k3 × [δ3 > 0] at 95 σ)."""
+    kept, displaced, _, said = _choose(monkeypatch, 90.0, {"k3_neg_delta3": 140.0, "k3_pos_delta3": 95.0},
+                                       misfit_before=20.0)
+    assert kept.index == 2 and displaced is None
+    assert any("is not named as an event" in s and "before its onset" in s for s in said)
+
+
+def test_an_event_short_of_the_noise_floor_that_looks_like_one_is_kept(monkeypatch):
+    kept, displaced, _, _ = _choose(monkeypatch, 90.0, {"k3_neg_delta3": 140.0, "k3_pos_delta3": 95.0})
+    assert kept.index == 0 and displaced is None
+
+
+def test_the_siblings_are_the_parameters_own_members_constant_in_time():
+    terms = _terms()
+    rows = [ScreenRow(t, -0.1, 400.0, 200.0) for t in terms]
+    assert sorted(r.term.key for r in invariant_siblings(rows, terms[0])) == ["k3_neg_delta3", "k3_pos_delta3"]
+
+
+def test_a_displaced_event_is_named_first_among_the_twins_in_the_words_of_its_own_refit():
+    terms = _terms()
+    _, model = _record(np.random.default_rng(5), 0.0)
+    event = rounds.BestRefit(1.0, 0, _outcome(model, 0.51, se=0.002, coef=-0.3))
+    setup = SimpleNamespace(terms=terms, names=[("a", "g"), ("b", None), ("c", None), ("d", None), ("e", None)],
+                            scales={})
+    progress = SimpleNamespace(refits=[event])
+    other = {"key": "m3_lin_z3", "words": "a force on mass 3"}
+    twins = rounds.refit_twins(setup, progress, [other], event)
+    assert [t["key"] for t in twins] == ["k3_step_t", "m3_lin_z3"]
+    assert twins[0]["words"].startswith("section 3 lost 30 % of its stiffness at t = 0.510 ± 0.002 s")
+
+
+def test_a_constant_member_far_better_than_the_event_is_kept_without_naming_the_event(monkeypatch):
+    """The crack in section 3 on a 10 s sweep: the step of k3 left 123 σ, k3 × [δ3 < 0] refitted 1.02 σ — the
+    crack alone, no event among its twins."""
+    kept, displaced, _, said = _choose(monkeypatch, 123.0, {"k3_neg_delta3": 1.02, "k3_pos_delta3": 300.0})
+    assert kept.index == 1 and displaced is None
+    assert any("explains more" in s for s in said)

@@ -1,0 +1,59 @@
+"""The terms the records cannot tell apart from the one a round of ``shm discover`` keeps (:func:`twins_of`), within
+the noise (:func:`twin_tolerance`)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from typing import Any
+
+from workbench.discover._dictionary import DELAY_FORMS, Term
+from workbench.discover._effect_writer import describe_term
+from workbench.discover._results import ScreenRow
+
+#: at most this many twins are named per kept term
+MAX_TWINS = 2
+#: a twin's held-out RMS may exceed the chosen term's by this share (model tolerance) plus three standard
+#: deviations of the RMS of white noise over the held-out samples
+TWIN_MODEL_SHARE = 0.02
+
+
+def twin_tolerance(n_held: int) -> float:
+    """Factor on the chosen term's held-out RMS within which another term explains the records as well."""
+    return 1.0 + TWIN_MODEL_SHARE + 3.0 / math.sqrt(2.0 * max(n_held, 1))
+
+
+def twins_of(chosen: Term, held: float, rows: Sequence[ScreenRow], tried: Sequence[dict[str, Any]], n_held: int,
+             scales: Mapping[str, float], linearised: bool) -> list[dict[str, Any]]:
+    """Other terms that explain the records as well as ``chosen`` (held-out RMS ``held``) within the noise
+    (:func:`twin_tolerance`): refitted ones by their refit; when the chosen term came from the linearised screen
+    (``linearised``: the fast path), the rest by that screen against the chosen term's own screen value. Same-key
+    terms (another shape of the same form) and the other Padé order of the same delay are not twins."""
+    tol = twin_tolerance(n_held)
+    refitted = {t["term"]: t["held_rms_sigma"] for t in tried}
+    mine = next((r.held_rms_sigma for r in rows if r.term.key == chosen.key), held)
+    out: list[dict[str, Any]] = []
+    seen = {chosen.key}
+    for r in rows:
+        key = r.term.key
+        same_delay = ((r.term.placement, r.term.signal) == (chosen.placement, chosen.signal)
+                      and {r.term.form, chosen.form} <= set(DELAY_FORMS))  # the same delay, another Padé order
+        if key in seen or same_delay:
+            continue
+        seen.add(key)
+        if key in refitted:
+            h, how = refitted[key], "refitted"
+            ok = h <= max(held, 1.0) * tol
+        elif not linearised:  # screened on the full model at a linearised coefficient: not comparable to a refit
+            continue
+        else:
+            h, how = r.held_rms_sigma, "screen"
+            ok = h <= max(mine, 1.0) * tol  # the screen against the chosen term's own screen value
+        if ok:
+            scale = scales.get(r.term.signal, 1.0)
+            out.append({"key": key, "placement": r.term.placement, "index": r.term.index, "signal": r.term.signal,
+                        "form": r.term.form, "held_rms_sigma": h, "judged_by": how,
+                        "words": describe_term(r.term, r.coef, r.term.shape, scale)})
+        if len(out) >= MAX_TWINS:
+            break
+    return out
