@@ -94,8 +94,11 @@ STEP_PROBES = (-0.3, -0.1, -0.03, 0.03, 0.1, 0.3)
 RAMP_PROBES = (-0.3, -0.1, 0.1, 0.3)
 EDGE_OUT = (3.0, 10.0)
 MAX_LOSS = -0.95
-#: how much earlier than the residual leaves the noise a step is probed (s): the error of an event needs a moment
-STEP_LEADS_S = (0.0, 0.02)
+#: how much earlier than the residual leaves the noise a step is probed (s): the error of an event needs a moment,
+#: and a stiffness step probed a few milliseconds off rings in the lightly damped modes while a gain-like mimic does
+#: not — k2 −30 % at 1.350 s of an MBIT.b probed only at the detection (1.356 s) and 20 ms before it ranked 4th
+#: (27 σ; α_h and d_ep steps first, refitted to 22 σ and named); probed also 3, 6 and 10 ms before: 1.07 σ, first
+STEP_LEADS_S = (0.0, 0.003, 0.006, 0.01, 0.02)
 #: multiples of each key's best probe tried next
 COEF_REFINE = (0.7, 0.85, 1.15, 1.3)
 #: rounds of probing: the first probes, then refinement and probes further out while a key's best is at its edge
