@@ -53,7 +53,7 @@ from __future__ import annotations
 import math
 
 from plant.effect import Parameter, PhysicalEffect
-from plant.layout import B_QH, B_S, B_VA, P_C, P_C_EP, P_D_EP, P_K, X_DDELTA, X_DELTA
+from plant.layout import B_QH, B_S, B_VA, P_C, P_C_EP, P_D_EP, P_K, X_DDELTA, X_DELTA, X_Q
 
 
 def effect(class_name: str, name: str, rates, *parameters: Parameter) -> type[PhysicalEffect]:
@@ -163,6 +163,50 @@ StiffnessStepRoot = effect("StiffnessStepRoot", "unseen_k1_step", _stiffness_ste
                            Parameter("t_crack", "s", 1.0, 0.0, 1e4, "instant of the loss"))
 
 
+
+def _crack_root_positive(t, x, p, bus, dx, so, po):
+    """A root crack open while the tip side bends up (δ1 > 0): k1 carries (1 − a) of its force there."""
+    d = x[X_DELTA]
+    if d > 0.0:
+        bus[B_S] += p[po] * p[P_K] * d
+
+
+CrackRootPositive = effect("CrackRootPositive", "unseen_crack_root_pos", _crack_root_positive,
+                           Parameter("a_crp", "1", 0.0, 0.0, 0.9, "share of k1 lost while δ1 > 0"))
+
+
+def _stiffness_drop_section3(t, x, p, bus, dx, so, po):
+    """At t_drop the outer section (3, next to the tip mass) loses a share f of k3 (a crack runs through it)."""
+    if t >= p[po + 1]:
+        bus[B_S + 2] += p[po] * p[P_K + 2] * x[X_DELTA + 2]
+
+
+StiffnessDropSection3 = effect("StiffnessDropSection3", "unseen_k3_drop", _stiffness_drop_section3,
+                               Parameter("f_k3", "1", 0.0, 0.0, 0.9, "share of k3 lost"),
+                               Parameter("t_drop", "s", 1.0, 0.0, 1e4, "instant of the loss"))
+
+
+def _patch_weak_positive_charge(t, x, p, bus, dx, so, po):
+    """Each patch weaker while its own charge is positive (depoled in that polarity): its piezo force is (1 − b)
+    of d_ep's while q_i > 0 — switched by the patch's charge, not by the drive."""
+    for i in range(3):
+        if x[X_Q + i] > 0.0:
+            bus[B_S + i] -= p[po] * p[P_K + i] * p[P_D_EP] * bus[B_QH + i] / p[P_C_EP]
+
+
+PatchWeakPositiveCharge = effect("PatchWeakPositiveCharge", "unseen_patch_pos_q", _patch_weak_positive_charge,
+                                 Parameter("b_posq", "1", 0.0, 0.0, 0.9, "share of d_ep lost while q_i > 0"))
+
+
+def _root_patch_weak_negative(t, x, p, bus, dx, so, po):
+    """Only the root patch (on section 1) is weaker for negative drive: (1 − b) of its piezo force there."""
+    if bus[B_VA] < 0.0:
+        bus[B_S] -= p[po] * p[P_K] * p[P_D_EP] * bus[B_QH] / p[P_C_EP]
+
+
+RootPatchWeakNegative = effect("RootPatchWeakNegative", "unseen_root_patch_neg", _root_patch_weak_negative,
+                               Parameter("b_rootneg", "1", 0.0, 0.0, 0.9, "share of patch 1's d_ep lost"))
+
 _S1 = ("section 1", "k1", "root")
 _S2 = ("section 2", "k2")
 _S3 = ("section 3", "k3")
@@ -211,6 +255,20 @@ UNSEEN: dict[
     "bilinear_offset_s2": (BilinearOffsetSection2, {"a_bl2": 0.3, "d_sw2": 3e-4}, (_S2, _ONE_SIDED), None),
     "gap_s3": (GapSection3, {"f_gap3": 0.5, "g_gap3": 1e-4}, (_S3, _GAP), None),
     "k1_step": (StiffnessStepRoot, {"f_k1": 0.2, "t_crack_frac": 0.6}, (_S1, _STIFF), ("t_crack", 0.2)),
+    "crack_root_positive": (CrackRootPositive, {"a_crp": 0.2}, (_S1, _ONE_SIDED), None),
+    "k3_drop": (StiffnessDropSection3, {"f_k3": 0.25, "t_drop_frac": 0.4}, (_S3, _STIFF), ("t_drop", 0.2)),
+    "patch_positive_charge": (
+        PatchWeakPositiveCharge,
+        {"b_posq": 0.25},
+        (("d_ep", "authority", "coupling", "piezo"), ("positive", "polarity", "'s sign", "sign of", "polaris")),
+        None,
+    ),
+    "root_patch_negative": (
+        RootPatchWeakNegative,
+        {"b_rootneg": 0.3},
+        (("d_ep", "authority", "coupling", "piezo", "patch 1"), ("negative", "polarity", "'s sign", "sign of")),
+        None,
+    ),
 }
 
 
