@@ -68,6 +68,13 @@ def short_sweep(tmp_path_factory):
             "sig": sig, "terms": build_dictionary(scales)}
 
 
+def _switches(term: Term) -> list[float]:
+    """Switching points off zero for a sign gate (half its refit range either side; six digits, as emitted)."""
+    if term.form not in ("on_pos", "on_neg") or term.shape_range is None:
+        return []
+    return [float(f"{0.5 * x:.6g}") for x in term.shape_range]
+
+
 def _family(term: Term) -> tuple[str, str, str]:
     return term.placement, term.form, term.param or term.signal
 
@@ -90,14 +97,17 @@ def test_the_dictionary_spans_the_damage_family(short_sweep):
 
 
 def test_every_term_of_the_dictionary_emits_a_file_that_loads(short_sweep, tmp_path):
-    """Each term alone, at a negative, a positive and a zero coefficient, and all of them in one file."""
+    """Each term alone, at a negative, a positive and a zero coefficient (a sign gate also switching off zero, on
+    either side), and all of them in one file."""
     terms = short_sweep["terms"]
     for k, term in enumerate(terms):
         (cname, gname), = parameter_names_for([term])
-        for coef in (-0.3, 2.0, 0.0):
-            values = {cname: coef} | ({gname: term.shape} if gname else {})
+        for coef, shape in [(c, term.shape) for c in (-0.3, 2.0, 0.0)] + [(-0.3, g) for g in _switches(term)]:
+            values = {cname: coef} | ({gname: shape} if gname else {})
             cls = _load(tmp_path, emit_effect_source([term], values), f"t{k}_{int(coef * 10) + 5}")
             assert cls.guess()[cname] == coef and cls.fit_range(cname).lower < cls.fit_range(cname).upper
+            if gname:
+                assert cls.fit_range(gname).lower <= shape <= cls.fit_range(gname).upper
     names = parameter_names_for(terms)
     values = {c: 0.1 for c, _ in names} | {g: t.shape for t, (_, g) in zip(terms, names) if g}
     cls = _load(tmp_path, emit_effect_source(terms, values), "all_terms")
@@ -136,8 +146,9 @@ def test_drawn_terms_emit_files_that_simulate_like_the_dictionary_and_refit(shor
     drawn = data.draw(st.lists(st.sampled_from(families), min_size=3, max_size=3, unique=True), label="families")
     chosen = [data.draw(st.sampled_from([t for t in terms if _family(t) == f]), label=str(f)) for f in drawn]
     coefs = [_coefficient(t, short_sweep) * data.draw(st.sampled_from([-1.0, 1.0]), label="sign") for t in chosen]
+    shapes = [data.draw(st.sampled_from([t.shape, *_switches(t)]), label="shape") for t in chosen]
     names = parameter_names_for(chosen)
-    values = {c: v for (c, _), v in zip(names, coefs)} | {g: t.shape for t, (_, g) in zip(chosen, names) if g}
+    values = {c: v for (c, _), v in zip(names, coefs)} | {g: s for s, (_, g) in zip(shapes, names) if g}
     stem = "emitted_" + "_".join(t.key for t in chosen)
     f = tmp_path / f"{stem[:80]}.py"
     f.write_text(emit_effect_source(chosen, values, effect_name="drawn"))
@@ -154,8 +165,10 @@ def test_drawn_terms_emit_files_that_simulate_like_the_dictionary_and_refit(shor
         for n, other in zip(dnames, terms):
             if n[1] is not None:
                 pd[k, dictionary.param_index(n[1])] = other.shape
-        a, _ = dnames[terms.index(term)]
+        a, g = dnames[terms.index(term)]
         pd[k, dictionary.param_index(a)] = coef
+        if g is not None:  # the drawn shape (a switching point off zero) in both
+            pd[k, dictionary.param_index(g)] = shapes[k]
     # tight tolerance: the two models carry different states (the dictionary's delay lines), so at the default
     # tolerance their steps differ (a current term: 5e-7 m apart at rtol default, 1e-9 m at 1e-9)
     re = emitted.simulate(tg.inputs, t_out=tg.t, params=pe, rtol=1e-9)

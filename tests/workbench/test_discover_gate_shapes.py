@@ -165,6 +165,52 @@ def test_discover_finds_a_bilinear_spring_switching_off_zero(tmp_path):
     assert found.term.key == "k2_pos_delta2", d.message
     assert found.coef == pytest.approx(-0.3, abs=0.03)
     assert d.outcome is not None
-    se = next(e.stderr for e in d.outcome.estimates if e.name == "g_k2_pos_delta2")
+    se = next(e.stderr for e in d.outcome.estimates if e.name.startswith("g_"))  # the one shape refitted
     assert abs(found.shape - 2e-4) <= max(2 * se, 1e-6), (found.shape, se)
     assert "opens for δ2 > 0.2" in found.words and "mm" in found.words, found.words
+
+
+@pytest.mark.slow
+def test_the_dictionary_kernel_and_the_emitted_file_switch_at_the_same_point(tmp_path):
+    """Switching points off zero (a hinge at +0.4 of δ2's scale, a drive step at −0.3 of the drive's): the compiled
+    dictionary shm discover searches with and the emitted file simulate the same motion."""
+    from board_config import load_parameter_set
+    from plant import PlantModel
+    from workbench.discover import dictionary_parameter_names, generated_effect, signal_scales
+    from workbench.fit import model_factory, prepare_targets
+    from workbench.simulation import synth_record, synth_test, truth_model
+
+    rec = synth_record(synth_test("sweep", duration_s=1.5), truth_model("table2"), noise={"z3": 2e-6}, seed=3)
+    base = load_parameter_set("table2")
+    targets = prepare_targets([rec], model_factory(base, []), holdout="blocks", n_blocks=4, max_rate_Hz=250.0)
+    scales, _ = signal_scales(targets)
+    terms = build_dictionary(scales)
+    chosen = [next(t for t in terms if t.key == key) for key in ("k2_pos_delta2", "d_ep_neg_va")]
+    shapes = [float(f"{0.4 * scales['delta2']:.6g}"), float(f"{-0.3 * scales['va']:.6g}")]
+    names = parameter_names_for(chosen)
+    values = {c: -0.3 for c, _ in names} | {g: s for (_, g), s in zip(names, shapes) if g}
+    f = tmp_path / "switches.py"
+    f.write_text(emit_effect_source(chosen, values))
+    emitted = PlantModel(base, effects=[str(f)])
+    dictionary = PlantModel(base, effects=[generated_effect(dictionary_source(terms), "dictionary_driven")])
+    dnames = dictionary_parameter_names(terms)
+    pe = np.tile(emitted.p_nominal, (2, 1))
+    pd = np.tile(dictionary.p_nominal, (2, 1))
+    for k, term in enumerate(chosen):
+        for other_names, other in zip(dnames, terms):
+            if other_names[1] is not None:
+                pd[k, dictionary.param_index(other_names[1])] = other.shape
+        for j, (c, _) in enumerate(names):  # each term alone in the emitted file
+            pe[k, emitted.param_index(c)] = -0.3 if j == k else 0.0
+        a, g = dnames[terms.index(term)]
+        assert g is not None
+        pd[k, dictionary.param_index(a)] = -0.3
+        pd[k, dictionary.param_index(g)] = shapes[k]
+    tg = targets[0]
+    ze = emitted.simulate(tg.inputs, t_out=tg.t, params=pe, rtol=1e-9)["z3_meas"]
+    zd = dictionary.simulate(tg.inputs, t_out=tg.t, params=pd, rtol=1e-9)["z3_meas"]
+    nominal = PlantModel(base).simulate(tg.inputs, t_out=tg.t, rtol=1e-9)["z3_meas"][0]
+    for k, term in enumerate(chosen):
+        moved = float(np.max(np.abs(zd[k] - nominal)))
+        assert moved > 1e-7, term.key
+        assert float(np.max(np.abs(ze[k] - zd[k]))) <= max(1e-3 * moved, 1e-8), term.key
