@@ -1,35 +1,52 @@
-"""Scale out (issue 31): a 40-record ``shm diagnose`` (1 s MBIT.b records, two candidates, no discovery step) and a
-fleet's ``shm health --fleet`` (8 boards of a short aging life, made by ``shm run --boards``) each on a local Dask
-cluster of 1 worker and of 2 workers in the same run — speed-up, per-task overhead (wall per task on the cluster
-minus the task's own time) and bytes moved (scattered inputs, returned reports), from batch.json / fleet.json.
+"""Scale out (issue 31): a batch ``shm diagnose`` over records of the board's own MBIT.b length (3 s, the shipped
+candidate library, no discovery step: ≈ 1.5 s of CPU per record) and a fleet's ``shm health --fleet`` (boards of a
+short aging life, made by ``shm run --boards``), each on a local Dask cluster of 1 worker and of 2 workers in the
+same run, **interleaved** (1, 2, 1, 2 …): the median ratio 2 vs 1 worker and its spread over the repeats.
+
+Each run's wall is split into its **start-up** (connect, the warm-up waited for, scatter, what a worker's first task
+took beyond the others: paid once per worker, in parallel) and its **steady** part (the tasks phase without the first
+task's extra); the bench quotes both ratios: end to end (wall / wall) and steady throughput (tasks per second of the
+steady part), and what end-to-end ratio the measured start-up and throughput give for the issue's 40 records
+and on a standing cluster whose workers preloaded the rooms (``--preload shm_cli.batch_records``: a short pair of
+runs measures that start-up). Also per-task overhead, bytes moved, the cores each run obtained, and whether every
+run's summary / fleet table is the same. Noisy on a shared machine: quote as such.
 
 The commands run as subprocesses (``shm diagnose DIR --scheduler tcp://...``, ``shm health --fleet ... --scheduler
 tcp://...``) against a ``distributed.LocalCluster`` started here with the wanted number of single-thread worker
-processes: cold workers (each run's warm-up loads the rooms and kernels: seconds per worker inside the run), and
-for the diagnose also preloaded ones (``--preload shm_cli.batch_records``: a standing cluster's workers loaded them
-when they started). Each run's fixed part and its pieces are reported. Noisy on a shared machine: quote as such.
+processes (cold workers: each run's warm-up loads the rooms and kernels).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import statistics
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from workbench.records import write_record
 from workbench.simulation import synth_record, synth_test, truth_model
 
-CANDIDATES = ["--candidates", "geometric_stiffening,m3", "--no-discover"]
+#: the shipped candidate library (the command's default), no discovery step (a separate, longer command)
+DIAGNOSE_OPTIONS = ["--no-discover"]
 SHM = str(Path(sys.executable).parent / "shm")
+#: (records, repeats of the 1-then-2-worker pair) of the diagnose; (boards, repeats) of the fleet; records of the
+#: preloaded pair (its start-up only). Full: ≈ 4-5 min on 2 quiet cores.
+FULL = {"records": 20, "repeats": 3, "boards": 6, "fleet_repeats": 2, "preloaded_records": 4}
+QUICK = {"records": 6, "repeats": 2, "boards": 2, "fleet_repeats": 1, "preloaded_records": 4}
+#: the issue's batch size, for the projected end-to-end ratio
+ISSUE_RECORDS = 40
 
 
 def _records(folder: Path, n: int) -> None:
+    """``n`` MBIT.b records as the board runs them (the shipped test: 3 s, a 300 V step at 0.5 s), each a different
+    geometric stiffening and noise seed."""
     folder.mkdir(parents=True, exist_ok=True)
     for i in range(n):
-        rec = synth_record(synth_test("mbit-b", duration_s=1.0),
+        rec = synth_record(synth_test("mbit-b"),
                            truth_model("table2", ["geometric_stiffening"], {"kappa_nl": 1e4 * (1 + i % 4)}),
                            noise={"z3": 2e-6}, seed=i)
         write_record(rec, folder / f"rec{i:03d}.csv")
@@ -73,24 +90,74 @@ def _on_cluster(argv: list[str], out: Path, n_workers: int, doc_name: str, prelo
     return cost | {"command_wall_s": wall}
 
 
-def _fleet_health(base: Path, n: int) -> dict:
-    boards = _fleet(base, n)
-    argv = ["health", "--fleet", *map(str, boards), "--follow", "never", "--locate", "never"]
-    one = _on_cluster(argv, base / "health_one", 1, "fleet.json")
-    two = _on_cluster(argv, base / "health_two", 2, "fleet.json")
-    same = (base / "health_one" / "fleet.csv").read_bytes() == (base / "health_two" / "fleet.csv").read_bytes()
-    return {"fleet_boards": len(boards), "fleet_wall_1_worker_s": one["wall_s"], "fleet_wall_2_workers_s":
-            two["wall_s"], "fleet_speedup_2_vs_1": one["wall_s"] / two["wall_s"],
-            "fleet_task_wall_mean_s": one["task_wall_s"] / len(boards),
-            "fleet_task_cpu_mean_s": one["task_cpu_s"] / len(boards),
-            # task CPU over wall: the cores the run really got (2 workers on a loaded machine may get no more than 1)
-            "fleet_cores_obtained_1_worker": one["task_cpu_s"] / one["wall_s"],
-            "fleet_cores_obtained_2_workers": two["task_cpu_s"] / two["wall_s"],
-            "fleet_per_task_overhead_s": (one["wall_s"] - one["task_wall_s"]) / len(boards),
-            "fleet_bytes_scattered": one["bytes_scattered"], "fleet_bytes_returned": one["bytes_returned"],
-            "fleet_table_equal_1_vs_2_workers": same,
-            # why the speed-up is what it is, from the runs' own per-task cost records (CPU, not the noisy ratio)
-            "fleet_speedup_explained": explain_speedup(one, two)}
+# --- arithmetic (pure) ---------------------------------------------------------------------------------------------
+def spread(values: list[float]) -> dict:
+    """The median of ``values``, their least and greatest, and the range as a share of the median (0.1: the repeats
+    lay within 10 % of the median's size)."""
+    med = statistics.median(values)
+    lo, hi = min(values), max(values)
+    return {"median": med, "min": lo, "max": hi, "range_of_median": (hi - lo) / med if med else 0.0,
+            "values": list(values)}
+
+
+def start_up_and_steady(cost: dict) -> dict:
+    """A run's wall (s) split in two: ``steady_s``, the tasks phase (first submission to last result) without what
+    a worker's first task took beyond the others, and ``start_up_s``, the rest — connect, the warm-up waited for,
+    scatter, the first task's extra (each paid once per worker, in parallel: the same wall on 1 and 2 workers)."""
+    ph = cost.get("phases_s") or {}
+    steady = max(1e-9, ph.get("tasks", cost["wall_s"]) - max(0.0, ph.get("first_task_extra", 0.0)))
+    return {"start_up_s": max(0.0, cost["wall_s"] - steady), "steady_s": steady,
+            "start_up_parts_s": {k: ph.get(k, 0.0) for k in ("connect", "warm", "scatter", "first_task_extra")}}
+
+
+def end_to_end_ratio(start_up_1_s: float, steady_1_s: float, start_up_2_s: float, throughput_ratio: float) -> float:
+    """The end-to-end ratio 2 vs 1 worker that a start-up and a steady throughput ratio give: the 1-worker wall
+    (start-up + steady work) over the 2-worker one (its start-up + the same work at ``throughput_ratio`` times the
+    rate). With a run's own parts it gives that run's measured ratio; with the work of a larger batch or a
+    standing cluster's start-up, what those would measure."""
+    return (start_up_1_s + steady_1_s) / (start_up_2_s + steady_1_s / throughput_ratio)
+
+
+def pair_ratios(one: dict, two: dict) -> dict:
+    """One repeat (the 1-worker run's cost, then the 2-worker run's): the end-to-end ratio, the steady throughput
+    ratio, both start-ups, the task's own-thread CPU side by side against alone, and the cores each run obtained."""
+    a, b = start_up_and_steady(one), start_up_and_steady(two)
+
+    def own(cost: dict) -> float:
+        return cost.get("task_thread_cpu_s") or sum(t.get("thread_cpu_s", 0.0) for t in cost.get("tasks") or [])
+
+    return {"wall_1_worker_s": one["wall_s"], "wall_2_workers_s": two["wall_s"],
+            "end_to_end": one["wall_s"] / two["wall_s"], "throughput": a["steady_s"] / b["steady_s"],
+            "start_up_1_worker_s": a["start_up_s"], "start_up_2_workers_s": b["start_up_s"],
+            "steady_1_worker_s": a["steady_s"], "steady_2_workers_s": b["steady_s"],
+            "start_up_parts_1_worker_s": a["start_up_parts_s"], "start_up_parts_2_workers_s": b["start_up_parts_s"],
+            "task_thread_cpu_2_vs_1": own(two) / own(one) if own(one) else None,
+            "cores_obtained_1_worker": one["task_cpu_s"] / one["wall_s"],
+            "cores_obtained_2_workers": two["task_cpu_s"] / two["wall_s"]}
+
+
+def summarise_pairs(pairs: list[dict], n_tasks: int, project_to: int | None = None,
+                    start_up_standing_s: tuple[float, float] | None = None) -> dict:
+    """The repeats' medians and spreads: end-to-end and throughput ratio, start-up on 1 and 2 workers, steady time
+    per task; and the end-to-end ratio those medians give for ``project_to`` tasks of the same kind and, with a
+    standing cluster's start-ups (1 worker, 2 workers), for the same batch there."""
+    med = {k: statistics.median(p[k] for p in pairs) for k in
+           ("start_up_1_worker_s", "start_up_2_workers_s", "steady_1_worker_s", "throughput")}
+    out = {"repeats": len(pairs), "end_to_end_ratio": spread([p["end_to_end"] for p in pairs]),
+           "throughput_ratio": spread([p["throughput"] for p in pairs]),
+           "start_up_1_worker_s": spread([p["start_up_1_worker_s"] for p in pairs]),
+           "start_up_2_workers_s": spread([p["start_up_2_workers_s"] for p in pairs]),
+           "steady_task_1_worker_s": med["steady_1_worker_s"] / n_tasks,
+           "end_to_end_from_medians": end_to_end_ratio(med["start_up_1_worker_s"], med["steady_1_worker_s"],
+                                                       med["start_up_2_workers_s"], med["throughput"])}
+    if project_to:
+        work = med["steady_1_worker_s"] * project_to / n_tasks
+        out[f"end_to_end_at_{project_to}_tasks"] = end_to_end_ratio(
+            med["start_up_1_worker_s"], work, med["start_up_2_workers_s"], med["throughput"])
+    if start_up_standing_s:
+        out["end_to_end_on_a_standing_cluster"] = end_to_end_ratio(
+            start_up_standing_s[0], med["steady_1_worker_s"], start_up_standing_s[1], med["throughput"])
+    return out
 
 
 def list_makespan(durations: list[float], workers: int) -> float:
@@ -140,53 +207,105 @@ def explain_speedup(one: dict, two: dict, workers: int = 2) -> dict:
             "serial_s_workers_run": sum(ph2.get(k, 0.0) for k in ("connect", "warm", "scatter", "first_task_extra"))}
 
 
-def _fixed_part(cost: dict, n: int) -> dict:
-    """Where a run's wall went beside its tasks' steady work (s): connect, the warm-up waited for, scatter, what a
-    worker's first task took beyond the others (imports, kernels, fonts the warm-up left), and the rest of the tasks
-    phase beyond the steady work shared over the workers (waiting, the last wave, results coming back)."""
-    ph, w = cost.get("phases_s", {}), max(1, cost["workers"])
-    first = ph.get("first_task_extra", 0.0)
-    steady = (cost["task_wall_s"] - w * first) / w
-    parts = {"connect": ph.get("connect", 0.0), "warm": ph.get("warm", 0.0), "scatter": ph.get("scatter", 0.0),
-             "first_task_extra": first, "tasks_beyond_steady": ph.get("tasks", 0.0) - first - steady}
-    return {"fixed_s": cost["wall_s"] - steady, "fixed_parts_s": parts, "steady_task_mean_s": steady * w / n}
+# --- the runs ------------------------------------------------------------------------------------------------------
+def interleaved(run_once: Callable[[int, int], dict], repeats: int) -> list[tuple[dict, dict]]:
+    """``run_once(workers, repeat)`` in the order 1, 2, 1, 2 … (a drift of the machine's speed during the bench
+    then touches both sides of every pair alike): the pairs (1-worker cost, 2-worker cost)."""
+    pairs = []
+    for i in range(repeats):
+        one = run_once(1, i)
+        pairs.append((one, run_once(2, i)))
+    return pairs
+
+
+def _series(pairs: list[tuple[dict, dict]], n_tasks: int, project_to: int | None = None,
+            standing: tuple[float, float] | None = None) -> tuple[dict, list[dict], dict]:
+    """(the medians and spreads, each repeat's ratios, the Amdahl breakdown of the pair whose end-to-end ratio is
+    the median — the lower middle one for an even number of repeats)."""
+    rows = [pair_ratios(one, two) for one, two in pairs]
+    summary = summarise_pairs(rows, n_tasks, project_to, standing)
+    middle = sorted(range(len(rows)), key=lambda i: rows[i]["end_to_end"])[(len(rows) - 1) // 2]
+    return summary, rows, explain_speedup(*pairs[middle])
+
+
+def _headline(prefix: str, summary: dict) -> dict:
+    """The scalars ``python -m bench`` prints: both ratios' median, least and greatest, and the start-ups."""
+    out = {}
+    for name, key in (("speedup_2_vs_1", "end_to_end_ratio"), ("throughput_speedup_2_vs_1", "throughput_ratio"),
+                      ("start_up_1_worker_s", "start_up_1_worker_s"),
+                      ("start_up_2_workers_s", "start_up_2_workers_s")):
+        out[f"{prefix}{name}"] = summary[key]["median"]
+        out[f"{prefix}{name}_min"], out[f"{prefix}{name}_max"] = summary[key]["min"], summary[key]["max"]
+    return out
+
+
+def _same_files(folders: list[Path], name: str) -> bool:
+    return len({(f / name).read_bytes() for f in folders}) == 1
+
+
+def _fleet_health(base: Path, n: int, repeats: int = 1) -> dict:
+    boards = _fleet(base, n)
+    argv = ["health", "--fleet", *map(str, boards), "--follow", "never", "--locate", "never"]
+    outs: list[Path] = []
+
+    def once(workers: int, i: int) -> dict:
+        outs.append(base / f"health_w{workers}_r{i}")
+        return _on_cluster(argv, outs[-1], workers, "fleet.json")
+
+    pairs = interleaved(once, repeats)
+    summary, rows, explained = _series(pairs, len(boards))
+    one = pairs[0][0]
+    return {"fleet_boards": len(boards), **_headline("fleet_", summary), "fleet": summary, "fleet_repeats": rows,
+            "fleet_task_wall_mean_s": one["task_wall_s"] / len(boards),
+            "fleet_task_cpu_mean_s": one["task_cpu_s"] / len(boards),
+            "fleet_per_task_overhead_s": (one["wall_s"] - one["task_wall_s"]) / len(boards),
+            "fleet_bytes_scattered": one["bytes_scattered"], "fleet_bytes_returned": one["bytes_returned"],
+            "fleet_table_equal_1_vs_2_workers": _same_files(outs, "fleet.csv"),
+            # why the ratio is what it is, from the median pair's own per-task cost records
+            "fleet_speedup_explained": explained}
+
+
+def _diagnose_batch(base: Path, n: int, repeats: int, n_preloaded: int) -> dict:
+    records = base / "records"
+    _records(records, n)
+    outs: list[Path] = []
+
+    def once(workers: int, i: int, folder: Path = records, preload: bool = False) -> dict:
+        outs.append(base / f"{'preloaded' if preload else 'diagnose'}_w{workers}_r{i}")
+        return _on_cluster(["diagnose", str(folder), *DIAGNOSE_OPTIONS], outs[-1], workers, "batch.json", preload)
+
+    pairs = interleaved(once, repeats)
+    cold_outs = list(outs)
+    # a standing cluster (workers preloaded the rooms when they started): a short pair, for its start-up only
+    _records(base / "records_preloaded", n_preloaded)
+    pre = [once(w, 0, base / "records_preloaded", True) for w in (1, 2)]
+    standing = (start_up_and_steady(pre[0])["start_up_s"], start_up_and_steady(pre[1])["start_up_s"])
+    summary, rows, explained = _series(pairs, n, ISSUE_RECORDS, standing)
+    ones = [p[0] for p in pairs]
+    warm = [max(c["warm_s"].values()) for p in pairs for c in p]
+    return {"records": n, "record_length_s": synth_test("mbit-b").duration_s, **_headline("", summary),
+            "end_to_end_at_40_records": summary[f"end_to_end_at_{ISSUE_RECORDS}_tasks"],
+            "end_to_end_on_a_standing_cluster": summary["end_to_end_on_a_standing_cluster"],
+            "diagnose": summary, "diagnose_repeats": rows,
+            "task_wall_mean_s": statistics.median(c["task_wall_s"] for c in ones) / n,
+            "task_cpu_mean_s": statistics.median(c["task_cpu_s"] for c in ones) / n,
+            "per_task_overhead_s": statistics.median((c["wall_s"] - c["task_wall_s"]) / n for c in ones),
+            # the warm-up runs on every worker at once: its wall on 2 workers against 1 (≈ 1: in parallel)
+            "warm_s_per_worker": statistics.median(warm[0::2]),
+            "warm_2_vs_1_workers": statistics.median(warm[1::2]) / statistics.median(warm[0::2]),
+            "bytes_scattered": ones[0]["bytes_scattered"], "bytes_returned": ones[0]["bytes_returned"],
+            "bytes_per_task": (ones[0]["bytes_scattered"] + ones[0]["bytes_returned"]) / n,
+            "summary_equal_1_vs_2_workers": _same_files(cold_outs, "summary.csv"),
+            "preloaded_start_up_1_worker_s": standing[0], "preloaded_start_up_2_workers_s": standing[1],
+            "preloaded_start_up_parts_s": [start_up_and_steady(c)["start_up_parts_s"] for c in pre],
+            "preloaded_summary_equal": _same_files(outs[-2:], "summary.csv"),
+            "speedup_explained": explained}
 
 
 def run(out_dir: Path, quick: bool) -> dict:
-    n = 8 if quick else 40
+    size = QUICK if quick else FULL
     base = Path(out_dir) / "scale_out"
-    records = base / "records"
-    _records(records, n)
-    argv = ["diagnose", str(records), *CANDIDATES]
-    one = _on_cluster(argv, base / "one", 1, "batch.json")
-    two = _on_cluster(argv, base / "two", 2, "batch.json")
-    same = (base / "one" / "summary.csv").read_bytes() == (base / "two" / "summary.csv").read_bytes()
-    # the same on a standing cluster whose workers loaded the rooms and kernels when they started
-    one_p = _on_cluster(argv, base / "one_preloaded", 1, "batch.json", preload=True)
-    two_p = _on_cluster(argv, base / "two_preloaded", 2, "batch.json", preload=True)
-    return {
-        "records": n,
-        "wall_1_worker_s": one["wall_s"], "wall_2_workers_s": two["wall_s"],
-        "speedup_2_vs_1": one["wall_s"] / two["wall_s"],
-        "task_wall_mean_s": one["task_wall_s"] / n, "task_cpu_mean_s": one["task_cpu_s"] / n,
-        "cores_obtained_1_worker": one["task_cpu_s"] / one["wall_s"],
-        "cores_obtained_2_workers": two["task_cpu_s"] / two["wall_s"],
-        "per_task_overhead_s": (one["wall_s"] - one["task_wall_s"]) / n,
-        "warm_s_per_worker": max(one["warm_s"].values()),
-        "bytes_scattered": one["bytes_scattered"], "bytes_returned": one["bytes_returned"],
-        "bytes_per_task": (one["bytes_scattered"] + one["bytes_returned"]) / n,
-        "summary_equal_1_vs_2_workers": same,
-        "command_wall_1_worker_s": one["command_wall_s"], "command_wall_2_workers_s": two["command_wall_s"],
-        # the fixed part of each run (s) and its pieces; the steady task time of the 2-worker run against the
-        # 1-worker run's says how much slower a task ran beside another one (shared cores, caches)
-        "fixed_1_worker": _fixed_part(one, n), "fixed_2_workers": _fixed_part(two, n),
-        "task_wall_mean_2_workers_s": two["task_wall_s"] / n,
-        "preloaded_wall_1_worker_s": one_p["wall_s"], "preloaded_wall_2_workers_s": two_p["wall_s"],
-        "preloaded_speedup_2_vs_1": one_p["wall_s"] / two_p["wall_s"],
-        "preloaded_fixed_1_worker": _fixed_part(one_p, n), "preloaded_fixed_2_workers": _fixed_part(two_p, n),
-        "speedup_explained": explain_speedup(one, two),
-        "preloaded_summary_equal": (base / "one_preloaded" / "summary.csv").read_bytes() == (
-            base / "one" / "summary.csv").read_bytes() == (base / "two_preloaded" / "summary.csv").read_bytes(),
-        **_fleet_health(base / "fleet", 4 if quick else 8),
-        "load_average_1min": os.getloadavg()[0],
-    }
+    load_before = os.getloadavg()[0]
+    return {**_diagnose_batch(base, size["records"], size["repeats"], size["preloaded_records"]),
+            **_fleet_health(base / "fleet", size["boards"], size["fleet_repeats"]),
+            "load_average_1min_before": load_before, "load_average_1min": os.getloadavg()[0]}

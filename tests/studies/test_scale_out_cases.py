@@ -218,7 +218,10 @@ def test_bench_fleet_health_makes_a_short_fleet_and_compares_1_and_2_workers(mon
         for i in range(int(argv[argv.index("--boards") + 1])):
             (out / f"board{i:03d}").mkdir(parents=True)
 
+    cluster_runs = []
+
     def fake_cluster(argv, out, n_workers, doc_name):
+        cluster_runs.append((out, n_workers))
         out.mkdir(parents=True)
         (out / "fleet.csv").write_text("same")
         return {"wall_s": 100.0 / n_workers ** 0.5, "task_wall_s": 90.0, "task_cpu_s": 30.0 * n_workers,
@@ -226,14 +229,17 @@ def test_bench_fleet_health_makes_a_short_fleet_and_compares_1_and_2_workers(mon
 
     monkeypatch.setattr(bso.subprocess, "run", fake_run)
     monkeypatch.setattr(bso, "_on_cluster", fake_cluster)
-    got = bso._fleet_health(tmp_path, 3)
+    got = bso._fleet_health(tmp_path, 3, repeats=2)
     short = (tmp_path / "short.toml").read_text()
     assert 'visits = { value = 5, unit = "1" }' in short and 'visit_interval = { value = 250, unit = "h" }' in short
     assert ran[0][1:] == ["run", "--scenario", str(tmp_path / "short.toml"), "--boards", "3", "--seed", "3",
                           "--out", str(tmp_path / "boards"), "--force"]  # a rerun over the same --out
     assert got["fleet_boards"] == 3 and got["fleet_table_equal_1_vs_2_workers"]
+    assert len(ran) == 1  # the fleet is made once, then run 1, 2, 1, 2 workers
+    assert [(Path(o).name, w) for o, w in cluster_runs] == [
+        ("health_w1_r0", 1), ("health_w2_r0", 2), ("health_w1_r1", 1), ("health_w2_r1", 2)]
     assert got["fleet_speedup_2_vs_1"] == pytest.approx(2 ** 0.5)
-    assert got["fleet_cores_obtained_2_workers"] == pytest.approx(60 / (100 / 2 ** 0.5))
+    assert got["fleet_repeats"][0]["cores_obtained_2_workers"] == pytest.approx(60 / (100 / 2 ** 0.5))
 
 
 def test_a_lost_worker_during_the_cases_is_said_once_on_stderr(capsys):
