@@ -1,15 +1,16 @@
-"""Scale out (issue 31): a batch ``shm diagnose`` over records of the board's own MBIT.b length (3 s, the shipped
-candidate library, no discovery step: ≈ 1.5 s of CPU per record) and a fleet's ``shm health --fleet`` (boards of a
-short aging life, made by ``shm run --boards``), each on a local Dask cluster of 1 worker and of 2 workers in the
-same run, **interleaved** (1, 2, 1, 2 …): the median ratio 2 vs 1 worker and its spread over the repeats.
+"""Scale out (issue 31): a batch ``shm diagnose`` over board visits (each task one visit's two records as the board
+runs them — MBIT.a, 20 s, and MBIT.b, 3 s — diagnosed with the shipped candidate library, no discovery step: ≈ 3.5 s
+of CPU per task) and a fleet's ``shm health --fleet`` (boards of a short aging life, made by ``shm run --boards``),
+each on a local Dask cluster of 1 worker and of 2 workers in the same run, **interleaved** (1, 2, 1, 2 …): the
+median ratio 2 vs 1 worker and its spread over the repeats.
 
 Each run's wall is split into its **start-up** (connect, the warm-up waited for, scatter, what a worker's first task
 took beyond the others: paid once per worker, in parallel) and its **steady** part (the tasks phase without the first
 task's extra); the bench quotes both ratios: end to end (wall / wall) and steady throughput (tasks per second of the
-steady part), and what end-to-end ratio the measured start-up and throughput give for the issue's 40 records
+steady part), and what end-to-end ratio the measured start-up and throughput give for a batch of 40 such tasks
 and on a standing cluster whose workers preloaded the rooms (``--preload shm_cli.batch_records``: a short pair of
-runs measures that start-up). Also per-task overhead, bytes moved, the cores each run obtained, and whether every
-run's summary / fleet table is the same. Noisy on a shared machine: quote as such.
+runs of MBIT.b records measures that start-up). Also per-task overhead, bytes moved, the cores each run
+obtained, and whether every run's summary / fleet table is the same. Noisy on a shared machine: quote as such.
 
 The commands run as subprocesses (``shm diagnose DIR --scheduler tcp://...``, ``shm health --fleet ... --scheduler
 tcp://...``) against a ``distributed.LocalCluster`` started here with the wanted number of single-thread worker
@@ -32,24 +33,31 @@ from workbench.simulation import synth_record, synth_test, truth_model
 
 #: the shipped candidate library (the command's default), no discovery step (a separate, longer command)
 DIAGNOSE_OPTIONS = ["--no-discover"]
+#: the tests a board runs at a visit: one diagnose task per visit
+VISIT = ("mbit-a", "mbit-b")
 SHM = str(Path(sys.executable).parent / "shm")
-#: (records, repeats of the 1-then-2-worker pair) of the diagnose; (boards, repeats) of the fleet; records of the
-#: preloaded pair (its start-up only). Full: ≈ 4-5 min on 2 quiet cores.
-FULL = {"records": 20, "repeats": 3, "boards": 6, "fleet_repeats": 2, "preloaded_records": 4}
-QUICK = {"records": 6, "repeats": 2, "boards": 2, "fleet_repeats": 1, "preloaded_records": 4}
-#: the issue's batch size, for the projected end-to-end ratio
-ISSUE_RECORDS = 40
+#: (visits, repeats of the 1-then-2-worker pair) of the diagnose; (boards, repeats) of the fleet; MBIT.b records of
+#: the preloaded pair (its start-up only). Full: ≈ 5 min on 2 quiet cores.
+FULL = {"visits": 10, "repeats": 3, "boards": 4, "fleet_repeats": 2, "preloaded_records": 4}
+QUICK = {"visits": 4, "repeats": 2, "boards": 2, "fleet_repeats": 1, "preloaded_records": 4}
+#: the issue's batch size (tasks), for the projected end-to-end ratio
+ISSUE_TASKS = 40
 
 
-def _records(folder: Path, n: int) -> None:
-    """``n`` MBIT.b records as the board runs them (the shipped test: 3 s, a 300 V step at 0.5 s), each a different
-    geometric stiffening and noise seed."""
+def _records(folder: Path, n: int, tests: tuple[str, ...] = ("mbit-b",)) -> None:
+    """``n`` tasks of records as the board runs them (the shipped tests: MBIT.a 20 s, MBIT.b 3 s), each task a
+    different geometric stiffening and noise seed: one record ``recNNN.csv`` per task for one test, a subfolder
+    ``visitNNN/`` with one record per test (a named group: one task) for several."""
     folder.mkdir(parents=True, exist_ok=True)
     for i in range(n):
-        rec = synth_record(synth_test("mbit-b"),
-                           truth_model("table2", ["geometric_stiffening"], {"kappa_nl": 1e4 * (1 + i % 4)}),
-                           noise={"z3": 2e-6}, seed=i)
-        write_record(rec, folder / f"rec{i:03d}.csv")
+        truth = truth_model("table2", ["geometric_stiffening"], {"kappa_nl": 1e4 * (1 + i % 4)})
+        for test in tests:
+            rec = synth_record(synth_test(test), truth, noise={"z3": 2e-6}, seed=i)
+            if len(tests) == 1:
+                write_record(rec, folder / f"rec{i:03d}.csv")
+            else:
+                (folder / f"visit{i:03d}").mkdir(exist_ok=True)
+                write_record(rec, folder / f"visit{i:03d}" / f"{test}.csv")
 
 
 def _fleet(base: Path, n: int) -> list[Path]:
@@ -266,8 +274,8 @@ def _fleet_health(base: Path, n: int, repeats: int = 1) -> dict:
 
 
 def _diagnose_batch(base: Path, n: int, repeats: int, n_preloaded: int) -> dict:
-    records = base / "records"
-    _records(records, n)
+    records = base / "visits"
+    _records(records, n, VISIT)
     outs: list[Path] = []
 
     def once(workers: int, i: int, folder: Path = records, preload: bool = False) -> dict:
@@ -280,11 +288,12 @@ def _diagnose_batch(base: Path, n: int, repeats: int, n_preloaded: int) -> dict:
     _records(base / "records_preloaded", n_preloaded)
     pre = [once(w, 0, base / "records_preloaded", True) for w in (1, 2)]
     standing = (start_up_and_steady(pre[0])["start_up_s"], start_up_and_steady(pre[1])["start_up_s"])
-    summary, rows, explained = _series(pairs, n, ISSUE_RECORDS, standing)
+    summary, rows, explained = _series(pairs, n, ISSUE_TASKS, standing)
     ones = [p[0] for p in pairs]
     warm = [max(c["warm_s"].values()) for p in pairs for c in p]
-    return {"records": n, "record_length_s": synth_test("mbit-b").duration_s, **_headline("", summary),
-            "end_to_end_at_40_records": summary[f"end_to_end_at_{ISSUE_RECORDS}_tasks"],
+    return {"tasks": n, "records": n * len(VISIT),
+            "record_lengths_s": {t: synth_test(t).duration_s for t in VISIT}, **_headline("", summary),
+            f"end_to_end_at_{ISSUE_TASKS}_tasks": summary[f"end_to_end_at_{ISSUE_TASKS}_tasks"],
             "end_to_end_on_a_standing_cluster": summary["end_to_end_on_a_standing_cluster"],
             "diagnose": summary, "diagnose_repeats": rows,
             "task_wall_mean_s": statistics.median(c["task_wall_s"] for c in ones) / n,
@@ -306,6 +315,6 @@ def run(out_dir: Path, quick: bool) -> dict:
     size = QUICK if quick else FULL
     base = Path(out_dir) / "scale_out"
     load_before = os.getloadavg()[0]
-    return {**_diagnose_batch(base, size["records"], size["repeats"], size["preloaded_records"]),
+    return {**_diagnose_batch(base, size["visits"], size["repeats"], size["preloaded_records"]),
             **_fleet_health(base / "fleet", size["boards"], size["fleet_repeats"]),
             "load_average_1min_before": load_before, "load_average_1min": os.getloadavg()[0]}

@@ -87,10 +87,10 @@ def test_the_diagnose_part_runs_interleaved_then_a_short_preloaded_pair(monkeypa
         wall = next(walls)
         return _cost(wall, wall - 2.0, 1.0, n_workers) | {"tasks": []}
 
-    monkeypatch.setattr(bso, "_records", lambda folder, n: folder.mkdir(parents=True, exist_ok=True))
+    monkeypatch.setattr(bso, "_records", lambda folder, n, tests=(): folder.mkdir(parents=True, exist_ok=True))
     monkeypatch.setattr(bso, "_on_cluster", fake_cluster)
     got = bso._diagnose_batch(tmp_path, 20, 3, 4)
-    assert ran == [("records", 1, False), ("records", 2, False)] * 3 + [
+    assert ran == [("visits", 1, False), ("visits", 2, False)] * 3 + [
         ("records_preloaded", 1, True), ("records_preloaded", 2, True)]
     assert got["speedup_2_vs_1"] == pytest.approx(37.0 / 21.0)
     assert (got["speedup_2_vs_1_min"], got["speedup_2_vs_1_max"]) == pytest.approx((37 / 25, 41 / 21))
@@ -98,4 +98,4 @@ def test_the_diagnose_part_runs_interleaved_then_a_short_preloaded_pair(monkeypa
     assert got["preloaded_start_up_1_worker_s"] == pytest.approx(3.0)
     assert got["warm_2_vs_1_workers"] == pytest.approx(1.0)
     assert got["summary_equal_1_vs_2_workers"] and got["preloaded_summary_equal"]
-    assert len(got["diagnose_repeats"]) == 3
+    assert len(got["diagnose_repeats"]) == 3 and got["end_to_end_at_40_tasks"] > got["speedup_2_vs_1"]
