@@ -1,10 +1,11 @@
 """The rounds of ``shm discover``'s forward selection as named stages (:func:`search_round`): the sensitivity batch
 (:func:`sensitivities`), the held-out linear screen (:func:`linear_screen`), the fast path that confirms a screen
 already at the noise floor on the full model (:func:`fast_path`), the nonlinear probes and onsets
-(:func:`probe_screen`), the refits (:func:`refit_term`, :func:`refit_best`) and keeping the best
+(:func:`probe_screen`), the refits (:func:`refit_term`, :func:`refit_best`), a time event checked against the
+members of its parameter constant in time and for plausibility (:func:`plausible_best`) and keeping the best
 (:func:`keep_best`); then the backward step (:func:`backward_step`) and the terms the records cannot tell apart
-(:func:`twins_of`). :func:`workbench.discover._pipeline.discover` prepares the search (:class:`SearchSetup`), runs
-the rounds on a :class:`SearchProgress` and judges what they kept.
+(:func:`~workbench.discover._twins.twins_of`). :func:`workbench.discover._pipeline.discover` prepares the search
+(:class:`SearchSetup`), runs the rounds on a :class:`SearchProgress` and judges what they kept.
 """
 
 from __future__ import annotations
