@@ -155,6 +155,9 @@ def summarise_pairs(pairs: list[dict], n_tasks: int, project_to: int | None = No
            "throughput_ratio": spread([p["throughput"] for p in pairs]),
            "start_up_1_worker_s": spread([p["start_up_1_worker_s"] for p in pairs]),
            "start_up_2_workers_s": spread([p["start_up_2_workers_s"] for p in pairs]),
+           # task CPU / wall: below ~0.95 and ~1.9 the machine did not give the run its cores (the ratio says little)
+           "cores_obtained_1_worker": spread([p["cores_obtained_1_worker"] for p in pairs]),
+           "cores_obtained_2_workers": spread([p["cores_obtained_2_workers"] for p in pairs]),
            "steady_task_1_worker_s": med["steady_1_worker_s"] / n_tasks,
            "end_to_end_from_medians": end_to_end_ratio(med["start_up_1_worker_s"], med["steady_1_worker_s"],
                                                        med["start_up_2_workers_s"], med["throughput"])}
@@ -241,7 +244,9 @@ def _headline(prefix: str, summary: dict) -> dict:
     out = {}
     for name, key in (("speedup_2_vs_1", "end_to_end_ratio"), ("throughput_speedup_2_vs_1", "throughput_ratio"),
                       ("start_up_1_worker_s", "start_up_1_worker_s"),
-                      ("start_up_2_workers_s", "start_up_2_workers_s")):
+                      ("start_up_2_workers_s", "start_up_2_workers_s"),
+                      ("cores_obtained_1_worker", "cores_obtained_1_worker"),
+                      ("cores_obtained_2_workers", "cores_obtained_2_workers")):
         out[f"{prefix}{name}"] = summary[key]["median"]
         out[f"{prefix}{name}_min"], out[f"{prefix}{name}_max"] = summary[key]["min"], summary[key]["max"]
     return out

@@ -62,6 +62,7 @@ def test_the_repeats_are_summed_up_by_their_medians_and_spreads():
     assert got["throughput_ratio"]["median"] == pytest.approx(34.0 / 18.0)
     assert got["throughput_ratio"]["min"] == pytest.approx(34.0 / 22.0)
     assert got["start_up_1_worker_s"]["median"] == pytest.approx(3.0)
+    assert got["cores_obtained_2_workers"]["values"] == pytest.approx([30 / 21, 30 / 21, 30 / 25])
     assert got["steady_task_1_worker_s"] == pytest.approx(34.0 / 20)
     r = 34.0 / 18.0
     assert got["end_to_end_from_medians"] == pytest.approx(37.0 / (3.0 + 34.0 / r))
