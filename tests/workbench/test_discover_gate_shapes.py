@@ -214,3 +214,68 @@ def test_the_dictionary_kernel_and_the_emitted_file_switch_at_the_same_point(tmp
         moved = float(np.max(np.abs(zd[k] - nominal)))
         assert moved > 1e-7, term.key
         assert float(np.max(np.abs(ze[k] - zd[k]))) <= max(1e-3 * moved, 1e-8), term.key
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# a smooth edge: the sign gate of a section's own deflection with a fitted width (a crack that opens gradually)
+
+SMOOTH_TRUTH = '''
+import math
+
+from plant.effect import Parameter, PhysicalEffect
+from plant.layout import B_S, P_K, X_DELTA
+
+
+class SmoothCrackRoot(PhysicalEffect):
+    name = "truth_smooth_crack_root"
+    parameters = (Parameter("loss", "1", 0.0, 0.0, 0.9, "share of k1 lost with the crack open"),
+                  Parameter("w", "m", 2e-4, 1e-7, 1e-2, "width of the opening in δ1"))
+
+    @staticmethod
+    def rates(t, x, p, bus, dx, so, po):
+        bus[B_S] += p[po] * 0.5 * (1.0 + math.tanh(x[X_DELTA] / p[po + 1])) * p[P_K] * x[X_DELTA]
+'''
+
+
+def test_soft_gates_open_over_their_edge_width_and_are_members_for_the_sections():
+    d = np.linspace(-1e-3, 1e-3, 201)
+    t = np.zeros_like(d)
+    assert np.allclose(gate_values("on_pos_soft", d, 2e-4, t, "m"), 0.5 * (1 + np.tanh(d / 2e-4)))
+    assert np.allclose(gate_values("on_neg_soft", d, 2e-4, t, "m"), 0.5 * (1 - np.tanh(d / 2e-4)))
+    terms = build_dictionary(SCALES)
+    soft = {(t.param, t.form, t.signal): t for t in terms if t.form in ("on_pos_soft", "on_neg_soft")}
+    for param in ("k", "c"):
+        for i in (1, 2, 3):
+            for form in ("on_pos_soft", "on_neg_soft"):
+                term = soft[(param, form, f"delta{i}")]
+                assert term.shape == pytest.approx(0.2 * 6e-4) and term.shape_range is None  # refit: ×4 either way
+    words = describe_damage("k", 0, "on_pos_soft", "delta1", -0.3, 2e-4)
+    assert words.startswith("a breathing crack in section 1 that opens gradually for δ1 > 0")
+    assert "±200 µm" in words and "k1 lower by 30 %" in words
+
+
+@pytest.mark.slow
+def test_the_compiled_soft_gate_is_a_crack_that_opens_gradually(tmp_path):
+    """The emitted file of k1 × soft gate against a smooth crack written outside: one motion."""
+    from plant import PlantModel
+    from workbench.simulation import synth_record, synth_test, truth_model
+
+    truth = tmp_path / "truth.py"
+    truth.write_text(SMOOTH_TRUTH)
+    term = next(t for t in build_dictionary(SCALES) if t.key == "k1_pos_soft_delta1")
+    (cname, gname), = parameter_names_for([term])
+    assert gname is not None
+    f = tmp_path / "soft.py"
+    f.write_text(emit_effect_source([term], {cname: -0.3, gname: 2e-4}))
+    rec = synth_record(synth_test("sweep", duration_s=1.5), truth_model("table2"), noise={"z3": 2e-6}, seed=1)
+    emitted = PlantModel("table2", effects=[str(f)])
+    written = PlantModel("table2", effects=[f"{truth}:SmoothCrackRoot"])
+    pe, pw = emitted.p_nominal.copy(), written.p_nominal.copy()
+    pe[emitted.param_index(cname)] = -0.3
+    pw[written.param_index("loss")] = 0.3
+    ze = emitted.simulate(rec.input_signals(), t_out=rec.t, params=pe, rtol=1e-9)["z3_meas"][0]
+    zw = written.simulate(rec.input_signals(), t_out=rec.t, params=pw, rtol=1e-9)["z3_meas"][0]
+    nominal = PlantModel("table2").simulate(rec.input_signals(), t_out=rec.t, rtol=1e-9)["z3_meas"][0]
+    moved = float(np.max(np.abs(zw - nominal)))
+    assert moved > 1e-6
+    assert float(np.max(np.abs(ze - zw))) <= 1e-3 * moved

@@ -47,6 +47,8 @@ from workbench.discover._gates import (
     GATED_BY,
     GATES,
     RAMP_AT,
+    SOFT_AT,
+    SOFT_GATES,
     STEP_AT,
     SWITCH_RANGE,
     gate_values,
@@ -302,6 +304,10 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                                   for t0, rng in onsets(duration, STEP_AT)]
                         terms += [Term("damage", index, "one", "on_ramp", t0, param, rng)
                                   for t0, rng in onsets(duration, RAMP_AT)]
+                elif what == "soft":
+                    sig = f"delta{index + 1}"
+                    if ok(sig):
+                        terms += [Term("damage", index, sig, g, SOFT_AT * scales[sig], param) for g in SOFT_GATES]
                 elif what == "gap":
                     if ok(sig):
                         terms += [Term("damage", index, sig, "on_gap", f * scales[sig], param) for f in GAP_AT]

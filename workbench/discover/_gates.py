@@ -51,12 +51,19 @@ class Gate:
 GATES: dict[str, Gate] = {
     "on_pos": Gate("on_pos", "0.5 * (1.0 + math.tanh((S - G) / H))", "switching point", formula="[S > G]"),
     "on_neg": Gate("on_neg", "0.5 * (1.0 - math.tanh((S - G) / H))", "switching point", formula="[S < G]"),
+    # the same switch at 0 with an edge of fitted width G: a crack that opens gradually (its faces meet over a range)
+    "on_pos_soft": Gate("on_pos_soft", "0.5 * (1.0 + math.tanh(S / G))", "edge width",
+                        formula="(1 + tanh(S / G)) / 2"),
+    "on_neg_soft": Gate("on_neg_soft", "0.5 * (1.0 - math.tanh(S / G))", "edge width",
+                        formula="(1 − tanh(S / G)) / 2"),
     "on_gap": Gate("on_gap", "max(abs(S) - G, 0.0) / max(abs(S), G)", "gap", formula="(|S| − G)⁺ / |S|"),
     "on_step": Gate("on_step", "0.5 * (1.0 + math.tanh((t - G) / H))", "onset time", formula="[t > G]"),
     "on_ramp": Gate("on_ramp", "max(t - G, 0.0)", "onset time", per_second=True, formula="(t − G)⁺"),
 }
-#: the gates that switch on a signal's sign or a gap (the hard forms of the search) and those in time
+#: the gates that switch on a signal's sign or a gap (the hard forms of the search), those with a smooth edge, and
+#: those in time
 SIGN_GATES = ("on_pos", "on_neg")
+SOFT_GATES = ("on_pos_soft", "on_neg_soft")
 TIME_GATES = ("on_step", "on_ramp")
 #: smoothing width H of a sign gate by the unit of its signal (far below any signal's scale: a switch for the
 #: record, smooth for the integrator), and of the time step (s: below a sample at the fits' 250 Hz — a 25 % loss of
@@ -70,6 +77,8 @@ STEP_AT = (0.125, 0.375, 0.625, 0.875)
 RAMP_AT = (0.25, 0.75)
 #: gaps, fractions of the section deflection's scale
 GAP_AT = (0.3, 0.6)
+#: edge widths a soft gate is screened at (fraction of its signal's scale; the refit moves it a factor of four)
+SOFT_AT = 0.2
 #: a sign gate is screened switching at 0 and its switching point G refitted linearly within ± this fraction of
 #: its signal's scale (the 99th percentile of |signal|): a crack or a depoled patch that switches off zero
 SWITCH_RANGE = 0.8
@@ -123,10 +132,11 @@ CONTRIBUTIONS: dict[str, Contribution] = {
 }
 
 #: the gate signals each contribution meets: "own_delta"/"own_ddelta" the section's own deflection/rate, "va" the
-#: drive, "vc" the patch voltage (its charge), "time" the step and the ramp; "gap" the gap of the section's deflection
+#: drive, "vc" the patch voltage (its charge), "time" the step and the ramp; "gap" the gap of the section's deflection,
+#: "soft" its sign with a smooth edge (a crack that opens gradually: the section's own terms only)
 GATED_BY: dict[str, tuple[str, ...]] = {
-    "k": ("own_delta", "gap", "time"),
-    "c": ("own_ddelta", "own_delta", "time"),
+    "k": ("own_delta", "soft", "gap", "time"),
+    "c": ("own_ddelta", "own_delta", "soft", "time"),
     "m": ("time",),
     "d_ep": ("va", "vc", "time"),
     "alpha_h": ("va", "vc", "time"),
@@ -187,6 +197,8 @@ def gate_values(form: str, s: np.ndarray, g: float, t: np.ndarray, unit: str, hi
     if form in SIGN_GATES:
         step = 0.5 * (1.0 + np.tanh((s - g) / h)) if form == "on_pos" else 0.5 * (1.0 - np.tanh((s - g) / h))
         return (s - g) * step if hinge else step
+    if form in SOFT_GATES:
+        return 0.5 * (1.0 + np.tanh(s / g)) if form == "on_pos_soft" else 0.5 * (1.0 - np.tanh(s / g))
     if form == "on_gap":
         return np.maximum(np.abs(s) - g, 0.0) / np.maximum(np.abs(s), g)
     if form == "on_step":
@@ -283,6 +295,13 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
     lh = "lower" if lower else "higher"
     if form in SIGN_GATES:
         return _describe_sign(param, index, form, signal, coef, named_switch(shape, shape_se))
+    if form in SOFT_GATES:
+        side = f"δ{n} {'>' if form == 'on_pos_soft' else '<'} 0"
+        edge = f"its faces parting over about ±{_length(shape)} of δ{n}"
+        if param == "k" and lower:
+            return (f"a breathing crack in section {n} that opens gradually for {side} ({edge}): stiffness k{n} "
+                    f"lower by {pct} when open (bilinear stiffness with a smooth edge)")
+        return f"{what} {pct} {lh} for {side}, switching gradually ({edge})"
     if form == "on_gap":
         if param == "k":
             return (f"section {n} is {'softer' if lower else 'stiffer'} by {pct} beyond ±{_length(shape)} of δ{n}"
@@ -323,7 +342,8 @@ def class_stem(param: str, index: int, form: str) -> str:
     base = {"k": f"Section{index + 1}Stiffness", "c": f"Section{index + 1}Damping", "m": f"Mass{index + 1}",
             "d_ep": "PatchCoupling", "alpha_h": "PatchHysteresisShare", "beta_h": "PatchHysteresis",
             "R_ep": "PatchResistance", "C_ep": "PatchCapacitance"}[param]
-    return base + {"on_pos": "Positive", "on_neg": "Negative", "on_gap": "BeyondGap", "on_step": "Event",
+    return base + {"on_pos": "Positive", "on_neg": "Negative", "on_pos_soft": "OpeningPositive",
+                   "on_neg_soft": "OpeningNegative", "on_gap": "BeyondGap", "on_step": "Event",
                    "on_ramp": "Growth"}[form]
 
 
