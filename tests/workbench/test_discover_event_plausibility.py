@@ -183,3 +183,23 @@ def test_the_onset_scan_places_an_event_that_starts_a_held_out_block(monkeypatch
     start, _ = onset.onset_scan(row, ("a", "g"), [target], [None], {}, (0.0, 10.0), None)
     assert start["g"] == pytest.approx(5.0, abs=0.003)
     assert start["a"] == pytest.approx(2.0, rel=0.03)
+
+
+@pytest.mark.slow
+def test_a_crack_on_a_sweep_is_not_named_as_an_event():
+    """A crack in section 3 open for δ3 < 0 (written outside the dictionary) on a 10 s sweep: the step of k3 at
+    some early instant was the round's best refit (123 σ) and named as a damage event; k3 × [δ3 < 0], ranked low by
+    the probes, was never refitted. Refitted as the step's member constant in time it explains the record."""
+    from pathlib import Path
+
+    from workbench.discover import discover
+    from workbench.simulation import synth_record, synth_test, truth_model
+
+    unseen = Path(__file__).parents[1] / "workbench_unseen_damage.py"
+    truth = truth_model("table2", [f"{unseen}:CrackSection3Negative"], {"a_cr3": 0.2})
+    rec = synth_record(synth_test("sweep", duration_s=10.0), truth, noise={"z3": 2e-6}, seed=1)
+    d = discover([rec], "table2", max_terms=1)
+    assert d.verdict == "found", d.message
+    assert d.terms[0].term.key == "k3_neg_delta3", d.message
+    assert d.terms[0].coef == pytest.approx(-0.2, abs=0.02)
+    assert "lost" not in d.message.split(". ")[0], d.message
