@@ -28,25 +28,27 @@ def test_spread_is_the_median_the_extremes_and_the_range_as_a_share_of_the_media
 
 
 def test_a_runs_wall_is_start_up_plus_steady_work():
-    # 20 s: connect 0.3 + warm 1.5 + scatter 0.1 + 0.1 s of writing, then 18 s of tasks of which 1 s the first task's
+    # 20 s: connect 0.3 + warm 1.5 + scatter 0.1 + 0.1 s of writing, then 18 s of tasks; the first task's estimated
+    # extra (1 s) stays in the steady part (the estimate is the size difference too when the largest start first)
     got = bso.start_up_and_steady(_cost(20.0, 18.0, 1.0, 1))
-    assert got["steady_s"] == pytest.approx(17.0) and got["start_up_s"] == pytest.approx(3.0)
-    assert got["start_up_parts_s"] == {"connect": 0.3, "warm": 1.5, "scatter": 0.1, "first_task_extra": 1.0}
+    assert got["steady_s"] == pytest.approx(18.0) and got["start_up_s"] == pytest.approx(2.0)
+    assert got["start_up_parts_s"] == {"connect": 0.3, "warm": 1.5, "scatter": 0.1}
+    assert got["first_task_extra_s"] == 1.0
     # a cost without phases (an old document): all of it steady
-    assert bso.start_up_and_steady({"wall_s": 5.0}) == {"start_up_s": 0.0, "steady_s": 5.0,
+    assert bso.start_up_and_steady({"wall_s": 5.0}) == {"start_up_s": 0.0, "steady_s": 5.0, "first_task_extra_s": 0.0,
                                                         "start_up_parts_s": dict.fromkeys(
-                                                            ("connect", "warm", "scatter", "first_task_extra"), 0.0)}
+                                                            ("connect", "warm", "scatter"), 0.0)}
 
 
 def test_the_end_to_end_ratio_is_explained_by_start_up_and_throughput():
     one, two = _cost(37.0, 35.0, 1.0, 1), _cost(21.2, 19.0, 1.0, 2, own_cpu=33.0)
     row = bso.pair_ratios(one, two)
     assert row["end_to_end"] == pytest.approx(37.0 / 21.2)
-    assert row["throughput"] == pytest.approx(34.0 / 18.0)  # steady: tasks phase minus the first task's extra
-    assert row["start_up_1_worker_s"] == pytest.approx(3.0) and row["start_up_2_workers_s"] == pytest.approx(3.2)
+    assert row["throughput"] == pytest.approx(35.0 / 19.0)  # steady: the tasks phases
+    assert row["start_up_1_worker_s"] == pytest.approx(2.0) and row["start_up_2_workers_s"] == pytest.approx(2.2)
     assert row["task_thread_cpu_2_vs_1"] == pytest.approx(1.1)
     # the run's own parts give its measured ratio back ...
-    assert bso.end_to_end_ratio(3.0, 34.0, 3.2, row["throughput"]) == pytest.approx(row["end_to_end"])
+    assert bso.end_to_end_ratio(2.0, 35.0, 2.2, row["throughput"]) == pytest.approx(row["end_to_end"])
     # ... twice the work: the start-up weighs half as much; no start-up: the throughput ratio itself
     assert bso.end_to_end_ratio(3.0, 68.0, 3.2, 34 / 18) == pytest.approx(71.0 / (3.2 + 36.0))
     assert bso.end_to_end_ratio(0.0, 34.0, 0.0, 1.9) == pytest.approx(1.9)
@@ -59,15 +61,15 @@ def test_the_repeats_are_summed_up_by_their_medians_and_spreads():
     assert got["repeats"] == 3
     assert got["end_to_end_ratio"]["median"] == pytest.approx(37.0 / 21.0)
     assert got["end_to_end_ratio"]["values"] == pytest.approx([37 / 21, 41 / 21, 37 / 25])
-    assert got["throughput_ratio"]["median"] == pytest.approx(34.0 / 18.0)
-    assert got["throughput_ratio"]["min"] == pytest.approx(34.0 / 22.0)
-    assert got["start_up_1_worker_s"]["median"] == pytest.approx(3.0)
+    assert got["throughput_ratio"]["median"] == pytest.approx(35.0 / 19.0)
+    assert got["throughput_ratio"]["min"] == pytest.approx(35.0 / 23.0)
+    assert got["start_up_1_worker_s"]["median"] == pytest.approx(2.0)
     assert got["cores_obtained_2_workers"]["values"] == pytest.approx([30 / 21, 30 / 21, 30 / 25])
-    assert got["steady_task_1_worker_s"] == pytest.approx(34.0 / 20)
-    r = 34.0 / 18.0
-    assert got["end_to_end_from_medians"] == pytest.approx(37.0 / (3.0 + 34.0 / r))
-    assert got["end_to_end_at_40_tasks"] == pytest.approx((3.0 + 68.0) / (3.0 + 68.0 / r))
-    assert got["end_to_end_on_a_standing_cluster"] == pytest.approx(35.0 / (1.0 + 34.0 / r))
+    assert got["steady_task_1_worker_s"] == pytest.approx(35.0 / 20)
+    r = 35.0 / 19.0
+    assert got["end_to_end_from_medians"] == pytest.approx(37.0 / (2.0 + 35.0 / r))
+    assert got["end_to_end_at_40_tasks"] == pytest.approx((2.0 + 70.0) / (2.0 + 70.0 / r))
+    assert got["end_to_end_on_a_standing_cluster"] == pytest.approx(36.0 / (1.0 + 35.0 / r))
 
 
 def test_the_runs_alternate_one_and_two_workers():
@@ -95,8 +97,8 @@ def test_the_diagnose_part_runs_interleaved_then_a_short_preloaded_pair(monkeypa
         ("records_preloaded", 1, True), ("records_preloaded", 2, True)]
     assert got["speedup_2_vs_1"] == pytest.approx(37.0 / 21.0)
     assert (got["speedup_2_vs_1_min"], got["speedup_2_vs_1_max"]) == pytest.approx((37 / 25, 41 / 21))
-    assert got["throughput_speedup_2_vs_1"] == pytest.approx(34.0 / 18.0)
-    assert got["preloaded_start_up_1_worker_s"] == pytest.approx(3.0)
+    assert got["throughput_speedup_2_vs_1"] == pytest.approx(35.0 / 19.0)
+    assert got["preloaded_start_up_1_worker_s"] == pytest.approx(2.0)
     assert got["warm_2_vs_1_workers"] == pytest.approx(1.0)
     assert got["summary_equal_1_vs_2_workers"] and got["preloaded_summary_equal"]
     assert len(got["diagnose_repeats"]) == 3 and got["end_to_end_at_40_tasks"] > got["speedup_2_vs_1"]
