@@ -203,3 +203,13 @@ def test_a_crack_on_a_sweep_is_not_named_as_an_event():
     assert d.terms[0].term.key == "k3_neg_delta3", d.message
     assert d.terms[0].coef == pytest.approx(-0.2, abs=0.02)
     assert "lost" not in d.message.split(". ")[0], d.message
+
+
+def test_an_event_and_a_constant_twin_are_told_apart_by_a_second_record():
+    from workbench.discover._results import separating_test
+
+    crack = _terms()[1]
+    event = {"placement": "damage", "index": 2, "signal": "one", "form": "on_step"}
+    assert "a second record long after the first" in separating_test(crack, [event])
+    step = {"placement": "damage", "index": 2, "signal": "one", "form": "on_ramp"}
+    assert "a second record" not in separating_test(_terms()[0], [step])

@@ -95,6 +95,10 @@ def separating_test(term: Term, twins: Sequence[dict[str, Any]]) -> str:
     if {term.form, *(t["form"] for t in twins)} & shaped and \
             places <= {"measurement", "force_mass", "force_section"} and len(places) > 1:
         tests.append("a static calibration of the laser against a reference tells a sensor map from a force")
+    timed = [f in TIME_GATES for f in (term.form, *(t["form"] for t in twins))]
+    if any(timed) and not all(timed):  # an event against a form constant in time
+        tests.append("a second record long after the first, moving the section both ways, tells a change at an "
+                     "instant (it stays) from one with the motion's sign or size (it comes and goes)")
     if not tests:
         tests.append("a record that reaches larger amplitudes and sweeps through the modes would")
     return "; ".join(tests)
