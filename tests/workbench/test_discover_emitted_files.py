@@ -90,6 +90,9 @@ def test_the_dictionary_spans_the_damage_family(short_sweep):
                 ("c", "on_pos", f"ddelta{i}"), ("c", "on_neg", f"delta{i}")} <= fams
     for param in ("d_ep", "alpha_h", "beta_h", "R_ep"):
         assert {(param, "on_neg", "va"), (param, "on_pos", "vc")} <= fams
+    for i in range(3):  # one patch's own coupling, by the drive's and its own charge's sign (a single weak patch)
+        assert {("d_ep_i", g, s) for g in ("on_pos", "on_neg") for s in ("va", "vc")} <= {
+            (t.param, t.form, t.signal) for t in short_sweep["terms"] if t.placement == "damage" and t.index == i}
     steps = sorted(t.shape for t in short_sweep["terms"] if t.key == "k2_step_t")
     ranges = [t.shape_range for t in short_sweep["terms"] if t.key == "k2_step_t"]
     assert len(steps) >= 3 and min(r[0] for r in ranges) == 0.0  # onsets and their refit ranges span the record

@@ -113,6 +113,11 @@ CONTRIBUTIONS: dict[str, Contribution] = {
         "f_d = ({A}) * p[P_K + i] * p[P_D_EP]", "bus[B_S + i] += f_d * bus[B_QH + i] / p[P_C_EP]",
         "dx[X_Q + i] -= f_d * x[X_DDELTA + i]")},
         "S_i += c · k_i d_ep q_hi / C_ep,  dq_i/dt −= c · k_i d_ep δ̇_i", "patch authority d_ep"),
+    # one patch's own coupling (the patch bonded on section n): a single patch partly depolarised or debonded
+    "d_ep_i": Contribution("d_ep_i", "each_patch", {"rates": (
+        "f_d = ({A}) * p[P_K + i] * p[P_D_EP]", "bus[B_S + i] += f_d * bus[B_QH + i] / p[P_C_EP]",
+        "dx[X_Q + i] -= f_d * x[X_DDELTA + i]")},
+        "S_{n} += c · k{n} d_ep q_h{n} / C_ep,  dq_{n}/dt −= c · k{n} d_ep δ̇{n}", "authority d_ep of patch {n}"),
     "alpha_h": Contribution("alpha_h", "patch", {"pre": (
         "bus[B_QH + i] += ({A}) * p[P_ALPHA_H] * (x[X_Q + i] - x[X_H + i])",)},
         "q_hi += c · α_h (q_i − h_qi)", "hysteresis share α_h of the patches"),
@@ -139,6 +144,7 @@ GATED_BY: dict[str, tuple[str, ...]] = {
     "c": ("own_ddelta", "own_delta", "soft", "time"),
     "m": ("time",),
     "d_ep": ("va", "vc", "time"),
+    "d_ep_i": ("va", "vc"),
     "alpha_h": ("va", "vc", "time"),
     "beta_h": ("va", "vc", "time"),
     "R_ep": ("va", "vc", "time"),
@@ -148,6 +154,8 @@ GATED_BY: dict[str, tuple[str, ...]] = {
 
 def param_label(param: str, index: int) -> str:
     """The parameter as named in a term's key: ``k2``, ``m3``, ``d_ep``."""
+    if param == "d_ep_i":
+        return f"d_ep{index + 1}"
     return f"{param}{index + 1}" if CONTRIBUTIONS[param].per != "patch" else param
 
 
@@ -178,7 +186,10 @@ def contribution_lines(param: str, index: int, factor: str, hinge: bool = False)
     out: dict[str, list[str]] = {}
     for hook, lines in hooks.items():
         body = [ln.replace("{A}", factor).replace("{i}", str(index)) for ln in lines]
-        out[hook] = ["for i in range(3):", *("    " + ln for ln in body)] if con.per == "patch" else body
+        if con.per == "each_patch":  # the loop keeps ``i`` for the patch signals (bus[B_VC + i])
+            out[hook] = ["for i in range(3):", f"    if i == {index}:", *("        " + ln for ln in body)]
+        else:
+            out[hook] = ["for i in range(3):", *("    " + ln for ln in body)] if con.per == "patch" else body
     return out
 
 
@@ -272,6 +283,9 @@ def _describe_sign(param: str, index: int, form: str, signal: str, coef: float, 
     if param == "d_ep":
         return (f"a patch whose authority d_ep is {pct} {lh} {when} {cond} (polarisation-dependent coupling: a "
                 "partly depolarised patch)")
+    if param == "d_ep_i":
+        return (f"patch {n} (on section {n}) whose authority d_ep is {pct} {lh} {when} {cond}, the other patches as "
+                "modelled (polarisation-dependent coupling: that patch partly depolarised)")
     if param == "c" and signal.startswith("delta"):
         return f"damping c{n} of section {n} {pct} {lh} while {cond} (a crack whose faces rub when it is open)"
     return f"{what} {pct} {lh} {when} {cond} (a sign-dependent {what.split(' of ')[0]})"
@@ -340,7 +354,8 @@ def damage_formula(param: str, index: int, form: str, signal: str, cname: str, g
 def class_stem(param: str, index: int, form: str) -> str:
     """CamelCase words for an emitted class: 'Section2StiffnessEvent'."""
     base = {"k": f"Section{index + 1}Stiffness", "c": f"Section{index + 1}Damping", "m": f"Mass{index + 1}",
-            "d_ep": "PatchCoupling", "alpha_h": "PatchHysteresisShare", "beta_h": "PatchHysteresis",
+            "d_ep": "PatchCoupling", "d_ep_i": f"Patch{index + 1}Coupling",
+            "alpha_h": "PatchHysteresisShare", "beta_h": "PatchHysteresis",
             "R_ep": "PatchResistance", "C_ep": "PatchCapacitance"}[param]
     return base + {"on_pos": "Positive", "on_neg": "Negative", "on_pos_soft": "OpeningPositive",
                    "on_neg_soft": "OpeningNegative", "on_gap": "BeyondGap", "on_step": "Event",
