@@ -5,6 +5,8 @@ unchanged), refitted within ± SWITCH_RANGE of the signal's scale, said in words
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -219,22 +221,8 @@ def test_the_dictionary_kernel_and_the_emitted_file_switch_at_the_same_point(tmp
 # ---------------------------------------------------------------------------------------------------------------
 # a smooth edge: the sign gate of a section's own deflection with a fitted width (a crack that opens gradually)
 
-SMOOTH_TRUTH = '''
-import math
-
-from plant.effect import Parameter, PhysicalEffect
-from plant.layout import B_S, P_K, X_DELTA
-
-
-class SmoothCrackRoot(PhysicalEffect):
-    name = "truth_smooth_crack_root"
-    parameters = (Parameter("loss", "1", 0.0, 0.0, 0.9, "share of k1 lost with the crack open"),
-                  Parameter("w", "m", 2e-4, 1e-7, 1e-2, "width of the opening in δ1"))
-
-    @staticmethod
-    def rates(t, x, p, bus, dx, so, po):
-        bus[B_S] += p[po] * 0.5 * (1.0 + math.tanh(x[X_DELTA] / p[po + 1])) * p[P_K] * x[X_DELTA]
-'''
+#: a smooth root crack written outside the dictionary (the unseen-damage cases' own: share a_sm1, width w_sm1)
+UNSEEN = Path(__file__).parents[1] / "workbench_unseen_damage.py"
 
 
 def test_soft_gates_open_over_their_edge_width_and_are_members_for_the_sections():
@@ -260,8 +248,6 @@ def test_the_compiled_soft_gate_is_a_crack_that_opens_gradually(tmp_path):
     from plant import PlantModel
     from workbench.simulation import synth_record, synth_test, truth_model
 
-    truth = tmp_path / "truth.py"
-    truth.write_text(SMOOTH_TRUTH)
     term = next(t for t in build_dictionary(SCALES) if t.key == "k1_pos_soft_delta1")
     (cname, gname), = parameter_names_for([term])
     assert gname is not None
@@ -269,10 +255,11 @@ def test_the_compiled_soft_gate_is_a_crack_that_opens_gradually(tmp_path):
     f.write_text(emit_effect_source([term], {cname: -0.3, gname: 2e-4}))
     rec = synth_record(synth_test("sweep", duration_s=1.5), truth_model("table2"), noise={"z3": 2e-6}, seed=1)
     emitted = PlantModel("table2", effects=[str(f)])
-    written = PlantModel("table2", effects=[f"{truth}:SmoothCrackRoot"])
+    written = PlantModel("table2", effects=[f"{UNSEEN}:SmoothCrackRoot"])
     pe, pw = emitted.p_nominal.copy(), written.p_nominal.copy()
     pe[emitted.param_index(cname)] = -0.3
-    pw[written.param_index("loss")] = 0.3
+    pw[written.param_index("a_sm1")] = 0.3
+    pw[written.param_index("w_sm1")] = 2e-4
     ze = emitted.simulate(rec.input_signals(), t_out=rec.t, params=pe, rtol=1e-9)["z3_meas"][0]
     zw = written.simulate(rec.input_signals(), t_out=rec.t, params=pw, rtol=1e-9)["z3_meas"][0]
     nominal = PlantModel("table2").simulate(rec.input_signals(), t_out=rec.t, rtol=1e-9)["z3_meas"][0]
