@@ -102,3 +102,18 @@ def test_the_diagnose_part_runs_interleaved_then_a_short_preloaded_pair(monkeypa
     assert got["warm_2_vs_1_workers"] == pytest.approx(1.0)
     assert got["summary_equal_1_vs_2_workers"] and got["preloaded_summary_equal"]
     assert len(got["diagnose_repeats"]) == 3 and got["end_to_end_at_40_tasks"] > got["speedup_2_vs_1"]
+
+
+def test_a_diagnose_task_is_one_visits_records_as_a_named_group(monkeypatch, tmp_path):
+    """The bench's diagnose task: a visit's MBIT.a and MBIT.b (a subfolder: one task over both records), the shipped
+    tests' own lengths; the batch sees one task per visit."""
+    from studies.batch import expand_inputs
+
+    made = []
+    monkeypatch.setattr(bso, "synth_record", lambda test, truth, noise, seed: (test.kind, test.duration_s, seed))
+    monkeypatch.setattr(bso, "write_record", lambda rec, path: made.append(rec) or path.write_text(str(rec)))
+    bso._records(tmp_path, 2, bso.VISIT)
+    assert made == [("mbit-a", 20.0, 0), ("mbit-b", 3.0, 0), ("mbit-a", 20.0, 1), ("mbit-b", 3.0, 1)]
+    tasks = expand_inputs([str(tmp_path)])
+    assert [(t.key, sorted(f.name for f in t.files)) for t in tasks] == [
+        ("visit000", ["mbit-a.csv", "mbit-b.csv"]), ("visit001", ["mbit-a.csv", "mbit-b.csv"])]
