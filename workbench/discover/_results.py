@@ -64,10 +64,12 @@ class FoundTerm:
 
     @property
     def description(self) -> str:
-        """The words, and what the records cannot tell it from (with the test that would)."""
+        """The words, and what the records cannot tell it from (with the test that would) — in the same sentence: a
+        finding whose place or kind the records leave open is said to be open where it is first stated (a crack in
+        section 1 or 2 on a quasi-static record), not one sentence later."""
         if not self.twins:
             return self.words
-        return (self.words + ". These records cannot tell it from "
+        return (self.words + " — these records cannot tell it from "
                 + "; or from ".join(t["words"] for t in self.twins) + " (" + separating_test(self.term, self.twins)
                 + ")")
 
