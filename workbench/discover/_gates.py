@@ -16,11 +16,14 @@ ramp, 1/s) while the gate is open. Contributions (what the parameter adds to the
 =============  ==================================================================================================
 
 Gates (:data:`GATES`, code in ``S`` the gate's signal, ``G`` its shape, ``H`` a fixed smoothing width): open for a
-positive or negative signal (a breathing crack: δ_i > 0; direction-dependent damping: δ̇_i > 0; polarisation:
-the drive's or the patch voltage's sign), beyond a gap ``(|S| − G)⁺/|S|`` (free play or contact: with the stiffness
-it is exactly k·(δ − clip(δ, ±G))), a step at an instant ``G`` = t0 inside the record (a damage event), and a ramp
-from t0 (damage growing). Which gates each contribution meets is :data:`GATED_BY`; the dictionary crosses them
-(:func:`workbench.discover.build_dictionary`), so a form nobody wrote a test for is still a member.
+signal above or below a switching point ``G`` (screened at 0, refitted within ±0.8 of the signal's scale: a breathing
+crack δ_i > G — for the section's own stiffness the continuous hinge c·k·(δ − G)⁺ of a bilinear spring; direction-
+dependent damping: δ̇_i > G; polarisation: a drive or patch voltage below G), open over a smooth edge of fitted
+width ``G`` for the sign of a section's own deflection (a crack that opens gradually), beyond a gap
+``(|S| − G)⁺/|S|`` (free play or contact: with the stiffness it is exactly k·(δ − clip(δ, ±G))), a step at an
+instant ``G`` = t0 inside the record (a damage event), and a ramp from t0 (damage growing). Which gates each
+contribution meets is :data:`GATED_BY`; the dictionary crosses them (:func:`workbench.discover.build_dictionary`),
+so a form nobody wrote a test for is still a member.
 
 This module holds the pieces as data and text (no :class:`~workbench.discover._dictionary.Term`): the kernel lines
 of a contribution (:func:`contribution_lines`), the gate's values on arrays (:func:`gate_values`), its formula and
