@@ -21,7 +21,7 @@ import sys
 import time
 from pathlib import Path
 
-from bench.bench_scale_out import CANDIDATES, _fleet, _records
+from bench.bench_scale_out import _fleet, _records
 
 #: the command's single-machine body, run in a fresh interpreter (``python -c``) on ``sys.argv[1:]``
 DIRECT = {
@@ -58,6 +58,9 @@ finally:
 sys.exit(code)
 """,
 }
+
+#: two candidates, no discovery step: a short diagnose whose cost is mostly the command around it
+CANDIDATES = ["--candidates", "geometric_stiffening,m3", "--no-discover"]
 
 
 def process_argv(kind: str, argv: list[str]) -> list[str]:
