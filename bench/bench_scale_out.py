@@ -37,9 +37,10 @@ DIAGNOSE_OPTIONS = ["--no-discover"]
 VISIT = ("mbit-a", "mbit-b")
 SHM = str(Path(sys.executable).parent / "shm")
 #: (visits, repeats of the 1-then-2-worker pair) of the diagnose; (boards, repeats) of the fleet; MBIT.b records of
-#: the preloaded pair (its start-up only). Full: ≈ 6 min on 2 quiet cores (from its CPU; 15 min at load 6). 4 boards:
-#: their sizes left the last wave 12 % unbalanced (an ideal of 1.72x before any loss); 6: 0.4 % over 2 workers.
-FULL = {"visits": 8, "repeats": 3, "boards": 6, "fleet_repeats": 2, "preloaded_records": 4}
+#: the preloaded pair (its start-up only). Full: the issue's 40 records (20 visits of MBIT.a + MBIT.b), two pairs;
+#: ≈ 7 min on 2 quiet cores. 4 boards: their sizes left the last wave 12 % unbalanced (an ideal of 1.72x before any
+#: loss); 6: 0.4 % over 2 workers.
+FULL = {"visits": 20, "repeats": 2, "boards": 6, "fleet_repeats": 2, "preloaded_records": 4}
 QUICK = {"visits": 4, "repeats": 2, "boards": 2, "fleet_repeats": 1, "preloaded_records": 4}
 #: the issue's batch size (tasks), for the projected end-to-end ratio
 ISSUE_TASKS = 40
