@@ -91,5 +91,6 @@ def test_a_stiffness_drop_mid_sweep_is_refitted_first_and_found_without_the_othe
     refitted = [t["term"] for t in d.rounds[0]["refitted"]]
     timed = [k for k in refitted if "_step_" in k or "_ramp_" in k]
     assert timed and refitted[:len(timed)] == timed, refitted
-    assert set(refitted[len(timed):]) <= {"k2_pos_delta2", "k2_neg_delta2", "k2_gap_delta2"}, refitted
+    # then only k2's own members constant in time (its sign gates, smooth edges, gap — whatever the family holds)
+    assert all(k.startswith("k2_") and k not in timed for k in refitted[len(timed):]), refitted
     assert any("an event inside the record" in m for m in said), said
