@@ -106,21 +106,23 @@ def _mass_lines(j: int) -> tuple[str, ...]:
     return lines + ((f"dx[X_DDELTA + {j + 1}] += a_m * f_m",) if j < 2 else ())
 
 
+#: the drive coupling of patch i (in the loop over the patches): its piezo force and the current its motion induces
+_D_EP_HOOKS: dict[str, tuple[str, ...]] = {"rates": (
+    "f_d = ({A}) * p[P_K + i] * p[P_D_EP]", "bus[B_S + i] += f_d * bus[B_QH + i] / p[P_C_EP]",
+    "dx[X_Q + i] -= f_d * x[X_DDELTA + i]")}
+
 CONTRIBUTIONS: dict[str, Contribution] = {
     "k": Contribution("k", "section", {"rates": ("bus[B_S + {i}] += -({A}) * p[P_K + {i}] * x[X_DELTA + {i}]",)},
                       "S_{n} += −c · k{n} · δ{n}", "stiffness k{n} of section {n}"),
     "c": Contribution("c", "section", {"rates": ("bus[B_S + {i}] += -({A}) * p[P_C + {i}] * x[X_DDELTA + {i}]",)},
                       "S_{n} += −c · c{n} · δ̇{n}", "damping c{n} of section {n}"),
     "m": Contribution("m", "mass", {}, "mass j: acceleration ÷ (1 + c)", "mass m{n}"),
-    "d_ep": Contribution("d_ep", "patch", {"rates": (
-        "f_d = ({A}) * p[P_K + i] * p[P_D_EP]", "bus[B_S + i] += f_d * bus[B_QH + i] / p[P_C_EP]",
-        "dx[X_Q + i] -= f_d * x[X_DDELTA + i]")},
-        "S_i += c · k_i d_ep q_hi / C_ep,  dq_i/dt −= c · k_i d_ep δ̇_i", "patch authority d_ep"),
+    "d_ep": Contribution("d_ep", "patch", _D_EP_HOOKS,
+                         "S_i += c · k_i d_ep q_hi / C_ep,  dq_i/dt −= c · k_i d_ep δ̇_i", "patch authority d_ep"),
     # one patch's own coupling (the patch bonded on section n): a single patch partly depolarised or debonded
-    "d_ep_i": Contribution("d_ep_i", "each_patch", {"rates": (
-        "f_d = ({A}) * p[P_K + i] * p[P_D_EP]", "bus[B_S + i] += f_d * bus[B_QH + i] / p[P_C_EP]",
-        "dx[X_Q + i] -= f_d * x[X_DDELTA + i]")},
-        "S_{n} += c · k{n} d_ep q_h{n} / C_ep,  dq_{n}/dt −= c · k{n} d_ep δ̇{n}", "authority d_ep of patch {n}"),
+    "d_ep_i": Contribution("d_ep_i", "each_patch", _D_EP_HOOKS,
+                           "S_{n} += c · k{n} d_ep q_h{n} / C_ep,  dq_{n}/dt −= c · k{n} d_ep δ̇{n}",
+                           "authority d_ep of patch {n}"),
     "alpha_h": Contribution("alpha_h", "patch", {"pre": (
         "bus[B_QH + i] += ({A}) * p[P_ALPHA_H] * (x[X_Q + i] - x[X_H + i])",)},
         "q_hi += c · α_h (q_i − h_qi)", "hysteresis share α_h of the patches"),
@@ -170,8 +172,7 @@ def is_hinge(param: str, form: str, signal: str) -> bool:
 
 #: the hinge's gate (code in S, G, H): (S − G) times the smoothed step at G, so the stiffness line drops its δ; at
 #: G = 0 it is exactly δ·[δ > 0] (resp. δ·[δ < 0]), the step gate times k·δ — no division by δ anywhere
-HINGE_CODE = {"on_pos": "(S - G) * 0.5 * (1.0 + math.tanh((S - G) / H))",
-              "on_neg": "(S - G) * 0.5 * (1.0 - math.tanh((S - G) / H))"}
+HINGE_CODE = {form: f"(S - G) * {GATES[form].code}" for form in SIGN_GATES}
 #: the stiffness line of a hinge: the gate carries the deflection beyond the switching point
 _HINGE_LINES = {"rates": ("bus[B_S + {i}] += -({A}) * p[P_K + {i}]",)}
 
