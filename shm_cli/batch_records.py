@@ -131,7 +131,10 @@ def run_command_task(key: str, files: dict[str, bytes], shared: dict[str, bytes]
 COMMAND_MODULES = {"diagnose": ("workbench.diagnose", "workbench.fit", "workbench.localise"),
                    "fit": ("workbench.fit", "workbench.diagnose"),
                    "compare": ("workbench.compare", "workbench.fit", "workbench.localise"),
-                   "discover": ("workbench.discover",)}
+                   "discover": ("workbench.discover",),
+                   # a fleet's board: the health rooms, the fit room they call per visit, scipy.stats / .optimize /
+                   # .interpolate under them (0.5 s of CPU that was in each worker's first board otherwise)
+                   "health": ("studies.health.assess", "studies.health.report", "workbench.fit")}
 
 
 def warm_workbench(command: str | None = None) -> None:
@@ -146,7 +149,19 @@ def warm_workbench(command: str | None = None) -> None:
     for name in COMMAND_MODULES.get(command or "", ()):
         importlib.import_module(name)
     warm_up()  # fonts and the math-text parser of the first report
-    synth_record(synth_test("mbit-b", duration_s=0.2, t_step_s=0.05), truth_model("table2", [], {}))
+    nominal = truth_model("table2", [], {})
+    synth_record(synth_test("mbit-b", duration_s=0.2, t_step_s=0.05), nominal)
+    warm_lanes(nominal)
+
+
+def warm_lanes(model: Any) -> None:
+    """Load (or compile) ``model``'s lane integrator: a fit's batches of >= 16 parameter sets run on it, and a
+    synthetic record (one trajectory) does not touch it — otherwise a worker's first fit loads it."""
+    import numpy as np
+
+    from plant import InputSignals
+
+    model.simulate(InputSignals(0.0, 1e-3, np.zeros((20, 3))), params=np.tile(model.p_nominal, (2, 1)), lanes=True)
 
 
 def dask_setup(worker: Any) -> None:

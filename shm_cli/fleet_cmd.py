@@ -5,6 +5,7 @@ whose degradation rates scatter around the scenario's, seeded per board). docs/s
 from __future__ import annotations
 
 import argparse
+import functools
 import sys
 from pathlib import Path
 from typing import Any
@@ -88,7 +89,8 @@ def run_fleet_health(args: argparse.Namespace) -> int:
     with locked_out(out, "health"):
         args.command = "health"
         print(f"shm health: fleet of {len(tasks)} boards on {scheduler or 'local'}", file=sys.stderr, flush=True)
-        outcome = run_tasks(tasks, run_command_task, args, scheduler=scheduler, warm=warm_workbench,
+        outcome = run_tasks(tasks, run_command_task, args, scheduler=scheduler,
+                            warm=functools.partial(warm_workbench, "health"),
                             progress=_progress("shm health --fleet"), longest_first=True)
         report_of = _write_task_files(out, outcome.results)
         rows = rank_fleet([fleet_row(r.key, r.doc, r.code, r.message) for r in outcome.results])

@@ -56,3 +56,46 @@ def test_fleet_health_local_workers_equal_the_in_process_run(fleet, capsys):
         assert timeless(ref) == timeless(json.loads((tmp / "local" / b / "health.json").read_text()))
         assert (tmp / "local" / b / "report.html").stat().st_size > 1000
     assert "board000" in (tmp / "local" / "fleet.html").read_text()
+
+
+#: run in a fresh interpreter (a worker's first task): the fleet's warm-up, then one board's health task as a worker
+#: runs it; prints the modules of the project and its numerical libraries that the task imported, and how many
+#: compiled kernels it loaded — what each worker's first board paid beyond the others (0.5-0.7 s of CPU before)
+_FIRST_TASK = """
+import functools, gc, json, sys
+from pathlib import Path
+from numba.core.registry import CPUDispatcher
+from shm_cli.batch_records import run_command_task, warm_workbench
+from shm_cli.fleet_cmd import _board_files
+from shm_cli.main import build_parser
+from studies.batch.runner import timed_task
+
+board = Path(sys.argv[1])
+args = build_parser().parse_args(["health", "--fleet", str(board), *sys.argv[3:], "--out", sys.argv[2]])
+args.command = "health"
+warm_workbench("health")
+
+def kernels():
+    return sum(len(d.overloads) for d in gc.get_objects() if isinstance(d, CPUDispatcher))
+
+before, loaded = set(sys.modules), kernels()
+result = timed_task(run_command_task, board.name, _board_files(board), {}, args)
+rooms = ("studies", "workbench", "plant", "reporting", "board_config", "scipy", "matplotlib", "numba")
+print(json.dumps({"code": result.code, "kernels_loaded": kernels() - loaded,
+                  "imported": sorted(m for m in set(sys.modules) - before if m.split(".")[0] in rooms)}))
+"""
+
+
+def test_a_workers_warm_up_leaves_a_fleet_boards_task_nothing_to_import_or_load(fleet):
+    """Issue 31 point 5: each worker is warm before its first board — the health rooms, the fit room and scipy.stats
+    / .optimize / .interpolate under them imported, the nominal model's lane integrator (a fit's batches) loaded —
+    so a worker's first board runs as long as the others (measured: 0.5-0.7 s of CPU longer before)."""
+    import subprocess
+    import sys
+
+    tmp, boards = fleet
+    out = subprocess.run([sys.executable, "-c", _FIRST_TASK, str(boards / "board000"), str(tmp / "first"), *HEALTH],
+                         capture_output=True, text=True, check=True, timeout=300)
+    got = json.loads(out.stdout.strip().splitlines()[-1])
+    assert got["code"] == 0
+    assert got["imported"] == [] and got["kernels_loaded"] == 0, got
