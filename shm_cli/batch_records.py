@@ -132,9 +132,9 @@ COMMAND_MODULES = {"diagnose": ("workbench.diagnose", "workbench.fit", "workbenc
                    "fit": ("workbench.fit", "workbench.diagnose"),
                    "compare": ("workbench.compare", "workbench.fit", "workbench.localise"),
                    "discover": ("workbench.discover",),
-                   # a fleet's board: the health rooms, the fit room they call per visit, scipy.stats / .optimize /
-                   # .interpolate under them (0.5 s of CPU that was in each worker's first board otherwise)
-                   "health": ("studies.health.assess", "studies.health.report", "workbench.fit")}
+                   # a fleet's board: the health rooms, the fit room they call per visit, scipy.optimize under them
+                   # and scipy.interpolate (the trip boundary's grid): 0.5 s of CPU in each worker's first board before
+                   "health": ("studies.health.assess", "studies.health.report", "workbench.fit", "scipy.interpolate")}
 
 
 def warm_workbench(command: str | None = None) -> None:
