@@ -361,10 +361,6 @@ def at_noise_floor(c: CandidateResult) -> bool:
     return c.held_rms_sigma <= 1.0 + noise_tolerance(c.n_eff_held)
 
 
-def _done(c: CandidateResult, base_held: float) -> bool:
-    return at_noise_floor(c)
-
-
 def _strength_order(cands: Sequence[CandidateResult]) -> list[CandidateResult]:
     """Fitted and accepted first (by ΔBIC_held), then the rest by their screening error."""
     return sorted((c for c in cands if c.spec is not None and c.stable and c.kind != "combination"),
@@ -417,10 +413,8 @@ def select_set(winner: CandidateResult, others: Sequence[CandidateResult], base:
     """Forward selection with a small beam and a swap step (see the module docstring): the greedy path from
     ``winner``; when it does not reach the noise floor, the paths from :func:`alternative_starts`, then the swap
     of each re-estimation of the best set for the effects that fit best in its place. Stops as soon as a set
-    explains the held-out data to the noise floor. ``beam=False``: the greedy path alone (no other starts, no swap)
-    — the caller knows no constant library set can explain the records (a damage event inside the record, which the
-    discovery step that follows looks for); the beam and the swap were more than half of forward selection's time
-    on a 15 s sweep."""
+    explains the held-out data to the noise floor. ``beam=False``: the greedy path alone — the caller knows no
+    constant library set can explain the records (a damage event inside the record, which discovery looks for)."""
     kw: dict[str, Any] = dict(min_reduction=min_reduction, threads=threads, max_nfev=max_nfev, seed=seed,
                               fits=FitCache())
     everyone = [winner, *others]
@@ -436,14 +430,14 @@ def select_set(winner: CandidateResult, others: Sequence[CandidateResult], base:
         return Selection(final, [*before, *steps], without)
 
     best = path(winner)
-    if beam and not _done(best.final, base_held):
+    if beam and not at_noise_floor(best.final):
         for start in alternative_starts(winner, others):
             sel = path(start)
             if better(best.final, sel.final) is sel.final:
                 best = sel
-            if _done(best.final, base_held):
+            if at_noise_floor(best.final):
                 break
-    if beam and not _done(best.final, base_held):
+    if beam and not at_noise_floor(best.final):
         swapped = _swap(best, everyone, base, targets, data, rss0_held, **kw)
         if swapped is not None and better(best.final, swapped) is swapped:
             best = path(swapped, best.steps)
@@ -454,14 +448,17 @@ def select_set(winner: CandidateResult, others: Sequence[CandidateResult], base:
 
 
 def _swap(sel: Selection, everyone: Sequence[CandidateResult], base: ParameterSet, targets: Sequence[Target],
-          data: Mapping[str, Any], rss0_held: float, fits: FitCache, **kw: Any) -> CandidateResult | None:
+          data: Mapping[str, Any], rss0_held: float, fits: FitCache, *, max_nfev: int, **kw: Any
+          ) -> CandidateResult | None:
     """Swap step: each re-estimation of the set replaced by each of the :data:`SWAP_EFFECTS` strongest effects
-    (alone) that do not touch the rest, fitted together with the rest; the best such set (or None)."""
+    (alone) that do not touch the rest, fitted together with the rest; the best such set (or None). Like a forward
+    step's tries, the swaps are fitted quickly first, :data:`PARALLEL_FITS` at a time, and only the best of them
+    (by :func:`better`) is fitted in full — the full fit is what is returned and judged."""
     cur = sel.final
     if cur.spec is None or cur.outcome is None or len(cur.members) < 2:
         return None
     effects = [c for c in _strength_order(everyone) if c.kind == "effect"]
-    best: CandidateResult | None = None
+    swaps: list[tuple[CandidateSpec, dict[str, float]]] = []
     for pc in cur.spec.params:
         rest = _without(cur.spec, pc.name)
         n = 0
@@ -473,12 +470,22 @@ def _swap(sel: Selection, everyone: Sequence[CandidateResult], base: ParameterSe
             if n > SWAP_EFFECTS:
                 break
             own = dict(c.outcome.values) if c.outcome is not None else dict(c.screen_start)
-            start = own | {k: v for k, v in cur.outcome.values.items()
-                           if k not in {*pc.members, pc.scale_name}}
-            r = fits.fit(rest.plus(c.spec), base, targets, data, rss0_held, start=start, **kw)
-            if r.accepted and (best is None or better(best, r) is r):
-                best = r
-    return best
+            swaps.append((rest.plus(c.spec), own | {k: v for k, v in cur.outcome.values.items()
+                                                    if k not in {*pc.members, pc.scale_name}}))
+    _load_models([spec for spec, _ in swaps], base, targets)
+    quick_kw = dict(kw, max_nfev=min(max_nfev, TRY_NFEV), max_widen=0, n_screen=TRY_SCREEN)
+    tried = _in_parallel([partial(fits.fit, spec, base, targets, data, rss0_held, start=start, **quick_kw)
+                          for spec, start in swaps])
+    best: tuple[CandidateResult, CandidateSpec, dict[str, float]] | None = None
+    for r, (spec, start) in zip(tried, swaps):
+        if r.accepted and (best is None or better(best[0], r) is r):
+            best = (r, spec, start)
+    if best is None or TRY_NFEV >= max_nfev:
+        return best[0] if best is not None else None
+    r, spec, start = best
+    full = fits.fit(spec, base, targets, data, rss0_held, max_nfev=max_nfev,
+                    start=start | (dict(r.outcome.values) if r.outcome is not None else {}), **kw)
+    return full if full.accepted else None
 
 
 def _fill_without(sel: Selection, base: ParameterSet, targets: Sequence[Target], data: Mapping[str, Any],
