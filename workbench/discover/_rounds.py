@@ -32,7 +32,7 @@ from workbench.discover._search import (
     refine,
     refit_list,
 )
-from workbench.discover._twins import MAX_TWINS, twin_tolerance, twins_of
+from workbench.discover._twins import MAX_TWINS, switch_family, twin_tolerance, twins_of
 from workbench.fit import FitOutcome, Objective, Target, explained, noise_tolerance, rms
 
 #: a term is kept when its refit removes at least this share of the held-out energy left above the noise
@@ -364,12 +364,24 @@ def refit_twins(setup: SearchSetup, progress: SearchProgress, twins: list[dict[s
     return out
 
 
+def family_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, best: BestRefit,
+                rows: list[ScreenRow], tried: list[dict[str, Any]]) -> BestRefit:
+    """The best refit's switching family refitted too (:func:`~workbench.discover._twins.switch_family`, logged in
+    ``tried``): one of them replaces it only when it fits clearly better — beyond the twins' tolerance."""
+    family = switch_family(setup.terms[best.index], rows, {t["term"] for t in tried})
+    more = refit_best(setup, progress, settings, family, tried) if family else None
+    if more is not None and more.held_rms_sigma * twin_tolerance(setup.n_held) < best.held_rms_sigma:
+        return more
+    return best
+
+
 def keep_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, best: BestRefit,
               rows: list[ScreenRow], tried: list[dict[str, Any]], linearised: bool,
               displaced: BestRefit | None = None) -> bool:
     """Keep the round's best refit when it removes at least :data:`MIN_SHARE` of the excess over the noise (its
     twins named; ``displaced``: the event it was kept instead of, named first); False when it does not and the
     search stops."""
+    best = family_best(setup, progress, settings, best, rows, tried)
     h_new, k_new, out = best.held_rms_sigma, best.index, best.outcome
     term = setup.terms[k_new]
     twins = twins_of(term, h_new, rows, tried, setup.n_held, setup.scales, linearised=linearised)

@@ -9,13 +9,39 @@ from typing import Any
 
 from workbench.discover._dictionary import DELAY_FORMS, Term
 from workbench.discover._effect_writer import describe_term
+from workbench.discover._gates import SIGN_GATES, SOFT_GATES
 from workbench.discover._results import ScreenRow
+from workbench.discover._search import HARD_FORMS
 
 #: at most this many twins are named per kept term
 MAX_TWINS = 2
 #: a twin's held-out RMS may exceed the chosen term's by this share (model tolerance) plus three standard
 #: deviations of the RMS of white noise over the held-out samples
 TWIN_MODEL_SHARE = 0.02
+
+
+#: forms that switch on their signal (a force's hard form, a parameter's sign or soft-edge gate, a gap)
+SWITCHING_FORMS = frozenset((*HARD_FORMS, *SIGN_GATES, *SOFT_GATES, "on_gap"))
+#: terms of the chosen term's switching family refitted beside it (the best few by the screen)
+MAX_SWITCH_FAMILY = 3
+
+
+def switch_family(chosen: Term, rows: Sequence[ScreenRow], done: set[str], n: int = MAX_SWITCH_FAMILY
+                  ) -> list[ScreenRow]:
+    """The best ``n`` rows (in the screen's order) of the other terms that switch on the chosen term's own signal
+    and were not refitted yet (``done``: keys). A record that moves that signal one way only, or never past some
+    level, cannot tell these readings apart — a section softer for δ > 0 (a breathing crack) from one softer within
+    ±g of δ (a clearance) on a step that bends the section one way: each gets its own refit, so the verdict names
+    the ones the record cannot rule out (:func:`twins_of`) and keeps the one that fits clearly best."""
+    if chosen.form not in SWITCHING_FORMS or chosen.signal == "one":
+        return []
+    out: list[ScreenRow] = []
+    seen = {chosen.key, *done}
+    for r in rows:  # one row per key (a form's shapes are rows of their own)
+        if r.term.signal == chosen.signal and r.term.form in SWITCHING_FORMS and r.term.key not in seen:
+            seen.add(r.term.key)
+            out.append(r)
+    return out[:n]
 
 
 def twin_tolerance(n_held: int) -> float:
