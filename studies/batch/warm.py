@@ -23,6 +23,12 @@ PROFILER_CALLBACKS = ("profile", "profile-cycle")
 #: the event loop's health check ("tick": Dask's default every 20 ms, to warn when the loop was stuck > 3 s) every
 #: second instead: at 20 ms it costs ~2 % of a core per worker, scheduler and nanny, all the time (docs/scale-out.md)
 TICK_MS = 1000.0
+#: glibc's malloc (M_MMAP_THRESHOLD, M_TRIM_THRESHOLD, bytes): arrays up to 128 MB come from the heap and up to 512 MB
+#: freed at its top stay in the process for the next array. A Dask nanny starts its worker with
+#: ``MALLOC_TRIM_THRESHOLD_=65536``, which also pins the mmap threshold at 128 kB: every larger numpy array was mapped
+#: fresh and unmapped when freed, so its pages were faulted in and zeroed again in every use — a health task spent
+#: 1.0-1.3 s of its 5 s in the kernel (150 000 page faults; 0.03 s with these; docs/scale-out.md)
+MALLOC_KEEP = (128 << 20, 512 << 20)
 
 
 def warm_seconds() -> dict[str, float]:
@@ -62,6 +68,34 @@ def tick_ms(dask_worker: Any = None) -> float:
     return float((dask_worker or get_worker()).periodic_callbacks["tick"].callback_time)
 
 
+def keep_freed_memory() -> bool:
+    """Let this process's malloc keep freed memory for the next allocation (:data:`MALLOC_KEEP`); False where the
+    C library is not glibc (nothing changed)."""
+    import ctypes
+    import ctypes.util
+
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        mallopt = libc.mallopt
+    except (OSError, AttributeError):
+        return False
+    m_trim_threshold, m_mmap_threshold = -1, -3
+    return bool(mallopt(m_mmap_threshold, MALLOC_KEEP[0])) and bool(mallopt(m_trim_threshold, MALLOC_KEEP[1]))
+
+
+def refault_pages(nbytes: int) -> int:
+    """Minor page faults of filling an array of ``nbytes`` after one of the same size was filled and freed: about
+    ``nbytes`` / 4 kB when freed memory goes back to the system, near 0 when it is kept; run with ``client.run``."""
+    import resource
+
+    import numpy as np
+
+    np.ones(nbytes // 8)
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_minflt
+    np.ones(nbytes // 8)
+    return resource.getrusage(resource.RUSAGE_SELF).ru_minflt - before
+
+
 def task_threads() -> str | None:
     """The integrator's thread setting on this worker (``$MFC_SHM_THREADS``); run with ``client.run``."""
     return os.environ.get("MFC_SHM_THREADS")
@@ -70,7 +104,8 @@ def task_threads() -> str | None:
 class WarmPlugin(WorkerPlugin):
     """On every worker before it runs a task — a worker that joins later too: one integration thread per task
     (:data:`TASK_THREADS`, whatever the worker inherited), no statistical profiler beside the task, its event loop
-    checked every second, then ``warm()`` if given."""
+    checked every second, freed memory kept for the next task (:func:`keep_freed_memory`), then ``warm()`` if
+    given."""
 
     name = "mfc-shm-warm"
 
@@ -81,6 +116,7 @@ class WarmPlugin(WorkerPlugin):
         os.environ["MFC_SHM_THREADS"] = TASK_THREADS
         stop_profiler(worker)
         slow_tick(worker)
+        keep_freed_memory()
         t0 = time.perf_counter()
         if self.warm is not None:
             self.warm()
