@@ -10,6 +10,7 @@ from typing import Any
 
 from board_config import ParameterSet
 from workbench.compare import ResidualTests
+from workbench.diagnose._one_sided import one_sided_twin
 from workbench.diagnose._rules import CURE_AT_MOST_SIGMA, excess_share, head_kind
 from workbench.fit import AT_NOISE_FLOOR, CandidateResult
 
@@ -231,9 +232,22 @@ def _unexplained(d: Any, failed_before: Sequence[str]) -> str:
     return msg + "."
 
 
+def _one_sided(d: Any, winner: CandidateResult) -> str | None:
+    """:func:`~workbench.diagnose._one_sided.one_sided_twin` of a single re-estimated parameter, on the nominal
+    model's simulated outputs (None when there are none)."""
+    spec = winner.spec
+    sim = getattr(d, "baseline_sim", None)
+    if spec is None or spec.effects or len(spec.params) != 1 or spec.params[0].tied or sim is None or not sim.full:
+        return None
+    traces = [{n: full[0, :, j] for j, n in enumerate(tg.model.output_names)} for tg, full in zip(d.targets, sim.full)]
+    return one_sided_twin(spec.params[0].members[0], traces)
+
+
 def _cure_head(d: Any, winner: CandidateResult, base: ParameterSet, kind: str, cut: str) -> str:
     if kind == "wrong_parameter":
-        return f"{parameter_words(winner, base)} — re-estimate it. Re-estimating {winner.effect} {cut}"
+        twin = _one_sided(d, winner)
+        return (f"{parameter_words(winner, base)} — re-estimate it{'; ' + twin if twin else ''}. "
+                f"Re-estimating {winner.effect} {cut}")
     if kind == "missing":
         return f"Missing effect: {winner.effect} — {winner.description}. Adding it {cut}"
     words = [f"{step.effect} alone: {step.held_rms_sigma:.3g} σ" for step in d.steps]
