@@ -75,6 +75,10 @@ SWAP_EFFECTS = 3
 #: of the record, was most of forward selection's time on a 15 s sweep)
 TRY_NFEV = 8
 TRY_SCREEN = 8
+#: screening points of a set's full fit: every set is fitted from a start that is already a fit (the current set's
+#: values with the added member's screened or fitted values, or a quick try's end), so the full fit refines rather
+#: than searches the box (the library's single candidates keep the wide design, N_SCREEN_MIN and up)
+SET_SCREEN = 16
 #: fits of one step that do not depend on each other (a forward step's quick tries, the backward step's drop-one
 #: fits of one set) run this many at a time in threads — the compiled integrator releases the GIL, and a fit's own
 #: single simulations use one core; results are the same as one after another
@@ -101,7 +105,9 @@ class FitCache:
 
     def fit(self, spec: CandidateSpec, base: ParameterSet, targets: Sequence[Target], data: Mapping[str, Any],
             rss0_held: float, *, start: Mapping[str, float], min_reduction: float, **kw: Any) -> CandidateResult:
-        """:func:`~workbench.fit.fit_spec` of ``spec`` (from ``start`` the first time it is met)."""
+        """:func:`~workbench.fit.fit_spec` of ``spec`` (from ``start`` the first time it is met; screened with
+        :data:`SET_SCREEN` points unless told otherwise)."""
+        kw.setdefault("n_screen", SET_SCREEN)
         k = self.key(spec, kw)
         if k in self.fits:
             self.hits += 1
