@@ -10,6 +10,7 @@ from types import SimpleNamespace
 
 import pytest
 
+import workbench.diagnose._fit_cache as fit_cache
 import workbench.diagnose._forward_selection as fs
 from plant.effect import registered_effects
 from workbench.fit import PREFER_PARAMETER_WITHIN, CandidateResult, CandidateSpec, parameter_candidate
@@ -95,7 +96,7 @@ def test_the_swap_step_replaces_a_reestimation_by_an_effect_screened_out_alone(m
         swaps.append(s.label)
         return pair if "geometric_stiffening" in s.members else fitted(50.0, *s.members)
 
-    monkeypatch.setattr(fs, "fit_spec", fake_fit)
+    monkeypatch.setattr(fit_cache, "fit_spec", fake_fit)
     sel = _select(stiffness, [leakage, screened("geometric_stiffening"), screened("piezo_creep")])
     assert sel.final is pair
     assert any("geometric_stiffening" in s for s in swaps)
@@ -254,7 +255,7 @@ def test_a_set_met_again_is_not_refitted_and_is_scored_against_the_nominal_model
         c.status = "fitted"
         return c
 
-    monkeypatch.setattr(fs, "fit_spec", fake_fit)
+    monkeypatch.setattr(fit_cache, "fit_spec", fake_fit)
     fits = fs.FitCache()
     kw = dict(start={}, min_reduction=0.02)
     a = fits.fit(spec("dielectric_leakage", "k1"), None, [], {}, RSS0, **kw)
@@ -282,7 +283,7 @@ def test_a_forward_step_fits_every_try_quickly_and_only_the_best_in_full(monkeyp
         c.status = "fitted"
         return c
 
-    monkeypatch.setattr(fs, "fit_spec", fake_fit)
+    monkeypatch.setattr(fit_cache, "fit_spec", fake_fit)
     current = fitted(20.0, "dielectric_leakage")
     current.outcome.values = {}
     current.free = [object()]
@@ -302,7 +303,7 @@ def test_without_the_beam_only_the_greedy_path_is_taken_and_nothing_is_swapped(m
     starts = _stub_paths(monkeypatch, {"stiffness": greedy, "geometric_stiffening": fitted(1.0, "geometric_stiffening",
                                                                                            "dielectric_leakage")})
     swaps: list[str] = []
-    monkeypatch.setattr(fs, "fit_spec", lambda s, *a, **kw: swaps.append(s.label) or fitted(50.0, *s.members))
+    monkeypatch.setattr(fit_cache, "fit_spec", lambda s, *a, **kw: swaps.append(s.label) or fitted(50.0, *s.members))
     sel = fs.select_set(stiffness, [fitted(80.0, "geometric_stiffening"), fitted(200.0, "dielectric_leakage")], None,
                         [], {}, RSS0, min_reduction=0.02, threads=None, max_nfev=5, seed=0, base_held=400.0,
                         beam=False)

@@ -12,6 +12,7 @@ from types import SimpleNamespace
 
 import pytest
 
+import workbench.diagnose._fit_cache as fit_cache
 import workbench.diagnose._forward_selection as fs
 from plant.effect import registered_effects
 from workbench.fit import CandidateResult, CandidateSpec, parameter_candidate
@@ -73,7 +74,7 @@ def _stub(monkeypatch, parallel: int) -> tuple[list[str], _Overlap]:
         fs.score(r, rss0_held, min_reduction)
         return r
 
-    monkeypatch.setattr(fs, "fit_spec", fake_fit)
+    monkeypatch.setattr(fit_cache, "fit_spec", fake_fit)
     monkeypatch.setattr(fs, "PARALLEL_FITS", parallel)
     monkeypatch.setattr(fs.os, "cpu_count", lambda: 2)
     return calls, overlap
