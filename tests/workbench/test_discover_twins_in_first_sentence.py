@@ -11,7 +11,7 @@ from workbench.challenges.discovery import KINDS, case_record, first_sentence
 from workbench.discover import discover
 from workbench.discover._dictionary import Term
 from workbench.discover._results import FoundTerm, ScreenRow
-from workbench.discover._twins import switch_family
+from workbench.discover._twins import alike, switch_family
 from workbench.simulation import synth_test
 
 
@@ -68,3 +68,17 @@ def test_a_crack_on_a_step_that_bends_the_section_one_way_is_named_in_the_first_
     first = first_sentence(d.message)
     assert "breathing crack in section 1" in first, first
     assert d.held_after <= 1.5, d.held_after
+
+
+def test_signals_alike_are_the_same_kind_at_the_same_place():
+    assert alike("z2", "delta2") and alike("zd2", "ddelta2") and alike("va", "vc") and alike("delta1", "delta1")
+    assert not alike("z2", "delta3") and not alike("z2", "zd2") and not alike("delta1", "va")
+    assert not alike("one", "delta1")
+
+
+def test_a_force_switched_by_a_mass_displacement_has_the_sections_switches_of_that_place_in_its_family():
+    chosen = Term("force_mass", 1, "z2", "pos", 9e-4)
+    rows = [_row(Term("force_mass", 2, "z3", "pos", 1e-3), 12.0),
+            _row(Term("damage", 1, "delta2", "on_pos", 0.0, "k"), 40.0),
+            _row(Term("damage", 2, "delta3", "on_pos", 0.0, "k"), 41.0)]
+    assert [r.term.key for r in switch_family(chosen, rows, set())] == ["k2_pos_delta2"]

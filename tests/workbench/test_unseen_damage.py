@@ -23,6 +23,19 @@ def test_unseen_damage_named_in_the_first_sentence_and_fixed(label, tmp_path):
     assert r["passed"], (r["fix"], r["held_fix"], r["note"])
 
 
+#: on an MBIT.b step (3 s, one way): the crack and the polarity are named as what the record cannot rule out (the
+#: switching family's refit; the one-sided re-estimation), the bilinear spring found by the family's refit
+PASSING_MBIT_B = ("crack_root_positive", "patch_positive_charge", "bilinear_offset_s2", "k3_drop", "crack_s3_negative")
+
+
+@pytest.mark.heavy
+@pytest.mark.parametrize("label", PASSING_MBIT_B)
+def test_unseen_damage_on_a_one_way_step_named_in_the_first_sentence_and_fixed(label, tmp_path):
+    r = run_unseen(label, kind="mbit-b", workdir=str(tmp_path))
+    assert r["named"], (r["sentence"], r["missing"])
+    assert r["passed"], (r["fix"], r["held_fix"], r["note"])
+
+
 def test_every_unseen_case_has_a_check_for_its_physics():
     for label, (cls, values, groups, timing) in UNSEEN.items():
         assert len(groups) >= 2, label

@@ -7,7 +7,7 @@ import math
 from collections.abc import Mapping, Sequence
 from typing import Any
 
-from workbench.discover._dictionary import DELAY_FORMS, Term
+from workbench.discover._dictionary import DELAY_FORMS, SIGNALS, Term
 from workbench.discover._effect_writer import describe_term
 from workbench.discover._gates import SIGN_GATES, SOFT_GATES
 from workbench.discover._results import ScreenRow
@@ -22,26 +22,41 @@ TWIN_MODEL_SHARE = 0.02
 
 #: forms that switch on their signal (a force's hard form, a parameter's sign or soft-edge gate, a gap)
 SWITCHING_FORMS = frozenset((*HARD_FORMS, *SIGN_GATES, *SOFT_GATES, "on_gap"))
-#: terms of the chosen term's switching family refitted beside it (the best few by the screen)
+#: terms of the chosen term's switching family refitted beside it (the best few by the screen): on its own signal,
+#: and on the signals :func:`alike` it
 MAX_SWITCH_FAMILY = 3
+MAX_ALIKE_FAMILY = 2
 
 
-def switch_family(chosen: Term, rows: Sequence[ScreenRow], done: set[str], n: int = MAX_SWITCH_FAMILY
-                  ) -> list[ScreenRow]:
-    """The best ``n`` rows (in the screen's order) of the other terms that switch on the chosen term's own signal
-    and were not refitted yet (``done``: keys). A record that moves that signal one way only, or never past some
-    level, cannot tell these readings apart — a section softer for δ > 0 (a breathing crack) from one softer within
-    ±g of δ (a clearance) on a step that bends the section one way: each gets its own refit, so the verdict names
-    the ones the record cannot rule out (:func:`twins_of`) and keeps the one that fits clearly best."""
+def alike(a: str, b: str) -> bool:
+    """Whether two signals measure the same kind of thing at the same place — the same unit and the same mass or
+    section number (z2 and δ2, ż2 and δ̇2; the drive and the patch voltage): on a record that moves one way a switch on
+    either reads alike (a force on mass 2 acting once z2 passes 0.9 mm, a section 2 stiffer beyond δ2 = 0.3 mm)."""
+    if a == b:
+        return True
+    if a == "one" or b == "one" or SIGNALS[a].unit != SIGNALS[b].unit:
+        return False
+    return a.lstrip("abcdefghijklmnopqrstuvwxyz") == b.lstrip("abcdefghijklmnopqrstuvwxyz")
+
+
+def switch_family(chosen: Term, rows: Sequence[ScreenRow], done: set[str], n: int = MAX_SWITCH_FAMILY,
+                  n_alike: int = MAX_ALIKE_FAMILY) -> list[ScreenRow]:
+    """The best ``n`` rows (in the screen's order) of the other terms that switch on the chosen term's own signal,
+    then the best ``n_alike`` that switch on a signal :func:`alike` it, not refitted yet (``done``: keys). A record
+    that moves that signal one way only, or never past some level, cannot tell these readings apart — a section
+    softer for δ > 0 (a breathing crack) from one softer within ±g of δ (a clearance) on a step that bends the section
+    one way: each gets its own refit, so the verdict names the ones the record cannot rule out (:func:`twins_of`) and
+    keeps the one that fits clearly best."""
     if chosen.form not in SWITCHING_FORMS or chosen.signal == "one":
         return []
-    out: list[ScreenRow] = []
+    own: list[ScreenRow] = []
+    other: list[ScreenRow] = []
     seen = {chosen.key, *done}
     for r in rows:  # one row per key (a form's shapes are rows of their own)
-        if r.term.signal == chosen.signal and r.term.form in SWITCHING_FORMS and r.term.key not in seen:
+        if r.term.form in SWITCHING_FORMS and r.term.key not in seen and alike(r.term.signal, chosen.signal):
             seen.add(r.term.key)
-            out.append(r)
-    return out[:n]
+            (own if r.term.signal == chosen.signal else other).append(r)
+    return own[:n] + other[:n_alike]
 
 
 def twin_tolerance(n_held: int) -> float:
