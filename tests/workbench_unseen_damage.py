@@ -15,6 +15,8 @@ with every first sentence is in docs/workbench.md, "Damage forms nobody wrote fo
 13 pass both; misses: ramp_loss_root (the dictionary's ramp never ends: 20.1 σ) and velocity_crack_s2 (no stiffness
 switched by the sign of the rate: 110 σ) — both now open with "Explained only in part", no invented event. On MBIT.a
 3 of 3 tried pass; on MBIT.b 2 of 5 counted (a one-way step cannot show a polarity nor tell a crack from a dead zone).
+Since the switching family (discover) and the one-sided re-estimation (diagnose) say what a one-way record cannot
+rule out, in the first sentence: MBIT.b 5 of 5 counted (2026-11-27 08:00 UTC), sweep 11 of 13 and MBIT.a 3 of 3 again.
 
 
 Section force convention as in the core (``plant/effects/laminate.py``): ``bus[B_S + i]`` carries
