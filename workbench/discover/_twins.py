@@ -9,7 +9,6 @@ from typing import Any
 
 from workbench.discover._dictionary import DELAY_FORMS, SIGNALS, Term
 from workbench.discover._effect_writer import describe_term
-from workbench.discover._gates import SIGN_GATES, SOFT_GATES
 from workbench.discover._results import ScreenRow
 from workbench.discover._search import HARD_FORMS
 
@@ -20,8 +19,9 @@ MAX_TWINS = 2
 TWIN_MODEL_SHARE = 0.02
 
 
-#: forms that switch on their signal (a force's hard form, a parameter's sign or soft-edge gate, a gap)
-SWITCHING_FORMS = frozenset((*HARD_FORMS, *SIGN_GATES, *SOFT_GATES, "on_gap"))
+#: forms that switch on their signal: the hard forms (a force's sign, side, dead zone, clip or saturation; a
+#: parameter's sign gate, soft edge or gap)
+SWITCHING_FORMS = frozenset(HARD_FORMS)
 #: terms of the chosen term's switching family refitted beside it (the best few by the screen): on its own signal,
 #: and on the signals :func:`alike` it
 MAX_SWITCH_FAMILY = 3
