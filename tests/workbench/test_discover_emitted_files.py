@@ -80,18 +80,20 @@ def _family(term: Term) -> tuple[str, str, str]:
 
 
 def test_the_dictionary_spans_the_damage_family(short_sweep):
-    """Every core parameter's contribution meets a time step and ramp; sections a sign gate of their deflection;
-    the stiffness a gap; the patch parameters the drive's and the charge's sign (issue 26 point 3)."""
+    """Every core parameter's contribution meets a time step and ramp; a section's stiffness and damping the sign of
+    its deflection and of its rate, and a gap; the patch parameters the drive's and the charge's sign; one patch's
+    own coupling both signs and time (issue 26 point 3)."""
     fams = {(t.param, t.form, t.signal) for t in short_sweep["terms"] if t.placement == "damage"}
     for param in ("k", "c", "m", "d_ep", "alpha_h", "beta_h", "R_ep", "C_ep"):
         assert {(param, "on_step", "one"), (param, "on_ramp", "one")} <= fams, param
     for i in (1, 2, 3):
-        assert {("k", "on_pos", f"delta{i}"), ("k", "on_neg", f"delta{i}"), ("k", "on_gap", f"delta{i}"),
-                ("c", "on_pos", f"ddelta{i}"), ("c", "on_neg", f"delta{i}")} <= fams
-    for param in ("d_ep", "alpha_h", "beta_h", "R_ep"):
+        assert {(p, g, f"{s}{i}") for p in ("k", "c") for g in ("on_pos", "on_neg") for s in ("delta", "ddelta")} \
+            | {("k", "on_gap", f"delta{i}"), ("c", "on_gap", f"delta{i}")} <= fams
+    for param in ("d_ep", "alpha_h", "beta_h", "R_ep", "C_ep"):
         assert {(param, "on_neg", "va"), (param, "on_pos", "vc")} <= fams
     for i in range(3):  # one patch's own coupling, by the drive's and its own charge's sign (a single weak patch)
-        assert {("d_ep_i", g, s) for g in ("on_pos", "on_neg") for s in ("va", "vc")} <= {
+        assert {("d_ep_i", g, s) for g in ("on_pos", "on_neg") for s in ("va", "vc")} | {
+            ("d_ep_i", "on_step", "one"), ("d_ep_i", "on_ramp", "one")} <= {
             (t.param, t.form, t.signal) for t in short_sweep["terms"] if t.placement == "damage" and t.index == i}
     steps = sorted(t.shape for t in short_sweep["terms"] if t.key == "k2_step_t")
     ranges = [t.shape_range for t in short_sweep["terms"] if t.key == "k2_step_t"]

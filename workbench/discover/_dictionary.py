@@ -304,8 +304,8 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                                   for t0, rng in onsets(duration, STEP_AT)]
                         terms += [Term("damage", index, "one", "on_ramp", t0, param, rng)
                                   for t0, rng in onsets(duration, RAMP_AT)]
-                elif what == "soft":
-                    sig = f"delta{index + 1}"
+                elif what in ("soft", "soft_rate"):
+                    sig = f"{'ddelta' if what == 'soft_rate' else 'delta'}{index + 1}"
                     if ok(sig):
                         terms += [Term("damage", index, sig, g, SOFT_AT * scales[sig], param) for g in SOFT_GATES]
                 elif what == "gap":

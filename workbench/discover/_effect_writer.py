@@ -216,7 +216,7 @@ def formula(term: Term, cname: str, gname: str | None) -> str:
 def class_name_for(terms: Sequence[Term]) -> str:
     t = terms[0]
     if t.placement == "damage":
-        return f"Discovered{class_stem(t.param, t.index, t.form)}" + ("Plus" if len(terms) > 1 else "")
+        return f"Discovered{class_stem(t.param, t.index, t.form, t.signal)}" + ("Plus" if len(terms) > 1 else "")
     base = {"force_mass": f"Mass{t.index + 1}", "force_section": f"Section{t.index + 1}", "current": "Patch",
             "drive": "Drive", "measurement": "Laser"}[t.placement]
     form = {"sign": "Friction", "absx": "Drag", "lin": "Linear", "cube": "Cubic", "square": "Quadratic",

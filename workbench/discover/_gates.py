@@ -143,17 +143,18 @@ CONTRIBUTIONS: dict[str, Contribution] = {
 
 #: the gate signals each contribution meets: "own_delta"/"own_ddelta" the section's own deflection/rate, "va" the
 #: drive, "vc" the patch voltage (its charge), "time" the step and the ramp; "gap" the gap of the section's deflection,
-#: "soft" its sign with a smooth edge (a crack that opens gradually: the section's own terms only)
+#: "soft" its sign with a smooth edge (a crack that opens gradually: the section's own terms only), "soft_rate" the
+#: sign of its rate with a smooth edge (a direction-dependent stiffness or damping whose faces part gradually)
 GATED_BY: dict[str, tuple[str, ...]] = {
-    "k": ("own_delta", "soft", "gap", "time"),
-    "c": ("own_ddelta", "own_delta", "soft", "time"),
+    "k": ("own_delta", "own_ddelta", "soft", "soft_rate", "gap", "time"),
+    "c": ("own_ddelta", "own_delta", "soft", "soft_rate", "gap", "time"),
     "m": ("time",),
     "d_ep": ("va", "vc", "time"),
-    "d_ep_i": ("va", "vc"),
+    "d_ep_i": ("va", "vc", "time"),
     "alpha_h": ("va", "vc", "time"),
     "beta_h": ("va", "vc", "time"),
     "R_ep": ("va", "vc", "time"),
-    "C_ep": ("va", "time"),
+    "C_ep": ("va", "vc", "time"),
 }
 
 
@@ -284,6 +285,9 @@ def _describe_sign(param: str, index: int, form: str, signal: str, coef: float, 
                     f"(bilinear stiffness{at})")
         return (f"section {n} is stiffer by {pct} for {cond} (bilinear stiffness{at}: a contact or a crack that "
                 "closes on that side)")
+    if param == "k" and signal.startswith("ddelta"):
+        return (f"stiffness k{n} of section {n} {pct} {lh} {when} {cond} (a stiffness that depends on the direction "
+                "of motion: a crack whose faces separate or catch as the section moves one way)")
     if param == "d_ep":
         return (f"a patch whose authority d_ep is {pct} {lh} {when} {cond} (polarisation-dependent coupling: a "
                 "partly depolarised patch)")
@@ -313,6 +317,13 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
     lh = "lower" if lower else "higher"
     if form in SIGN_GATES:
         return _describe_sign(param, index, form, signal, coef, named_switch(shape, shape_se))
+    if form in SOFT_GATES and signal.startswith("ddelta"):
+        side = f"δ̇{n} {'>' if form == 'on_pos_soft' else '<'} 0"
+        edge = f"switching over about ±{1e3 * abs(shape):.3g} mm/s of δ̇{n}"
+        if param == "k":
+            return (f"stiffness k{n} of section {n} {pct} {lh} for {side} ({edge}: a stiffness that depends on the "
+                    "direction of motion — a crack whose faces separate or catch as the section moves one way)")
+        return f"{what} {pct} {lh} for {side} ({edge}: direction-dependent)"
     if form in SOFT_GATES:
         side = f"δ{n} {'>' if form == 'on_pos_soft' else '<'} 0"
         edge = f"its faces parting over about ±{_length(shape)} of δ{n}"
@@ -325,6 +336,8 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
             return (f"section {n} is {'softer' if lower else 'stiffer'} by {pct} beyond ±{_length(shape)} of δ{n}"
                     + (": free play / contact — a clearance in its joint that closes at that gap" if not lower else
                        ": a joint that slips past that deflection"))
+        if param == "c":
+            return f"{what} {pct} {lh} beyond ±{_length(shape)} of δ{n} (contact damping: an impact past a clearance)"
         return f"{what} {pct} {lh} beyond ±{_length(shape)} of δ{n} (past a gap)"
     if form == "on_step":  # no finer than the step's own width: the model cannot place it closer
         at = _instant(shape, None if shape_se is None else max(shape_se, STEP_WIDTH_S))
@@ -355,14 +368,16 @@ def damage_formula(param: str, index: int, form: str, signal: str, cname: str, g
     return f"{con}   with c = {cname} · {gate}"
 
 
-def class_stem(param: str, index: int, form: str) -> str:
-    """CamelCase words for an emitted class: 'Section2StiffnessEvent'."""
+def class_stem(param: str, index: int, form: str, signal: str = "") -> str:
+    """CamelCase words for an emitted class: 'Section2StiffnessEvent' ('Section2StiffnessRatePositive' for a gate
+    on the section's rate, apart from the gate on its deflection)."""
     base = {"k": f"Section{index + 1}Stiffness", "c": f"Section{index + 1}Damping", "m": f"Mass{index + 1}",
             "d_ep": "PatchCoupling", "d_ep_i": f"Patch{index + 1}Coupling",
             "alpha_h": "PatchHysteresisShare", "beta_h": "PatchHysteresis",
             "R_ep": "PatchResistance", "C_ep": "PatchCapacitance"}[param]
-    return base + {"on_pos": "Positive", "on_neg": "Negative", "on_pos_soft": "OpeningPositive",
-                   "on_neg_soft": "OpeningNegative", "on_gap": "BeyondGap", "on_step": "Event",
+    rate = "Rate" if signal.startswith("ddelta") else ""
+    return base + {"on_pos": f"{rate}Positive", "on_neg": f"{rate}Negative", "on_pos_soft": f"{rate}OpeningPositive",
+                   "on_neg_soft": f"{rate}OpeningNegative", "on_gap": "BeyondGap", "on_step": "Event",
                    "on_ramp": "Growth"}[form]
 
 
