@@ -353,6 +353,32 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
     raise KeyError(form)
 
 
+def describe_finite_change(param: str, index: int, rate: float, t0: float, se0: float | None, end_rate: float,
+                           t1: float, se1: float | None, holds_share: float) -> tuple[str, str]:
+    """Words for two ramps of one parameter — ``rate`` (1/s) from ``t0`` and ``end_rate`` from ``t1`` (s, with their
+    standard errors) — as one change over a finite time: the rise's words and the end's. It *holds* after ``t1``
+    when the rate left, ``rate + end_rate``, is below ``holds_share`` of ``rate``."""
+    n = index + 1
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    total = rate * (t1 - t0)
+    pct = f"{100 * abs(total):.3g} %"
+    left = rate + end_rate
+    holds = abs(left) <= holds_share * abs(rate)
+    span = f"between {_instant(t0, se0)} and {_instant(t1, se1)}"
+    then = ("then held" if holds else f"then kept {'falling' if left < 0 else 'rising'} by "
+            f"{100 * abs(left):.3g} %/s")
+    why = f"damage that grew over {t1 - t0:.3g} s, {then}"
+    if param == "k" and total < 0:
+        rise = f"section {n} lost {pct} of its stiffness {span} ({why})"
+    elif param == "m":
+        rise = f"mass m{n} {'fell' if total < 0 else 'grew'} by {pct} {span} ({why})"
+    else:
+        rise = f"{what} {'fell' if total < 0 else 'rose'} by {pct} {span} ({why})"
+    end = (f"that change ending at {_instant(t1, se1)}" + (" and holding" if holds else "")
+           + f" (the ramp of {100 * end_rate:+.3g} %/s that ends it)")
+    return rise, end
+
+
 def _length(x: float) -> str:
     return f"{x * 1e3:.3g} mm" if abs(x) >= 1e-3 else f"{x * 1e6:.3g} µm"
 
