@@ -17,6 +17,10 @@ switched by the sign of the rate: 110 σ) — both now open with "Explained only
 3 of 3 tried pass; on MBIT.b 2 of 5 counted (a one-way step cannot show a polarity nor tell a crack from a dead zone).
 Since the switching family (discover) and the one-sided re-estimation (diagnose) say what a one-way record cannot
 rule out, in the first sentence: MBIT.b 5 of 5 counted (2026-11-27 08:00 UTC), sweep 11 of 13 and MBIT.a 3 of 3 again.
+Since the dictionary crosses a section's stiffness with the sign of its rate too (issue 26 point 3 asks for the sign of
+the deflection *or velocity*; hard and with a smooth edge screened at two widths), ``velocity_crack_s2`` is a member
+of the family and no longer an unseen form: "stiffness k2 of section 2 25 % lower for δ̇2 > 0 (switching over about
+±0.999 mm/s of δ̇2 …)", 332 σ → 1.01 σ (2026-11-27 09:50 UTC; 27.7 σ with the hard gate alone, 43.9 σ with one width).
 
 
 Section force convention as in the core (``plant/effects/laminate.py``): ``bus[B_S + i]`` carries
@@ -90,6 +94,18 @@ def _ramp_loss_root(t, x, p, bus, dx, so, po):
 RampLossRoot = effect("RampLossRoot", "unseen_k1_ramp", _ramp_loss_root,
                       Parameter("f_ramp", "1", 0.0, 0.0, 0.9, "share of k1 lost at the end of the ramp"),
                       Parameter("t_start", "s", 1.0, 0.0, 1e4, "instant the loss starts"))
+
+
+def _short_loss_section2(t, x, p, bus, dx, so, po):
+    """Section 2 loses stiffness over a short time: from t_loss over 0.5 s its k2 falls smoothly (a cubic ease,
+    3s² − 2s³, not the linear window of the dictionary's two ramps) by a share f, then stays."""
+    s = min(max((t - p[po + 1]) / 0.5, 0.0), 1.0)
+    bus[B_S + 1] += s * s * (3.0 - 2.0 * s) * p[po] * p[P_K + 1] * x[X_DELTA + 1]
+
+
+ShortLossSection2 = effect("ShortLossSection2", "unseen_k2_short_loss", _short_loss_section2,
+                           Parameter("f_short", "1", 0.0, 0.0, 0.9, "share of k2 lost at the end of the loss"),
+                           Parameter("t_loss", "s", 1.0, 0.0, 1e4, "instant the loss starts"))
 
 
 def _patch_weak_below_offset(t, x, p, bus, dx, so, po):
@@ -218,6 +234,7 @@ UNSEEN: dict[
     "crack_s3_negative": (CrackSection3Negative, {"a_cr3": 0.2}, (_S3, _ONE_SIDED), None),
     "damping_step_s3": (DampingStepSection3, {"r_c3": 2.0, "t_on_frac": 0.5}, (_S3, _DAMP), ("t_on", 0.2)),
     "ramp_loss_root": (RampLossRoot, {"f_ramp": 0.2, "t_start_frac": 0.25}, (_S1, _STIFF), ("t_start", 3.0)),
+    "short_loss_s2": (ShortLossSection2, {"f_short": 0.25, "t_loss_frac": 0.55}, (_S2, _STIFF), ("t_loss", 0.4)),
     "patch_offset": (
         PatchWeakBelowOffset,
         {"b_off": 0.25, "v_off": 60.0},

@@ -14,7 +14,7 @@ from discover_damage_support import discover_one_damage
 from workbench.discover import build_dictionary, dictionary_source
 from workbench.discover._dictionary import GATE_FORMS, Term
 from workbench.discover._effect_writer import describe_term, emit_effect_source, parameter_names_for
-from workbench.discover._gates import describe_damage, gate_values, gate_width, onsets
+from workbench.discover._gates import class_stem, describe_damage, gate_values, gate_width, onsets
 
 
 def test_gate_code_agrees_with_its_numpy_values():
@@ -50,6 +50,12 @@ def test_words_name_the_damage_as_an_engineer_would():
     assert "damping c3 of section 3 rising by 1 %/s from t = 5.0 ± 0.5 s" in ramp
     mass = describe_damage("m", 2, "on_step", "one", -0.1, 3.0)
     assert mass.startswith("mass m3 fell by 10 % at t = 3 s")
+    rate = describe_damage("k", 1, "on_pos", "ddelta2", -0.25, 0.0)
+    assert rate.startswith("stiffness k2 of section 2 25 % lower for δ̇2 > 0") and "direction of motion" in rate
+    edge = describe_damage("k", 1, "on_pos_soft", "ddelta2", -0.25, 1e-3)
+    assert "for δ̇2 > 0 (switching over about ±1 mm/s of δ̇2" in edge and "direction of motion" in edge
+    assert "contact damping" in describe_damage("c", 1, "on_gap", "delta2", 2.0, 3e-4)
+    assert class_stem("k", 1, "on_pos", "ddelta2") != class_stem("k", 1, "on_pos", "delta2")
     term = Term("damage", 1, "one", "on_step", 20.0, "k", (15.0, 22.5))
     assert describe_term(term, -0.25, 20.04, 1.0, 0.08) == event
     assert term.key == "k2_step_t" and term.unit == "1"

@@ -87,7 +87,8 @@ def test_the_dictionary_spans_the_damage_family(short_sweep):
     for param in ("k", "c", "m", "d_ep", "alpha_h", "beta_h", "R_ep", "C_ep"):
         assert {(param, "on_step", "one"), (param, "on_ramp", "one")} <= fams, param
     for i in (1, 2, 3):
-        assert {(p, g, f"{s}{i}") for p in ("k", "c") for g in ("on_pos", "on_neg") for s in ("delta", "ddelta")} \
+        signs = ("on_pos", "on_neg", "on_pos_soft", "on_neg_soft")  # each on δ_i and δ̇_i, hard and smooth edge
+        assert {(p, g, f"{s}{i}") for p in ("k", "c") for g in signs for s in ("delta", "ddelta")} \
             | {("k", "on_gap", f"delta{i}"), ("c", "on_gap", f"delta{i}")} <= fams
     for param in ("d_ep", "alpha_h", "beta_h", "R_ep", "C_ep"):
         assert {(param, "on_neg", "va"), (param, "on_pos", "vc")} <= fams

@@ -49,6 +49,7 @@ from workbench.discover._gates import (
     RAMP_AT,
     SOFT_AT,
     SOFT_GATES,
+    SOFT_RATE_AT,
     STEP_AT,
     SWITCH_RANGE,
     gate_values,
@@ -307,7 +308,9 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                 elif what in ("soft", "soft_rate"):
                     sig = f"{'ddelta' if what == 'soft_rate' else 'delta'}{index + 1}"
                     if ok(sig):
-                        terms += [Term("damage", index, sig, g, SOFT_AT * scales[sig], param) for g in SOFT_GATES]
+                        widths = SOFT_RATE_AT if what == "soft_rate" else (SOFT_AT,)
+                        terms += [Term("damage", index, sig, g, w * scales[sig], param) for g in SOFT_GATES
+                                  for w in widths]
                 elif what == "gap":
                     if ok(sig):
                         terms += [Term("damage", index, sig, "on_gap", f * scales[sig], param) for f in GAP_AT]

@@ -82,6 +82,11 @@ RAMP_AT = (0.25, 0.75)
 GAP_AT = (0.3, 0.6)
 #: edge widths a soft gate is screened at (fraction of its signal's scale; the refit moves it a factor of four)
 SOFT_AT = 0.2
+#: edge widths a soft gate on a section's rate is screened at (fractions of the rate's scale): a direction-dependent
+#: stiffness switches close to the turning points, and its edge must be placed within a factor of about two (a
+#: 25 % loss of k2 for δ̇2 > 0 over 1 mm/s, simulated with that edge at 1, 3 and 10 mm/s or switched at once: 0,
+#: 32, 43 and 28 σ RMS apart on a 15 s sweep), so two widths a decade apart, each refitted a factor of four
+SOFT_RATE_AT = (0.005, 0.05)
 #: a sign gate is screened switching at 0 and its switching point G refitted linearly within ± this fraction of
 #: its signal's scale (the 99th percentile of |signal|): a crack or a depoled patch that switches off zero
 SWITCH_RANGE = 0.8
