@@ -43,6 +43,7 @@ import numpy as np
 from board_config import ParameterSet, load_parameter_set
 from plant import PhysicalEffect
 from plant.effect import EffectError, resolve_effect
+from workbench.discover._backward import backward_step
 from workbench.discover._dictionary import build_dictionary
 from workbench.discover._dictionary_code import dictionary_parameter_names, dictionary_source
 from workbench.discover._dictionary_effect import (
@@ -52,6 +53,7 @@ from workbench.discover._dictionary_effect import (
     term_scale,
 )
 from workbench.discover._effect_writer import describe_term
+from workbench.discover._finite_change import finite_change_words
 from workbench.discover._results import (
     DiscoverError,
     Discovery,
@@ -64,7 +66,6 @@ from workbench.discover._rounds import (
     SearchProgress,
     SearchSettings,
     SearchSetup,
-    backward_step,
     search_round,
 )
 from workbench.discover._search import SearchState, free_run_check
@@ -172,10 +173,10 @@ def found_terms(setup: SearchSetup, progress: SearchProgress) -> list[FoundTerm]
         coef = progress.state.values[cname]
         shape = progress.state.values[gname] if gname else 0.0
         scale = setup.scales.get(term.signal, 1.0)
-        found.append(FoundTerm(term.with_shape(shape), coef, shape, scale,
-                               describe_term(term, coef, shape, scale, progress.stderr.get(gname) if gname else None),
-                               progress.twins.get(k, [])))
-    return found
+        se = progress.stderr.get(gname) if gname else None
+        found.append(FoundTerm(term.with_shape(shape), coef, shape, scale, describe_term(term, coef, shape, scale, se),
+                               progress.twins.get(k, []), se))
+    return finite_change_words(found)
 
 
 def judge(setup: SearchSetup, progress: SearchProgress, found: list[FoundTerm], stable: bool,

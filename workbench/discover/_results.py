@@ -61,6 +61,8 @@ class FoundTerm:
     words: str
     #: terms that explain these records as well, within the noise (key, words, held-out RMS σ, how it was judged)
     twins: list[dict[str, Any]] = field(default_factory=list)
+    #: the shape's standard error (an onset time's, s), None when not fitted
+    shape_se: float | None = None
 
     @property
     def description(self) -> str:

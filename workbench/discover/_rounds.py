@@ -3,7 +3,8 @@
 already at the noise floor on the full model (:func:`fast_path`), the nonlinear probes and onsets
 (:func:`probe_screen`), the refits (:func:`refit_term`, :func:`refit_best`), a time event checked against the
 members of its parameter constant in time and for plausibility (:func:`plausible_best`) and keeping the best
-(:func:`keep_best`); then the backward step (:func:`backward_step`) and the terms the records cannot tell apart
+(:func:`keep_best`), a time-gated term kept given an end (:func:`finite_change`); then the backward step
+(:mod:`workbench.discover._backward`) and the terms the records cannot tell apart
 (:func:`~workbench.discover._twins.twins_of`). :func:`workbench.discover._pipeline.discover` prepares the search
 (:class:`SearchSetup`), runs the rounds on a :class:`SearchProgress` and judges what they kept.
 """
@@ -21,6 +22,7 @@ from board_config.parameter import freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
 from workbench.discover._event_check import event_twin, invariant_siblings, is_timed, onset_issue
+from workbench.discover._finite_change import keep_window, window_refit
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._onset import change_point, event_onset, onset_probe, onset_scan, with_onsets
 from workbench.discover._results import DiscoverError, ScreenRow, excess_share_removed, noise_free_match
@@ -452,32 +454,32 @@ def search_round(setup: SearchSetup, progress: SearchProgress, settings: SearchS
                             "refitted": tried})
     if best is None:
         return False
-    return keep_best(setup, progress, settings, best, rows, tried, linearised=fast, displaced=displaced)
+    kept = keep_best(setup, progress, settings, best, rows, tried, linearised=fast, displaced=displaced)
+    if kept and is_timed(setup.terms[progress.state.kept[-1]]):
+        finite_change(setup, progress, settings)
+    return kept
 
 
-def backward_step(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings) -> None:
-    """A later term alone may explain more than the set its first pick led to (a strong stop at the tip was first
-    taken for a clearance in section 3, and the stop found second carried the record alone): the set is replaced by
-    the first kept term after the first that alone leaves less held-out error."""
-    state, names, terms = progress.state, setup.names, setup.terms
-    if not (len(state.kept) > 1 and progress.current_held > 1.0 + noise_tolerance(setup.n_held)):
+def finite_change(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings) -> None:
+    """The time-gated term just kept given an end (:mod:`workbench.discover._finite_change`) when the records are
+    not explained yet: its two ramps replace it when they remove :data:`MIN_SHARE` of the excess left."""
+    if explained(progress.current_held, setup.held_before, setup.n_held):
         return
     t0 = time.perf_counter()
-    for k in state.kept[1:]:
-        start = dict(state.values) | {names[j][0]: 0.0 for j in state.kept if j != k}
-        robj = Objective(setup.targets, setup.models, free_for(terms, names, [k], start, k), base_values=start,
-                         threads=settings.threads)
-        alone = refine(robj, start, settings.max_nfev)
-        progress.n_sims += robj.n_sims
-        if alone.ok and alone.held_rms_sigma < progress.current_held:
-            settings.say(f"backward step: {terms[k].key} alone leaves {alone.held_rms_sigma:.4g} σ held-out, the "
-                         f"set {progress.current_held:.4g} σ: the set is replaced by it")
-            progress.rounds.append({"backward": {"kept_alone": terms[k].key, "held_rms_sigma": alone.held_rms_sigma,
-                                                 "set_held_rms_sigma": progress.current_held}})
-            state.kept = [k]
-            state.values = start | alone.values
-            progress.stderr.update({e.name: e.stderr for e in alone.estimates})
-            progress.current_train, progress.current_held = alone.train_rms_sigma, alone.held_rms_sigma
-            progress.outcome = alone
-            break
+    k = progress.state.kept[-1]
+    fit = window_refit(setup.targets, setup.models, setup.terms, setup.names, progress.state, k, setup.scales["t"],
+                       settings.threads, settings.max_nfev)
     progress.timings["refit_s"] += time.perf_counter() - t0
+    if fit is None:
+        return
+    progress.n_sims += fit.n_sims
+    h = fit.outcome.held_rms_sigma
+    gain = excess_share_removed(progress.current_held, h, noise_tolerance(setup.n_held))
+    keep = gain is not None and gain >= MIN_SHARE and h < progress.current_held
+    settings.say(f"  {setup.terms[k].key} given an end (two ramps, {h:.4g} σ held-out): "
+                 + ("kept in its place" if keep else "not kept"))
+    progress.rounds.append({"finite_change": {"term": setup.terms[k].key, "held_rms_sigma": h, "kept": keep}})
+    if keep:
+        keep_window(progress.state, progress.stderr, progress.twins, fit)
+        progress.current_train, progress.current_held = fit.outcome.train_rms_sigma, h
+        progress.outcome = fit.outcome

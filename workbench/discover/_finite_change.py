@@ -1,0 +1,193 @@
+"""A change that grows over a finite time and then stays (issue 26 point 3): two ramps of one parameter, ``+r``
+from t0 and ``−r`` from t1, make the window ``r · clip(t − t0, 0, t1 − t0)`` — a loss that grows from t0 to t1 and
+holds after it; as t1 − t0 → 0 it is a step.
+
+The dictionary's time gates are a step at an onset and a ramp that never ends. A stiffness lost linearly from 2.5 s
+to 7.5 s of a 10 s sweep, then holding, was kept as a ramp from 2.04 s at 3.42 %/s (20 σ left): the next round
+screened every term again around that compromise, and the dictionary's other ramp of the same parameter, probed at
+the residual's onset with the first ramp's onset fixed, never ended it. So when a round has kept a time-gated term
+and the records are still not explained, the change is tried with an end (:func:`window_refit`): windows of that
+parameter from the kept term (a step: centred on its instant, over a few durations; a ramp: ending at shares of the
+time left), probed on the full model, the best refitted with both rates and both onsets free. It runs only after a
+time-gated term was kept; nothing is added to the screen. The pair is said as one change
+(:func:`finite_change_words`).
+
+Pure logic on the fit engine's objects: the rounds (:mod:`workbench.discover._rounds`) keep the result.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from board_config.parameter import Parameter, freed
+from plant import PlantModel
+from workbench.discover._dictionary import Term
+from workbench.discover._gates import describe_finite_change
+from workbench.discover._onset import whole_record_rms
+from workbench.discover._results import FoundTerm
+from workbench.discover._search import SearchState, probe_batch, refine
+from workbench.fit import FitOutcome, Objective, Target
+
+#: durations (s) of the windows centred on a kept step's instant (a loss over a short time: its refit widens them)
+STEP_DURATIONS_S = (0.05, 0.15, 0.4, 1.0, 2.5)
+#: where a window from a kept ramp may start (shares of the time left after the ramp's onset) and end (shares of
+#: the time left after the window's start); the total change over the window as multiples of the ramp's rate × its
+#: duration (a ramp that never ends fits the window's rate low: 3.42 %/s for a 4 %/s loss over 5 s)
+RAMP_STARTS = (0.0, 0.1, 0.2)
+RAMP_ENDS = (0.2, 0.35, 0.5, 0.65, 0.8)
+RAMP_RATE_MULTIPLIERS = (1.0, 1.4)
+#: two ramps of one key are said as one change that then holds when the rate left after the end (the sum of their
+#: rates) is below this share of the rise's rate
+HOLDS_SHARE = 0.15
+
+
+@dataclass(frozen=True)
+class Window:
+    """A change of ``total`` (relative) growing linearly from ``start`` to ``end`` (s)."""
+
+    start: float
+    end: float
+    total: float
+
+    @property
+    def rate(self) -> float:
+        return self.total / max(self.end - self.start, 1e-6)
+
+
+@dataclass(frozen=True)
+class WindowFit:
+    """The refit of a finite-time change: its two ramps (dictionary indices: the rise from t0 and the end at t1),
+    the time-gated term it replaces (its index; the rise's own index when that was a ramp), the refit, every
+    dictionary value with it (the replaced term off) and the simulations run."""
+
+    rise: int
+    end: int
+    replaced: int
+    outcome: FitOutcome
+    values: dict[str, float]
+    n_sims: int
+
+
+def ramp_slots(terms: Sequence[Term], term: Term) -> list[int]:
+    """The dictionary indices of the ramps of ``term``'s parameter (same core parameter and section/mass), the
+    ``term``'s own first when it is one."""
+    out = [k for k, t in enumerate(terms) if t.placement == "damage" and t.form == "on_ramp"
+           and (t.param, t.index) == (term.param, term.index)]
+    return sorted(out, key=lambda k: terms[k] != term)
+
+
+def candidate_windows(form: str, coef: float, onset: float, t_end: float) -> list[Window]:
+    """Windows to probe from a kept time-gated term (``form`` ``on_step`` of size ``coef`` at ``onset``, or
+    ``on_ramp`` of rate ``coef`` from it), within a record ending at ``t_end`` (s)."""
+    out: list[Window] = []
+    if form == "on_step":
+        for d in STEP_DURATIONS_S:
+            a, b = max(onset - 0.5 * d, 0.0), min(onset + 0.5 * d, t_end)
+            if b > a:
+                out.append(Window(a, b, coef))
+        return out
+    for s in RAMP_STARTS:
+        a = onset + s * (t_end - onset)
+        for e in RAMP_ENDS:
+            b = a + e * (t_end - a)
+            out += [Window(a, b, coef * m * (b - a)) for m in RAMP_RATE_MULTIPLIERS]
+    return out
+
+
+def window_setting(window: Window, rise: tuple[str, str | None], end: tuple[str, str | None]) -> dict[str, float]:
+    """The dictionary parameters of ``window`` as the two ramps ``rise`` (+rate from its start) and ``end`` (−rate
+    from its end): (coefficient name, onset name) each."""
+    return {rise[0]: window.rate, str(rise[1]): window.start, end[0]: -window.rate, str(end[1]): window.end}
+
+
+def window_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], state: SearchState,
+                start: dict[str, float], pair: tuple[int, int], t_end: float) -> list[Parameter]:
+    """Free parameters of the window's refit: the other kept terms' coefficients (±1.5 × their size), both rates
+    (±2 × the window's rate) and both onsets (within the record, half the window's duration either way, at least
+    5 % of the record)."""
+    out = []
+    for k in state.kept:
+        if k in pair:
+            continue
+        c = start[names[k][0]]
+        span = max(abs(c), 1e-300)
+        out.append(freed(names[k][0], terms[k].unit, c - 1.5 * span, c + 1.5 * span, False, "discover"))
+    rise, end = (names[k] for k in pair)
+    rate = start[rise[0]]
+    width = max(0.5 * (start[str(end[1])] - start[str(rise[1])]), 0.05 * t_end)
+    for cname, gname in (rise, end):
+        c, g = start[cname], start[str(gname)]
+        out.append(freed(cname, "1/s", c - 2.0 * abs(rate), c + 2.0 * abs(rate), False, "discover"))
+        out.append(freed(str(gname), "s", max(g - width, 0.0), min(g + width, t_end), False, "discover"))
+    return out
+
+
+def window_refit(targets: Sequence[Target], models: Sequence[PlantModel], terms: Sequence[Term],
+                 names: Sequence[tuple[str, str | None]], state: SearchState, kept: int, t_end: float,
+                 threads: int | None, max_nfev: int) -> WindowFit | None:
+    """The kept time-gated term ``kept`` (dictionary index) given an end: the windows of :func:`candidate_windows`
+    probed on the full model (the kept term off), the best by the whole record's RMS refitted with both rates and
+    onsets free (None when its parameter has fewer than two ramps or nothing integrates)."""
+    term = terms[kept]
+    slots = ramp_slots(terms, term)
+    if len(slots) < 2:
+        return None
+    pair = (slots[0], slots[1])
+    cname, gname = names[kept]
+    coef, onset = state.values[cname], state.values[str(gname)]
+    wins = candidate_windows(term.form, coef, onset, t_end)
+    off = {cname: 0.0}
+    settings = [off | window_setting(w, names[pair[0]], names[pair[1]]) for w in wins]
+    held, train, ok = probe_batch(targets, models, state.values, settings, threads)
+    n = len(settings)
+    scores = [e if good else math.inf for e, good in zip(whole_record_rms(targets, held, train), ok)]
+    best = min(range(n), key=lambda i: scores[i], default=None)
+    if best is None or not math.isfinite(scores[best]):
+        return None
+    start = dict(state.values) | settings[best]
+    free = window_free(terms, names, state, start, pair, t_end)
+    obj = Objective(targets, models, free, base_values=start, threads=threads)
+    out = refine(obj, start, max_nfev)
+    n_sims = n * len(targets) + obj.n_sims
+    return WindowFit(pair[0], pair[1], kept, out, start | out.values, n_sims) if out.ok else None
+
+
+def keep_window(state: SearchState, stderr: dict[str, float], twins: dict[int, list[dict[str, Any]]],
+                fit: WindowFit) -> None:
+    """Keep the window's two ramps in place of the term it replaces: the kept list, the values, the standard
+    errors (the twins of a ramp that never ends are no twins of the window: dropped)."""
+    state.kept = [k for k in state.kept if k not in (fit.replaced, fit.rise, fit.end)] + [fit.rise, fit.end]
+    state.values.update(fit.values)
+    stderr.update({e.name: e.stderr for e in fit.outcome.estimates})
+    for k in (fit.replaced, fit.rise, fit.end):
+        twins.pop(k, None)
+
+
+def finite_change_words(found: Sequence[FoundTerm]) -> list[FoundTerm]:
+    """``found`` with each pair of ramps of one parameter (a rise and its end) said as one change: the rise's words
+    name the window ("section 1 lost 20 % of its stiffness between t = 2.5 and 7.5 s"), the end's words say it
+    held (or kept changing at the rate left)."""
+    out = list(found)
+    for i, a in enumerate(out):
+        j = next((j for j in range(i + 1, len(out)) if _pair(a, out[j])), None)
+        if j is None:
+            continue
+        rise, end = (a, out[j]) if a.shape <= out[j].shape else (out[j], a)
+        rise_words, end_words = describe_finite_change(
+            rise.term.param, rise.term.index, rise.coef, rise.shape, rise.shape_se, end.coef, end.shape,
+            end.shape_se, HOLDS_SHARE)
+        out[out.index(rise)] = _with_words(rise, rise_words)
+        out[out.index(end)] = _with_words(end, end_words)
+    return out
+
+
+def _pair(a: FoundTerm, b: FoundTerm) -> bool:
+    return (a.term.placement == b.term.placement == "damage" and a.term.form == b.term.form == "on_ramp"
+            and (a.term.param, a.term.index) == (b.term.param, b.term.index) and a.coef * b.coef < 0)
+
+
+def _with_words(ft: FoundTerm, words: str) -> FoundTerm:
+    return FoundTerm(ft.term, ft.coef, ft.shape, ft.scale, words, ft.twins, ft.shape_se)
