@@ -12,7 +12,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from workbench.diagnose._discovery import falls_short, final_verdict, new_effect_file
+from workbench.diagnose._discovery import damage_cure, falls_short, final_verdict, new_effect_file
 
 FOREIGN = (Path(__file__).parents[1] / "workbench_foreign_effects.py")
 
@@ -34,6 +34,38 @@ def test_falls_short_is_the_verdict_saying_so():
 def _disc(held_after, terms=("section 1 is softer within ±40 µm of δ1",)):
     return SimpleNamespace(terms=[SimpleNamespace(description=t) for t in terms], held_before=8.6,
                            held_after=held_after, message="Found: …", verdict="found")
+
+
+def _found(placements, held_after=1.02, verdict="found"):
+    return SimpleNamespace(terms=[SimpleNamespace(term=SimpleNamespace(placement=p)) for p in placements],
+                           held_after=held_after, verdict=verdict, timings={"total_s": 17.0})
+
+
+def test_only_a_cure_of_damage_forms_ends_the_library_search_early():
+    """Issue 26 point 7: after the greedy path the beam is skipped only for a cure made of damage forms — a cubic
+    stiffness or a leakage current found beyond the library may be a library effect's twin."""
+    assert damage_cure(_found(["damage"])) and damage_cure(_found(["damage", "damage"], 1.4, "partial"))
+    assert not damage_cure(_found(["damage", "force_section"]))  # a twin of geometric stiffening may hide there
+    assert not damage_cure(_found(["damage"], 2.5, "partial")) and not damage_cure(_found([]))
+
+
+@pytest.mark.parametrize("changed", [False, True])
+def test_the_discovery_run_before_the_beam_is_not_run_again(monkeypatch, tmp_path, changed):
+    """The same records, the same parameter set: the early run stands — unless the library's named set changed
+    during the record, when the discovery runs again, told to expect a change."""
+    import workbench.diagnose._discovery as dd
+
+    runs: list[bool] = []
+    early, late = _found(["damage"]), _found(["damage"])
+    monkeypatch.setattr(dd, "run_discovery", lambda *a, expect_change=False, **kw: runs.append(expect_change) or late)
+    seen: list[object] = []
+    monkeypatch.setattr(dd, "write_emitted", lambda disc, directory: (None, "not here"))
+    monkeypatch.setattr(dd, "final_verdict", lambda d, disc, section: seen.append(disc))
+    monkeypatch.setattr(dd, "discovery_section", lambda disc, **kw: {"ran": True})
+    d = SimpleNamespace(verdict="partial", time_change=SimpleNamespace(changed=changed), timings={}, message="")
+    dd.discovery_step(d, [], "table2", "table2", tmp_path, holdout="blocks", n_blocks=5, max_rate_Hz=250.0,
+                      early=early)
+    assert (runs, seen) == (([True], [late]) if changed else ([], [early]))
 
 
 def test_the_final_verdict_leads_with_what_was_found(monkeypatch):

@@ -375,12 +375,15 @@ def better(a: CandidateResult, b: CandidateResult) -> CandidateResult:
 
 def select_set(winner: CandidateResult, others: Sequence[CandidateResult], base: ParameterSet,
                targets: Sequence[Target], data: Mapping[str, Any], rss0_held: float, *, min_reduction: float,
-               threads: int | None, max_nfev: int, seed: int, base_held: float, beam: bool = True) -> Selection:
+               threads: int | None, max_nfev: int, seed: int, base_held: float, beam: bool = True,
+               beam_unless: Callable[[CandidateResult], bool] | None = None) -> Selection:
     """Forward selection with a small beam and a swap step (see the module docstring): the greedy path from
     ``winner``; when it does not reach the noise floor, the paths from :func:`alternative_starts`, then the swap
     of each re-estimation of the best set for the effects that fit best in its place. Stops as soon as a set
     explains the held-out data to the noise floor. ``beam=False``: the greedy path alone — the caller knows no
-    constant library set can explain the records (a damage event inside the record, which discovery looks for)."""
+    constant library set can explain the records (a damage event inside the record, which discovery looks for);
+    ``beam_unless(greedy final set)`` True: the same, decided after the greedy path (the physics beyond the library
+    already explains the records)."""
     kw: dict[str, Any] = dict(min_reduction=min_reduction, threads=threads, max_nfev=max_nfev, seed=seed,
                               fits=FitCache())
     everyone = [winner, *others]
@@ -396,6 +399,8 @@ def select_set(winner: CandidateResult, others: Sequence[CandidateResult], base:
         return Selection(final, [*before, *steps], without)
 
     best = path(winner)
+    if beam and beam_unless is not None and not at_noise_floor(best.final):
+        beam = not beam_unless(best.final)
     if beam and not at_noise_floor(best.final):
         for start in alternative_starts(winner, others):
             sel = path(start)

@@ -275,7 +275,7 @@ def diagnose(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         timings[f"candidate_{c.effect}_s"] = c.wall_s
     ranking = sorted(results, key=rank_key) + [screened_out(x) for x in scr.screened]
     t0 = time.perf_counter()
-    sel = selection_stage(choose_winner(ranking), ranking, nom, s, rep, timings)
+    sel = selection_stage(choose_winner(ranking), ranking, nom, s, rep, timings, records)
     timings["forward_selection_s"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     naming_stage(sel, results, nom, s)
@@ -337,7 +337,7 @@ def _verdict_and_discovery(d: Diagnosis, records: Sequence[Record | FrfRecord], 
                                     seed=s.seed)
     timings["time_change_s"] = time.perf_counter() - t1
     discovery_step(d, records, base, label, s.emit_dir, holdout=s.holdout, n_blocks=s.n_blocks,
-                   max_rate_Hz=s.max_rate_Hz, on_progress=s.on_discover)
+                   max_rate_Hz=s.max_rate_Hz, on_progress=s.on_discover, early=sel.early_discovery)
 
 
 def rank_key(c: CandidateResult) -> tuple:

@@ -4,7 +4,7 @@ and the naming rule, each a function of what the stages before it produced."""
 from __future__ import annotations
 
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Any
@@ -13,6 +13,7 @@ import numpy as np
 
 from board_config import ParameterSet
 from plant import PhysicalEffect
+from workbench.diagnose._discovery import DISCOVER_FIRST_ABOVE_SIGMA, damage_cure, discovery_first
 from workbench.diagnose._evidence import Judgement, judge_winner
 from workbench.diagnose._progress import DiagnoseProgress
 from workbench.diagnose._settings import DiagnoseSettings
@@ -184,12 +185,18 @@ class Selection:
     paths: list[str] = field(default_factory=list)
     notes: list[str] = field(default_factory=list)
     judged: Judgement | None = None
+    #: the discovery run during forward selection (:func:`workbench.diagnose._discovery.discovery_first`), or None
+    early_discovery: Any = None
 
 
 def selection_stage(winner: CandidateResult | None, ranking: Sequence[CandidateResult], nom: Nominal,
-                    s: DiagnoseSettings, rep: DiagnoseProgress, timings: dict[str, float]) -> Selection:
+                    s: DiagnoseSettings, rep: DiagnoseProgress, timings: dict[str, float],
+                    records: Sequence[Record | FrfRecord] = ()) -> Selection:
     """Forward selection whenever the winner leaves more than FORWARD_ABOVE σ, even when that is a tiny share of a
-    large residual ("explained" for the verdict): on a sweep a second effect can hide in the last 2 σ."""
+    large residual ("explained" for the verdict): on a sweep a second effect can hide in the last 2 σ. With a
+    discovery step to follow (``s.emit_dir``), the greedy path alone when the records show an event inside them,
+    or when the greedy path leaves far more than the noise and the discovery, run then, finds a cure of damage
+    forms (:func:`workbench.diagnose._discovery.damage_cure`)."""
     from workbench.diagnose._forward_selection import select_set
 
     sel = Selection(winner)
@@ -203,7 +210,12 @@ def selection_stage(winner: CandidateResult | None, ranking: Sequence[CandidateR
                    if (t := event_onset(tg.t, (tg.measured - y[0]) / tg.sigma[:, None])) is not None), None))
     found = select_set(winner, [c for c in ranking if c is not winner], nom.base, nom.targets, nom.data,
                        nom.rss0_held, min_reduction=s.min_reduction, threads=nom.threads, max_nfev=s.max_nfev,
-                       seed=s.seed, base_held=nom.base_held, beam=onset is None)
+                       seed=s.seed, base_held=nom.base_held, beam=onset is None,
+                       beam_unless=_discover_first(sel, records, nom, s) if records and s.emit_dir else None)
+    if sel.early_discovery is not None and damage_cure(sel.early_discovery):
+        sel.notes.append(f"forward selection took the greedy path only: it left {found.final.held_rms_sigma:.4g} σ "
+                         "held out, and the discovery step, run then, explains the records "
+                         f"({sel.early_discovery.held_after:.4g} σ)")
     if onset is not None:
         sel.notes.append(f"forward selection took the greedy path only: the nominal model matches the records "
                          f"to the noise until t ≈ {onset:.4g} s (an event inside the record, for the "
@@ -217,6 +229,23 @@ def selection_stage(winner: CandidateResult | None, ranking: Sequence[CandidateR
                          f"{final.delta_bic_held:.4g}, {wall:.3g} s)")
         timings[f"forward_selection_from_{label}_s"] = wall
     return sel
+
+
+def _discover_first(sel: Selection, records: Sequence[Record | FrfRecord], nom: Nominal,
+                    s: DiagnoseSettings) -> Callable[[CandidateResult], bool]:
+    """Forward selection's question after its greedy path: is the beam's search of other library paths moot? When
+    the greedy set leaves more than :data:`~workbench.diagnose._discovery.DISCOVER_FIRST_ABOVE_SIGMA`, the discovery
+    step runs now (kept in ``sel`` for the verdict) and the answer is whether it found a cure of damage forms."""
+
+    def moot(greedy: CandidateResult) -> bool:
+        if greedy.held_rms_sigma <= DISCOVER_FIRST_ABOVE_SIGMA:
+            return False
+        sel.early_discovery = discovery_first(records, nom.base, greedy.held_rms_sigma, holdout=s.holdout,
+                                              n_blocks=s.n_blocks, max_rate_Hz=s.max_rate_Hz,
+                                              on_progress=s.on_discover)
+        return sel.early_discovery is not None and damage_cure(sel.early_discovery)
+
+    return moot
 
 
 def naming_stage(sel: Selection, results: Sequence[CandidateResult], nom: Nominal, s: DiagnoseSettings) -> None:
