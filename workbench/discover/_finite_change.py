@@ -104,13 +104,14 @@ def window_setting(window: Window, rise: tuple[str, str | None], end: tuple[str,
 
 
 def window_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], state: SearchState,
-                start: dict[str, float], pair: tuple[int, int], t_end: float) -> list[Parameter]:
-    """Free parameters of the window's refit: the other kept terms' coefficients (±1.5 × their size), both rates
+                start: dict[str, float], pair: tuple[int, int], replaced: int, t_end: float) -> list[Parameter]:
+    """Free parameters of the window's refit: the other kept terms' coefficients (±1.5 × their size; not the
+    ``replaced`` term's, off), both rates
     (±2 × the window's rate) and both onsets (within the record, half the window's duration either way, at least
     5 % of the record)."""
     out = []
     for k in state.kept:
-        if k in pair:
+        if k in pair or k == replaced:
             continue
         c = start[names[k][0]]
         span = max(abs(c), 1e-300)
@@ -148,7 +149,7 @@ def window_refit(targets: Sequence[Target], models: Sequence[PlantModel], terms:
     if best is None or not math.isfinite(scores[best]):
         return None
     start = dict(state.values) | settings[best]
-    free = window_free(terms, names, state, start, pair, t_end)
+    free = window_free(terms, names, state, start, pair, kept, t_end)
     obj = Objective(targets, models, free, base_values=start, threads=threads)
     out = refine(obj, start, max_nfev)
     n_sims = n * len(targets) + obj.n_sims

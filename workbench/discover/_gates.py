@@ -379,8 +379,8 @@ def describe_finite_change(param: str, index: int, rate: float, t0: float, se0: 
         rise = f"mass m{n} {'fell' if total < 0 else 'grew'} by {pct} {span} ({why})"
     else:
         rise = f"{what} {'fell' if total < 0 else 'rose'} by {pct} {span} ({why})"
-    end = (f"that change ending at {_instant(t1, se1)}" + (" and holding" if holds else "")
-           + f" (the ramp of {100 * end_rate:+.3g} %/s that ends it)")
+    end = (f"its end at {_instant(t1, se1)} (a ramp of {100 * end_rate:+.3g} %/s from then on "
+           + ("cancels the change's rate)" if holds else f"leaves it changing by {100 * left:+.3g} %/s)"))
     return rise, end
 
 
