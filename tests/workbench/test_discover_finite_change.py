@@ -10,10 +10,12 @@ import pytest
 from workbench.discover._dictionary import Term, build_dictionary
 from workbench.discover._finite_change import (
     Window,
+    WindowProbe,
     candidate_windows,
     finite_change_words,
     ramp_slots,
     window_setting,
+    zoom_window,
 )
 from workbench.discover._results import FoundTerm
 
@@ -66,3 +68,17 @@ def test_the_window_is_the_two_dictionary_ramps_of_the_kept_parameter():
     w = Window(2.5, 7.5, -0.2)
     assert window_setting(w, ("a_01", "g_01"), ("a_02", "g_02")) == pytest.approx(
         {"a_01": -0.04, "g_01": 2.5, "a_02": 0.04, "g_02": 7.5})
+
+
+class _Bowl(WindowProbe):
+    """A probe whose whole-record RMS is the distance to a true window (s, and its total in tenths)."""
+
+    def scores(self, windows):
+        return [1.0 + abs(w.start - 5.5) + abs(w.end - 6.0) + 10 * abs(w.total + 0.25) for w in windows]
+
+
+def test_the_zoom_places_a_short_loss_from_the_step_it_replaces_to_the_resolution():
+    probe = _Bowl([], [], {}, ("a_1", "g_1"), ("a_2", "g_2"), 10.0, None)
+    window, score, n = zoom_window(probe, candidate_windows("on_step", -0.2, 5.62, 10.0))
+    assert abs(window.start - 5.5) < 0.01 and abs(window.end - 6.0) < 0.01 and abs(window.total + 0.25) < 0.01
+    assert score < 1.1 and n < 300
