@@ -12,7 +12,7 @@ from workbench.discover._finite_change import (
     Window,
     WindowProbe,
     candidate_windows,
-    finite_change_words,
+    finite_changes,
     ramp_slots,
     window_setting,
     zoom_window,
@@ -27,7 +27,7 @@ def _ramp(param: str, index: int, coef: float, t0: float, se: float | None = 0.0
 
 def test_a_rise_and_its_end_are_said_as_one_loss_that_held():
     found = [_ramp("k", 0, -0.04, 2.5, 0.021), _ramp("k", 0, 0.0398, 7.5, 0.034)]
-    rise, end = finite_change_words(found)
+    rise, end = finite_changes(found)
     assert rise.words.startswith("section 1 lost 20 % of its stiffness between t = 2.50 ± 0.02 s and "
                                  "t = 7.50 ± 0.03 s")
     assert "then held" in rise.words and "grew over 5 s" in rise.words
@@ -37,14 +37,14 @@ def test_a_rise_and_its_end_are_said_as_one_loss_that_held():
 
 def test_a_pair_found_end_first_is_said_from_its_start_and_a_rate_left_is_said():
     found = [_ramp("c", 2, -0.7, 6.0, None), _ramp("c", 2, 1.0, 4.0, None)]
-    end, rise = finite_change_words(found)
+    end, rise = finite_changes(found)
     assert rise.words.startswith("damping c3 of section 3 rose by 200 % between t = 4 s and t = 6 s")
     assert "then kept rising by 30 %/s" in rise.words and end.words.endswith("leaves it changing by +30 %/s)")
 
 
 def test_ramps_of_different_parameters_or_of_one_sign_keep_their_own_words():
     found = [_ramp("k", 0, -0.04, 2.5), _ramp("k", 1, 0.04, 7.5), _ramp("m", 0, 0.01, 1.0), _ramp("m", 0, 0.02, 3.0)]
-    assert [f.words for f in finite_change_words(found)] == [f.words for f in found]
+    assert [f.words for f in finite_changes(found)] == [f.words for f in found]
 
 
 def test_windows_from_a_step_are_centred_on_its_instant_and_those_from_a_ramp_end_inside_the_record():
@@ -82,3 +82,15 @@ def test_the_zoom_places_a_short_loss_from_the_step_it_replaces_to_the_resolutio
     window, score, n = zoom_window(probe, candidate_windows("on_step", -0.2, 5.62, 10.0))
     assert abs(window.start - 5.5) < 0.01 and abs(window.end - 6.0) < 0.01 and abs(window.total + 0.25) < 0.01
     assert score < 1.1 and n < 300
+
+
+def test_the_pairs_onsets_are_refitted_near_where_the_whole_record_placed_them():
+    from workbench.discover._effect_writer import emit_effect_source, parameter_names_for
+
+    found = finite_changes([_ramp("k", 1, -0.64, 5.553), _ramp("k", 1, 0.64, 5.944)])
+    assert [f.term.shape_range for f in found] == [pytest.approx((5.453, 5.653)), pytest.approx((5.844, 6.044))]
+    values = {}
+    for f, (c, g) in zip(found, parameter_names_for([f.term for f in found])):
+        values |= {c: f.coef, g: f.shape}
+    src = emit_effect_source([f.term for f in found], values)
+    assert "fit=FitRange(5.503, 5.603)" in src and "fit=FitRange(5.894, 5.994)" in src

@@ -53,7 +53,7 @@ from workbench.discover._dictionary_effect import (
     term_scale,
 )
 from workbench.discover._effect_writer import describe_term
-from workbench.discover._finite_change import finite_change_words
+from workbench.discover._finite_change import finite_changes
 from workbench.discover._results import (
     DiscoverError,
     Discovery,
@@ -176,7 +176,7 @@ def found_terms(setup: SearchSetup, progress: SearchProgress) -> list[FoundTerm]
         se = progress.stderr.get(gname) if gname else None
         found.append(FoundTerm(term.with_shape(shape), coef, shape, scale, describe_term(term, coef, shape, scale, se),
                                progress.twins.get(k, []), se))
-    return finite_change_words(found)
+    return finite_changes(found)
 
 
 def judge(setup: SearchSetup, progress: SearchProgress, found: list[FoundTerm], stable: bool,
