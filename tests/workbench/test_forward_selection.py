@@ -328,28 +328,36 @@ def test_an_event_inside_the_record_is_where_the_nominal_residual_leaves_the_noi
 
 
 @pytest.mark.parametrize("moot", [True, False])
-def test_the_beam_asks_after_the_greedy_path_whether_its_search_is_moot(monkeypatch, moot):
-    # the stalled greedy path of the mimic above: ``beam_unless`` hears the greedy set once; True (the discovery,
-    # run then, found a cure of damage forms) ends the selection there, False lets the beam find the true pair
+def test_the_beam_asks_after_its_first_other_path_whether_its_search_is_moot(monkeypatch, moot):
+    # greedy stalls at 40 σ, the first other start (an effect) at 30 σ; ``beam_unless`` hears the best set then, once:
+    # True (the discovery, run then, found a cure of damage forms) ends the selection there — no second start, no
+    # swap — False lets the beam go on to the start that finds the true pair
     stiffness = fitted(60.0, "stiffness")
     greedy = fitted(40.0, "dielectric_leakage", "stiffness")
+    first = fitted(30.0, "geometric_stiffening", "mass")
+    pair = fitted(1.0, "piezo_creep", "dielectric_leakage")
+    starts = _stub_paths(monkeypatch, {"stiffness": greedy, "geometric_stiffening": first, "piezo_creep": pair})
+    swaps: list[str] = []
+    monkeypatch.setattr(fit_cache, "fit_spec", lambda s, *a, **kw: swaps.append(s.label) or fitted(50.0, *s.members))
+    asked: list[CandidateResult] = []
+    sel = fs.select_set(stiffness, [fitted(80.0, "geometric_stiffening"), fitted(90.0, "piezo_creep")], None,
+                        [], {}, RSS0, min_reduction=0.02, threads=None, max_nfev=5, seed=0, base_held=400.0,
+                        beam_unless=lambda final: asked.append(final) or moot)
+    assert asked == [first]
+    if moot:
+        assert sel.final is first and starts == ["stiffness", "geometric_stiffening"] and swaps == []
+    else:
+        assert sel.final is pair and starts[:3] == ["stiffness", "geometric_stiffening", "piezo_creep"]
+
+
+def test_a_first_other_path_at_the_noise_floor_asks_nothing(monkeypatch):
+    # the mimic: the first other start finds the true pair — the discovery is never run
+    stiffness = fitted(60.0, "stiffness")
     pair = fitted(1.0, "geometric_stiffening", "dielectric_leakage")
-    starts = _stub_paths(monkeypatch, {"stiffness": greedy, "geometric_stiffening": pair})
-    monkeypatch.setattr(fit_cache, "fit_spec", lambda s, *a, **kw: fitted(50.0, *s.members))
+    _stub_paths(monkeypatch, {"stiffness": fitted(40.0, "dielectric_leakage", "stiffness"),
+                              "geometric_stiffening": pair})
     asked: list[CandidateResult] = []
     sel = fs.select_set(stiffness, [fitted(80.0, "geometric_stiffening"), fitted(200.0, "dielectric_leakage")], None,
                         [], {}, RSS0, min_reduction=0.02, threads=None, max_nfev=5, seed=0, base_held=400.0,
-                        beam_unless=lambda final: asked.append(final) or moot)
-    assert asked == [greedy]
-    assert (sel.final, starts[:2]) == ((greedy, ["stiffness"]) if moot else (pair, ["stiffness",
-                                                                                   "geometric_stiffening"]))
-
-
-def test_a_greedy_path_at_the_noise_floor_asks_nothing(monkeypatch):
-    pair = fitted(1.0, "piezo_creep", "stiffness")
-    _stub_paths(monkeypatch, {"piezo_creep": pair})
-    asked: list[CandidateResult] = []
-    sel = fs.select_set(fitted(30.0, "piezo_creep"), [fitted(80.0, "stiffness")], None, [], {}, RSS0,
-                        min_reduction=0.02, threads=None, max_nfev=5, seed=0, base_held=400.0,
                         beam_unless=lambda final: asked.append(final) or True)
     assert sel.final is pair and asked == []

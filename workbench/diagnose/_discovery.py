@@ -50,12 +50,14 @@ def run_discovery(records: Sequence[Record | FrfRecord], params: ParameterSet | 
     return disc
 
 
-#: the library's greedy forward-selection path leaving more than this held-out RMS (σ): the discovery step runs before
-#: the beam's other paths, and when what it finds is a damage cure (:func:`damage_cure`) they are not tried — a
-#: breathing crack on a 15 s sweep spent 39 of its 82 s in library paths that could not explain it. Closer to the
-#: floor the beam's other paths come first, as they do whatever the discovery finds when it is not a cure of damage
-#: forms: a re-estimation that mimics a library effect can stall the greedy path at 40 σ, and a cubic or a leakage
-#: term found beyond the library may be that effect's twin — no library effect is a core parameter switched by a gate
+#: forward selection's best set after its greedy path and its first other start leaving more than this held-out RMS
+#: (σ): the discovery step runs then, and when what it finds is a damage cure (:func:`damage_cure`) the beam's further
+#: paths and its swap are not tried — a breathing crack on a 15 s sweep spent 42 of its 82 s in library paths that
+#: could not explain it. The first other start comes before the discovery because it is where a mimic hides the
+#: truth (a re-estimation taken first stalls the greedy path at 40–54 σ, the first effect started from finds the
+#: library pair in 5 s; a discovery run on that strongly nonlinear record took 260 s and found nothing); and only a
+#: cure of damage forms ends the search: a cubic or a leakage term found beyond the library may be a library effect's
+#: twin, while no library effect is a core parameter switched by a gate
 DISCOVER_FIRST_ABOVE_SIGMA = 10.0
 
 
@@ -79,8 +81,8 @@ def discovery_first(records: Sequence[Record | FrfRecord], params: ParameterSet,
     from workbench.fit import FitError
 
     if on_progress is not None:
-        on_progress(f"the library's best path leaves {greedy_sigma:.4g} σ held out: running the discovery step "
-                    "before its other paths")
+        on_progress(f"the library's best paths leave {greedy_sigma:.4g} σ held out: running the discovery step "
+                    "before the beam goes on")
     try:
         return run_discovery(records, params, holdout=holdout, n_blocks=n_blocks, max_rate_Hz=max_rate_Hz,
                              on_progress=on_progress)

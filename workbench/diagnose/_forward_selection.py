@@ -382,8 +382,9 @@ def select_set(winner: CandidateResult, others: Sequence[CandidateResult], base:
     of each re-estimation of the best set for the effects that fit best in its place. Stops as soon as a set
     explains the held-out data to the noise floor. ``beam=False``: the greedy path alone — the caller knows no
     constant library set can explain the records (a damage event inside the record, which discovery looks for);
-    ``beam_unless(greedy final set)`` True: the same, decided after the greedy path (the physics beyond the library
-    already explains the records)."""
+    ``beam_unless(best set so far)``, asked once after the greedy path and the first other start (the one a mimicking
+    re-estimation hides: an effect), True: no further paths and no swap (the physics beyond the library already
+    explains the records)."""
     kw: dict[str, Any] = dict(min_reduction=min_reduction, threads=threads, max_nfev=max_nfev, seed=seed,
                               fits=FitCache())
     everyone = [winner, *others]
@@ -399,15 +400,20 @@ def select_set(winner: CandidateResult, others: Sequence[CandidateResult], base:
         return Selection(final, [*before, *steps], without)
 
     best = path(winner)
-    if beam and beam_unless is not None and not at_noise_floor(best.final):
-        beam = not beam_unless(best.final)
     if beam and not at_noise_floor(best.final):
-        for start in alternative_starts(winner, others):
+        starts = alternative_starts(winner, others)
+        for k, start in enumerate(starts):
             sel = path(start)
             if better(best.final, sel.final) is sel.final:
                 best = sel
             if at_noise_floor(best.final):
                 break
+            if k == 0 and beam_unless is not None:  # asked once, after the first other path
+                beam = not beam_unless(best.final)
+                if not beam:
+                    break
+        if not starts and beam_unless is not None:
+            beam = not beam_unless(best.final)
     if beam and not at_noise_floor(best.final):
         swapped = _swap(best, everyone, base, targets, data, rss0_held, **kw)
         if swapped is not None and better(best.final, swapped) is swapped:

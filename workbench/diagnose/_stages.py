@@ -194,9 +194,9 @@ def selection_stage(winner: CandidateResult | None, ranking: Sequence[CandidateR
                     records: Sequence[Record | FrfRecord] = ()) -> Selection:
     """Forward selection whenever the winner leaves more than FORWARD_ABOVE σ, even when that is a tiny share of a
     large residual ("explained" for the verdict): on a sweep a second effect can hide in the last 2 σ. With a
-    discovery step to follow (``s.emit_dir``), the greedy path alone when the records show an event inside them,
-    or when the greedy path leaves far more than the noise and the discovery, run then, finds a cure of damage
-    forms (:func:`workbench.diagnose._discovery.damage_cure`)."""
+    discovery step to follow (``s.emit_dir``), the greedy path alone when the records show an event inside them;
+    the greedy path and the first other start only when they leave far more than the noise and the discovery, run
+    then, finds a cure of damage forms (:func:`workbench.diagnose._discovery.damage_cure`)."""
     from workbench.diagnose._forward_selection import select_set
 
     sel = Selection(winner)
@@ -212,10 +212,15 @@ def selection_stage(winner: CandidateResult | None, ranking: Sequence[CandidateR
                        nom.rss0_held, min_reduction=s.min_reduction, threads=nom.threads, max_nfev=s.max_nfev,
                        seed=s.seed, base_held=nom.base_held, beam=onset is None,
                        beam_unless=_discover_first(sel, records, nom, s) if records and s.emit_dir else None)
-    if sel.early_discovery is not None and damage_cure(sel.early_discovery):
-        sel.notes.append(f"forward selection took the greedy path only: it left {found.final.held_rms_sigma:.4g} σ "
-                         "held out, and the discovery step, run then, explains the records "
-                         f"({sel.early_discovery.held_after:.4g} σ)")
+    early = sel.early_discovery
+    if early is not None and damage_cure(early):
+        sel.notes.append(f"forward selection stopped after its greedy path and first other start: the best set left "
+                         f"{found.final.held_rms_sigma:.4g} σ held out, and the discovery step, run then, explains the "
+                         f"records with damage forms ({early.held_after:.4g} σ)")
+    elif early is not None:
+        sel.notes.append("the discovery step ran after forward selection's greedy path and first other start (the "
+                         f"best set left more than {DISCOVER_FIRST_ABOVE_SIGMA:g} σ held out); what it found is no "
+                         f"cure of damage forms ({early.held_after:.4g} σ), so the beam went on")
     if onset is not None:
         sel.notes.append(f"forward selection took the greedy path only: the nominal model matches the records "
                          f"to the noise until t ≈ {onset:.4g} s (an event inside the record, for the "
@@ -233,14 +238,15 @@ def selection_stage(winner: CandidateResult | None, ranking: Sequence[CandidateR
 
 def _discover_first(sel: Selection, records: Sequence[Record | FrfRecord], nom: Nominal,
                     s: DiagnoseSettings) -> Callable[[CandidateResult], bool]:
-    """Forward selection's question after its greedy path: is the beam's search of other library paths moot? When
-    the greedy set leaves more than :data:`~workbench.diagnose._discovery.DISCOVER_FIRST_ABOVE_SIGMA`, the discovery
-    step runs now (kept in ``sel`` for the verdict) and the answer is whether it found a cure of damage forms."""
+    """Forward selection's question after its greedy path and first other start: is the beam's further search moot?
+    When the best set so far leaves more than :data:`~workbench.diagnose._discovery.DISCOVER_FIRST_ABOVE_SIGMA`,
+    the discovery step runs now (kept in ``sel`` for the verdict) and the answer is whether it found a cure of damage
+    forms."""
 
-    def moot(greedy: CandidateResult) -> bool:
-        if greedy.held_rms_sigma <= DISCOVER_FIRST_ABOVE_SIGMA:
+    def moot(best: CandidateResult) -> bool:
+        if best.held_rms_sigma <= DISCOVER_FIRST_ABOVE_SIGMA:
             return False
-        sel.early_discovery = discovery_first(records, nom.base, greedy.held_rms_sigma, holdout=s.holdout,
+        sel.early_discovery = discovery_first(records, nom.base, best.held_rms_sigma, holdout=s.holdout,
                                               n_blocks=s.n_blocks, max_rate_Hz=s.max_rate_Hz,
                                               on_progress=s.on_discover)
         return sel.early_discovery is not None and damage_cure(sel.early_discovery)
