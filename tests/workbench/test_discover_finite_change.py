@@ -88,9 +88,9 @@ def test_the_pairs_onsets_are_refitted_near_where_the_whole_record_placed_them()
     from workbench.discover._effect_writer import emit_effect_source, parameter_names_for
 
     found = finite_changes([_ramp("k", 1, -0.64, 5.553), _ramp("k", 1, 0.64, 5.944)])
-    assert [f.term.shape_range for f in found] == [pytest.approx((5.453, 5.653)), pytest.approx((5.844, 6.044))]
+    assert [f.term.shape_range for f in found] == [pytest.approx((5.533, 5.573)), pytest.approx((5.924, 5.964))]
     values = {}
     for f, (c, g) in zip(found, parameter_names_for([f.term for f in found])):
         values |= {c: f.coef, g: f.shape}
     src = emit_effect_source([f.term for f in found], values)
-    assert "fit=FitRange(5.503, 5.603)" in src and "fit=FitRange(5.894, 5.994)" in src
+    assert "fit=FitRange(5.543, 5.563)" in src and "fit=FitRange(5.934, 5.954)" in src
