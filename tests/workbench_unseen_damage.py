@@ -21,6 +21,11 @@ Since the dictionary crosses a section's stiffness with the sign of its rate too
 the deflection *or velocity*; hard and with a smooth edge screened at two widths), ``velocity_crack_s2`` is a member
 of the family and no longer an unseen form: "stiffness k2 of section 2 25 % lower for δ̇2 > 0 (switching over about
 ±0.999 mm/s of δ̇2 …)", 332 σ → 1.01 σ (2026-11-27 09:50 UTC; 27.7 σ with the hard gate alone, 43.9 σ with one width).
+Since a kept step or ramp is given an end (two ramps of its parameter, ``workbench/discover/_finite_change.py``),
+``ramp_loss_root`` passes: "section 1 lost 20 % of its stiffness between t = 2.488 ± 0.004 s and t = 7.501 ± 0.003 s
+(damage that grew over 5.01 s, then held) …", its file 1.015 σ (2026-11-27 09:40 UTC). ``short_loss_s2`` (k2 −25 %
+over 0.5 s with a smooth edge) is named right ("section 2 lost 25 % … between t = 5.553 … and t = 5.944 …") but its
+file leaves 1.535 σ: the straight window's corners against the smooth edge.
 
 
 Section force convention as in the core (``plant/effects/laminate.py``): ``bus[B_S + i]`` carries
