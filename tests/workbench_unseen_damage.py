@@ -25,7 +25,9 @@ Since a kept step or ramp is given an end (two ramps of its parameter, ``workben
 ``ramp_loss_root`` passes: "section 1 lost 20 % of its stiffness between t = 2.488 ± 0.004 s and t = 7.501 ± 0.003 s
 (damage that grew over 5.01 s, then held) …", its file 1.015 σ (2026-11-27 09:40 UTC). ``short_loss_s2`` (k2 −25 %
 over 0.5 s with a smooth edge) is named right ("section 2 lost 25 % … between t = 5.553 … and t = 5.944 …") but its
-file leaves 1.535 σ: the straight window's corners against the smooth edge.
+file leaves 1.535 σ: the straight window's corners against the smooth edge. ``damping_rise_s3`` (c3 ×3 over 2 s
+from 3.3 s), a step at 3.8 s and 2.31 σ before, passes: "damping c3 of section 3 rose by 200 % between t = 3.300 ±
+0.004 s and t = 5.300 ± 0.005 s …", its file 1.011 σ (2026-11-27 09:55 UTC).
 
 
 Section force convention as in the core (``plant/effects/laminate.py``): ``bus[B_S + i]`` carries
@@ -111,6 +113,17 @@ def _short_loss_section2(t, x, p, bus, dx, so, po):
 ShortLossSection2 = effect("ShortLossSection2", "unseen_k2_short_loss", _short_loss_section2,
                            Parameter("f_short", "1", 0.0, 0.0, 0.9, "share of k2 lost at the end of the loss"),
                            Parameter("t_loss", "s", 1.0, 0.0, 1e4, "instant the loss starts"))
+
+
+def _damping_rise_section3(t, x, p, bus, dx, so, po):
+    """Section 3's damping grows linearly over 2 s from t_rise by a share r (a delamination spreading), then stays."""
+    s = min(max((t - p[po + 1]) / 2.0, 0.0), 1.0)
+    bus[B_S + 2] -= s * p[po] * p[P_C + 2] * x[X_DDELTA + 2]
+
+
+DampingRiseSection3 = effect("DampingRiseSection3", "unseen_c3_rise", _damping_rise_section3,
+                             Parameter("r_rise3", "1", 0.0, 0.0, 20.0, "relative damping added at the end"),
+                             Parameter("t_rise", "s", 1.0, 0.0, 1e4, "instant the rise starts"))
 
 
 def _patch_weak_below_offset(t, x, p, bus, dx, so, po):
@@ -239,6 +252,7 @@ UNSEEN: dict[
     "crack_s3_negative": (CrackSection3Negative, {"a_cr3": 0.2}, (_S3, _ONE_SIDED), None),
     "damping_step_s3": (DampingStepSection3, {"r_c3": 2.0, "t_on_frac": 0.5}, (_S3, _DAMP), ("t_on", 0.2)),
     "ramp_loss_root": (RampLossRoot, {"f_ramp": 0.2, "t_start_frac": 0.25}, (_S1, _STIFF), ("t_start", 3.0)),
+    "damping_rise_s3": (DampingRiseSection3, {"r_rise3": 2.0, "t_rise_frac": 0.33}, (_S3, _DAMP), ("t_rise", 0.4)),
     "short_loss_s2": (ShortLossSection2, {"f_short": 0.25, "t_loss_frac": 0.55}, (_S2, _STIFF), ("t_loss", 0.4)),
     "patch_offset": (
         PatchWeakBelowOffset,
