@@ -6,11 +6,13 @@ The dictionary's time gates are a step at an onset and a ramp that never ends. A
 to 7.5 s of a 10 s sweep, then holding, was kept as a ramp from 2.04 s at 3.42 %/s (20 σ left): the next round
 screened every term again around that compromise, and the dictionary's other ramp of the same parameter, probed at
 the residual's onset with the first ramp's onset fixed, never ended it. So when a round has kept a time-gated term
-and the records are still not explained, the change is tried with an end (:func:`window_refit`): windows of that
-parameter from the kept term (a step: centred on its instant, over a few durations; a ramp: ending at shares of the
-time left), probed on the full model, the best refitted with both rates and both onsets free. It runs only after a
-time-gated term was kept; nothing is added to the screen. The pair is said as one change
-(:func:`finite_changes`).
+that leaves more than the noise, the change is tried with an end (:func:`window_refit`): windows of that parameter
+from the kept term (a step: centred on its instant, over a few durations; a ramp: ending at shares of the time
+left), probed on the full model, the best zoomed on the whole record and refitted with both rates and both onsets
+free. It runs only after a time-gated term was kept; nothing is added to the screen. The pair is said as one change
+(:func:`finite_changes`). Measured (10 s sweeps, 2 µm, seed 1, one record each): k1 −20 % over 5 s 20.2 σ → 1.03 σ;
+c3 ×3 over 2 s 2.31 σ → 1.01 σ; k2 −25 % over 0.5 s with a smooth (cubic) edge 28.8 σ → 1.54 σ (the straight
+window's corners).
 
 Pure logic on the fit engine's objects: the rounds (:mod:`workbench.discover._rounds`) keep the result.
 """
