@@ -32,7 +32,7 @@ def test_falls_short_is_the_verdict_saying_so():
 
 
 def _disc(held_after, terms=("section 1 is softer within ±40 µm of δ1",)):
-    return SimpleNamespace(terms=[SimpleNamespace(description=t) for t in terms], held_before=8.6,
+    return SimpleNamespace(terms=[SimpleNamespace(description=t, said_with="") for t in terms], held_before=8.6,
                            held_after=held_after, message="Found: …", verdict="found")
 
 
@@ -94,7 +94,8 @@ def test_terms_short_of_a_cure_are_named_as_a_part_with_their_share_not_as_a_fin
     d = SimpleNamespace(message="The library and the core parameters explain only 60 % …\nLook …",
                         verdict="unexplained",
                         winner=None, baseline_held_rms_sigma=565.0, fit_command="", next_command="x")
-    disc = SimpleNamespace(terms=[SimpleNamespace(description="section 3 lost 11.1 % of its stiffness at t = 0.73 s")],
+    lost = "section 3 lost 11.1 % of its stiffness at t = 0.73 s"
+    disc = SimpleNamespace(terms=[SimpleNamespace(description=lost, said_with="")],
                            held_before=565.0, held_after=91.2, message="Partly found: …", verdict="partial")
     final_verdict(d, disc, {"emitted": None, "fit_command": ""})
     first = d.message.split("\n", 1)[0].split(". ", 1)[0]

@@ -113,7 +113,7 @@ def test_a_time_change_leads_the_verdict_only_when_the_discovery_keeps_a_time_te
                             verdict="wrong_parameter", winner=SimpleNamespace(held_rms_sigma=1.2),
                             baseline_held_rms_sigma=28.8, fit_command="", next_command="", time_change=tc)
         term = Term("damage", 0, "one", form, 3.0, "c") if form else Term("force_mass", 0, "zd1", "lin")
-        disc = SimpleNamespace(terms=[SimpleNamespace(description=words, term=term)], held_before=28.8,
+        disc = SimpleNamespace(terms=[SimpleNamespace(description=words, term=term, said_with="")], held_before=28.8,
                                held_after=0.97, message="Found: …", verdict="found")
         dd.final_verdict(d, disc, {"emitted": None, "fit_command": ""})
         return d

@@ -17,7 +17,7 @@ from workbench.discover._finite_change import (
     window_setting,
     zoom_window,
 )
-from workbench.discover._results import FoundTerm
+from workbench.discover._results import FoundTerm, in_one_sentence
 
 
 def _ramp(param: str, index: int, coef: float, t0: float, se: float | None = 0.02) -> FoundTerm:
@@ -33,6 +33,9 @@ def test_a_rise_and_its_end_are_said_as_one_loss_that_held():
     assert "then held" in rise.words and "grew over 5 s" in rise.words
     assert end.words == "its end at t = 7.50 ± 0.03 s (a ramp of +3.98 %/s from then on cancels the change's rate)"
     assert (rise.coef, end.coef) == (-0.04, 0.0398)  # the numbers stay the fit's
+    # the verdict's sentence says the change once: the end is said with its rise (its words stay in the report)
+    assert (rise.said_with, end.said_with) == ("", rise.term.key)
+    assert in_one_sentence([rise, end]) == rise.words and "its end" not in in_one_sentence([rise, end])
 
 
 def test_a_pair_found_end_first_is_said_from_its_start_and_a_rate_left_is_said():

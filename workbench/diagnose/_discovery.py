@@ -177,7 +177,9 @@ def final_verdict(d: Any, disc: Any, section: dict[str, Any]) -> None:
     emitted = section.get("emitted")
     library = _library_sentence(d, changed_in_time(d) and confirms_change(disc))
     if improves(disc, d):
-        found = "; and ".join(ft.description for ft in disc.terms)
+        from workbench.discover import in_one_sentence
+
+        found = in_one_sentence(disc.terms)
         # at the noise floor by the cure's 1.5 σ, or by the discovery's own criterion (the one every candidate is judged
         # by: within the noise tolerance of its held-out samples, or below 3 σ with at most 1 % of the excess left)
         at_floor = cures(disc)

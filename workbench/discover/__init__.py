@@ -9,6 +9,7 @@ from workbench.discover._effect_writer import formula, parameter_names
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._onset import change_point, event_onset
 from workbench.discover._pipeline import describe_units, discover, load_emitted
+from workbench.discover._results import in_one_sentence
 
 __all__ = [
     "TIME_GATES",
@@ -21,6 +22,7 @@ __all__ = [
     "event_onset",
     "formula",
     "generated_effect",
+    "in_one_sentence",
     "load_emitted",
     "parameter_names",
     "signal_scales",

@@ -253,7 +253,7 @@ def finite_changes(found: Sequence[FoundTerm]) -> list[FoundTerm]:
             rise.term.param, rise.term.index, rise.coef, rise.shape, rise.shape_se, end.coef, end.shape,
             end.shape_se, HOLDS_SHARE)
         out[out.index(rise)] = _placed(rise, rise_words)
-        out[out.index(end)] = _placed(end, end_words)
+        out[out.index(end)] = _placed(end, end_words, said_with=rise.term.key)
     return out
 
 
@@ -262,6 +262,7 @@ def _pair(a: FoundTerm, b: FoundTerm) -> bool:
             and (a.term.param, a.term.index) == (b.term.param, b.term.index) and a.coef * b.coef < 0)
 
 
-def _placed(ft: FoundTerm, words: str) -> FoundTerm:
+def _placed(ft: FoundTerm, words: str, said_with: str = "") -> FoundTerm:
     near = (max(ft.shape - 2.0 * EMITTED_ONSET_S, 0.0), ft.shape + 2.0 * EMITTED_ONSET_S)
-    return FoundTerm(replace(ft.term, shape_range=near), ft.coef, ft.shape, ft.scale, words, ft.twins, ft.shape_se)
+    return FoundTerm(replace(ft.term, shape_range=near), ft.coef, ft.shape, ft.scale, words, ft.twins, ft.shape_se,
+                     said_with)

@@ -59,6 +59,7 @@ from workbench.discover._results import (
     Discovery,
     FoundTerm,
     describe_units,
+    in_one_sentence,
     noise_free_match,
 )
 from workbench.discover._rounds import (
@@ -189,10 +190,10 @@ def judge(setup: SearchSetup, progress: SearchProgress, found: list[FoundTerm], 
         return "not_found", (f"The best terms ({keys}) make the model diverge in free run ({note}): rejected. "
                              "Nothing in the dictionary explains the residual safely."), []
     if found and explained(current_held, held_before, n_held):
-        return "found", ("Found: " + "; and ".join(f.description for f in found)
+        return "found", ("Found: " + in_one_sentence(found)
                          + f". Held-out error {held_before:.4g} σ → {current_held:.4g} σ (noise floor 1 σ)."), found
     if found:
-        return "partial", ("Partly found: " + "; and ".join(f.description for f in found)
+        return "partial", ("Partly found: " + in_one_sentence(found)
                            + f". Held-out error {held_before:.4g} σ → {current_held:.4g} σ — above the noise floor "
                            f"(≤ {1 + noise_tolerance(n_held):.3g} σ): something else is missing too."), found
     if held_before <= 1.0 + noise_tolerance(n_held):

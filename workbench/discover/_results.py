@@ -63,6 +63,8 @@ class FoundTerm:
     twins: list[dict[str, Any]] = field(default_factory=list)
     #: the shape's standard error (an onset time's, s), None when not fitted
     shape_se: float | None = None
+    #: the key of the kept term whose words already say this one (a finite change's end, said by its rise), else ""
+    said_with: str = ""
 
     @property
     def description(self) -> str:
@@ -80,7 +82,13 @@ class FoundTerm:
                 "signal": self.term.signal, "form": self.term.form, "coefficient": self.coef,
                 "coefficient_unit": self.term.unit, "shape": self.shape if ALL_FORMS[self.term.form].shape else None,
                 "signal_scale": self.scale, "words": self.words, "twins": self.twins,
-                "description": self.description}
+                "description": self.description, "said_with": self.said_with}
+
+
+def in_one_sentence(found: Sequence[FoundTerm]) -> str:
+    """What was found, for a verdict's first sentence: each kept term's description joined by "; and", leaving out
+    those another term's words already say (a finite change's end)."""
+    return "; and ".join(f.description for f in found if not f.said_with)
 
 
 def separating_test(term: Term, twins: Sequence[dict[str, Any]]) -> str:
