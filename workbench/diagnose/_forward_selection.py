@@ -402,18 +402,14 @@ def select_set(winner: CandidateResult, others: Sequence[CandidateResult], base:
     best = path(winner)
     if beam and not at_noise_floor(best.final):
         starts = alternative_starts(winner, others)
-        for k, start in enumerate(starts):
-            sel = path(start)
-            if better(best.final, sel.final) is sel.final:
-                best = sel
+        for start in starts[:1]:
+            best = _keep_better(best, path(start))
+        if beam_unless is not None and not at_noise_floor(best.final):  # asked once, after the first other path
+            beam = not beam_unless(best.final)
+        for start in starts[1:] if beam else ():
             if at_noise_floor(best.final):
                 break
-            if k == 0 and beam_unless is not None:  # asked once, after the first other path
-                beam = not beam_unless(best.final)
-                if not beam:
-                    break
-        if not starts and beam_unless is not None:
-            beam = not beam_unless(best.final)
+            best = _keep_better(best, path(start))
     if beam and not at_noise_floor(best.final):
         swapped = _swap(best, everyone, base, targets, data, rss0_held, **kw)
         if swapped is not None and better(best.final, swapped) is swapped:
@@ -422,6 +418,11 @@ def select_set(winner: CandidateResult, others: Sequence[CandidateResult], base:
         _fill_without(best, base, targets, data, rss0_held, **kw)
     best.tried = tried
     return best
+
+
+def _keep_better(best: Selection, other: Selection) -> Selection:
+    """``other`` when its final set is :func:`better` than ``best``'s, else ``best``."""
+    return other if better(best.final, other.final) is other.final else best
 
 
 def _swap(sel: Selection, everyone: Sequence[CandidateResult], base: ParameterSet, targets: Sequence[Target],
