@@ -128,13 +128,21 @@ def connect(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s:
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
                                    scheduler_kwargs={"dashboard_address": ":0"}, memory_limit=0, silence_logs=50)
         return Client(cluster, set_as_default=False), cluster, f"local processes ({n} workers)"
+    probe_scheduler(scheduler, timeout_s)
     try:
-        return Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False), None, f"dask {scheduler}"
+        client = Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False)
     except (OSError, TimeoutError) as exc:
         raise SchedulerError(f"--scheduler: cannot reach the Dask scheduler at {scheduler!r} within "
                              f"{timeout_s:g} s ({exc})") from None
     except Exception as exc:  # malformed address and other connection errors
         raise SchedulerError(f"--scheduler: cannot connect to {scheduler!r}: {type(exc).__name__}: {exc}") from None
+    try:
+        client.wait_for_workers(1, timeout=timeout_s)
+    except TimeoutError:
+        client.close()
+        raise SchedulerError(f"--scheduler {scheduler}: the cluster has no worker (waited {timeout_s:g} s); start one "
+                             f"with 'dask worker {scheduler} --nthreads 1'") from None
+    return client, None, f"dask {scheduler}"
 
 
 def quiet_forked_workers() -> None:
@@ -150,11 +158,59 @@ def quiet_forked_workers() -> None:
         dask_logger.setLevel(logging.WARNING)
 
 
+#: the address schemes of a Dask scheduler (distributed's comm backends)
+SCHEMES = ("tcp", "tls", "ws", "wss", "ucx")
+
+
 def check_scheduler(text: str | None) -> str | None:
-    """The ``--scheduler`` value, checked: ``local``, ``synchronous`` or ``tcp://host:port``."""
-    if text in (None, "", "local", "synchronous") or (text is not None and "://" in text):
+    """The ``--scheduler`` value, checked without connecting: ``local``, ``synchronous`` or ``SCHEME://HOST:PORT``
+    (scheme of :data:`SCHEMES`, a host, a port 1-65535); None (the option not given) is the default."""
+    if text is None or text in ("local", "synchronous"):
         return text
-    raise SchedulerError(f"--scheduler {text!r}: expected local, synchronous or tcp://HOST:PORT")
+    expected = "expected local, synchronous or tcp://HOST:PORT"
+    if "://" not in text:
+        raise SchedulerError(f"--scheduler {text!r}: {'empty' if not text.strip() else 'no scheme'}; {expected}")
+    scheme, host, port = _address_parts(text)
+    if scheme not in SCHEMES:
+        raise SchedulerError(f"--scheduler {text!r}: unknown scheme {scheme!r} (a Dask scheduler's address is "
+                             f"{', '.join(s + '://' for s in SCHEMES)}); {expected}")
+    if not host:
+        raise SchedulerError(f"--scheduler {text!r}: no host; {expected}")
+    if port is None:
+        raise SchedulerError(f"--scheduler {text!r}: no port or not a port in 1-65535; {expected} "
+                             "(dask scheduler's default port is 8786)")
+    return text
+
+
+def _address_parts(text: str) -> tuple[str, str, int | None]:
+    """(scheme, host, port or None when missing or out of range) of ``SCHEME://HOST:PORT``."""
+    from urllib.parse import urlsplit
+
+    parts = urlsplit(text)
+    try:
+        port = parts.port
+    except ValueError:
+        port = None
+    return parts.scheme.lower(), parts.hostname or "", port if port and not parts.path.strip("/") else None
+
+
+def probe_scheduler(address: str, timeout_s: float) -> None:
+    """Fail at once, in words, when nothing can answer at a ``tcp://`` address (an unknown host, a refused
+    connection) instead of Dask's retries until its timeout; other schemes and slow networks are left to Dask."""
+    import socket
+
+    scheme, host, port = _address_parts(address)
+    if scheme != "tcp" or port is None:
+        return
+    try:
+        socket.create_connection((host, port), timeout=timeout_s).close()
+    except socket.gaierror as exc:
+        raise SchedulerError(f"--scheduler {address}: unknown host {host!r} ({exc.strerror or exc})") from None
+    except ConnectionRefusedError:
+        raise SchedulerError(f"--scheduler {address}: nothing listens at {host}:{port} (connection refused); start "
+                             f"'dask scheduler --port {port}' there, or give the address it printed") from None
+    except OSError:  # unreachable or slow: Dask's own connection and timeout say it
+        return
 
 
 def first_task_extra(arrived: list[TaskResult]) -> float:
