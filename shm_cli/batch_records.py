@@ -24,7 +24,9 @@ from pathlib import Path
 from typing import Any
 
 from board_config.errors import InputError
+from shm_cli.batch_out import check_batch_out
 from shm_cli.common import dump_json, out_dir
+from shm_cli.output_guard import locked_out
 
 #: the JSON document each command writes into its --out
 DOC_NAME = {"run": "life.json",
@@ -179,11 +181,30 @@ def summary_row(command: str, doc: dict[str, Any]) -> dict[str, Any]:
     row = scalar_columns(doc, skip=("wall_s",))
     if command == "diagnose" and isinstance(doc.get("baseline"), dict):
         row["nominal_held_rms_sigma"] = doc["baseline"].get("held_rms_sigma")
+    if command == "fit":
+        row.update(fit_columns(doc))
     for rec in doc.get("records", []) if command == "compare" else []:
         for ch, m in (rec.get("metrics") or {}).items():
             row[f"{ch}_verdict"] = (rec.get("verdicts") or {}).get(ch)
             row[f"{ch}_fit_pct"] = m.get("fit_pct")
             row[f"{ch}_rmse_{m.get('unit', 'SI')}"] = m.get("rmse")
+    return row
+
+
+def fit_columns(doc: dict[str, Any]) -> dict[str, Any]:
+    """A fit's row: the held-out and training RMS before and after (in sigma), whether the model explains the
+    record, and each estimate with its standard error, unit in the name (``k3_N_per_m``, ``k3_stderr_N_per_m``)."""
+    row: dict[str, Any] = {}
+    for part in ("held", "train"):
+        rms = doc.get(f"{part}_rms_sigma")
+        if isinstance(rms, dict):
+            row.update({f"{part}_rms_{when}_sigma": rms.get(when) for when in ("before", "after")})
+    if "model_explains_record" in doc:
+        row["model_explains_record"] = doc["model_explains_record"]
+    for est in doc.get("estimates") or []:
+        unit = str(est.get("unit") or "1").replace("*", "").replace("/", "_per_").replace(" ", "").replace("^", "")
+        row[f"{est['name']}_{unit}"] = est.get("value")
+        row[f"{est['name']}_stderr_{unit}"] = est.get("stderr")
     return row
 
 
@@ -200,9 +221,8 @@ def _progress_printer(command: str):
 
 def run_batch(command: str, args: argparse.Namespace, items: list[str]) -> int:
     """The batch: tasks, the scheduler, each task's report in its subfolder, the summary, batch.json."""
-    from studies.batch import expand_inputs, run_tasks
+    from studies.batch import expand_inputs
     from studies.batch.runner import check_scheduler
-    from studies.batch.summary import write_summary
 
     scheduler = check_scheduler(getattr(args, "scheduler", None))
     tasks = expand_inputs(items)
@@ -210,7 +230,18 @@ def run_batch(command: str, args: argparse.Namespace, items: list[str]) -> int:
     params = getattr(args, "params", None)
     if params and Path(params).is_file():
         shared["params"] = Path(params).read_bytes()
+    check_batch_out(Path(args.out), command, [t.key for t in tasks], ("summary.csv", "summary.html", "batch.json"),
+                    DOC_NAME[command], bool(getattr(args, "force", False)), force_hint=hasattr(args, "force"))
     out = out_dir(args.out)
+    with locked_out(out, command):
+        return _run_batch_locked(command, args, tasks, shared, scheduler, out)
+
+
+def _run_batch_locked(command: str, args: argparse.Namespace, tasks: list[Any], shared: dict[str, bytes],
+                      scheduler: str | None, out: Path) -> int:
+    from studies.batch import run_tasks
+    from studies.batch.summary import write_summary
+
     args.command = command
     print(f"shm {command}: {len(tasks)} tasks ({sum(len(t.files) for t in tasks)} records) on "
           f"{scheduler or 'local'}", file=sys.stderr, flush=True)

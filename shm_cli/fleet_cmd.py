@@ -6,14 +6,16 @@ from __future__ import annotations
 
 import argparse
 import functools
+import glob
 import sys
 from pathlib import Path
 from typing import Any
 
 from board_config.errors import InputError
+from shm_cli.batch_out import check_batch_out
 from shm_cli.batch_records import REPORT_NAME, run_command_task, warm_workbench
 from shm_cli.common import dump_json, out_dir
-from shm_cli.output_guard import check_foreign_run, locked_out
+from shm_cli.output_guard import locked_out
 
 #: the boards of a ``shm run --boards`` output, as a shell pattern (``board*`` would also match boards.csv/.html)
 BOARD_GLOB = "board[0-9]*"
@@ -35,7 +37,27 @@ def add_fleet_args(p: argparse.ArgumentParser, boards: bool) -> None:
                         "local worker processes), tcp://HOST:PORT (a Dask cluster) or synchronous (this process)")
 
 
+def board_folders(sources: list[str]) -> list[Path]:
+    """The boards of ``--fleet SOURCE...``: each SOURCE a folder, or a quoted pattern (``'fleet/board[0-9]*'``,
+    as the record commands take) expanded here; a pattern that matches nothing is an error naming it."""
+    folders = []
+    for source in sources:
+        if set("*?[") & set(source) and not Path(source).exists():
+            matches = sorted(glob.glob(source))
+            if not matches:
+                raise InputError(f"--fleet: the pattern {source!r} matches no board folder")
+            folders += [Path(m) for m in matches]
+        else:
+            folders.append(Path(source))
+    return folders
+
+
 def _board_files(folder: Path) -> dict[str, bytes]:
+    if not folder.exists():
+        raise InputError(f"--fleet: {folder}: no such board folder")
+    if not folder.is_dir():
+        raise InputError(f"--fleet: {folder} is a file; each board is a 'shm run' output folder (of a 'shm run "
+                         f"--boards' output: its {BOARD_GLOB} folders)")
     if not (folder / "usage.db").is_file():
         raise InputError(f"--fleet: {folder} is not a 'shm run' output (no usage.db in it)")
     files = {"usage.db": (folder / "usage.db").read_bytes()}
@@ -76,16 +98,19 @@ def run_fleet_health(args: argparse.Namespace) -> int:
     from studies.batch.summary import write_summary
 
     scheduler = check_scheduler(args.scheduler)
-    folders = [Path(s) for s in args.sources]
+    folders = board_folders(args.sources)
     names = [f.resolve().name for f in folders]
-    if len(set(names)) != len(names):
-        raise InputError("--fleet: two boards have the same folder name; each board's folder names it")
+    twice = sorted({str(f) for f, n in zip(folders, names, strict=True) if names.count(n) > 1})
+    if twice:
+        raise InputError(f"--fleet: boards with the same folder name ({', '.join(twice)}); each board's folder "
+                         "name names it in the fleet table: give each board once, under its own name")
     tasks = sorted(((n, _board_files(f)) for n, f in zip(names, folders, strict=True)), key=lambda t: t[0])
+    if Path(args.out).resolve() in {f.resolve() for f in folders}:
+        raise InputError(f"--out {args.out} is one of the --fleet boards: the fleet table would be written into a "
+                         "board's own run; choose another --out")
+    check_batch_out(Path(args.out), "health", [n for n, _ in tasks], ("fleet.csv", "fleet.html", "fleet.json"),
+                    "health.json", bool(getattr(args, "force", False)))
     out = out_dir(args.out)
-    if out.resolve() in {f.resolve() for f in folders}:
-        raise InputError(f"--out {out} is one of the --fleet boards: the fleet table would be written into a board's "
-                         "own run; choose another --out")
-    check_foreign_run(out, "fleet.json", bool(getattr(args, "force", False)))
     with locked_out(out, "health"):
         args.command = "health"
         print(f"shm health: fleet of {len(tasks)} boards on {scheduler or 'local'}", file=sys.stderr, flush=True)
