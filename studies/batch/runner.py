@@ -102,11 +102,12 @@ class BatchOutcome:
 
 # --- connecting --------------------------------------------------------------------------------------------------
 def connect(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s: float = 10.0, *,
-            fork: bool = False) -> tuple[Any, Any, str]:
+            fork: bool = False, worker_wait_s: float = 30.0) -> tuple[Any, Any, str]:
     """(client, local cluster or None, description): a LocalCluster of ``min(workers or CPUs, n_tasks)``
     single-thread worker processes for ``local``/None, else the cluster at ``scheduler``. ``fork``: the local
     workers are forked from this process (they inherit its imported modules and compiled kernels) instead of
-    spawned (a fresh interpreter each, which imports mfc-shm and loads or compiles every kernel again)."""
+    spawned (a fresh interpreter each, which imports mfc-shm and loads or compiles every kernel again). A remote
+    cluster gets ``worker_wait_s`` for its first worker to join (a cluster without one is an input error)."""
     try:
         from distributed import Client, LocalCluster
 
@@ -137,11 +138,11 @@ def connect(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s:
     except Exception as exc:  # malformed address and other connection errors
         raise SchedulerError(f"--scheduler: cannot connect to {scheduler!r}: {type(exc).__name__}: {exc}") from None
     try:
-        client.wait_for_workers(1, timeout=timeout_s)
+        client.wait_for_workers(1, timeout=worker_wait_s)  # a worker started with the scheduler may still import
     except TimeoutError:
         client.close()
-        raise SchedulerError(f"--scheduler {scheduler}: the cluster has no worker (waited {timeout_s:g} s); start one "
-                             f"with 'dask worker {scheduler} --nthreads 1'") from None
+        raise SchedulerError(f"--scheduler {scheduler}: the cluster has no worker (waited {worker_wait_s:g} s); start "
+                             f"one with 'dask worker {scheduler} --nthreads 1'") from None
     return client, None, f"dask {scheduler}"
 
 
@@ -195,22 +196,30 @@ def _address_parts(text: str) -> tuple[str, str, int | None]:
 
 
 def probe_scheduler(address: str, timeout_s: float) -> None:
-    """Fail at once, in words, when nothing can answer at a ``tcp://`` address (an unknown host, a refused
-    connection) instead of Dask's retries until its timeout; other schemes and slow networks are left to Dask."""
+    """Say in words what is wrong with a ``tcp://`` address before Dask's client tries it: an unknown host at once,
+    a port where nothing listens (connection refused, tried again until ``timeout_s``: a scheduler started just
+    before, as in docs/scale-out.md, may not listen yet) — Dask says 'Timed out' for both. Other schemes and
+    unreachable or slow networks are left to Dask's own connection and timeout."""
     import socket
 
     scheme, host, port = _address_parts(address)
     if scheme != "tcp" or port is None:
         return
-    try:
-        socket.create_connection((host, port), timeout=timeout_s).close()
-    except socket.gaierror as exc:
-        raise SchedulerError(f"--scheduler {address}: unknown host {host!r} ({exc.strerror or exc})") from None
-    except ConnectionRefusedError:
-        raise SchedulerError(f"--scheduler {address}: nothing listens at {host}:{port} (connection refused); start "
-                             f"'dask scheduler --port {port}' there, or give the address it printed") from None
-    except OSError:  # unreachable or slow: Dask's own connection and timeout say it
-        return
+    deadline = time.monotonic() + timeout_s
+    while True:
+        try:
+            socket.create_connection((host, port), timeout=timeout_s).close()
+            return
+        except socket.gaierror as exc:
+            raise SchedulerError(f"--scheduler {address}: unknown host {host!r} ({exc.strerror or exc})") from None
+        except ConnectionRefusedError:
+            if time.monotonic() >= deadline:
+                raise SchedulerError(f"--scheduler {address}: nothing listens at {host}:{port} (connection refused "
+                                     f"for {timeout_s:g} s); start 'dask scheduler --port {port}' there, or give "
+                                     "the address it printed") from None
+            time.sleep(0.25)
+        except OSError:
+            return
 
 
 def first_task_extra(arrived: list[TaskResult]) -> float:
