@@ -204,6 +204,11 @@ def plan_life(scenario: Scenario) -> list[tuple[int, float, dict[str, float]]]:
     return [(i + 1, h, deviations_at(life.laws, h, base)) for i, h in enumerate(life.visit_hours())]
 
 
+def _absolute(path: Any) -> Any:
+    """An existing file's absolute path (a parameter set's or board file's name, or None, as it is)."""
+    return str(Path(path).resolve()) if path and Path(path).is_file() else path
+
+
 def run_life(scenario: Scenario, *, seed: int, params: str, workers: int | None = None,
              board_config: str | None = None, on_visit: Callable[[VisitRun], None] | None = None,
              should_stop: Callable[[], bool] = lambda: False, scheduler: str | None = None) -> LifeResult:
@@ -217,7 +222,10 @@ def run_life(scenario: Scenario, *, seed: int, params: str, workers: int | None 
     plan = plan_life(scenario)
     n_workers = workers if workers is not None else min(len(plan), os.cpu_count() or 1)
     t0 = time.perf_counter()
-    args = [(scenario.source, v, h, d, visit_seed(seed, v), params, board_config) for v, h, d in plan]
+    source = scenario.source
+    if scheduler not in (None, "", "local", "synchronous"):  # a cluster's worker reads the files by path from its
+        source, params, board_config = (_absolute(x) for x in (source, params, board_config))  # own working folder
+    args = [(source, v, h, d, visit_seed(seed, v), params, board_config) for v, h, d in plan]
     done: dict[int, VisitRun] = {}
     shown = [0]
 

@@ -194,3 +194,40 @@ def test_a_fit_batch_summary_carries_the_fits_numbers():
     assert row == {"held_rms_before_sigma": 1.4, "held_rms_after_sigma": 0.9, "train_rms_before_sigma": 1.5,
                    "train_rms_after_sigma": 1.0, "model_explains_record": True, "k3_N_per_m": 21.3,
                    "k3_stderr_N_per_m": 0.002, "alpha_h_1": 0.6, "alpha_h_stderr_1": 1e-5}
+
+
+def test_a_life_on_a_cluster_sends_its_files_by_absolute_path(tmp_path, monkeypatch):
+    """docs/scale-out.md: 'shm run --scenario my-life.toml --scheduler tcp://...' — a worker started in another
+    folder looked for the relative 'my-life.toml' in its own ('key '-': file not found'); in this process and on
+    local workers the path stays as given."""
+    import studies.board_run.life_pool as life_pool
+    from board_config.scenario import load_scenario
+    from studies.health.life import run_life
+
+    text = open(load_scenario("aging").source, encoding="utf-8").read()
+    (tmp_path / "my-life.toml").write_text(text.replace('visits = { value = 24, unit = "1" }',
+                                                        'visits = { value = 2, unit = "1" }'))
+    (tmp_path / "mine.toml").write_text("")
+    monkeypatch.chdir(tmp_path)
+    sent = []
+
+    class Pool:
+        def __init__(self, fn, workers, scheduler):
+            pass
+
+        def __enter__(self):
+            return self
+
+        def __exit__(self, *exc):
+            return False
+
+        def run(self, args, finished, should_stop):
+            sent.extend(args)
+            return True
+
+    monkeypatch.setattr(life_pool, "LifePool", Pool)
+    run_life(load_scenario("my-life.toml"), seed=1, params="mine.toml", scheduler="tcp://127.0.0.1:8786")
+    assert {(a[0], a[5], a[6]) for a in sent} == {(str(tmp_path / "my-life.toml"), str(tmp_path / "mine.toml"), None)}
+    sent.clear()
+    run_life(load_scenario("my-life.toml"), seed=1, params="table2", workers=2)
+    assert {(a[0], a[5]) for a in sent} == {("my-life.toml", "table2")}
