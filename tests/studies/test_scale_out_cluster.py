@@ -1,7 +1,8 @@
 """Issue 31 point 4: a real Dask cluster from the command line (``dask scheduler`` + two ``dask worker`` on
-loopback, random free ports): a multi-record diagnose through ``--scheduler tcp://...`` equals the in-process run
-bit for bit (timings aside), and a worker killed (SIGKILL) mid-run loses nothing — its tasks rerun, the results
-are the same, the progress line says a worker was lost."""
+loopback, random free ports): a multi-record diagnose and a small fleet (``shm run --boards``, ``shm health
+--fleet``) through ``--scheduler tcp://...`` equal the in-process run bit for bit (timings aside), and a worker
+killed (SIGKILL) mid-run loses nothing — its tasks rerun, the results are the same, the progress line says a worker
+was lost."""
 
 from __future__ import annotations
 
@@ -125,6 +126,36 @@ def test_cluster_diagnose_equals_the_in_process_run(setup):
     assert cost["workers"] == 2 and cost["workers_lost"] == 0
     assert set(cost["warm_s"]) == set(cost["warm_s"]) and len(cost["warm_s"]) == 2  # both workers warmed once
     assert cost["bytes_scattered"] == sum(p.stat().st_size for p in records.iterdir())  # each record sent once
+
+
+@pytest.mark.slow
+def test_cluster_fleet_equals_the_in_process_run(setup):
+    """The small fleet through the same cluster: ``shm run --boards 2`` (a short aging life) and ``shm health
+    --fleet`` on it give the in-process run's boards table, fleet table and health reports (timings aside)."""
+    from board_config.scenario import load_scenario
+
+    tmp, _records, _reference, cluster = setup
+    text = Path(load_scenario("aging").source).read_text(encoding="utf-8")
+    short = text.replace('visits = { value = 24, unit = "1" }', 'visits = { value = 4, unit = "1" }').replace(
+        'visit_interval = { value = 100, unit = "h" }', 'visit_interval = { value = 300, unit = "h" }')
+    assert short != text
+    (tmp / "short.toml").write_text(short, encoding="utf-8")
+    for where in ("synchronous", cluster.address):
+        name = "here" if where == "synchronous" else "cluster"
+        assert main(["run", "--scenario", str(tmp / "short.toml"), "--boards", "2", "--seed", "3", "--scheduler",
+                     where, "--out", str(tmp / f"boards_{name}")]) == 0
+    assert (tmp / "boards_here" / "boards.csv").read_bytes() == (tmp / "boards_cluster" / "boards.csv").read_bytes()
+    boards = [str(tmp / "boards_cluster" / b) for b in ("board000", "board001")]
+    for where in ("synchronous", cluster.address):
+        name = "here" if where == "synchronous" else "cluster"
+        assert main(["health", "--fleet", *boards, "--follow", "never", "--locate", "never", "--scheduler", where,
+                     "--out", str(tmp / f"fleet_{name}")]) == 0
+    assert (tmp / "fleet_here" / "fleet.csv").read_bytes() == (tmp / "fleet_cluster" / "fleet.csv").read_bytes()
+    for b in ("board000", "board001"):
+        here, there = (json.loads((tmp / f"fleet_{n}" / b / "health.json").read_text()) for n in ("here", "cluster"))
+        assert timeless(here) == timeless(there)
+    assert json.loads((tmp / "fleet_cluster" / "fleet.json").read_text())["cost"]["scheduler"] == \
+        f"dask {cluster.address}"
 
 
 @pytest.mark.slow
