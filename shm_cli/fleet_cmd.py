@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import functools
 import glob
+import shutil
 import sys
 from pathlib import Path
 from typing import Any
@@ -159,11 +160,11 @@ def run_fleet_boards(args: argparse.Namespace) -> int:
     args.command = "run"
     args.quiet = True
     with locked_out(out, "run"):
-        if any(out.glob("board[0-9][0-9][0-9]")) and not args.force:
-            raise InputError(f"--out {out} holds an earlier fleet (board### folders): not overwriting it; use "
-                             "--force to replace it, or choose another --out")
+        earlier = _earlier_fleet(out, bool(args.force))
         outcome = run_tasks(tasks, _board_life_task, (args, seed), scheduler=scheduler, warm=warm_workbench,
                             progress=_progress("shm run --boards"))
+        for board in earlier:  # --force: the earlier fleet replaced whole, once the new one is in
+            shutil.rmtree(board)
         report_of = _write_task_files(out, outcome.results)
         rows = [{"board": r.key, "exit_code": r.code, "rate_factor": factors[i], "seed": seed + i,
                  **scalar_columns(r.doc, skip=("wall_s",)), "first_fault_visit": r.doc.get("first_fault_visit"),
@@ -175,6 +176,26 @@ def run_fleet_boards(args: argparse.Namespace) -> int:
     if args.json:
         print(dump_json({"boards": rows, "cost": outcome.cost()}))
     return 1 if any(r["exit_code"] for r in rows) else 0
+
+
+def _earlier_fleet(out: Path, force: bool) -> list[Path]:
+    """The board folders of an earlier ``shm run --boards`` in ``out`` (each a run: usage.db or life.json), which
+    ``--force`` replaces whole — a board's files left from it (a longer life's later visits, a larger fleet's last
+    boards) would mix into the new fleet and its ``shm health --fleet``. Without ``force`` an earlier fleet, or a
+    boards table no fleet wrote, is refused; a board-named folder holding no run is refused even with ``force``."""
+    boards = sorted(p for p in out.glob("board[0-9][0-9][0-9]"))
+    stray = [p for p in boards if not (p / "usage.db").is_file() and not (p / "life.json").is_file()]
+    if stray:
+        raise InputError(f"--out {out}: {stray[0]} is not a board of an earlier fleet (no usage.db or life.json in "
+                         "it): not writing over it, --force or not; choose another --out")
+    if not force and boards:
+        raise InputError(f"--out {out} holds an earlier fleet (board### folders): not overwriting it; use "
+                         "--force to replace it, or choose another --out")
+    table = next((out / n for n in ("boards.csv", "boards.html") if (out / n).exists()), None)
+    if not force and table is not None:
+        raise InputError(f"--out {out}: {table.name} is there and no earlier fleet's boards are beside it: not "
+                         "overwriting it; choose another --out, or --force to replace it")
+    return boards
 
 
 def _check_fleet_life(args: argparse.Namespace, scenario: Any) -> None:

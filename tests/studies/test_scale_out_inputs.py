@@ -231,3 +231,44 @@ def test_a_life_on_a_cluster_sends_its_files_by_absolute_path(tmp_path, monkeypa
     sent.clear()
     run_life(load_scenario("my-life.toml"), seed=1, params="table2", workers=2)
     assert {(a[0], a[5]) for a in sent} == {("my-life.toml", "table2")}
+
+
+def _fake_fleet_tasks(monkeypatch):
+    """``shm run --boards``' tasks replaced by boards of two visits each (no life is run)."""
+    import studies.batch as batch
+    from studies.batch import TaskResult
+    from studies.batch.runner import BatchOutcome
+
+    def run_tasks(tasks, *_a, **_k):
+        files = {"usage.db": b"db", "life.json": b"{}", "records/visit-001_mbit-a.csv": b"1",
+                 "records/visit-002_mbit-a.csv": b"2"}
+        return BatchOutcome([TaskResult(k, 0, "done", {}, dict(files)) for k, _ in tasks], "fake", 1)
+
+    monkeypatch.setattr(batch, "run_tasks", run_tasks)
+
+
+def test_boards_leave_the_users_table_alone_and_force_replaces_an_earlier_fleet_whole(tmp_path, monkeypatch, capsys):
+    _fake_fleet_tasks(monkeypatch)
+    out = tmp_path / "fleet"
+    out.mkdir()
+    (out / "boards.csv").write_text("my inventory of boards")
+    argv = ["run", "--scenario", "aging", "--boards", "2", "--seed", "3", "--out", str(out)]
+    assert main(argv) == 2 and "boards.csv is there and no earlier fleet's boards" in capsys.readouterr().err
+    assert (out / "boards.csv").read_text() == "my inventory of boards"
+    (out / "boards.csv").unlink()
+    # an earlier fleet of three boards with longer lives: --force leaves none of its files
+    for b in ("board000", "board001", "board002"):
+        (out / b / "records").mkdir(parents=True)
+        (out / b / "usage.db").write_bytes(b"old")
+        (out / b / "records" / "visit-009_mbit-a.csv").write_text("old visit")
+    assert main(argv) == 2 and "holds an earlier fleet" in capsys.readouterr().err
+    assert main([*argv, "--force"]) == 0
+    assert sorted(p.name for p in out.glob("board[0-9]*")) == ["board000", "board001"]
+    assert sorted(p.name for p in (out / "board000" / "records").iterdir()) == [
+        "visit-001_mbit-a.csv", "visit-002_mbit-a.csv"]
+    assert (out / "board000" / "usage.db").read_bytes() == b"db"
+    # a board-named folder that is not a board is the user's, --force or not
+    (out / "board007").mkdir()
+    (out / "board007" / "notes.txt").write_text("mine")
+    assert main([*argv, "--force"]) == 2 and "board007 is not a board of an earlier fleet" in capsys.readouterr().err
+    assert (out / "board007" / "notes.txt").read_text() == "mine" and (out / "board001").is_dir()
