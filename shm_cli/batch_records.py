@@ -116,6 +116,7 @@ def run_command_task(key: str, files: dict[str, bytes], shared: dict[str, bytes]
             code, message = 2, " ".join(str(exc).split())
         except Exception as exc:  # one task failing must not lose the others: reported in its row
             code, message = 1, f"{type(exc).__name__}: {' '.join(str(exc).split())}"
+        message = _scrub(message, tmp_name)  # 'broken.csv, line 2: ...', not the worker's temporary folder
         out = tmp / "out"
         out.mkdir(exist_ok=True)
         (out / "log.txt").write_text(log.getvalue() + (f"\n{message}\n" if message else ""), encoding="utf-8")

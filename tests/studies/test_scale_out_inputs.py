@@ -272,3 +272,16 @@ def test_boards_leave_the_users_table_alone_and_force_replaces_an_earlier_fleet_
     (out / "board007" / "notes.txt").write_text("mine")
     assert main([*argv, "--force"]) == 2 and "board007 is not a board of an earlier fleet" in capsys.readouterr().err
     assert (out / "board007" / "notes.txt").read_text() == "mine" and (out / "board001").is_dir()
+
+
+def test_a_failed_tasks_message_names_the_record_not_the_workers_temporary_folder(tmp_path, capsys):
+    """Before: 'broken: exit 2: /tmp/shm-task-mj4etngj/in/broken.csv, line 2: ...' — a path the user never had,
+    and a different one each run (the summary was not the same twice)."""
+    recs = tmp_path / "recs"
+    recs.mkdir()
+    (recs / "broken.csv").write_text("garbage,1\n")
+    assert main(["diagnose", str(recs), "--scheduler", "synchronous", "--out", str(tmp_path / "o")]) == 1
+    err = capsys.readouterr().err
+    assert "broken: exit 2: broken.csv, line 2: no data rows" in err and "shm-task-" not in err, err
+    summary = (tmp_path / "o" / "summary.csv").read_text()
+    assert "broken.csv, line 2" in summary and "shm-task-" not in summary
