@@ -170,7 +170,7 @@ def check_scheduler(text: str | None) -> str | None:
         return text
     expected = "expected local, synchronous or tcp://HOST:PORT"
     if "://" not in text:
-        raise SchedulerError(f"--scheduler {text!r}: {'empty' if not text.strip() else 'no scheme'}; {expected}")
+        raise SchedulerError(f"--scheduler {text!r}: {'empty; ' if not text.strip() else ''}{expected}")
     scheme, host, port = _address_parts(text)
     if scheme not in SCHEMES:
         raise SchedulerError(f"--scheduler {text!r}: unknown scheme {scheme!r} (a Dask scheduler's address is "
