@@ -87,6 +87,9 @@ def cmd_health(args: argparse.Namespace) -> int:
         return run_fleet_health(args)
     from shm_cli.main import CliError
 
+    if args.scheduler is not None:  # it would be ignored: the fits of one board go to --dask-scheduler
+        raise CliError("--scheduler runs one task per board with --fleet; one board's assessment runs here (its fits "
+                       "on a cluster: --dask-scheduler ADDRESS)")
     if args.as_of is not None and not args.as_of >= 0:
         raise CliError(f"--as-of must be a number of hours >= 0, got {args.as_of!r}")
     if args.seed < 0:

@@ -204,6 +204,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         from shm_cli.life_cmd import run_life_command
 
         return run_life_command(args, scenario)
+    if args.scheduler is not None:  # it would be ignored: one board's run is one process
+        raise CliError(f"--scheduler runs a [life] scenario's visits or --boards N lives on Dask; {scenario.source} "
+                       "has no [life] section and one run is one process: drop --scheduler, or add --boards N")
     plan = _plan_run(args, scenario)
     # --live (docs/live.md): before anything in --out is touched, so a port in use leaves an earlier run there
     args.live_session = live = start_live(args, report=plan.out / "report.html")

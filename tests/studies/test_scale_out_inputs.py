@@ -285,3 +285,17 @@ def test_a_failed_tasks_message_names_the_record_not_the_workers_temporary_folde
     assert "broken: exit 2: broken.csv, line 2: no data rows" in err and "shm-task-" not in err, err
     summary = (tmp_path / "o" / "summary.csv").read_text()
     assert "broken.csv, line 2" in summary and "shm-task-" not in summary
+
+
+def test_scheduler_where_it_would_be_ignored_is_refused(tmp_path, capsys):
+    """The record commands refuse --scheduler with files only; shm health without --fleet and shm run of a scenario
+    without [life] and without --boards ran in this process and said nothing of the cluster asked for."""
+    board = _fake_board(tmp_path / "board000")
+    code = main(["health", str(board), "--scheduler", "tcp://127.0.0.1:8786", "--out", str(tmp_path / "h")])
+    err = capsys.readouterr().err
+    assert code == 2 and "--scheduler runs one task per board with --fleet" in err and err.count("\n") == 1, err
+    code = main(["run", "--scenario", "maintenance", "--scheduler", "tcp://127.0.0.1:8786", "--out",
+                 str(tmp_path / "r")])
+    err = capsys.readouterr().err
+    assert code == 2 and "has no [life] section and one run is one process" in err and err.count("\n") == 1, err
+    assert not (tmp_path / "h").exists() and not (tmp_path / "r").exists()
