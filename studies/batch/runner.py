@@ -307,6 +307,18 @@ def _run_here(tasks, fn, options, shared, warm, progress, on_result) -> BatchOut
     return BatchOutcome(results, "synchronous (this process)", 1, warm_s=warm_s)
 
 
+def scatter_one(client: Any, files: dict[str, bytes]) -> Any:
+    """One future holding one task's files (the dict as one object). ``client.scatter(files)`` would scatter each
+    file on its own, under the file's name as its Dask key: a rerun board's ``usage.db`` and ``records/...`` were
+    then the same keys as another rerun board's, and one board was assessed on the other's data."""
+    return client.scatter([files], hash=False)[0]
+
+
+def input_lost(future: Any) -> bool:
+    """The scattered input of a task went with its worker (it must be scattered again for the rerun)."""
+    return bool(future.status != "finished")
+
+
 def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_result,
               longest_first=False) -> BatchOutcome:
     from studies.batch.warm import WarmPlugin, warm_seconds
@@ -360,8 +372,8 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_resul
                     if on_result is not None:
                         on_result(results[key])
                     continue
-                if inputs[key].status != "finished":
-                    inputs[key] = client.scatter(payload[key], hash=False)
+                if input_lost(inputs[key]):
+                    inputs[key] = scatter_one(client, payload[key])
                     scattered += sum(len(b) for b in payload[key].values())
                 rerun.add(key)
                 pending[submit(key)] = key

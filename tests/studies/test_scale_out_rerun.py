@@ -1,0 +1,50 @@
+"""Issue 31 point 4, found by an acceptance pass: a worker SIGKILLed during ``shm health --fleet`` on a real cluster
+(3 boards, 2 workers) gave a fleet table in which board002 had board000's forecast. Both boards' inputs went with
+the worker and were scattered again as ``client.scatter(files)`` — a dict, which Dask scatters file by file under
+the file names as keys: ``usage.db`` and ``records/visit-001_mbit-a.csv`` of two boards were then the same data.
+Here the loss is made certain: each task's first run fails as a lost worker's would and its input counts as lost."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+import studies.batch.runner as runner
+from studies.batch import TaskResult, run_tasks
+
+pytestmark = pytest.mark.slow
+
+
+def _board_task(key: str, files: dict[str, bytes], shared: dict[str, bytes], tried: str) -> TaskResult:
+    marker = Path(tried) / key
+    if not marker.exists():
+        marker.write_text("lost once")
+        raise RuntimeError("the worker running this task died (simulated)")
+    return TaskResult(key, 0, files["usage.db"].decode() + " " + files["records/visit-001.csv"].decode())
+
+
+def test_tasks_whose_inputs_are_lost_rerun_on_their_own_inputs(tmp_path, monkeypatch):
+    from distributed import LocalCluster
+
+    monkeypatch.setenv("MFC_SHM_THREADS", "1")  # the worker plugin sets it in this process (threads, not processes)
+    monkeypatch.setattr(runner, "input_lost", lambda future: True)
+    boards = [(f"board{i:03d}", {"usage.db": f"db of board{i:03d}".encode(),
+                                 "records/visit-001.csv": f"visit of board{i:03d}".encode()}) for i in range(3)]
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False, protocol="tcp://", host="127.0.0.1",
+                      dashboard_address=None) as cluster:
+        outcome = run_tasks(boards, _board_task, str(tmp_path), scheduler=cluster.scheduler_address)
+    assert [(r.key, r.code, r.message) for r in outcome.results] == [
+        (k, 0, f"db of {k} visit of {k}") for k, _ in boards]
+    assert outcome.reruns == 3
+    assert outcome.bytes_scattered == 2 * sum(len(b) for _, f in boards for b in f.values())
+
+
+def test_scatter_one_keeps_each_tasks_files_together(tmp_path):
+    from distributed import Client, LocalCluster
+
+    with LocalCluster(n_workers=1, processes=False, dashboard_address=None) as cluster, \
+            Client(cluster, set_as_default=False) as client:
+        a = runner.scatter_one(client, {"usage.db": b"A"})
+        b = runner.scatter_one(client, {"usage.db": b"B"})
+        assert a.key != b.key and a.result() == {"usage.db": b"A"} and b.result() == {"usage.db": b"B"}
