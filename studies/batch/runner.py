@@ -31,6 +31,8 @@ ResultFn = Callable[["TaskResult"], None]
 MAX_ATTEMPTS = 4
 #: seconds between looks at the cluster's workers while no result arrives (a result is taken the moment it is done)
 POLL_S = 0.5
+#: seconds a lost task's input waits for a worker to be scattered to again (a nanny restarts a killed worker)
+RESCATTER_WAIT_S = 60.0
 
 
 class SchedulerError(InputError):
@@ -307,11 +309,14 @@ def _run_here(tasks, fn, options, shared, warm, progress, on_result) -> BatchOut
     return BatchOutcome(results, "synchronous (this process)", 1, warm_s=warm_s)
 
 
-def scatter_one(client: Any, files: dict[str, bytes]) -> Any:
-    """One future holding one task's files (the dict as one object). ``client.scatter(files)`` would scatter each
-    file on its own, under the file's name as its Dask key: a rerun board's ``usage.db`` and ``records/...`` were
-    then the same keys as another rerun board's, and one board was assessed on the other's data."""
-    return client.scatter([files], hash=False)[0]
+def scatter_one(client: Any, files: dict[str, bytes], broadcast: bool = False) -> Any:
+    """One future holding one task's files (the dict as one object; ``broadcast``: on every worker), once a worker
+    is there (a dead worker's nanny starts a new one). ``client.scatter(files)`` would scatter each file on its own,
+    under the file's name as its Dask key: a rerun board's ``usage.db`` and ``records/...`` were then the same keys
+    as another rerun board's, and one board was assessed on the other's data."""
+    with contextlib.suppress(TimeoutError):
+        client.wait_for_workers(1, timeout=RESCATTER_WAIT_S)
+    return client.scatter([files], broadcast=broadcast, hash=False)[0]
 
 
 def input_lost(future: Any) -> bool:
@@ -328,7 +333,7 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_resul
     warm_s = {w: s.get(WarmPlugin.name, 0.0) for w, s in client.run(warm_seconds).items()}
     t1 = time.perf_counter()
     run_id = uuid.uuid4().hex[:8]
-    shared_f = client.scatter([shared], broadcast=True, hash=False)[0]
+    shared_f = [client.scatter([shared], broadcast=True, hash=False)[0]]  # [0] scattered again if every copy went
     inputs = dict(zip([k for k, _ in tasks], client.scatter([f for _, f in tasks], hash=False), strict=True))
     payload = {k: f for k, f in tasks}
     scattered = sum(len(b) for _, f in tasks for b in f.values()) + len(warm_s) * sum(len(b) for b in shared.values())
@@ -338,7 +343,7 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_resul
     def submit(key: str) -> Any:
         attempts[key] += 1
         # longest first (by its input's bytes) when asked: the last wave is then the short tasks
-        return client.submit(timed_task, fn, key, inputs[key], shared_f, options, pure=False,
+        return client.submit(timed_task, fn, key, inputs[key], shared_f[0], options, pure=False,
                              priority=size_of[key] if longest_first else 0,
                              key=f"shm-{key}-{run_id}-{attempts[key]}")
 
@@ -372,6 +377,8 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_resul
                     if on_result is not None:
                         on_result(results[key])
                     continue
+                if input_lost(shared_f[0]):  # every worker died at once (or the only one): no copy is left
+                    shared_f[0] = scatter_one(client, shared, broadcast=True)
                 if input_lost(inputs[key]):
                     inputs[key] = scatter_one(client, payload[key])
                     scattered += sum(len(b) for b in payload[key].values())

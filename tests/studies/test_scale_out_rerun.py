@@ -48,3 +48,33 @@ def test_scatter_one_keeps_each_tasks_files_together(tmp_path):
         a = runner.scatter_one(client, {"usage.db": b"A"})
         b = runner.scatter_one(client, {"usage.db": b"B"})
         assert a.key != b.key and a.result() == {"usage.db": b"A"} and b.result() == {"usage.db": b"B"}
+
+
+def _die_first(key: str, files: dict[str, bytes], shared: dict[str, bytes], tried: str) -> TaskResult:
+    import os
+    import signal
+
+    marker = Path(tried) / key
+    if not marker.exists():
+        marker.write_text("killed my worker once")
+        os.kill(os.getpid(), signal.SIGKILL)  # the worker process dies with the task, as under kill -9
+    return TaskResult(key, 0, files["usage.db"].decode() + " " + shared["params"].decode())
+
+
+def test_the_only_workers_death_loses_nothing(tmp_path):
+    """A one-worker cluster (or every worker at once): the files every task shares went with it too. Before, they
+    were never scattered again and each task came back 'cancelled for reason: lost dependencies' four times: exit 1,
+    'lost 4 times with its worker', on a cluster whose nanny had started a new worker at once."""
+    import dask
+    from distributed import LocalCluster
+
+    runner.quiet_forked_workers()
+    boards = [(f"board{i:03d}", {"usage.db": f"db of board{i:03d}".encode()}) for i in range(2)]
+    with dask.config.set({"distributed.worker.multiprocessing-method": "fork", "distributed.worker.daemon": False}), \
+            LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None,
+                         memory_limit=0, silence_logs=50) as cluster:
+        outcome = run_tasks(boards, _die_first, str(tmp_path), shared={"params": b"P"},
+                            scheduler=cluster.scheduler_address)
+    assert [(r.key, r.code, r.message) for r in outcome.results] == [
+        (k, 0, f"db of {k} P") for k, _ in boards]
+    assert outcome.workers_lost >= 1 and outcome.reruns >= 1
