@@ -314,9 +314,15 @@ def scatter_one(client: Any, files: dict[str, bytes], broadcast: bool = False) -
     is there (a dead worker's nanny starts a new one). ``client.scatter(files)`` would scatter each file on its own,
     under the file's name as its Dask key: a rerun board's ``usage.db`` and ``records/...`` were then the same keys
     as another rerun board's, and one board was assessed on the other's data."""
-    with contextlib.suppress(TimeoutError):
-        client.wait_for_workers(1, timeout=RESCATTER_WAIT_S)
-    return client.scatter([files], broadcast=broadcast, hash=False)[0]
+    deadline = time.monotonic() + RESCATTER_WAIT_S
+    while True:
+        try:
+            client.wait_for_workers(1, timeout=max(0.1, deadline - time.monotonic()))
+            return client.scatter([files], broadcast=broadcast, hash=False)[0]
+        except (OSError, TimeoutError):  # a worker that died meanwhile ('Stream is closed'): once it is replaced
+            if time.monotonic() >= deadline:
+                raise
+            time.sleep(POLL_S)
 
 
 def input_lost(future: Any) -> bool:
@@ -377,11 +383,18 @@ def _run_dask(client, desc, tasks, fn, options, shared, warm, progress, on_resul
                     if on_result is not None:
                         on_result(results[key])
                     continue
-                if input_lost(shared_f[0]):  # every worker died at once (or the only one): no copy is left
-                    shared_f[0] = scatter_one(client, shared, broadcast=True)
-                if input_lost(inputs[key]):
-                    inputs[key] = scatter_one(client, payload[key])
-                    scattered += sum(len(b) for b in payload[key].values())
+                try:
+                    if input_lost(shared_f[0]):  # every worker died at once (or the only one): no copy is left
+                        shared_f[0] = scatter_one(client, shared, broadcast=True)
+                    if input_lost(inputs[key]):
+                        inputs[key] = scatter_one(client, payload[key])
+                        scattered += sum(len(b) for b in payload[key].values())
+                except (OSError, TimeoutError) as lost_exc:  # no worker came back: this task fails, the rest stay
+                    results[key] = TaskResult(key, 1, f"lost with its worker, and no worker took its input again "
+                                                      f"within {RESCATTER_WAIT_S:g} s: {lost_exc}")
+                    if on_result is not None:
+                        on_result(results[key])
+                    continue
                 rerun.add(key)
                 pending[submit(key)] = key
                 continue

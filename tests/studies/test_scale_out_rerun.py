@@ -78,3 +78,32 @@ def test_the_only_workers_death_loses_nothing(tmp_path):
     assert [(r.key, r.code, r.message) for r in outcome.results] == [
         (k, 0, f"db of {k} P") for k, _ in boards]
     assert outcome.workers_lost >= 1 and outcome.reruns >= 1
+
+
+class _FlakyClient:
+    """A client whose scheduler's scatter fails while a dead worker is being replaced, then works."""
+
+    def __init__(self, failures: int) -> None:
+        self.failures = failures
+        self.calls = 0
+
+    def wait_for_workers(self, n: int, timeout: float) -> None:
+        pass
+
+    def scatter(self, data: list, broadcast: bool, hash: bool) -> list:
+        self.calls += 1
+        if self.calls <= self.failures:
+            raise OSError("in <TCP (closed) ConnectionPool.scatter local=... remote=...>: Stream is closed")
+        return [("future of", data[0])]
+
+
+def test_a_scatter_while_a_worker_is_replaced_is_tried_again(monkeypatch):
+    """Seen on a real cluster after both workers were SIGKILLed: the rescatter hit the dead worker's closed stream
+    and the whole command failed ('shm diagnose' failed: ... Stream is closed), the finished task's report lost."""
+    monkeypatch.setattr(runner, "POLL_S", 0.01)
+    client = _FlakyClient(failures=2)
+    assert runner.scatter_one(client, {"usage.db": b"A"}) == ("future of", {"usage.db": b"A"})
+    assert client.calls == 3
+    monkeypatch.setattr(runner, "RESCATTER_WAIT_S", 0.05)
+    with pytest.raises(OSError, match="Stream is closed"):
+        runner.scatter_one(_FlakyClient(failures=10**6), {"usage.db": b"A"})
