@@ -223,7 +223,7 @@ def _progress_printer(command: str):
 def run_batch(command: str, args: argparse.Namespace, items: list[str]) -> int:
     """The batch: tasks, the scheduler, each task's report in its subfolder, the summary, batch.json."""
     from studies.batch import expand_inputs
-    from studies.batch.runner import check_scheduler
+    from studies.batch.runner import check_scheduler, reach_scheduler
 
     scheduler = check_scheduler(getattr(args, "scheduler", None))
     tasks = expand_inputs(items)
@@ -233,6 +233,7 @@ def run_batch(command: str, args: argparse.Namespace, items: list[str]) -> int:
         shared["params"] = Path(params).read_bytes()
     check_batch_out(Path(args.out), command, [t.key for t in tasks], ("summary.csv", "summary.html", "batch.json"),
                     DOC_NAME[command], bool(getattr(args, "force", False)), force_hint=hasattr(args, "force"))
+    reach_scheduler(scheduler)  # an unknown host or a closed port: one line, before --out is made
     out = out_dir(args.out)
     with locked_out(out, command):
         return _run_batch_locked(command, args, tasks, shared, scheduler, out)

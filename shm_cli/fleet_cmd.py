@@ -95,7 +95,7 @@ def run_fleet_health(args: argparse.Namespace) -> int:
     """``shm health --fleet DIR...``: each board's assessment as one task, the fleet ranked by first FAULT."""
     from studies.batch import run_tasks
     from studies.batch.fleet import fleet_row, rank_fleet
-    from studies.batch.runner import check_scheduler
+    from studies.batch.runner import check_scheduler, reach_scheduler
     from studies.batch.summary import write_summary
 
     scheduler = check_scheduler(args.scheduler)
@@ -111,6 +111,7 @@ def run_fleet_health(args: argparse.Namespace) -> int:
                          "board's own run; choose another --out")
     check_batch_out(Path(args.out), "health", [n for n, _ in tasks], ("fleet.csv", "fleet.html", "fleet.json"),
                     "health.json", bool(getattr(args, "force", False)))
+    reach_scheduler(scheduler)
     out = out_dir(args.out)
     with locked_out(out, "health"):
         args.command = "health"
@@ -142,7 +143,7 @@ def run_fleet_boards(args: argparse.Namespace) -> int:
     from board_config.scenario import load_scenario
     from studies.batch import run_tasks
     from studies.batch.fleet import board_rate_factor, scaled_life
-    from studies.batch.runner import check_scheduler
+    from studies.batch.runner import check_scheduler, reach_scheduler
     from studies.batch.summary import scalar_columns, write_summary
 
     if args.boards < 1:
@@ -152,6 +153,7 @@ def run_fleet_boards(args: argparse.Namespace) -> int:
     if scenario.life is None:
         raise InputError(f"--boards needs a scenario with a [life] section ({scenario.source} has none)")
     _check_fleet_life(args, scenario)
+    reach_scheduler(scheduler)  # an unknown host or a closed port: one line, before --out is made
     seed = args.seed if args.seed is not None else scenario.seed
     text = Path(scenario.source).read_text(encoding="utf-8")
     factors = [board_rate_factor(seed, i) for i in range(args.boards)]

@@ -185,6 +185,15 @@ def check_scheduler(text: str | None) -> str | None:
     return text
 
 
+def reach_scheduler(text: str | None, timeout_s: float = 10.0) -> str | None:
+    """:func:`check_scheduler`, then :func:`probe_scheduler` for an address: in a command before it prints or
+    creates anything, so that an unknown host or a closed port is its one line and leaves no ``--out`` behind."""
+    scheduler = check_scheduler(text)
+    if scheduler not in (None, "local", "synchronous"):
+        probe_scheduler(scheduler, timeout_s)
+    return scheduler
+
+
 def _address_parts(text: str) -> tuple[str, str, int | None]:
     """(scheme, host, port or None when missing or out of range) of ``SCHEME://HOST:PORT``."""
     from urllib.parse import urlsplit

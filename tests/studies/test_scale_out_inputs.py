@@ -299,3 +299,22 @@ def test_scheduler_where_it_would_be_ignored_is_refused(tmp_path, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "has no [life] section and one run is one process" in err and err.count("\n") == 1, err
     assert not (tmp_path / "h").exists() and not (tmp_path / "r").exists()
+
+
+def test_an_unreachable_scheduler_is_one_line_and_leaves_no_out(tmp_path, capsys, monkeypatch):
+    """Before: 'shm diagnose: 1 tasks ... on tcp://...' then the error (two lines), and an empty --out was made."""
+    import studies.batch.runner as runner
+
+    monkeypatch.setattr(runner, "probe_scheduler", _refused)
+    recs = _records(tmp_path)
+    board = _fake_board(tmp_path / "board000")
+    for argv in (["diagnose", str(recs)], ["health", "--fleet", str(board)],
+                 ["run", "--scenario", "aging", "--boards", "2"]):
+        code = main([*argv, "--scheduler", "tcp://127.0.0.1:1", "--out", str(tmp_path / "o")])
+        err = capsys.readouterr().err
+        assert code == 2 and err.count("\n") == 1 and "nothing listens at 127.0.0.1:1" in err, (argv, err)
+        assert not (tmp_path / "o").exists(), argv
+
+
+def _refused(address: str, timeout_s: float) -> None:
+    raise SchedulerError(f"--scheduler {address}: nothing listens at 127.0.0.1:1 (connection refused for 0 s)")
