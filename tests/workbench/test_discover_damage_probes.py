@@ -12,7 +12,9 @@ from workbench.discover._results import ScreenRow
 from workbench.discover._search import (
     DAMAGE_PROBED_PER_PARAM,
     DAMAGE_PROBES,
+    GROWN_PROBES,
     MAX_HARD_PROBED,
+    MAX_MULTIPLIED,
     damage_probed,
     probe_plan,
 )
@@ -32,7 +34,7 @@ def test_each_parameter_gets_its_best_state_gated_damage_terms_probed():
     d_ep = Term("damage", -1, "va", "on_neg", param="d_ep")
     rows = [_row(t) for t in (force, step, k3[0], k3[1], k2[0], k3[2], k3[3], k3[4], d_ep)]
     chosen = damage_probed(rows)
-    assert chosen == {2, 3, 4, 5, 8}  # k3's first three, k2's one, d_ep's one
+    assert chosen == {2, 3, 4, 8}  # k3's first two, k2's one, d_ep's one
     assert sum(1 for j in chosen if rows[j].term.param == "k" and rows[j].term.index == 2) == DAMAGE_PROBED_PER_PARAM
 
 
@@ -49,11 +51,15 @@ def test_damage_terms_do_not_take_the_forces_multiples():
     assert min(plan[len(rows) - 1]) == pytest.approx(0.001) and max(plan[len(rows) - 1]) == pytest.approx(0.1)
     for j, row in enumerate(rows[:-1]):
         extra = plan[j][1:]
-        assert extra in ([], list(DAMAGE_PROBES)), row.term.key
+        assert extra in ([], list(DAMAGE_PROBES), list(DAMAGE_PROBES + GROWN_PROBES)), row.term.key
+        assert extra == [] or (len(extra) > len(DAMAGE_PROBES)) == (row.term.param == "c")
         assert extra == [] or j in damage_probed(rows)
-    forces = [_row(Term("force_mass", i % 3, "z3", "pos")) for i in range(MAX_HARD_PROBED + 5)]
+    forces = [_row(Term("force_mass", i % 3, "zd3", "sign")) for i in range(MAX_MULTIPLIED + 5)]
     plan = dict(probe_plan(forces))
-    assert sum(len(c) == 7 for c in plan.values()) == MAX_HARD_PROBED  # the budget still holds for the forces
+    assert [len(plan[j]) for j in range(len(forces))] == (
+        [7] * MAX_HARD_PROBED + [3] * (MAX_MULTIPLIED - MAX_HARD_PROBED) + [1] * 5)  # ×1, ×3, ×10 further down
+    stops = [_row(Term("force_mass", i % 3, "z3", "pos")) for i in range(MAX_HARD_PROBED + 5)]
+    assert [len(c) for _, c in probe_plan(stops)] == [7] * MAX_HARD_PROBED + [1] * 5  # a stop: the first few only
 
 
 @pytest.mark.slow

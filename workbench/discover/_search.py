@@ -51,19 +51,28 @@ HARD_FORMS = ("sign", "pos", "neg", "dead", "clip", "sat", "on_pos", "on_neg", "
 #: strong cases change the motion they act on (strong velocity-squared drag halves the velocity the linearisation
 #: was taken along: the drag on mass 2 was screened out, a viscous term stood in at 94 sigma)
 PROBED_FORMS = (*HARD_FORMS, "absx", "cube", "square")
-#: how many probed terms (best by the linearised screen; state-gated damage terms aside) get the extra probes: all
-#: the dictionary has (51 on an MBIT.b step) — strong tip friction linearises 45th of them (its stick is nowhere in
-#: a sensitivity taken along the nominal run) and was neither probed at ×10 nor refitted with 20 (a damping gated by
-#: δ3 stood in at 11.6 σ; the friction term leaves 1.04 σ)
-MAX_HARD_PROBED = 64
+#: how many probed terms (best by the linearised screen; state-gated damage terms aside) get every multiple
+MAX_HARD_PROBED = 20
+#: the multiples of the linearised coefficient every probed term gets; the first :data:`MAX_HARD_PROBED` of them
+#: get :data:`FINE_MULTIPLES` as well
+MULTIPLES = (1.0, 3.0, 10.0)
+FINE_MULTIPLES = (0.1, 1.0 / 3.0, 0.6, 1.7)
+#: how many probed terms get :data:`MULTIPLES` — beyond the first :data:`MAX_HARD_PROBED`, only a friction force
+#: (a sign of a velocity; ×10 probes of the other hard forces made a 15 s sweep's screen 12 s longer): strong tip
+#: friction linearises 45th of the 51 hard terms on an MBIT.b step (its stick is nowhere in a sensitivity taken
+#: along the nominal run; its best probe is at ×10, the weak one's at ×3) and was neither probed nor refitted with
+#: 20 (a damping gated by δ3 stood in at 11.6 σ; the friction term leaves 1.04 σ)
+MAX_MULTIPLIED = 64
 #: relative changes a damage term (a core parameter's fraction, gated by a state or the drive) is also probed at:
 #: damage changes a parameter by tens of percent, where the linearisation along the nominal run misleads most (it
 #: cannot move a resonance) — a crack in section 3 (k3 −20 % for δ3 < 0) was screened at 642 σ from its linearised
 #: coefficient, 50th of 292 terms, and found only after 50 refits of forces on the masses; refitted, 1.02 σ. Up to
-#: half lost, or up to four times as much (a damping where faces rub or touch: +170 % and more)
-DAMAGE_PROBES = (-0.5, -0.3, -0.15, 0.15, 0.4, 1.0, 3.0)
+#: half lost or a third gained; a damping (:data:`GROWN_PROBES`) also up to four times as much (faces that rub or
+#: touch: +170 % and more)
+DAMAGE_PROBES = (-0.5, -0.25, 0.3)
+GROWN_PROBES = (1.0, 3.0)
 #: how many damage terms of each parameter (the best by the linearised screen) get :data:`DAMAGE_PROBES`
-DAMAGE_PROBED_PER_PARAM = 3
+DAMAGE_PROBED_PER_PARAM = 2
 
 
 def _state_gated_damage(term: Term) -> bool:
@@ -90,18 +99,22 @@ def damage_probed(rows: Sequence[ScreenRow]) -> set[int]:
 
 def probe_plan(rows: Sequence[ScreenRow]) -> list[tuple[int, list[float]]]:
     """Each row's probe coefficients (rows ranked by the linearised screen): its linearised coefficient; the first
-    :data:`MAX_HARD_PROBED` rows of a :data:`PROBED_FORMS` form also at ×0.1 … ×10 — a state-gated damage term not
-    (~200 of them took every slot from the forces: strong tip friction on an MBIT.b step went unprobed and
-    unrefitted, a damping ramp left 4.47 σ where the friction term leaves 1.04 σ); each parameter's best damage terms
-    (:func:`damage_probed`) at :data:`DAMAGE_PROBES`."""
+    :data:`MAX_MULTIPLIED` rows of a :data:`PROBED_FORMS` form also at ×3 and ×10, the first :data:`MAX_HARD_PROBED`
+    at ×0.1 … ×1.7 too — a state-gated damage term not (~200 of them took every slot from the forces: strong tip
+    friction on an MBIT.b step went unprobed and unrefitted, a damping ramp left 4.47 σ where the friction term
+    leaves 1.04 σ); each parameter's best damage terms (:func:`damage_probed`) at :data:`DAMAGE_PROBES`."""
     probes: list[tuple[int, list[float]]] = []
     n_hard = 0
     damage = damage_probed(rows)
     for j, r in enumerate(rows):
-        hard = r.term.form in PROBED_FORMS and n_hard < MAX_HARD_PROBED and not _state_gated_damage(r.term)
+        hard = r.term.form in PROBED_FORMS and n_hard < MAX_MULTIPLIED and not _state_gated_damage(r.term)
+        fine = n_hard < MAX_HARD_PROBED
         n_hard += hard
-        mult = (1.0, 0.1, 1.0 / 3.0, 0.6, 1.7, 3.0, 10.0) if hard else (1.0,)
-        probes.append((j, [r.coef * m for m in mult] + (list(DAMAGE_PROBES) if j in damage else [])))
+        if hard and not fine and not (r.term.placement.startswith("force") and r.term.form == "sign"):
+            hard = False  # beyond the first few, only a force that sticks (a sign of a velocity) gets ×3 and ×10
+        mult = (*MULTIPLES, *(FINE_MULTIPLES if fine else ())) if hard else (1.0,)
+        grown = GROWN_PROBES if r.term.param == "c" else ()
+        probes.append((j, [r.coef * m for m in mult] + (list(DAMAGE_PROBES + grown) if j in damage else [])))
     return probes
 
 
