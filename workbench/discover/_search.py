@@ -107,12 +107,12 @@ def probe_plan(rows: Sequence[ScreenRow]) -> list[tuple[int, list[float]]]:
     n_hard = 0
     damage = damage_probed(rows)
     for j, r in enumerate(rows):
-        hard = r.term.form in PROBED_FORMS and n_hard < MAX_MULTIPLIED and not _state_gated_damage(r.term)
-        fine = n_hard < MAX_HARD_PROBED
-        n_hard += hard
-        if hard and not fine and not (r.term.placement.startswith("force") and r.term.form == "sign"):
-            hard = False  # beyond the first few, only a force that sticks (a sign of a velocity) gets ×3 and ×10
-        mult = (*MULTIPLES, *(FINE_MULTIPLES if fine else ())) if hard else (1.0,)
+        ranked = r.term.form in PROBED_FORMS and n_hard < MAX_MULTIPLIED and not _state_gated_damage(r.term)
+        fine = ranked and n_hard < MAX_HARD_PROBED
+        n_hard += ranked
+        # beyond the first few, only a force that sticks (a sign of a velocity: friction) gets ×3 and ×10
+        sticks = r.term.placement.startswith("force") and r.term.form == "sign"
+        mult = (*MULTIPLES, *FINE_MULTIPLES) if fine else MULTIPLES if ranked and sticks else (1.0,)
         grown = GROWN_PROBES if r.term.param == "c" else ()
         probes.append((j, [r.coef * m for m in mult] + (list(DAMAGE_PROBES + grown) if j in damage else [])))
     return probes
