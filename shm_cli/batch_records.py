@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from board_config.errors import InputError
-from shm_cli.batch_out import check_batch_out
+from shm_cli.batch_out import TASK_FILES, check_batch_out, earlier_task_files, write_task_folders
 from shm_cli.common import dump_json, out_dir
 from shm_cli.output_guard import locked_out
 
@@ -251,12 +251,10 @@ def _run_batch_locked(command: str, args: argparse.Namespace, tasks: list[Any], 
                         scheduler=scheduler, warm=functools.partial(warm_workbench, command),
                         progress=_progress_printer(command),
                         longest_first=True)
+    task_files = write_task_folders(out, {r.key: r.files for r in outcome.results},
+                                    earlier_task_files(out, "batch.json"), f"shm {command}")
     rows, report_of = [], {}
     for r in outcome.results:
-        for rel, data in r.files.items():
-            dest = out / r.key / rel
-            dest.parent.mkdir(parents=True, exist_ok=True)
-            dest.write_bytes(data)
         if REPORT_NAME[command] in r.files:
             report_of[r.key] = f"{r.key}/{REPORT_NAME[command]}"
         rows.append({"task": r.key, "records": " ".join(t.name for t in _files_of(tasks, r.key)),
@@ -264,7 +262,7 @@ def _run_batch_locked(command: str, args: argparse.Namespace, tasks: list[Any], 
     paths = write_summary(out, f"shm {command}: {len(rows)} tasks", rows, report_of)
     doc = {"command": command, "tasks": rows, "files": {k: str(v) for k, v in paths.items()},
            "cost": outcome.cost()}
-    (out / "batch.json").write_text(dump_json(doc), encoding="utf-8")
+    (out / "batch.json").write_text(dump_json({**doc, TASK_FILES: task_files}), encoding="utf-8")
     failed = [r for r in outcome.results if r.code != 0]
     for r in failed:
         print(f"shm {command}: {r.key}: exit {r.code}: {r.message}", file=sys.stderr)

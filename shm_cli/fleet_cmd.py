@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from board_config.errors import InputError
-from shm_cli.batch_out import check_batch_out
+from shm_cli.batch_out import TASK_FILES, check_batch_out, earlier_task_files, write_task_folders
 from shm_cli.batch_records import REPORT_NAME, run_command_task, warm_workbench
 from shm_cli.common import dump_json, out_dir
 from shm_cli.output_guard import locked_out
@@ -68,16 +68,9 @@ def _board_files(folder: Path) -> dict[str, bytes]:
     return files
 
 
-def _write_task_files(out: Path, results: list[Any]) -> dict[str, str]:
-    report_of = {}
-    for r in results:
-        for rel, data in r.files.items():
-            dest = out / r.key / rel
-            dest.parent.mkdir(parents=True, exist_ok=True)
-            dest.write_bytes(data)
-        if REPORT_NAME["health" if "health.json" in r.files else "run"] in r.files:
-            report_of[r.key] = f"{r.key}/report.html"
-    return report_of
+def _report_of(results: list[Any]) -> dict[str, str]:
+    return {r.key: f"{r.key}/report.html" for r in results
+            if REPORT_NAME["health" if "health.json" in r.files else "run"] in r.files}
 
 
 def _progress(what: str):
@@ -119,12 +112,14 @@ def run_fleet_health(args: argparse.Namespace) -> int:
         outcome = run_tasks(tasks, run_command_task, args, scheduler=scheduler,
                             warm=functools.partial(warm_workbench, "health"),
                             progress=_progress("shm health --fleet"), longest_first=True)
-        report_of = _write_task_files(out, outcome.results)
+        task_files = write_task_folders(out, {r.key: r.files for r in outcome.results},
+                                        earlier_task_files(out, "fleet.json"), "shm health --fleet")
+        report_of = _report_of(outcome.results)
         rows = rank_fleet([fleet_row(r.key, r.doc, r.code, r.message) for r in outcome.results])
         paths = write_summary(out, f"Fleet: {len(rows)} boards ranked by forecast first FAULT", rows, report_of,
                               stem="fleet", key="board")
         doc = {"fleet": rows, "files": {k: str(v) for k, v in paths.items()}, "cost": outcome.cost()}
-        (out / "fleet.json").write_text(dump_json(doc), encoding="utf-8")
+        (out / "fleet.json").write_text(dump_json({**doc, TASK_FILES: task_files}), encoding="utf-8")
     say = (lambda s: print(s, file=sys.stderr)) if args.json else print
     for r in rows:
         fault = "-" if r["first_fault_h"] is None else (
@@ -167,7 +162,8 @@ def run_fleet_boards(args: argparse.Namespace) -> int:
                             progress=_progress("shm run --boards"))
         for board in earlier:  # --force: the earlier fleet replaced whole, once the new one is in
             shutil.rmtree(board)
-        report_of = _write_task_files(out, outcome.results)
+        write_task_folders(out, {r.key: r.files for r in outcome.results}, {}, "shm run --boards")
+        report_of = _report_of(outcome.results)
         rows = [{"board": r.key, "exit_code": r.code, "rate_factor": factors[i], "seed": seed + i,
                  **scalar_columns(r.doc, skip=("wall_s",)), "first_fault_visit": r.doc.get("first_fault_visit"),
                  "message": "" if r.code == 0 else r.message} for i, r in enumerate(outcome.results)]
