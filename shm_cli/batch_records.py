@@ -242,10 +242,11 @@ def run_batch(command: str, args: argparse.Namespace, items: list[str]) -> int:
 def _run_batch_locked(command: str, args: argparse.Namespace, tasks: list[Any], shared: dict[str, bytes],
                       scheduler: str | None, out: Path) -> int:
     from studies.batch import run_tasks
+    from studies.batch.runner import counted
     from studies.batch.summary import write_summary
 
     args.command = command
-    print(f"shm {command}: {len(tasks)} tasks ({sum(len(t.files) for t in tasks)} records) on "
+    print(f"shm {command}: {counted(len(tasks), 'task')} ({counted(sum(len(t.files) for t in tasks), 'record')}) on "
           f"{scheduler or 'local'}", file=sys.stderr, flush=True)
     outcome = run_tasks([(t.key, t.read()) for t in tasks], run_command_task, args, shared=shared,
                         scheduler=scheduler, warm=functools.partial(warm_workbench, command),
@@ -259,14 +260,14 @@ def _run_batch_locked(command: str, args: argparse.Namespace, tasks: list[Any], 
             report_of[r.key] = f"{r.key}/{REPORT_NAME[command]}"
         rows.append({"task": r.key, "records": " ".join(t.name for t in _files_of(tasks, r.key)),
                      "exit_code": r.code, **summary_row(command, r.doc), "message": r.message})
-    paths = write_summary(out, f"shm {command}: {len(rows)} tasks", rows, report_of)
+    paths = write_summary(out, f"shm {command}: {counted(len(rows), 'task')}", rows, report_of)
     doc = {"command": command, "tasks": rows, "files": {k: str(v) for k, v in paths.items()},
            "cost": outcome.cost()}
     (out / "batch.json").write_text(dump_json({**doc, TASK_FILES: task_files}), encoding="utf-8")
     failed = [r for r in outcome.results if r.code != 0]
     for r in failed:
         print(f"shm {command}: {r.key}: exit {r.code}: {r.message}", file=sys.stderr)
-    print(f"shm {command}: {len(rows) - len(failed)} of {len(rows)} tasks done in {outcome.wall_s:.1f} s "
+    print(f"shm {command}: {len(rows) - len(failed)} of {counted(len(rows), 'task')} done in {outcome.wall_s:.1f} s "
           f"({outcome.scheduler}); summary: {paths['html']}", file=sys.stderr)
     if args.json:
         print(dump_json(doc))

@@ -88,7 +88,7 @@ def run_fleet_health(args: argparse.Namespace) -> int:
     """``shm health --fleet DIR...``: each board's assessment as one task, the fleet ranked by first FAULT."""
     from studies.batch import run_tasks
     from studies.batch.fleet import fleet_row, rank_fleet
-    from studies.batch.runner import check_scheduler, reach_scheduler
+    from studies.batch.runner import check_scheduler, counted, reach_scheduler
     from studies.batch.summary import write_summary
 
     scheduler = check_scheduler(args.scheduler)
@@ -108,7 +108,8 @@ def run_fleet_health(args: argparse.Namespace) -> int:
     out = out_dir(args.out)
     with locked_out(out, "health"):
         args.command = "health"
-        print(f"shm health: fleet of {len(tasks)} boards on {scheduler or 'local'}", file=sys.stderr, flush=True)
+        print(f"shm health: fleet of {counted(len(tasks), 'board')} on {scheduler or 'local'}", file=sys.stderr,
+              flush=True)
         outcome = run_tasks(tasks, run_command_task, args, scheduler=scheduler,
                             warm=functools.partial(warm_workbench, "health"),
                             progress=_progress("shm health --fleet"), longest_first=True)
@@ -116,8 +117,8 @@ def run_fleet_health(args: argparse.Namespace) -> int:
                                         earlier_task_files(out, "fleet.json"), "shm health --fleet")
         report_of = _report_of(outcome.results)
         rows = rank_fleet([fleet_row(r.key, r.doc, r.code, r.message) for r in outcome.results])
-        paths = write_summary(out, f"Fleet: {len(rows)} boards ranked by forecast first FAULT", rows, report_of,
-                              stem="fleet", key="board")
+        paths = write_summary(out, f"Fleet: {counted(len(rows), 'board')} ranked by forecast first FAULT", rows,
+                              report_of, stem="fleet", key="board")
         doc = {"fleet": rows, "files": {k: str(v) for k, v in paths.items()}, "cost": outcome.cost()}
         (out / "fleet.json").write_text(dump_json({**doc, TASK_FILES: task_files}), encoding="utf-8")
     say = (lambda s: print(s, file=sys.stderr)) if args.json else print
@@ -138,7 +139,7 @@ def run_fleet_boards(args: argparse.Namespace) -> int:
     from board_config.scenario import load_scenario
     from studies.batch import run_tasks
     from studies.batch.fleet import board_rate_factor, scaled_life
-    from studies.batch.runner import check_scheduler, reach_scheduler
+    from studies.batch.runner import check_scheduler, counted, reach_scheduler
     from studies.batch.summary import scalar_columns, write_summary
 
     if args.boards < 1:
@@ -167,9 +168,10 @@ def run_fleet_boards(args: argparse.Namespace) -> int:
         rows = [{"board": r.key, "exit_code": r.code, "rate_factor": factors[i], "seed": seed + i,
                  **scalar_columns(r.doc, skip=("wall_s",)), "first_fault_visit": r.doc.get("first_fault_visit"),
                  "message": "" if r.code == 0 else r.message} for i, r in enumerate(outcome.results)]
-        paths = write_summary(out, f"{len(rows)} boards through '{scenario.name}'", rows, report_of, stem="boards",
-                              key="board")
-    print(f"shm run: {len(rows)} boards in {outcome.wall_s:.1f} s ({outcome.scheduler}); {paths['html']}; next: "
+        paths = write_summary(out, f"{counted(len(rows), 'board')} through '{scenario.name}'", rows, report_of,
+                              stem="boards", key="board")
+    print(f"shm run: {counted(len(rows), 'board')} in {outcome.wall_s:.1f} s ({outcome.scheduler}); {paths['html']}; "
+          "next: "
           f"shm health --fleet {out}/{BOARD_GLOB} --out {out}/fleet", file=sys.stderr)
     if args.json:
         print(dump_json({"boards": rows, "cost": outcome.cost()}))

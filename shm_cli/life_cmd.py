@@ -139,13 +139,15 @@ def _write_life(args: argparse.Namespace, scenario: Any, seed: int, params: str,
                 result: Any, status: str, lines: list[str], say: Any) -> tuple[dict[str, Any], dict[str, str]]:
     """Every file of the life into ``stage``, then moved into ``out`` (an earlier run's files replaced)."""
     from shm_cli.output_folder import remove_run_outputs
+    from studies.batch.runner import counted
     from studies.health.life import write_life_log
     from studies.health.life_report import write_life_report
 
     summary = write_life_log(result, scenario, stage, seed=seed, params=params, board_config=cfg.as_dict(),
                              status=status, final_dir=out)
     first = summary["first_fault_visit"]
-    say(f"end: {len(result.visits)} visits in {result.wall_s:.1f} s wall ({result.workers} workers); first FAULT "
+    say(f"end: {counted(len(result.visits), 'visit')} in {result.wall_s:.1f} s wall "
+        f"({counted(result.workers, 'worker')}); first FAULT "
         + (f"at visit {first} ({summary['first_fault_operating_hours']:g} h)" if first else "never"))
     (stage / "timeline.txt").write_text("\n".join(lines) + "\n")
     (stage / "summary.json").write_text(dump_json(summary))

@@ -35,6 +35,11 @@ POLL_S = 0.5
 RESCATTER_WAIT_S = 60.0
 
 
+def counted(n: int, noun: str, plural: str | None = None) -> str:
+    """``"1 worker"``, ``"2 workers"``, ``"0 workers"``: a count and its noun as a progress line says it."""
+    return f"{n} {noun if n == 1 else (plural or noun + 's')}"
+
+
 class SchedulerError(InputError):
     """The scheduler cannot be reached or started."""
 
@@ -66,9 +71,9 @@ class BatchProgress:
     reruns: int
 
     def line(self, what: str) -> str:
-        text = f"{what}: {self.done}/{self.total} tasks done, {self.workers} workers"
+        text = f"{what}: {self.done}/{counted(self.total, 'task')} done, {counted(self.workers, 'worker')}"
         if self.workers_lost:
-            text += f", {self.workers_lost} worker(s) lost — {self.reruns} task(s) rerun"
+            text += f", {counted(self.workers_lost, 'worker')} lost — {counted(self.reruns, 'task')} rerun"
         return text
 
 
@@ -130,7 +135,7 @@ def connect(scheduler: str | None, workers: int | None, n_tasks: int, timeout_s:
             # no dashboard; the scheduler's small HTTP server on a free port (not 8787: no warning beside a 2nd run)
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
                                    scheduler_kwargs={"dashboard_address": ":0"}, memory_limit=0, silence_logs=50)
-        return Client(cluster, set_as_default=False), cluster, f"local processes ({n} workers)"
+        return Client(cluster, set_as_default=False), cluster, f"local processes ({counted(n, 'worker')})"
     probe_scheduler(scheduler, timeout_s)
     try:
         client = Client(scheduler, timeout=f"{timeout_s}s", set_as_default=False)

@@ -249,4 +249,4 @@ def test_a_lost_worker_during_the_cases_is_said_once_on_stderr(capsys):
     for p in (BatchProgress(1, 4, 2, 0, 0), BatchProgress(2, 4, 1, 1, 1), BatchProgress(3, 4, 1, 1, 1)):
         show(p)
     assert capsys.readouterr().err.splitlines() == [
-        "hidden-effect sweep: 2/4 tasks done, 1 workers, 1 worker(s) lost — 1 task(s) rerun"]
+        "hidden-effect sweep: 2/4 tasks done, 1 worker, 1 worker lost — 1 task rerun"]

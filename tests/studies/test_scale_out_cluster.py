@@ -176,7 +176,7 @@ def test_a_worker_killed_mid_run_loses_nothing(setup):
             victim.send_signal(signal.SIGKILL)
     assert proc.wait(timeout=120) == 0, "".join(lines)
     assert victim is not None and victim.poll() is not None, "".join(lines)
-    assert any("1 worker(s) lost" in line and "rerun" in line for line in lines), "".join(lines)
+    assert any("1 worker lost" in line and "rerun" in line for line in lines), "".join(lines)
     assert _results(out) == reference
     cost = json.loads((out / "batch.json").read_text())["cost"]
     assert cost["workers_lost"] == 1 and cost["reruns"] >= 1
