@@ -4,7 +4,8 @@ command is one new module plus one line in :data:`COMMAND_MODULES`.
 Exit codes — the policy, in one place (:func:`main`):
 
 * **0** the command did its job (a FAULT verdict found by a run is a result, not an error).
-* **2** bad usage or bad input the user can fix: argparse errors, and every :class:`board_config.InputError`
+* **2** bad usage or bad input the user can fix: argparse errors (one line, ``shm <cmd>: error: ...; see
+  'shm <cmd> --help'``, no usage block: :class:`ShmArgumentParser`), and every :class:`board_config.InputError`
   (``ConfigError``, ``RecordError``, ``EffectError``, ``FitError``, ``CampaignError``, :class:`CliError` ...). The
   message (``shm: error: ...``) names the file, option or value and why. Code that validates user input raises a
   subclass of ``InputError``, never a bare ``ValueError``.
@@ -28,6 +29,7 @@ import os
 import sys
 import traceback
 from collections.abc import Sequence
+from typing import NoReturn
 
 from board_config.errors import InputError
 
@@ -62,8 +64,35 @@ class CliError(InputError):
     """A user-facing error: printed as ``shm: error: <message>`` with exit code 2."""
 
 
+class ShmArgumentParser(argparse.ArgumentParser):
+    """A parser whose usage errors are one line, ``shm <cmd>: error: <what>; see 'shm <cmd> --help'`` (exit 2),
+    not argparse's usage block followed by the error; its sub-commands' parsers are of this class too (argparse
+    gives a sub-parser its parent's class). An unrecognised option is named with the command it was given to."""
+
+    def error(self, message: str) -> NoReturn:
+        self.exit(EXIT_USAGE, f"{self.prog}: error: {_one_line(message)}; see '{self.prog} --help'\n")
+
+    def parse_args(self, args: Sequence[str] | None = None,  # type: ignore[override]
+                   namespace: argparse.Namespace | None = None) -> argparse.Namespace:
+        parsed, extras = self.parse_known_args(args, namespace)
+        if extras:  # said by the parser of the command they were given to (argparse: by the top-level 'shm')
+            _command_parser(self, command_words(parsed).split()[1:]).error(
+                f"unrecognized arguments: {' '.join(extras)}")
+        return parsed
+
+
+def _command_parser(parser: argparse.ArgumentParser, words: list[str]) -> argparse.ArgumentParser:
+    """The (sub-)parser of the command ``words`` (``["model", "frf"]``) under ``parser``."""
+    for word in words:
+        action = next((a for a in parser._actions if isinstance(a, argparse._SubParsersAction)), None)
+        if action is None or word not in action.choices:
+            break
+        parser = action.choices[word]
+    return parser
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = ShmArgumentParser(
         prog="shm",
         description="mfc-shm: self-powered SHM board with MFC piezo patches — physics, firmware mock, "
                     "hardware links, model workbench.",
