@@ -24,6 +24,7 @@ from pathlib import Path, PurePosixPath
 
 from shm_cli.common import OutputPathError
 from shm_cli.output_guard import RUN_MARKERS, check_foreign_run
+from shm_cli.run_lock import LOCK_NAME
 
 
 def _earlier_command(out: Path, marker: str) -> str | None:
@@ -108,11 +109,12 @@ def _within(folder: Path, rel: str) -> Path | None:
 
 
 def _files_in(folder: Path) -> list[str]:
-    """Every file under ``folder`` (symbolic links not followed), relative, sorted."""
+    """Every file under ``folder`` (symbolic links not followed), relative, sorted; not an ``--out`` lock file
+    (an empty one that earlier batches copied from the task's command is left, never removed: it may be held)."""
     found = []
     for root, dirs, names in os.walk(folder):
         here = Path(root)
-        found += [str((here / n).relative_to(folder)) for n in names]
+        found += [str((here / n).relative_to(folder)) for n in names if n != LOCK_NAME]
         found += [str((here / d).relative_to(folder)) for d in dirs if (here / d).is_symlink()]
     return sorted(found)
 
@@ -125,6 +127,8 @@ def write_task_folders(out: Path, written: Mapping[str, Mapping[str, bytes]], ea
     listed (the user's own, or of a batch that kept no list) is left and named on stderr (``what``: ``shm
     diagnose``); so is the folder of an earlier task that this run did not run. The new :data:`TASK_FILES`: this
     run's files, and the earlier tasks' files that are still there."""
+    from studies.batch.runner import counted
+
     listed: dict[str, list[str]] = {}
     for key, files in written.items():
         folder = out / key
@@ -133,7 +137,7 @@ def write_task_folders(out: Path, written: Mapping[str, Mapping[str, bytes]], ea
             dest.parent.mkdir(parents=True, exist_ok=True)
             dest.write_bytes(data)
         for rel in earlier.get(key, ()):
-            path = _within(folder, rel) if rel not in files else None
+            path = _within(folder, rel) if rel not in files and PurePosixPath(rel).name != LOCK_NAME else None
             if path is not None and path.is_file() and not path.is_symlink():
                 path.unlink()
                 for parent in list(path.parents)[: len(PurePosixPath(rel).parts) - 1]:
@@ -144,8 +148,8 @@ def write_task_folders(out: Path, written: Mapping[str, Mapping[str, bytes]], ea
         others = [f for f in _files_in(folder) if f not in files]
         if others:
             names = ", ".join(others[:3]) + (f" and {len(others) - 3} more" if len(others) > 3 else "")
-            print(f"{what}: note: {folder} also holds {len(others)} file(s) this run did not write, left as they "
-                  f"are: {names}", file=sys.stderr)
+            print(f"{what}: note: {folder} also holds {counted(len(others), 'file')} this run did not write, left as "
+                  f"they are: {names}", file=sys.stderr)
     for key in sorted(set(earlier) - set(written)):
         still = [rel for rel in earlier[key] if (p := _within(out / key, rel)) is not None and p.is_file()]
         if still:

@@ -27,6 +27,7 @@ from board_config.errors import InputError
 from shm_cli.batch_out import TASK_FILES, check_batch_out, earlier_task_files, write_task_folders
 from shm_cli.common import dump_json, out_dir
 from shm_cli.output_guard import locked_out
+from shm_cli.run_lock import LOCK_NAME
 
 #: the JSON document each command writes into its --out
 DOC_NAME = {"run": "life.json",
@@ -64,9 +65,11 @@ def _scrub(text: str, tmp: str) -> str:
 
 
 def _collect(out: Path, tmp: str) -> dict[str, bytes]:
+    """The task's report files; not the ``--out`` lock file its command took in its temporary folder (an empty
+    ``.shm-run.lock`` had been copied into every task's folder)."""
     files = {}
     for p in sorted(out.rglob("*")):
-        if p.is_file():
+        if p.is_file() and p.name != LOCK_NAME:
             data = p.read_bytes()
             if p.suffix in (".json", ".html", ".txt", ".csv", ".py", ".md", ".toml"):
                 data = _scrub(data.decode("utf-8", "replace"), tmp).encode("utf-8")

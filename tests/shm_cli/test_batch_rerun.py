@@ -60,7 +60,7 @@ def test_a_rerun_batch_leaves_no_earlier_file_in_a_tasks_folder_and_keeps_the_us
     assert (out / "a" / "my notes.txt").read_text() == "mine"
     assert (out / "a" / "diagnosis.json").read_bytes() == b'{"run": 2}'
     err = capsys.readouterr().err
-    assert f"{out / 'a'} also holds 2 file(s) this run did not write, left as they are" in err, err
+    assert f"{out / 'a'} also holds 2 files this run did not write, left as they are" in err, err
     assert str(out / "b") not in err.replace(str(out / "b") + "/", "")  # nothing to say about b
     assert json.loads((out / "batch.json").read_text())["task_files"] == {"a": sorted(second),
                                                                           "b": sorted(second)}
@@ -75,7 +75,7 @@ def test_a_batch_that_kept_no_file_list_has_nothing_removed(tmp_path, fake_tasks
     fake_tasks.update({"a": {"log.txt": b"x"}, "b": {"log.txt": b"x"}})
     assert main(["diagnose", str(recs), "--scheduler", "synchronous", "--out", str(out)]) == 0
     assert (out / "a" / "old.png").read_text() == "old"
-    assert "also holds 1 file(s) this run did not write, left as they are: old.png" in capsys.readouterr().err
+    assert "also holds 1 file this run did not write, left as they are: old.png" in capsys.readouterr().err
 
 
 def test_a_marker_edited_to_name_files_outside_the_task_removes_nothing(tmp_path, fake_tasks, capsys):
@@ -125,3 +125,21 @@ def test_a_rerun_fleet_leaves_no_earlier_file_in_a_boards_folder(tmp_path, fake_
     assert _tree(out / "board000") == sorted(second)  # before: the first run's forecast.png beside it
     assert _tree(out / "board001") == sorted([*second, "mine.txt"])
     assert json.loads((out / "fleet.json").read_text())["task_files"]["board001"] == sorted(second)
+
+
+def test_a_tasks_folder_gets_no_lock_file_from_its_command(tmp_path, capsys):
+    """The task's command took the --out lock of its temporary folder; its empty .shm-run.lock was copied into every
+    task's folder (and would be listed as the batch's). A real task, in this process: a record that fails to read."""
+    from shm_cli.run_lock import LOCK_NAME
+
+    recs, out = tmp_path / "recs", tmp_path / "out"
+    recs.mkdir()
+    (recs / "broken.csv").write_text("garbage,1\n")
+    assert main(["diagnose", str(recs), "--scheduler", "synchronous", "--out", str(out)]) == 1
+    assert _tree(out / "broken") == ["log.txt"]
+    assert not (out / "broken" / LOCK_NAME).exists()
+    assert json.loads((out / "batch.json").read_text())["task_files"] == {"broken": ["log.txt"]}
+    (out / "broken" / LOCK_NAME).write_text("")  # left by an earlier batch: never removed (it may be held), not named
+    capsys.readouterr()
+    assert main(["diagnose", str(recs), "--scheduler", "synchronous", "--out", str(out)]) == 1
+    assert (out / "broken" / LOCK_NAME).exists() and "note:" not in capsys.readouterr().err
