@@ -74,10 +74,10 @@ def _terms() -> list[Term]:
 
 
 def _choose(monkeypatch: pytest.MonkeyPatch, event_held: float, refit_held: dict[str, float],
-            misfit_before: float = 0.0) -> tuple[object, object, list[str], list[str]]:
+            misfit_before: float = 0.0, an_end_helps: bool = False) -> tuple[object, object, list[str], list[str]]:
     """plausible_best on a round whose best refit is k3's step (``event_held`` σ) with the refits of the other
-    terms faked (``refit_held``: held-out σ by key): what it keeps, what it displaced, what it refitted, what it
-    said."""
+    terms faked (``refit_held``: held-out σ by key) and the step given an end faked (``an_end_helps``: with an
+    end it is a plausible event): what it keeps, what it displaced, what it refitted, what it said."""
     terms = _terms()
     rng_ = np.random.default_rng(4)
     measured, model = _record(rng_, misfit_before)
@@ -99,6 +99,7 @@ def _choose(monkeypatch: pytest.MonkeyPatch, event_held: float, refit_held: dict
             progress_.refits.append(rounds.BestRefit(h, terms.index(row.term), out))
 
     monkeypatch.setattr(rounds, "refit_best", refit_best)
+    monkeypatch.setattr(rounds, "judged_with_end", lambda s_, p_, st_, ev, why: None if an_end_helps else why)
     rows = [ScreenRow(t, -0.1, 400.0, 200.0) for t in terms]
     tried = [{"term": terms[0].key, "held_rms_sigma": event_held}]
     kept, displaced = rounds.plausible_best(setup, progress, settings, event, rows, tried)
@@ -127,6 +128,15 @@ def test_an_event_short_of_the_noise_floor_that_misses_the_record_before_its_ons
                                        misfit_before=20.0)
     assert kept.index == 2 and displaced is None
     assert any("is not named as an event" in s and "before its onset" in s for s in said)
+
+
+def test_an_event_that_misses_the_record_before_its_onset_but_is_one_with_an_end_is_kept(monkeypatch):
+    """A change over a finite time refitted as a step or a never-ending ramp misses the record around its onset (its
+    gradual start) and after its end; given an end it is a plausible event: kept, not the constant term."""
+    kept, displaced, _, said = _choose(monkeypatch, 90.0, {"k3_neg_delta3": 140.0, "k3_pos_delta3": 95.0},
+                                       misfit_before=20.0, an_end_helps=True)
+    assert kept.index == 0 and displaced is None
+    assert not any("is not named as an event" in s for s in said)
 
 
 def test_an_event_short_of_the_noise_floor_that_looks_like_one_is_kept(monkeypatch):
@@ -213,3 +223,41 @@ def test_an_event_and_a_constant_twin_are_told_apart_by_a_second_record():
     assert "a second record long after the first" in separating_test(crack, [event])
     step = {"placement": "damage", "index": 2, "signal": "one", "form": "on_ramp"}
     assert "a second record" not in separating_test(_terms()[0], [step])
+
+
+def _judge_with_window(monkeypatch: pytest.MonkeyPatch, window_misfit_before: float, window_held: float
+                       ) -> tuple[str | None, object, list[str]]:
+    """judged_with_end on k3's step (90 σ held out, 20 σ before its onset) with the window's refit faked: its model
+    misses the record before the window's start by ``window_misfit_before`` σ and leaves ``window_held`` σ."""
+    import workbench.discover._finite_change as fc
+
+    rng_ = np.random.default_rng(6)
+    measured, model = _record(rng_, window_misfit_before)
+    outcome = _outcome(model, 4.0, held=window_held)
+    fake = fc.WindowFit(rise=0, end=0, replaced=0, outcome=outcome, values={}, n_sims=7)
+    monkeypatch.setattr(fc, "window_refit", lambda *a, **k: fake)
+    setup = SimpleNamespace(terms=_terms(), names=[("a", "g")] * 5, targets=[_target(measured)], models=[],
+                            scales={"t": 10.0})
+    event = rounds.BestRefit(90.0, 0, _outcome(model, 4.0, held=90.0))
+    progress = SimpleNamespace(state=SimpleNamespace(values={}, kept=[]), n_sims=0, ended=None)
+    said: list[str] = []
+    settings = SimpleNamespace(say=said.append, threads=1, max_nfev=5)
+    why = fc.judged_with_end(setup, progress, settings, event, "it misses the record before its onset")
+    return why, progress, said
+
+
+def test_an_event_given_an_end_that_matches_the_record_before_its_start_is_plausible(monkeypatch):
+    why, progress, said = _judge_with_window(monkeypatch, 0.0, 12.0)
+    assert why is None and progress.ended is not None and progress.n_sims == 7
+    assert any("is an event" in s for s in said)
+
+
+def test_an_event_given_an_end_that_still_misses_the_record_before_its_start_is_not(monkeypatch):
+    why, progress, said = _judge_with_window(monkeypatch, 20.0, 12.0)
+    assert why == "it misses the record before its onset" and progress.ended is None
+    assert any("still" in s and "before its onset" in s for s in said)
+
+
+def test_an_event_whose_end_explains_no_more_is_not_saved_by_it(monkeypatch):
+    why, progress, _ = _judge_with_window(monkeypatch, 0.0, 95.0)
+    assert why is not None and progress.ended is None

@@ -29,6 +29,7 @@ import numpy as np
 from board_config.parameter import Parameter, freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
+from workbench.discover._event_check import onset_issue
 from workbench.discover._gates import describe_finite_change
 from workbench.discover._onset import ONSET_RESOLUTION_S, whole_record_rms
 from workbench.discover._results import FoundTerm
@@ -221,6 +222,32 @@ def window_refit(targets: Sequence[Target], models: Sequence[PlantModel], terms:
         if best is not None and _whole(targets, best) <= score * (1.0 + 1e-3):
             break
     return None if best is None else WindowFit(pair[0], pair[1], kept, best, start | best.values, n_sims)
+
+
+def judged_with_end(setup: Any, progress: Any, settings: Any, event: Any, why: str) -> str | None:
+    """Why the round's best refit ``event`` (a time-gated term; ``why``: what :func:`onset_issue` found) is no
+    plausible event once it is given an end — None when, with an end, it is one. A change over a finite time,
+    refitted as a ramp that never ends or a step, fails the onset check though it is an event: k3 lost 20 % over
+    1 s with a smooth (cosine) start, on a 15 s sweep, kept as a ramp from 11.61 s — 50 σ held out (the best term
+    constant in time: 138 σ) but 1.53 σ before its onset (the change's slow start) and ever softer after its end;
+    the constant term was kept and the verdict named free play in section 1. The window's refit (``setup``,
+    ``progress``, ``settings``: the rounds' objects) is kept in ``progress.ended`` for the finite-change step."""
+    trial = SearchState(dict(progress.state.values) | dict(event.outcome.values), [*progress.state.kept, event.index])
+    fit = window_refit(setup.targets, setup.models, setup.terms, setup.names, trial, event.index, setup.scales["t"],
+                       settings.threads, settings.max_nfev)
+    if fit is None:
+        return why
+    progress.n_sims += fit.n_sims
+    issue = onset_issue(setup.targets, fit.outcome, setup.names[fit.rise][1] or "")
+    held = fit.outcome.held_rms_sigma
+    if issue is not None or held >= event.held_rms_sigma:
+        settings.say(f"  {setup.terms[event.index].key} given an end ({held:.4g} σ held-out): still "
+                     + (issue or "no better"))
+        return why
+    settings.say(f"  {setup.terms[event.index].key} given an end ({held:.4g} σ held-out) is an event: {why} — "
+                 "that was the change's end or its gradual start")
+    progress.ended = fit
+    return None
 
 
 def _whole(targets: Sequence[Target], out: FitOutcome) -> float:

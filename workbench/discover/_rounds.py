@@ -22,7 +22,7 @@ from board_config.parameter import freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
 from workbench.discover._event_check import event_twin, invariant_siblings, is_timed, onset_issue
-from workbench.discover._finite_change import keep_window, window_refit
+from workbench.discover._finite_change import WindowFit, judged_with_end, keep_window, window_refit
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._onset import change_point, event_onset, onset_probe, onset_scan, with_onsets
 from workbench.discover._results import DiscoverError, ScreenRow, excess_share_removed, noise_free_match
@@ -91,6 +91,8 @@ class SearchProgress:
     twins: dict[int, list[dict[str, Any]]] = field(default_factory=dict)
     #: every refit of the current round (the time-gated term chosen first is checked against them)
     refits: list[BestRefit] = field(default_factory=list)
+    #: the event judged with an end this round (:func:`~workbench.discover._finite_change.judged_with_end`)
+    ended: WindowFit | None = None
 
 
 @dataclass(frozen=True)
@@ -341,6 +343,8 @@ def plausible_best(setup: SearchSetup, progress: SearchProgress, settings: Searc
     if best.held_rms_sigma <= 1.0 + noise_tolerance(setup.n_held):
         return best, None
     why = onset_issue(setup.targets, best.outcome, setup.names[best.index][1] or "")
+    if why is not None:
+        why = judged_with_end(setup, progress, settings, best, why)
     if why is None:
         return best, None
     fallback = min(constant, key=lambda b: b.held_rms_sigma, default=None)
@@ -469,12 +473,14 @@ def finite_change(setup: SearchSetup, progress: SearchProgress, settings: Search
         return
     t0 = time.perf_counter()
     k = progress.state.kept[-1]
-    fit = window_refit(setup.targets, setup.models, setup.terms, setup.names, progress.state, k, setup.scales["t"],
-                       settings.threads, settings.max_nfev)
+    fit, progress.ended = progress.ended, None
+    if fit is None or fit.replaced != k:  # not already refitted with an end when the event was judged
+        fit = window_refit(setup.targets, setup.models, setup.terms, setup.names, progress.state, k,
+                           setup.scales["t"], settings.threads, settings.max_nfev)
+        progress.n_sims += 0 if fit is None else fit.n_sims
     progress.timings["refit_s"] += time.perf_counter() - t0
     if fit is None:
         return
-    progress.n_sims += fit.n_sims
     h = fit.outcome.held_rms_sigma
     gain = excess_share_removed(progress.current_held, h, noise_tolerance(setup.n_held))
     keep = gain is not None and gain >= MIN_SHARE and h < progress.current_held
