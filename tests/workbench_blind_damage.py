@@ -382,3 +382,14 @@ def truth_values(label: str, duration_s: float) -> dict[str, float]:
         else:
             out[key] = float(value)
     return out
+
+
+def run_blind(label: str, *, kind: str = "sweep", duration_s: float = 15.0, noise_m: float = 2e-6, seed: int = 1,
+              workdir: str | None = None) -> dict[str, object]:
+    """One blind case through the one-command walk (``workbench_unseen_damage.run_walk``: synth → ``diagnose`` with
+    its discovery step → the first sentence scored → the fix refitted as ``shm fit --add`` does)."""
+    from workbench_unseen_damage import run_walk
+
+    cls, _, groups, timing = BLIND[label]
+    return run_walk(label, cls, lambda d: truth_values(label, d), groups, timing, kind=kind, duration_s=duration_s,
+                    noise_m=noise_m, seed=seed, workdir=workdir)

@@ -37,6 +37,7 @@ Section force convention as in the core (``plant/effects/laminate.py``): ``bus[B
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 
 from plant.effect import Parameter, PhysicalEffect
 from plant.layout import B_QH, B_S, B_VA, P_C, P_C_EP, P_D_EP, P_K, X_DDELTA, X_DELTA, X_Q
@@ -300,9 +301,29 @@ def run_unseen(
     seed: int = 1,
     workdir: str | None = None,
 ) -> dict[str, object]:
-    """One unseen case through the one-command walk: synth → ``diagnose`` (discovery on, files into a temporary
-    folder) → the first sentence scored → the emitted file (or the named fix) refitted as ``shm fit --add`` does.
-    Returns the row of the report: sentence, named, missing, fix, held-out σ before and after, wall time."""
+    """One unseen case through the one-command walk (:func:`run_walk`)."""
+    cls, _, groups, timing = UNSEEN[label]
+    return run_walk(label, cls, lambda d: truth_values(label, d), groups, timing, kind=kind, duration_s=duration_s,
+                    noise_m=noise_m, seed=seed, workdir=workdir)
+
+
+def run_walk(
+    label: str,
+    cls: type[PhysicalEffect],
+    values_for: Callable[[float], dict[str, float]],
+    groups: tuple[tuple[str, ...], ...],
+    timing: tuple[str, float] | None,
+    *,
+    kind: str = "sweep",
+    duration_s: float = 10.0,
+    noise_m: float = 2e-6,
+    seed: int = 1,
+    workdir: str | None = None,
+) -> dict[str, object]:
+    """A damage ``cls`` (truth ``values_for(record duration s)``) through the one-command walk: synth → ``diagnose``
+    (discovery on, files into a temporary folder) → the first sentence scored against ``groups`` (and the instant
+    ``timing``: (its parameter, tolerance s)) → the emitted file (or the named fix) refitted as ``shm fit --add``
+    does. Returns the row of the report: sentence, named, missing, fix, held-out σ before and after, wall time."""
     import tempfile
     import time
 
@@ -318,9 +339,8 @@ def run_unseen(
     from workbench.diagnose import diagnose
     from workbench.simulation import synth_test
 
-    cls, _, groups, timing = UNSEEN[label]
     spec = synth_test(kind, duration_s=duration_s) if kind == "sweep" else synth_test(kind)
-    values = truth_values(label, spec.duration_s)
+    values = values_for(spec.duration_s)
     check = PhysicsCheck(groups, values[timing[0]] if timing else None, timing[1] if timing else 0.0)
     t0 = time.perf_counter()
     rec, size = case_record(spec, cls, values, noise_m, seed)

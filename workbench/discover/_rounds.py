@@ -22,7 +22,7 @@ from board_config.parameter import freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
 from workbench.discover._event_check import event_twin, invariant_siblings, is_timed, onset_issue
-from workbench.discover._finite_change import WindowFit, judged_with_end, keep_window, window_refit
+from workbench.discover._finite_change import WindowFit, judged_with_end, keep_window
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._onset import change_point, event_onset, onset_probe, onset_scan, with_onsets
 from workbench.discover._results import DiscoverError, ScreenRow, excess_share_removed, noise_free_match
@@ -34,6 +34,7 @@ from workbench.discover._search import (
     refine,
     refit_list,
 )
+from workbench.discover._staged_change import change_refit
 from workbench.discover._twins import MAX_TWINS, switch_family, twin_tolerance, twins_of
 from workbench.fit import FitOutcome, Objective, Target, explained, noise_tolerance, rms
 
@@ -475,16 +476,15 @@ def finite_change(setup: SearchSetup, progress: SearchProgress, settings: Search
     k = progress.state.kept[-1]
     fit, progress.ended = progress.ended, None
     if fit is None or fit.replaced != k:  # not already refitted with an end when the event was judged
-        fit = window_refit(setup.targets, setup.models, setup.terms, setup.names, progress.state, k,
-                           setup.scales["t"], settings.threads, settings.max_nfev)
-        progress.n_sims += 0 if fit is None else fit.n_sims
+        fit = change_refit(setup, progress, settings, k)
     progress.timings["refit_s"] += time.perf_counter() - t0
     if fit is None:
         return
     h = fit.outcome.held_rms_sigma
     gain = excess_share_removed(progress.current_held, h, noise_tolerance(setup.n_held))
     keep = gain is not None and gain >= MIN_SHARE and h < progress.current_held
-    settings.say(f"  {setup.terms[k].key} given an end (two ramps, {h:.4g} σ held-out): "
+    how = "as two steps" if setup.terms[fit.rise].form == "on_step" else "given an end (two ramps"
+    settings.say(f"  {setup.terms[k].key} {how}, {h:.4g} σ held-out): "
                  + ("kept in its place" if keep else "not kept"))
     progress.rounds.append({"finite_change": {"term": setup.terms[k].key, "held_rms_sigma": h, "kept": keep}})
     if keep:

@@ -1,0 +1,156 @@
+"""Damage in stages (issue 26 point 3): two steps of one parameter — a crack that runs, arrests at a ply interface
+and runs again; a bolt that slips twice. A kept step or ramp that leaves more than the noise is also tried as two
+steps of its parameter (:func:`staged_refit`), beside the change that grows over a finite time
+(:mod:`workbench.discover._finite_change`), and the better of the two replaces it (:func:`change_refit`).
+
+Why it is needed: section 2 losing 10 % of its stiffness at 4.5 s and 10 % more at 12 s of a 15 s sweep was kept as
+a ramp from 2.78 s (67 σ held out): the ramp smears both steps, and the step of k2 refitted alone at 4.49 s (73.6 σ)
+sized itself to absorb part of the second loss, so it missed the record between the two instants too (68 σ RMS);
+no later round could then place the second step. Probing pairs of steps on the full model — the first at an onset
+the round found, the second on a grid after it, the loss split between them — then zooming and refitting both
+places them.
+
+Pure logic on the fit engine's objects; the rounds (:mod:`workbench.discover._rounds`) keep the result.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from board_config.parameter import Parameter, freed
+from plant import PlantModel
+from workbench.discover._dictionary import Term
+from workbench.discover._finite_change import (
+    ONSET_FREE_S,
+    Window,
+    WindowFit,
+    WindowProbe,
+    whole_rms,
+    window_refit,
+    zoom_window,
+)
+from workbench.discover._onset import MAX_LOSS, whole_record_rms
+from workbench.discover._search import SearchState, probe_batch, refine
+from workbench.fit import Objective, Target
+
+#: second instants probed after each first one (evenly over the time left), and the share of the total change the
+#: first step takes
+STAGE_SECONDS = 10
+STAGE_SHARES = (0.3, 0.5, 0.7)
+
+
+def step_slots(terms: Sequence[Term], term: Term) -> list[int]:
+    """The dictionary indices of the steps of ``term``'s parameter (same core parameter and section/mass), the
+    ``term``'s own first when it is one."""
+    out = [k for k, t in enumerate(terms) if t.placement == "damage" and t.form == "on_step"
+           and (t.param, t.index) == (term.param, term.index)]
+    return sorted(out, key=lambda k: terms[k] != term)
+
+
+def stage_setting(window: Window, share: float, first: tuple[str, str | None],
+                  second: tuple[str, str | None]) -> dict[str, float]:
+    """Two steps: ``share`` of ``window.total`` at ``window.start``, the rest at ``window.end`` (the steps'
+    (coefficient, onset) names)."""
+    return {first[0]: share * window.total, str(first[1]): window.start,
+            second[0]: (1.0 - share) * window.total, str(second[1]): window.end}
+
+
+@dataclass(frozen=True)
+class StageProbe(WindowProbe):
+    """A :class:`~workbench.discover._finite_change.WindowProbe` whose window is two steps (``share`` first)."""
+
+    share: float = 0.5
+
+    def scores(self, windows: Sequence[Window]) -> list[float]:
+        settings = [stage_setting(w, self.share, self.rise, self.end) for w in windows]
+        held, train, ok = probe_batch(self.targets, self.models, self.values, settings, self.threads)
+        return [e if good else math.inf for e, good in zip(whole_record_rms(self.targets, held, train), ok)]
+
+
+def candidate_stages(firsts: Sequence[float], total: float, t_end: float) -> list[Window]:
+    """Pairs of instants: each of ``firsts`` (s) with :data:`STAGE_SECONDS` second instants evenly after it."""
+    return [Window(a, a + (t_end - a) * i / (STAGE_SECONDS + 1), total) for a in firsts if a < t_end
+            for i in range(1, STAGE_SECONDS + 1)]
+
+
+def stage_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], state: SearchState,
+               start: dict[str, float], pair: tuple[int, int], replaced: int, t_end: float) -> list[Parameter]:
+    """Free parameters of the two steps' refit: the other kept terms' coefficients (±1.5 × their size), both steps'
+    sizes (within ±2 × the larger, a loss never past :data:`~workbench.discover._onset.MAX_LOSS`) and both onsets
+    (± :data:`~workbench.discover._finite_change.ONSET_FREE_S`)."""
+    out = []
+    for k in state.kept:
+        if k in pair or k == replaced:
+            continue
+        c = start[names[k][0]]
+        span = max(abs(c), 1e-300)
+        out.append(freed(names[k][0], terms[k].unit, c - 1.5 * span, c + 1.5 * span, False, "discover"))
+    size = max(abs(start[names[k][0]]) for k in pair)
+    for k in pair:
+        cname, gname = names[k]
+        c, g = start[cname], start[str(gname)]
+        out.append(freed(cname, terms[k].unit, max(c - 2.0 * size, MAX_LOSS), c + 2.0 * size, False, "discover"))
+        out.append(freed(str(gname), "s", max(g - ONSET_FREE_S, 0.0), min(g + ONSET_FREE_S, t_end), False,
+                         "discover"))
+    return out
+
+
+def staged_refit(targets: Sequence[Target], models: Sequence[PlantModel], terms: Sequence[Term],
+                 names: Sequence[tuple[str, str | None]], state: SearchState, kept: int, firsts: Sequence[float],
+                 t_end: float, threads: int | None, max_nfev: int) -> WindowFit | None:
+    """The kept time-gated term ``kept`` as two steps of its parameter: pairs of instants (the first at the kept
+    term's onset or one of ``firsts``, s) probed at :data:`STAGE_SHARES` of its total change, the best zoomed and
+    refitted (None when its parameter has fewer than two steps or nothing integrates)."""
+    term = terms[kept]
+    slots = [k for k in step_slots(terms, term) if k == kept or k not in state.kept]
+    if len(slots) < 2:
+        return None
+    pair = (slots[0], slots[1])
+    cname, gname = names[kept]
+    coef, t0 = float(state.values[cname]), float(state.values[str(gname)])
+    total = coef * (t_end - t0) if term.form == "on_ramp" else coef
+    windows = candidate_stages(sorted({t0, *firsts}), total, t_end)
+    base = dict(state.values) | {cname: 0.0}
+    best: tuple[StageProbe, float, Window] | None = None
+    n = 0
+    for share in STAGE_SHARES:
+        probe = StageProbe(targets, models, base, names[pair[0]], names[pair[1]], t_end, threads, share)
+        scores = probe.scores(windows)
+        n += len(windows)
+        k = min(range(len(windows)), key=lambda i: scores[i], default=None)
+        if k is not None and math.isfinite(scores[k]) and (best is None or scores[k] < best[1]):
+            best = (probe, scores[k], windows[k])
+    if best is None:
+        return None
+    zoomed = zoom_window(best[0], [best[2]])
+    if zoomed is None:
+        return None
+    window, _, nz = zoomed
+    start = base | stage_setting(window, best[0].share, best[0].rise, best[0].end)
+    obj = Objective(targets, models, stage_free(terms, names, state, start, pair, kept, t_end), base_values=start,
+                    threads=threads)
+    out = refine(obj, start, max_nfev)
+    n_sims = (n + nz) * len(targets) + obj.n_sims
+    if not out.ok:
+        return None
+    return WindowFit(pair[0], pair[1], kept, out, start | out.values, n_sims)
+
+
+def change_refit(setup: Any, progress: Any, settings: Any, kept: int) -> WindowFit | None:
+    """The kept time-gated term ``kept`` given an end (a window) and as two steps; the refit that leaves the whole
+    record lower (None when neither is possible). The first step's candidate instants: the kept term's onset and
+    the onsets of this round's refitted steps of the same parameter. ``setup``, ``progress``, ``settings``: the
+    rounds' objects."""
+    term = setup.terms[kept]
+    firsts = [float(b.outcome.values[setup.names[b.index][1]]) for b in progress.refits
+              if setup.terms[b.index].form == "on_step" and (setup.terms[b.index].param, setup.terms[b.index].index)
+              == (term.param, term.index) and setup.names[b.index][1] in b.outcome.values]
+    args = (setup.targets, setup.models, setup.terms, setup.names, progress.state, kept)
+    fits = [window_refit(*args, setup.scales["t"], settings.threads, settings.max_nfev),
+            staged_refit(*args, firsts, setup.scales["t"], settings.threads, settings.max_nfev)]
+    done = [f for f in fits if f is not None]
+    progress.n_sims += sum(f.n_sims for f in done)
+    return min(done, key=lambda f: whole_rms(setup.targets, f.outcome), default=None)
