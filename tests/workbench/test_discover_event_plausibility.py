@@ -261,3 +261,21 @@ def test_an_event_given_an_end_that_still_misses_the_record_before_its_start_is_
 def test_an_event_whose_end_explains_no_more_is_not_saved_by_it(monkeypatch):
     why, progress, _ = _judge_with_window(monkeypatch, 0.0, 95.0)
     assert why is not None and progress.ended is None
+
+
+def test_an_events_place_family_is_the_same_change_at_the_same_instant_in_the_other_sections():
+    """k1 −15 % at 11 s of MBIT.a was named without section 2, whose loss moves the one excited mode alike: the
+    steps of k2 and k3 whose slot holds the instant are refitted beside it, started at that instant."""
+    from workbench.discover._event_check import place_family
+
+    terms = [Term("damage", i, "one", "on_step", t0, "k", (lo, hi)) for i in range(3)
+             for t0, lo, hi in ((2.0, 0.0, 6.0), (10.0, 6.0, 14.0))]
+    terms += [Term("damage", 1, "one", "on_ramp", 10.0, "k", (6.0, 14.0)),
+              Term("damage", 1, "one", "on_step", 10.0, "c", (6.0, 14.0)),
+              Term("damage", -1, "one", "on_step", 10.0, "d_ep", (6.0, 14.0))]
+    names = [(f"a{j}", f"g{j}") for j in range(len(terms))]
+    rows = place_family(terms, names, 1, {"a1": -0.15, "g1": 11.0}, set())
+    assert [(r.term.index, r.term.shape_range) for r in rows] == [(1, (6.0, 14.0)), (2, (6.0, 14.0))]
+    assert all(r.shape == 11.0 and r.coef == -0.15 for r in rows)
+    assert place_family(terms, names, 1, {"a1": -0.15, "g1": 11.0}, {"k2_step_t", "k3_step_t"}) == []
+    assert place_family(terms, names, 8, {"a8": -0.1, "g8": 11.0}, set()) == []  # a patch parameter: one place

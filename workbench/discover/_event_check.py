@@ -98,6 +98,29 @@ def onset_issue(targets: Sequence[Target], outcome: FitOutcome, gname: str) -> s
     return None
 
 
+def place_family(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], kept: int,
+                 values: Mapping[str, float], done: set[str]) -> list[ScreenRow]:
+    """The kept time-gated term's change at the same instant in the other sections (or masses, patches): rows of the
+    same form and parameter at the kept onset, whose slot's refit range holds it, not refitted yet (``done``: keys).
+    A record that excites one mode (an MBIT) moves it alike for a loss in section 1 and in section 2 — k2 −15 % at
+    11 s of MBIT.a (10 µm) was named "section 1 lost 15 % of its stiffness at t = 11.00 s", section 2 never said —
+    so each gets its own refit and the verdict names the ones the records cannot rule out."""
+    term = terms[kept]
+    cname, gname = names[kept]
+    if not is_timed(term) or term.index < 0 or gname not in values:
+        return []
+    t0 = float(values[gname])
+    out: list[ScreenRow] = []
+    for t in terms:
+        rng = t.shape_range
+        if (t.placement, t.form, t.param) != (term.placement, term.form, term.param) or t.index == term.index \
+                or t.key in done or rng is None or not rng[0] <= t0 <= rng[1]:
+            continue
+        done.add(t.key)
+        out.append(ScreenRow(t, float(values[cname]), math.inf, math.inf, shape=t0))
+    return out
+
+
 def event_twin(term: Term, outcome: FitOutcome, names: tuple[str, str | None],
                scales: Mapping[str, float]) -> dict[str, Any]:
     """The refitted time-gated ``term`` as a twin of the term kept instead (the record cannot tell it from that),

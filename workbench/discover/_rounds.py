@@ -21,7 +21,7 @@ import numpy as np
 from board_config.parameter import freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
-from workbench.discover._event_check import event_twin, invariant_siblings, is_timed, onset_issue
+from workbench.discover._event_check import event_twin, invariant_siblings, is_timed, onset_issue, place_family
 from workbench.discover._finite_change import WindowFit, judged_with_end, keep_window
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._onset import change_point, event_onset, onset_probe, onset_scan, with_onsets
@@ -373,12 +373,15 @@ def refit_twins(setup: SearchSetup, progress: SearchProgress, twins: list[dict[s
 
 def family_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, best: BestRefit,
                 rows: list[ScreenRow], tried: list[dict[str, Any]]) -> BestRefit:
-    """The best refit's switching family refitted too (:func:`~workbench.discover._twins.switch_family`, logged in
+    """The best refit's switching family (:func:`~workbench.discover._twins.switch_family`), then an event's change
+    at the same instant elsewhere (:func:`~workbench.discover._event_check.place_family`), refitted too (logged in
     ``tried``): one of them replaces it only when it fits clearly better — beyond the twins' tolerance."""
-    family = switch_family(setup.terms[best.index], rows, {t["term"] for t in tried})
-    more = refit_best(setup, progress, settings, family, tried) if family else None
-    if more is not None and more.held_rms_sigma * twin_tolerance(setup.n_held) < best.held_rms_sigma:
-        return more
+    for family in (lambda b: switch_family(setup.terms[b.index], rows, {t["term"] for t in tried}),
+                   lambda b: place_family(setup.terms, setup.names, b.index, b.outcome.values,
+                                          {t["term"] for t in tried})):
+        more = refit_best(setup, progress, settings, rows_, tried) if (rows_ := family(best)) else None
+        if more is not None and more.held_rms_sigma * twin_tolerance(setup.n_held) < best.held_rms_sigma:
+            best = more
     return best
 
 
