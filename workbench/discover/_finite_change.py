@@ -116,12 +116,10 @@ def window_setting(window: Window, rise: tuple[str, str | None], end: tuple[str,
     return {rise[0]: window.rate, str(rise[1]): window.start, end[0]: -window.rate, str(end[1]): window.end}
 
 
-def window_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], state: SearchState,
-                start: dict[str, float], pair: tuple[int, int], replaced: int, t_end: float,
-                onset_half: float | None) -> list[Parameter]:
-    """Free parameters of the window's refit: the other kept terms' coefficients (±1.5 × their size; not the
-    ``replaced`` term's, off), both rates (±2 × the window's rate) and, unless ``onset_half`` is None, both onsets
-    (within the record, ``onset_half`` s either way)."""
+def others_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], state: SearchState,
+                start: dict[str, float], pair: tuple[int, int], replaced: int) -> list[Parameter]:
+    """The coefficients of the kept terms other than ``pair`` and the ``replaced`` one, free within ±1.5 × their
+    size (the refit of a change that replaces a kept term)."""
     out = []
     for k in state.kept:
         if k in pair or k == replaced:
@@ -129,6 +127,16 @@ def window_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], 
         c = start[names[k][0]]
         span = max(abs(c), 1e-300)
         out.append(freed(names[k][0], terms[k].unit, c - 1.5 * span, c + 1.5 * span, False, "discover"))
+    return out
+
+
+def window_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], state: SearchState,
+                start: dict[str, float], pair: tuple[int, int], replaced: int, t_end: float,
+                onset_half: float | None) -> list[Parameter]:
+    """Free parameters of the window's refit: the other kept terms' coefficients (±1.5 × their size; not the
+    ``replaced`` term's, off), both rates (±2 × the window's rate) and, unless ``onset_half`` is None, both onsets
+    (within the record, ``onset_half`` s either way)."""
+    out = others_free(terms, names, state, start, pair, replaced)
     rise, end = (names[k] for k in pair)
     rate = start[rise[0]]
     for cname, gname in (rise, end):

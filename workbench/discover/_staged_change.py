@@ -28,6 +28,7 @@ from workbench.discover._finite_change import (
     Window,
     WindowFit,
     WindowProbe,
+    others_free,
     whole_rms,
     window_refit,
     zoom_window,
@@ -81,13 +82,7 @@ def stage_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], s
     """Free parameters of the two steps' refit: the other kept terms' coefficients (±1.5 × their size), both steps'
     sizes (within ±2 × the larger, a loss never past :data:`~workbench.discover._onset.MAX_LOSS`) and both onsets
     (± :data:`~workbench.discover._finite_change.ONSET_FREE_S`)."""
-    out = []
-    for k in state.kept:
-        if k in pair or k == replaced:
-            continue
-        c = start[names[k][0]]
-        span = max(abs(c), 1e-300)
-        out.append(freed(names[k][0], terms[k].unit, c - 1.5 * span, c + 1.5 * span, False, "discover"))
+    out = others_free(terms, names, state, start, pair, replaced)
     size = max(abs(start[names[k][0]]) for k in pair)
     for k in pair:
         cname, gname = names[k]
