@@ -276,6 +276,6 @@ def test_an_events_place_family_is_the_same_change_at_the_same_instant_in_the_ot
     names = [(f"a{j}", f"g{j}") for j in range(len(terms))]
     rows = place_family(terms, names, 1, {"a1": -0.15, "g1": 11.0}, set())
     assert [(r.term.index, r.term.shape_range) for r in rows] == [(1, (6.0, 14.0)), (2, (6.0, 14.0))]
-    assert all(r.shape == 11.0 and r.coef == -0.15 for r in rows)
+    assert all(r.shape == 11.0 and r.coef == -0.15 and r.placed for r in rows)  # started there, no scan
     assert place_family(terms, names, 1, {"a1": -0.15, "g1": 11.0}, {"k2_step_t", "k3_step_t"}) == []
     assert place_family(terms, names, 8, {"a8": -0.1, "g8": 11.0}, set()) == []  # a patch parameter: one place

@@ -126,6 +126,8 @@ class ScreenRow:
     held_rms_sigma: float
     train_rms_sigma: float
     shape: float | None = None
+    #: the onset ``shape`` is known (an event's instant, refitted elsewhere): the refit starts there, no scan
+    placed: bool = False
 
 
 @dataclass

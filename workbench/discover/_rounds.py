@@ -21,7 +21,7 @@ import numpy as np
 from board_config.parameter import freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
-from workbench.discover._event_check import event_twin, invariant_siblings, is_timed, onset_issue, place_family
+from workbench.discover._event_check import event_twin, invariant_siblings, is_timed, onset_issue, place_rows
 from workbench.discover._finite_change import WindowFit, judged_with_end, keep_window
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._onset import change_point, event_onset, onset_probe, onset_scan, with_onsets
@@ -179,7 +179,9 @@ def refit_term(setup: SearchSetup, progress: SearchProgress, settings: SearchSet
     k = terms.index(row.term)
     start = dict(state.values)
     start[names[k][0]] = row.coef
-    if row.term.form in TIME_GATES:  # an onset time: start the refit from a scan around its onset
+    if row.placed and names[k][1] is not None and row.shape is not None:  # its instant known: start there
+        start[str(names[k][1])] = row.shape
+    elif row.term.form in TIME_GATES:  # an onset time: start the refit from a scan around its onset
         scan, n_probes = onset_scan(row, names[k], targets, models, state.values, (0.0, setup.scales["t"]),
                                     threads)
         start.update(scan)
@@ -377,8 +379,7 @@ def family_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSe
     at the same instant elsewhere (:func:`~workbench.discover._event_check.place_family`), refitted too (logged in
     ``tried``): one of them replaces it only when it fits clearly better — beyond the twins' tolerance."""
     for family in (lambda b: switch_family(setup.terms[b.index], rows, {t["term"] for t in tried}),
-                   lambda b: place_family(setup.terms, setup.names, b.index, b.outcome.values,
-                                          {t["term"] for t in tried})):
+                   lambda b: place_rows(setup, progress, settings, b, {t["term"] for t in tried})):
         more = refit_best(setup, progress, settings, rows_, tried) if (rows_ := family(best)) else None
         if more is not None and more.held_rms_sigma * twin_tolerance(setup.n_held) < best.held_rms_sigma:
             best = more
