@@ -279,3 +279,27 @@ def test_an_events_place_family_is_the_same_change_at_the_same_instant_in_the_ot
     assert all(r.shape == 11.0 and r.coef == -0.15 and r.placed for r in rows)  # started there, no scan
     assert place_family(terms, names, 1, {"a1": -0.15, "g1": 11.0}, {"k2_step_t", "k3_step_t"}) == []
     assert place_family(terms, names, 8, {"a8": -0.1, "g8": 11.0}, set()) == []  # a patch parameter: one place
+
+
+def test_an_events_places_are_refitted_only_when_a_probe_comes_near_the_kept_change(monkeypatch):
+    """On a sweep the sections are told apart: a place whose best probe at the kept instant leaves far more than the
+    kept event is not refitted (two refits cost ~20 s of a 15 s sweep's diagnose); one that comes near is."""
+    import workbench.discover._event_check as ec
+
+    terms = [Term("damage", i, "one", "on_step", 10.0, "k", (6.0, 14.0)) for i in range(3)]
+    names = [(f"a{i}", f"g{i}") for i in range(3)]
+    probed: list[dict] = []
+
+    def probe_batch(targets, models, values, settings, threads):
+        probed.extend(settings)
+        held = np.array([2.5 if "a1" in s else 40.0 for s in settings])  # k2 near the kept 1 σ, k3 far
+        return held, held, np.ones(len(settings), bool)
+
+    monkeypatch.setattr(ec, "probe_batch", probe_batch)
+    setup = SimpleNamespace(terms=terms, names=names, targets=[object()], models=[object()])
+    progress = SimpleNamespace(state=SimpleNamespace(values={}), n_sims=0)
+    best = rounds.BestRefit(1.0, 0, SimpleNamespace(values={"a0": -0.15, "g0": 11.0}))
+    rows = ec.place_rows(setup, progress, SimpleNamespace(threads=1), best, set())
+    assert [r.term.key for r in rows] == ["k2_step_t"]
+    assert len(probed) == 2 * len(ec.PLACE_PROBES) and progress.n_sims == len(probed)
+    assert all(s.get("g1", s.get("g2")) == 11.0 for s in probed)  # at the kept instant, in place of the kept change
