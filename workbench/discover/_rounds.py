@@ -420,7 +420,7 @@ def search_round(setup: SearchSetup, progress: SearchProgress, settings: SearchS
     if held_before <= 1.0 + noise_tolerance(n_held) or noise_free_match(setup.targets, held_before):
         return False  # at the noise floor (or a noise-free record matched numerically): among 200 terms one fits noise
     t0 = time.perf_counter()
-    progress.refits = []
+    progress.refits, progress.ended = [], None
     batch = sensitivities(setup, progress, settings)
     if not batch.ok[0]:
         if round_no == 0:
@@ -487,8 +487,8 @@ def finite_change(setup: SearchSetup, progress: SearchProgress, settings: Search
     h = fit.outcome.held_rms_sigma
     gain = excess_share_removed(progress.current_held, h, noise_tolerance(setup.n_held))
     keep = gain is not None and gain >= MIN_SHARE and h < progress.current_held
-    how = "as two steps" if setup.terms[fit.rise].form == "on_step" else "given an end (two ramps"
-    settings.say(f"  {setup.terms[k].key} {how}, {h:.4g} σ held-out): "
+    how = "as two steps (" if setup.terms[fit.rise].form == "on_step" else "given an end (two ramps, "
+    settings.say(f"  {setup.terms[k].key} {how}{h:.4g} σ held-out): "
                  + ("kept in its place" if keep else "not kept"))
     progress.rounds.append({"finite_change": {"term": setup.terms[k].key, "held_rms_sigma": h, "kept": keep}})
     if keep:
