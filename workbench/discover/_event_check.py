@@ -112,7 +112,7 @@ def place_family(terms: Sequence[Term], names: Sequence[tuple[str, str | None]],
     so each gets its own refit and the verdict names the ones the records cannot rule out."""
     term = terms[kept]
     cname, gname = names[kept]
-    if not is_timed(term) or term.index < 0 or gname not in values:
+    if not is_timed(term) or term.index < 0 or gname is None or gname not in values:
         return []
     t0 = float(values[gname])
     out: list[ScreenRow] = []
@@ -129,13 +129,15 @@ def place_family(terms: Sequence[Term], names: Sequence[tuple[str, str | None]],
 def place_rows(setup: Any, progress: Any, settings: Any, best: Any, done: set[str]) -> list[ScreenRow]:
     """:func:`place_family` of the round's ``best`` refit, each place probed first on the full model at the kept
     instant (:data:`PLACE_PROBES`, in place of the kept change) and kept for a refit only when it comes near it
-    (:data:`PLACE_NEAR`): two refits per event cost a 15 s sweep's diagnose ~20 s where the sections are told
-    apart anyway (k2 −25 % at 9 s: 35.9 → 55.0 s). ``setup``, ``progress``, ``settings``: the rounds' objects."""
+    (:data:`PLACE_NEAR`): each refit costs seconds, and on a sweep the sections are told apart anyway.
+    ``setup``, ``progress``, ``settings``: the rounds' objects."""
     rows = place_family(setup.terms, setup.names, best.index, best.outcome.values, done)
     if not rows:
         return rows
-    trials = [(r, {setup.names[setup.terms.index(r.term)][0]: m * r.coef,
-                   str(setup.names[setup.terms.index(r.term)][1]): r.shape}) for r in rows for m in PLACE_PROBES]
+    t0 = float(best.outcome.values[setup.names[best.index][1]])
+    trials: list[tuple[ScreenRow, dict[str, float]]] = [
+        (r, {setup.names[setup.terms.index(r.term)][0]: m * r.coef, str(setup.names[setup.terms.index(r.term)][1]): t0})
+        for r in rows for m in PLACE_PROBES]
     held, _, ok = probe_batch(setup.targets, setup.models, progress.state.values, [t[1] for t in trials],
                               settings.threads)
     progress.n_sims += len(trials) * len(setup.targets)
