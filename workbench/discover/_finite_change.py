@@ -84,12 +84,17 @@ class WindowFit:
     n_sims: int
 
 
-def ramp_slots(terms: Sequence[Term], term: Term) -> list[int]:
-    """The dictionary indices of the ramps of ``term``'s parameter (same core parameter and section/mass), the
-    ``term``'s own first when it is one."""
-    out = [k for k, t in enumerate(terms) if t.placement == "damage" and t.form == "on_ramp"
+def gate_slots(terms: Sequence[Term], term: Term, form: str) -> list[int]:
+    """The dictionary indices of the ``form`` terms (``on_ramp``, ``on_step``) of ``term``'s parameter (same core
+    parameter and section/mass), the ``term``'s own first when it is one."""
+    out = [k for k, t in enumerate(terms) if t.placement == "damage" and t.form == form
            and (t.param, t.index) == (term.param, term.index)]
     return sorted(out, key=lambda k: terms[k] != term)
+
+
+def ramp_slots(terms: Sequence[Term], term: Term) -> list[int]:
+    """The ramps of ``term``'s parameter (:func:`gate_slots`)."""
+    return gate_slots(terms, term, "on_ramp")
 
 
 def candidate_windows(form: str, coef: float, onset: float, t_end: float) -> list[Window]:
@@ -161,9 +166,13 @@ class WindowProbe:
     t_end: float
     threads: int | None
 
+    def setting(self, window: Window) -> dict[str, float]:
+        """The dictionary parameters of ``window`` (its two ramps)."""
+        return window_setting(window, self.rise, self.end)
+
     def scores(self, windows: Sequence[Window]) -> list[float]:
         """The whole record's RMS (σ) with each window (inf where it does not integrate)."""
-        settings = [window_setting(w, self.rise, self.end) for w in windows]
+        settings = [self.setting(w) for w in windows]
         held, train, ok = probe_batch(self.targets, self.models, self.values, settings, self.threads)
         return [e if good else math.inf for e, good in zip(whole_record_rms(self.targets, held, train), ok)]
 

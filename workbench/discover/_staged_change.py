@@ -28,13 +28,14 @@ from workbench.discover._finite_change import (
     Window,
     WindowFit,
     WindowProbe,
+    gate_slots,
     others_free,
     whole_rms,
     window_refit,
     zoom_window,
 )
-from workbench.discover._onset import MAX_LOSS, whole_record_rms
-from workbench.discover._search import SearchState, probe_batch, refine
+from workbench.discover._onset import MAX_LOSS
+from workbench.discover._search import SearchState, refine
 from workbench.fit import Objective, Target
 
 #: second instants probed after each first one (evenly over the time left), and the share of the total change the
@@ -46,9 +47,7 @@ STAGE_SHARES = (0.3, 0.5, 0.7)
 def step_slots(terms: Sequence[Term], term: Term) -> list[int]:
     """The dictionary indices of the steps of ``term``'s parameter (same core parameter and section/mass), the
     ``term``'s own first when it is one."""
-    out = [k for k, t in enumerate(terms) if t.placement == "damage" and t.form == "on_step"
-           and (t.param, t.index) == (term.param, term.index)]
-    return sorted(out, key=lambda k: terms[k] != term)
+    return gate_slots(terms, term, "on_step")
 
 
 def stage_setting(window: Window, share: float, first: tuple[str, str | None],
@@ -65,10 +64,8 @@ class StageProbe(WindowProbe):
 
     share: float = 0.5
 
-    def scores(self, windows: Sequence[Window]) -> list[float]:
-        settings = [stage_setting(w, self.share, self.rise, self.end) for w in windows]
-        held, train, ok = probe_batch(self.targets, self.models, self.values, settings, self.threads)
-        return [e if good else math.inf for e, good in zip(whole_record_rms(self.targets, held, train), ok)]
+    def setting(self, window: Window) -> dict[str, float]:
+        return stage_setting(window, self.share, self.rise, self.end)
 
 
 def candidate_stages(firsts: Sequence[float], total: float, t_end: float) -> list[Window]:
