@@ -157,11 +157,14 @@ class LifePool:
         return False
 
     def _look_for_lost(self, seen: set[str]) -> set[str]:
+        from studies.batch.runner import counted
+
         now = set(self._client.scheduler_info()["workers"])
         lost = len(seen - now)
         if lost:
             self.workers_lost += lost
-            print(f"shm run: {self.workers_lost} worker(s) lost — the visit(s) they were running run again",
+            whose = "its visit runs" if self.workers_lost == 1 else "their visits run"
+            print(f"shm run: {counted(self.workers_lost, 'worker')} lost — {whose} again",
                   file=sys.stderr, flush=True)
         return now
 

@@ -24,6 +24,7 @@ from typing import Any
 
 from board_config.errors import InputError
 from firmware_sim.mbit import ClampReport
+from studies.batch.runner import counted
 from studies.campaign.results import CampaignResult
 from studies.campaign.spec import BatchSpec, CampaignSpec
 from studies.campaign.store import ResultStore
@@ -68,8 +69,8 @@ class CampaignOutcome:
 
     def failure_message(self) -> str:
         done = self.n_reused + self.n_computed
-        lines = [f"{len(self.failures)} of {self.n_batches} batches did not finish ({done} finished and stored in "
-                 f"{self.out_dir / 'batches'}):"]
+        lines = [f"{len(self.failures)} of {counted(self.n_batches, 'batch', 'batches')} did not finish ({done} "
+                 f"finished and stored in {self.out_dir / 'batches'}):"]
         lines += [f"  {f.key}: {f.message}" for f in self.failures[:10]]
         if len(self.failures) > 10:
             lines.append(f"  ... and {len(self.failures) - 10} more")
@@ -222,7 +223,7 @@ def _open_executor(n_todo: int, workers: int | None, dask_scheduler: str | None,
         return None, None, "in-process"
     n_proc = min(workers or os.cpu_count() or 1, n_todo)
     executor, method = _process_executor(n_proc)
-    return executor, None, f"process pool ({n_proc} workers, {method})"
+    return executor, None, f"process pool ({counted(n_proc, 'worker')}, {method})"
 
 
 def _run_batches(todo: list[BatchSpec], executor: Executor | None, batch_fn: BatchFn, tally: _Tally) -> None:

@@ -12,6 +12,7 @@ import numpy as np
 
 from reporting.figures import pyplot, save_figure
 from reporting.html_page import img_tag, page, table
+from studies.batch.runner import counted
 from studies.health.page import CSS
 
 
@@ -73,8 +74,8 @@ def life_page(summary: dict[str, Any], figure: Path | None, out_name: str = "DIR
              f"{summary['visit_interval_h']:g} h</div><p>{summary['flights_between_visits']} flights between visits"
              f"; seed {summary['seed']}, params {html.escape(str(summary['params']))}</p></div>"
              f"<div class='card'><h3>RUN</h3><div class='answer'>{summary['wall_s']:.1f} s wall</div>"
-             f"<p>{summary['workers']} workers; every visit a full board run (100 Hz firmware, simulated rig, "
-             "link, MBITs, monitor)</p></div></div>")
+             f"<p>{counted(summary['workers'], 'worker')}; every visit a full board run (100 Hz firmware, simulated "
+             "rig, link, MBITs, monitor)</p></div></div>")
     body = ["<main>", f"<h1>A life: {html.escape(summary['scenario'])}</h1>",
             f"<p class='sub'>{html.escape(summary['scenario_file'])}</p>",
             (f"<p class='note'><b>interrupted</b>: {len(summary['visits'])} of {summary.get('visits_planned', '?')} "

@@ -45,7 +45,7 @@ def test_a_worker_killed_from_outside_loses_nothing(capsys) -> None:
         assert pool.run([("a", 3.0), ("b",)], got.__setitem__) is False
         assert pool.workers_lost == 1
     assert got == {0: "a", 1: "b"}
-    assert "1 worker(s) lost — the visit(s) they were running run again" in capsys.readouterr().err
+    assert "shm run: 1 worker lost — its visit runs again" in capsys.readouterr().err
 
 
 def test_a_stop_terminates_every_worker_at_once() -> None:
