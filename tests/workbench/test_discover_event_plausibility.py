@@ -15,7 +15,7 @@ import pytest
 
 import workbench.discover._rounds as rounds
 from workbench.discover._dictionary import Term
-from workbench.discover._event_check import invariant_siblings, onset_issue
+from workbench.discover._event_check import invariant_siblings, onset_issue, refit_twins
 from workbench.discover._results import ScreenRow
 
 T = np.linspace(0.0, 10.0, 2501)
@@ -158,7 +158,7 @@ def test_a_displaced_event_is_named_first_among_the_twins_in_the_words_of_its_ow
                             scales={})
     progress = SimpleNamespace(refits=[event])
     other = {"key": "m3_lin_z3", "words": "a force on mass 3"}
-    twins = rounds.refit_twins(setup, progress, [other], event)
+    twins = refit_twins(setup, progress, [other], event)
     assert [t["key"] for t in twins] == ["k3_step_t", "m3_lin_z3"]
     assert twins[0]["words"].startswith("section 3 lost 30 % of its stiffness at t = 0.510 ± 0.002 s")
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -29,6 +30,7 @@ from workbench.discover._effect_writer import describe_term
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._results import ScreenRow
 from workbench.discover._search import probe_batch
+from workbench.discover._twins import MAX_TWINS, twin_tolerance
 from workbench.fit import FitOutcome, Target
 
 #: an onset within this share of the record from either end is pinned to the edge: no instant was found
@@ -43,6 +45,13 @@ MIN_BEFORE_SAMPLES = 20
 #: probe leaves more than PLACE_NEAR × the kept term's held-out RMS is not refitted (a sweep tells sections apart)
 PLACE_PROBES = (0.5, 0.75, 1.0, 1.5, 2.0)
 PLACE_NEAR = 3.0
+#: an event's kind family (another parameter changing at the kept instant) is probed at these relative changes, and
+#: at the kept change c, −c and the static twin −c / (1 + c) (on a slow record a stiffness lost by 15 % and a patch's
+#: authority gained by 17.6 % bend the section alike)
+KIND_PROBES = (-0.3, -0.15, -0.05, 0.05, 0.15, 0.3)
+#: the way damage moves a core parameter (the sign of its relative change): a section's stiffness and a patch's
+#: authority are lost, damping is gained; the other parameters may move either way
+DAMAGE_SIGN = {"k": -1.0, "c": 1.0, "d_ep": -1.0, "d_ep_i": -1.0}
 
 
 def is_timed(term: Term) -> bool:
@@ -104,21 +113,26 @@ def onset_issue(targets: Sequence[Target], outcome: FitOutcome, gname: str) -> s
 
 
 def place_family(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], kept: int,
-                 values: Mapping[str, float], done: set[str]) -> list[ScreenRow]:
+                 values: Mapping[str, float], done: set[str], kinds: bool = False) -> list[ScreenRow]:
     """The kept time-gated term's change at the same instant in the other sections (or masses, patches): rows of the
     same form and parameter at the kept onset, whose slot's refit range holds it, not refitted yet (``done``: keys).
     A record that excites one mode (an MBIT) moves it alike for a loss in section 1 and in section 2 — k2 −15 % at
     11 s of MBIT.a (10 µm) was named "section 1 lost 15 % of its stiffness at t = 11.00 s", section 2 never said —
-    so each gets its own refit and the verdict names the ones the records cannot rule out."""
+    so each gets its own refit and the verdict names the ones the records cannot rule out.
+
+    ``kinds``: the other *parameters* changing at that instant instead (every place): on MBIT.b a section 1 that lost
+    15 % of its stiffness at 1.2 s was named "authority d_ep of patch 1 rose by 17.7 %" — a slow record bends the
+    section alike for both, and only a refit of each says which the records can tell apart."""
     term = terms[kept]
     cname, gname = names[kept]
-    if not is_timed(term) or term.index < 0 or gname is None or gname not in values:
+    if not is_timed(term) or (term.index < 0 and not kinds) or gname is None or gname not in values:
         return []
     t0 = float(values[gname])
     out: list[ScreenRow] = []
     for t in terms:
         rng = t.shape_range
-        if (t.placement, t.form, t.param) != (term.placement, term.form, term.param) or t.index == term.index \
+        other = t.param != term.param if kinds else (t.param == term.param and t.index != term.index)
+        if (t.placement, t.form) != (term.placement, term.form) or not other \
                 or t.key in done or rng is None or not rng[0] <= t0 <= rng[1]:
             continue
         done.add(t.key)
@@ -126,24 +140,78 @@ def place_family(terms: Sequence[Term], names: Sequence[tuple[str, str | None]],
     return out
 
 
-def place_rows(setup: Any, progress: Any, settings: Any, best: Any, done: set[str]) -> list[ScreenRow]:
-    """:func:`place_family` of the round's ``best`` refit, each place probed first on the full model at the kept
-    instant (:data:`PLACE_PROBES`, in place of the kept change) and kept for a refit only when it comes near it
-    (:data:`PLACE_NEAR`): each refit costs seconds, and on a sweep the sections are told apart anyway.
-    ``setup``, ``progress``, ``settings``: the rounds' objects."""
-    rows = place_family(setup.terms, setup.names, best.index, best.outcome.values, done)
+def family_probes(coef: float, kinds: bool) -> tuple[float, ...]:
+    """The changes a place (the kept change ``coef`` times :data:`PLACE_PROBES`) or a kind (:data:`KIND_PROBES`,
+    ``coef``, ``−coef`` and ``−coef / (1 + coef)``) of an event's family is probed at."""
+    if not kinds:
+        return tuple(m * coef for m in PLACE_PROBES)
+    static = -coef / (1.0 + coef) if coef > -0.9 else -coef
+    return (*KIND_PROBES, coef, -coef, static)
+
+
+def place_rows(setup: Any, progress: Any, settings: Any, best: Any, done: set[str],
+               kinds: bool = False) -> list[ScreenRow]:
+    """:func:`place_family` of the round's ``best`` refit (``kinds``: its kind family), each member probed first on
+    the full model at the kept instant (:func:`family_probes`, in place of the kept change) and kept for a refit only
+    when it comes near it (:data:`PLACE_NEAR`): each refit costs seconds, and on a sweep the sections (and the kinds)
+    are told apart anyway. ``setup``, ``progress``, ``settings``: the rounds' objects."""
+    rows = place_family(setup.terms, setup.names, best.index, best.outcome.values, done, kinds)
     if not rows:
         return rows
     t0 = float(best.outcome.values[setup.names[best.index][1]])
     trials: list[tuple[ScreenRow, dict[str, float]]] = [
-        (r, {setup.names[setup.terms.index(r.term)][0]: m * r.coef, str(setup.names[setup.terms.index(r.term)][1]): t0})
-        for r in rows for m in PLACE_PROBES]
+        (r, {setup.names[setup.terms.index(r.term)][0]: c, str(setup.names[setup.terms.index(r.term)][1]): t0})
+        for r in rows for c in family_probes(r.coef, kinds)]
     held, _, ok = probe_batch(setup.targets, setup.models, progress.state.values, [t[1] for t in trials],
                               settings.threads)
     progress.n_sims += len(trials) * len(setup.targets)
     limit = PLACE_NEAR * max(best.held_rms_sigma, 1.0)
-    near = {trials[i][0].term.key for i in range(len(trials)) if ok[i] and held[i] <= limit}
-    return [r for r in rows if r.term.key in near]
+    probed: dict[str, tuple[float, float]] = {}  # key: (held-out σ, change) of its best probe
+    for i, (r, trial) in enumerate(trials):
+        if ok[i] and held[i] <= limit and held[i] < probed.get(r.term.key, (math.inf, 0.0))[0]:
+            probed[r.term.key] = (float(held[i]), trial[setup.names[setup.terms.index(r.term)][0]])
+    if kinds:
+        settings.say(f"  other parameters changing at t = {t0:.4g} s: {len(rows)} probed, {len(probed)} within "
+                     f"{limit:.3g} σ" + "".join(f", {k} {h:.3g} σ" for k, (h, _) in
+                                                 sorted(probed.items(), key=lambda kv: kv[1])[:3]))
+    # each refit starts from its best probe's change (the kept change may have the other sign for another kind)
+    return [replace(r, coef=probed[r.term.key][1]) for r in rows if r.term.key in probed]
+
+
+def damage_like(term: Term, coef: float) -> bool:
+    """Whether ``term`` at relative change ``coef`` moves its parameter the way damage does (:data:`DAMAGE_SIGN`;
+    True for a parameter that may move either way and for terms that are not a parameter's own)."""
+    sign = DAMAGE_SIGN.get(term.param) if term.placement == "damage" else None
+    return sign is None or sign * coef > 0
+
+
+def damage_lead(setup: Any, progress: Any, settings: Any, best: Any) -> Any:
+    """The refit that leads the verdict among an event and the events the records cannot tell from it: when the kept
+    event moves its parameter the way damage does not (a stiffness or a patch's authority gained, damping lost) and an
+    event refitted at the same instant in this round (its place or kind family) moves its own the way damage does
+    and explains the records alike (within the twins' tolerance), that one leads — the records cannot choose, and
+    damage is what a monitor is there to see; the other stays named as its twin. ``best``: a ``BestRefit``."""
+    term = setup.terms[best.index]
+    cname, gname = setup.names[best.index]
+    if not is_timed(term) or gname is None or damage_like(term, float(best.outcome.values.get(cname, 0.0))):
+        return best
+    t0 = float(best.outcome.values[gname])
+    span = max(float(tg.t[-1]) for tg in setup.targets) - min(float(tg.t[0]) for tg in setup.targets)
+    limit = max(best.held_rms_sigma, 1.0) * twin_tolerance(setup.n_held)
+    alike = []
+    for b in progress.refits:
+        t, (c, g) = setup.terms[b.index], setup.names[b.index]
+        if is_timed(t) and g is not None and b.held_rms_sigma <= limit \
+                and abs(float(b.outcome.values.get(g, math.inf)) - t0) <= EDGE_SHARE * span \
+                and damage_like(t, float(b.outcome.values.get(c, 0.0))):
+            alike.append(b)
+    if not alike:
+        return best
+    lead = min(alike, key=lambda b: b.held_rms_sigma)
+    settings.say(f"  {term.key} ({best.held_rms_sigma:.4g} σ) moves its parameter the way damage does not; "
+                 f"{setup.terms[lead.index].key} ({lead.held_rms_sigma:.4g} σ) at the same instant explains the "
+                 "records alike and moves its own the way damage does: it leads, the other is named as its twin")
+    return lead
 
 
 def event_twin(term: Term, outcome: FitOutcome, names: tuple[str, str | None],
@@ -158,3 +226,19 @@ def event_twin(term: Term, outcome: FitOutcome, names: tuple[str, str | None],
     words = describe_term(term, coef, shape, scales.get(term.signal, 1.0), se)
     return {"key": term.key, "placement": term.placement, "index": term.index, "signal": term.signal,
             "form": term.form, "held_rms_sigma": outcome.held_rms_sigma, "judged_by": "refitted", "words": words}
+
+
+def refit_twins(setup: Any, progress: Any, twins: list[dict[str, Any]],
+                displaced: Any) -> list[dict[str, Any]]:
+    """``twins`` with each time-gated one in the words of its own refit (its onset fitted, not the screen's), the
+    ``displaced`` event first."""
+    refits = {setup.terms[b.index].key: b for b in progress.refits if is_timed(setup.terms[b.index])}
+    if displaced is not None:
+        first = setup.terms[displaced.index].key
+        twins = [{"key": first}, *(t for t in twins if t["key"] != first)][:MAX_TWINS]
+    out = []
+    for t in twins:
+        b = refits.get(t["key"])
+        out.append(event_twin(setup.terms[b.index], b.outcome, setup.names[b.index], setup.scales)
+                   if b is not None else t)
+    return out

@@ -21,7 +21,14 @@ import numpy as np
 from board_config.parameter import freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
-from workbench.discover._event_check import event_twin, invariant_siblings, is_timed, onset_issue, place_rows
+from workbench.discover._event_check import (
+    damage_lead,
+    invariant_siblings,
+    is_timed,
+    onset_issue,
+    place_rows,
+    refit_twins,
+)
 from workbench.discover._finite_change import WindowFit, judged_with_end, keep_window
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._onset import change_point, event_onset, onset_probe, onset_scan, with_onsets
@@ -35,7 +42,7 @@ from workbench.discover._search import (
     refit_list,
 )
 from workbench.discover._staged_change import change_refit
-from workbench.discover._twins import MAX_TWINS, switch_family, twin_tolerance, twins_of
+from workbench.discover._twins import switch_family, twin_tolerance, twins_of
 from workbench.fit import FitOutcome, Objective, Target, explained, noise_tolerance, rms
 
 #: a term is kept when its refit removes at least this share of the held-out energy left above the noise
@@ -357,33 +364,20 @@ def plausible_best(setup: SearchSetup, progress: SearchProgress, settings: Searc
     return fallback, None
 
 
-def refit_twins(setup: SearchSetup, progress: SearchProgress, twins: list[dict[str, Any]],
-                displaced: BestRefit | None) -> list[dict[str, Any]]:
-    """``twins`` with each time-gated one in the words of its own refit (its onset fitted, not the screen's), the
-    ``displaced`` event first."""
-    refits = {setup.terms[b.index].key: b for b in progress.refits if is_timed(setup.terms[b.index])}
-    if displaced is not None:
-        first = setup.terms[displaced.index].key
-        twins = [{"key": first}, *(t for t in twins if t["key"] != first)][:MAX_TWINS]
-    out = []
-    for t in twins:
-        b = refits.get(t["key"])
-        out.append(event_twin(setup.terms[b.index], b.outcome, setup.names[b.index], setup.scales)
-                   if b is not None else t)
-    return out
-
-
 def family_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, best: BestRefit,
                 rows: list[ScreenRow], tried: list[dict[str, Any]]) -> BestRefit:
     """The best refit's switching family (:func:`~workbench.discover._twins.switch_family`), then an event's change
     at the same instant elsewhere (:func:`~workbench.discover._event_check.place_family`), refitted too (logged in
-    ``tried``): one of them replaces it only when it fits clearly better — beyond the twins' tolerance."""
+    ``tried``), and another parameter changing at that instant (its kind family): one of them replaces it only when it
+    fits clearly better — beyond the twins' tolerance — or, within it, when only it moves its parameter the way
+    damage does (:func:`~workbench.discover._event_check.damage_lead`)."""
     for family in (lambda b: switch_family(setup.terms[b.index], rows, {t["term"] for t in tried}),
-                   lambda b: place_rows(setup, progress, settings, b, {t["term"] for t in tried})):
+                   lambda b: place_rows(setup, progress, settings, b, {t["term"] for t in tried}),
+                   lambda b: place_rows(setup, progress, settings, b, {t["term"] for t in tried}, kinds=True)):
         more = refit_best(setup, progress, settings, rows_, tried) if (rows_ := family(best)) else None
         if more is not None and more.held_rms_sigma * twin_tolerance(setup.n_held) < best.held_rms_sigma:
             best = more
-    return best
+    return damage_lead(setup, progress, settings, best)
 
 
 def keep_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, best: BestRefit,
