@@ -88,6 +88,7 @@ def run_life_command(args: argparse.Namespace, scenario: Any) -> int:
 
 def _run_life_staged(args: argparse.Namespace, scenario: Any, seed: int, params: str, cfg: Any, out: Path,
                      stage: Path, stopper: StopOnSignal) -> int:
+    from studies.batch.runner import counted
     from studies.health.life import run_life, visit_line
 
     lines: list[str] = []
@@ -131,7 +132,7 @@ def _run_life_staged(args: argparse.Namespace, scenario: Any, seed: int, params:
         print(f"results in {out}/ (usage.db, records/, life.json, timeline.txt, report.html, life.png)")
     if stopper.requested:
         return stopper.report(result.interrupted, f"; status 'interrupted' recorded in {out / 'usage.db'}, "
-                              f"{len(result.visits)} finished visit(s) in {out}/", "the life", f"{out}/")
+                              f"{counted(len(result.visits), 'finished visit')} in {out}/", "the life", f"{out}/")
     return 1 if failed else 0
 
 

@@ -28,6 +28,8 @@ def previous_run(out: Path) -> str | None:
         except (OSError, ValueError):
             what = ""
     if not what and (out / "usage.db").exists():
+        from studies.batch.runner import counted
+
         try:
             db = sqlite3.connect(f"file:{out / 'usage.db'}?mode=ro", uri=True)
             try:
@@ -35,7 +37,7 @@ def previous_run(out: Path) -> str | None:
                                  "(SELECT status FROM runs ORDER BY run_id DESC LIMIT 1) FROM runs").fetchone()
             finally:
                 db.close()
-            what = f"{row[0]} run(s) in usage.db, the last started {row[1]}, status {row[2]}"
+            what = f"{counted(row[0], 'run')} in usage.db, the last started {row[1]}, status {row[2]}"
         except sqlite3.DatabaseError:
             what = "usage.db"
     return what or ", ".join(present)
