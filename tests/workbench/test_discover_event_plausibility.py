@@ -99,6 +99,7 @@ def _choose(monkeypatch: pytest.MonkeyPatch, event_held: float, refit_held: dict
             progress_.refits.append(rounds.BestRefit(h, terms.index(row.term), out))
 
     monkeypatch.setattr(rounds, "refit_best", refit_best)
+    monkeypatch.setattr(rounds, "place_onset", lambda *a: None)  # the whole record's profile: its own tests
     monkeypatch.setattr(rounds, "judged_with_end", lambda s_, p_, st_, ev, why: None if an_end_helps else why)
     rows = [ScreenRow(t, -0.1, 400.0, 200.0) for t in terms]
     tried = [{"term": terms[0].key, "held_rms_sigma": event_held}]

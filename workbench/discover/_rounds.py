@@ -32,6 +32,7 @@ from workbench.discover._event_check import (
 from workbench.discover._finite_change import WindowFit, judged_with_end, keep_window
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._onset import change_point, event_onset, onset_probe, onset_scan, with_onsets
+from workbench.discover._onset_profile import place_onset
 from workbench.discover._results import DiscoverError, ScreenRow, excess_share_removed, noise_free_match
 from workbench.discover._search import (
     SearchState,
@@ -352,6 +353,7 @@ def plausible_best(setup: SearchSetup, progress: SearchProgress, settings: Searc
         return alt, (best if twin else None)
     if best.held_rms_sigma <= 1.0 + noise_tolerance(setup.n_held):
         return best, None
+    place_onset(setup, progress, settings, best)  # its standard error from the whole record, not the training
     why = onset_issue(setup.targets, best.outcome, setup.names[best.index][1] or "")
     if why is not None:
         why = judged_with_end(setup, progress, settings, best, why)
@@ -387,6 +389,7 @@ def keep_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSett
     twins named; ``displaced``: the event it was kept instead of, named first); False when it does not and the
     search stops."""
     best = family_best(setup, progress, settings, best, rows, tried)
+    place_onset(setup, progress, settings, best)
     h_new, k_new, out = best.held_rms_sigma, best.index, best.outcome
     term = setup.terms[k_new]
     twins = twins_of(term, h_new, rows, tried, setup.n_held, setup.scales, linearised=linearised)
