@@ -114,3 +114,43 @@ def test_an_emitted_events_onset_is_refitted_only_when_asked(tmp_path):
     assert cls.default_fit_names() == (cname,) and cls.on_request_fit_names() == (gname,)
     onset = next(p for p in cls.parameters if p.name == gname)
     assert onset.default == 10.0085 and f"--free {gname}" in onset.description
+
+
+def _change(monkeypatch, kept_coef: float, own_held: float, kind_held: float) -> tuple[object, list]:
+    """change_refit of a kept ramp of patch 1's authority (``kept_coef`` /s) whose window leaves ``own_held`` σ, with
+    k1's ramp refitted this round (a loss) and its window leaving ``kind_held`` σ: the fit kept, the ``like`` tried."""
+    import workbench.discover._staged_change as staged
+    from workbench.discover._finite_change import WindowFit
+
+    terms = [Term("damage", 0, "one", "on_ramp", 2.0, "d_ep_i", (1.0, 3.0)),
+             Term("damage", 0, "one", "on_ramp", 2.0, "k", (1.0, 3.0))]
+    tried: list = []
+
+    def refit(*args, **kw):
+        like = args[-1]
+        tried.append(like)
+        held = own_held if like is None else kind_held
+        out = SimpleNamespace(held_rms_sigma=held, train_rms_sigma=held)
+        return WindowFit(rise=0 if like is None else 1, end=0, replaced=0, outcome=out, values={}, n_sims=1)
+
+    monkeypatch.setattr(staged, "window_refit", refit)
+    monkeypatch.setattr(staged, "staged_refit", refit)
+    target = SimpleNamespace(held=np.array([True, False]), train=np.array([False, True]), channels=["z3"])
+    setup = SimpleNamespace(terms=terms, names=[("a0", "g0"), ("a1", "g1")], targets=[target], models=[],
+                            scales={"t": 3.0}, n_held=5000)
+    k1 = rounds.BestRefit(11.3, 1, SimpleNamespace(values={"a1": -0.3, "g1": 2.0}))
+    progress = SimpleNamespace(refits=[k1], state=SimpleNamespace(values={"a0": kept_coef, "g0": 2.0}, kept=[0]),
+                               n_sims=0)
+    fit = staged.change_refit(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=lambda s: None), 0)
+    return fit, tried
+
+
+def test_a_finite_change_of_an_authority_gained_is_said_as_the_stiffness_lost_that_explains_it_alike(monkeypatch):
+    """MBIT.b, section 3 lost 20 % over 1 s at 2.4 s: kept as patch 3's authority rising 25.7 % over 2.05–2.81 s
+    (2.44 σ); k3's window over the same time (1.99 σ) is what damage does."""
+    fit, tried = _change(monkeypatch, 0.3, 2.44, 2.40)
+    assert fit.rise == 1 and tried == [None, None, 1, 1]
+    fit, _ = _change(monkeypatch, 0.3, 2.44, 6.0)  # clearly worse: the authority stays
+    assert fit.rise == 0
+    fit, tried = _change(monkeypatch, -0.3, 2.44, 2.0)  # an authority lost is damage already: no kind tried
+    assert fit.rise == 0 and tried == [None, None]

@@ -56,7 +56,7 @@ def test_the_change_kept_is_the_refit_that_leaves_the_whole_record_lowest(monkey
     setup = SimpleNamespace(terms=terms, names=[("c", "g")] * len(terms), targets=[SimpleNamespace(
         held=np.array([True, False]), train=np.array([False, True]), channels=["z3"])],
                             models=[], scales={"t": 15.0})
-    progress = SimpleNamespace(refits=[], state=None, n_sims=0)
+    progress = SimpleNamespace(refits=[], state=SimpleNamespace(values={"c": -0.1}, kept=[3]), n_sims=0)
     fit = staged.change_refit(setup, progress, SimpleNamespace(threads=1, max_nfev=3), 3)
     assert (None if fit is None else fit.rise) == chosen
     assert progress.n_sims == 5 * ((window_held is not None) + (stages_held is not None))

@@ -145,8 +145,28 @@ def family_probes(coef: float, kinds: bool) -> tuple[float, ...]:
     ``coef``, ``−coef`` and ``−coef / (1 + coef)``) of an event's family is probed at."""
     if not kinds:
         return tuple(m * coef for m in PLACE_PROBES)
-    static = -coef / (1.0 + coef) if coef > -0.9 else -coef
-    return (*KIND_PROBES, coef, -coef, static)
+    return (*KIND_PROBES, coef, -coef, static_twin(coef))
+
+
+def static_twin(coef: float) -> float:
+    """The relative change of a stiffness that bends a section as a change ``coef`` of its patch's authority does
+    (and back): −c / (1 + c) — a loss of 15 % and a gain of 17.6 %; −c where 1 + c is near 0."""
+    return -coef / (1.0 + coef) if coef > -0.9 else -coef
+
+
+def damage_kinds(setup: Any, progress: Any, kept: int) -> list[int]:
+    """The dictionary indices of this round's refitted time-gated terms of the same form as ``kept`` but another
+    parameter, moving it the way damage does (:func:`damage_like`), best first — the kinds the kept change may be
+    said as when it moves its own the way damage does not."""
+    term = setup.terms[kept]
+    best: dict[tuple[str, int], Any] = {}
+    for b in progress.refits:
+        t, cname = setup.terms[b.index], setup.names[b.index][0]
+        if t.form == term.form and t.placement == "damage" and t.param != term.param \
+                and damage_like(t, float(b.outcome.values.get(cname, 0.0))) \
+                and ((t.param, t.index) not in best or b.held_rms_sigma < best[(t.param, t.index)].held_rms_sigma):
+            best[(t.param, t.index)] = b
+    return [b.index for b in sorted(best.values(), key=lambda b: b.held_rms_sigma)]
 
 
 def place_rows(setup: Any, progress: Any, settings: Any, best: Any, done: set[str],

@@ -29,7 +29,7 @@ import numpy as np
 from board_config.parameter import Parameter, freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
-from workbench.discover._event_check import onset_issue
+from workbench.discover._event_check import onset_issue, static_twin
 from workbench.discover._gates import describe_finite_change
 from workbench.discover._onset import ONSET_RESOLUTION_S, whole_record_rms
 from workbench.discover._results import FoundTerm
@@ -205,7 +205,7 @@ def zoom_window(probe: WindowProbe, first: Sequence[Window]) -> tuple[Window, fl
 
 def window_refit(targets: Sequence[Target], models: Sequence[PlantModel], terms: Sequence[Term],
                  names: Sequence[tuple[str, str | None]], state: SearchState, kept: int, t_end: float,
-                 threads: int | None, max_nfev: int) -> WindowFit | None:
+                 threads: int | None, max_nfev: int, like: int | None = None) -> WindowFit | None:
     """The kept time-gated term ``kept`` (dictionary index) given an end: the windows of :func:`candidate_windows`
     probed on the full model (the kept term off) and the best zoomed (:func:`zoom_window`), then refitted with
     both rates free and both onsets within half the window's duration (at least 5 % of the record) of the zoom's —
@@ -213,16 +213,18 @@ def window_refit(targets: Sequence[Target], models: Sequence[PlantModel], terms:
     while the refit reaches 2.49–7.51 s. When that refit (on the training blocks) leaves the whole record worse
     than the zoom did, the onsets are refitted within :data:`ONSET_FREE_S` of the zoom's, then held at them; the
     refit that leaves the whole record lowest is kept (None when its parameter has fewer than two ramps or nothing
-    integrates)."""
-    term = terms[kept]
+    integrates). ``like``: the window is of that term's parameter instead, in place of the kept term (its kind:
+    a stiffness lost where a patch's authority rose), started from the kept change's static twin."""
+    term = terms[kept if like is None else like]
     slots = ramp_slots(terms, term)
     if len(slots) < 2:
         return None
     pair = (slots[0], slots[1])
     cname, gname = names[kept]
+    coef = float(state.values[cname]) if like is None else static_twin(float(state.values[cname]))
     probe = WindowProbe(targets, models, dict(state.values) | {cname: 0.0}, names[pair[0]], names[pair[1]], t_end,
                         threads)
-    zoomed = zoom_window(probe, candidate_windows(term.form, state.values[cname], state.values[str(gname)], t_end))
+    zoomed = zoom_window(probe, candidate_windows(terms[kept].form, coef, state.values[str(gname)], t_end))
     if zoomed is None:
         return None
     window, score, n = zoomed

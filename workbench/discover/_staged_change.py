@@ -23,6 +23,7 @@ from typing import Any
 from board_config.parameter import Parameter, freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
+from workbench.discover._event_check import damage_kinds, damage_like, static_twin
 from workbench.discover._finite_change import (
     ONSET_FREE_S,
     Window,
@@ -36,12 +37,15 @@ from workbench.discover._finite_change import (
 )
 from workbench.discover._onset import MAX_LOSS
 from workbench.discover._search import SearchState, refine
+from workbench.discover._twins import twin_tolerance
 from workbench.fit import Objective, Target
 
 #: second instants probed after each first one (evenly over the time left), and the share of the total change the
 #: first step takes
 STAGE_SECONDS = 10
 STAGE_SHARES = (0.3, 0.5, 0.7)
+#: a kept change moving its parameter the way damage does not is also refitted as this many of its kinds
+MAX_KINDS = 1
 
 
 def step_slots(terms: Sequence[Term], term: Term) -> list[int]:
@@ -92,18 +96,20 @@ def stage_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], s
 
 def staged_refit(targets: Sequence[Target], models: Sequence[PlantModel], terms: Sequence[Term],
                  names: Sequence[tuple[str, str | None]], state: SearchState, kept: int, firsts: Sequence[float],
-                 t_end: float, threads: int | None, max_nfev: int) -> WindowFit | None:
+                 t_end: float, threads: int | None, max_nfev: int, like: int | None = None) -> WindowFit | None:
     """The kept time-gated term ``kept`` as two steps of its parameter: pairs of instants (the first at the kept
     term's onset or one of ``firsts``, s) probed at :data:`STAGE_SHARES` of its total change, the best zoomed and
-    refitted (None when its parameter has fewer than two steps or nothing integrates)."""
-    term = terms[kept]
+    refitted (None when its parameter has fewer than two steps or nothing integrates). ``like``: two steps of that
+    term's parameter instead (the kept change's kind), from the kept total's static twin."""
+    term = terms[kept if like is None else like]
     slots = [k for k in step_slots(terms, term) if k == kept or k not in state.kept]
     if len(slots) < 2:
         return None
     pair = (slots[0], slots[1])
     cname, gname = names[kept]
     coef, t0 = float(state.values[cname]), float(state.values[str(gname)])
-    total = coef * (t_end - t0) if term.form == "on_ramp" else coef
+    total = coef * (t_end - t0) if terms[kept].form == "on_ramp" else coef
+    total = total if like is None else static_twin(total)
     windows = candidate_stages(sorted({t0, *firsts}), total, t_end)
     base = dict(state.values) | {cname: 0.0}
     best: tuple[StageProbe, float, Window] | None = None
@@ -136,13 +142,30 @@ def change_refit(setup: Any, progress: Any, settings: Any, kept: int) -> WindowF
     record lower (None when neither is possible). The first step's candidate instants: the kept term's onset and
     the onsets of this round's refitted steps of the same parameter. ``setup``, ``progress``, ``settings``: the
     rounds' objects."""
+    own = _change_refits(setup, progress, settings, kept, None)
     term = setup.terms[kept]
+    if own is None or damage_like(term, float(progress.state.values[setup.names[kept][0]])):
+        return own
+    kinds = damage_kinds(setup, progress, kept)[:MAX_KINDS]
+    for like in kinds:  # the change said as the damage it may be: a stiffness lost, not an authority gained
+        alt = _change_refits(setup, progress, settings, kept, like)
+        if alt is not None and whole_rms(setup.targets, alt.outcome) <= whole_rms(setup.targets, own.outcome) \
+                * twin_tolerance(setup.n_held):
+            settings.say(f"  {term.key} moves its parameter the way damage does not; as a change of "
+                         f"{setup.terms[like].key}'s parameter it explains the records alike or better: said so")
+            return alt
+    return own
+
+
+def _change_refits(setup: Any, progress: Any, settings: Any, kept: int, like: int | None) -> WindowFit | None:
+    """:func:`change_refit`'s window and two steps of the kept term's parameter (``like``: of that term's)."""
+    term = setup.terms[kept if like is None else like]
     firsts = [float(b.outcome.values[setup.names[b.index][1]]) for b in progress.refits
               if setup.terms[b.index].form == "on_step" and (setup.terms[b.index].param, setup.terms[b.index].index)
               == (term.param, term.index) and setup.names[b.index][1] in b.outcome.values]
     args = (setup.targets, setup.models, setup.terms, setup.names, progress.state, kept)
-    fits = [window_refit(*args, setup.scales["t"], settings.threads, settings.max_nfev),
-            staged_refit(*args, firsts, setup.scales["t"], settings.threads, settings.max_nfev)]
+    fits = [window_refit(*args, setup.scales["t"], settings.threads, settings.max_nfev, like),
+            staged_refit(*args, firsts, setup.scales["t"], settings.threads, settings.max_nfev, like)]
     done = [f for f in fits if f is not None]
     progress.n_sims += sum(f.n_sims for f in done)
     return min(done, key=lambda f: whole_rms(setup.targets, f.outcome), default=None)
