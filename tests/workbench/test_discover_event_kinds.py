@@ -16,6 +16,7 @@ import workbench.discover._event_check as ec
 import workbench.discover._rounds as rounds
 from workbench.discover._dictionary import Term
 from workbench.discover._effect_writer import emit_effect_source, parameter_names_for
+from workbench.discover._results import ScreenRow
 
 
 def _terms() -> list[Term]:
@@ -154,3 +155,25 @@ def test_a_finite_change_of_an_authority_gained_is_said_as_the_stiffness_lost_th
     assert fit.rise == 0
     fit, tried = _change(monkeypatch, -0.3, 2.44, 2.0)  # an authority lost is damage already: no kind tried
     assert fit.rise == 0 and tried == [None, None]
+
+
+def test_a_constant_damage_is_refitted_in_the_other_places_its_screen_comes_near():
+    """Free play in section 2 on MBIT.a was named in section 3 (2.63 σ), section 2 never refitted; free play at the
+    root was named a clearance of section 3 (the screen: s1, s2, s3 clearances 2.71, 2.71, 2.69 σ): the same switch
+    in the other sections is refitted beside it when its screen comes within 1.5 × the chosen one's."""
+    from workbench.discover._twins import place_switch_family
+
+    gaps = [Term("damage", i, f"delta{i + 1}", "on_gap", 1e-4, "k") for i in range(3)]
+    other = [Term("damage", 1, "delta2", "on_pos", 0.0, "k"), Term("damage", 1, "one", "on_step", 5.0, "k")]
+    rows = [ScreenRow(gaps[2], -0.3, 20.0, 20.0), ScreenRow(other[0], -0.2, 21.0, 21.0),
+            ScreenRow(gaps[1], -0.3, 25.0, 25.0), ScreenRow(other[1], -0.1, 26.0, 26.0),
+            ScreenRow(gaps[0], -0.3, 90.0, 90.0)]
+    assert [r.term.key for r in place_switch_family(gaps[2], rows, set())] == [gaps[1].key]  # section 1 too far
+    assert place_switch_family(gaps[2], rows, {gaps[1].key}) == []
+    assert place_switch_family(other[1], rows, set()) == []  # an event has its own place family
+    clips = [Term("force_section", i, f"delta{i + 1}", "clip", 1e-4) for i in range(3)]
+    on_z = Term("force_section", 0, "z1", "clip", 1e-4)  # another signal at the root: not the same place's kind
+    rows = [ScreenRow(clips[2], 5.0, 2.69, 2.69), ScreenRow(clips[0], 5.0, 2.71, 2.71), ScreenRow(on_z, 5.0, 2.7, 2.7),
+            ScreenRow(clips[1], 5.0, 2.71, 2.71)]
+    assert [r.term.key for r in place_switch_family(clips[2], rows, set())] == [clips[0].key, clips[1].key]
+    assert place_switch_family(Term("force_mass", 2, "z3", "lin"), rows, set()) == []  # not a switch

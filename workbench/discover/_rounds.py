@@ -43,7 +43,7 @@ from workbench.discover._search import (
     refit_list,
 )
 from workbench.discover._staged_change import change_refit
-from workbench.discover._twins import switch_family, twin_tolerance, twins_of
+from workbench.discover._twins import place_switch_family, switch_family, twin_tolerance, twins_of
 from workbench.fit import FitOutcome, Objective, Target, explained, noise_tolerance, rms
 
 #: a term is kept when its refit removes at least this share of the held-out energy left above the noise
@@ -374,6 +374,7 @@ def family_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSe
     fits clearly better — beyond the twins' tolerance — or, within it, when only it moves its parameter the way
     damage does (:func:`~workbench.discover._event_check.damage_lead`)."""
     for family in (lambda b: switch_family(setup.terms[b.index], rows, {t["term"] for t in tried}),
+                   lambda b: place_switch_family(setup.terms[b.index], rows, {t["term"] for t in tried}),
                    lambda b: place_rows(setup, progress, settings, b, {t["term"] for t in tried}),
                    lambda b: place_rows(setup, progress, settings, b, {t["term"] for t in tried}, kinds=True)):
         more = refit_best(setup, progress, settings, rows_, tried) if (rows_ := family(best)) else None

@@ -26,6 +26,10 @@ SWITCHING_FORMS = frozenset(HARD_FORMS)
 #: and on the signals :func:`alike` it
 MAX_SWITCH_FAMILY = 3
 MAX_ALIKE_FAMILY = 2
+#: a damage term constant in time is refitted in at most this many other places, each only when its screen comes
+#: within this factor of the chosen term's own
+MAX_PLACE_FAMILY = 2
+PLACE_SCREEN_NEAR = 1.5
 
 
 def alike(a: str, b: str) -> bool:
@@ -57,6 +61,31 @@ def switch_family(chosen: Term, rows: Sequence[ScreenRow], done: set[str], n: in
             seen.add(r.term.key)
             (own if r.term.signal == chosen.signal else other).append(r)
     return own[:n] + other[:n_alike]
+
+
+def place_switch_family(chosen: Term, rows: Sequence[ScreenRow], done: set[str], n: int = MAX_PLACE_FAMILY,
+                        near: float = PLACE_SCREEN_NEAR) -> list[ScreenRow]:
+    """The same switching physics in the other sections (masses, patches): rows of the chosen term's placement,
+    form and parameter at another index on the same kind of signal there (δ2 for δ3, z1 for z3), not refitted yet
+    (``done``: keys), whose screen comes within ``near`` × the chosen term's own — the best ``n`` by the screen. A
+    record that excites one mode (an MBIT) moves a clearance in section 1 and one in section 3 alike: free play in
+    the root clamp on MBIT.a was named "section 3 is softer … within ±108 µm of δ3" (the screen: s1, s2 and s3's
+    clearances 2.71, 2.71, 2.69 σ), section 1 never said."""
+    timed = chosen.form in ("on_step", "on_ramp")
+    if chosen.index < 0 or timed or (chosen.placement != "damage" and chosen.form not in SWITCHING_FORMS):
+        return []
+    mine = min((r.held_rms_sigma for r in rows if r.term.key == chosen.key), default=math.inf)
+    kind = chosen.signal.rstrip("0123456789")
+    out: list[ScreenRow] = []
+    seen = {chosen.key, *done}
+    for r in rows:  # best first: the screen's order
+        t = r.term
+        if (t.placement, t.param, t.form) == (chosen.placement, chosen.param, chosen.form) \
+                and t.index != chosen.index and t.signal.rstrip("0123456789") == kind and t.key not in seen \
+                and r.held_rms_sigma <= near * max(mine, 1.0):
+            seen.add(t.key)
+            out.append(r)
+    return out[:n]
 
 
 def twin_tolerance(n_held: int) -> float:
