@@ -78,7 +78,9 @@ def cmd_show(args: argparse.Namespace) -> int:
     if args.tables and args.table is not None:
         raise CliError("--tables lists every table; --table NAME shows one: give one of them")
     db, cols, runs, run = _open(args)
-    print(f"{args.db}: {len(runs)} run(s)")
+    from studies.batch.runner import counted
+
+    print(f"{args.db}: {counted(len(runs), 'run')}")
     for r in runs:
         d = dict(zip(cols, r))
         print(f"  run {d['run_id']}: {d['status']}, scenario {d['scenario']}, seed {d['seed']}, link {d['link_url']}, "

@@ -74,3 +74,13 @@ def test_an_earlier_run_without_its_summary_counts_the_runs_of_its_usage_db(tmp_
     err = capsys.readouterr().err
     assert "holds an earlier run (2 runs in usage.db, the last started " in err, err
     assert "(s)" not in err
+
+
+def test_shm_log_counts_the_runs_of_a_usage_db_in_words(tmp_path: Path, capsys) -> None:
+    scn = tmp_path / "tiny.toml"
+    scn.write_text(TINY, encoding="utf-8")
+    out = tmp_path / "run"
+    assert run_shm(["run", "--scenario", str(scn), "--quiet", "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert run_shm(["log", "show", "--db", str(out / "usage.db")]) == 0
+    assert ": 1 run\n" in capsys.readouterr().out
