@@ -177,3 +177,5 @@ def test_a_constant_damage_is_refitted_in_the_other_places_its_screen_comes_near
             ScreenRow(clips[1], 5.0, 2.71, 2.71)]
     assert [r.term.key for r in place_switch_family(clips[2], rows, set())] == [clips[0].key, clips[1].key]
     assert place_switch_family(Term("force_mass", 2, "z3", "lin"), rows, set()) == []  # not a switch
+    assert place_switch_family(clips[2], rows, set(), held=2.9) != []
+    assert place_switch_family(clips[2], rows, set(), held=95.0) == []  # far from a cure: the next round decides

@@ -374,7 +374,8 @@ def family_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSe
     fits clearly better — beyond the twins' tolerance — or, within it, when only it moves its parameter the way
     damage does (:func:`~workbench.discover._event_check.damage_lead`)."""
     for family in (lambda b: switch_family(setup.terms[b.index], rows, {t["term"] for t in tried}),
-                   lambda b: place_switch_family(setup.terms[b.index], rows, {t["term"] for t in tried}),
+                   lambda b: place_switch_family(setup.terms[b.index], rows, {t["term"] for t in tried},
+                                                 b.held_rms_sigma),
                    lambda b: place_rows(setup, progress, settings, b, {t["term"] for t in tried}),
                    lambda b: place_rows(setup, progress, settings, b, {t["term"] for t in tried}, kinds=True)):
         more = refit_best(setup, progress, settings, rows_, tried) if (rows_ := family(best)) else None
