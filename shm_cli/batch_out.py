@@ -108,7 +108,7 @@ def _within(folder: Path, rel: str) -> Path | None:
     return path
 
 
-def _files_in(folder: Path) -> list[str]:
+def files_in(folder: Path) -> list[str]:
     """Every file under ``folder`` (symbolic links not followed), relative, sorted; not an ``--out`` lock file
     (an empty one that earlier batches copied from the task's command is left, never removed: it may be held)."""
     found = []
@@ -145,7 +145,7 @@ def write_task_folders(out: Path, written: Mapping[str, Mapping[str, bytes]], ea
                         break
                     parent.rmdir()
         listed[key] = sorted(files)
-        others = [f for f in _files_in(folder) if f not in files]
+        others = [f for f in files_in(folder) if f not in files]
         if others:
             names = ", ".join(others[:3]) + (f" and {len(others) - 3} more" if len(others) > 3 else "")
             print(f"{what}: note: {folder} also holds {counted(len(others), 'file')} this run did not write, left as "

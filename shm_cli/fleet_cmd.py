@@ -13,18 +13,16 @@ import contextlib
 import functools
 import glob
 import io
-import os
 import sys
 from pathlib import Path
 from typing import Any
 
 from board_config.errors import InputError
-from shm_cli.batch_out import TASK_FILES, check_batch_out, earlier_task_files, write_task_folders
+from shm_cli.batch_out import TASK_FILES, check_batch_out, earlier_task_files, files_in, write_task_folders
 from shm_cli.batch_records import REPORT_NAME, run_command_task, warm_workbench
 from shm_cli.common import dump_json, out_dir
 from shm_cli.output_folder import RUN_OUTPUTS
 from shm_cli.output_guard import locked_out
-from shm_cli.run_lock import LOCK_NAME
 
 #: the boards of a ``shm run --boards`` output, as a shell pattern (``board*`` would also match boards.csv/.html)
 BOARD_GLOB = "board[0-9]*"
@@ -248,16 +246,6 @@ def _known_board_files(folder: Path) -> list[str]:
     return sorted(top + records)
 
 
-def _files_under(folder: Path) -> list[str]:
-    """Every file under ``folder`` (symbolic links not followed), relative; not an ``--out`` lock file."""
-    found = []
-    for root, dirs, names in os.walk(folder):
-        here = Path(root)
-        found += [str((here / n).relative_to(folder)) for n in names if n != LOCK_NAME]
-        found += [str((here / d).relative_to(folder)) for d in dirs if (here / d).is_symlink()]
-    return sorted(found)
-
-
 def _write_manifest(out: Path, doc: dict[str, Any], task_files: dict[str, list[str]]) -> None:
     """boards.json: the fleet's document and the files each board's folder got from it (``task_files``)."""
     (out / BOARDS_TABLES[-1]).write_text(dump_json({"command": "run", **doc, TASK_FILES: task_files}),
@@ -285,7 +273,7 @@ def _replace_boards(out: Path, written: dict[str, dict[str, bytes]], earlier: di
             folder.rmdir()
         if not folder.is_dir():
             del task_files[key]
-        elif mine := [f for f in _files_under(folder) if f not in task_files[key]]:
+        elif mine := [f for f in files_in(folder) if f not in task_files[key]]:
             kept[folder] = mine
     if kept:
         where = [f"{folder} ({', '.join(files[:2])}{', ...' if len(files) > 2 else ''}"
