@@ -14,7 +14,6 @@ import numpy as np
 
 from board_config.errors import InputError
 from reporting.uncertainty_text import format_percent_change
-from studies.batch.runner import counted
 from studies.health.cause import effect_of
 from studies.health.estimate import DEFAULT_FREE, Visit, VisitEstimates, VisitParameter, estimate_visits
 from studies.health.evaluate import (
@@ -100,8 +99,7 @@ def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: floa
     all_visits = load_visits(sources)
     visits = [v for v in all_visits if as_of is None or v.operating_hours <= as_of + 1e-9]
     if len(visits) < 2:
-        raise InputError(f"{counted(len(visits), 'visit')} up to --as-of {as_of:g} h: a trend needs at least two "
-                         "visits "
+        raise InputError(f"{len(visits)} visit(s) up to --as-of {as_of:g} h: a trend needs at least two visits "
                          f"(the sources hold {len(all_visits)} visits at "
                          + ", ".join(f"{v.operating_hours:g}" for v in all_visits[:12]) + " h)"
                          if as_of is not None else "the sources hold fewer than two visits: a trend needs two")
