@@ -57,11 +57,17 @@ def test_a_stopped_life_counts_its_finished_visits_in_words(tmp_path: Path, monk
     assert "(s)" not in err
 
 
-def test_an_earlier_run_without_its_summary_counts_the_runs_of_its_usage_db(tmp_path: Path, capsys) -> None:
+def _tiny_run(tmp_path: Path) -> tuple[Path, Path]:
+    """A tiny ``shm run`` into ``tmp_path/run``: (its scenario file, its --out)."""
     scn = tmp_path / "tiny.toml"
     scn.write_text(TINY, encoding="utf-8")
     out = tmp_path / "run"
     assert run_shm(["run", "--scenario", str(scn), "--quiet", "--out", str(out)]) == 0
+    return scn, out
+
+
+def test_an_earlier_run_without_its_summary_counts_the_runs_of_its_usage_db(tmp_path: Path, capsys) -> None:
+    scn, out = _tiny_run(tmp_path)
     (out / "summary.json").unlink()  # the earlier run is told from its usage.db
     capsys.readouterr()
     assert run_shm(["run", "--scenario", str(scn), "--quiet", "--out", str(out)]) == 2
@@ -77,10 +83,7 @@ def test_an_earlier_run_without_its_summary_counts_the_runs_of_its_usage_db(tmp_
 
 
 def test_shm_log_counts_the_runs_of_a_usage_db_in_words(tmp_path: Path, capsys) -> None:
-    scn = tmp_path / "tiny.toml"
-    scn.write_text(TINY, encoding="utf-8")
-    out = tmp_path / "run"
-    assert run_shm(["run", "--scenario", str(scn), "--quiet", "--out", str(out)]) == 0
+    _, out = _tiny_run(tmp_path)
     capsys.readouterr()
     assert run_shm(["log", "show", "--db", str(out / "usage.db")]) == 0
     assert ": 1 run\n" in capsys.readouterr().out
