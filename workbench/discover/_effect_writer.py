@@ -250,8 +250,9 @@ def emit_effect_source(terms: Sequence[Term], values: Mapping[str, float], *, cl
         discovered[cname] = c
         shape_idx = None
         if gname is not None:
-            g = float(values.get(gname, term.shape))  # an onset to the microsecond: a sharp step's timing is
-            g = float(f"{g:.10g}") if term.form in TIME_GATES else _r(g)  # its fit (4.49876 s: 1.518 σ, not 1.474)
+            g = float(values.get(gname, term.shape))
+            # an onset to ten digits: a sharp step's timing is its fit (4.49876 s: a file's 1.518 σ, not 1.474)
+            g = float(f"{g:.10g}") if term.form in TIME_GATES else _r(g)
             shape_idx = len(params)
             names.append(gname)
             params.append(_shape_parameter(term, gname, g))

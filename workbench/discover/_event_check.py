@@ -87,6 +87,11 @@ def before_onset_rms(targets: Sequence[Target], ys: Sequence[np.ndarray], t0: fl
     return (math.sqrt(ss / (n * n_ch)) if n else math.inf), n
 
 
+def record_span(targets: Sequence[Any]) -> tuple[float, float]:
+    """(first, last) instant (s) over the records of ``targets``."""
+    return min(float(tg.t[0]) for tg in targets), max(float(tg.t[-1]) for tg in targets)
+
+
 def onset_issue(targets: Sequence[Target], outcome: FitOutcome, gname: str) -> str | None:
     """Why the refit ``outcome`` of a time-gated term (onset parameter ``gname``) is no plausible event, in words;
     None when it is one (see the module docstring)."""
@@ -94,8 +99,7 @@ def onset_issue(targets: Sequence[Target], outcome: FitOutcome, gname: str) -> s
     if est is None:
         return None  # the onset was not free in this refit: nothing to judge
     t0, se = float(est.value), float(est.stderr)
-    start = min(float(tg.t[0]) for tg in targets)
-    end = max(float(tg.t[-1]) for tg in targets)
+    start, end = record_span(targets)
     duration = max(end - start, 1e-9)
     if est.at_bound:
         return f"its onset t = {t0:.4g} s sits at the bound of the range it was fitted in"
@@ -179,8 +183,9 @@ def place_rows(setup: Any, progress: Any, settings: Any, best: Any, done: set[st
     if not rows:
         return rows
     t0 = float(best.outcome.values[setup.names[best.index][1]])
+    names = {r.term.key: setup.names[setup.terms.index(r.term)] for r in rows}  # (coefficient, onset) names
     trials: list[tuple[ScreenRow, dict[str, float]]] = [
-        (r, {setup.names[setup.terms.index(r.term)][0]: c, str(setup.names[setup.terms.index(r.term)][1]): t0})
+        (r, {names[r.term.key][0]: c, str(names[r.term.key][1]): t0})
         for r in rows for c in family_probes(r.coef, kinds)]
     held, _, ok = probe_batch(setup.targets, setup.models, progress.state.values, [t[1] for t in trials],
                               settings.threads)
@@ -189,7 +194,7 @@ def place_rows(setup: Any, progress: Any, settings: Any, best: Any, done: set[st
     probed: dict[str, tuple[float, float]] = {}  # key: (held-out σ, change) of its best probe
     for i, (r, trial) in enumerate(trials):
         if ok[i] and held[i] <= limit and held[i] < probed.get(r.term.key, (math.inf, 0.0))[0]:
-            probed[r.term.key] = (float(held[i]), trial[setup.names[setup.terms.index(r.term)][0]])
+            probed[r.term.key] = (float(held[i]), trial[names[r.term.key][0]])
     if kinds:
         settings.say(f"  other parameters changing at t = {t0:.4g} s: {len(rows)} probed, {len(probed)} within "
                      f"{limit:.3g} σ" + "".join(f", {k} {h:.3g} σ" for k, (h, _) in
@@ -216,13 +221,13 @@ def damage_lead(setup: Any, progress: Any, settings: Any, best: Any) -> Any:
     if not is_timed(term) or gname is None or damage_like(term, float(best.outcome.values.get(cname, 0.0))):
         return best
     t0 = float(best.outcome.values[gname])
-    span = max(float(tg.t[-1]) for tg in setup.targets) - min(float(tg.t[0]) for tg in setup.targets)
+    start, end = record_span(setup.targets)
     limit = max(best.held_rms_sigma, 1.0) * twin_tolerance(setup.n_held)
     alike = []
     for b in progress.refits:
         t, (c, g) = setup.terms[b.index], setup.names[b.index]
         if is_timed(t) and g is not None and b.held_rms_sigma <= limit \
-                and abs(float(b.outcome.values.get(g, math.inf)) - t0) <= EDGE_SHARE * span \
+                and abs(float(b.outcome.values.get(g, math.inf)) - t0) <= EDGE_SHARE * (end - start) \
                 and damage_like(t, float(b.outcome.values.get(c, 0.0))):
             alike.append(b)
     if not alike:

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from workbench.discover._dictionary import Term
+from workbench.discover._event_check import record_span
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._onset import whole_record_rms
 from workbench.discover._search import probe_batch
@@ -69,8 +70,7 @@ def place_onset(setup: Any, progress: Any, settings: Any, best: Any) -> None:
     if term.form not in TIME_GATES or est is None or est.interval_method == PROFILE_METHOD:
         return
     t0 = float(est.value)
-    start = min(float(tg.t[0]) for tg in setup.targets)
-    end = max(float(tg.t[-1]) for tg in setup.targets)
+    start, end = record_span(setup.targets)
     values = dict(progress.state.values) | dict(best.outcome.values)
     grid = [t0] + [min(max(t0 + s * d, start), end) for s in (-1.0, 1.0) for d in PROFILE_OFFSETS_S]
     held, train, ok = probe_batch(setup.targets, setup.models, values, [{gname: g} for g in grid], settings.threads)

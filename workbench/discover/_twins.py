@@ -9,6 +9,7 @@ from typing import Any
 
 from workbench.discover._dictionary import DELAY_FORMS, SIGNALS, Term
 from workbench.discover._effect_writer import describe_term
+from workbench.discover._gates import TIME_GATES
 from workbench.discover._results import ScreenRow
 from workbench.discover._search import HARD_FORMS
 
@@ -78,9 +79,8 @@ def place_switch_family(chosen: Term, rows: Sequence[ScreenRow], done: set[str],
     matter to the verdict's words, and far from the noise a better place is the next round's business — a strong
     tip stop on a sweep, kept as c3 × [δ̇3 > 0] at 95 σ, was replaced by its place in section 2 (79.6 σ) and the
     search went on to delays (74 σ) instead of the stop (0.98 σ)."""
-    timed = chosen.form in ("on_step", "on_ramp")
-    if chosen.index < 0 or timed or (chosen.placement != "damage" and chosen.form not in SWITCHING_FORMS) \
-            or held > PLACE_BELOW_SIGMA:
+    if chosen.index < 0 or chosen.form in TIME_GATES or held > PLACE_BELOW_SIGMA \
+            or (chosen.placement != "damage" and chosen.form not in SWITCHING_FORMS):
         return []
     mine = min((r.held_rms_sigma for r in rows if r.term.key == chosen.key), default=math.inf)
     kind = chosen.signal.rstrip("0123456789")
