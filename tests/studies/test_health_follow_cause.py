@@ -128,7 +128,7 @@ def test_an_effect_parameter_trips_at_its_own_limit():
 def test_the_followed_section_and_the_localisation_are_compared():
     """A k2 loss followed by its own stiffness: the page says whether the localisation's possible sections hold
     it (sections 1 and 2 cannot be told apart with the MBITs) or not."""
-    from studies.health.assess import _cause_place, _section_agreement
+    from studies.health.four_levels import _cause_place, _section_agreement
 
     fol = {"free": ["k2", "alpha_h", "beta_h"], "effects": [], "switched": True}
     assert "section 2" in _cause_place(fol)
