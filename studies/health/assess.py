@@ -87,7 +87,8 @@ def assess_health(sources: Sequence[str], *, params: str = "table2", as_of: floa
                          + ", ".join(f"{v.operating_hours:g}" for v in all_visits[:12]) + " h)"
                          if as_of is not None else "the sources hold fewer than two visits: a trend needs two")
     say(f"shm health: {len(visits)} visits ({visits[0].operating_hours:g} … {visits[-1].operating_hours:g} h"
-        + (f", as of {as_of:g} h; {len(all_visits) - len(visits)} later visits not used" if as_of is not None else "")
+        + (f", as of {as_of:g} h; {counted(len(all_visits) - len(visits), 'later visit')} not used"
+           if as_of is not None else "")
         + f"), re-estimating {', '.join(free)} with params {params}")
     if evaluate and not any(v.verdict for v in all_visits) and any(v.truth is None for v in all_visits):
         _evaluation_truth(None, all_visits)  # the one-line error, before any long computation

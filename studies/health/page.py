@@ -10,6 +10,7 @@ from typing import Any
 
 from reporting.html_page import img_tag, page, table
 from reporting.uncertainty_text import format_percent_change
+from studies.batch.runner import counted
 
 # Every ``dict[str, Any]`` below is health.json as written (docs/health.md) or one of its sections: the page is
 # rendered from the JSON document at the edge, so that it shows exactly what the linked file holds.
@@ -217,8 +218,10 @@ def health_page(doc: dict[str, Any], figures: dict[str, Path], files: Sequence[s
     out); ``files`` are linked at the foot (health.json, levels.txt, ...)."""
     first, last = doc["visits"][0], doc["visits"][-1]
     as_of = f"as of {doc['as_of_hours']:g} h, " if doc.get("as_of_hours") is not None else ""
-    sub = (f"{as_of}{doc['visits_used']} visits ({first['operating_hours']:g} – {last['operating_hours']:g} h"
-           + (f"; {doc['visits_later_not_used']} later visits not used" if doc.get("visits_later_not_used") else "")
+    sub = (f"{as_of}{counted(doc['visits_used'], 'visit')} ({first['operating_hours']:g} – "
+           f"{last['operating_hours']:g} h"
+           + (f"; {counted(doc['visits_later_not_used'], 'later visit')} not used"
+              if doc.get("visits_later_not_used") else "")
            + f") · re-estimating {', '.join(doc['free'])} with params {doc['params']}")
 
     def fig(name: str) -> str:

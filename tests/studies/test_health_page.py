@@ -157,3 +157,11 @@ def test_a_stable_laminate_gets_a_page_with_a_lower_bound(tmp_path):
     page = (tmp_path / "report.html").read_text()
     assert "no date: no FAULT before" in page and "<h3>DETECTED?</h3><div class='answer'>no</div>" in page
     assert "no trend: not before" in page  # the remaining-life table
+
+
+def test_the_page_counts_its_visits_in_words(tmp_path):
+    """Eleven of twelve visits used: '11 visits … 1 later visit not used' (was '1 later visits')."""
+    a, _ = _assess(11, evaluate=False)
+    assert write_health_outputs(a, tmp_path, four_levels_text(a)) == {}
+    page = (tmp_path / "report.html").read_text()
+    assert "11 visits (" in page and "; 1 later visit not used" in page and "later visits" not in page
