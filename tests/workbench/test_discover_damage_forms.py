@@ -14,7 +14,8 @@ from discover_damage_support import discover_one_damage
 from workbench.discover import build_dictionary, dictionary_source
 from workbench.discover._dictionary import GATE_FORMS, Term
 from workbench.discover._effect_writer import describe_term, emit_effect_source, parameter_names_for
-from workbench.discover._gates import class_stem, describe_damage, gate_values, gate_width, onsets
+from workbench.discover._gate_words import describe_damage
+from workbench.discover._gates import class_stem, gate_values, gate_width, onsets
 
 
 def test_gate_code_agrees_with_its_numpy_values():
@@ -22,9 +23,11 @@ def test_gate_code_agrees_with_its_numpy_values():
     t = np.linspace(0.0, 3.0, 9)
     for name, form in GATE_FORMS.items():
         code = form.code.replace("math.tanh", "np.tanh").replace("abs(", "np.abs(").replace("max(", "np.maximum(")
+        code = code.replace("min(", "np.minimum(")
         h = gate_width(name, "m")
-        got = eval(code, {"np": np, "S": s, "G": 5e-4 if name == "on_gap" else 1.4, "H": h, "t": t})
-        want = gate_values(name, s, 5e-4 if name == "on_gap" else 1.4, t, "m")
+        g = 5e-4 if name == "on_gap" or name.endswith("_grow") else 1.4
+        got = eval(code, {"np": np, "S": s, "G": g, "H": h, "t": t})
+        want = gate_values(name, s, g, t, "m")
         assert np.allclose(got, want), name
     # the gap gate times a stiffness is the dead zone k (δ − clip(δ, ±g)): continuous, free play within ±g
     assert np.allclose(s * gate_values("on_gap", s, 5e-4, t, "m"), s - np.clip(s, -5e-4, 5e-4))

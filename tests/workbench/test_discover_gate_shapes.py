@@ -13,7 +13,8 @@ import pytest
 from workbench.discover import build_dictionary, dictionary_source
 from workbench.discover._dictionary import Term, form_values
 from workbench.discover._effect_writer import describe_term, emit_effect_source, formula, parameter_names_for
-from workbench.discover._gates import SWITCH_RANGE, describe_damage, gate_code, gate_values
+from workbench.discover._gate_words import describe_damage
+from workbench.discover._gates import SWITCH_RANGE, gate_code, gate_values
 from workbench.discover._search import free_for
 
 SCALES = {f"{s}{i}": v for s, v in (("z", 1e-3), ("zd", 0.1), ("delta", 6e-4), ("ddelta", 0.1))

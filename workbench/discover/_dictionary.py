@@ -46,6 +46,8 @@ from workbench.discover._gates import (
     GAP_AT,
     GATED_BY,
     GATES,
+    GROW_AT,
+    GROW_GATES,
     RAMP_AT,
     SOFT_AT,
     SOFT_GATES,
@@ -298,19 +300,24 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
         for index in (range(3) if con.per != "patch" else (-1,)):
             for what in GATED_BY[param]:
                 sig = {"own_delta": f"delta{index + 1}", "own_ddelta": f"ddelta{index + 1}",
-                       "gap": f"delta{index + 1}"}.get(what, what)
+                       "gap": f"delta{index + 1}", "tip": "z3"}.get(what, what)
                 if what == "time":
                     if duration > 0:
                         terms += [Term("damage", index, "one", "on_step", t0, param, rng)
                                   for t0, rng in onsets(duration, STEP_AT)]
                         terms += [Term("damage", index, "one", "on_ramp", t0, param, rng)
                                   for t0, rng in onsets(duration, RAMP_AT)]
-                elif what in ("soft", "soft_rate"):
-                    sig = f"{'ddelta' if what == 'soft_rate' else 'delta'}{index + 1}"
+                elif what in ("soft", "soft_rate", "soft_tip", "soft_drive"):
+                    sig = {"soft": f"delta{index + 1}", "soft_rate": f"ddelta{index + 1}", "soft_tip": "z3",
+                           "soft_drive": "va" if driven else "vc"}[what]
                     if ok(sig):
                         widths = SOFT_RATE_AT if what == "soft_rate" else (SOFT_AT,)
                         terms += [Term("damage", index, sig, g, w * scales[sig], param) for g in SOFT_GATES
                                   for w in widths]
+                elif what == "grow":
+                    if ok(sig := f"delta{index + 1}"):
+                        terms += [Term("damage", index, sig, g, f * scales[sig], param) for g in GROW_GATES
+                                  for f in GROW_AT]
                 elif what == "gap":
                     if ok(sig):
                         terms += [Term("damage", index, sig, "on_gap", f * scales[sig], param) for f in GAP_AT]

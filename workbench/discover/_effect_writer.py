@@ -17,13 +17,13 @@ from collections.abc import Callable, Mapping, Sequence
 
 from workbench.discover._dictionary import ALL_FORMS, DELAY_FORMS, FORMS, SIGNALS, Term
 from workbench.discover._dictionary_code import TermSlot, allocate_states, hooks_source
+from workbench.discover._gate_words import describe_damage
 from workbench.discover._gates import (
     SIGN_GATES,
     SWITCH_RANGE,
     TIME_GATES,
     class_stem,
     damage_formula,
-    describe_damage,
     gate_width,
 )
 

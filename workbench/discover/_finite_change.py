@@ -30,7 +30,7 @@ from board_config.parameter import Parameter, freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
 from workbench.discover._event_check import onset_issue, static_twin
-from workbench.discover._gates import describe_finite_change
+from workbench.discover._gate_words import describe_finite_change
 from workbench.discover._onset import ONSET_RESOLUTION_S, whole_record_rms
 from workbench.discover._results import FoundTerm
 from workbench.discover._search import SearchState, probe_batch, refine

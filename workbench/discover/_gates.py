@@ -32,7 +32,6 @@ words (:func:`describe_damage`).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -59,6 +58,10 @@ GATES: dict[str, Gate] = {
                         formula="(1 + tanh(S / G)) / 2"),
     "on_neg_soft": Gate("on_neg_soft", "0.5 * (1.0 - math.tanh(S / G))", "edge width",
                         formula="(1 − tanh(S / G)) / 2"),
+    # one side, the change growing with the distance past 0 up to a saturation G: a crack whose faces part
+    # progressively (its lost stiffness grows with the opening: quadratic in δ, then linear beyond G)
+    "on_pos_grow": Gate("on_pos_grow", "min(max(S, 0.0) / G, 1.0)", "saturation", formula="min(S⁺ / G, 1)"),
+    "on_neg_grow": Gate("on_neg_grow", "min(max(-S, 0.0) / G, 1.0)", "saturation", formula="min(S⁻ / G, 1)"),
     "on_gap": Gate("on_gap", "max(abs(S) - G, 0.0) / max(abs(S), G)", "gap", formula="(|S| − G)⁺ / |S|"),
     "on_step": Gate("on_step", "0.5 * (1.0 + math.tanh((t - G) / H))", "onset time", formula="[t > G]"),
     "on_ramp": Gate("on_ramp", "max(t - G, 0.0)", "onset time", per_second=True, formula="(t − G)⁺"),
@@ -67,6 +70,7 @@ GATES: dict[str, Gate] = {
 #: those in time
 SIGN_GATES = ("on_pos", "on_neg")
 SOFT_GATES = ("on_pos_soft", "on_neg_soft")
+GROW_GATES = ("on_pos_grow", "on_neg_grow")
 TIME_GATES = ("on_step", "on_ramp")
 #: smoothing width H of a sign gate by the unit of its signal (far below any signal's scale: a switch for the
 #: record, smooth for the integrator), and of the time step (s: below a sample at the fits' 250 Hz — a 25 % loss of
@@ -87,6 +91,9 @@ SOFT_AT = 0.2
 #: 25 % loss of k2 for δ̇2 > 0 over 1 mm/s, simulated with that edge at 1, 3 and 10 mm/s or switched at once: 0,
 #: 32, 43 and 28 σ RMS apart on a 15 s sweep), so two widths a decade apart, each refitted a factor of four
 SOFT_RATE_AT = (0.005, 0.05)
+#: saturations a growing gate is screened at (fractions of its signal's scale; the refit moves it a factor of four:
+#: from a quarter of the scale — nearly a sharp switch — to four times it, a loss quadratic over the whole motion)
+GROW_AT = (1.0,)
 #: a sign gate is screened switching at 0 and its switching point G refitted linearly within ± this fraction of
 #: its signal's scale (the 99th percentile of |signal|): a crack or a depoled patch that switches off zero
 SWITCH_RANGE = 0.8
@@ -148,14 +155,19 @@ CONTRIBUTIONS: dict[str, Contribution] = {
 
 #: the gate signals each contribution meets: "own_delta"/"own_ddelta" the section's own deflection/rate, "va" the
 #: drive, "vc" the patch voltage (its charge), "time" the step and the ramp; "gap" the gap of the section's deflection,
-#: "soft" its sign with a smooth edge (a crack that opens gradually: the section's own terms only), "soft_rate" the
-#: sign of its rate with a smooth edge (a direction-dependent stiffness or damping whose faces part gradually)
+#: "soft" its sign with a smooth edge (a crack that opens gradually), "soft_rate" the sign of its rate with a smooth
+#: edge (a direction-dependent stiffness or damping whose faces part gradually), "grow" its sign with the change
+#: growing with the opening (a crack whose faces part progressively); "tip"/"soft_tip" the sign of the tip's
+#: displacement z3, sharp or with a smooth edge (a crack opened by the beam's swing, not by its own section's
+#: bending); "soft_drive" the drive's sign with a smooth edge (the patch voltage's on an undriven record: a
+#: polarisation that fades over a range of field). A patch's own coupling meets its section's deflection too (a
+#: patch whose bond opens while its section bends one way: partly debonded)
 GATED_BY: dict[str, tuple[str, ...]] = {
-    "k": ("own_delta", "own_ddelta", "soft", "soft_rate", "gap", "time"),
-    "c": ("own_ddelta", "own_delta", "soft", "soft_rate", "gap", "time"),
+    "k": ("own_delta", "own_ddelta", "soft", "soft_rate", "grow", "tip", "soft_tip", "gap", "time"),
+    "c": ("own_ddelta", "own_delta", "soft", "soft_rate", "grow", "gap", "time"),
     "m": ("time",),
-    "d_ep": ("va", "vc", "time"),
-    "d_ep_i": ("va", "vc", "time"),
+    "d_ep": ("va", "vc", "soft_drive", "time"),
+    "d_ep_i": ("va", "vc", "soft_drive", "own_delta", "soft", "time"),
     "alpha_h": ("va", "vc", "time"),
     "beta_h": ("va", "vc", "time"),
     "R_ep": ("va", "vc", "time"),
@@ -220,6 +232,8 @@ def gate_values(form: str, s: np.ndarray, g: float, t: np.ndarray, unit: str, hi
         return (s - g) * step if hinge else step
     if form in SOFT_GATES:
         return 0.5 * (1.0 + np.tanh(s / g)) if form == "on_pos_soft" else 0.5 * (1.0 - np.tanh(s / g))
+    if form in GROW_GATES:
+        return np.minimum(np.maximum(s if form == "on_pos_grow" else -s, 0.0) / g, 1.0)
     if form == "on_gap":
         return np.maximum(np.abs(s) - g, 0.0) / np.maximum(np.abs(s), g)
     if form == "on_step":
@@ -227,165 +241,6 @@ def gate_values(form: str, s: np.ndarray, g: float, t: np.ndarray, unit: str, hi
     if form == "on_ramp":
         return np.maximum(np.asarray(t, float) - g, 0.0)
     raise KeyError(form)
-
-
-# ----------------------------------------------------------------------------------------------------------------
-# words
-
-
-def _switch_value(signal: str, g: float) -> str:
-    """A switching point in the signal's unit, signed: '0.3 mm', '−12 µm', '+60 V', '4.2 mm/s'."""
-    sign = "−" if g < 0 else ""
-    if signal.startswith("ddelta"):
-        return f"{sign}{abs(g) * 1e3:.3g} mm/s"
-    if signal.startswith("delta"):
-        return sign + (f"{abs(g) * 1e3:.3g} mm" if abs(g) >= 1e-4 else _length(abs(g)))
-    if signal in ("va", "vc"):
-        return f"{'−' if g < 0 else '+'}{abs(g):.3g} V"
-    return f"{g:.3g}"
-
-
-def _condition(form: str, signal: str, g: float = 0.0) -> str:
-    """The gate's condition after 'for' or 'while': 'δ2 > 0', 'δ2 > 0.3 mm', 'negative drive', 'the drive is
-    below +60 V' (``g``: the switching point, 0 unless it is named)."""
-    positive = form == "on_pos"
-    op = ">" if positive else "<"
-    at = "0" if g == 0.0 else _switch_value(signal, g)
-    if signal.startswith("ddelta"):
-        return f"δ̇{signal[-1]} {op} {at}"
-    if signal.startswith("delta"):
-        return f"δ{signal[-1]} {op} {at}"
-    if signal in ("va", "vc"):
-        what = "drive" if signal == "va" else "patch voltage (charge)"
-        if g == 0.0:
-            return f"{'positive' if positive else 'negative'} {what}"
-        return f"the {what} is {'above' if positive else 'below'} {at}"
-    return f"{signal} {op} {at}"
-
-
-def named_switch(shape: float, shape_se: float | None) -> float:
-    """The switching point to say in words: ``shape`` when it is away from 0 by more than twice its standard error
-    (or has none), else 0 (the gate switches at the signal's sign)."""
-    if shape == 0.0 or not math.isfinite(shape):
-        return 0.0
-    if shape_se is None or not math.isfinite(shape_se):
-        return shape
-    return shape if abs(shape) > 2.0 * shape_se else 0.0
-
-
-def _describe_sign(param: str, index: int, form: str, signal: str, coef: float, g: float) -> str:
-    """Words for a sign gate switching at ``g`` (0: at the signal's sign)."""
-    n = index + 1
-    what = CONTRIBUTIONS[param].what.format(n=n)
-    pct = f"{100 * abs(coef):.3g} %"
-    lower = coef < 0
-    lh = "lower" if lower else "higher"
-    cond = _condition(form, signal, g)
-    when = "while" if g != 0.0 and signal in ("va", "vc") else "for"
-    if param == "k" and signal.startswith("delta"):
-        at = "" if g == 0.0 else f" switching at {_switch_value(signal, g)}"
-        side = "on that side" if g == 0.0 else "beyond that deflection"
-        if lower:
-            return (f"a breathing crack in section {n} that opens for {cond}: stiffness k{n} lower by {pct} {side} "
-                    f"(bilinear stiffness{at})")
-        return (f"section {n} is stiffer by {pct} for {cond} (bilinear stiffness{at}: a contact or a crack that "
-                "closes on that side)")
-    if param == "k" and signal.startswith("ddelta"):
-        return (f"stiffness k{n} of section {n} {pct} {lh} {when} {cond} (a stiffness that depends on the direction "
-                "of motion: a crack whose faces separate or catch as the section moves one way)")
-    if param == "d_ep":
-        return (f"a patch whose authority d_ep is {pct} {lh} {when} {cond} (polarisation-dependent coupling: a "
-                "partly depolarised patch)")
-    if param == "d_ep_i":
-        return (f"patch {n} (on section {n}) whose authority d_ep is {pct} {lh} {when} {cond}, the other patches as "
-                "modelled (polarisation-dependent coupling: that patch partly depolarised)")
-    if param == "c" and signal.startswith("delta"):
-        return f"damping c{n} of section {n} {pct} {lh} while {cond} (a crack whose faces rub when it is open)"
-    return f"{what} {pct} {lh} {when} {cond} (a sign-dependent {what.split(' of ')[0]})"
-
-
-def _instant(t0: float, se: float | None) -> str:
-    """'t = 20.0 ± 0.1 s' (decimals from the standard error; '20 s' without one)."""
-    if se is None or not math.isfinite(se) or se <= 0:
-        return f"t = {t0:.4g} s"
-    d = min(max(0, -math.floor(math.log10(se))), 6)
-    return f"t = {t0:.{d}f} ± {se:.{d}f} s"
-
-
-def describe_damage(param: str, index: int, form: str, signal: str, coef: float, shape: float,
-                    shape_se: float | None = None) -> str:
-    """One sentence, in an engineer's words, for the damage term ``coef`` × contribution(``param``) × gate."""
-    n = index + 1
-    what = CONTRIBUTIONS[param].what.format(n=n)
-    pct = f"{100 * abs(coef):.3g} %"
-    lower = coef < 0
-    lh = "lower" if lower else "higher"
-    if form in SIGN_GATES:
-        return _describe_sign(param, index, form, signal, coef, named_switch(shape, shape_se))
-    if form in SOFT_GATES and signal.startswith("ddelta"):
-        side = f"δ̇{n} {'>' if form == 'on_pos_soft' else '<'} 0"
-        edge = f"switching over about ±{1e3 * abs(shape):.3g} mm/s of δ̇{n}"
-        if param == "k":
-            return (f"stiffness k{n} of section {n} {pct} {lh} for {side} ({edge}: a stiffness that depends on the "
-                    "direction of motion — a crack whose faces separate or catch as the section moves one way)")
-        return f"{what} {pct} {lh} for {side} ({edge}: direction-dependent)"
-    if form in SOFT_GATES:
-        side = f"δ{n} {'>' if form == 'on_pos_soft' else '<'} 0"
-        edge = f"its faces parting over about ±{_length(shape)} of δ{n}"
-        if param == "k" and lower:
-            return (f"a breathing crack in section {n} that opens gradually for {side} ({edge}): stiffness k{n} "
-                    f"lower by {pct} when open (bilinear stiffness with a smooth edge)")
-        return f"{what} {pct} {lh} for {side}, switching gradually ({edge})"
-    if form == "on_gap":
-        if param == "k":
-            return (f"section {n} is {'softer' if lower else 'stiffer'} by {pct} beyond ±{_length(shape)} of δ{n}"
-                    + (": free play / contact — a clearance in its joint that closes at that gap" if not lower else
-                       ": a joint that slips past that deflection"))
-        if param == "c":
-            return f"{what} {pct} {lh} beyond ±{_length(shape)} of δ{n} (contact damping: an impact past a clearance)"
-        return f"{what} {pct} {lh} beyond ±{_length(shape)} of δ{n} (past a gap)"
-    if form == "on_step":  # no finer than the step's own width: the model cannot place it closer
-        at = _instant(shape, None if shape_se is None else max(shape_se, STEP_WIDTH_S))
-        if param == "k" and lower:
-            return f"section {n} lost {pct} of its stiffness at {at} (a damage event inside the record)"
-        if param == "m":
-            return f"mass m{n} {'fell' if lower else 'grew'} by {pct} at {at} (a part lost or added during the record)"
-        return f"{what} {'dropped' if lower else 'rose'} by {pct} at {at} (an event inside the record)"
-    if form == "on_ramp":
-        rate = f"{100 * abs(coef):.3g} %/s"
-        return (f"{what} {'falling' if lower else 'rising'} by {rate} from {_instant(shape, shape_se)} on "
-                "(damage growing during the record)")
-    raise KeyError(form)
-
-
-def describe_finite_change(param: str, index: int, rate: float, t0: float, se0: float | None, end_rate: float,
-                           t1: float, se1: float | None, holds_share: float) -> tuple[str, str]:
-    """Words for two ramps of one parameter — ``rate`` (1/s) from ``t0`` and ``end_rate`` from ``t1`` (s, with their
-    standard errors) — as one change over a finite time: the rise's words and the end's. It *holds* after ``t1``
-    when the rate left, ``rate + end_rate``, is below ``holds_share`` of ``rate``."""
-    n = index + 1
-    what = CONTRIBUTIONS[param].what.format(n=n)
-    total = rate * (t1 - t0)
-    pct = f"{100 * abs(total):.3g} %"
-    left = rate + end_rate
-    holds = abs(left) <= holds_share * abs(rate)
-    span = f"between {_instant(t0, se0)} and {_instant(t1, se1)}"
-    then = ("then held" if holds else f"then kept {'falling' if left < 0 else 'rising'} by "
-            f"{100 * abs(left):.3g} %/s")
-    why = f"damage that grew over {t1 - t0:.3g} s, {then}"
-    if param == "k" and total < 0:
-        rise = f"section {n} lost {pct} of its stiffness {span} ({why})"
-    elif param == "m":
-        rise = f"mass m{n} {'fell' if total < 0 else 'grew'} by {pct} {span} ({why})"
-    else:
-        rise = f"{what} {'fell' if total < 0 else 'rose'} by {pct} {span} ({why})"
-    end = (f"its end at {_instant(t1, se1)} (a ramp of {100 * end_rate:+.3g} %/s from then on "
-           + ("cancels the change's rate)" if holds else f"leaves it changing by {100 * left:+.3g} %/s)"))
-    return rise, end
-
-
-def _length(x: float) -> str:
-    return f"{x * 1e3:.3g} mm" if abs(x) >= 1e-3 else f"{x * 1e6:.3g} µm"
 
 
 def damage_formula(param: str, index: int, form: str, signal: str, cname: str, gname: str | None) -> str:
@@ -406,9 +261,11 @@ def class_stem(param: str, index: int, form: str, signal: str = "") -> str:
             "d_ep": "PatchCoupling", "d_ep_i": f"Patch{index + 1}Coupling",
             "alpha_h": "PatchHysteresisShare", "beta_h": "PatchHysteresis",
             "R_ep": "PatchResistance", "C_ep": "PatchCapacitance"}[param]
-    rate = "Rate" if signal.startswith("ddelta") else ""
-    return base + {"on_pos": f"{rate}Positive", "on_neg": f"{rate}Negative", "on_pos_soft": f"{rate}OpeningPositive",
-                   "on_neg_soft": f"{rate}OpeningNegative", "on_gap": "BeyondGap", "on_step": "Event",
+    on = ("Rate" if signal.startswith("ddelta") else "Tip" if signal == "z3" else "Drive" if signal in ("va", "vc")
+          and form in SOFT_GATES else "Bend" if signal.startswith("delta") and param == "d_ep_i" else "")
+    return base + {"on_pos": f"{on}Positive", "on_neg": f"{on}Negative", "on_pos_soft": f"{on}OpeningPositive",
+                   "on_neg_soft": f"{on}OpeningNegative", "on_pos_grow": "GrowingPositive",
+                   "on_neg_grow": "GrowingNegative", "on_gap": "BeyondGap", "on_step": "Event",
                    "on_ramp": "Growth"}[form]
 
 

@@ -1,0 +1,227 @@
+"""Words for a damage term of ``shm discover``'s dictionary (:mod:`workbench.discover._gates`): one sentence in an
+engineer's words for a core parameter's contribution switched by a gate (:func:`describe_damage`) and for a change
+over a finite time (:func:`describe_finite_change`) — what the verdict and the emitted file say."""
+
+from __future__ import annotations
+
+import math
+
+from workbench.discover._gates import CONTRIBUTIONS, GROW_GATES, SIGN_GATES, SOFT_GATES, STEP_WIDTH_S
+
+
+def _switch_value(signal: str, g: float) -> str:
+    """A switching point in the signal's unit, signed: '0.3 mm', '−12 µm', '+60 V', '4.2 mm/s'."""
+    sign = "−" if g < 0 else ""
+    if signal.startswith("ddelta"):
+        return f"{sign}{abs(g) * 1e3:.3g} mm/s"
+    if signal.startswith("delta") or _is_position(signal):
+        return sign + (f"{abs(g) * 1e3:.3g} mm" if abs(g) >= 1e-4 else _length(abs(g)))
+    if signal in ("va", "vc"):
+        return f"{'−' if g < 0 else '+'}{abs(g):.3g} V"
+    return f"{g:.3g}"
+
+
+def _is_position(signal: str) -> bool:
+    """A mass's displacement (z1 … z3; not its velocity)."""
+    return signal.startswith("z") and not signal.startswith("zd")
+
+
+def _condition(form: str, signal: str, g: float = 0.0) -> str:
+    """The gate's condition after 'for' or 'while': 'δ2 > 0', 'δ2 > 0.3 mm', 'negative drive', 'the drive is
+    below +60 V' (``g``: the switching point, 0 unless it is named)."""
+    positive = form.startswith("on_pos")
+    op = ">" if positive else "<"
+    at = "0" if g == 0.0 else _switch_value(signal, g)
+    if signal.startswith("ddelta"):
+        return f"δ̇{signal[-1]} {op} {at}"
+    if signal.startswith("delta"):
+        return f"δ{signal[-1]} {op} {at}"
+    if _is_position(signal):
+        where = "the tip" if signal == "z3" else f"mass {signal[-1]}"
+        return f"{where} is {'above' if positive else 'below'} {at} ({signal} {op} {at})"
+    if signal in ("va", "vc"):
+        what = "drive" if signal == "va" else "patch voltage (charge)"
+        if g == 0.0:
+            return f"{'positive' if positive else 'negative'} {what}"
+        return f"the {what} is {'above' if positive else 'below'} {at}"
+    return f"{signal} {op} {at}"
+
+
+def named_switch(shape: float, shape_se: float | None) -> float:
+    """The switching point to say in words: ``shape`` when it is away from 0 by more than twice its standard error
+    (or has none), else 0 (the gate switches at the signal's sign)."""
+    if shape == 0.0 or not math.isfinite(shape):
+        return 0.0
+    if shape_se is None or not math.isfinite(shape_se):
+        return shape
+    return shape if abs(shape) > 2.0 * shape_se else 0.0
+
+
+def _describe_sign(param: str, index: int, form: str, signal: str, coef: float, g: float) -> str:
+    """Words for a sign gate switching at ``g`` (0: at the signal's sign)."""
+    n = index + 1
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    pct = f"{100 * abs(coef):.3g} %"
+    lower = coef < 0
+    lh = "lower" if lower else "higher"
+    cond = _condition(form, signal, g)
+    when = "while" if g != 0.0 and signal in ("va", "vc") else "for"
+    if param == "k" and signal.startswith("delta"):
+        at = "" if g == 0.0 else f" switching at {_switch_value(signal, g)}"
+        side = "on that side" if g == 0.0 else "beyond that deflection"
+        if lower:
+            return (f"a breathing crack in section {n} that opens for {cond}: stiffness k{n} lower by {pct} {side} "
+                    f"(bilinear stiffness{at})")
+        return (f"section {n} is stiffer by {pct} for {cond} (bilinear stiffness{at}: a contact or a crack that "
+                "closes on that side)")
+    if param == "k" and signal.startswith("ddelta"):
+        return (f"stiffness k{n} of section {n} {pct} {lh} {when} {cond} (a stiffness that depends on the direction "
+                "of motion: a crack whose faces separate or catch as the section moves one way)")
+    if param == "k" and _is_position(signal):
+        return _swing_crack(n, coef, cond, "")
+    if param == "d_ep_i" and signal.startswith("delta"):
+        return _debonded_patch(n, coef, cond, "")
+    if param == "d_ep":
+        return (f"a patch whose authority d_ep is {pct} {lh} {when} {cond} (polarisation-dependent coupling: a "
+                "partly depolarised patch)")
+    if param == "d_ep_i":
+        return (f"patch {n} (on section {n}) whose authority d_ep is {pct} {lh} {when} {cond}, the other patches as "
+                "modelled (polarisation-dependent coupling: that patch partly depolarised)")
+    if param == "c" and signal.startswith("delta"):
+        return f"damping c{n} of section {n} {pct} {lh} while {cond} (a crack whose faces rub when it is open)"
+    return f"{what} {pct} {lh} {when} {cond} (a sign-dependent {what.split(' of ')[0]})"
+
+
+def _instant(t0: float, se: float | None) -> str:
+    """'t = 20.0 ± 0.1 s' (decimals from the standard error; '20 s' without one)."""
+    if se is None or not math.isfinite(se) or se <= 0:
+        return f"t = {t0:.4g} s"
+    d = min(max(0, -math.floor(math.log10(se))), 6)
+    return f"t = {t0:.{d}f} ± {se:.{d}f} s"
+
+
+def describe_damage(param: str, index: int, form: str, signal: str, coef: float, shape: float,
+                    shape_se: float | None = None) -> str:
+    """One sentence, in an engineer's words, for the damage term ``coef`` × contribution(``param``) × gate."""
+    n = index + 1
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    pct = f"{100 * abs(coef):.3g} %"
+    lower = coef < 0
+    lh = "lower" if lower else "higher"
+    if form in SIGN_GATES:
+        return _describe_sign(param, index, form, signal, coef, named_switch(shape, shape_se))
+    if form in SOFT_GATES or form in GROW_GATES:
+        return _describe_edge(param, index, form, signal, coef, shape)
+    if form == "on_gap":
+        if param == "k":
+            return (f"section {n} is {'softer' if lower else 'stiffer'} by {pct} beyond ±{_length(shape)} of δ{n}"
+                    + (": free play / contact — a clearance in its joint that closes at that gap" if not lower else
+                       ": a joint that slips past that deflection"))
+        if param == "c":
+            return f"{what} {pct} {lh} beyond ±{_length(shape)} of δ{n} (contact damping: an impact past a clearance)"
+        return f"{what} {pct} {lh} beyond ±{_length(shape)} of δ{n} (past a gap)"
+    if form == "on_step":  # no finer than the step's own width: the model cannot place it closer
+        at = _instant(shape, None if shape_se is None else max(shape_se, STEP_WIDTH_S))
+        if param == "k" and lower:
+            return f"section {n} lost {pct} of its stiffness at {at} (a damage event inside the record)"
+        if param == "m":
+            return f"mass m{n} {'fell' if lower else 'grew'} by {pct} at {at} (a part lost or added during the record)"
+        return f"{what} {'dropped' if lower else 'rose'} by {pct} at {at} (an event inside the record)"
+    if form == "on_ramp":
+        rate = f"{100 * abs(coef):.3g} %/s"
+        return (f"{what} {'falling' if lower else 'rising'} by {rate} from {_instant(shape, shape_se)} on "
+                "(damage growing during the record)")
+    raise KeyError(form)
+
+
+def _swing_crack(n: int, coef: float, cond: str, edge: str) -> str:
+    """A section's stiffness switched by a mass's displacement (the tip's swing), ``edge``: its smooth edge's words."""
+    pct = f"{100 * abs(coef):.3g} %"
+    if coef < 0:
+        return (f"a crack in section {n} opened by the beam's swing: stiffness k{n} lower by {pct} while {cond}"
+                f"{edge} (a crack that opens on one side of the motion)")
+    return f"section {n} is stiffer by {pct} while {cond}{edge} (a contact that closes on one side of the motion)"
+
+
+def _debonded_patch(n: int, coef: float, cond: str, edge: str) -> str:
+    """A patch's own coupling switched by its section's bending (``edge``: its smooth edge's words)."""
+    pct = f"{100 * abs(coef):.3g} %"
+    return (f"patch {n} (on section {n}) whose authority d_ep is {pct} {'lower' if coef < 0 else 'higher'} for "
+            f"{cond}{edge}, the other patches as modelled (a patch whose bond opens while its section bends that "
+            "way: partly debonded)")
+
+
+def _describe_edge(param: str, index: int, form: str, signal: str, coef: float, shape: float) -> str:
+    """Words for a gate with a smooth edge (of width ``shape``) or a change growing with the opening (saturating at
+    ``shape``), on a section's deflection or rate, the tip's displacement or the drive."""
+    n = index + 1
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    pct = f"{100 * abs(coef):.3g} %"
+    lower = coef < 0
+    lh = "lower" if lower else "higher"
+    op = ">" if form.startswith("on_pos") else "<"
+    if form in GROW_GATES:
+        side = f"δ{n} {op} 0"
+        reach = f"{'−' if op == '<' else ''}{_length(shape)}"
+        if param == "k" and lower:
+            return (f"a breathing crack in section {n} that opens for {side}, its lost stiffness growing with the "
+                    f"opening: k{n} lower by {pct} once δ{n} reaches {reach}, less before (a crack whose faces part "
+                    "progressively)")
+        return f"{what} {pct} {lh} for {side}, growing with δ{n} up to {reach} (a change that grows with the opening)"
+    if signal.startswith("ddelta"):
+        edge = f"switching over about ±{1e3 * abs(shape):.3g} mm/s of δ̇{n}"
+        if param == "k":
+            return (f"stiffness k{n} of section {n} {pct} {lh} for δ̇{n} {op} 0 ({edge}: a stiffness that depends on "
+                    "the direction of motion — a crack whose faces separate or catch as the section moves one way)")
+        return f"{what} {pct} {lh} for δ̇{n} {op} 0 ({edge}: direction-dependent)"
+    cond = _condition("on_pos" if op == ">" else "on_neg", signal)
+    if signal in ("va", "vc"):
+        edge = f", switching over about ±{abs(shape):.3g} V"
+        if param == "d_ep_i":
+            return (f"patch {n} (on section {n}) whose authority d_ep is {pct} {lh} for {cond}{edge}, the other "
+                    "patches as modelled (polarisation-dependent coupling: that patch partly depolarised)")
+        if param == "d_ep":
+            return (f"a patch whose authority d_ep is {pct} {lh} for {cond}{edge} (polarisation-dependent coupling: "
+                    "a partly depolarised patch)")
+        return f"{what} {pct} {lh} for {cond}{edge} (a sign-dependent {what.split(' of ')[0]})"
+    if _is_position(signal):
+        edge = f", switching over about ±{_length(shape)} of {signal}"
+        return _swing_crack(n, coef, cond, edge) if param == "k" else f"{what} {pct} {lh} while {cond}{edge}"
+    edge = f"its faces parting over about ±{_length(shape)} of δ{n}"
+    if param == "d_ep_i":
+        return _debonded_patch(n, coef, f"δ{n} {op} 0", f", switching over about ±{_length(shape)}")
+    if param == "k" and lower:
+        return (f"a breathing crack in section {n} that opens gradually for δ{n} {op} 0 ({edge}): stiffness k{n} "
+                f"lower by {pct} when open (bilinear stiffness with a smooth edge)")
+    return f"{what} {pct} {lh} for δ{n} {op} 0, switching gradually ({edge})"
+
+
+def describe_finite_change(param: str, index: int, rate: float, t0: float, se0: float | None, end_rate: float,
+                           t1: float, se1: float | None, holds_share: float) -> tuple[str, str]:
+    """Words for two ramps of one parameter — ``rate`` (1/s) from ``t0`` and ``end_rate`` from ``t1`` (s, with their
+    standard errors) — as one change over a finite time: the rise's words and the end's. It *holds* after ``t1``
+    when the rate left, ``rate + end_rate``, is below ``holds_share`` of ``rate``."""
+    n = index + 1
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    total = rate * (t1 - t0)
+    pct = f"{100 * abs(total):.3g} %"
+    left = rate + end_rate
+    holds = abs(left) <= holds_share * abs(rate)
+    span = f"between {_instant(t0, se0)} and {_instant(t1, se1)}"
+    then = ("then held" if holds else f"then kept {'falling' if left < 0 else 'rising'} by "
+            f"{100 * abs(left):.3g} %/s")
+    why = f"damage that grew over {t1 - t0:.3g} s, {then}"
+    if param == "k" and total < 0:
+        rise = f"section {n} lost {pct} of its stiffness {span} ({why})"
+    elif param == "m":
+        rise = f"mass m{n} {'fell' if total < 0 else 'grew'} by {pct} {span} ({why})"
+    else:
+        rise = f"{what} {'fell' if total < 0 else 'rose'} by {pct} {span} ({why})"
+    end = (f"its end at {_instant(t1, se1)} (a ramp of {100 * end_rate:+.3g} %/s from then on "
+           + ("cancels the change's rate)" if holds else f"leaves it changing by {100 * left:+.3g} %/s)"))
+    return rise, end
+
+
+def _length(x: float) -> str:
+    return f"{x * 1e3:.3g} mm" if abs(x) >= 1e-3 else f"{x * 1e6:.3g} µm"
+
