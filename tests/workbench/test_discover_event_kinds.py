@@ -101,6 +101,29 @@ def test_an_event_damage_does_not_make_keeps_the_lead_when_nothing_damage_like_c
     assert _lead((1, 1.11, -0.2, 10.0), [(0, 1.10, -0.1, 10.0)]).index == 1  # the kept one is damage already
 
 
+def _switched_lead(kept: tuple[Term, float, float], others: list[tuple[Term, float, float]]) -> Term:
+    """damage_lead among switched (not timed) terms: (term, held-out σ, change) each."""
+    terms = [kept[0], *(o[0] for o in others)]
+    names = [(f"a{j}", f"g{j}") for j in range(len(terms))]
+    refits = [rounds.BestRefit(h, j, SimpleNamespace(values={f"a{j}": c, f"g{j}": 0.0}))
+              for j, (_, h, c) in enumerate([kept, *others])]
+    setup = SimpleNamespace(terms=terms, names=names, n_held=5000, targets=[SimpleNamespace(t=np.linspace(0, 20, 9))])
+    lead = ec.damage_lead(setup, SimpleNamespace(refits=refits), SimpleNamespace(say=lambda s: None), refits[0])
+    return terms[lead.index]
+
+
+def test_a_patch_gaining_authority_on_one_side_gives_the_lead_to_a_switched_damage():
+    """MBIT.a, a crack at the root opening for δ1 < 0 (10 µm): "patch 3 … whose authority d_ep is 25 % higher for
+    δ3 < 0" led; a patch does not gain authority while its section bends, a crack loses stiffness."""
+    gain = Term("damage", 2, "delta3", "on_neg", 0.0, "d_ep_i")
+    crack = Term("damage", 0, "delta1", "on_neg", 0.0, "k")
+    stiffer = Term("damage", 1, "delta2", "on_pos", 0.0, "k")
+    assert _switched_lead((gain, 1.01, 0.25), [(stiffer, 1.0, 0.3), (crack, 1.02, -0.2)]) == crack
+    assert _switched_lead((gain, 1.01, 0.25), [(crack, 4.0, -0.2)]) == gain  # beyond the twins' tolerance
+    # a stiffness gained on one side may be a contact or a crack that closes: it keeps the lead
+    assert _switched_lead((stiffer, 1.01, 0.3), [(crack, 1.02, -0.2)]) == stiffer
+
+
 def test_an_emitted_events_onset_is_refitted_only_when_asked(tmp_path):
     """Section 1 lost 20 % at 10.0 s of MBIT.a (a held-out block from 10 to 12 s): discovered at 10.01 s (1.04 σ held
     out); the file's refit on the training blocks moved the onset to 10.55 s and left 11.5 σ."""

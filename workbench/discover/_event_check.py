@@ -210,32 +210,48 @@ def damage_like(term: Term, coef: float) -> bool:
     return sign is None or sign * coef > 0
 
 
+#: core parameters that no damage raises on one side of the motion or the drive: a patch does not gain authority
+#: while its section bends one way (a stiffness may: a contact, a crack that closes)
+NO_SWITCHED_GAIN = ("d_ep", "d_ep_i")
+
+
 def damage_lead(setup: Any, progress: Any, settings: Any, best: Any) -> Any:
-    """The refit that leads the verdict among an event and the events the records cannot tell from it: when the kept
-    event moves its parameter the way damage does not (a stiffness or a patch's authority gained, damping lost) and an
-    event refitted at the same instant in this round (its place or kind family) moves its own the way damage does
-    and explains the records alike (within the twins' tolerance), that one leads — the records cannot choose, and
-    damage is what a monitor is there to see; the other stays named as its twin. ``best``: a ``BestRefit``."""
+    """The refit that leads the verdict among a change and the changes the records cannot tell from it: when the
+    kept event moves its parameter the way damage does not (a stiffness or a patch's authority gained, damping lost)
+    and an event refitted at the same instant in this round (its place or kind family) moves its own the way damage
+    does and explains the records alike (within the twins' tolerance), that one leads — the records cannot choose,
+    and damage is what a monitor is there to see; the other stays named as its twin. The same for a patch's
+    authority *gained* on one side of a switch (:data:`NO_SWITCHED_GAIN`; on MBIT.a a crack at the root opening for
+    δ1 < 0 was said as "patch 3 … 25 % higher for δ3 < 0"): a damage-like switched change refitted this round
+    leads. ``best``: a ``BestRefit``."""
     term = setup.terms[best.index]
     cname, gname = setup.names[best.index]
-    if not is_timed(term) or gname is None or damage_like(term, float(best.outcome.values.get(cname, 0.0))):
+    if term.placement != "damage" or damage_like(term, float(best.outcome.values.get(cname, 0.0))):
         return best
-    t0 = float(best.outcome.values[gname])
-    start, end = record_span(setup.targets)
+    if is_timed(term) and gname is not None:
+        t0 = float(best.outcome.values[gname])
+        start, end = record_span(setup.targets)
+
+        def same(t: Term, b: Any, g: str | None) -> bool:
+            return is_timed(t) and g is not None \
+                and abs(float(b.outcome.values.get(g, math.inf)) - t0) <= EDGE_SHARE * (end - start)
+        where = "at the same instant"
+    elif not is_timed(term) and term.param in NO_SWITCHED_GAIN:
+        def same(t: Term, b: Any, g: str | None) -> bool:
+            return t.placement == "damage" and not is_timed(t) and t.param in DAMAGE_SIGN
+        where = "switched too"
+    else:
+        return best
     limit = max(best.held_rms_sigma, 1.0) * twin_tolerance(setup.n_held)
-    alike = []
-    for b in progress.refits:
-        t, (c, g) = setup.terms[b.index], setup.names[b.index]
-        if is_timed(t) and g is not None and b.held_rms_sigma <= limit \
-                and abs(float(b.outcome.values.get(g, math.inf)) - t0) <= EDGE_SHARE * (end - start) \
-                and damage_like(t, float(b.outcome.values.get(c, 0.0))):
-            alike.append(b)
+    alike = [b for b in progress.refits if b.held_rms_sigma <= limit
+             and same(setup.terms[b.index], b, setup.names[b.index][1])
+             and damage_like(setup.terms[b.index], float(b.outcome.values.get(setup.names[b.index][0], 0.0)))]
     if not alike:
         return best
     lead = min(alike, key=lambda b: b.held_rms_sigma)
     settings.say(f"  {term.key} ({best.held_rms_sigma:.4g} σ) moves its parameter the way damage does not; "
-                 f"{setup.terms[lead.index].key} ({lead.held_rms_sigma:.4g} σ) at the same instant explains the "
-                 "records alike and moves its own the way damage does: it leads, the other is named as its twin")
+                 f"{setup.terms[lead.index].key} ({lead.held_rms_sigma:.4g} σ) {where} explains the records alike "
+                 "and moves its own the way damage does: it leads, the other is named as its twin")
     return lead
 
 
