@@ -25,7 +25,7 @@ TWIN_MODEL_SHARE = 0.02
 SWITCHING_FORMS = frozenset(HARD_FORMS)
 #: terms of the chosen term's switching family refitted beside it (the best few by the screen): on its own signal,
 #: and on the signals :func:`alike` it
-MAX_SWITCH_FAMILY = 3
+MAX_SWITCH_FAMILY = 4
 MAX_ALIKE_FAMILY = 2
 #: a damage term constant in time is refitted in at most this many other places, each only when its screen comes
 #: within this factor of the chosen term's own
@@ -63,7 +63,20 @@ def switch_family(chosen: Term, rows: Sequence[ScreenRow], done: set[str], n: in
         if r.term.form in SWITCHING_FORMS and r.term.key not in seen and alike(r.term.signal, chosen.signal):
             seen.add(r.term.key)
             (own if r.term.signal == chosen.signal else other).append(r)
-    return own[:n] + other[:n_alike]
+    return _diverse(own, n) + _diverse(other, n_alike)
+
+
+def _diverse(rows: Sequence[ScreenRow], n: int) -> list[ScreenRow]:
+    """The best ``n`` of ``rows`` (in their order), the best of each physics first — a force of its placement and
+    form, a core parameter's own change by its switch (sharp or smooth edge alike; growing with the opening apart) —
+    then the next best: a root crack open for δ1 > 0 on an MBIT.b step, behind patch 1's coupling switched by δ1
+    (sharp and smooth), a clearance and a crack growing with the opening, was never refitted and the first sentence
+    named only the clearance."""
+    firsts: dict[tuple[str, str, str], ScreenRow] = {}
+    for r in rows:
+        firsts.setdefault((r.term.placement, r.term.param, r.term.form.replace("_soft", "")), r)
+    lead = list(firsts.values())[:n]
+    return lead + [r for r in rows if r not in lead][: n - len(lead)]
 
 
 def place_switch_family(chosen: Term, rows: Sequence[ScreenRow], done: set[str], held: float = 0.0,
