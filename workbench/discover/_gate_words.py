@@ -81,12 +81,8 @@ def _describe_sign(param: str, index: int, form: str, signal: str, coef: float, 
         return _swing_crack(n, coef, cond, "")
     if param == "d_ep_i" and signal.startswith("delta"):
         return _debonded_patch(n, coef, cond, "")
-    if param == "d_ep":
-        return (f"a patch whose authority d_ep is {pct} {lh} {when} {cond} (polarisation-dependent coupling: a "
-                "partly depolarised patch)")
-    if param == "d_ep_i":
-        return (f"patch {n} (on section {n}) whose authority d_ep is {pct} {lh} {when} {cond}, the other patches as "
-                "modelled (polarisation-dependent coupling: that patch partly depolarised)")
+    if param in ("d_ep", "d_ep_i"):
+        return _depolarised(param, n, f"{pct} {lh} {when} {cond}")
     if param == "c" and signal.startswith("delta"):
         return f"damping c{n} of section {n} {pct} {lh} while {cond} (a crack whose faces rub when it is open)"
     return f"{what} {pct} {lh} {when} {cond} (a sign-dependent {what.split(' of ')[0]})"
@@ -134,6 +130,15 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
     raise KeyError(form)
 
 
+def _depolarised(param: str, n: int, how: str) -> str:
+    """A patch's coupling (every patch's ``d_ep``, or patch ``n``'s own ``d_ep_i``) changed ``how`` ('30 % lower
+    for negative drive') on one polarity."""
+    if param == "d_ep_i":
+        return (f"patch {n} (on section {n}) whose authority d_ep is {how}, the other patches as modelled "
+                "(polarisation-dependent coupling: that patch partly depolarised)")
+    return f"a patch whose authority d_ep is {how} (polarisation-dependent coupling: a partly depolarised patch)"
+
+
 def _swing_crack(n: int, coef: float, cond: str, edge: str) -> str:
     """A section's stiffness switched by a mass's displacement (the tip's swing), ``edge``: its smooth edge's words."""
     pct = f"{100 * abs(coef):.3g} %"
@@ -177,12 +182,8 @@ def _describe_edge(param: str, index: int, form: str, signal: str, coef: float, 
     cond = _condition("on_pos" if op == ">" else "on_neg", signal)
     if signal in ("va", "vc"):
         edge = f", switching over about ±{abs(shape):.3g} V"
-        if param == "d_ep_i":
-            return (f"patch {n} (on section {n}) whose authority d_ep is {pct} {lh} for {cond}{edge}, the other "
-                    "patches as modelled (polarisation-dependent coupling: that patch partly depolarised)")
-        if param == "d_ep":
-            return (f"a patch whose authority d_ep is {pct} {lh} for {cond}{edge} (polarisation-dependent coupling: "
-                    "a partly depolarised patch)")
+        if param in ("d_ep", "d_ep_i"):
+            return _depolarised(param, n, f"{pct} {lh} for {cond}{edge}")
         return f"{what} {pct} {lh} for {cond}{edge} (a sign-dependent {what.split(' of ')[0]})"
     if _is_position(signal):
         edge = f", switching over about ±{_length(shape)} of {signal}"
