@@ -374,14 +374,9 @@ BLIND: dict[str, tuple[type[PhysicalEffect], dict[str, float], Words, Timing]] =
 def truth_values(label: str, duration_s: float) -> dict[str, float]:
     """The truth parameter values of ``label`` for a record of ``duration_s``: ``<name>_frac`` keys become
     ``<name> = frac × duration_s``."""
-    _, values, _, _ = BLIND[label]
-    out: dict[str, float] = {}
-    for key, value in values.items():
-        if key.endswith("_frac"):
-            out[key[: -len("_frac")]] = float(value) * float(duration_s)
-        else:
-            out[key] = float(value)
-    return out
+    from workbench_unseen_damage import values_at
+
+    return values_at(BLIND[label][1], duration_s)
 
 
 def run_blind(label: str, *, kind: str = "sweep", duration_s: float = 15.0, noise_m: float = 2e-6, seed: int = 1,

@@ -350,14 +350,9 @@ BLIND2: dict[str, tuple[type[PhysicalEffect], dict[str, float], Words, Timing]] 
 def truth_values(label: str, duration_s: float) -> dict[str, float]:
     """The truth values of ``label`` for a record of ``duration_s``: a ``*_frac`` value becomes frac × duration_s
     under the name without the suffix."""
-    _, values, _, _ = BLIND2[label]
-    out: dict[str, float] = {}
-    for key, value in values.items():
-        if key.endswith("_frac"):
-            out[key.removesuffix("_frac")] = float(value) * float(duration_s)
-        else:
-            out[key] = float(value)
-    return out
+    from workbench_unseen_damage import values_at
+
+    return values_at(BLIND2[label][1], duration_s)
 
 
 def run_blind2(label: str, *, kind: str = "sweep", duration_s: float = 15.0, noise_m: float = 2e-6, seed: int = 1,

@@ -284,12 +284,26 @@ UNSEEN: dict[
 }
 
 
+def values_at(values: dict[str, float], duration_s: float) -> dict[str, float]:
+    """A case's parameter values on a record of ``duration_s``: a ``<name>_frac`` value becomes the instant
+    ``<name> = frac × duration_s`` (s). Serves the unseen and the blind sets alike."""
+    return {(k.removesuffix("_frac")): float(v) * float(duration_s) if k.endswith("_frac") else float(v)
+            for k, v in values.items()}
+
+
+def check_cases(cases: dict) -> None:
+    """Every case of a set (label → (class, values, word groups, timing)) checks its physics with two word groups
+    at least, names each of its class's parameters once and times an instant its class has."""
+    for label, (cls, values, groups, timing) in cases.items():
+        assert len(groups) >= 2, label
+        names = {p.name for p in cls.parameters}
+        assert {k.removesuffix("_frac") for k in values} == names, label
+        assert timing is None or timing[0] in names, label
+
+
 def truth_values(label: str, duration_s: float) -> dict[str, float]:
     """The case's parameter values on a record of ``duration_s`` (time fractions turned into instants, s)."""
-    return {
-        (k[:-5] if k.endswith("_frac") else k): (v * duration_s if k.endswith("_frac") else v)
-        for k, v in UNSEEN[label][1].items()
-    }
+    return values_at(UNSEEN[label][1], duration_s)
 
 
 def run_unseen(
