@@ -159,6 +159,7 @@ def _change(monkeypatch, kept_coef: float, own_held: float, kind_held: float) ->
 
     monkeypatch.setattr(staged, "window_refit", refit)
     monkeypatch.setattr(staged, "staged_refit", refit)
+    monkeypatch.setattr(staged, "smooth_refit", lambda *a: None)
     target = SimpleNamespace(held=np.array([True, False]), train=np.array([False, True]), channels=["z3"])
     setup = SimpleNamespace(terms=terms, names=[("a0", "g0"), ("a1", "g1")], targets=[target], models=[],
                             scales={"t": 3.0}, n_held=5000)

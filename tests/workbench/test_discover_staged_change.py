@@ -41,9 +41,9 @@ def test_two_steps_share_the_total_change():
     assert s == pytest.approx({"a": -0.06, "ga": 4.5, "b": -0.14, "gb": 12.0})
 
 
-def _fit(held: float, rise: int) -> WindowFit:
+def _fit(held: float, rise: int, kind: str = "window") -> WindowFit:
     out = SimpleNamespace(held_rms_sigma=held, train_rms_sigma=held)
-    return WindowFit(rise=rise, end=rise + 1, replaced=3, outcome=out, values={}, n_sims=5)
+    return WindowFit(rise=rise, end=rise + 1, replaced=3, outcome=out, values={}, n_sims=5, kind=kind)
 
 
 @pytest.mark.parametrize(("window_held", "stages_held", "chosen"), [(67.9, 1.47, 0), (1.01, 20.0, 10),
@@ -52,14 +52,43 @@ def test_the_change_kept_is_the_refit_that_leaves_the_whole_record_lowest(monkey
                                                                            chosen):
     monkeypatch.setattr(staged, "window_refit", lambda *a: None if window_held is None else _fit(window_held, 10))
     monkeypatch.setattr(staged, "staged_refit", lambda *a: None if stages_held is None else _fit(stages_held, 0))
+    monkeypatch.setattr(staged, "smooth_refit", lambda *a: None)
     terms = _k2_steps()
     setup = SimpleNamespace(terms=terms, names=[("c", "g")] * len(terms), targets=[SimpleNamespace(
         held=np.array([True, False]), train=np.array([False, True]), channels=["z3"])],
                             models=[], scales={"t": 15.0})
     progress = SimpleNamespace(refits=[], state=SimpleNamespace(values={"c": -0.1}, kept=[3]), n_sims=0)
-    fit = staged.change_refit(setup, progress, SimpleNamespace(threads=1, max_nfev=3), 3)
+    fit = staged.change_refit(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=lambda s: None), 3)
     assert (None if fit is None else fit.rise) == chosen
     assert progress.n_sims == 5 * ((window_held is not None) + (stages_held is not None))
+
+
+def test_a_change_with_a_fitted_time_scale_is_kept_when_it_leaves_the_record_lowest(monkeypatch):
+    """The S-curve (a step with a fitted edge), the settling ramp and the recovery are tried beside the window and
+    the two steps; an event's window refitted already is not refitted again."""
+    tried: list[str] = []
+
+    def smooth(*a):
+        tried.append(a[-1])
+        return _fit({"smooth": 1.01, "settle": 3.0, "recover": 2.0}[a[-1]],
+                    {"smooth": 20, "settle": 30, "recover": 40}[a[-1]], a[-1])
+
+    monkeypatch.setattr(staged, "window_refit", lambda *a: _fit(4.54, 10))
+    monkeypatch.setattr(staged, "staged_refit", lambda *a: _fit(9.0, 0))
+    monkeypatch.setattr(staged, "smooth_refit", smooth)
+    terms = _k2_steps()
+    setup = SimpleNamespace(terms=terms, names=[("c", "g")] * len(terms), targets=[SimpleNamespace(
+        held=np.array([True, False]), train=np.array([False, True]), channels=["z3"])],
+                            models=[], scales={"t": 15.0})
+    progress = SimpleNamespace(refits=[], state=SimpleNamespace(values={"c": -0.1}, kept=[3]), n_sims=0)
+    said: list[str] = []
+    fit = staged.change_refit(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=said.append), 3)
+    assert fit.rise == 20 and tried == ["smooth", "settle", "recover"]
+    assert any("S-curve" in s and "1.01 σ" in s for s in said)
+    ended = _fit(0.9, 50)  # the event's own window, refitted when it was judged: used, not refitted
+    progress.n_sims = 0
+    fit = staged.change_refit(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=said.append), 3, ended)
+    assert fit is ended and progress.n_sims == 5 * 4
 
 
 def test_the_onsets_of_two_steps_of_one_parameter_are_placed_as_a_pair_in_the_emitted_file():

@@ -142,7 +142,8 @@ class Term:
     0-based; -1 when it does not apply). ``shape`` is the form's constant (SI, the signal's unit; for a delay, s).
     A damage term (placement ``damage``) is ``coefficient × contribution(param) × gate(signal)``, the gate being
     its form; ``shape_range`` is where the refit may move its shape (an onset time or a switching point: linear),
-    None for a factor of four either way."""
+    None for a factor of four either way. ``width``: a fitted edge time scale (s) of a step whose change took time
+    (an S-shaped loss: ½(1 + tanh((t − t0)/width))); 0 for the gate's own fixed, sharp edge."""
 
     placement: str
     index: int
@@ -151,6 +152,7 @@ class Term:
     shape: float = 0.0
     param: str = ""
     shape_range: tuple[float, float] | None = None
+    width: float = 0.0
 
     @property
     def key(self) -> str:

@@ -183,7 +183,7 @@ def describe_term(term: Term, coef: float, shape: float, scale: float, shape_se:
     of |value| along the records, SI; ``shape_se``: the shape's standard error, said with an onset time)."""
     c, g = float(coef), float(shape)
     if term.placement == "damage":
-        return describe_damage(term.param, term.index, term.form, term.signal, c, g, shape_se)
+        return describe_damage(term.param, term.index, term.form, term.signal, c, g, shape_se, term.width)
     describer = _DESCRIBERS.get(term.placement)
     words = describer(term, c, g, scale) if describer is not None else None
     return words if words is not None else f"{c:.3g} {term.unit} × {term.form}({term.signal})"
@@ -192,7 +192,7 @@ def describe_term(term: Term, coef: float, shape: float, scale: float, shape_se:
 def formula(term: Term, cname: str, gname: str | None) -> str:
     """The term as a formula in words-free notation (for the docstring)."""
     if term.placement == "damage":
-        return damage_formula(term.param, term.index, term.form, term.signal, cname, gname)
+        return damage_formula(term.param, term.index, term.form, term.signal, cname, gname, term.width)
     s = {"one": "1"}.get(term.signal, term.signal)
     code = FORMS[term.form].code
     g = gname or "g"

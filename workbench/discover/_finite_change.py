@@ -74,7 +74,8 @@ class Window:
 class WindowFit:
     """The refit of a finite-time change: its two ramps (dictionary indices: the rise from t0 and the end at t1),
     the time-gated term it replaces (its index; the rise's own index when that was a ramp), the refit, every
-    dictionary value with it (the replaced term off) and the simulations run."""
+    dictionary value with it (the replaced term off) and the simulations run; ``kind``: "window" (two ramps),
+    "stages" (two steps) or "smooth" (one step with a fitted edge: ``rise`` and ``end`` the same slot)."""
 
     rise: int
     end: int
@@ -82,6 +83,7 @@ class WindowFit:
     outcome: FitOutcome
     values: dict[str, float]
     n_sims: int
+    kind: str = "window"
 
 
 def gate_slots(terms: Sequence[Term], term: Term, form: str) -> list[int]:
@@ -277,7 +279,8 @@ def keep_window(state: SearchState, stderr: dict[str, float], twins: dict[int, l
                 fit: WindowFit) -> None:
     """Keep the window's two ramps in place of the term it replaces: the kept list, the values, the standard
     errors (the twins of a ramp that never ends are no twins of the window: dropped)."""
-    state.kept = [k for k in state.kept if k not in (fit.replaced, fit.rise, fit.end)] + [fit.rise, fit.end]
+    state.kept = [k for k in state.kept if k not in (fit.replaced, fit.rise, fit.end)] + list(
+        dict.fromkeys((fit.rise, fit.end)))
     state.values.update(fit.values)
     stderr.update({e.name: e.stderr for e in fit.outcome.estimates})
     for k in (fit.replaced, fit.rise, fit.end):

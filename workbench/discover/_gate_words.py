@@ -97,8 +97,9 @@ def _instant(t0: float, se: float | None) -> str:
 
 
 def describe_damage(param: str, index: int, form: str, signal: str, coef: float, shape: float,
-                    shape_se: float | None = None) -> str:
-    """One sentence, in an engineer's words, for the damage term ``coef`` × contribution(``param``) × gate."""
+                    shape_se: float | None = None, width: float = 0.0) -> str:
+    """One sentence, in an engineer's words, for the damage term ``coef`` × contribution(``param``) × gate
+    (``width``: a step's fitted edge time scale, s; 0 for a sharp step)."""
     n = index + 1
     what = CONTRIBUTIONS[param].what.format(n=n)
     pct = f"{100 * abs(coef):.3g} %"
@@ -116,6 +117,8 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
         if param == "c":
             return f"{what} {pct} {lh} beyond ±{_length(shape)} of δ{n} (contact damping: an impact past a clearance)"
         return f"{what} {pct} {lh} beyond ±{_length(shape)} of δ{n} (past a gap)"
+    if form == "on_step" and width > 0.0:
+        return _describe_s_curve(param, n, coef, shape, shape_se, width)
     if form == "on_step":  # no finer than the step's own width: the model cannot place it closer
         at = _instant(shape, None if shape_se is None else max(shape_se, STEP_WIDTH_S))
         if param == "k" and lower:
@@ -123,6 +126,8 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
         if param == "m":
             return f"mass m{n} {'fell' if lower else 'grew'} by {pct} at {at} (a part lost or added during the record)"
         return f"{what} {'dropped' if lower else 'rose'} by {pct} at {at} (an event inside the record)"
+    if form == "on_ramp" and width > 0.0:
+        return _describe_settling(param, n, coef, shape, shape_se, width)
     if form == "on_ramp":
         rate = f"{100 * abs(coef):.3g} %/s"
         return (f"{what} {'falling' if lower else 'rising'} by {rate} from {_instant(shape, shape_se)} on "
@@ -221,6 +226,34 @@ def describe_finite_change(param: str, index: int, rate: float, t0: float, se0: 
     end = (f"its end at {_instant(t1, se1)} (a ramp of {100 * end_rate:+.3g} %/s from then on "
            + ("cancels the change's rate)" if holds else f"leaves it changing by {100 * left:+.3g} %/s)"))
     return rise, end
+
+
+def _describe_s_curve(param: str, n: int, coef: float, centre: float, se: float | None, width: float) -> str:
+    """Words for a step with a fitted edge: half the change at ``centre`` (s), 10–90 % of it over 2.2 × ``width``."""
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    pct = f"{100 * abs(coef):.3g} %"
+    span = f"{2.2 * width:.3g} s"
+    at = _instant(centre, se)
+    why = "damage that ran and arrested: an S-shaped change, half of it at that instant"
+    if param == "k" and coef < 0:
+        return f"section {n} lost {pct} of its stiffness around {at}, over {span} (10–90 %; {why})"
+    if param == "m":
+        return f"mass m{n} {'fell' if coef < 0 else 'grew'} by {pct} around {at}, over {span} (10–90 %; {why})"
+    return f"{what} {'dropped' if coef < 0 else 'rose'} by {pct} around {at}, over {span} (10–90 %; {why})"
+
+
+def _describe_settling(param: str, n: int, rate: float, t0: float, se: float | None, tau: float) -> str:
+    """Words for a ramp that saturates: ``rate`` (1/s) from ``t0`` (s), settling at rate × ``tau`` (s)."""
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    total = rate * tau
+    pct = f"{100 * abs(total):.3g} %"
+    how = f"from {_instant(t0, se)} on, settling exponentially with time constant {tau:.3g} s"
+    if param == "k":
+        if total < 0:
+            return f"section {n} lost {pct} of its stiffness {how} (damage that grew and arrested)"
+        return (f"section {n} regained {pct} of its stiffness {how} (a loss that partly recovered: crack faces "
+                "re-seating, resin relaxing — or a stiffening)")
+    return f"{what} {'fell' if total < 0 else 'rose'} by {pct} {how} (a change that settled)"
 
 
 def _length(x: float) -> str:

@@ -72,6 +72,14 @@ SIGN_GATES = ("on_pos", "on_neg")
 SOFT_GATES = ("on_pos_soft", "on_neg_soft")
 GROW_GATES = ("on_pos_grow", "on_neg_grow")
 TIME_GATES = ("on_step", "on_ramp")
+#: the gates whose edge width H is a fitted parameter of the dictionary (``h_NN``, default the fixed width below): a
+#: step whose change took time — a loss that ran and arrested along an S-curve — is the same step with a wide edge
+WIDTH_GATES = ("on_step", "on_ramp")
+#: a ramp's width is the time constant of its saturation: rate · H · (1 − exp(−(t − G)⁺ / H)), the plain ramp
+#: rate · (t − G)⁺ as H → ∞ (its default, far beyond any record: 1e12 s); finite, a change that slows and settles
+#: at rate · H (damage that grows and arrests; a loss that partly recovers, beside a step)
+RAMP_NEVER_S = 1e12
+WIDTH_CODE = {"on_step": "0.5 * (1.0 + math.tanh((t - G) / H))", "on_ramp": "(-H * math.expm1(-max(t - G, 0.0) / H))"}
 #: smoothing width H of a sign gate by the unit of its signal (far below any signal's scale: a switch for the
 #: record, smooth for the integrator), and of the time step (s: below a sample at the fits' 250 Hz — a 25 % loss of
 #: k2 at 20 s of a sweep, switched over 10 ms, differed from the same loss switched at once by 2.5 σ RMS, 0.06 σ
@@ -215,6 +223,11 @@ def contribution_lines(param: str, index: int, factor: str, hinge: bool = False)
     return out
 
 
+def default_width(form: str) -> float:
+    """The edge width a fitted-width gate starts from (s): the sharp step's, a ramp that never saturates."""
+    return STEP_WIDTH_S if form == "on_step" else RAMP_NEVER_S
+
+
 def gate_width(form: str, unit: str) -> float:
     """The fixed smoothing width H of a gate on a signal of ``unit`` (s for the time step; 0 when unused)."""
     if form == "on_step":
@@ -243,9 +256,15 @@ def gate_values(form: str, s: np.ndarray, g: float, t: np.ndarray, unit: str, hi
     raise KeyError(form)
 
 
-def damage_formula(param: str, index: int, form: str, signal: str, cname: str, gname: str | None) -> str:
-    """The term as a formula (for the emitted file's docstring)."""
+def damage_formula(param: str, index: int, form: str, signal: str, cname: str, gname: str | None,
+                   width: float = 0.0) -> str:
+    """The term as a formula (for the emitted file's docstring); ``width``: a step's fitted edge time scale (s)."""
     g = gname or "g"
+    if form in WIDTH_GATES and width > 0.0:
+        con = CONTRIBUTIONS[param].formula.format(n=index + 1)
+        if form == "on_ramp":
+            return f"{con}   with c = {cname} · {width:.4g} s · (1 − exp(−(t − {g})⁺ / {width:.4g} s))"
+        return f"{con}   with c = {cname} · (1 + tanh((t − {g}) / {width:.4g} s)) / 2"
     if is_hinge(param, form, signal):  # the bilinear spring: the lost force beyond the switching point
         n = index + 1
         return f"S_{n} += −{cname} · k{n} · (δ{n} − {g}){'⁺' if form == 'on_pos' else '⁻'}"

@@ -81,7 +81,8 @@ class FoundTerm:
         return {"key": self.term.key, "placement": self.term.placement, "index": self.term.index,
                 "signal": self.term.signal, "form": self.term.form, "coefficient": self.coef,
                 "coefficient_unit": self.term.unit, "shape": self.shape if ALL_FORMS[self.term.form].shape else None,
-                "signal_scale": self.scale, "words": self.words, "twins": self.twins,
+                "edge_width_s": self.term.width or None, "signal_scale": self.scale, "words": self.words,
+                "twins": self.twins,
                 "description": self.description, "said_with": self.said_with}
 
 
@@ -187,5 +188,7 @@ def describe_units(found: Sequence[FoundTerm]) -> list[str]:
             unit = ("s" if f.term.form in (*DELAY_FORMS, *TIME_GATES) else
                     "m/s" if f.term.signal.startswith(("zd", "dd")) else "V" if f.term.signal in ("va", "vc") else "m")
             line += f", {ALL_FORMS[f.term.form].shape} {f.shape:.4g} {unit}"
+        if f.term.width > 0.0:
+            line += f", edge width {f.term.width:.4g} s"
         out.append(line)
     return out

@@ -477,16 +477,16 @@ def finite_change(setup: SearchSetup, progress: SearchProgress, settings: Search
         return
     t0 = time.perf_counter()
     k = progress.state.kept[-1]
-    fit, progress.ended = progress.ended, None
-    if fit is None or fit.replaced != k:  # not already refitted with an end when the event was judged
-        fit = change_refit(setup, progress, settings, k)
+    ended, progress.ended = progress.ended, None  # refitted with an end already when the event was judged
+    fit = change_refit(setup, progress, settings, k, ended if ended is not None and ended.replaced == k else None)
     progress.timings["refit_s"] += time.perf_counter() - t0
     if fit is None:
         return
     h = fit.outcome.held_rms_sigma
     gain = excess_share_removed(progress.current_held, h, noise_tolerance(setup.n_held))
     keep = gain is not None and gain >= MIN_SHARE and h < progress.current_held
-    how = "as two steps (" if setup.terms[fit.rise].form == "on_step" else "given an end (two ramps, "
+    how = {"stages": "as two steps (", "smooth": "with a fitted edge (", "settle": "settling (",
+           "recover": "then settling (", "window": "given an end (two ramps, "}[fit.kind]
     settings.say(f"  {setup.terms[k].key} {how}{h:.4g} σ held-out): "
                  + ("kept in its place" if keep else "not kept"))
     progress.rounds.append({"finite_change": {"term": setup.terms[k].key, "held_rms_sigma": h, "kept": keep}})

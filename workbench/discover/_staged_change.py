@@ -37,6 +37,7 @@ from workbench.discover._finite_change import (
 )
 from workbench.discover._onset import MAX_LOSS
 from workbench.discover._search import SearchState, refine
+from workbench.discover._smooth_change import VARIANTS, smooth_refit
 from workbench.discover._twins import twin_tolerance
 from workbench.fit import Objective, Target
 
@@ -134,15 +135,18 @@ def staged_refit(targets: Sequence[Target], models: Sequence[PlantModel], terms:
     n_sims = (n + nz) * len(targets) + obj.n_sims
     if not out.ok:
         return None
-    return WindowFit(pair[0], pair[1], kept, out, start | out.values, n_sims)
+    return WindowFit(pair[0], pair[1], kept, out, start | out.values, n_sims, kind="stages")
 
 
-def change_refit(setup: Any, progress: Any, settings: Any, kept: int) -> WindowFit | None:
-    """The kept time-gated term ``kept`` given an end (a window) and as two steps; the refit that leaves the whole
-    record lower (None when neither is possible). The first step's candidate instants: the kept term's onset and
-    the onsets of this round's refitted steps of the same parameter. ``setup``, ``progress``, ``settings``: the
-    rounds' objects."""
-    own = _change_refits(setup, progress, settings, kept, None)
+def change_refit(setup: Any, progress: Any, settings: Any, kept: int, ended: WindowFit | None = None
+                 ) -> WindowFit | None:
+    """The kept time-gated term ``kept`` given an end (a window; ``ended`` when the event's judgement refitted it
+    already), as two steps and as a change with a fitted time scale (:mod:`workbench.discover._smooth_change`:
+    an S-curve, a ramp that settles, a step that partly recovers); the refit that leaves the whole record lower
+    (None when none is possible). The first step's candidate instants: the kept term's onset and the onsets of
+    this round's refitted steps of the same parameter. ``setup``, ``progress``, ``settings``: the rounds'
+    objects."""
+    own = _change_refits(setup, progress, settings, kept, None, ended)
     term = setup.terms[kept]
     if own is None or damage_like(term, float(progress.state.values[setup.names[kept][0]])):
         return own
@@ -157,15 +161,27 @@ def change_refit(setup: Any, progress: Any, settings: Any, kept: int) -> WindowF
     return own
 
 
-def _change_refits(setup: Any, progress: Any, settings: Any, kept: int, like: int | None) -> WindowFit | None:
-    """:func:`change_refit`'s window and two steps of the kept term's parameter (``like``: of that term's)."""
+def _change_refits(setup: Any, progress: Any, settings: Any, kept: int, like: int | None,
+                   ended: WindowFit | None = None) -> WindowFit | None:
+    """:func:`change_refit`'s window, two steps and fitted time scales of the kept term's parameter (``like``: the
+    window and two steps of that term's)."""
     term = setup.terms[kept if like is None else like]
     firsts = [float(b.outcome.values[setup.names[b.index][1]]) for b in progress.refits
               if setup.terms[b.index].form == "on_step" and (setup.terms[b.index].param, setup.terms[b.index].index)
               == (term.param, term.index) and setup.names[b.index][1] in b.outcome.values]
     args = (setup.targets, setup.models, setup.terms, setup.names, progress.state, kept)
-    fits = [window_refit(*args, setup.scales["t"], settings.threads, settings.max_nfev, like),
-            staged_refit(*args, firsts, setup.scales["t"], settings.threads, settings.max_nfev, like)]
+    t_end, threads, nfev = setup.scales["t"], settings.threads, settings.max_nfev
+    fits = [ended] if ended is not None and like is None else [window_refit(*args, t_end, threads, nfev, like)]
+    fits.append(staged_refit(*args, firsts, t_end, threads, nfev, like))
+    if like is None:
+        fits += [smooth_refit(*args, t_end, threads, nfev, variant) for variant in VARIANTS]
     done = [f for f in fits if f is not None]
-    progress.n_sims += sum(f.n_sims for f in done)
+    progress.n_sims += sum(f.n_sims for f in done if f is not ended)
+    for f in done:
+        settings.say(f"  {setup.terms[kept].key} as {_KIND_WORDS[f.kind]}: {f.outcome.held_rms_sigma:.4g} σ held-out")
     return min(done, key=lambda f: whole_rms(setup.targets, f.outcome), default=None)
+
+
+_KIND_WORDS = {"window": "a change over a finite time (two ramps)", "stages": "two steps",
+               "smooth": "a step with a fitted edge (an S-curve)", "settle": "a ramp that settles",
+               "recover": "a step, then a settling change (a partial recovery)"}
