@@ -21,20 +21,27 @@ from workbench.discover._smooth_change import Edge, EdgeProbe, candidate_edges, 
 SCALES = {"delta1": 1e-3, "ddelta1": 0.1, "delta2": 1e-3, "ddelta2": 0.1, "t": 15.0}
 
 
-def test_every_step_and_ramp_of_the_dictionary_carries_its_width_at_the_sharp_or_never_settling_default():
+def test_every_step_ramp_and_switch_of_the_dictionary_carries_its_width_at_its_sharp_default():
+    from workbench.discover._dictionary import SIGNALS
+    from workbench.discover._gates import SIGN_WIDTH
+
     terms = build_dictionary(SCALES)
     widths = dictionary_width_names(terms)
-    assert widths and all(terms[k].form in ("on_step", "on_ramp") for k in widths)
-    assert len(widths) == sum(t.form in ("on_step", "on_ramp") for t in terms)
+    forms = ("on_step", "on_ramp", "on_pos", "on_neg")
+    assert widths and all(terms[k].form in forms for k in widths)
+    assert len(widths) == sum(t.form in forms for t in terms)
     src = dictionary_source(terms)
-    declared = dict(re.findall(r"Parameter\('(h_\d+)', 's', ([0-9.e+-]+),", src))
+    declared = dict(re.findall(r"Parameter\('(h_\d+)', '[^']+', ([0-9.e+-]+),", src))
     assert set(declared) == set(widths.values())
     for k, h in widths.items():
-        assert float(declared[h]) == (STEP_WIDTH_S if terms[k].form == "on_step" else RAMP_NEVER_S)
+        form, unit = terms[k].form, SIGNALS[terms[k].signal].unit
+        want = {"on_step": STEP_WIDTH_S, "on_ramp": RAMP_NEVER_S}.get(form) or SIGN_WIDTH[unit]
+        assert float(declared[h]) == want, terms[k].key
         assert terms[k].width == 0.0
-    # the step's edge and the ramp's saturation are parameters of the kernel, not literals
+    # the step's edge, the ramp's saturation and a switch's edge are parameters of the kernel, not literals
     assert re.search(r"math\.tanh\(\(t - p\[po \+ \d+\]\) / p\[po \+ \d+\]\)", src)
     assert re.search(r"-p\[po \+ \d+\] \* math\.expm1\(-max\(t - p\[po \+ \d+\], 0\.0\) / p\[po \+ \d+\]\)", src)
+    assert re.search(r"math\.tanh\(\(\(x\[X_DELTA \+ 1\]\) - p\[po \+ \d+\]\) / p\[po \+ \d+\]\)", src)
 
 
 def test_a_ramp_that_never_settles_is_the_plain_ramp_to_a_part_in_a_billion():

@@ -73,7 +73,7 @@ def _value_code(slot: TermSlot) -> str:
     else:
         h = "0.0"
     code = gate_code(term.form, term.param, term.signal) if term.placement == "damage" else form.code
-    if term.form in WIDTH_GATES and (slot.width_param is not None or term.width > 0.0):
+    if term.form in WIDTH_CODE and (slot.width_param is not None or term.width > 0.0):
         code = WIDTH_CODE[term.form]  # the edge (a step) or the saturation (a ramp) at a fitted width
     expr = code.replace("G", g).replace("W", w).replace("V", v).replace("H", h)
     expr = expr.replace("S", f"({s})")
@@ -230,8 +230,10 @@ def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDiction
         hi = None
         if term.form in WIDTH_GATES:
             hi = len(params)
-            params.append(f"        Parameter({width_name(len(slots))!r}, 's', {default_width(term.form)!r}, 1e-05, "
-                          f"math.inf, 'edge width or saturation time of {term.key}'),")
+            unit = SIGNALS[term.signal].unit if term.form in SIGN_GATES else "s"
+            params.append(f"        Parameter({width_name(len(slots))!r}, {unit!r}, "
+                          f"{default_width(term.form, unit)!r}, 1e-12, math.inf, "
+                          f"'edge width or saturation time of {term.key}'),")
         slots.append(TermSlot(term, ci, gi, allocate_states(term, specs), hi))
     states = "\n".join(f"        StateSpec('w_{k}', {u!r}, {sc!r})," for k, (u, sc) in enumerate(specs))
     return (

@@ -105,6 +105,10 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
     pct = f"{100 * abs(coef):.3g} %"
     lower = coef < 0
     lh = "lower" if lower else "higher"
+    if form in SIGN_GATES and width > 0.0:  # a switch whose edge was fitted: where and over how much it switches
+        span = _switch_value(signal, 2.2 * width).lstrip("+")
+        return (_describe_sign(param, index, form, signal, coef, shape)
+                + f" — a gradual switch: 10–90 % of it over {span} about that point")
     if form in SIGN_GATES:
         return _describe_sign(param, index, form, signal, coef, named_switch(shape, shape_se))
     if form in SOFT_GATES or form in GROW_GATES:

@@ -73,8 +73,10 @@ SOFT_GATES = ("on_pos_soft", "on_neg_soft")
 GROW_GATES = ("on_pos_grow", "on_neg_grow")
 TIME_GATES = ("on_step", "on_ramp")
 #: the gates whose edge width H is a fitted parameter of the dictionary (``h_NN``, default the fixed width below): a
-#: step whose change took time — a loss that ran and arrested along an S-curve — is the same step with a wide edge
-WIDTH_GATES = ("on_step", "on_ramp")
+#: step whose change took time — a loss that ran and arrested along an S-curve — is the same step with a wide edge;
+#: a switch off zero whose faces close progressively (a crack with rough faces, a patch that weakens over a range
+#: of drive) is the same sign gate with a wide edge
+WIDTH_GATES = ("on_step", "on_ramp", "on_pos", "on_neg")
 #: a ramp's width is the time constant of its saturation: rate · H · (1 − exp(−(t − G)⁺ / H)), the plain ramp
 #: rate · (t − G)⁺ as H → ∞ (its default, far beyond any record: 1e12 s); finite, a change that slows and settles
 #: at rate · H (damage that grows and arrests; a loss that partly recovers, beside a step)
@@ -223,8 +225,11 @@ def contribution_lines(param: str, index: int, factor: str, hinge: bool = False)
     return out
 
 
-def default_width(form: str) -> float:
-    """The edge width a fitted-width gate starts from (s): the sharp step's, a ramp that never saturates."""
+def default_width(form: str, unit: str = "s") -> float:
+    """The edge width a fitted-width gate on a signal of ``unit`` starts from (SI): the sharp step's, a ramp that
+    never saturates, a sign gate's sharp switch."""
+    if form in SIGN_GATES:
+        return gate_width(form, unit)
     return STEP_WIDTH_S if form == "on_step" else RAMP_NEVER_S
 
 

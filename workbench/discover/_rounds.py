@@ -3,8 +3,8 @@
 already at the noise floor on the full model (:func:`fast_path`), the nonlinear probes and onsets
 (:func:`probe_screen`), the refits (:func:`refit_term`, :func:`refit_best`), a time event checked against the
 members of its parameter constant in time and for plausibility (:func:`plausible_best`) and keeping the best
-(:func:`keep_best`), a time-gated term kept given an end (:func:`finite_change`); then the backward step
-(:mod:`workbench.discover._backward`) and the terms the records cannot tell apart
+(:func:`keep_best`), a kept term refitted as what it may be (:mod:`workbench.discover._kept_change`); then the
+backward step (:mod:`workbench.discover._backward`) and the terms the records cannot tell apart
 (:func:`~workbench.discover._twins.twins_of`). :func:`workbench.discover._pipeline.discover` prepares the search
 (:class:`SearchSetup`), runs the rounds on a :class:`SearchProgress` and judges what they kept.
 """
@@ -29,8 +29,9 @@ from workbench.discover._event_check import (
     place_rows,
     refit_twins,
 )
-from workbench.discover._finite_change import WindowFit, judged_with_end, keep_window
+from workbench.discover._finite_change import WindowFit, judged_with_end
 from workbench.discover._gates import TIME_GATES
+from workbench.discover._kept_change import refine_kept
 from workbench.discover._onset import change_point, event_onset, onset_probe, onset_scan, with_onsets
 from workbench.discover._onset_profile import place_onset
 from workbench.discover._results import DiscoverError, ScreenRow, excess_share_removed, noise_free_match
@@ -42,7 +43,6 @@ from workbench.discover._search import (
     refine,
     refit_list,
 )
-from workbench.discover._staged_change import change_refit
 from workbench.discover._twins import place_switch_family, switch_family, twin_tolerance, twins_of
 from workbench.fit import FitOutcome, Objective, Target, explained, noise_tolerance, rms
 
@@ -463,34 +463,6 @@ def search_round(setup: SearchSetup, progress: SearchProgress, settings: SearchS
     if best is None:
         return False
     kept = keep_best(setup, progress, settings, best, rows, tried, linearised=fast, displaced=displaced)
-    if kept and is_timed(setup.terms[progress.state.kept[-1]]):
-        finite_change(setup, progress, settings)
+    if kept:
+        refine_kept(setup, progress, settings, MIN_SHARE)
     return kept
-
-
-def finite_change(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings) -> None:
-    """The time-gated term just kept given an end (:mod:`workbench.discover._finite_change`) when it leaves more
-    than the noise (not only past :func:`explained`'s 1 % of the excess: a damping that grew ×3 over 2 s, kept as
-    a step, left 2.31 σ and was 'found'): its two ramps replace it when they remove :data:`MIN_SHARE` of the
-    excess left."""
-    if progress.current_held <= 1.0 + noise_tolerance(setup.n_held):
-        return
-    t0 = time.perf_counter()
-    k = progress.state.kept[-1]
-    ended, progress.ended = progress.ended, None  # refitted with an end already when the event was judged
-    fit = change_refit(setup, progress, settings, k, ended if ended is not None and ended.replaced == k else None)
-    progress.timings["refit_s"] += time.perf_counter() - t0
-    if fit is None:
-        return
-    h = fit.outcome.held_rms_sigma
-    gain = excess_share_removed(progress.current_held, h, noise_tolerance(setup.n_held))
-    keep = gain is not None and gain >= MIN_SHARE and h < progress.current_held
-    how = {"stages": "as two steps (", "smooth": "with a fitted edge (", "settle": "settling (",
-           "recover": "then settling (", "window": "given an end (two ramps, "}[fit.kind]
-    settings.say(f"  {setup.terms[k].key} {how}{h:.4g} σ held-out): "
-                 + ("kept in its place" if keep else "not kept"))
-    progress.rounds.append({"finite_change": {"term": setup.terms[k].key, "held_rms_sigma": h, "kept": keep}})
-    if keep:
-        keep_window(progress.state, progress.stderr, progress.twins, fit)
-        progress.current_train, progress.current_held = fit.outcome.train_rms_sigma, h
-        progress.outcome = fit.outcome

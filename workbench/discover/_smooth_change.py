@@ -84,10 +84,12 @@ class EdgeProbe:
     #: so that the record ends at the kept step's level (a step refitted alone sizes itself to most of the
     #: record), at the recovery's onset (a step refitted alone is placed late, 4.529 s for a drop at 4.5 s)
     level: tuple[str, float, str] | None = None
+    #: where the centre may lie (a switching point's range; None: within the record)
+    bounds: tuple[float, float] | None = None
 
     def setting(self, e: Edge) -> dict[str, float]:
         c, g, h = self.names
-        out = {c: e.total if self.form == "on_step" else e.total / e.width, g: e.centre, h: e.width}
+        out = {c: e.total / e.width if self.form == "on_ramp" else e.total, g: e.centre, h: e.width}
         if self.level is not None:
             out[self.level[0]] = self.level[1] - e.total
             out[self.level[2]] = e.centre
@@ -125,13 +127,14 @@ def zoom_edge(probe: EdgeProbe, first: Sequence[Edge], t_end: float) -> tuple[Ed
     if k is None or not math.isfinite(scores[k]):
         return None
     best, score = first[k], scores[k]
-    step = 0.25 * best.width if probe.form == "on_step" else RAMP_ONSET_STEP_S
+    step = RAMP_ONSET_STEP_S if probe.form == "on_ramp" else 0.25 * best.width
+    lo, hi = probe.bounds or (0.0, t_end)
     for _ in range(ZOOM_ROUNDS):
-        if step < ONSET_RESOLUTION_S:
+        if probe.bounds is None and step < ONSET_RESOLUTION_S:
             break
         grid = [Edge(best.centre + i * step, best.width * f, best.total * m) for i in (-1, 0, 1)
                 for f in ZOOM_WIDTH for m in ZOOM_TOTAL if (i, f, m) != (0, 1.0, 1.0)]
-        grid = [e for e in grid if 0.0 <= e.centre <= t_end]
+        grid = [e for e in grid if lo <= e.centre <= hi]
         for e, s in zip(grid, probe.scores(grid)):
             if s < score:
                 best, score = e, s
