@@ -181,15 +181,11 @@ def test_the_zoom_moves_centre_width_and_size_toward_the_best_edge():
 
 
 def test_the_edge_refit_frees_size_centre_and_width_within_the_record():
-    terms = build_dictionary(SCALES)
-    from workbench.discover import dictionary_parameter_names
+    from discover_slots import kept_slot
 
-    names = dictionary_parameter_names(terms)
-    k = next(i for i, t in enumerate(terms) if t.key == "k1_step_t")
-    c, g = names[k]
-    h = dictionary_width_names(terms)[k]
-    state = SearchState({c: -0.3, str(g): 14.9, h: 0.5}, [k])
-    free = {p.name: p for p in edge_free(terms, names, state, dict(state.values), k, k, 15.0)}
+    s = kept_slot(SCALES, "k1_step_t", -0.3, 14.9, 0.5)
+    c, g, h, k = s["c"], s["g"], s["h"], s["k"]
+    free = {p.name: p for p in edge_free(s["terms"], s["names"], s["state"], dict(s["state"].values), k, k, 15.0)}
     assert set(free) == {c, g, h}
     assert free[g].upper == 15.0 and free[g].lower == pytest.approx(14.4)
     assert free[h].lower == pytest.approx(0.5 / 3) and free[h].upper == pytest.approx(1.5) and free[h].log

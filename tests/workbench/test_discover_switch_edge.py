@@ -8,7 +8,7 @@ from types import SimpleNamespace
 
 import pytest
 
-from workbench.discover._dictionary import Term, build_dictionary
+from workbench.discover._dictionary import Term
 from workbench.discover._effect_writer import describe_term, emit_effect_source, parameter_names_for
 from workbench.discover._finite_change import WindowFit
 from workbench.discover._smooth_change import Edge, EdgeProbe, zoom_edge
@@ -56,17 +56,12 @@ def test_the_zoom_of_a_switch_keeps_its_point_within_bounds_and_its_size_as_the_
 
 
 def test_the_refit_frees_size_point_and_width_of_the_switch():
-    from workbench.discover import dictionary_parameter_names
-    from workbench.discover._dictionary_code import dictionary_width_names
-    from workbench.discover._search import SearchState
+    from discover_slots import kept_slot
 
-    terms = build_dictionary(SCALES)
-    names = dictionary_parameter_names(terms)
-    k = next(i for i, t in enumerate(terms) if t.key == "d_ep_neg_va")
-    c, g = names[k]
-    h = dictionary_width_names(terms)[k]
-    state = SearchState({c: -0.3, g: 60.0, h: 10.0}, [k])
-    free = {p.name: p for p in switch_free(terms, names, state, dict(state.values), k, (20.0, 100.0))}
+    s = kept_slot(SCALES, "d_ep_neg_va", -0.3, 60.0, 10.0)
+    c, g, h, k = s["c"], s["g"], s["h"], s["k"]
+    free = {p.name: p for p in switch_free(s["terms"], s["names"], s["state"], dict(s["state"].values), k,
+                                           (20.0, 100.0))}
     assert set(free) == {c, g, h}
     assert (free[g].lower, free[g].upper) == (20.0, 100.0) and free[h].log
     assert free[h].lower == pytest.approx(10.0 / 3) and free[c].lower >= -0.95

@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 
@@ -35,6 +35,8 @@ from workbench.discover._onset import ONSET_RESOLUTION_S, whole_record_rms
 from workbench.discover._results import FoundTerm
 from workbench.discover._search import SearchState, probe_batch, refine
 from workbench.fit import FitOutcome, Objective, Target
+
+T = TypeVar("T")
 
 #: durations (s) of the windows centred on a kept step's instant (a loss over a short time: its refit widens them)
 STEP_DURATIONS_S = (0.05, 0.15, 0.4, 1.0, 2.5)
@@ -179,6 +181,12 @@ class WindowProbe:
         return [e if good else math.inf for e, good in zip(whole_record_rms(self.targets, held, train), ok)]
 
 
+def lowest(items: Sequence[T], scores: Sequence[float]) -> tuple[T, float] | None:
+    """The first item of the lowest finite score, with its score (None when no score is finite)."""
+    k = min(range(len(items)), key=lambda i: scores[i], default=None)
+    return None if k is None or not math.isfinite(scores[k]) else (items[k], scores[k])
+
+
 def zoom_window(probe: WindowProbe, first: Sequence[Window]) -> tuple[Window, float, int] | None:
     """The best of ``first`` by the whole record's RMS, then zoomed: its start and end moved by ± a step (a quarter
     of its duration, halved each time down to :data:`ONSET_RESOLUTION_S`) and its total by :data:`ZOOM_TOTAL`.
@@ -186,20 +194,16 @@ def zoom_window(probe: WindowProbe, first: Sequence[Window]) -> tuple[Window, fl
     inside a held-out block is invisible to the training error (a k2 loss over 0.5 s at 5.5 s of a 10 s sweep,
     refitted on training only: start 5.04 s, training 1.2 σ, held-out 12.8 σ). Returns the window, its RMS and
     the probes run per record (None when nothing integrates)."""
-    scores = probe.scores(first)
-    n = len(first)
-    k = min(range(n), key=lambda i: scores[i], default=None)
-    if k is None or not math.isfinite(scores[k]):
+    found = lowest(first, probe.scores(first))
+    if found is None:
         return None
-    best, score = first[k], scores[k]
+    (best, score), n = found, len(first)
     step = 0.25 * (best.end - best.start)
     while step > ONSET_RESOLUTION_S:
         grid = [Window(best.start + i * step, best.end + j * step, best.total * m) for i in (-1, 0, 1)
                 for j in (-1, 0, 1) for m in ZOOM_TOTAL if (i, j, m) != (0, 0, 1.0)]
         grid = [w for w in grid if 0.0 <= w.start < w.end <= probe.t_end]
-        for w, e in zip(grid, probe.scores(grid)):
-            if e < score:
-                best, score = w, e
+        best, score = lowest([best, *grid], [score, *probe.scores(grid)]) or (best, score)
         n += len(grid)
         step *= 0.5
     return best, score, n

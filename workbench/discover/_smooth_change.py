@@ -23,7 +23,14 @@ from board_config.parameter import Parameter, freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
 from workbench.discover._dictionary_code import width_name
-from workbench.discover._finite_change import ZOOM_TOTAL, WindowFit, gate_slots, others_free, whole_rms
+from workbench.discover._finite_change import (
+    ZOOM_TOTAL,
+    WindowFit,
+    gate_slots,
+    lowest,
+    others_free,
+    whole_rms,
+)
 from workbench.discover._onset import MAX_LOSS, ONSET_RESOLUTION_S, whole_record_rms
 from workbench.discover._search import SearchState, probe_batch, refine
 from workbench.fit import Objective, Target
@@ -121,12 +128,10 @@ def zoom_edge(probe: EdgeProbe, first: Sequence[Edge], t_end: float) -> tuple[Ed
     """The best of ``first`` by the whole record's RMS, zoomed for :data:`ZOOM_ROUNDS` rounds: centre ± a step
     (halved each round, not below the onsets' resolution), width × :data:`ZOOM_WIDTH`, total × ``ZOOM_TOTAL``.
     Returns the edge, its RMS and the probes run per record (None when nothing integrates)."""
-    scores = probe.scores(first)
-    n = len(first)
-    k = min(range(n), key=lambda i: scores[i], default=None)
-    if k is None or not math.isfinite(scores[k]):
+    found = lowest(first, probe.scores(first))
+    if found is None:
         return None
-    best, score = first[k], scores[k]
+    (best, score), n = found, len(first)
     step = RAMP_ONSET_STEP_S if probe.form == "on_ramp" else 0.25 * best.width
     lo, hi = probe.bounds or (0.0, t_end)
     for _ in range(ZOOM_ROUNDS):
@@ -135,9 +140,7 @@ def zoom_edge(probe: EdgeProbe, first: Sequence[Edge], t_end: float) -> tuple[Ed
         grid = [Edge(best.centre + i * step, best.width * f, best.total * m) for i in (-1, 0, 1)
                 for f in ZOOM_WIDTH for m in ZOOM_TOTAL if (i, f, m) != (0, 1.0, 1.0)]
         grid = [e for e in grid if lo <= e.centre <= hi]
-        for e, s in zip(grid, probe.scores(grid)):
-            if s < score:
-                best, score = e, s
+        best, score = lowest([best, *grid], [score, *probe.scores(grid)]) or (best, score)
         n += len(grid)
         step *= 0.5
     return best, score, n

@@ -171,7 +171,8 @@ def _change_refits(setup: Any, progress: Any, settings: Any, kept: int, like: in
               == (term.param, term.index) and setup.names[b.index][1] in b.outcome.values]
     args = (setup.targets, setup.models, setup.terms, setup.names, progress.state, kept)
     t_end, threads, nfev = setup.scales["t"], settings.threads, settings.max_nfev
-    fits = [ended] if ended is not None and like is None else [window_refit(*args, t_end, threads, nfev, like)]
+    fits: list[WindowFit | None] = (
+        [ended] if ended is not None and like is None else [window_refit(*args, t_end, threads, nfev, like)])
     fits.append(staged_refit(*args, firsts, t_end, threads, nfev, like))
     if like is None:
         fits += [smooth_refit(*args, t_end, threads, nfev, variant) for variant in VARIANTS]
