@@ -4,6 +4,7 @@ term simulates."""
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -75,6 +76,18 @@ def _switches(term: Term) -> list[float]:
     return [float(f"{0.5 * x:.6g}") for x in term.shape_range]
 
 
+def _widths(term: Term, scales) -> list[float]:
+    """Widths to draw for a term whose width the dictionary fits: 0 (its sharp default) or a wide one — a step's edge
+    over a tenth of the record, a ramp settling over a third of it, a switch over a fifth of its signal's scale."""
+    if term.form == "on_step":
+        return [0.0, 0.1 * scales["t"]]
+    if term.form == "on_ramp":
+        return [0.0, 0.3 * scales["t"]]
+    if term.form in ("on_pos", "on_neg") and scales.get(term.signal, 0.0) > 0.0:
+        return [0.0, 0.2 * scales[term.signal]]
+    return [0.0]
+
+
 def _family(term: Term) -> tuple[str, str, str]:
     return term.placement, term.form, term.param or term.signal
 
@@ -128,6 +141,63 @@ def _coefficient(term: Term, short_sweep) -> float:
     return 5.0 * ref[term.placement] / max(term_scale(term, short_sweep["sig"], short_sweep["targets"]), 1e-300)
 
 
+def _emitted_simulates_like_the_dictionary(short_sweep, tmp_path, chosen, coefs, shapes):
+    """The emitted file of ``chosen`` (at ``coefs``, ``shapes`` and each term's width) against the compiled
+    dictionary, each term alone: both move the tip alike where both runs integrate. Returns the file, its values and
+    which terms' runs integrated."""
+    import numpy as np
+
+    from plant import PlantModel
+    from workbench.discover import dictionary_parameter_names, dictionary_source, generated_effect
+    from workbench.discover._dictionary_code import dictionary_width_names
+
+    terms = short_sweep["terms"]
+    names = parameter_names_for(chosen)
+    values = {c: v for (c, _), v in zip(names, coefs)} | {g: s for s, (_, g) in zip(shapes, names) if g}
+    stem = "emitted_" + "_".join(t.key for t in chosen)
+    f = tmp_path / f"{stem[:80]}.py"
+    f.write_text(emit_effect_source(chosen, values, effect_name="drawn"))
+    # each term alone: the emitted file against the compiled dictionary (the kernel shm discover uses)
+    tg = short_sweep["targets"][0]
+    base = short_sweep["base"]
+    emitted = PlantModel(base, effects=[str(f)])
+    dictionary = PlantModel(base, effects=[generated_effect(dictionary_source(terms), "dictionary_driven")])
+    dnames = dictionary_parameter_names(terms)
+    dwidths = dictionary_width_names(terms)
+    pe = np.tile(emitted.p_nominal, (len(chosen), 1))
+    pd = np.tile(dictionary.p_nominal, (len(chosen), 1))
+    for k, (term, (cname, _), coef) in enumerate(zip(chosen, names, coefs)):
+        pe[k, emitted.param_index(cname)] = coef
+        for n, other in zip(dnames, terms):
+            if n[1] is not None:
+                pd[k, dictionary.param_index(n[1])] = other.shape
+        a, g = dnames[terms.index(replace(term, width=0.0))]
+        pd[k, dictionary.param_index(a)] = coef
+        if g is not None:  # the drawn shape (a switching point off zero) in both
+            pd[k, dictionary.param_index(g)] = shapes[k]
+        h = dwidths.get(terms.index(replace(term, width=0.0)))
+        if h is not None and term.width > 0.0:  # the drawn width: a parameter of the dictionary, a literal emitted
+            pd[k, dictionary.param_index(h)] = term.width
+    # tight tolerance: the two models carry different states (the dictionary's delay lines), so at the default
+    # tolerance their steps differ (a current term: 5e-7 m apart at rtol default, 1e-9 m at 1e-9)
+    re = emitted.simulate(tg.inputs, t_out=tg.t, params=pe, rtol=1e-9)
+    rd = dictionary.simulate(tg.inputs, t_out=tg.t, params=pd, rtol=1e-9)
+    ze, zd = re["z3_meas"], rd["z3_meas"]
+    nominal = PlantModel(base).simulate(tg.inputs, t_out=tg.t, rtol=1e-9)["z3_meas"][0]
+    # a drawn sign can make a term an energy source (viscous force along the root's velocity) whose run diverges or
+    # exhausts the steps of a 1e-9 tolerance: such a term is compared where both runs integrate, not here
+    ran = (re.status == 0) & (rd.status == 0)
+    for k, term in enumerate(chosen):
+        if not ran[k]:
+            continue
+        moved = float(np.max(np.abs(zd[k] - nominal)))
+        assert moved > 1e-7, term.key  # the term acts
+        # 1e-3 of what the term does, or 10 nm (1/200 of the records' 2 um noise): two different state vectors at
+        # rtol 1e-9 drift apart by a few nm on a term that barely acts (beta_h ramp: 3e-9 m of 4e-7 m)
+        assert float(np.max(np.abs(ze[k] - zd[k]))) <= max(1e-3 * moved, 1e-8), term.key
+    return f, values, ran
+
+
 @pytest.mark.slow
 @settings(max_examples=2, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture],
           phases=(Phase.explicit, Phase.reuse, Phase.generate))  # no shrinking: every example compiles a file
@@ -140,10 +210,6 @@ def test_drawn_terms_emit_files_that_simulate_like_the_dictionary_and_refit(shor
     import subprocess
     import sys
 
-    import numpy as np
-
-    from plant import PlantModel
-    from workbench.discover import dictionary_parameter_names, dictionary_source, generated_effect
     from workbench.records import write_record
     from workbench.simulation import synth_record, truth_model
 
@@ -153,46 +219,11 @@ def test_drawn_terms_emit_files_that_simulate_like_the_dictionary_and_refit(shor
     chosen = [data.draw(st.sampled_from([t for t in terms if _family(t) == f]), label=str(f)) for f in drawn]
     coefs = [_coefficient(t, short_sweep) * data.draw(st.sampled_from([-1.0, 1.0]), label="sign") for t in chosen]
     shapes = [data.draw(st.sampled_from([t.shape, *_switches(t)]), label="shape") for t in chosen]
-    names = parameter_names_for(chosen)
-    values = {c: v for (c, _), v in zip(names, coefs)} | {g: s for s, (_, g) in zip(shapes, names) if g}
-    stem = "emitted_" + "_".join(t.key for t in chosen)
-    f = tmp_path / f"{stem[:80]}.py"
-    f.write_text(emit_effect_source(chosen, values, effect_name="drawn"))
-    # each term alone: the emitted file against the compiled dictionary (the kernel shm discover uses)
-    tg = short_sweep["targets"][0]
-    base = short_sweep["base"]
-    emitted = PlantModel(base, effects=[str(f)])
-    dictionary = PlantModel(base, effects=[generated_effect(dictionary_source(terms), "dictionary_driven")])
-    dnames = dictionary_parameter_names(terms)
-    pe = np.tile(emitted.p_nominal, (len(chosen), 1))
-    pd = np.tile(dictionary.p_nominal, (len(chosen), 1))
-    for k, (term, (cname, _), coef) in enumerate(zip(chosen, names, coefs)):
-        pe[k, emitted.param_index(cname)] = coef
-        for n, other in zip(dnames, terms):
-            if n[1] is not None:
-                pd[k, dictionary.param_index(n[1])] = other.shape
-        a, g = dnames[terms.index(term)]
-        pd[k, dictionary.param_index(a)] = coef
-        if g is not None:  # the drawn shape (a switching point off zero) in both
-            pd[k, dictionary.param_index(g)] = shapes[k]
-    # tight tolerance: the two models carry different states (the dictionary's delay lines), so at the default
-    # tolerance their steps differ (a current term: 5e-7 m apart at rtol default, 1e-9 m at 1e-9)
-    re = emitted.simulate(tg.inputs, t_out=tg.t, params=pe, rtol=1e-9)
-    rd = dictionary.simulate(tg.inputs, t_out=tg.t, params=pd, rtol=1e-9)
-    ze, zd = re["z3_meas"], rd["z3_meas"]
-    nominal = PlantModel(base).simulate(tg.inputs, t_out=tg.t, rtol=1e-9)["z3_meas"][0]
-    # a drawn sign can make a term an energy source (viscous force along the root's velocity) whose run diverges or
-    # exhausts the steps of a 1e-9 tolerance: such a term is compared where both runs integrate, not here
-    ran = (re.status == 0) & (rd.status == 0)
+    # a fitted width (a step's edge, a ramp's settling time, a switch's edge) or the sharp default
+    chosen = [replace(t, width=data.draw(st.sampled_from(_widths(t, short_sweep["scales"])), label="width"))
+              for t in chosen]
+    f, values, ran = _emitted_simulates_like_the_dictionary(short_sweep, tmp_path, chosen, coefs, shapes)
     assume(bool(ran.any()))
-    for k, term in enumerate(chosen):
-        if not ran[k]:
-            continue
-        moved = float(np.max(np.abs(zd[k] - nominal)))
-        assert moved > 1e-7, term.key  # the term acts
-        # 1e-3 of what the term does, or 10 nm (1/200 of the records' 2 um noise): two different state vectors at
-        # rtol 1e-9 drift apart by a few nm on a term that barely acts (beta_h ramp: 3e-9 m of 4e-7 m)
-        assert float(np.max(np.abs(ze[k] - zd[k]))) <= max(1e-3 * moved, 1e-8), term.key
     # a record the emitted effect generates, refitted in a fresh process from its discovered values
     rec = synth_record(short_sweep["spec"], truth_model("table2", [str(f)], values), noise={"z3": 2e-6}, seed=5)
     rec_path = tmp_path / "drawn.csv"
@@ -204,3 +235,18 @@ def test_drawn_terms_emit_files_that_simulate_like_the_dictionary_and_refit(shor
     assert run.returncode == 0, run.stderr[-2000:]
     out = json.loads(run.stdout)
     assert out["held_rms_sigma"]["after"] <= 1.5, out["held_rms_sigma"]
+
+
+def test_terms_with_fitted_widths_emit_files_that_simulate_like_the_dictionary(short_sweep, tmp_path):
+    """A step with a wide edge (an S-curve), a ramp that settles and a switch off zero with a wide edge: the width is
+    a parameter of the dictionary and a literal of the emitted file, and both move the tip alike."""
+    terms, scales = short_sweep["terms"], short_sweep["scales"]
+    step = next(t for t in terms if t.key == "k2_step_t")
+    ramp = next(t for t in terms if t.key == "k1_ramp_t")
+    switch = next(t for t in terms if t.key == "d_ep_neg_va")
+    chosen = [replace(step, width=0.1 * scales["t"]), replace(ramp, width=0.3 * scales["t"]),
+              replace(switch, width=0.2 * scales["va"])]
+    coefs = [_coefficient(t, short_sweep) for t in chosen]
+    shapes = [step.shape, ramp.shape, 0.3 * scales["va"]]
+    _, _, ran = _emitted_simulates_like_the_dictionary(short_sweep, tmp_path, chosen, coefs, shapes)
+    assert ran.all()
