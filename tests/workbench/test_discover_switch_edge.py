@@ -73,7 +73,8 @@ def test_a_switch_with_a_fitted_edge_is_said_and_emitted_with_it():
     assert "above +80 V" in words and "a gradual switch: 10–90 % of it over 33 V about that point" in words
     (c, g), = parameter_names_for([term])
     src = emit_effect_source([term], {c: -0.3, g: 80.0})
-    assert "/ 15.0)" in src
+    assert "/ 15.0)" in src and f"[va > {g}]   (its edge ½(1 + tanh((va − {g}) / 15)), SI)" in src
+    assert "tanh((t −" not in src  # a switch on the drive, not a step in time
 
 
 def test_a_kept_switch_that_leaves_more_than_the_noise_is_refitted_with_an_edge_and_kept(monkeypatch):

@@ -45,8 +45,9 @@ def state_spec_args(signal: str) -> tuple[str, float]:
 @dataclass(frozen=True)
 class TermSlot:
     """Where a term's numbers live in the generated effect: its coefficient at ``p[po + coef]``, its shape either
-    a literal or ``p[po + shape_param]``, its delay state (if any) at ``x[so + state]``, a step's edge width either
-    a literal (the term's fitted ``width``, else the gate's fixed one) or ``p[po + width_param]``."""
+    a literal or ``p[po + shape_param]``, its delay state (if any) at ``x[so + state]``, a gate's width (a step's
+    or a switch's edge, a ramp's settling time) either a literal (the term's fitted ``width``, else the gate's fixed
+    one) or ``p[po + width_param]``."""
 
     term: Term
     coef: int
@@ -202,6 +203,16 @@ def width_name(k: int) -> str:
     return f"h_{k:02d}"
 
 
+def width_unit(term: Term) -> str:
+    """SI unit of ``term``'s width: its signal's for a switch, s for a step or a ramp."""
+    return SIGNALS[term.signal].unit if term.form in SIGN_GATES else "s"
+
+
+def term_default_width(term: Term) -> float:
+    """The width ``term`` starts from in the dictionary (:func:`~workbench.discover._gates.default_width`)."""
+    return default_width(term.form, width_unit(term))
+
+
 def dictionary_width_names(terms: Sequence[Term]) -> dict[int, str]:
     """The edge-width parameter of every term whose width is fitted (dictionary index → name)."""
     return {k: width_name(k) for k, t in enumerate(terms) if t.form in WIDTH_GATES}
@@ -230,9 +241,8 @@ def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDiction
         hi = None
         if term.form in WIDTH_GATES:
             hi = len(params)
-            unit = SIGNALS[term.signal].unit if term.form in SIGN_GATES else "s"
-            params.append(f"        Parameter({width_name(len(slots))!r}, {unit!r}, "
-                          f"{default_width(term.form, unit)!r}, 1e-12, math.inf, "
+            params.append(f"        Parameter({width_name(len(slots))!r}, {width_unit(term)!r}, "
+                          f"{term_default_width(term)!r}, 1e-12, math.inf, "
                           f"'edge width or saturation time of {term.key}'),")
         slots.append(TermSlot(term, ci, gi, allocate_states(term, specs), hi))
     states = "\n".join(f"        StateSpec('w_{k}', {u!r}, {sc!r})," for k, (u, sc) in enumerate(specs))

@@ -263,13 +263,17 @@ def gate_values(form: str, s: np.ndarray, g: float, t: np.ndarray, unit: str, hi
 
 def damage_formula(param: str, index: int, form: str, signal: str, cname: str, gname: str | None,
                    width: float = 0.0) -> str:
-    """The term as a formula (for the emitted file's docstring); ``width``: a step's fitted edge time scale (s)."""
+    """The term as a formula (for the emitted file's docstring); ``width``: a fitted width (a step's edge, a ramp's
+    settling time, s; a switch's edge, SI of its signal)."""
     g = gname or "g"
-    if form in WIDTH_GATES and width > 0.0:
+    if form in TIME_GATES and width > 0.0:
         con = CONTRIBUTIONS[param].formula.format(n=index + 1)
         if form == "on_ramp":
             return f"{con}   with c = {cname} · {width:.4g} s · (1 − exp(−(t − {g})⁺ / {width:.4g} s))"
         return f"{con}   with c = {cname} · (1 + tanh((t − {g}) / {width:.4g} s)) / 2"
+    if form in SIGN_GATES and width > 0.0:  # the switch's edge: ½(1 ± tanh((S − G)/H)) at the fitted H
+        return (damage_formula(param, index, form, signal, cname, gname)
+                + f"   (its edge ½(1 {'+' if form == 'on_pos' else '−'} tanh(({signal} − {g}) / {width:.4g})), SI)")
     if is_hinge(param, form, signal):  # the bilinear spring: the lost force beyond the switching point
         n = index + 1
         return f"S_{n} += −{cname} · k{n} · (δ{n} − {g}){'⁺' if form == 'on_pos' else '⁻'}"

@@ -45,11 +45,12 @@ from board_config import ParameterSet, load_parameter_set
 from plant import PhysicalEffect
 from plant.effect import EffectError, resolve_effect
 from workbench.discover._backward import backward_step
-from workbench.discover._dictionary import SIGNALS, build_dictionary
+from workbench.discover._dictionary import build_dictionary
 from workbench.discover._dictionary_code import (
     dictionary_parameter_names,
     dictionary_source,
     dictionary_width_names,
+    term_default_width,
     width_name,
 )
 from workbench.discover._dictionary_effect import (
@@ -60,7 +61,7 @@ from workbench.discover._dictionary_effect import (
 )
 from workbench.discover._effect_writer import describe_term
 from workbench.discover._finite_change import finite_changes
-from workbench.discover._gates import WIDTH_GATES, default_width
+from workbench.discover._gates import WIDTH_GATES
 from workbench.discover._results import (
     DiscoverError,
     Discovery,
@@ -161,8 +162,7 @@ def prepare_search(records: Sequence[Record | FrfRecord], params: ParameterSet |
         if gname is not None:
             shaped = terms[k].shape > 0 or terms[k].shape_range is not None  # a switching point may be 0
             state.values[gname] = terms[k].shape if shaped else 1.0
-    state.values.update({h: default_width(terms[k].form, SIGNALS[terms[k].signal].unit)
-                         for k, h in dictionary_width_names(terms).items()})
+    state.values.update({h: term_default_width(terms[k]) for k, h in dictionary_width_names(terms).items()})
     ref = reference_magnitudes(targets[0].model, scales)
     eps = np.array([ref[t.placement] / max(term_scale(t, sig, targets), 1e-300) for t in terms])
     base_obj = Objective(targets, models, [], base_values=state.values)
@@ -185,8 +185,7 @@ def found_terms(setup: SearchSetup, progress: SearchProgress) -> list[FoundTerm]
         scale = setup.scales.get(term.signal, 1.0)
         se = progress.stderr.get(gname) if gname else None
         if term.form in WIDTH_GATES:  # a step whose edge, a ramp whose saturation was fitted: said and written so
-            width = progress.state.values.get(width_name(k), 0.0)
-            default = default_width(term.form, SIGNALS[term.signal].unit)
+            width, default = progress.state.values.get(width_name(k), 0.0), term_default_width(term)
             if width > 0.0 and abs(width - default) > 1e-3 * default:
                 term = replace(term, width=float(width))
         found.append(FoundTerm(term.with_shape(shape), coef, shape, scale, describe_term(term, coef, shape, scale, se),
