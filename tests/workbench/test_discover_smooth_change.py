@@ -144,12 +144,10 @@ def test_edges_that_settle_start_at_the_kept_ramp_or_step_and_a_recovery_takes_e
 def test_the_onsets_are_placed_together_on_the_whole_record(monkeypatch):
     import workbench.discover._smooth_change as sc
 
-    def batch(targets, models, values, settings, threads):  # the whole record is best 4 ms earlier
-        err = np.array([1.0 + 100 * abs(s["g_1"] - 4.496) for s in settings])
-        return err, err, np.ones(len(settings), bool)
+    def scores(targets, models, values, settings, threads):  # the whole record is best 4 ms earlier
+        return [1.0 + 100 * abs(s["g_1"] - 4.496) for s in settings]
 
-    monkeypatch.setattr(sc, "probe_batch", batch)
-    monkeypatch.setattr(sc, "whole_record_rms", lambda targets, held, train: held)
+    monkeypatch.setattr(sc, "whole_scores", scores)
     probe = EdgeProbe([], [], {}, ("a_1", "g_1", "h_1"), None, "on_ramp")
     values, n = sc.placed_onsets(probe, {"g_1": 4.5, "g_0": 4.49, "a_1": 0.1}, ["g_1", "g_0"])
     assert values["g_1"] == values["g_0"] == pytest.approx(4.496) and values["a_1"] == 0.1

@@ -176,9 +176,15 @@ class WindowProbe:
 
     def scores(self, windows: Sequence[Window]) -> list[float]:
         """The whole record's RMS (σ) with each window (inf where it does not integrate)."""
-        settings = [self.setting(w) for w in windows]
-        held, train, ok = probe_batch(self.targets, self.models, self.values, settings, self.threads)
-        return [e if good else math.inf for e, good in zip(whole_record_rms(self.targets, held, train), ok)]
+        return whole_scores(self.targets, self.models, self.values, [self.setting(w) for w in windows], self.threads)
+
+
+def whole_scores(targets: Sequence[Target], models: Sequence[PlantModel], values: dict[str, float],
+                 settings: Sequence[dict[str, float]], threads: int | None) -> list[float]:
+    """The whole record's RMS (σ) with each of ``settings`` on top of ``values`` (inf where it does not
+    integrate)."""
+    held, train, ok = probe_batch(targets, models, values, settings, threads)
+    return [e if good else math.inf for e, good in zip(whole_record_rms(targets, held, train), ok)]
 
 
 def lowest(items: Sequence[T], scores: Sequence[float]) -> tuple[T, float] | None:

@@ -15,7 +15,6 @@ Pure logic on the fit engine's objects; :func:`~workbench.discover._staged_chang
 
 from __future__ import annotations
 
-import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -30,9 +29,10 @@ from workbench.discover._finite_change import (
     lowest,
     others_free,
     whole_rms,
+    whole_scores,
 )
-from workbench.discover._onset import MAX_LOSS, ONSET_RESOLUTION_S, whole_record_rms
-from workbench.discover._search import SearchState, probe_batch, refine
+from workbench.discover._onset import MAX_LOSS, ONSET_RESOLUTION_S
+from workbench.discover._search import SearchState, refine
 from workbench.fit import Objective, Target
 
 #: edge widths w probed for an S-curve (fractions of the record: from a change over a few tenths of a percent of
@@ -104,9 +104,7 @@ class EdgeProbe:
 
     def scores(self, edges: Sequence[Edge]) -> list[float]:
         """The whole record's RMS (σ) with each edge (inf where it does not integrate)."""
-        held, train, ok = probe_batch(self.targets, self.models, self.values, [self.setting(e) for e in edges],
-                                      self.threads)
-        return [e if good else math.inf for e, good in zip(whole_record_rms(self.targets, held, train), ok)]
+        return whole_scores(self.targets, self.models, self.values, [self.setting(e) for e in edges], self.threads)
 
 
 def candidate_edges(form: str, coef: float, onset: float, t_end: float, variant: str = "smooth") -> list[Edge]:
@@ -223,6 +221,5 @@ def placed_onsets(probe: EdgeProbe, values: dict[str, float], onsets: Sequence[s
     shifts = [0.0, *POLISH_OFFSETS_S, *(-d for d in POLISH_OFFSETS_S)]
     at = values[onsets[0]]
     settings = [{name: at + d for name in onsets} for d in shifts]
-    held, train, ok = probe_batch(probe.targets, probe.models, values, settings, probe.threads)
-    rms = [e if good else math.inf for e, good in zip(whole_record_rms(probe.targets, held, train), ok)]
+    rms = whole_scores(probe.targets, probe.models, values, settings, probe.threads)
     return values | settings[min(range(len(shifts)), key=lambda i: rms[i])], len(shifts)
