@@ -38,8 +38,15 @@ from workbench.fit import FitOutcome, Objective, Target
 
 T = TypeVar("T")
 
-#: durations (s) of the windows centred on a kept step's instant (a loss over a short time: its refit widens them)
+#: durations (s) of the windows around a kept step's instant (a loss over a short time: its refit widens them), and
+#: as shares of the record (a loss over a long time: a straight 30 % loss of k2 from 6 s to 9 s of a 15 s sweep was
+#: kept as a step at 6.12 s, the change's first visible instant; the windows centred on it, 2.5 s at most, zoomed to
+#: 6.13–8.69 s: 6.35 σ held out)
 STEP_DURATIONS_S = (0.05, 0.15, 0.4, 1.0, 2.5)
+STEP_DURATION_SHARES = (0.1, 0.2, 0.35)
+#: where a step's instant lies in its window: the middle, the start (the change's first visible instant: a loss that
+#: grows slowly is noticed early), the end
+STEP_INSTANT_AT = (0.5, 0.0, 1.0)
 #: where a window from a kept ramp may start (shares of the time left after the ramp's onset) and end (shares of
 #: the time left after the window's start); the total change over the window as multiples of the ramp's rate × its
 #: duration (a ramp that never ends fits the window's rate low: 3.42 %/s for a 4 %/s loss over 5 s)
@@ -102,14 +109,16 @@ def ramp_slots(terms: Sequence[Term], term: Term) -> list[int]:
 
 
 def candidate_windows(form: str, coef: float, onset: float, t_end: float) -> list[Window]:
-    """Windows to probe from a kept time-gated term (``form`` ``on_step`` of size ``coef`` at ``onset``, or
-    ``on_ramp`` of rate ``coef`` from it), within a record ending at ``t_end`` (s)."""
+    """Windows to probe from a kept time-gated term (``form`` ``on_step`` of size ``coef`` at ``onset``: windows
+    centred on it, starting at it and ending at it; or ``on_ramp`` of rate ``coef`` from it), within a record ending
+    at ``t_end`` (s)."""
     out: list[Window] = []
     if form == "on_step":
-        for d in STEP_DURATIONS_S:
-            a, b = max(onset - 0.5 * d, 0.0), min(onset + 0.5 * d, t_end)
-            if b > a:
-                out.append(Window(a, b, coef))
+        for at in STEP_INSTANT_AT:
+            for d in (*STEP_DURATIONS_S, *(share * t_end for share in STEP_DURATION_SHARES)):
+                a, b = max(onset - at * d, 0.0), min(onset + (1.0 - at) * d, t_end)
+                if b > a and Window(a, b, coef) not in out:
+                    out.append(Window(a, b, coef))
         return out
     for s in RAMP_STARTS:
         a = onset + s * (t_end - onset)
