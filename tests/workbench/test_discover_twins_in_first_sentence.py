@@ -11,7 +11,7 @@ from workbench.challenges.discovery import KINDS, case_record, first_sentence
 from workbench.discover import discover
 from workbench.discover._dictionary import Term
 from workbench.discover._results import FoundTerm, ScreenRow
-from workbench.discover._twins import alike, switch_family
+from workbench.discover._twins import MAX_TWINS, alike, place_first, switch_family
 from workbench.simulation import synth_test
 
 
@@ -28,6 +28,24 @@ def test_the_twins_of_a_finding_are_in_its_first_sentence():
                       twins=[twin])
     first = first_sentence("Found beyond the library: " + found.description + ". Held-out error 114 σ → 0.98 σ.")
     assert "section 2" in first and "section 1" in first and "cannot tell it from" in first
+
+
+def _twin(key: str, index: int, held: float) -> dict:
+    return {"key": key, "placement": "damage", "index": index, "held_rms_sigma": held}
+
+
+def test_a_twin_in_another_place_is_named_before_the_twins_of_the_same_place():
+    chosen = _crack(0)  # a crack in section 1, named on one mode (MBIT.a)
+    same = [_twin("d_ep1_pos_delta1", 0, 1.0), _twin("k1_pos_delta1", 0, 1.01), _twin("k1_neg_z3", 0, 1.01)]
+    elsewhere = _twin("k2_pos_z3", 1, 1.02)
+    picked = place_first(chosen, [*same, elsewhere])
+    assert len(picked) == MAX_TWINS and picked[-1] is elsewhere and picked[0] is same[0]
+    # already among the first: the order stays; none elsewhere, or a finding without a place: the first n
+    assert place_first(chosen, [same[0], elsewhere, *same[1:]]) == [same[0], elsewhere]
+    assert place_first(chosen, same) == same[:MAX_TWINS]
+    assert place_first(Term("damage", -1, "va", "on_pos", 0.0, "alpha_h"), [*same, elsewhere]) == same[:MAX_TWINS]
+    # a global twin (no place) is not "elsewhere"
+    assert place_first(chosen, [*same, _twin("alpha_h_pos_vc", -1, 1.0)]) == same[:MAX_TWINS]
 
 
 def test_a_finding_without_twins_reads_as_before():

@@ -145,6 +145,17 @@ def twins_of(chosen: Term, held: float, rows: Sequence[ScreenRow], tried: Sequen
             out.append({"key": key, "placement": r.term.placement, "index": r.term.index, "signal": r.term.signal,
                         "form": r.term.form, "held_rms_sigma": h, "judged_by": how,
                         "words": describe_term(r.term, r.coef, r.term.shape, scale)})
-        if len(out) >= MAX_TWINS:
-            break
-    return out
+    return place_first(chosen, out)
+
+
+def place_first(chosen: Term, twins: Sequence[dict[str, Any]], n: int = MAX_TWINS) -> list[dict[str, Any]]:
+    """The first ``n`` of ``twins`` (in their order), the first one in another place among them (another
+    section, or the mass or patch at its end: the dictionary's index): where the damage is matters most to the one
+    who repairs it. A crack in section 2 on MBIT.a (one mode, 10 µm) was named "a crack in section 1 …", its two
+    twins both in section 1 (a patch switched by δ1, a crack open for δ1 > 0)."""
+    if chosen.index < 0:
+        return list(twins[:n])
+    elsewhere = next((t for t in twins if t["index"] >= 0 and t["index"] != chosen.index), None)
+    if elsewhere is None or elsewhere in twins[:n]:
+        return list(twins[:n])
+    return [*twins[: n - 1], elsewhere]
