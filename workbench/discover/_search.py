@@ -202,17 +202,10 @@ def other_delay_order(rows: Sequence[ScreenRow], row: ScreenRow) -> list[ScreenR
     return other[:1]
 
 
-#: how far a dry friction's smoothing width may grow from its start (10⁻³ of its signal's scale): up to 5 % of the
-#: scale, still a force that saturates at typical speeds (not a damper). At twice the start, friction at the root
-#: smoothed over 2 mm/s (the root moving at 0.12 m/s) was fitted at the bound, 0.24 mm/s: 4.59 σ held out.
-SIGN_WIDEN = 50.0
-
-
 def free_for(terms: Sequence[Term], names: list[tuple[str, str | None]], idx: Sequence[int],
              start: dict[str, float], new: int | None, shapes_free: bool = True) -> list[Parameter]:
     """Free parameters of the refit: the coefficients of ``idx`` (around their start) and the shapes of the new
-    term (a factor of four either way; a sign term's smoothing width from a twentieth to :data:`SIGN_WIDEN` times
-    its start; an onset time over its term's
+    term (a factor of four either way; the smoothing width of a sign term stays; an onset time over its term's
     ``shape_range``). A damage term's relative change stays above −95 % (a parameter that keeps its sign)."""
     out = []
     for k in idx:
@@ -232,7 +225,7 @@ def free_for(terms: Sequence[Term], names: list[tuple[str, str | None]], idx: Se
                 lo_g = max(g - half, min(rng[0], 0.0))
                 out.append(freed(gname, terms[k].shape_unit, lo_g, g + half, False, "discover"))
                 continue
-            lo, hi = (g / 20.0, g * SIGN_WIDEN) if terms[k].form == "sign" else (g / 4.0, g * 4.0)
+            lo, hi = (g / 20.0, g * 2.0) if terms[k].form == "sign" else (g / 4.0, g * 4.0)
             out.append(freed(gname, terms[k].shape_unit, lo, hi, True, "discover"))
     return out
 
