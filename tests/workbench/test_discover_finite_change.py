@@ -31,6 +31,8 @@ def test_a_rise_and_its_end_are_said_as_one_loss_that_held():
     assert rise.words.startswith("section 1 lost 20 % of its stiffness between t = 2.50 ± 0.02 s and "
                                  "t = 7.50 ± 0.03 s")
     assert "then held" in rise.words and "grew over 5 s" in rise.words
+    # and where half of it was reached, as precisely as the less precise end (a loss over 6–9 s is one around 7.5 s)
+    assert "half of it by t = 5.00 s" in rise.words
     assert end.words == "its end at t = 7.50 ± 0.03 s (a ramp of +3.98 %/s from then on cancels the change's rate)"
     assert (rise.coef, end.coef) == (-0.04, 0.0398)  # the numbers stay the fit's
     # the verdict's sentence says the change once: the end is said with its rise (its words stay in the report)

@@ -220,7 +220,9 @@ def describe_finite_change(param: str, index: int, rate: float, t0: float, se0: 
     span = f"between {_instant(t0, se0)} and {_instant(t1, se1)}"
     then = ("then held" if holds else f"then kept {'falling' if left < 0 else 'rising'} by "
             f"{100 * abs(left):.3g} %/s")
-    why = f"damage that grew over {t1 - t0:.3g} s, {then}"
+    # the middle too: where half of the change was reached (a loss over 6–9 s is a loss around 7.5 s)
+    mid = 0.5 * (t0 + t1)
+    why = f"damage that grew over {t1 - t0:.3g} s, half of it by t = {mid:.{_decimals(se0, se1)}f} s, {then}"
     if param == "k" and total < 0:
         rise = f"section {n} lost {pct} of its stiffness {span} ({why})"
     elif param == "m":
@@ -230,6 +232,12 @@ def describe_finite_change(param: str, index: int, rate: float, t0: float, se0: 
     end = (f"its end at {_instant(t1, se1)} (a ramp of {100 * end_rate:+.3g} %/s from then on "
            + ("cancels the change's rate)" if holds else f"leaves it changing by {100 * left:+.3g} %/s)"))
     return rise, end
+
+
+def _decimals(*ses: float | None) -> int:
+    """Decimals of a time quoted as precisely as the least precise of the standard errors ``ses`` (3 without one)."""
+    known = [se for se in ses if se is not None and se > 0.0]
+    return min(max(0, -math.floor(math.log10(max(known)))), 6) if known else 3
 
 
 def _describe_s_curve(param: str, n: int, coef: float, centre: float, se: float | None, width: float) -> str:
