@@ -357,8 +357,6 @@ def truth_values(label: str, duration_s: float) -> dict[str, float]:
 
 def run_blind2(label: str, *, kind: str = "sweep", duration_s: float = 15.0, noise_m: float = 2e-6, seed: int = 1,
                workdir: str | None = None) -> dict[str, object]:
-    from workbench_unseen_damage import run_walk
+    from workbench_unseen_damage import run_set_case
 
-    cls, _, groups, timing = BLIND2[label]
-    return run_walk(label, cls, lambda d: truth_values(label, d), groups, timing, kind=kind, duration_s=duration_s,
-                    noise_m=noise_m, seed=seed, workdir=workdir)
+    return run_set_case(BLIND2, label, kind=kind, duration_s=duration_s, noise_m=noise_m, seed=seed, workdir=workdir)

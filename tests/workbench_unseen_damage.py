@@ -38,6 +38,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
+from typing import Any
 
 from plant.effect import Parameter, PhysicalEffect
 from plant.layout import B_QH, B_S, B_VA, P_C, P_C_EP, P_D_EP, P_K, X_DDELTA, X_DELTA, X_Q
@@ -289,6 +290,13 @@ def values_at(values: dict[str, float], duration_s: float) -> dict[str, float]:
     ``<name> = frac × duration_s`` (s). Serves the unseen and the blind sets alike."""
     return {(k.removesuffix("_frac")): float(v) * float(duration_s) if k.endswith("_frac") else float(v)
             for k, v in values.items()}
+
+
+def run_set_case(cases: dict, label: str, **walk: Any) -> dict[str, object]:
+    """One case of a set (label → (class, values, word groups, timing)) through :func:`run_walk` (``walk``: its
+    keywords), its ``*_frac`` values scaled to the record (:func:`values_at`). Serves the blind sets alike."""
+    cls, values, groups, timing = cases[label]
+    return run_walk(label, cls, lambda d: values_at(values, d), groups, timing, **walk)
 
 
 def check_cases(cases: dict) -> None:
