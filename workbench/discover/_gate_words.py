@@ -92,7 +92,7 @@ def _instant(t0: float, se: float | None) -> str:
     """'t = 20.0 ± 0.1 s' (decimals from the standard error; '20 s' without one)."""
     if se is None or not math.isfinite(se) or se <= 0:
         return f"t = {t0:.4g} s"
-    d = min(max(0, -math.floor(math.log10(se))), 6)
+    d = _decimals(se)
     return f"t = {t0:.{d}f} ± {se:.{d}f} s"
 
 
@@ -235,8 +235,9 @@ def describe_finite_change(param: str, index: int, rate: float, t0: float, se0: 
 
 
 def _decimals(*ses: float | None) -> int:
-    """Decimals of a time quoted as precisely as the least precise of the standard errors ``ses`` (3 without one)."""
-    known = [se for se in ses if se is not None and se > 0.0]
+    """Decimals of a time quoted as precisely as the least precise of the standard errors ``ses`` (3 without one;
+    at most 6)."""
+    known = [se for se in ses if se is not None and math.isfinite(se) and se > 0.0]
     return min(max(0, -math.floor(math.log10(max(known)))), 6) if known else 3
 
 
