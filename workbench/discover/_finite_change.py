@@ -20,7 +20,7 @@ Pure logic on the fit engine's objects: the rounds (:mod:`workbench.discover._ro
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any, TypeVar
 
@@ -29,8 +29,11 @@ import numpy as np
 from board_config.parameter import Parameter, freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
+from workbench.discover._dictionary_code import term_default_width, width_name
+from workbench.discover._effect_writer import describe_term
 from workbench.discover._event_check import onset_issue, static_twin
 from workbench.discover._gate_words import describe_finite_change
+from workbench.discover._gates import WIDTH_GATES
 from workbench.discover._onset import ONSET_RESOLUTION_S, whole_record_rms
 from workbench.discover._results import FoundTerm
 from workbench.discover._search import SearchState, probe_batch, refine
@@ -304,6 +307,25 @@ def keep_window(state: SearchState, stderr: dict[str, float], twins: dict[int, l
     stderr.update({e.name: e.stderr for e in fit.outcome.estimates})
     for k in (fit.replaced, fit.rise, fit.end):
         twins.pop(k, None)
+
+
+def found_term(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], scales: Mapping[str, float],
+               values: Mapping[str, float], stderr: Mapping[str, float], twins: list[dict[str, Any]],
+               k: int) -> FoundTerm:
+    """Dictionary term ``k`` at ``values`` as found: its coefficient, its shape (an onset with its standard error
+    from ``stderr``), a fitted edge or settling time said and written so, in words, with its ``twins``."""
+    cname, gname = names[k]
+    term = terms[k]
+    coef = values[cname]
+    shape = values[gname] if gname else 0.0
+    scale = scales.get(term.signal, 1.0)
+    se = stderr.get(gname) if gname else None
+    if term.form in WIDTH_GATES:  # a step whose edge, a ramp whose saturation was fitted: said and written so
+        width, default = values.get(width_name(k), 0.0), term_default_width(term)
+        if width > 0.0 and abs(width - default) > 1e-3 * default:
+            term = replace(term, width=float(width))
+    return FoundTerm(term.with_shape(shape), coef, shape, scale, describe_term(term, coef, shape, scale, se), twins,
+                     se)
 
 
 def finite_changes(found: Sequence[FoundTerm]) -> list[FoundTerm]:

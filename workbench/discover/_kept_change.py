@@ -9,6 +9,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from workbench.discover._change_place import place_change
 from workbench.discover._finite_change import WindowFit, keep_window
 from workbench.discover._gates import SIGN_GATES, TIME_GATES
 from workbench.discover._results import excess_share_removed
@@ -50,3 +51,4 @@ def refine_kept(setup: Any, progress: Any, settings: Any, min_share: float) -> N
         keep_window(progress.state, progress.stderr, progress.twins, fit)
         progress.current_train, progress.current_held = fit.outcome.train_rms_sigma, h
         progress.outcome = fit.outcome
+        place_change(setup, progress, settings)  # the refined change's place, when the records leave it open

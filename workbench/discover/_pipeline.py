@@ -37,7 +37,6 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import replace
 
 import numpy as np
 
@@ -51,7 +50,6 @@ from workbench.discover._dictionary_code import (
     dictionary_source,
     dictionary_width_names,
     term_default_width,
-    width_name,
 )
 from workbench.discover._dictionary_effect import (
     generated_effect,
@@ -59,9 +57,7 @@ from workbench.discover._dictionary_effect import (
     signal_scales,
     term_scale,
 )
-from workbench.discover._effect_writer import describe_term
-from workbench.discover._finite_change import finite_changes
-from workbench.discover._gates import WIDTH_GATES
+from workbench.discover._finite_change import finite_changes, found_term
 from workbench.discover._results import (
     DiscoverError,
     Discovery,
@@ -176,21 +172,8 @@ def prepare_search(records: Sequence[Record | FrfRecord], params: ParameterSet |
 
 def found_terms(setup: SearchSetup, progress: SearchProgress) -> list[FoundTerm]:
     """The kept terms with their fitted coefficients and shapes, in words (an onset time with its standard error)."""
-    found = []
-    for k in progress.state.kept:
-        cname, gname = setup.names[k]
-        term = setup.terms[k]
-        coef = progress.state.values[cname]
-        shape = progress.state.values[gname] if gname else 0.0
-        scale = setup.scales.get(term.signal, 1.0)
-        se = progress.stderr.get(gname) if gname else None
-        if term.form in WIDTH_GATES:  # a step whose edge, a ramp whose saturation was fitted: said and written so
-            width, default = progress.state.values.get(width_name(k), 0.0), term_default_width(term)
-            if width > 0.0 and abs(width - default) > 1e-3 * default:
-                term = replace(term, width=float(width))
-        found.append(FoundTerm(term.with_shape(shape), coef, shape, scale, describe_term(term, coef, shape, scale, se),
-                               progress.twins.get(k, []), se))
-    return finite_changes(found)
+    return finite_changes([found_term(setup.terms, setup.names, setup.scales, progress.state.values, progress.stderr,
+                                      progress.twins.get(k, []), k) for k in progress.state.kept])
 
 
 def judge(setup: SearchSetup, progress: SearchProgress, found: list[FoundTerm], stable: bool,

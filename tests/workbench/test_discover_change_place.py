@@ -1,0 +1,77 @@
+"""Where a change over time happened when the records leave it open (issue 26 point 3,
+``workbench/discover/_change_place.py``): the kept change's slots, their counterparts in another place (the same
+form, the same rank), the parameters that move the change there, and how a moved change is said as a twin. The
+measured cases (a straight loss of k2 over 8–12 s of MBIT.a, said in section 3 with section 2 never named; the same
+over 1.2–1.8 s of MBIT.b, now moved to section 2) are the third blind set's heavy ``mid_ramp_loss`` cases."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+from workbench.discover._change_place import change_slots, change_twin, counterpart, lead_slot, transplant
+from workbench.discover._dictionary import build_dictionary
+from workbench.discover._dictionary_code import dictionary_parameter_names, width_name
+
+SCALES = {"t": 15.0, **{f"delta{i}": 1e-3 for i in (1, 2, 3)}, **{f"ddelta{i}": 1e-2 for i in (1, 2, 3)},
+          **{f"z{i}": 1e-3 for i in (1, 2, 3)}, **{f"dz{i}": 1e-2 for i in (1, 2, 3)}, "va": 300.0, "vc": 300.0}
+
+
+@pytest.fixture(scope="module")
+def dictionary():
+    terms = build_dictionary(SCALES, driven=True)
+    return terms, dictionary_parameter_names(terms)
+
+
+def _slots(terms, param: str, index: int, form: str) -> list[int]:
+    return [k for k, t in enumerate(terms)
+            if (t.placement, t.param, t.index, t.form) == ("damage", param, index, form)]
+
+
+def test_a_change_maps_to_the_same_form_and_rank_in_another_section(dictionary):
+    terms, _ = dictionary
+    ramps3, ramps2 = _slots(terms, "k", 2, "on_ramp"), _slots(terms, "k", 1, "on_ramp")
+    assert len(ramps3) >= 2 and len(ramps2) == len(ramps3)
+    # a window's rise and end map to the rise and end there, never to one slot twice
+    assert [counterpart(terms, k, 1) for k in ramps3] == ramps2
+    steps3 = _slots(terms, "k", 2, "on_step")
+    assert counterpart(terms, steps3[0], 0) == _slots(terms, "k", 0, "on_step")[0]
+    # a patch's authority maps to the other patch's, a damping to the damping
+    d1 = _slots(terms, "d_ep_i", 0, "on_step")[0]
+    assert counterpart(terms, d1, 2) == _slots(terms, "d_ep_i", 2, "on_step")[0]
+    assert terms[counterpart(terms, _slots(terms, "c", 0, "on_ramp")[0], 2)].param == "c"
+
+
+def test_the_kept_pieces_of_one_change_are_its_slots(dictionary):
+    terms, _ = dictionary
+    r = _slots(terms, "k", 2, "on_ramp")
+    other = _slots(terms, "k", 1, "on_step")[0]
+    switch = next(k for k, t in enumerate(terms) if (t.param, t.index, t.form) == ("k", 2, "on_pos"))
+    kept = [other, r[0], switch, r[1]]
+    assert change_slots(terms, kept, terms[r[1]]) == [r[0], r[1]]
+
+
+def test_moving_a_change_zeroes_its_slots_and_copies_onsets_and_widths(dictionary):
+    terms, names = dictionary
+    r3, r2 = _slots(terms, "k", 2, "on_ramp"), _slots(terms, "k", 1, "on_ramp")
+    values = {names[r3[0]][0]: -0.075, names[r3[0]][1]: 8.0, names[r3[1]][0]: 0.075, names[r3[1]][1]: 12.0,
+              width_name(r3[0]): 3.0, width_name(r3[1]): 1e12}
+    moved = transplant(values, names, {r3[0]: r2[0], r3[1]: r2[1]}, 1.5)
+    assert moved[names[r3[0]][0]] == moved[names[r3[1]][0]] == 0.0
+    assert moved[names[r2[0]][0]] == pytest.approx(-0.1125) and moved[names[r2[1]][0]] == pytest.approx(0.1125)
+    assert (moved[names[r2[0]][1]], moved[names[r2[1]][1]]) == (8.0, 12.0)
+    assert (moved[width_name(r2[0])], moved[width_name(r2[1])]) == (3.0, 1e12)
+    # the change leads from its earliest onset (a window's rise)
+    assert lead_slot(values, names, [r3[1], r3[0]]) == r3[0]
+
+
+def test_a_moved_window_is_said_as_one_change_in_its_place(dictionary):
+    terms, names = dictionary
+    r2 = _slots(terms, "k", 1, "on_ramp")
+    values = {names[r2[0]][0]: -0.075, names[r2[0]][1]: 8.0, names[r2[1]][0]: 0.075, names[r2[1]][1]: 12.0}
+    setup = SimpleNamespace(terms=terms, names=names, scales=SCALES)
+    twin = change_twin(setup, values, {}, r2, 0.98)
+    assert twin["words"].startswith("section 2 lost 30 % of its stiffness between t = 8")
+    assert "then held" in twin["words"] and "its end" not in twin["words"]
+    assert (twin["index"], twin["held_rms_sigma"], twin["judged_by"]) == (1, 0.98, "refitted")

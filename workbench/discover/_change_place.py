@@ -1,0 +1,195 @@
+"""Where a change over time happened, when the records leave it open (issue 26 point 3): the kept change — a
+step, a window of two ramps, two steps, an S-curve, a ramp that settles — refitted as the same change of the same
+parameter in each other section (mass, patch), timing and shape held (:func:`place_refit`).
+
+Why it is needed: a record that excites one mode (an MBIT) moves the beam alike for a stiffness lost in section 2
+and in section 3, only the size differs. The round's place family (:func:`~workbench.discover._event_check.
+place_family`) refits a *step* in the other places; once the step is given an end or a time scale
+(:mod:`workbench.discover._kept_change`) the step's twins are no twins of the refined change, and a straight loss of
+k2 over 8–12 s of MBIT.a was said "section 3 lost 30 % of its stiffness between t = 8.000 s and t = 11.99 s" (1.04 σ
+held out), section 2 never named — the step in section 2 had trailed the step in section 3 before either had an end.
+So after the refinement, when the change nearly explains the records (:data:`~workbench.discover._twins.
+PLACE_BELOW_SIGMA`), its counterpart in each other place is probed at a few sizes on the full model and, when it
+comes near, refitted (sizes free, onsets within :data:`~workbench.discover._finite_change.ONSET_FREE_S`). One that
+fits clearly better takes the change's place (the old place named as its twin); one within the twins' tolerance is
+named as a twin (:func:`place_change`). On a sweep the places are told apart and the probes stop it.
+
+Pure logic on the fit engine's objects; the rounds (:mod:`workbench.discover._kept_change`) keep the result.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+from board_config.parameter import Parameter, freed
+from workbench.discover._dictionary import Term
+from workbench.discover._dictionary_code import width_name
+from workbench.discover._event_check import PLACE_NEAR, PLACE_PROBES, is_timed
+from workbench.discover._finite_change import (
+    ONSET_FREE_S,
+    finite_changes,
+    found_term,
+    lowest,
+    others_free,
+    whole_rms,
+    whole_scores,
+)
+from workbench.discover._onset import MAX_LOSS
+from workbench.discover._search import SearchState, refine
+from workbench.discover._twins import MAX_TWINS, PLACE_BELOW_SIGMA, twin_tolerance
+from workbench.fit import FitOutcome, Objective
+
+#: places (sections, masses, patches) a per-place parameter has
+N_PLACES = 3
+
+
+def change_slots(terms: Sequence[Term], kept: Sequence[int], term: Term) -> list[int]:
+    """The kept time-gated damage terms of ``term``'s parameter and place (dictionary indices, in kept order): the
+    pieces of one change (a window's two ramps, two steps, a step and its settling)."""
+    return [k for k in kept if terms[k].placement == "damage" and is_timed(terms[k])
+            and (terms[k].param, terms[k].index) == (term.param, term.index)]
+
+
+def counterpart(terms: Sequence[Term], slot: int, index: int) -> int | None:
+    """The dictionary index of ``slot``'s term at another ``index`` (section, mass, patch): same placement, parameter
+    and form, the same rank among that form's slots there (a window's second ramp maps to the second ramp)."""
+    t = terms[slot]
+
+    def slots_at(i: int) -> list[int]:
+        return [k for k, u in enumerate(terms)
+                if (u.placement, u.param, u.form, u.index) == (t.placement, t.param, t.form, i)]
+
+    mine, there = slots_at(t.index), slots_at(index)
+    rank = mine.index(slot)
+    return there[rank] if rank < len(there) else None
+
+
+def transplant(values: Mapping[str, float], names: Sequence[tuple[str, str | None]], mapping: Mapping[int, int],
+               size: float) -> dict[str, float]:
+    """The dictionary parameters that move a change from its slots to theirs (``mapping``): each counterpart's
+    coefficient ``size`` × the slot's, its onset and fitted width the slot's, the slot's own coefficient 0."""
+    out: dict[str, float] = {}
+    for k, k2 in mapping.items():
+        (c, g), (c2, g2) = names[k], names[k2]
+        out[c], out[c2] = 0.0, size * float(values[c])
+        if g is not None and g2 is not None:
+            out[g2] = float(values[g])
+        if width_name(k) in values:
+            out[width_name(k2)] = float(values[width_name(k)])
+    return out
+
+
+@dataclass(frozen=True)
+class PlacedChange:
+    """The change refitted in another place: its slots (in the order of the slots it mirrors), the refit, every
+    dictionary value with it and the simulations run."""
+
+    slots: tuple[int, ...]
+    outcome: FitOutcome
+    values: dict[str, float]
+    n_sims: int
+
+
+def placed_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], kept: Sequence[int],
+                start: dict[str, float], slots: Sequence[int], t_end: float) -> list[Parameter]:
+    """Free parameters of a moved change's refit: the other kept terms' coefficients (±1.5 × their size), each
+    moved slot's coefficient (±2 × it, a loss never past ``MAX_LOSS``) and onset (± ``ONSET_FREE_S``)."""
+    out = others_free(terms, names, SearchState(start, list(kept)), start, (-1, -1), -1)
+    for k in slots:
+        cname, gname = names[k]
+        c = start[cname]
+        lo = max(c - 2.0 * abs(c), MAX_LOSS) if terms[k].unit == "1" else c - 2.0 * abs(c)
+        out.append(freed(cname, terms[k].unit, lo, c + 2.0 * abs(c), False, "discover"))
+        if gname is not None:
+            g = start[gname]
+            out.append(freed(gname, "s", max(g - ONSET_FREE_S, 0.0), min(g + ONSET_FREE_S, t_end), False,
+                             "discover"))
+    return out
+
+
+def place_refit(setup: Any, state: SearchState, slots: Sequence[int], index: int, near: float, threads: int | None,
+                max_nfev: int) -> PlacedChange | None:
+    """The change held by ``slots`` moved to ``index`` (another section, mass or patch): probed at
+    :data:`~workbench.discover._event_check.PLACE_PROBES` × its size over the whole record, refitted when the best
+    probe leaves at most ``near`` (σ, whole record); None when a counterpart is missing or kept already, no probe
+    integrates or none comes near. ``setup``: the rounds' objects."""
+    mapping = {k: counterpart(setup.terms, k, index) for k in slots}
+    if any(k2 is None or k2 in state.kept for k2 in mapping.values()):
+        return None
+    moves = {k: int(k2) for k, k2 in mapping.items() if k2 is not None}
+    settings = [transplant(state.values, setup.names, moves, m) for m in PLACE_PROBES]
+    found = lowest(settings, whole_scores(setup.targets, setup.models, state.values, settings, threads))
+    n_sims = len(settings) * len(setup.targets)
+    if found is None or found[1] > near:
+        return None
+    start = dict(state.values) | found[0]
+    new = tuple(moves[k] for k in slots)
+    others = [k for k in state.kept if k not in slots]
+    obj = Objective(setup.targets, setup.models, placed_free(setup.terms, setup.names, others, start, new,
+                                                             setup.scales["t"]), base_values=start, threads=threads)
+    out = refine(obj, start, max_nfev)
+    if not out.ok:
+        return None
+    return PlacedChange(new, out, start | out.values, n_sims + obj.n_sims)
+
+
+def change_twin(setup: Any, values: Mapping[str, float], stderr: Mapping[str, float], slots: Sequence[int],
+                held: float) -> dict[str, Any]:
+    """The change held by ``slots`` at ``values`` as a twin (in :func:`~workbench.discover._twins.twins_of`'s
+    format): said as the verdict says a kept change (a window's two ramps as one change)."""
+    found = finite_changes([found_term(setup.terms, setup.names, setup.scales, values, stderr, [], k) for k in slots])
+    lead = next(f for f in found if not f.said_with)
+    term = lead.term
+    return {"key": term.key, "placement": term.placement, "index": term.index, "signal": term.signal,
+            "form": term.form, "held_rms_sigma": held, "judged_by": "refitted",
+            "words": "; ".join(f.words for f in found if not f.said_with)}
+
+
+def lead_slot(values: Mapping[str, float], names: Sequence[tuple[str, str | None]], slots: Sequence[int]) -> int:
+    """The slot whose words lead a change (the earliest onset: a window's rise, the first of two steps)."""
+    return min(slots, key=lambda k: float(values.get(str(names[k][1]), math.inf)))
+
+
+def place_change(setup: Any, progress: Any, settings: Any) -> None:
+    """The change the round kept last (``progress.state.kept[-1]``, time-gated, per place) refitted in each other
+    place (:func:`place_refit`) when it leaves at most :data:`PLACE_BELOW_SIGMA`: a place that fits clearly better
+    (beyond the twins' tolerance) takes it, the old place named as its twin; places within the tolerance are named
+    as twins of the change. ``setup``, ``progress``, ``settings``: the rounds' objects."""
+    state = progress.state
+    term = setup.terms[state.kept[-1]]
+    if term.placement != "damage" or not is_timed(term) or term.index < 0 or progress.current_held > PLACE_BELOW_SIGMA:
+        return
+    slots = change_slots(setup.terms, state.kept, term)
+    h, tol = progress.current_held, twin_tolerance(setup.n_held)
+    near = PLACE_NEAR * max(whole_rms(setup.targets, progress.outcome), 1.0) if progress.outcome else math.inf
+    placed = [p for i in range(N_PLACES) if i != term.index
+              and (p := place_refit(setup, state, slots, i, near, settings.threads, settings.max_nfev)) is not None]
+    progress.n_sims += sum(p.n_sims for p in placed)
+    for p in placed:
+        settings.say(f"  the change in {setup.terms[p.slots[0]].key}'s place: {p.outcome.held_rms_sigma:.4g} σ "
+                     f"held-out (here {h:.4g} σ)")
+    best = min(placed, key=lambda p: p.outcome.held_rms_sigma, default=None)
+    old_lead = lead_slot(state.values, setup.names, slots)  # its twins: a plain step's, refitted with its onset
+    if best is not None and best.outcome.held_rms_sigma * tol < h:  # the old place is no twin: clearly worse
+        state.kept = [k for k in state.kept if k not in slots] + list(best.slots)
+        state.values.update(best.values)
+        progress.stderr.update({e.name: e.stderr for e in best.outcome.estimates})
+        progress.current_train, progress.current_held = best.outcome.train_rms_sigma, best.outcome.held_rms_sigma
+        progress.outcome = best.outcome
+        for k in slots:
+            progress.twins.pop(k, None)
+        settings.say(f"  the change moves to {setup.terms[best.slots[0]].key}'s place: it fits clearly better")
+        slots, h, old = list(best.slots), best.outcome.held_rms_sigma, []
+        placed = [p for p in placed if p is not best]
+    else:
+        old = progress.twins.pop(old_lead, [])
+    alike = [change_twin(setup, p.values, {e.name: e.stderr for e in p.outcome.estimates}, p.slots,
+                         p.outcome.held_rms_sigma)
+             for p in sorted(placed, key=lambda p: p.outcome.held_rms_sigma)
+             if p.outcome.held_rms_sigma <= max(h, 1.0) * tol]
+    named = list({t["key"]: t for t in [*alike, *old]}.values())[:MAX_TWINS]
+    if named:
+        progress.twins[lead_slot(state.values, setup.names, slots)] = named
