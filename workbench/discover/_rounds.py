@@ -33,7 +33,7 @@ from workbench.discover._finite_change import WindowFit, judged_with_end
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._kept_change import refine_kept
 from workbench.discover._onset import change_point, event_onset, onset_probe, onset_scan, with_onsets
-from workbench.discover._onset_profile import place_onset
+from workbench.discover._onset_profile import onset_held_blind, place_onset
 from workbench.discover._results import DiscoverError, ScreenRow, excess_share_removed, noise_free_match
 from workbench.discover._search import (
     SearchState,
@@ -200,6 +200,8 @@ def refit_term(setup: SearchSetup, progress: SearchProgress, settings: SearchSet
     progress.n_sims += robj.n_sims
     if not out.ok:
         return None
+    out, n_placed = onset_held_blind(setup, state, k, out, threads, max_nfev)  # an onset the training blocks
+    progress.n_sims += n_placed  # cannot see, placed on the whole record
     # a coefficient at its range bound: widen once (the linearised start underestimated it)
     if any(e.at_bound and e.name.startswith("a_") for e in out.estimates):
         start2 = dict(start) | out.values
