@@ -271,9 +271,9 @@ def event_twin(term: Term, outcome: FitOutcome, names: tuple[str, str | None],
 
 def refit_twins(setup: Any, progress: Any, twins: list[dict[str, Any]],
                 displaced: Any) -> list[dict[str, Any]]:
-    """``twins`` with each time-gated one in the words of its own refit (its onset fitted, not the screen's), the
-    ``displaced`` event first."""
-    refits = {setup.terms[b.index].key: b for b in progress.refits if is_timed(setup.terms[b.index])}
+    """``twins`` with each refitted one in the words of its own refit (its onset, switching point, size fitted,
+    not the screen's), the ``displaced`` event first."""
+    refits = {setup.terms[b.index].key: b for b in progress.refits}
     if displaced is not None:
         first = setup.terms[displaced.index].key
         twins = [{"key": first}, *(t for t in twins if t["key"] != first)][:MAX_TWINS]

@@ -43,6 +43,7 @@ from workbench.discover._search import (
     refine,
     refit_list,
 )
+from workbench.discover._section_reading import section_rows
 from workbench.discover._twins import place_switch_family, switch_family, twin_tolerance, twins_of
 from workbench.fit import FitOutcome, Objective, Target, explained, noise_tolerance, rms
 
@@ -379,7 +380,8 @@ def family_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSe
                    lambda b: place_switch_family(setup.terms[b.index], rows, {t["term"] for t in tried},
                                                  b.held_rms_sigma),
                    lambda b: place_rows(setup, progress, settings, b, {t["term"] for t in tried}),
-                   lambda b: place_rows(setup, progress, settings, b, {t["term"] for t in tried}, kinds=True)):
+                   lambda b: place_rows(setup, progress, settings, b, {t["term"] for t in tried}, kinds=True),
+                   lambda b: section_rows(setup, progress, settings, b, {t["term"] for t in tried})):
         more = refit_best(setup, progress, settings, rows_, tried) if (rows_ := family(best)) else None
         if more is not None and more.held_rms_sigma * twin_tolerance(setup.n_held) < best.held_rms_sigma:
             best = more

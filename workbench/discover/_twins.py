@@ -152,10 +152,15 @@ def place_first(chosen: Term, twins: Sequence[dict[str, Any]], n: int = MAX_TWIN
     """The first ``n`` of ``twins`` (in their order), the first one in another place among them (another
     section, or the mass or patch at its end: the dictionary's index): where the damage is matters most to the one
     who repairs it. A crack in section 2 on MBIT.a (one mode, 10 µm) was named "a crack in section 1 …", its two
-    twins both in section 1 (a patch switched by δ1, a crack open for δ1 > 0)."""
-    if chosen.index < 0:
-        return list(twins[:n])
-    elsewhere = next((t for t in twins if t["index"] >= 0 and t["index"] != chosen.index), None)
-    if elsewhere is None or elsewhere in twins[:n]:
-        return list(twins[:n])
-    return [*twins[: n - 1], elsewhere]
+    twins both in section 1 (a patch switched by δ1, a crack open for δ1 > 0). And one more, the first of another
+    kind (placement: a section's own damage beside a force on a mass), when none of those is: a tip crack stiffer
+    past a wedge on MBIT.a was said as a stop on mass 3, its twins stops on masses 1 and 2, the crack unsaid."""
+    out = list(twins[:n])
+    if chosen.index >= 0:
+        elsewhere = next((t for t in twins if t["index"] >= 0 and t["index"] != chosen.index), None)
+        if elsewhere is not None and elsewhere not in out:
+            out = [*twins[: n - 1], elsewhere]
+    if out and all(t["placement"] == chosen.placement for t in out):
+        other = next((t for t in twins if t["placement"] != chosen.placement), None)
+        out += [other] if other is not None else []
+    return out
