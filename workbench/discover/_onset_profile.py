@@ -22,6 +22,7 @@ import numpy as np
 from board_config.parameter import freed
 from workbench.discover._dictionary import Term
 from workbench.discover._event_check import record_span
+from workbench.discover._finite_change import whole_rms
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._onset import whole_record_rms
 from workbench.discover._search import SearchState, free_for, probe_batch, refine
@@ -111,7 +112,7 @@ def onset_held_blind(setup: Any, state: SearchState, k: int, out: FitOutcome, th
         return out, 0
     start, end = record_span(setup.targets)
     values = dict(state.values) | dict(out.values)
-    t0, score, n = float(values[gname]), _whole(setup, out), 0
+    t0, score, n = float(values[gname]), whole_rms(setup.targets, out), 0
     for _ in range(PLACE_PASSES):
         grid = [min(max(t0 + s * d, start), end) for s in (-1.0, 1.0) for d in PROFILE_OFFSETS_S]
         held, train, ok = probe_batch(setup.targets, setup.models, values, [{gname: g} for g in grid], threads)
@@ -128,8 +129,5 @@ def onset_held_blind(setup: Any, state: SearchState, k: int, out: FitOutcome, th
     obj = Objective(setup.targets, setup.models, free, base_values=values, threads=threads)
     again = refine(obj, values, max_nfev)
     n += obj.n_sims
-    return (again, n) if again.ok and _whole(setup, again) < _whole(setup, out) else (out, n)
+    return (again, n) if again.ok and whole_rms(setup.targets, again) < whole_rms(setup.targets, out) else (out, n)
 
-
-def _whole(setup: Any, out: FitOutcome) -> float:
-    return float(whole_record_rms(setup.targets, np.array([out.held_rms_sigma]), np.array([out.train_rms_sigma]))[0])
