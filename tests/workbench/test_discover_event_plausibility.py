@@ -23,7 +23,9 @@ SIGMA = 2e-6
 
 
 def _target(measured: np.ndarray) -> SimpleNamespace:
-    return SimpleNamespace(t=T, measured=measured[None, :], sigma=np.array([SIGMA]), channels=["z3"])
+    held = (T % 2.0) >= 1.6  # a fifth of the record held out, in blocks
+    return SimpleNamespace(t=T, measured=measured[None, :], sigma=np.array([SIGMA]), channels=["z3"], held=held,
+                           train=~held)
 
 
 def _outcome(simulated: np.ndarray, t0: float, se: float = 0.002, at_bound: bool = False, held: float = 1.0,
@@ -226,24 +228,40 @@ def test_an_event_and_a_constant_twin_are_told_apart_by_a_second_record():
     assert "a second record" not in separating_test(_terms()[0], [step])
 
 
-def _judge_with_window(monkeypatch: pytest.MonkeyPatch, window_misfit_before: float, window_held: float
+#: a shaped refit's values: its coefficient and its onset (s)
+ONSET = {"a": -0.1, "g": 4.0}
+
+
+def _judge_with_window(monkeypatch: pytest.MonkeyPatch, window_misfit_before: float, window_held: float,
+                       stages_misfit_before: float | None = None, constant_held: float | None = None
                        ) -> tuple[str | None, object, list[str]]:
     """judged_with_end on k3's step (90 σ held out, 20 σ before its onset) with the window's refit faked: its model
-    misses the record before the window's start by ``window_misfit_before`` σ and leaves ``window_held`` σ."""
+    misses the record before the window's start by ``window_misfit_before`` σ and leaves ``window_held`` σ; two
+    steps (when ``stages_misfit_before`` is given) miss it by that and leave 10 σ; the round's best refit constant
+    in time leaves ``constant_held`` σ (None: there is none)."""
     import workbench.discover._finite_change as fc
+    import workbench.discover._shaped_event as se
 
     rng_ = np.random.default_rng(6)
     measured, model = _record(rng_, window_misfit_before)
-    outcome = _outcome(model, 4.0, held=window_held)
-    fake = fc.WindowFit(rise=0, end=0, replaced=0, outcome=outcome, values={}, n_sims=7)
-    monkeypatch.setattr(fc, "window_refit", lambda *a, **k: fake)
+    fake = fc.WindowFit(rise=0, end=0, replaced=0, outcome=_outcome(model, 4.0, held=window_held), values=ONSET,
+                        n_sims=7)
+    monkeypatch.setattr(se, "window_refit", lambda *a, **k: fake)
+    staged = None
+    if stages_misfit_before is not None:
+        _, model2 = _record(np.random.default_rng(6), stages_misfit_before)
+        staged = fc.WindowFit(rise=0, end=0, replaced=0, outcome=_outcome(model2, 4.0, held=10.0), values=ONSET,
+                              n_sims=11, kind="stages")
+    monkeypatch.setattr(se, "staged_refit", lambda *a, **k: staged)
+    monkeypatch.setattr(se, "smooth_refit", lambda *a, **k: None)
     setup = SimpleNamespace(terms=_terms(), names=[("a", "g")] * 5, targets=[_target(measured)], models=[],
                             scales={"t": 10.0})
     event = rounds.BestRefit(90.0, 0, _outcome(model, 4.0, held=90.0))
-    progress = SimpleNamespace(state=SimpleNamespace(values={}, kept=[]), n_sims=0, ended=None)
+    constant = [] if constant_held is None else [rounds.BestRefit(constant_held, 1, None)]
+    progress = SimpleNamespace(state=SimpleNamespace(values={}, kept=[]), n_sims=0, ended=None, refits=constant)
     said: list[str] = []
     settings = SimpleNamespace(say=said.append, threads=1, max_nfev=5)
-    why = fc.judged_with_end(setup, progress, settings, event, "it misses the record before its onset")
+    why = se.judged_with_end(setup, progress, settings, event, "it misses the record before its onset")
     return why, progress, said
 
 
@@ -253,10 +271,24 @@ def test_an_event_given_an_end_that_matches_the_record_before_its_start_is_plaus
     assert any("is an event" in s for s in said)
 
 
+def test_an_event_whose_window_misses_the_start_is_plausible_as_two_steps_when_far_better_than_constant(
+        monkeypatch):
+    """The window still misses the record before its start; two steps match it: the event is kept as them — but
+    only when it leaves at most SHAPE_MARGIN of what the best term constant in time leaves."""
+    import workbench.discover._shaped_event as se
+
+    why, progress, said = _judge_with_window(monkeypatch, 20.0, 12.0, stages_misfit_before=0.0, constant_held=400.0)
+    assert why is None and progress.ended.kind == "stages" and progress.n_sims == 7 + 11
+    assert any("as two steps" in s and "is an event" in s for s in said)
+    near = 90.0 / se.SHAPE_MARGIN * 0.99  # the constant term leaves barely more than the event: no other shape
+    why, progress, said = _judge_with_window(monkeypatch, 20.0, 12.0, stages_misfit_before=0.0, constant_held=near)
+    assert why == "it misses the record before its onset" and progress.ended is None and progress.n_sims == 7
+
+
 def test_an_event_given_an_end_that_still_misses_the_record_before_its_start_is_not(monkeypatch):
     why, progress, said = _judge_with_window(monkeypatch, 20.0, 12.0)
     assert why == "it misses the record before its onset" and progress.ended is None
-    assert any("still" in s and "before its onset" in s for s in said)
+    assert any("given an end" in s and "before its onset" in s for s in said)
 
 
 def test_an_event_whose_end_explains_no_more_is_not_saved_by_it(monkeypatch):

@@ -31,8 +31,8 @@ from plant import PlantModel
 from workbench.discover._dictionary import Term
 from workbench.discover._dictionary_code import term_default_width, width_name
 from workbench.discover._effect_writer import describe_term
-from workbench.discover._event_check import onset_issue, static_twin
-from workbench.discover._gate_words import describe_finite_change
+from workbench.discover._event_check import static_twin
+from workbench.discover._gate_words import describe_finite_change, describe_recovery
 from workbench.discover._gates import WIDTH_GATES
 from workbench.discover._onset import ONSET_RESOLUTION_S, whole_record_rms
 from workbench.discover._results import FoundTerm
@@ -267,32 +267,6 @@ def window_refit(targets: Sequence[Target], models: Sequence[PlantModel], terms:
     return None if best is None else WindowFit(pair[0], pair[1], kept, best, start | best.values, n_sims)
 
 
-def judged_with_end(setup: Any, progress: Any, settings: Any, event: Any, why: str) -> str | None:
-    """Why the round's best refit ``event`` (a time-gated term; ``why``: what :func:`onset_issue` found) is no
-    plausible event once it is given an end — None when, with an end, it is one. A change over a finite time,
-    refitted as a ramp that never ends or a step, fails the onset check though it is an event: k3 lost 20 % over
-    1 s with a smooth (cosine) start, on a 15 s sweep, kept as a ramp from 11.61 s — 50 σ held out (the best term
-    constant in time: 138 σ) but 1.53 σ before its onset (the change's slow start) and ever softer after its end;
-    the constant term was kept and the verdict named free play in section 1. The window's refit (``setup``,
-    ``progress``, ``settings``: the rounds' objects) is kept in ``progress.ended`` for the finite-change step."""
-    trial = SearchState(dict(progress.state.values) | dict(event.outcome.values), [*progress.state.kept, event.index])
-    fit = window_refit(setup.targets, setup.models, setup.terms, setup.names, trial, event.index, setup.scales["t"],
-                       settings.threads, settings.max_nfev)
-    if fit is None:
-        return why
-    progress.n_sims += fit.n_sims
-    issue = onset_issue(setup.targets, fit.outcome, setup.names[fit.rise][1] or "")
-    held = fit.outcome.held_rms_sigma
-    if issue is not None or held >= event.held_rms_sigma:
-        settings.say(f"  {setup.terms[event.index].key} given an end ({held:.4g} σ held-out): still "
-                     + (issue or "no better"))
-        return why
-    settings.say(f"  {setup.terms[event.index].key} given an end ({held:.4g} σ held-out) is an event: {why} — "
-                 "that was the change's end or its gradual start")
-    progress.ended = fit
-    return None
-
-
 def whole_rms(targets: Sequence[Target], out: FitOutcome) -> float:
     return float(whole_record_rms(targets, np.array([out.held_rms_sigma]), np.array([out.train_rms_sigma]))[0])
 
@@ -334,7 +308,8 @@ def finite_changes(found: Sequence[FoundTerm]) -> list[FoundTerm]:
     held (or kept changing at the rate left) — and each onset's refit range narrowed so that the emitted file's
     ``FitRange`` (a quarter of it either way) is ± :data:`EMITTED_ONSET_S`; so is each onset of two steps of one
     parameter (damage in stages, :mod:`workbench.discover._staged_change`: with the range a quarter of each step's
-    slot, 0.94 s, its file refitted to 3.0 σ against the discovery's 1.47 σ)."""
+    slot, 0.94 s, its file refitted to 3.0 σ against the discovery's 1.47 σ); the later of two steps that gives part
+    of the earlier one's change back is said as a recovery ("then section 1 regained 15 % of its stiffness at …")."""
     out = list(found)
     for i, a in enumerate(out):
         j = next((j for j in range(i + 1, len(out)) if _pair(a, out[j])), None)
@@ -347,8 +322,13 @@ def finite_changes(found: Sequence[FoundTerm]) -> list[FoundTerm]:
         out[out.index(rise)] = _placed(rise, rise_words)
         out[out.index(end)] = _placed(end, end_words, said_with=rise.term.key)
     for i, a in enumerate(out):  # two steps of one parameter (damage in stages): each onset placed as a pair's
-        if any(_staged(a, b) for b in out[:i] + out[i + 1:]):
-            out[i] = _placed(a, a.words, said_with=a.said_with)
+        first = next((b for b in out[:i] + out[i + 1:] if _staged(a, b)), None)
+        if first is None:
+            continue
+        words = a.words
+        if a.shape > first.shape and a.coef * first.coef < 0:  # the later step gives part of the change back
+            words = describe_recovery(a.term.param, a.term.index, first.coef, a.coef, a.shape, a.shape_se)
+        out[i] = _placed(a, words, said_with=a.said_with)
     return out
 
 

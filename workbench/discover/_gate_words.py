@@ -234,6 +234,22 @@ def describe_finite_change(param: str, index: int, rate: float, t0: float, se0: 
     return rise, end
 
 
+def describe_recovery(param: str, index: int, first: float, second: float, t1: float, se1: float | None) -> str:
+    """Words for the later of two steps of one parameter when it gives part of the earlier one's change back:
+    ``first``, ``second`` their relative changes, ``t1`` (s, standard error ``se1``) the later one's instant."""
+    n = index + 1
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    back = f"{100 * abs(second):.3g} %"
+    share = abs(second / first) if first else math.inf
+    at = _instant(t1, None if se1 is None else max(se1, STEP_WIDTH_S))
+    undone = "all of the change undone" if share >= 1.0 else f"{100 * share:.3g} % of the change undone, " \
+        f"{100 * abs(first + second):.3g} % stays"
+    if param == "k" and first < 0:
+        return (f"then section {n} regained {back} of its stiffness at {at} ({undone}: a partial recovery — "
+                "faces that re-seated and carry part of the load again)")
+    return f"then {what} {'rose' if second > 0 else 'fell'} back by {back} at {at} ({undone}: a partial recovery)"
+
+
 def _decimals(*ses: float | None) -> int:
     """Decimals of a time quoted as precisely as the least precise of the standard errors ``ses`` (3 without one;
     at most 6)."""

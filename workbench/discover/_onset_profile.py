@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from board_config.parameter import freed
+from plant import PlantModel
 from workbench.discover._dictionary import Term
 from workbench.discover._event_check import record_span
 from workbench.discover._finite_change import whole_rms
@@ -27,7 +28,7 @@ from workbench.discover._gates import TIME_GATES
 from workbench.discover._onset import whole_record_rms
 from workbench.discover._search import SearchState, free_for, probe_batch, refine
 from workbench.discover._twins import twin_tolerance
-from workbench.fit import FitOutcome, Objective
+from workbench.fit import FitOutcome, Objective, Target
 
 #: the onset is moved by these offsets (s) either way
 PROFILE_OFFSETS_S = (0.001, 0.002, 0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5, 1.0, 2.0)
@@ -96,6 +97,24 @@ def place_onset(setup: Any, progress: Any, settings: Any, best: Any) -> None:
     est.interval_method = PROFILE_METHOD
 
 
+def placed_on_whole(targets: Sequence[Target], models: Sequence[PlantModel], values: dict[str, float], gname: str,
+                    score: float, threads: int | None) -> tuple[float, float, int]:
+    """The onset ``gname`` of ``values`` (every other value held; ``score``: the whole record's RMS, σ, with it where
+    it is) moved by :data:`PROFILE_OFFSETS_S` either way over the whole record, up to :data:`PLACE_PASSES` times from
+    the best so far: the instant the whole record prefers (s), its RMS there (σ) and the simulations run."""
+    start, end = record_span(targets)
+    t0, n = float(values[gname]), 0
+    for _ in range(PLACE_PASSES):
+        grid = [min(max(t0 + s * d, start), end) for s in (-1.0, 1.0) for d in PROFILE_OFFSETS_S]
+        held, train, ok = probe_batch(targets, models, values, [{gname: g} for g in grid], threads)
+        n += len(grid) * len(targets)
+        rms = np.where(ok, whole_record_rms(targets, held, train), np.inf)
+        if float(rms.min()) >= score:
+            break
+        t0, score = grid[int(rms.argmin())], float(rms.min())
+    return t0, score, n
+
+
 def onset_held_blind(setup: Any, state: SearchState, k: int, out: FitOutcome, threads: int | None,
                      max_nfev: int) -> tuple[FitOutcome, int]:
     """The refit ``out`` of time-gated term ``k`` (dictionary index) with its onset placed on the whole record when
@@ -112,15 +131,7 @@ def onset_held_blind(setup: Any, state: SearchState, k: int, out: FitOutcome, th
         return out, 0
     start, end = record_span(setup.targets)
     values = dict(state.values) | dict(out.values)
-    t0, score, n = float(values[gname]), whole_rms(setup.targets, out), 0
-    for _ in range(PLACE_PASSES):
-        grid = [min(max(t0 + s * d, start), end) for s in (-1.0, 1.0) for d in PROFILE_OFFSETS_S]
-        held, train, ok = probe_batch(setup.targets, setup.models, values, [{gname: g} for g in grid], threads)
-        n += len(grid) * len(setup.targets)
-        rms = np.where(ok, whole_record_rms(setup.targets, held, train), np.inf)
-        if float(rms.min()) >= score:
-            break
-        t0, score = grid[int(rms.argmin())], float(rms.min())
+    t0, _, n = placed_on_whole(setup.targets, setup.models, values, gname, whole_rms(setup.targets, out), threads)
     if t0 == values[gname]:
         return out, n
     values[gname] = t0  # the refit keeps the onset there (within a millisecond: it stays among the estimates)

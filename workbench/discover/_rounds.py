@@ -29,7 +29,7 @@ from workbench.discover._event_check import (
     place_rows,
     refit_twins,
 )
-from workbench.discover._finite_change import WindowFit, judged_with_end
+from workbench.discover._finite_change import WindowFit
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._kept_change import refine_kept
 from workbench.discover._onset import change_point, event_onset, onset_probe, onset_scan, with_onsets
@@ -44,6 +44,7 @@ from workbench.discover._search import (
     refit_list,
 )
 from workbench.discover._section_reading import section_rows
+from workbench.discover._shaped_event import judged_with_end
 from workbench.discover._twins import place_switch_family, switch_family, twin_tolerance, twins_of
 from workbench.fit import FitOutcome, Objective, Target, explained, noise_tolerance, rms
 
@@ -101,7 +102,7 @@ class SearchProgress:
     twins: dict[int, list[dict[str, Any]]] = field(default_factory=dict)
     #: every refit of the current round (the time-gated term chosen first is checked against them)
     refits: list[BestRefit] = field(default_factory=list)
-    #: the event judged with an end this round (:func:`~workbench.discover._finite_change.judged_with_end`)
+    #: the event judged with an end this round (:func:`~workbench.discover._shaped_event.judged_with_end`)
     ended: WindowFit | None = None
 
 
