@@ -10,6 +10,7 @@ import time
 from typing import Any
 
 from workbench.discover._change_place import place_change
+from workbench.discover._change_split import split_change
 from workbench.discover._finite_change import WindowFit, keep_window
 from workbench.discover._gates import SIGN_GATES, TIME_GATES
 from workbench.discover._results import excess_share_removed
@@ -24,8 +25,16 @@ HOW = {"stages": "as two steps (", "smooth": "with a fitted edge (", "settle": "
 
 def refine_kept(setup: Any, progress: Any, settings: Any, min_share: float) -> None:
     """The term just kept (the last of ``progress.state.kept``) refitted as what it may be when it leaves more than
-    the noise; kept in its place when the refit removes ``min_share`` of the excess left. ``setup``,
-    ``progress``, ``settings``: the rounds' objects."""
+    the noise; kept in its place when the refit removes ``min_share`` of the excess left — then, when the change
+    still leaves more than the noise, tried in two places at once (:func:`~workbench.discover._change_split.
+    split_change`). ``setup``, ``progress``, ``settings``: the rounds' objects."""
+    _refine(setup, progress, settings, min_share)
+    t0 = time.perf_counter()
+    split_change(setup, progress, settings, min_share)
+    progress.timings["refit_s"] += time.perf_counter() - t0
+
+
+def _refine(setup: Any, progress: Any, settings: Any, min_share: float) -> None:
     ended, progress.ended = progress.ended, None  # an event's window, refitted already when it was judged
     if progress.current_held <= 1.0 + noise_tolerance(setup.n_held):
         return
