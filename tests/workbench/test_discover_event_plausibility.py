@@ -286,13 +286,22 @@ def test_an_event_whose_window_misses_the_start_is_plausible_as_two_steps_when_f
 
 
 def test_an_event_given_an_end_that_still_misses_the_record_before_its_start_is_not(monkeypatch):
-    why, progress, said = _judge_with_window(monkeypatch, 20.0, 12.0)
+    """A constant term near the event (100 σ against 90 σ: a sweep's crack soaked up by a step): judged strictly."""
+    why, progress, said = _judge_with_window(monkeypatch, 20.0, 12.0, constant_held=100.0)
     assert why == "it misses the record before its onset" and progress.ended is None
     assert any("given an end" in s and "before its onset" in s for s in said)
 
 
+def test_an_event_far_better_than_any_constant_term_may_have_started_before_its_onset(monkeypatch):
+    """Every constant term leaves far more (400 σ against 90 σ): the step's 20 σ before its onset, less than the
+    90 σ it leaves overall, is its change's slow start — an event, shaped by the finite-change step."""
+    why, progress, said = _judge_with_window(monkeypatch, 20.0, 12.0, constant_held=400.0)
+    assert why is None and progress.ended is None
+    assert any("started before its fitted onset" in s for s in said)
+
+
 def test_an_event_whose_end_explains_no_more_is_not_saved_by_it(monkeypatch):
-    why, progress, _ = _judge_with_window(monkeypatch, 0.0, 95.0)
+    why, progress, _ = _judge_with_window(monkeypatch, 0.0, 95.0, constant_held=100.0)
     assert why is not None and progress.ended is None
 
 
@@ -336,3 +345,48 @@ def test_an_events_places_are_refitted_only_when_a_probe_comes_near_the_kept_cha
     assert [r.term.key for r in rows] == ["k2_step_t"]
     assert len(probed) == 2 * len(ec.PLACE_PROBES) and progress.n_sims == len(probed)
     assert all(s.get("g1", s.get("g2")) == 11.0 for s in probed)  # at the kept instant, in place of the kept change
+
+
+def _shaped_instead(monkeypatch: pytest.MonkeyPatch, event_held: float, stages_held: float,
+                    misfit_before: float = 0.0) -> tuple[object, object, list[str]]:
+    """shaped_instead on a round whose best refit is constant in time (50.5 σ) and whose best time-gated refit, k3's
+    step, leaves ``event_held`` σ; its two steps (faked) leave ``stages_held`` σ and miss the record before their
+    first onset by ``misfit_before`` σ; the other shapes integrate nowhere."""
+    import workbench.discover._finite_change as fc
+    import workbench.discover._shaped_event as se
+
+    measured, model = _record(np.random.default_rng(6), misfit_before)
+    staged = fc.WindowFit(rise=0, end=0, replaced=0, outcome=_outcome(model, 4.0, held=stages_held), values=ONSET,
+                          n_sims=11, kind="stages")
+    monkeypatch.setattr(se, "window_refit", lambda *a, **k: None)
+    monkeypatch.setattr(se, "staged_refit", lambda *a, **k: staged)
+    monkeypatch.setattr(se, "smooth_refit", lambda *a, **k: None)
+    setup = SimpleNamespace(terms=_terms(), names=[("a", "g")] * 5, targets=[_target(measured)], models=[],
+                            scales={"t": 10.0}, n_held=4000)
+    constant = rounds.BestRefit(50.5, 4, _outcome(model, 4.0, held=50.5))
+    event = rounds.BestRefit(event_held, 0, _outcome(model, 4.0, held=event_held))
+    progress = SimpleNamespace(state=SimpleNamespace(values={}, kept=[]), n_sims=0, ended=None,
+                               refits=[constant, event])
+    said: list[str] = []
+    settings = SimpleNamespace(say=said.append, threads=1, max_nfev=5)
+    return se.shaped_instead(setup, progress, settings, constant), progress, said
+
+
+def test_an_event_near_the_best_constant_term_leads_when_its_shape_fits_clearly_better(monkeypatch):
+    """The root losing 25 % and 15 % of it back on a sweep: its step (56.9 σ) near a softer root all along
+    (50.5 σ); as two steps it fits clearly better: the event leads, its two steps kept for the finite-change step."""
+    lead, progress, said = _shaped_instead(monkeypatch, 56.9, 1.03)
+    assert lead is progress.refits[1] and progress.ended.kind == "stages" and progress.n_sims == 11
+    assert any("the event leads" in s for s in said)
+
+
+@pytest.mark.parametrize(("event_held", "stages_held", "misfit_before"), [
+    (56.9, 49.0, 0.0),  # the shape is no clearly better than the constant term
+    (56.9, 1.03, 20.0),  # the shape misses the record before its onset by more than it leaves overall
+    (80.0, 1.03, 0.0),  # the event is not near the constant term: its shapes are not tried
+])
+def test_the_constant_term_stays_when_no_plausible_shape_fits_clearly_better(monkeypatch, event_held, stages_held,
+                                                                             misfit_before):
+    lead, progress, said = _shaped_instead(monkeypatch, event_held, stages_held, misfit_before)
+    assert lead is None and progress.ended is None
+    assert progress.n_sims == (0 if event_held == 80.0 else 11)

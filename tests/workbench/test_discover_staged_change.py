@@ -131,7 +131,8 @@ def test_two_steps_have_their_onsets_placed_on_the_whole_record_and_refitted_wit
     fit = WindowFit(0, 1, 3, out, {"c0": -0.25, "g0": 6.0, "c1": 0.14, "g1": 12.94}, 5, kind="stages")
     state = SimpleNamespace(values={}, kept=[3])
     again = staged.stages_placed([], [], terms, names, state, fit, 20.0, 1, 3)
-    assert again.values["g1"] == 13.0 and again.outcome.held_rms_sigma == 1.0 and again.n_sims == 5 + 44 + 9
+    # placed, refitted, placed again where it was: done (two placements of 2 × 22 probes, one refit)
+    assert again.values["g1"] == 13.0 and again.outcome.held_rms_sigma == 1.0 and again.n_sims == 5 + 2 * 44 + 9
     onsets = {p.name: (p.lower, p.upper) for p in refits[0] if p.name in ("g0", "g1")}
     assert onsets["g1"] == pytest.approx((13.0 - 1e-3, 13.0 + 1e-3))
 

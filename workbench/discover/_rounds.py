@@ -44,7 +44,7 @@ from workbench.discover._search import (
     refit_list,
 )
 from workbench.discover._section_reading import section_rows
-from workbench.discover._shaped_event import judged_with_end
+from workbench.discover._shaped_event import judged_with_end, shaped_instead
 from workbench.discover._twins import place_switch_family, switch_family, twin_tolerance, twins_of
 from workbench.fit import FitOutcome, Objective, Target, explained, noise_tolerance, rms
 
@@ -330,12 +330,19 @@ def refit_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSet
 
 
 def plausible_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, best: BestRefit | None,
-                   rows: list[ScreenRow], tried: list[dict[str, Any]]) -> tuple[BestRefit | None, BestRefit | None]:
+                   rows: list[ScreenRow], tried: list[dict[str, Any]], evident: bool = False
+                   ) -> tuple[BestRefit | None, BestRefit | None]:
     """A time-gated best refit leads only when it is plausible and better (:mod:`workbench.discover._event_check`):
     the members of its parameter constant in time are refitted too (logged in ``tried``) and the best one within
     the twins' tolerance is kept instead; an event short of the noise floor that does not look like one gives way
-    to the round's best refit constant in time (or to nothing). Returns the refit to keep and the event it
+    to the round's best refit constant in time (or to nothing). In a round where an event is ``evident``, a best
+    refit constant in time gives way to the round's event when a shape of its change fits clearly better
+    (:func:`~workbench.discover._shaped_event.shaped_instead`). Returns the refit to keep and the event it
     displaced as a twin (else None)."""
+    if best is not None and evident and not is_timed(setup.terms[best.index]):
+        best = shaped_instead(setup, progress, settings, best) or best  # an event's shape may fit clearly better
+        if is_timed(setup.terms[best.index]):
+            return best, None
     if best is None or not is_timed(setup.terms[best.index]):
         return best, None
     term = setup.terms[best.index]
@@ -461,7 +468,7 @@ def search_round(setup: SearchSetup, progress: SearchProgress, settings: SearchS
     if best is None and not event:
         todo = with_onsets(refit_list(rows, settings.n_refit), onset_rows, first=settings.expect_change)
         best = refit_best(setup, progress, settings, todo, tried)
-    best, displaced = plausible_best(setup, progress, settings, best, rows, tried)
+    best, displaced = plausible_best(setup, progress, settings, best, rows, tried, evident=event)
     timings["refit_s"] += time.perf_counter() - t0
     progress.rounds.append({"screened": [(r.term.key, r.held_rms_sigma) for r in rows[:settings.n_refit]],
                             "refitted": tried})

@@ -16,16 +16,25 @@ the plausible shape that leaves the whole record lowest makes it an event. Such 
 judged as one whose change may have started before its fitted onset (:func:`shape_issue`): the model with it may
 leave before that onset what it leaves over the whole record (a shape that does not fit everywhere misses its slow
 start too), not more; its onset is not pinned to the record's edge nor loosely placed (a bound of the refit's
-narrow onset range is no issue: the zoom placed it on the whole record). Any other event is judged as before.
+narrow onset range is no issue: the zoom placed it on the whole record). When no shape is plausible, the plain event
+far better than any constant term is judged so too. Any other event is judged as before.
+
+The other way round (:func:`shaped_instead`): in a round where an event is evident, a term constant in time may
+beat the event's plain step — the root losing 25 % at 4.5 s of a 15 s sweep and 15 % of it back at 9.75 s: the step
+of k1 refitted to 56.9 σ, a linear force on mass 1 (a softer root all along) to 50.5 σ, kept, and the search never
+came back to the event (49.6 σ at the end). So when the best refit of the round is constant in time and the best
+time-gated refit comes near it (:data:`EVENT_NEAR`), the event's shapes are tried too; a plausible shape that fits
+clearly better (beyond the twins' tolerance) makes the event lead.
 
 Pure logic on the fit engine's objects; the rounds (:mod:`workbench.discover._rounds`) call
-:func:`judged_with_end` and keep the refit in ``progress.ended`` for the finite-change step.
+:func:`judged_with_end` and :func:`shaped_instead` and keep the shape's refit in ``progress.ended`` for the
+finite-change step.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from workbench.discover._event_check import (
@@ -42,11 +51,14 @@ from workbench.discover._finite_change import WindowFit, whole_rms, window_refit
 from workbench.discover._search import SearchState
 from workbench.discover._smooth_change import VARIANTS, smooth_refit
 from workbench.discover._staged_change import KIND_WORDS, staged_refit
-from workbench.fit import Target
+from workbench.discover._twins import twin_tolerance
+from workbench.fit import FitOutcome, Target
 
 #: the other shapes than a window are tried only when the event leaves at most this share of the held-out RMS of
 #: the round's best refit constant in time (a sweep's crack soaked up by a step comes near its constant member)
 SHAPE_MARGIN = 0.5
+#: a round's best time-gated refit within this factor of its best refit constant in time has its shapes tried
+EVENT_NEAR = 1.5
 
 
 def judged_with_end(setup: Any, progress: Any, settings: Any, event: Any, why: str) -> str | None:
@@ -64,7 +76,8 @@ def judged_with_end(setup: Any, progress: Any, settings: Any, event: Any, why: s
             continue
         progress.n_sims += fit.n_sims
         gname = setup.names[fit.rise][1] or ""
-        issue = shape_issue(setup.targets, fit, gname) if more else onset_issue(setup.targets, fit.outcome, gname)
+        issue = (shape_issue(setup.targets, fit.outcome, fit.values, gname) if more
+                 else onset_issue(setup.targets, fit.outcome, gname))
         held = fit.outcome.held_rms_sigma
         if issue is None and held < event.held_rms_sigma:
             plausible.append(fit)
@@ -73,6 +86,11 @@ def judged_with_end(setup: Any, progress: Any, settings: Any, event: Any, why: s
         else:
             settings.say(f"  {key} {_as(fit)} ({held:.4g} σ held-out): " + (issue or "no better"))
     if not plausible:
+        gname = setup.names[event.index][1] or ""
+        if more and shape_issue(setup.targets, event.outcome, event.outcome.values, gname) is None:
+            settings.say(f"  {key} is an event whose change started before its fitted onset: {why}, no more than it "
+                         "leaves over the whole record")
+            return None
         return why
     fit = min(plausible, key=lambda f: whole_rms(setup.targets, f.outcome))
     settings.say(f"  {key} {_as(fit)} ({fit.outcome.held_rms_sigma:.4g} σ held-out) is an event: {why} — that was "
@@ -81,13 +99,14 @@ def judged_with_end(setup: Any, progress: Any, settings: Any, event: Any, why: s
     return None
 
 
-def shape_issue(targets: Sequence[Target], fit: WindowFit, gname: str) -> str | None:
-    """Why the shaped refit ``fit`` (its first onset's name ``gname``) is no plausible event, in words; None when it
-    is one (see the module docstring)."""
-    if gname not in fit.values:
+def shape_issue(targets: Sequence[Target], outcome: FitOutcome, values: Mapping[str, float], gname: str
+                ) -> str | None:
+    """Why a shaped refit ``outcome`` (every value ``values``, its first onset's name ``gname``) is no plausible
+    event, in words; None when it is one (see the module docstring)."""
+    if gname not in values:
         return None  # no onset: nothing to judge
-    t0 = float(fit.values[gname])
-    est = next((e for e in fit.outcome.estimates if e.name == gname), None)
+    t0 = float(values[gname])
+    est = next((e for e in outcome.estimates if e.name == gname and not e.at_bound), None)
     start, end = record_span(targets)
     duration = max(end - start, 1e-9)
     if t0 - start < EDGE_SHARE * duration or end - t0 < EDGE_SHARE * duration:
@@ -95,14 +114,42 @@ def shape_issue(targets: Sequence[Target], fit: WindowFit, gname: str) -> str | 
     if est is not None and not (math.isfinite(est.stderr) and est.stderr <= ONSET_SE_SHARE * duration):
         return (f"its onset t = {t0:.4g} ± {est.stderr:.2g} s is not placed within {100 * ONSET_SE_SHARE:.0f} % of "
                 "the record")
-    quiet, n = before_onset_rms(targets, [y[0] for y in fit.outcome.sim.y], t0)
-    limit = max(QUIET_BEFORE_SIGMA, whole_rms(targets, fit.outcome))
+    quiet, n = before_onset_rms(targets, [y[0] for y in outcome.sim.y], t0)
+    limit = max(QUIET_BEFORE_SIGMA, whole_rms(targets, outcome))
     if n < MIN_BEFORE_SAMPLES:
         return f"its onset t = {t0:.4g} s leaves too few samples before it to show the model matched there"
     if quiet > limit:
         return (f"the model with it leaves {quiet:.3g} σ before its onset t = {t0:.4g} s, more than the "
                 f"{limit:.3g} σ it leaves over the whole record")
     return None
+
+
+def shaped_instead(setup: Any, progress: Any, settings: Any, best: Any) -> Any | None:
+    """The round's best time-gated refit (a ``BestRefit`` of ``progress.refits``) to lead instead of ``best`` (a
+    refit constant in time) when one of its shapes fits clearly better and is plausible (:func:`shape_issue`); the
+    shape's refit is kept in ``progress.ended``. None when no time-gated refit comes within :data:`EVENT_NEAR` of
+    ``best`` or no shape does better (see the module docstring)."""
+    timed = [b for b in progress.refits if is_timed(setup.terms[b.index])]
+    event = min(timed, key=lambda b: b.held_rms_sigma, default=None)
+    if event is None or event.held_rms_sigma > EVENT_NEAR * best.held_rms_sigma:
+        return None
+    trial = SearchState(dict(progress.state.values) | dict(event.outcome.values), [*progress.state.kept, event.index])
+    fits = [f for shape in _shapes(setup, settings, trial, event.index, True) if (f := shape()) is not None]
+    progress.n_sims += sum(f.n_sims for f in fits)
+    limit = best.held_rms_sigma / twin_tolerance(setup.n_held)
+    good = [f for f in fits if f.outcome.held_rms_sigma < limit
+            and shape_issue(setup.targets, f.outcome, f.values, setup.names[f.rise][1] or "") is None]
+    key, other = setup.terms[event.index].key, setup.terms[best.index].key
+    if not good:
+        settings.say(f"  {key} ({event.held_rms_sigma:.4g} σ) near {other} ({best.held_rms_sigma:.4g} σ, constant "
+                     "in time): no shape of its change fits clearly better")
+        return None
+    fit = min(good, key=lambda f: whole_rms(setup.targets, f.outcome))
+    settings.say(f"  {key} ({event.held_rms_sigma:.4g} σ) {_as(fit)} ({fit.outcome.held_rms_sigma:.4g} σ) explains "
+                 f"the records clearly better than {other} ({best.held_rms_sigma:.4g} σ, constant in time): the "
+                 "event leads")
+    progress.ended = fit
+    return event
 
 
 def far_better(progress: Any, setup: Any, event: Any) -> bool:
