@@ -75,3 +75,57 @@ def test_a_moved_window_is_said_as_one_change_in_its_place(dictionary):
     assert twin["words"].startswith("section 2 lost 30 % of its stiffness between t = 8")
     assert "then held" in twin["words"] and "its end" not in twin["words"]
     assert (twin["index"], twin["held_rms_sigma"], twin["judged_by"]) == (1, 0.98, "refitted")
+
+
+def test_a_switch_on_a_voltage_is_placed_a_switch_on_a_deflection_is_not(dictionary):
+    """A patch weak for one polarity of the drive or of its own voltage: the same volts in each patch, so the
+    change moves with its switching point; a section's switch on its deflection would need its point mapped."""
+    from workbench.discover._change_place import placeable
+
+    terms, _ = dictionary
+    drive = [k for k, t in enumerate(terms)
+             if (t.placement, t.param, t.form, t.signal) == ("damage", "d_ep_i", "on_neg", "va")]
+    assert drive and all(placeable(terms[k]) for k in drive)
+    assert placeable(terms[_slots(terms, "k", 1, "on_step")[0]])
+    crack = next(k for k, t in enumerate(terms) if (t.param, t.index, t.form) == ("k", 2, "on_pos"))
+    assert not placeable(terms[crack])
+    k3 = next(k for k in drive if terms[k].index == 2)
+    assert change_slots(terms, [crack, k3], terms[k3]) == [k3]  # a switch is its own one piece
+    assert terms[counterpart(terms, k3, 0)].signal == "va" and terms[counterpart(terms, k3, 0)].index == 0
+
+
+def _placed_run(monkeypatch, current: float, there: float) -> tuple[object, list[str]]:
+    """place_change on a kept drive switch of patch 2 leaving ``current`` σ, its counterpart in patch 3 refitted to
+    ``there`` σ (patch 1 not near)."""
+    import workbench.discover._change_place as cp
+
+    terms = build_dictionary(SCALES, driven=True)
+    names = dictionary_parameter_names(terms)
+    k2 = next(k for k, t in enumerate(terms) if (t.param, t.index, t.form, t.signal) == ("d_ep_i", 1, "on_neg", "va"))
+    k3 = counterpart(terms, k2, 2)
+
+    def place_refit(setup, state, slots, index, near, threads, nfev):
+        if index != 2:
+            return None
+        out = SimpleNamespace(held_rms_sigma=there, train_rms_sigma=there, estimates=[])
+        return cp.PlacedChange((k3,), out, {names[k3][0]: -0.4, names[k2][0]: 0.0}, 30)
+
+    monkeypatch.setattr(cp, "place_refit", place_refit)
+    monkeypatch.setattr(cp, "whole_rms", lambda tg, out: current)
+    setup = SimpleNamespace(terms=terms, names=names, scales=SCALES, targets=[], n_held=4000)
+    progress = SimpleNamespace(state=SimpleNamespace(values={names[k2][0]: -0.4, names[k2][1]: -80.0}, kept=[k2]),
+                               current_held=current, current_train=current, outcome=object(), n_sims=0, stderr={},
+                               twins={})
+    said: list[str] = []
+    cp.place_change(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=said.append))
+    return progress, [*said, str(k3)]
+
+
+def test_far_from_the_noise_a_change_moves_only_where_it_halves_the_error(monkeypatch):
+    """Patch 3 weak below −100 V of drive on MBIT.a was kept in patch 2 (8 σ): in patch 3 it leaves 1 σ — it moves;
+    a place a little better (7 σ) far from the noise is the next round's business, and names no twin."""
+    progress, said = _placed_run(monkeypatch, 8.0, 1.0)
+    assert progress.state.kept == [int(said[-1])] and progress.current_held == 1.0
+    assert any("moves to" in s for s in said)
+    progress, said = _placed_run(monkeypatch, 8.0, 7.0)
+    assert progress.state.kept != [int(said[-1])] and progress.current_held == 8.0 and progress.twins == {}

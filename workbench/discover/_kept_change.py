@@ -28,16 +28,18 @@ def refine_kept(setup: Any, progress: Any, settings: Any, min_share: float) -> N
     the noise; kept in its place when the refit removes ``min_share`` of the excess left — then, when the change
     still leaves more than the noise, tried in two places at once (:func:`~workbench.discover._change_split.
     split_change`). ``setup``, ``progress``, ``settings``: the rounds' objects."""
-    _refine(setup, progress, settings, min_share)
+    placed = _refine(setup, progress, settings, min_share)
     t0 = time.perf_counter()
+    if not placed and setup.terms[progress.state.kept[-1]].form in SIGN_GATES:
+        place_change(setup, progress, settings)  # a switch on a voltage: its place, refined or not
     split_change(setup, progress, settings, min_share)
     progress.timings["refit_s"] += time.perf_counter() - t0
 
 
-def _refine(setup: Any, progress: Any, settings: Any, min_share: float) -> None:
+def _refine(setup: Any, progress: Any, settings: Any, min_share: float) -> bool:
     ended, progress.ended = progress.ended, None  # an event's window, refitted already when it was judged
     if progress.current_held <= 1.0 + noise_tolerance(setup.n_held):
-        return
+        return True  # at the noise floor: nothing to refine nor to place
     t0 = time.perf_counter()
     k = progress.state.kept[-1]
     term = setup.terms[k]
@@ -50,7 +52,7 @@ def _refine(setup: Any, progress: Any, settings: Any, min_share: float) -> None:
         progress.n_sims += 0 if fit is None else fit.n_sims
     progress.timings["refit_s"] += time.perf_counter() - t0
     if fit is None:
-        return
+        return False
     h = fit.outcome.held_rms_sigma
     gain = excess_share_removed(progress.current_held, h, noise_tolerance(setup.n_held))
     keep = gain is not None and gain >= min_share and h < progress.current_held
@@ -61,3 +63,4 @@ def _refine(setup: Any, progress: Any, settings: Any, min_share: float) -> None:
         progress.current_train, progress.current_held = fit.outcome.train_rms_sigma, h
         progress.outcome = fit.outcome
         place_change(setup, progress, settings)  # the refined change's place, when the records leave it open
+    return keep
