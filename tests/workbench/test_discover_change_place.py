@@ -129,3 +129,18 @@ def test_far_from_the_noise_a_change_moves_only_where_it_halves_the_error(monkey
     assert any("moves to" in s for s in said)
     progress, said = _placed_run(monkeypatch, 8.0, 7.0)
     assert progress.state.kept != [int(said[-1])] and progress.current_held == 8.0 and progress.twins == {}
+
+
+def test_a_moved_switch_keeps_its_switching_point_while_a_moved_step_frees_its_onset(dictionary):
+    """A patch's switch at −2.33 V of its own voltage moved to another patch: its point is no instant (a range
+    [0, −2.3] s failed the refit: 'FitRange needs finite lower < upper'); a step's onset is freed ± ONSET_FREE_S."""
+    from workbench.discover._change_place import placed_free
+
+    terms, names = dictionary
+    switch = next(k for k, t in enumerate(terms) if (t.param, t.index, t.form, t.signal) == ("d_ep_i", 2, "on_pos",
+                                                                                             "vc"))
+    step = _slots(terms, "k", 1, "on_step")[0]
+    start = {names[switch][0]: -0.5, names[switch][1]: -2.33, names[step][0]: -0.1, names[step][1]: 4.0}
+    free = {p.name: p for p in placed_free(terms, names, [], start, [switch, step], 6.0)}
+    assert names[switch][1] not in free and names[switch][0] in free
+    assert (free[names[step][1]].lower, free[names[step][1]].upper) == pytest.approx((3.95, 4.05))

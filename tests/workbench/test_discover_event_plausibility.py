@@ -233,8 +233,8 @@ ONSET = {"a": -0.1, "g": 4.0}
 
 
 def _judge_with_window(monkeypatch: pytest.MonkeyPatch, window_misfit_before: float, window_held: float,
-                       stages_misfit_before: float | None = None, constant_held: float | None = None
-                       ) -> tuple[str | None, object, list[str]]:
+                       stages_misfit_before: float | None = None, constant_held: float | None = None,
+                       stages_held: float = 10.0) -> tuple[str | None, object, list[str]]:
     """judged_with_end on k3's step (90 σ held out, 20 σ before its onset) with the window's refit faked: its model
     misses the record before the window's start by ``window_misfit_before`` σ and leaves ``window_held`` σ; two
     steps (when ``stages_misfit_before`` is given) miss it by that and leave 10 σ; the round's best refit constant
@@ -250,12 +250,12 @@ def _judge_with_window(monkeypatch: pytest.MonkeyPatch, window_misfit_before: fl
     staged = None
     if stages_misfit_before is not None:
         _, model2 = _record(np.random.default_rng(6), stages_misfit_before)
-        staged = fc.WindowFit(rise=0, end=0, replaced=0, outcome=_outcome(model2, 4.0, held=10.0), values=ONSET,
+        staged = fc.WindowFit(rise=0, end=0, replaced=0, outcome=_outcome(model2, 4.0, held=stages_held), values=ONSET,
                               n_sims=11, kind="stages")
     monkeypatch.setattr(se, "staged_refit", lambda *a, **k: staged)
     monkeypatch.setattr(se, "smooth_refit", lambda *a, **k: None)
     setup = SimpleNamespace(terms=_terms(), names=[("a", "g")] * 5, targets=[_target(measured)], models=[],
-                            scales={"t": 10.0})
+                            scales={"t": 10.0}, n_held=4000)
     event = rounds.BestRefit(90.0, 0, _outcome(model, 4.0, held=90.0))
     constant = [] if constant_held is None else [rounds.BestRefit(constant_held, 1, None)]
     progress = SimpleNamespace(state=SimpleNamespace(values={}, kept=[]), n_sims=0, ended=None, refits=constant)
@@ -283,6 +283,14 @@ def test_an_event_whose_window_misses_the_start_is_plausible_as_two_steps_when_f
     near = 90.0 / se.SHAPE_MARGIN * 0.99  # the constant term leaves barely more than the event: no other shape
     why, progress, said = _judge_with_window(monkeypatch, 20.0, 12.0, stages_misfit_before=0.0, constant_held=near)
     assert why == "it misses the record before its onset" and progress.ended is None and progress.n_sims == 7
+
+
+def test_a_shape_no_clearly_better_than_the_plain_event_does_not_make_it_one(monkeypatch):
+    """A mass 'lost' at the record's start on a sweep with a tip stop: its step 46.0 σ, pinned to the edge; two
+    steps 45.98 σ are no reason to call it an event."""
+    _, progress, said = _judge_with_window(monkeypatch, 20.0, 95.0, stages_misfit_before=0.0, constant_held=400.0,
+                                             stages_held=89.0)
+    assert progress.ended is None and not any("as two steps" in s and "is an event" in s for s in said)
 
 
 def test_an_event_given_an_end_that_still_misses_the_record_before_its_start_is_not(monkeypatch):
@@ -387,6 +395,6 @@ def test_an_event_near_the_best_constant_term_leads_when_its_shape_fits_clearly_
 ])
 def test_the_constant_term_stays_when_no_plausible_shape_fits_clearly_better(monkeypatch, event_held, stages_held,
                                                                              misfit_before):
-    lead, progress, said = _shaped_instead(monkeypatch, event_held, stages_held, misfit_before)
+    lead, progress, _ = _shaped_instead(monkeypatch, event_held, stages_held, misfit_before)
     assert lead is None and progress.ended is None
     assert progress.n_sims == (0 if event_held == 80.0 else 11)

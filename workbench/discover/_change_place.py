@@ -113,14 +113,15 @@ class PlacedChange:
 def placed_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], kept: Sequence[int],
                 start: dict[str, float], slots: Sequence[int], t_end: float) -> list[Parameter]:
     """Free parameters of a moved change's refit: the other kept terms' coefficients (±1.5 × their size), each
-    moved slot's coefficient (±2 × it, a loss never past ``MAX_LOSS``) and onset (± ``ONSET_FREE_S``)."""
+    moved slot's coefficient (±2 × it, a loss never past ``MAX_LOSS``) and onset (± ``ONSET_FREE_S``; a switch's
+    point stays where it was copied: a voltage at −2.4 V is no instant of the record)."""
     out = others_free(terms, names, SearchState(start, list(kept)), start, (-1, -1), -1)
     for k in slots:
         cname, gname = names[k]
         c = start[cname]
         lo = max(c - 2.0 * abs(c), MAX_LOSS) if terms[k].unit == "1" else c - 2.0 * abs(c)
         out.append(freed(cname, terms[k].unit, lo, c + 2.0 * abs(c), False, "discover"))
-        if gname is not None:
+        if gname is not None and is_timed(terms[k]):  # a switch keeps its switching point (volts, copied)
             g = start[gname]
             out.append(freed(gname, "s", max(g - ONSET_FREE_S, 0.0), min(g + ONSET_FREE_S, t_end), False,
                              "discover"))
