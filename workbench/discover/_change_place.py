@@ -85,13 +85,14 @@ def counterpart(terms: Sequence[Term], slot: int, index: int) -> int | None:
 
 
 def transplant(values: Mapping[str, float], names: Sequence[tuple[str, str | None]], mapping: Mapping[int, int],
-               size: float) -> dict[str, float]:
+               size: float, keep: float = 0.0) -> dict[str, float]:
     """The dictionary parameters that move a change from its slots to theirs (``mapping``): each counterpart's
-    coefficient ``size`` × the slot's, its onset and fitted width the slot's, the slot's own coefficient 0."""
+    coefficient ``size`` × the slot's, its onset and fitted width the slot's, the slot's own coefficient ``keep`` ×
+    itself (0: moved; above: the change in both places)."""
     out: dict[str, float] = {}
     for k, k2 in mapping.items():
         (c, g), (c2, g2) = names[k], names[k2]
-        out[c], out[c2] = 0.0, size * float(values[c])
+        out[c], out[c2] = keep * float(values[c]), size * float(values[c])
         if g is not None and g2 is not None:
             out[g2] = float(values[g])
         if width_name(k) in values:

@@ -22,8 +22,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from workbench.discover._change_place import N_PLACES, change_slots, counterpart, placed_free
-from workbench.discover._dictionary_code import width_name
+from workbench.discover._change_place import N_PLACES, change_slots, counterpart, placed_free, transplant
 from workbench.discover._event_check import is_timed
 from workbench.discover._finite_change import lowest, whole_scores
 from workbench.discover._results import excess_share_removed
@@ -39,15 +38,7 @@ def split_setting(values: Mapping[str, float], names: Sequence[tuple[str, str | 
                   keep: float, add: float) -> dict[str, float]:
     """The dictionary parameters of the change in two places: each slot's coefficient × ``keep``, its counterpart
     (``mapping``) at ``add`` × it with the slot's onset and fitted width."""
-    out: dict[str, float] = {}
-    for k, k2 in mapping.items():
-        (c, g), (c2, g2) = names[k], names[k2]
-        out[c], out[c2] = keep * float(values[c]), add * float(values[c])
-        if g is not None and g2 is not None:
-            out[g2] = float(values[g])
-        if width_name(k) in values:
-            out[width_name(k2)] = float(values[width_name(k)])
-    return out
+    return transplant(values, names, mapping, add, keep)
 
 
 @dataclass(frozen=True)
