@@ -16,9 +16,11 @@ def test_every_blind_case_has_a_check_for_its_physics():
 #: on the first contact (3d2419a, 2026-11-28 07:04–07:42 UTC, one thread per case, two at a time; docs/workbench.md,
 #: "A fourth blind set"): sweep 3 of 12, MBIT.a 4 of 12, MBIT.b 3 of 7 counted (larger than 3 σ) — 10 of 31.
 PASSING4: dict[str, tuple[str, ...]] = {
-    "sweep": ("root_crack_rubs", "patch3_weak_reverse_drive", "tip_loss_settling"),
-    "mbit-a": ("mid_crack_past_offset", "root_crack_rubs", "tip_crack_closes_partly", "tip_loss_settling"),
-    "mbit-b": ("root_crack_open_at_rest", "tip_crack_closes_partly", "tip_loss_settling"),
+    "sweep": ("root_crack_rubs", "patch3_weak_reverse_drive", "tip_loss_settling", "root_mid_loss_at_once"),
+    "mbit-a": ("mid_crack_past_offset", "root_crack_rubs", "tip_crack_closes_partly", "tip_loss_settling",
+               "root_loss_partly_recovered"),
+    "mbit-b": ("root_crack_open_at_rest", "tip_crack_closes_partly", "tip_loss_settling",
+               "root_loss_partly_recovered"),
 }
 
 
