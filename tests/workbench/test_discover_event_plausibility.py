@@ -279,6 +279,7 @@ def test_an_event_whose_window_misses_the_start_is_plausible_as_two_steps_when_f
 
     why, progress, said = _judge_with_window(monkeypatch, 20.0, 12.0, stages_misfit_before=0.0, constant_held=400.0)
     assert why is None and progress.ended.kind == "stages" and progress.n_sims == 7 + 11
+    assert [f.kind for f in progress.shaped] == ["window", "stages"]  # handed on: not refitted again
     assert any("as two steps" in s and "is an event" in s for s in said)
     near = 90.0 / se.SHAPE_MARGIN * 0.99  # the constant term leaves barely more than the event: no other shape
     why, progress, said = _judge_with_window(monkeypatch, 20.0, 12.0, stages_misfit_before=0.0, constant_held=near)

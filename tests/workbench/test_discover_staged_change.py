@@ -102,11 +102,11 @@ def test_a_change_with_a_fitted_time_scale_is_kept_when_it_leaves_the_record_low
     assert any("S-curve" in s and "1.01 σ" in s for s in said)
     ended = _fit(0.9, 50)  # the event's own window, refitted when it was judged: used, not refitted
     progress.n_sims = 0
-    fit = staged.change_refit(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=said.append), 3, ended)
+    fit = staged.change_refit(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=said.append), 3, [ended])
     assert fit is ended and progress.n_sims == 5 * 4
     tried.clear()
     ended = _fit(0.9, 60, "smooth")  # an S-curve the judgement refitted: the window is refitted, the S-curve not
-    fit = staged.change_refit(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=said.append), 3, ended)
+    fit = staged.change_refit(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=said.append), 3, [ended])
     assert fit is ended and tried == ["settle", "recover"]
 
 

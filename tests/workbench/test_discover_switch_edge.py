@@ -88,8 +88,8 @@ def test_a_kept_switch_that_leaves_more_than_the_noise_is_refitted_with_an_edge_
     setup = SimpleNamespace(terms=terms, names=[("a0", "g0")], targets=[], models=[], scales={"va": 150.0},
                             n_held=5000)
     state = SimpleNamespace(values={"a0": -0.25}, kept=[0])
-    progress = SimpleNamespace(ended=None, current_held=2.24, current_train=2.0, state=state, stderr={}, twins={},
-                               timings={"refit_s": 0.0}, rounds=[], n_sims=0, outcome=None)
+    progress = SimpleNamespace(ended=None, shaped=[], current_held=2.24, current_train=2.0, state=state, stderr={},
+                               twins={}, timings={"refit_s": 0.0}, rounds=[], n_sims=0, outcome=None)
     said: list[str] = []
     kc.refine_kept(setup, progress, SimpleNamespace(say=said.append, threads=1, max_nfev=3), 0.25)
     assert calls == [150.0] and progress.current_held == 1.1 and state.values["h_00"] == 15.0

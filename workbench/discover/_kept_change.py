@@ -37,7 +37,8 @@ def refine_kept(setup: Any, progress: Any, settings: Any, min_share: float) -> N
 
 
 def _refine(setup: Any, progress: Any, settings: Any, min_share: float) -> bool:
-    ended, progress.ended = progress.ended, None  # an event's window, refitted already when it was judged
+    ended, progress.ended = progress.ended, None  # an event's shape, refitted already when it was judged
+    shaped, progress.shaped = progress.shaped, []  # and every shape refitted then
     if progress.current_held <= 1.0 + noise_tolerance(setup.n_held):
         return True  # at the noise floor: nothing to refine nor to place
     t0 = time.perf_counter()
@@ -45,7 +46,11 @@ def _refine(setup: Any, progress: Any, settings: Any, min_share: float) -> bool:
     term = setup.terms[k]
     fit: WindowFit | None = None
     if term.form in TIME_GATES:
-        fit = change_refit(setup, progress, settings, k, ended if ended is not None and ended.replaced == k else None)
+        done: list[WindowFit] = []
+        for f in [*([ended] if ended is not None else []), *shaped]:
+            if f.replaced == k and all(f is not g for g in done):
+                done.append(f)
+        fit = change_refit(setup, progress, settings, k, done)
     elif term.form in SIGN_GATES:
         fit = switch_edge_refit(setup.targets, setup.models, setup.terms, setup.names, progress.state, k,
                                 setup.scales.get(term.signal, 0.0), settings.threads, settings.max_nfev)

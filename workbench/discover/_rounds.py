@@ -104,6 +104,9 @@ class SearchProgress:
     refits: list[BestRefit] = field(default_factory=list)
     #: the event judged with an end this round (:func:`~workbench.discover._shaped_event.judged_with_end`)
     ended: WindowFit | None = None
+    #: every shape of that event refitted while it was judged (:mod:`workbench.discover._shaped_event`): the
+    #: finite-change step does not refit them again
+    shaped: list[WindowFit] = field(default_factory=list)
 
 
 @dataclass(frozen=True)
@@ -431,7 +434,7 @@ def search_round(setup: SearchSetup, progress: SearchProgress, settings: SearchS
     if held_before <= 1.0 + noise_tolerance(n_held) or noise_free_match(setup.targets, held_before):
         return False  # at the noise floor (or a noise-free record matched numerically): among 200 terms one fits noise
     t0 = time.perf_counter()
-    progress.refits, progress.ended = [], None
+    progress.refits, progress.ended, progress.shaped = [], None, []
     batch = sensitivities(setup, progress, settings)
     if not batch.ok[0]:
         if round_no == 0:

@@ -70,11 +70,13 @@ def judged_with_end(setup: Any, progress: Any, settings: Any, event: Any, why: s
     key = setup.terms[event.index].key
     plausible: list[WindowFit] = []
     more = far_better(progress, setup, event)
+    progress.shaped = []
     for shape in _shapes(setup, settings, trial, event.index, more):
         fit = shape()
         if fit is None:
             continue
         progress.n_sims += fit.n_sims
+        progress.shaped.append(fit)
         gname = setup.names[fit.rise][1] or ""
         issue = (shape_issue(setup.targets, fit.outcome, fit.values, gname) if more
                  else onset_issue(setup.targets, fit.outcome, gname))
@@ -139,6 +141,7 @@ def shaped_instead(setup: Any, progress: Any, settings: Any, best: Any) -> Any |
     trial = SearchState(dict(progress.state.values) | dict(event.outcome.values), [*progress.state.kept, event.index])
     fits = [f for shape in _shapes(setup, settings, trial, event.index, True) if (f := shape()) is not None]
     progress.n_sims += sum(f.n_sims for f in fits)
+    progress.shaped = fits
     limit = best.held_rms_sigma / twin_tolerance(setup.n_held)
     good = [f for f in fits if f.outcome.held_rms_sigma < limit
             and shape_issue(setup.targets, f.outcome, f.values, setup.names[f.rise][1] or "") is None]

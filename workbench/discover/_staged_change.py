@@ -181,15 +181,15 @@ def stages_placed(targets: Sequence[Target], models: Sequence[PlantModel], terms
     return replace(fit, n_sims=fit.n_sims + n)
 
 
-def change_refit(setup: Any, progress: Any, settings: Any, kept: int, ended: WindowFit | None = None
+def change_refit(setup: Any, progress: Any, settings: Any, kept: int, done: Sequence[WindowFit] = ()
                  ) -> WindowFit | None:
     """The kept time-gated term ``kept`` given an end (a window), as two steps and as a change with a fitted time
     scale (:mod:`workbench.discover._smooth_change`: an S-curve, a ramp that settles, a step that partly recovers);
-    the refit that leaves the whole record lower (None when none is possible; ``ended``: the shape the event's
+    the refit that leaves the whole record lower (None when none is possible; ``done``: the shapes the event's
     judgement refitted already, not refitted again). The first step's candidate instants: the kept term's onset and
     the onsets of this round's refitted steps of the same parameter. ``setup``, ``progress``, ``settings``: the
     rounds' objects."""
-    own = _change_refits(setup, progress, settings, kept, None, ended)
+    own = _change_refits(setup, progress, settings, kept, None, done)
     term = setup.terms[kept]
     if own is None or damage_like(term, float(progress.state.values[setup.names[kept][0]])):
         return own
@@ -205,7 +205,7 @@ def change_refit(setup: Any, progress: Any, settings: Any, kept: int, ended: Win
 
 
 def _change_refits(setup: Any, progress: Any, settings: Any, kept: int, like: int | None,
-                   ended: WindowFit | None = None) -> WindowFit | None:
+                   done: Sequence[WindowFit] = ()) -> WindowFit | None:
     """:func:`change_refit`'s window, two steps and fitted time scales of the kept term's parameter (``like``: the
     window and two steps of that term's)."""
     term = setup.terms[kept if like is None else like]
@@ -214,7 +214,7 @@ def _change_refits(setup: Any, progress: Any, settings: Any, kept: int, like: in
               == (term.param, term.index) and setup.names[b.index][1] in b.outcome.values]
     args = (setup.targets, setup.models, setup.terms, setup.names, progress.state, kept)
     t_end, threads, nfev = setup.scales["t"], settings.threads, settings.max_nfev
-    fits: list[WindowFit | None] = [ended] if ended is not None and like is None else []
+    fits: list[WindowFit | None] = list(done) if like is None else []
     done_kinds = {f.kind for f in fits if f is not None}
     if "window" not in done_kinds:
         fits.append(window_refit(*args, t_end, threads, nfev, like))
@@ -223,11 +223,11 @@ def _change_refits(setup: Any, progress: Any, settings: Any, kept: int, like: in
     if like is None:
         fits += [smooth_refit(*args, t_end, threads, nfev, variant) for variant in VARIANTS
                  if variant not in done_kinds]
-    done = [f for f in fits if f is not None]
-    progress.n_sims += sum(f.n_sims for f in done if f is not ended)
-    for f in done:
+    made = [f for f in fits if f is not None]
+    progress.n_sims += sum(f.n_sims for f in made if all(f is not g for g in done))
+    for f in made:
         settings.say(f"  {setup.terms[kept].key} as {KIND_WORDS[f.kind]}: {f.outcome.held_rms_sigma:.4g} σ held-out")
-    return min(done, key=lambda f: whole_rms(setup.targets, f.outcome), default=None)
+    return min(made, key=lambda f: whole_rms(setup.targets, f.outcome), default=None)
 
 
 KIND_WORDS = {"window": "a change over a finite time (two ramps)", "stages": "two steps",
