@@ -92,6 +92,10 @@ def test_a_switch_on_a_voltage_is_placed_a_switch_on_a_deflection_is_not(diction
     k3 = next(k for k in drive if terms[k].index == 2)
     assert change_slots(terms, [crack, k3], terms[k3]) == [k3]  # a switch is its own one piece
     assert terms[counterpart(terms, k3, 0)].signal == "va" and terms[counterpart(terms, k3, 0)].index == 0
+    # a coupling fading with its own voltage (blind set 4, sweep: kept in patch 2 at 2.68 σ, never placed): placed
+    fading = [k for k, t in enumerate(terms) if (t.param, t.form, t.signal) == ("d_ep_i", "on_pos_grow", "vc")]
+    assert len(fading) == 3 and all(placeable(terms[k]) for k in fading)
+    assert terms[counterpart(terms, fading[1], 0)].index == 0
 
 
 def _placed_run(monkeypatch, current: float, there: float) -> tuple[object, list[str]]:

@@ -108,3 +108,44 @@ def test_the_emitted_file_moves_the_beam_as_the_damage_written_outside(tmp_path,
     moved = float(np.max(np.abs(zw - nominal)))
     assert moved > 1e-6
     assert float(np.max(np.abs(ze - zw))) <= close * moved
+
+
+def test_a_coupling_fading_with_its_own_voltage_is_a_member_and_said_so():
+    # blind set 4's patch 1 losing coupling in proportion to its positive voltage (up to 250 V): on MBIT.b the
+    # nearest member was every patch's coupling switched at +150 V (13.4 %, no patch named)
+    fams = _families()
+    for i in range(3):
+        assert {("d_ep_i", i, "on_pos_grow", "vc"), ("d_ep_i", i, "on_neg_grow", "vc")} <= fams
+    assert {("d_ep", -1, "on_pos_grow", "vc"), ("d_ep", -1, "on_neg_grow", "vc")} <= fams
+    assert ("d_ep", -1, "on_pos_grow", "vc") in _families(driven=False)
+    words = describe_damage("d_ep_i", 0, "on_pos_grow", "vc", -0.4, 250.0)
+    assert words.startswith("patch 1 (on section 1) whose authority d_ep is 40 % lower once its voltage reaches "
+                            "+250 V, in proportion to the voltage from 0 V up to there and not at all for negative")
+    every = describe_damage("d_ep", -1, "on_neg_grow", "vc", 0.1, 80.0)
+    assert every.startswith("a patch whose authority d_ep is 10 % higher once its voltage reaches −80 V")
+
+
+@pytest.mark.slow
+def test_the_emitted_fading_coupling_moves_the_beam_as_the_blind_patch(tmp_path):
+    from plant import PlantModel
+    from workbench.simulation import synth_record, synth_test, truth_model
+
+    blind4 = Path(__file__).parents[1] / "workbench_blind_damage_4.py"
+    term = next(t for t in build_dictionary(SCALES) if t.key == "d_ep1_pos_grow_vc")
+    (cname, gname), = parameter_names_for([term])
+    fixed = {cname: -0.4, str(gname): 250.0}
+    f = tmp_path / "emitted.py"
+    f.write_text(emit_effect_source([term], fixed))
+    rec = synth_record(synth_test("sweep", duration_s=1.5), truth_model("table2"), noise={"z3": 2e-6}, seed=1)
+    emitted = PlantModel("table2", effects=[str(f)])
+    written = PlantModel("table2", effects=[f"{blind4}:Patch1FadesWithPositiveVoltage"])
+    pe, pw = emitted.p_nominal.copy(), written.p_nominal.copy()
+    for name, value in fixed.items():
+        pe[emitted.param_index(name)] = value
+    pw[written.param_index("weak_loss")] = 0.4
+    ze = emitted.simulate(rec.input_signals(), t_out=rec.t, params=pe, rtol=1e-9)["z3_meas"][0]
+    zw = written.simulate(rec.input_signals(), t_out=rec.t, params=pw, rtol=1e-9)["z3_meas"][0]
+    nominal = PlantModel("table2").simulate(rec.input_signals(), t_out=rec.t, rtol=1e-9)["z3_meas"][0]
+    moved = float(np.max(np.abs(zw - nominal)))
+    assert moved > 1e-6
+    assert float(np.max(np.abs(ze - zw))) <= 1e-3 * moved

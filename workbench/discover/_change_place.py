@@ -37,7 +37,7 @@ from workbench.discover._finite_change import (
     whole_rms,
     whole_scores,
 )
-from workbench.discover._gates import SIGN_GATES
+from workbench.discover._gates import GROW_GATES, SIGN_GATES, SOFT_GATES
 from workbench.discover._onset import MAX_LOSS
 from workbench.discover._search import SearchState, refine
 from workbench.discover._twins import MAX_TWINS, PLACE_BELOW_SIGMA, twin_tolerance
@@ -62,12 +62,14 @@ def change_slots(terms: Sequence[Term], kept: Sequence[int], term: Term) -> list
 
 
 def placeable(term: Term) -> bool:
-    """Whether a kept term is placed by :func:`place_change`: a per-place damage term gated in time, or switched by
-    the sign of a voltage (the drive's, a patch's own: the same volts in each patch, so the switching point moves
-    with the change; a deflection's switching point would need mapping between sections)."""
+    """Whether a kept term is placed by :func:`place_change`: a per-place damage term gated in time, or gated by a
+    voltage — a sign switch, a smooth edge, a change growing with the voltage (the drive's, a patch's own: the same
+    volts in each patch, so the switching point, edge or saturation moves with the change; a deflection's switching
+    point would need mapping between sections)."""
     if term.placement != "damage" or term.index < 0:
         return False
-    return is_timed(term) or (term.form in SIGN_GATES and (term.signal == "va" or term.signal.startswith("vc")))
+    on_volts = term.form in (*SIGN_GATES, *SOFT_GATES, *GROW_GATES)
+    return is_timed(term) or (on_volts and (term.signal == "va" or term.signal.startswith("vc")))
 
 
 def counterpart(terms: Sequence[Term], slot: int, index: int) -> int | None:

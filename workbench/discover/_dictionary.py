@@ -316,8 +316,8 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                         widths = SOFT_RATE_AT if what == "soft_rate" else (SOFT_AT,)
                         terms += [Term("damage", index, sig, g, w * scales[sig], param) for g in SOFT_GATES
                                   for w in widths]
-                elif what == "grow":
-                    if ok(sig := f"delta{index + 1}"):
+                elif what in ("grow", "grow_volt"):
+                    if ok(sig := "vc" if what == "grow_volt" else f"delta{index + 1}"):
                         terms += [Term("damage", index, sig, g, f * scales[sig], param) for g in GROW_GATES
                                   for f in GROW_AT]
                 elif what == "gap":

@@ -69,6 +69,12 @@ def _describe_sign(param: str, index: int, form: str, signal: str, coef: float, 
     if param == "k" and signal.startswith("delta"):
         at = "" if g == 0.0 else f" switching at {_switch_value(signal, g)}"
         side = "on that side" if g == 0.0 else "beyond that deflection"
+        at_rest = (form == "on_pos") == (g < 0.0) and g != 0.0  # the corner on the far side of rest
+        if lower and at_rest:
+            closes = _condition("on_neg" if form == "on_pos" else "on_pos", signal, g)
+            return (f"a crack in section {n} open at rest that closes for {closes}: stiffness k{n} lower by {pct} "
+                    f"for {cond}, whole again past that point (bilinear stiffness{at}: a crack propped open, no force "
+                    "at rest)")
         if lower:
             return (f"a breathing crack in section {n} that opens for {cond}: stiffness k{n} lower by {pct} {side} "
                     f"(bilinear stiffness{at})")
@@ -148,6 +154,26 @@ def _depolarised(param: str, n: int, how: str) -> str:
     return f"a patch whose authority d_ep is {how} (polarisation-dependent coupling: a partly depolarised patch)"
 
 
+def _fading_patch(param: str, n: int, form: str, signal: str, coef: float, shape: float) -> str:
+    """A coupling (or another patch parameter) whose change grows in proportion to the patch voltage on one
+    polarity, reaching ``coef`` at ``shape`` (V) and holding beyond."""
+    positive = form.startswith("on_pos")
+    reach = f"{'+' if positive else '−'}{abs(shape):.3g} V"
+    whose = "drive" if signal == "va" else "voltage"
+    how = (f"{100 * abs(coef):.3g} % {'lower' if coef < 0 else 'higher'} once its {whose} reaches {reach}, in "
+           f"proportion to the {whose} from 0 V up to there and not at all for {'negative' if positive else 'positive'}"
+           f" {whose}")
+    if param == "d_ep_i":
+        return (f"patch {n} (on section {n}) whose authority d_ep is {how}, the other patches as modelled (a "
+                f"coupling that fades with its own {'positive' if positive else 'negative'} polarity: electrode "
+                "fingers that lose contact or domains that back-switch by degrees)")
+    if param == "d_ep":
+        return (f"a patch whose authority d_ep is {how} (a coupling that fades on one polarity: a patch partly "
+                "depolarised by degrees)")
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    return f"{what} {how} (a change that grows with the {whose} on one polarity)"
+
+
 def _swing_crack(n: int, coef: float, cond: str, edge: str) -> str:
     """A section's stiffness switched by a mass's displacement (the tip's swing), ``edge``: its smooth edge's words."""
     pct = f"{100 * abs(coef):.3g} %"
@@ -174,6 +200,8 @@ def _describe_edge(param: str, index: int, form: str, signal: str, coef: float, 
     lower = coef < 0
     lh = "lower" if lower else "higher"
     op = ">" if form.startswith("on_pos") else "<"
+    if form in GROW_GATES and signal in ("va", "vc"):
+        return _fading_patch(param, n, form, signal, coef, shape)
     if form in GROW_GATES:
         side = f"δ{n} {op} 0"
         reach = f"{'−' if op == '<' else ''}{_length(shape)}"

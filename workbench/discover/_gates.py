@@ -170,14 +170,16 @@ CONTRIBUTIONS: dict[str, Contribution] = {
 #: growing with the opening (a crack whose faces part progressively); "tip"/"soft_tip" the sign of the tip's
 #: displacement z3, sharp or with a smooth edge (a crack opened by the beam's swing, not by its own section's
 #: bending); "soft_drive" the drive's sign with a smooth edge (the patch voltage's on an undriven record: a
-#: polarisation that fades over a range of field). A patch's own coupling meets its section's deflection too (a
-#: patch whose bond opens while its section bends one way: partly debonded)
+#: polarisation that fades over a range of field); "grow_volt" the patch's own voltage with the change growing with
+#: it up to a saturation (a coupling that fades progressively as the voltage rises on one polarity: electrode
+#: fingers that lose contact one by one, domains that back-switch by degrees). A patch's own coupling meets its
+#: section's deflection too (a patch whose bond opens while its section bends one way: partly debonded)
 GATED_BY: dict[str, tuple[str, ...]] = {
     "k": ("own_delta", "own_ddelta", "soft", "soft_rate", "grow", "tip", "soft_tip", "gap", "time"),
     "c": ("own_ddelta", "own_delta", "soft", "soft_rate", "grow", "gap", "time"),
     "m": ("time",),
-    "d_ep": ("va", "vc", "soft_drive", "time"),
-    "d_ep_i": ("va", "vc", "soft_drive", "own_delta", "soft", "time"),
+    "d_ep": ("va", "vc", "soft_drive", "grow_volt", "time"),
+    "d_ep_i": ("va", "vc", "soft_drive", "grow_volt", "own_delta", "soft", "time"),
     "alpha_h": ("va", "vc", "time"),
     "beta_h": ("va", "vc", "time"),
     "R_ep": ("va", "vc", "time"),
@@ -199,8 +201,12 @@ def is_hinge(param: str, form: str, signal: str) -> bool:
 
 
 #: the hinge's gate (code in S, G, H): (S − G) times the smoothed step at G, so the stiffness line drops its δ; at
-#: G = 0 it is exactly δ·[δ > 0] (resp. δ·[δ < 0]), the step gate times k·δ — no division by δ anywhere
-HINGE_CODE = {form: f"(S - G) * {GATES[form].code}" for form in SIGN_GATES}
+#: G = 0 it is exactly δ·[δ > 0] (resp. δ·[δ < 0]), the step gate times k·δ — no division by δ anywhere. Less its
+#: value at rest (S = 0): the section carries no force at rest, a corner on the far side of rest included — a crack
+#: propped open at rest that closes for δ1 < −0.25 mm loses k1·(max(δ1, −0.25 mm)), not k1·(δ1 + 0.25 mm), which
+#: would preload the section at rest (the sweep's fit with it, and a laser offset beside, left 15.5 σ; blind set 4)
+HINGE_CODE = {form: f"(S - G) * {GATES[form].code} + G * {GATES[form].code.replace('S', '0.0')}"
+              for form in SIGN_GATES}
 #: the stiffness line of a hinge: the gate carries the deflection beyond the switching point
 _HINGE_LINES = {"rates": ("bus[B_S + {i}] += -({A}) * p[P_K + {i}]",)}
 
@@ -246,8 +252,9 @@ def gate_values(form: str, s: np.ndarray, g: float, t: np.ndarray, unit: str, hi
     h = gate_width(form, unit)
     s = np.broadcast_to(np.asarray(s, float), np.shape(t)) if np.ndim(s) == 0 else np.asarray(s, float)
     if form in SIGN_GATES:
-        step = 0.5 * (1.0 + np.tanh((s - g) / h)) if form == "on_pos" else 0.5 * (1.0 - np.tanh((s - g) / h))
-        return (s - g) * step if hinge else step
+        sign = 1.0 if form == "on_pos" else -1.0
+        step = 0.5 * (1.0 + sign * np.tanh((s - g) / h))
+        return (s - g) * step + g * 0.5 * (1.0 + sign * np.tanh(-g / h)) if hinge else step
     if form in SOFT_GATES:
         return 0.5 * (1.0 + np.tanh(s / g)) if form == "on_pos_soft" else 0.5 * (1.0 - np.tanh(s / g))
     if form in GROW_GATES:
@@ -276,7 +283,8 @@ def damage_formula(param: str, index: int, form: str, signal: str, cname: str, g
                 + f"   (its edge ½(1 {'+' if form == 'on_pos' else '−'} tanh(({signal} − {g}) / {width:.4g})), SI)")
     if is_hinge(param, form, signal):  # the bilinear spring: the lost force beyond the switching point
         n = index + 1
-        return f"S_{n} += −{cname} · k{n} · (δ{n} − {g}){'⁺' if form == 'on_pos' else '⁻'}"
+        side = "⁺" if form == "on_pos" else "⁻"
+        return f"S_{n} += −{cname} · k{n} · ((δ{n} − {g}){side} − (−{g}){side})   (no force at rest)"
     gate = GATES[form].formula.replace("S", {"one": "1"}.get(signal, signal)).replace("G", g)
     con = CONTRIBUTIONS[param].formula.format(n=index + 1)
     return f"{con}   with c = {cname} · {gate}"

@@ -9,8 +9,9 @@ from __future__ import annotations
 import time
 from typing import Any
 
-from workbench.discover._change_place import place_change
+from workbench.discover._change_place import place_change, placeable
 from workbench.discover._change_split import split_change
+from workbench.discover._event_check import is_timed
 from workbench.discover._finite_change import WindowFit, keep_window
 from workbench.discover._gates import SIGN_GATES, TIME_GATES
 from workbench.discover._results import excess_share_removed
@@ -30,8 +31,9 @@ def refine_kept(setup: Any, progress: Any, settings: Any, min_share: float) -> N
     split_change`). ``setup``, ``progress``, ``settings``: the rounds' objects."""
     placed = _refine(setup, progress, settings, min_share)
     t0 = time.perf_counter()
-    if not placed and setup.terms[progress.state.kept[-1]].form in SIGN_GATES:
-        place_change(setup, progress, settings)  # a switch on a voltage: its place, refined or not
+    term = setup.terms[progress.state.kept[-1]]
+    if not placed and placeable(term) and not is_timed(term):
+        place_change(setup, progress, settings)  # a gate on a voltage: its place, refined or not, at the noise too
     split_change(setup, progress, settings, min_share)
     progress.timings["refit_s"] += time.perf_counter() - t0
 
@@ -40,7 +42,7 @@ def _refine(setup: Any, progress: Any, settings: Any, min_share: float) -> bool:
     ended, progress.ended = progress.ended, None  # an event's shape, refitted already when it was judged
     shaped, progress.shaped = progress.shaped, []  # and every shape refitted then
     if progress.current_held <= 1.0 + noise_tolerance(setup.n_held):
-        return True  # at the noise floor: nothing to refine nor to place
+        return False  # at the noise floor: nothing to refine (a patch's gate is still placed: its twins named)
     t0 = time.perf_counter()
     k = progress.state.kept[-1]
     term = setup.terms[k]
