@@ -46,8 +46,11 @@ def test_the_hinge_is_the_lost_force_beyond_the_switching_point_and_today_s_gate
         far = np.abs(d - g) > 1e-6  # beyond the smoothing width (1e-7 m)
         pos = gate_values("on_pos", d, g, t, "m", hinge=True)
         neg = gate_values("on_neg", d, g, t, "m", hinge=True)
-        assert np.allclose(pos[far], np.maximum(d - g, 0.0)[far], rtol=0, atol=1e-12)
-        assert np.allclose(neg[far], np.minimum(d - g, 0.0)[far], rtol=0, atol=1e-12)
+        # less its value at rest: no force at δ = 0, a corner on the far side of rest included (blind set 4's crack
+        # propped open at rest)
+        assert np.allclose(pos[far], (np.maximum(d - g, 0.0) - max(-g, 0.0))[far], rtol=0, atol=1e-12)
+        assert np.allclose(neg[far], (np.minimum(d - g, 0.0) - min(-g, 0.0))[far], rtol=0, atol=1e-12)
+        assert abs(gate_values("on_pos", np.zeros(1), g, np.zeros(1), "m", hinge=True)[0]) < 1e-12
         assert np.all(np.isfinite(pos)) and np.all(np.abs(np.diff(pos)) <= np.diff(d) + 1e-15)  # continuous at G
     # at G = 0 the hinge is exactly the step gate times δ: the screened terms are today's
     assert np.array_equal(gate_values("on_pos", d, 0.0, t, "m", hinge=True), d * gate_values("on_pos", d, 0.0, t, "m"))
@@ -94,9 +97,13 @@ def test_words_name_the_switching_point_when_it_is_away_from_zero():
     patch = describe_damage("d_ep", -1, "on_neg", "va", -0.25, 60.0, 1.5)
     assert "d_ep is 25 % lower while the drive is below +60 V" in patch
     assert "δ1 < −0.2 mm" in describe_damage("k", 0, "on_neg", "delta1", 0.2, -2e-4, 1e-5)
+    # the corner on the far side of rest: a crack open at rest, said so (blind set 4, root crack propped open)
+    propped = describe_damage("k", 0, "on_pos", "delta1", -0.3, -2.5e-4, 1e-5)
+    assert propped.startswith("a crack in section 1 open at rest that closes for δ1 < −0.25 mm: stiffness k1 lower "
+                              "by 30 % for δ1 > −0.25 mm")
     term = Term("damage", 1, "delta2", "on_pos", 0.0, "k", (-4.8e-4, 4.8e-4))
     assert describe_term(term, -0.3, 3e-4, 6e-4, 2e-5) == crack
-    assert formula(term, "c", "g") == "S_2 += −c · k2 · (δ2 − g)⁺"
+    assert formula(term, "c", "g") == "S_2 += −c · k2 · ((δ2 − g)⁺ − (−g)⁺)   (no force at rest)"
 
 
 @pytest.mark.parametrize("g", [3e-4, -3e-4, 0.0])
