@@ -26,7 +26,8 @@ def _key(terms, key: str) -> int:
 def test_sides_kinds_and_grids():
     assert gs.gate_side("on_neg_grow") == "neg" and gs.gate_side("on_pos") == "pos"
     assert gs.gate_side("on_gap") == "" and gs.gate_side("on_step") == ""
-    assert gs.same_kind("va", "vc") and gs.same_kind("delta2", "delta2") and not gs.same_kind("delta2", "delta3")
+    assert gs.same_kind("va", "vc") and gs.same_kind("delta2", "delta2") and gs.same_kind("z3", "delta3")
+    assert not gs.same_kind("delta2", "ddelta2") and not gs.same_kind("zd3", "z3") and not gs.same_kind("va", "z3")
     terms = build_dictionary(SCALES)
     hinge = terms[_key(terms, "k2_neg_delta2")]
     points = gs.shape_grid(hinge, 1e-3)
@@ -38,14 +39,15 @@ def test_the_candidates_are_the_same_change_with_another_shape():
     terms = build_dictionary(SCALES)
     grow = terms[_key(terms, "k2_neg_grow_delta2")]
     keys = {terms[k].key for k in gs.shape_candidates(terms, grow)}
-    assert keys == {"k2_neg_delta2", "k2_neg_soft_delta2"}  # section 2's stiffness, its side, its own deflection
+    # section 2's stiffness, its side, a position: its own deflection or the tip's swing
+    assert keys == {"k2_neg_delta2", "k2_neg_soft_delta2", "k2_neg_z3", "k2_neg_soft_z3"}
     drive = terms[_key(terms, "d_ep2_pos_soft_va")]
     keys = {terms[k].key for k in gs.shape_candidates(terms, drive)}
     assert keys == {"d_ep2_pos_va", "d_ep2_pos_vc", "d_ep2_pos_grow_vc"}  # a voltage of either kind
     assert gs.shape_candidates(terms, terms[_key(terms, "k2_gap_delta2")]) == []
     hinge = terms[_key(terms, "k1_pos_delta1")]  # a sharp switch is probed over the grid itself too
     keys = {terms[k].key for k in gs.shape_candidates(terms, hinge)}
-    assert keys == {"k1_pos_delta1", "k1_pos_soft_delta1", "k1_pos_grow_delta1"}
+    assert keys == {"k1_pos_delta1", "k1_pos_soft_delta1", "k1_pos_grow_delta1", "k1_pos_z3", "k1_pos_soft_z3"}
 
 
 def _run(monkeypatch, best_key: str, truth_key: str, truth_shape: float, held: float = 26.0):

@@ -67,10 +67,16 @@ def gate_side(form: str) -> str:
 
 
 def same_kind(signal: str, other: str) -> bool:
-    """Whether two gate signals are the same quantity for a shape: one section's deflection, or a voltage (the
-    drive's or the patch's own: their volts are alike, the patch's lagging)."""
+    """Whether two gate signals are the same kind of quantity for a shape: a voltage (the drive's or the patch's
+    own: their volts are alike, the patch's lagging), or a position — a section's deflection or a mass's
+    displacement (a crack opened by the tip's swing or by its own section's bending: on a sweep the tip crack
+    closing partly, δ3 > 0, was kept as switched by z3 over ±6 mm, 21.8 σ)."""
     volts = ("va", "vc")
-    return signal == other or (signal in volts and other in volts)
+
+    def position(s: str) -> bool:
+        return s.startswith("delta") or (s.startswith("z") and not s.startswith("zd"))
+
+    return signal == other or (signal in volts and other in volts) or (position(signal) and position(other))
 
 
 def shape_grid(term: Term, scale: float) -> list[float]:
