@@ -12,9 +12,9 @@ neighbour of the wrong shape, and the refit, started from the neighbour, stays i
 
 :func:`shape_rows`: when a round's best refit is such a switched change and leaves more than the noise, the same
 parameter, place and side with each other gate shape is probed on the full model over a grid of shapes (switching
-points across the signal's range, edge widths and saturations over two decades) and sizes around the best's, and
-the best probe of each comes back as a row placed at its shape, for a refit. The rounds keep it only when it fits
-clearly better (:func:`workbench.discover._rounds.family_best`).
+points across the signal's range, edge widths over 1.5 decades, saturations over a factor of eight) and sizes
+around the best's, each candidate's best zoomed, and the best probe of each comes back as a row placed at its shape,
+for a refit. The rounds keep it only when it fits clearly better (:func:`workbench.discover._rounds.family_best`).
 """
 
 from __future__ import annotations
