@@ -79,14 +79,15 @@ def test_the_change_kept_is_the_refit_that_leaves_the_whole_record_lowest(monkey
 
 
 def test_a_change_with_a_fitted_time_scale_is_kept_when_it_leaves_the_record_lowest(monkeypatch):
-    """The S-curve (a step with a fitted edge), the settling ramp and the recovery are tried beside the window and
-    the two steps; an event's window refitted already is not refitted again."""
+    """The S-curve (a step with a fitted edge), the settling ramp, the recovery and the accelerating change are
+    tried beside the window and the two steps; an event's window refitted already is not refitted again."""
     tried: list[str] = []
 
     def smooth(*a):
-        tried.append(a[-1])
-        return _fit({"smooth": 1.01, "settle": 3.0, "recover": 2.0}[a[-1]],
-                    {"smooth": 20, "settle": 30, "recover": 40}[a[-1]], a[-1])
+        variant = a[-2]  # (…, variant, like)
+        tried.append(variant)
+        return _fit({"smooth": 1.01, "settle": 3.0, "recover": 2.0, "accelerate": 2.5}[variant],
+                    {"smooth": 20, "settle": 30, "recover": 40, "accelerate": 45}[variant], variant)
 
     monkeypatch.setattr(staged, "window_refit", lambda *a: _fit(4.54, 10))
     monkeypatch.setattr(staged, "staged_refit", lambda *a: _fit(9.0, 0))
@@ -98,16 +99,16 @@ def test_a_change_with_a_fitted_time_scale_is_kept_when_it_leaves_the_record_low
     progress = SimpleNamespace(refits=[], state=SimpleNamespace(values={"c": -0.1}, kept=[3]), n_sims=0)
     said: list[str] = []
     fit = staged.change_refit(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=said.append), 3)
-    assert fit.rise == 20 and tried == ["smooth", "settle", "recover"]
+    assert fit.rise == 20 and tried == ["smooth", "settle", "recover", "accelerate"]
     assert any("S-curve" in s and "1.01 σ" in s for s in said)
     ended = _fit(0.9, 50)  # the event's own window, refitted when it was judged: used, not refitted
     progress.n_sims = 0
     fit = staged.change_refit(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=said.append), 3, [ended])
-    assert fit is ended and progress.n_sims == 5 * 4
+    assert fit is ended and progress.n_sims == 5 * 5
     tried.clear()
     ended = _fit(0.9, 60, "smooth")  # an S-curve the judgement refitted: the window is refitted, the S-curve not
     fit = staged.change_refit(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=said.append), 3, [ended])
-    assert fit is ended and tried == ["settle", "recover"]
+    assert fit is ended and tried == ["settle", "recover", "accelerate"]
 
 
 def test_two_steps_have_their_onsets_placed_on_the_whole_record_and_refitted_with_them_held(monkeypatch):

@@ -70,11 +70,11 @@ def _value_code(slot: TermSlot) -> str:
     if slot.width_param is not None:
         h = f"p[po + {slot.width_param}]"
     elif term.form in GATE_FORMS:
-        h = _lit(term.width if term.width > 0.0 else gate_width(term.form, SIGNALS[term.signal].unit))
+        h = _lit(term.width if term.width != 0.0 else gate_width(term.form, SIGNALS[term.signal].unit))
     else:
         h = "0.0"
     code = gate_code(term.form, term.param, term.signal) if term.placement == "damage" else form.code
-    if term.form in WIDTH_CODE and (slot.width_param is not None or term.width > 0.0):
+    if term.form in WIDTH_CODE and (slot.width_param is not None or term.width != 0.0):
         code = WIDTH_CODE[term.form]  # the edge (a step) or the saturation (a ramp) at a fitted width
     expr = code.replace("G", g).replace("W", w).replace("V", v).replace("H", h)
     expr = expr.replace("S", f"({s})")
@@ -242,7 +242,8 @@ def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDiction
         if term.form in WIDTH_GATES:
             hi = len(params)
             params.append(f"        Parameter({width_name(len(slots))!r}, {width_unit(term)!r}, "
-                          f"{term_default_width(term)!r}, 1e-12, math.inf, "
+                          f"{term_default_width(term)!r}, {'-math.inf' if term.form == 'on_ramp' else '1e-12'}, "
+                          "math.inf, "
                           f"'edge width or saturation time of {term.key}'),")
         slots.append(TermSlot(term, ci, gi, allocate_states(term, specs), hi))
     states = "\n".join(f"        StateSpec('w_{k}', {u!r}, {sc!r})," for k, (u, sc) in enumerate(specs))

@@ -296,7 +296,7 @@ def found_term(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], s
     se = stderr.get(gname) if gname else None
     if term.form in WIDTH_GATES:  # a step whose edge, a ramp whose saturation was fitted: said and written so
         width, default = values.get(width_name(k), 0.0), term_default_width(term)
-        if width > 0.0 and abs(width - default) > 1e-3 * default:
+        if width != 0.0 and abs(width - default) > 1e-3 * default:
             term = replace(term, width=float(width))
     return FoundTerm(term.with_shape(shape), coef, shape, scale, describe_term(term, coef, shape, scale, se), twins,
                      se)

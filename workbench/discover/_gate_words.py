@@ -136,6 +136,8 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
         if param == "m":
             return f"mass m{n} {'fell' if lower else 'grew'} by {pct} at {at} (a part lost or added during the record)"
         return f"{what} {'dropped' if lower else 'rose'} by {pct} at {at} (an event inside the record)"
+    if form == "on_ramp" and width < 0.0:
+        return _describe_accelerating(param, n, coef, shape, shape_se, -width)
     if form == "on_ramp" and width > 0.0:
         return _describe_settling(param, n, coef, shape, shape_se, width)
     if form == "on_ramp":
@@ -311,6 +313,20 @@ def _describe_settling(param: str, n: int, rate: float, t0: float, se: float | N
         return (f"section {n} regained {pct} of its stiffness {how} (a loss that partly recovered: crack faces "
                 "re-seating, resin relaxing — or a stiffening)")
     return f"{what} {'fell' if total < 0 else 'rose'} by {pct} {how} (a change that settled)"
+
+
+def _describe_accelerating(param: str, n: int, rate: float, t0: float, se: float | None, span: float) -> str:
+    """Words for a ramp that accelerates: ``rate`` × min((t − ``t0``)⁺, ``span``)² / ``span`` (t0 and span in s),
+    held at rate × span from t0 + span on."""
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    total = rate * span
+    pct = f"{100 * abs(total):.3g} %"
+    how = (f"between {_instant(t0, se)} and t = {t0 + span:.4g} s, faster and faster (quadratic in time: a quarter of "
+           f"it by t = {t0 + 0.5 * span:.4g} s), then held")
+    if param == "k" and total < 0:
+        return (f"section {n} lost {pct} of its stiffness {how} (damage that accelerated and arrested: a fatigue "
+                "crack growing faster as it lengthens, until it reached a stiffener)")
+    return f"{what} {'fell' if total < 0 else 'rose'} by {pct} {how} (a change that accelerated, then held)"
 
 
 def _length(x: float) -> str:

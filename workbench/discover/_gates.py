@@ -79,9 +79,14 @@ TIME_GATES = ("on_step", "on_ramp")
 WIDTH_GATES = ("on_step", "on_ramp", "on_pos", "on_neg")
 #: a ramp's width is the time constant of its saturation: rate · H · (1 − exp(−(t − G)⁺ / H)), the plain ramp
 #: rate · (t − G)⁺ as H → ∞ (its default, far beyond any record: 1e12 s); finite, a change that slows and settles
-#: at rate · H (damage that grows and arrests; a loss that partly recovers, beside a step)
+#: at rate · H (damage that grows and arrests; a loss that partly recovers, beside a step). A negative width −T is
+#: the opposite curvature: rate · min((t − G)⁺, T)² / T, a change that starts with zero slope, grows faster and
+#: faster for T and holds at rate · T (a fatigue crack whose growth rate rises with its length until it reaches a
+#: stiffener: quadratic in time, then arrested)
 RAMP_NEVER_S = 1e12
-WIDTH_CODE = {"on_step": "0.5 * (1.0 + math.tanh((t - G) / H))", "on_ramp": "(-H * math.expm1(-max(t - G, 0.0) / H))"}
+WIDTH_CODE = {"on_step": "0.5 * (1.0 + math.tanh((t - G) / H))",
+              "on_ramp": "((-H * math.expm1(-max(t - G, 0.0) / H)) if H > 0.0 else "
+                         "(min(max(t - G, 0.0), -H) ** 2 / -H))"}
 #: smoothing width H of a sign gate by the unit of its signal (far below any signal's scale: a switch for the
 #: record, smooth for the integrator), and of the time step (s: below a sample at the fits' 250 Hz — a 25 % loss of
 #: k2 at 20 s of a sweep, switched over 10 ms, differed from the same loss switched at once by 2.5 σ RMS, 0.06 σ
@@ -273,8 +278,10 @@ def damage_formula(param: str, index: int, form: str, signal: str, cname: str, g
     """The term as a formula (for the emitted file's docstring); ``width``: a fitted width (a step's edge, a ramp's
     settling time, s; a switch's edge, SI of its signal)."""
     g = gname or "g"
-    if form in TIME_GATES and width > 0.0:
+    if form in TIME_GATES and width != 0.0:
         con = CONTRIBUTIONS[param].formula.format(n=index + 1)
+        if form == "on_ramp" and width < 0.0:  # accelerating, then held
+            return f"{con}   with c = {cname} · min((t − {g})⁺, {-width:.4g} s)² / {-width:.4g} s"
         if form == "on_ramp":
             return f"{con}   with c = {cname} · {width:.4g} s · (1 − exp(−(t − {g})⁺ / {width:.4g} s))"
         return f"{con}   with c = {cname} · (1 + tanh((t − {g}) / {width:.4g} s)) / 2"

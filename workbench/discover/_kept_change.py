@@ -21,7 +21,8 @@ from workbench.fit import noise_tolerance
 
 #: how each kind of refit is said in the progress lines
 HOW = {"stages": "as two steps (", "smooth": "with a fitted edge (", "settle": "settling (",
-       "recover": "then settling (", "window": "given an end (two ramps, ", "edge": "with a fitted edge ("}
+       "recover": "then settling (", "accelerate": "accelerating (", "window": "given an end (two ramps, ",
+       "edge": "with a fitted edge ("}
 
 
 def refine_kept(setup: Any, progress: Any, settings: Any, min_share: float) -> None:

@@ -190,5 +190,7 @@ def describe_units(found: Sequence[FoundTerm]) -> list[str]:
             line += f", {ALL_FORMS[f.term.form].shape} {f.shape:.4g} {unit}"
         if f.term.width > 0.0:
             line += f", edge width {f.term.width:.4g} s"
+        elif f.term.width < 0.0:  # an accelerating ramp's growth time
+            line += f", growth time {-f.term.width:.4g} s"
         out.append(line)
     return out

@@ -207,7 +207,7 @@ def change_refit(setup: Any, progress: Any, settings: Any, kept: int, done: Sequ
 def _change_refits(setup: Any, progress: Any, settings: Any, kept: int, like: int | None,
                    done: Sequence[WindowFit] = ()) -> WindowFit | None:
     """:func:`change_refit`'s window, two steps and fitted time scales of the kept term's parameter (``like``: the
-    window and two steps of that term's)."""
+    window, two steps, S-curve, settling and accelerating change of that term's)."""
     term = setup.terms[kept if like is None else like]
     firsts = [float(b.outcome.values[setup.names[b.index][1]]) for b in progress.refits
               if setup.terms[b.index].form == "on_step" and (setup.terms[b.index].param, setup.terms[b.index].index)
@@ -220,9 +220,8 @@ def _change_refits(setup: Any, progress: Any, settings: Any, kept: int, like: in
         fits.append(window_refit(*args, t_end, threads, nfev, like))
     if "stages" not in done_kinds:
         fits.append(staged_refit(*args, firsts, t_end, threads, nfev, like))
-    if like is None:
-        fits += [smooth_refit(*args, t_end, threads, nfev, variant) for variant in VARIANTS
-                 if variant not in done_kinds]
+    fits += [smooth_refit(*args, t_end, threads, nfev, variant, like) for variant in VARIANTS
+             if variant not in done_kinds and (like is None or variant != "recover")]
     made = [f for f in fits if f is not None]
     progress.n_sims += sum(f.n_sims for f in made if all(f is not g for g in done))
     for f in made:
@@ -232,4 +231,5 @@ def _change_refits(setup: Any, progress: Any, settings: Any, kept: int, like: in
 
 KIND_WORDS = {"window": "a change over a finite time (two ramps)", "stages": "two steps",
                "smooth": "a step with a fitted edge (an S-curve)", "settle": "a ramp that settles",
-               "recover": "a step, then a settling change (a partial recovery)"}
+               "recover": "a step, then a settling change (a partial recovery)",
+               "accelerate": "a change that accelerates, then holds"}
