@@ -19,9 +19,6 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-import numpy as np
-from scipy.optimize import minimize
-
 from board_config.parameter import Parameter, freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
@@ -38,6 +35,7 @@ from workbench.discover._finite_change import (
 )
 from workbench.discover._onset import MAX_LOSS, ONSET_RESOLUTION_S
 from workbench.discover._search import SearchState, refine
+from workbench.discover._simplex_place import simplex_search
 from workbench.fit import Objective, Target
 
 #: edge widths w probed for an S-curve (fractions of the record: from a change over a few tenths of a percent of
@@ -199,9 +197,9 @@ def simplex_edge(probe: EdgeProbe, first: Sequence[Edge], t_end: float) -> tuple
     (best, score), n = found, len(first)
     order = sorted(range(len(first)), key=lambda i: scores[i])[:ACCEL_STARTS]
 
-    def rms(v: np.ndarray) -> float:
+    def rms(v: list[float]) -> float:
         nonlocal n
-        start, end, total = (float(x) for x in v)
+        start, end, total = v
         if start < 0.0 or end - start < ONSET_RESOLUTION_S or end > 2.0 * t_end:
             return math.inf
         n += 1
@@ -211,11 +209,9 @@ def simplex_edge(probe: EdgeProbe, first: Sequence[Edge], t_end: float) -> tuple
         if not math.isfinite(scores[i]):
             continue
         e = first[i]
-        out = minimize(rms, [e.centre, e.centre - e.width, e.total], method="Nelder-Mead",
-                       options={"maxfev": ACCEL_EVALS, "xatol": 1e-4, "fatol": 1e-4})
-        if math.isfinite(out.fun) and out.fun < score:
-            start, end, total = (float(x) for x in out.x)
-            best, score = Edge(start, start - end, total), float(out.fun)
+        (start, end, total), fun = simplex_search(rms, [e.centre, e.centre - e.width, e.total], ACCEL_EVALS)
+        if math.isfinite(fun) and fun < score:
+            best, score = Edge(start, start - end, total), fun
     return best, score, n
 
 

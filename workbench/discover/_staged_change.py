@@ -38,6 +38,7 @@ from workbench.discover._finite_change import (
 from workbench.discover._onset import MAX_LOSS
 from workbench.discover._onset_profile import HELD_ONSET_S, placed_on_whole
 from workbench.discover._search import SearchState, refine
+from workbench.discover._simplex_place import placed_together
 from workbench.discover._smooth_change import VARIANTS, smooth_refit
 from workbench.discover._twins import twin_tolerance
 from workbench.fit import Objective, Target
@@ -151,6 +152,11 @@ def staged_refit(targets: Sequence[Target], models: Sequence[PlantModel], terms:
     return stages_placed(targets, models, terms, names, state, fit, t_end, threads, max_nfev)
 
 
+#: two steps whose onsets were placed in turn and still leave more than this whole-record RMS (σ) are moved
+#: together (:func:`_stages_together`)
+TOGETHER_ABOVE_SIGMA = 1.5
+
+
 def stages_placed(targets: Sequence[Target], models: Sequence[PlantModel], terms: Sequence[Term],
                   names: Sequence[tuple[str, str | None]], state: SearchState, fit: WindowFit, t_end: float,
                   threads: int | None, max_nfev: int) -> WindowFit:
@@ -160,7 +166,8 @@ def stages_placed(targets: Sequence[Target], models: Sequence[PlantModel], terms
     record prefers that. The refit on the training blocks is blind to an onset inside a held-out block: the root
     losing 25 % at 6 s of a 20 s MBIT.a, 15 % of it back at 13.0 s, had its second step refitted to 12.941 s —
     12.6 σ held out; placed, 1.03 σ. Sizes and onsets trade on a sweep (a step placed late is sized larger): on the
-    15 s sweep (25 % at 4.5 s, 15 % back at 9.75 s) one placement left 22.3 % at 4.440 s and 12.2 % at 9.893 s."""
+    15 s sweep (25 % at 4.5 s, 15 % back at 9.75 s) one placement left 22.3 % at 4.440 s and 12.2 % at 9.893 s —
+    so what still leaves more than the noise is then moved all at once (:func:`_stages_together`)."""
     pair = (fit.rise, fit.end)
     onsets = [str(names[k][1]) for k in pair]
     n = 0
@@ -178,7 +185,31 @@ def stages_placed(targets: Sequence[Target], models: Sequence[PlantModel], terms
         if not (again.ok and whole_rms(targets, again) < whole_rms(targets, fit.outcome)):
             break
         fit = replace(fit, outcome=again, values=values | again.values)
-    return replace(fit, n_sims=fit.n_sims + n)
+    fit, m = _stages_together(targets, models, terms, names, state, fit, t_end, threads, max_nfev)
+    return replace(fit, n_sims=fit.n_sims + n + m)
+
+
+def _stages_together(targets: Sequence[Target], models: Sequence[PlantModel], terms: Sequence[Term],
+                     names: Sequence[tuple[str, str | None]], state: SearchState, fit: WindowFit, t_end: float,
+                     threads: int | None, max_nfev: int) -> tuple[WindowFit, int]:
+    """The two steps' onsets and sizes moved together on the whole record
+    (:func:`~workbench.discover._simplex_place.placed_together`) when it still leaves more than
+    :data:`TOGETHER_ABOVE_SIGMA`, then the sizes refitted with the onsets held; kept when the whole record prefers
+    it. Returns the fit and the simulations run."""
+    score = whole_rms(targets, fit.outcome)
+    if score <= TOGETHER_ABOVE_SIGMA:
+        return fit, 0
+    pair = (fit.rise, fit.end)
+    onsets, sizes = [str(names[k][1]) for k in pair], [names[k][0] for k in pair]
+    values, moved, n = placed_together(targets, models, dict(fit.values), onsets, sizes, (0.0, t_end), threads)
+    if moved >= score:
+        return fit, n
+    obj = Objective(targets, models, stage_free(terms, names, state, values, pair, fit.replaced, t_end,
+                                                HELD_ONSET_S), base_values=values, threads=threads)
+    again = refine(obj, values, max_nfev)
+    if again.ok and whole_rms(targets, again) < score:
+        fit = replace(fit, outcome=again, values=values | again.values)
+    return fit, n + obj.n_sims
 
 
 def change_refit(setup: Any, progress: Any, settings: Any, kept: int, done: Sequence[WindowFit] = ()
