@@ -161,9 +161,14 @@ def test_a_displaced_event_is_named_first_among_the_twins_in_the_words_of_its_ow
                             scales={})
     progress = SimpleNamespace(refits=[event])
     other = {"key": "m3_lin_z3", "words": "a force on mass 3"}
-    twins = refit_twins(setup, progress, [other], event)
+    twins = refit_twins(setup, progress, [other], event, terms[1])
     assert [t["key"] for t in twins] == ["k3_step_t", "m3_lin_z3"]
     assert twins[0]["words"].startswith("section 3 lost 30 % of its stiffness at t = 0.510 ± 0.002 s")
+    # beside it, the same damage in another place, not the next twin in the list (the list is no longer cut first)
+    here = {"key": "d_ep3_pos_delta3", "placement": "damage", "param": "d_ep_i", "index": 2}
+    there = {"key": "k2_neg_delta2", "placement": "damage", "param": "k", "index": 1}
+    twins = refit_twins(setup, progress, [here, other, there], event, terms[1])
+    assert [t["key"] for t in twins] == ["k3_step_t", "k2_neg_delta2"]
 
 
 def test_a_constant_member_far_better_than_the_event_is_kept_without_naming_the_event(monkeypatch):

@@ -100,3 +100,15 @@ def test_a_force_switched_by_a_mass_displacement_has_the_sections_switches_of_th
             _row(Term("damage", 1, "delta2", "on_pos", 0.0, "k"), 40.0),
             _row(Term("damage", 2, "delta3", "on_pos", 0.0, "k"), 41.0)]
     assert [r.term.key for r in switch_family(chosen, rows, set())] == ["k2_pos_delta2"]
+
+
+def test_the_twin_in_another_place_is_the_same_damage_there_when_the_records_allow_it():
+    """Sections 1 and 2 each losing 7 % at once on MBIT.a (one mode) were said "section 1 lost 13.1 % … — these
+    records cannot tell it from authority d_ep of patch 2 rose …; or from authority d_ep of patch 1 rose …": the
+    twin elsewhere was another parameter's while section 2's own loss was a twin too."""
+    chosen = Term("damage", 0, "one", "on_step", 9.0, "k")
+    patch2 = _twin("d_ep2_step_t", 1, 0.98) | {"param": "d_ep_i"}
+    patch1 = _twin("d_ep1_step_t", 0, 0.98) | {"param": "d_ep_i"}
+    section2 = _twin("k2_step_t", 1, 0.99) | {"param": "k"}
+    assert place_first(chosen, [patch2, patch1, section2]) == [patch2, section2]
+    assert place_first(chosen, [patch2, patch1]) == [patch2, patch1]  # none of its own parameter: as before

@@ -164,7 +164,8 @@ def change_twin(setup: Any, values: Mapping[str, float], stderr: Mapping[str, fl
     found = finite_changes([found_term(setup.terms, setup.names, setup.scales, values, stderr, [], k) for k in slots])
     lead = next(f for f in found if not f.said_with)
     term = lead.term
-    return {"key": term.key, "placement": term.placement, "index": term.index, "signal": term.signal,
+    return {"key": term.key, "placement": term.placement, "param": term.param, "index": term.index,
+            "signal": term.signal,
             "form": term.form, "held_rms_sigma": held, "judged_by": "refitted",
             "words": "; ".join(f.words for f in found if not f.said_with)}
 

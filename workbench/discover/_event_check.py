@@ -30,7 +30,7 @@ from workbench.discover._effect_writer import describe_term
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._results import ScreenRow
 from workbench.discover._search import probe_batch
-from workbench.discover._twins import MAX_TWINS, twin_tolerance
+from workbench.discover._twins import place_first, twin_tolerance
 from workbench.fit import FitOutcome, Target
 
 #: an onset within this share of the record from either end is pinned to the edge: no instant was found
@@ -265,21 +265,25 @@ def event_twin(term: Term, outcome: FitOutcome, names: tuple[str, str | None],
     shape = float(values.get(gname, term.shape)) if gname else term.shape
     se = next((e.stderr for e in outcome.estimates if e.name == gname), None)
     words = describe_term(term, coef, shape, scales.get(term.signal, 1.0), se)
-    return {"key": term.key, "placement": term.placement, "index": term.index, "signal": term.signal,
+    return {"key": term.key, "placement": term.placement, "param": term.param, "index": term.index,
+            "signal": term.signal,
             "form": term.form, "held_rms_sigma": outcome.held_rms_sigma, "judged_by": "refitted", "words": words}
 
 
-def refit_twins(setup: Any, progress: Any, twins: list[dict[str, Any]],
-                displaced: Any) -> list[dict[str, Any]]:
-    """``twins`` with each refitted one in the words of its own refit (its onset, switching point, size fitted,
-    not the screen's), the ``displaced`` event first."""
+def refit_twins(setup: Any, progress: Any, twins: list[dict[str, Any]], displaced: Any,
+                chosen: Term) -> list[dict[str, Any]]:
+    """``twins`` (of the ``chosen`` term) with each refitted one in the words of its own refit (its onset, switching
+    point, size fitted, not the screen's), the ``displaced`` event first — and, beside it, the twin in another
+    place that :func:`~workbench.discover._twins.place_first` picks (the displaced event took the first place and
+    the list was cut to the first two: sections 1 and 2 losing 7 % at once on MBIT.a were said with the patches'
+    authority as twins, section 2's own loss, 0.984 σ, cut)."""
     refits = {setup.terms[b.index].key: b for b in progress.refits}
     if displaced is not None:
         first = setup.terms[displaced.index].key
-        twins = [{"key": first}, *(t for t in twins if t["key"] != first)][:MAX_TWINS]
+        twins = [{"key": first}, *(t for t in twins if t["key"] != first)]
     out = []
     for t in twins:
         b = refits.get(t["key"])
         out.append(event_twin(setup.terms[b.index], b.outcome, setup.names[b.index], setup.scales)
                    if b is not None else t)
-    return out
+    return out if displaced is None else place_first(chosen, out)

@@ -413,7 +413,7 @@ def keep_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSett
     h_new, k_new, out = best.held_rms_sigma, best.index, best.outcome
     term = setup.terms[k_new]
     twins = twins_of(term, h_new, rows, tried, setup.n_held, setup.scales, linearised=linearised)
-    progress.twins[k_new] = refit_twins(setup, progress, twins, displaced)
+    progress.twins[k_new] = refit_twins(setup, progress, twins, displaced, term)
     gain = excess_share_removed(progress.current_held, h_new, noise_tolerance(setup.n_held))
     settings.say(f"  best refit: {term.key}: held-out {progress.current_held:.4g} σ → {h_new:.4g} σ "
                  + (f"({100 * gain:.0f} % of the excess removed)" if gain is not None else

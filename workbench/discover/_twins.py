@@ -142,7 +142,8 @@ def twins_of(chosen: Term, held: float, rows: Sequence[ScreenRow], tried: Sequen
             ok = h <= max(mine, 1.0) * tol  # the screen against the chosen term's own screen value
         if ok:
             scale = scales.get(r.term.signal, 1.0)
-            out.append({"key": key, "placement": r.term.placement, "index": r.term.index, "signal": r.term.signal,
+            out.append({"key": key, "placement": r.term.placement, "param": r.term.param, "index": r.term.index,
+                        "signal": r.term.signal,
                         "form": r.term.form, "held_rms_sigma": h, "judged_by": how,
                         "words": describe_term(r.term, r.coef, r.term.shape, scale)})
     return place_first(chosen, out)
@@ -154,13 +155,17 @@ def place_first(chosen: Term, twins: Sequence[dict[str, Any]], n: int = MAX_TWIN
     who repairs it. A crack in section 2 on MBIT.a (one mode, 10 µm) was named "a crack in section 1 …", its two
     twins both in section 1 (a patch switched by δ1, a crack open for δ1 > 0). And one more, the first of another
     kind (placement: a section's own damage beside a force on a mass), when none of those is: a tip crack stiffer
-    past a wedge on MBIT.a was said as a stop on mass 3, its twins stops on masses 1 and 2, the crack unsaid."""
+    past a wedge on MBIT.a was said as a stop on mass 3, its twins stops on masses 1 and 2, the crack unsaid. The
+    one in another place is the same parameter's when there is one: sections 1 and 2 each losing 7 % at once on
+    MBIT.a were said "section 1 lost 13.1 % … — these records cannot tell it from authority d_ep of patch 2 rose …;
+    or from authority d_ep of patch 1 rose …", section 2 unsaid."""
     out = list(twins[:n])
-    if chosen.index >= 0:
-        elsewhere = next((t for t in twins if t["index"] >= 0 and t["index"] != chosen.index), None)
+    if chosen.index >= 0:  # the same damage elsewhere first (section 2 lost where section 1 lost), else any
+        others = [t for t in twins if t.get("index", -1) >= 0 and t["index"] != chosen.index]
+        elsewhere = next((t for t in others if t.get("param") == chosen.param), next(iter(others), None))
         if elsewhere is not None and elsewhere not in out:
             out = [*twins[: n - 1], elsewhere]
-    if out and all(t["placement"] == chosen.placement for t in out):
-        other = next((t for t in twins if t["placement"] != chosen.placement), None)
+    if out and all(t.get("placement") == chosen.placement for t in out):
+        other = next((t for t in twins if t.get("placement", chosen.placement) != chosen.placement), None)
         out += [other] if other is not None else []
     return out
