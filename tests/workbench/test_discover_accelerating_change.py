@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import pytest
 
 from board_config.parameter import Parameter
@@ -68,9 +67,9 @@ def test_an_accelerating_loss_is_said_with_its_start_end_and_total():
 def test_the_emitted_accelerating_loss_simulates_the_loss_written_by_hand(tmp_path):
     """The emitted file against the same loss written from the plant's seam: k2 lower by 20 % growing as
     ((t − 0.3 s)/0.8 s)² on a 1.5 s sweep, held from 1.1 s."""
-    from board_config import load_parameter_set
-    from plant import PhysicalEffect, PlantModel
-    from workbench.simulation import synth_record, synth_test
+    from emitted_effect_support import emitted_against_hand
+
+    from plant import PhysicalEffect
 
     class HandAccel(PhysicalEffect):
         name = "hand_accelerating_loss"
@@ -82,23 +81,11 @@ def test_the_emitted_accelerating_loss_simulates_the_loss_written_by_hand(tmp_pa
             s = min(1.0, max(0.0, (t - 0.3) / 0.8))
             bus[B.s2] += p[P.loss] * s * s * p[P.k2] * x[X.delta2]
 
-    base = load_parameter_set("table2")
     term = Term("damage", 1, "one", "on_ramp", 0.3, "k", (0.1, 0.5), width=-0.8)
     (c, g), = parameter_names_for([term])
-    f = tmp_path / "accelerating.py"
-    f.write_text(emit_effect_source([term], {c: -0.2 / 0.8, g: 0.3}))
-    assert "min((t − g_k2_ramp_t)⁺, 0.8 s)² / 0.8 s" in f.read_text()
-    rec = synth_record(synth_test("sweep", duration_s=1.5), PlantModel(base), seed=None)
-    inputs, t = rec.input_signals(), rec.t
-    emitted, hand = PlantModel(base, effects=[str(f)]), PlantModel(base, effects=[HandAccel])
-    pe, ph = emitted.p_nominal.copy(), hand.p_nominal.copy()
-    pe[emitted.param_index(c)] = -0.2 / 0.8
-    ph[hand.param_index("loss")] = 0.2
-    ze = emitted.simulate(inputs, t_out=t, params=pe, rtol=1e-9)["z3_meas"][0]
-    zh = hand.simulate(inputs, t_out=t, params=ph, rtol=1e-9)["z3_meas"][0]
-    moved = float(np.max(np.abs(zh - PlantModel(base).simulate(inputs, t_out=t, rtol=1e-9)["z3_meas"][0])))
-    assert moved > 1e-7
-    assert float(np.max(np.abs(ze - zh))) <= 1e-3 * moved
+    assert "min((t − g_k2_ramp_t)⁺, 0.8 s)² / 0.8 s" in emit_effect_source([term], {c: -0.25, g: 0.3})
+    moved, apart = emitted_against_hand(tmp_path, term, {c: -0.2 / 0.8, g: 0.3}, HandAccel, {"loss": 0.2})
+    assert moved > 1e-7 and apart <= 1e-3 * moved
 
 
 def test_accelerating_edges_start_before_a_kept_step_or_at_and_before_a_kept_ramp_and_end_in_the_record():

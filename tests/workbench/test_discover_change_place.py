@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import pytest
 
 from workbench.discover._change_place import change_slots, change_twin, counterpart, lead_slot, transplant
-from workbench.discover._dictionary import build_dictionary
+from workbench.discover._dictionary import Term, build_dictionary
 from workbench.discover._dictionary_code import dictionary_parameter_names, width_name
 
 SCALES = {"t": 15.0, **{f"delta{i}": 1e-3 for i in (1, 2, 3)}, **{f"ddelta{i}": 1e-2 for i in (1, 2, 3)},
@@ -148,3 +148,23 @@ def test_a_moved_switch_keeps_its_switching_point_while_a_moved_step_frees_its_o
     free = {p.name: p for p in placed_free(terms, names, [], start, [switch, step], 6.0)}
     assert names[switch][1] not in free and names[switch][0] in free
     assert (free[names[step][1]].lower, free[names[step][1]].upper) == pytest.approx((3.95, 4.05))
+
+
+@pytest.mark.parametrize(("twins", "placed"), [([], True), ([{"key": "d_ep2_step_t", "param": "d_ep_i", "index": 1}],
+                                                               True),
+                                               ([{"key": "k2_step_t", "param": "k", "index": 1}], False)])
+def test_a_change_in_time_at_the_noise_floor_is_placed_when_no_twin_holds_its_parameter_elsewhere(
+        monkeypatch, twins, placed):
+    """Sections 1 and 2 losing 7 % at once on MBIT.a: k1's step was chosen as the kind of patch 2's event, its twins
+    the patches' authority — section 2's own loss never refitted, never said."""
+    import workbench.discover._kept_change as kc
+
+    calls: list[int] = []
+    monkeypatch.setattr(kc, "place_change", lambda setup, progress, settings: calls.append(1))
+    monkeypatch.setattr(kc, "split_change", lambda *a: None)
+    setup = SimpleNamespace(terms=[Term("damage", 0, "one", "on_step", 9.0, "k", (8.0, 10.0))], names=[("a0", "g0")],
+                            n_held=5000)
+    progress = SimpleNamespace(ended=None, shaped=[], current_held=0.98, state=SimpleNamespace(values={}, kept=[0]),
+                               twins={0: twins}, timings={"refit_s": 0.0})
+    kc.refine_kept(setup, progress, SimpleNamespace(say=lambda s: None, threads=1, max_nfev=3), 0.25)
+    assert bool(calls) is placed

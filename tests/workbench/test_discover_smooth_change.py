@@ -69,8 +69,9 @@ def test_the_emitted_file_writes_the_fitted_edge_and_says_it_in_the_formula():
 def test_an_emitted_s_curve_simulates_the_loss_written_by_hand(tmp_path):
     """The emitted file against the same loss written from the plant's seam: k2 lower by 20 % along
     ½(1 + tanh((t − 0.8 s)/0.15 s)) on a 1.5 s sweep."""
-    from plant import PhysicalEffect, PlantModel
-    from workbench.simulation import synth_record, synth_test
+    from emitted_effect_support import emitted_against_hand
+
+    from plant import PhysicalEffect
 
     class HandS(PhysicalEffect):
         name = "hand_s_curve"
@@ -81,26 +82,10 @@ def test_an_emitted_s_curve_simulates_the_loss_written_by_hand(tmp_path):
         def rates(t, x, p, bus, dx, X, P, B):
             bus[B.s2] += p[P.loss] * 0.5 * (1.0 + math.tanh((t - 0.8) / 0.15)) * p[P.k2] * x[X.delta2]
 
-    from board_config import load_parameter_set
-
-    base = load_parameter_set("table2")
     term = Term("damage", 1, "one", "on_step", 0.8, "k", (0.5, 1.1), width=0.15)
     (c, g), = parameter_names_for([term])
-    f = tmp_path / "s_curve.py"
-    f.write_text(emit_effect_source([term], {c: -0.2, g: 0.8}))
-    rec = synth_record(synth_test("sweep", duration_s=1.5), PlantModel(base), seed=None)
-    inputs, t = rec.input_signals(), rec.t
-    emitted = PlantModel(base, effects=[str(f)])
-    hand = PlantModel(base, effects=[HandS])
-    pe, ph = emitted.p_nominal.copy(), hand.p_nominal.copy()
-    pe[emitted.param_index(c)] = -0.2
-    ph[hand.param_index("loss")] = 0.2
-    ze = emitted.simulate(inputs, t_out=t, params=pe, rtol=1e-9)["z3_meas"][0]
-    zh = hand.simulate(inputs, t_out=t, params=ph, rtol=1e-9)["z3_meas"][0]
-    nominal = PlantModel(base).simulate(inputs, t_out=t, rtol=1e-9)["z3_meas"][0]
-    moved = float(np.max(np.abs(zh - nominal)))
-    assert moved > 1e-7
-    assert float(np.max(np.abs(ze - zh))) <= 1e-3 * moved
+    moved, apart = emitted_against_hand(tmp_path, term, {c: -0.2, g: 0.8}, HandS, {"loss": 0.2})
+    assert moved > 1e-7 and apart <= 1e-3 * moved
 
 
 def test_edges_from_a_step_are_centred_on_it_and_those_from_a_ramp_lie_after_its_onset():
