@@ -71,3 +71,8 @@ def test_two_steps_still_far_are_moved_together_and_kept_only_when_the_whole_rec
     fit, n = staged._stages_together([None], [], [], names, None, _two_steps(held), 15.0, None, 5)
     assert n == (0 if held <= staged.TOGETHER_ABOVE_SIGMA else 300 if moved >= held else 307)
     assert (fit.values["g0"] == 4.5 and fit.values["c0"] == -0.25) is kept
+    # one step split in two at one instant (the move brought them together): not kept
+    monkeypatch.setattr(staged, "placed_together", lambda tg, m, values, onsets, sizes, span, th: (
+        values | {"g0": 11.0, "g1": 11.002}, moved, 300))
+    fit, _ = staged._stages_together([None], [], [], names, None, _two_steps(held), 15.0, None, 5)
+    assert fit.values["g0"] == 4.44
