@@ -152,3 +152,29 @@ def test_a_change_of_another_parameter_starts_from_the_static_twin_in_that_param
     assert seen["names"][:2] == (names[ramp][0], names[ramp][1])
     assert all(e.total < 0.0 for e in seen["first"])  # a stiffness lost where the authority rose
     assert sc.smooth_refit([], [], terms, names, s["state"], kept, 15.0, None, 5, "recover", like) is None
+
+
+def test_an_accelerating_change_grows_over_at_least_a_hundredth_of_the_record():
+    """Quicker, it is a step: a 15 % loss of k2 at 11.0 s of MBIT.a was said as accelerating "between t = 11 s and
+    t = 11 s"."""
+    from discover_slots import kept_slot
+
+    from workbench.discover._smooth_change import ACCEL_MIN_SHARE
+
+    late = candidate_edges("on_ramp", -0.02, 14.95, 15.0, "accelerate")
+    assert late and all(e.width <= -ACCEL_MIN_SHARE * 15.0 for e in late)
+    tried: list[Edge] = []
+
+    class _Step(EdgeProbe):  # best as a step at 11 s: the shorter the growth, the better
+        def scores(self, edges):
+            tried.extend(edges)
+            return [1.0 + abs(e.centre - 11.0) + 5 * abs(e.total + 0.15) + 0.1 * abs(e.width) for e in edges]
+
+    probe = _Step([], [], {}, ("a_1", "g_1", "h_1"), None, "on_ramp")
+    edge, _, _ = simplex_edge(probe, candidate_edges("on_step", -0.15, 11.0, 15.0, "accelerate"), 15.0)
+    assert min(-e.width for e in tried) >= ACCEL_MIN_SHARE * 15.0 and -edge.width >= ACCEL_MIN_SHARE * 15.0
+    assert -edge.width < 0.5  # pressed against the bound
+    s = kept_slot(SCALES, "k2_ramp_t", -1.0, 11.0, -0.05)  # a growth time below the least: the refit still bounds it
+    free = {p.name: p for p in edge_free(s["terms"], s["names"], s["state"], dict(s["state"].values), s["k"], s["k"],
+                                         15.0)}
+    assert free[s["h"]].lower < free[s["h"]].upper == -ACCEL_MIN_SHARE * 15.0
