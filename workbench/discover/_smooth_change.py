@@ -175,7 +175,7 @@ def zoom_edge(probe: EdgeProbe, first: Sequence[Edge], t_end: float) -> tuple[Ed
     if found is None:
         return None
     (best, score), n = found, len(first)
-    step = RAMP_ONSET_STEP_S if probe.form == "on_ramp" and best.width > 0.0 else 0.25 * abs(best.width)
+    step = RAMP_ONSET_STEP_S if probe.form == "on_ramp" else 0.25 * best.width
     lo, hi = probe.bounds or (0.0, t_end)
     for _ in range(ZOOM_ROUNDS):
         if probe.bounds is None and step < ONSET_RESOLUTION_S:
