@@ -168,3 +168,49 @@ def test_a_change_in_time_at_the_noise_floor_is_placed_when_no_twin_holds_its_pa
                                twins={0: twins}, timings={"refit_s": 0.0})
     kc.refine_kept(setup, progress, SimpleNamespace(say=lambda s: None, threads=1, max_nfev=3), 0.25)
     assert bool(calls) is placed
+
+
+def test_two_steps_are_also_placed_each_in_its_own_place():
+    """MBIT.a, k1 −6 % at 5 s and k3 −6 % at 12 s, was kept as two steps of k3 (0.984 σ), section 1 never named:
+    only both steps at once were refitted elsewhere. A change of two pieces is also refitted with each piece in its
+    own place; one piece or three are placed whole."""
+    from workbench.discover._change_place import place_choices
+
+    assert place_choices(2, 1) == [0, 1] and place_choices(0, 3) == [1, 2]
+    mixed = place_choices(2, 2)[2:]
+    assert place_choices(2, 2)[:2] == [0, 1] and len(mixed) == 6 and all(i != j for i, j in mixed)
+    assert (0, 2) in mixed and (2, 0) in mixed
+
+
+def test_a_piece_in_its_own_place_stays_the_other_moves(dictionary, monkeypatch):
+    """place_refit with a place per piece: the piece already there keeps its slot and value, the other is moved
+    (its coefficient to the counterpart, its own to zero) and both are refitted."""
+    import workbench.discover._change_place as cp
+
+    terms, names = dictionary
+    s3 = _slots(terms, "k", 2, "on_step")[:2]
+    s1 = _slots(terms, "k", 0, "on_step")
+    values = {names[s3[0]][0]: -0.06, names[s3[0]][1]: 5.0, names[s3[1]][0]: -0.05, names[s3[1]][1]: 12.0}
+    probed: list[dict] = []
+
+    def scores(targets, models, base, settings, threads):
+        probed.extend(settings)
+        return [1.0] * len(settings)
+
+    fits: list[list[str]] = []
+
+    class Obj:
+        def __init__(self, targets, models, free, base_values, threads):
+            fits.append([p.name for p in free])
+            self.n_sims = 1
+
+    monkeypatch.setattr(cp, "whole_scores", scores)
+    monkeypatch.setattr(cp, "Objective", Obj)
+    monkeypatch.setattr(cp, "refine", lambda obj, start, nfev: SimpleNamespace(ok=True, values={}))
+    setup = SimpleNamespace(terms=terms, names=names, targets=[object()], models=[], scales=SCALES)
+    state = SimpleNamespace(values=values, kept=list(s3))
+    p = cp.place_refit(setup, state, s3, (0, 2), 5.0, 1, 3)
+    assert p is not None and p.slots == (s1[0], s3[1])
+    assert all(s[names[s3[0]][0]] == 0.0 and s[names[s1[0]][1]] == 5.0 and names[s3[1]][0] not in s for s in probed)
+    assert {names[s1[0]][0], names[s1[0]][1], names[s3[1]][0], names[s3[1]][1]} <= set(fits[0])
+    assert cp.place_refit(setup, state, s3, (2, 2), 5.0, 1, 3) is None  # nothing moves: no refit
