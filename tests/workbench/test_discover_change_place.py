@@ -173,12 +173,14 @@ def test_a_change_in_time_at_the_noise_floor_is_placed_when_no_twin_holds_its_pa
 def test_two_steps_are_also_placed_each_in_its_own_place():
     """MBIT.a, k1 −6 % at 5 s and k3 −6 % at 12 s, was kept as two steps of k3 (0.984 σ), section 1 never named:
     only both steps at once were refitted elsewhere. A change of two pieces is also refitted with each piece in its
-    own place; one piece or three are placed whole."""
+    own place; one piece, three, a window's two ramps or a step and its settling are placed whole."""
     from workbench.discover._change_place import place_choices
 
-    assert place_choices(2, 1) == [0, 1] and place_choices(0, 3) == [1, 2]
-    mixed = place_choices(2, 2)[2:]
-    assert place_choices(2, 2)[:2] == [0, 1] and len(mixed) == 6 and all(i != j for i, j in mixed)
+    two = ["on_step", "on_step"]
+    assert place_choices(2, ["on_step"]) == [0, 1] and place_choices(0, ["on_step"] * 3) == [1, 2]
+    assert place_choices(1, ["on_ramp", "on_ramp"]) == [0, 2] and place_choices(1, ["on_step", "on_ramp"]) == [0, 2]
+    mixed = place_choices(2, two)[2:]
+    assert place_choices(2, two)[:2] == [0, 1] and len(mixed) == 6 and all(i != j for i, j in mixed)
     assert (0, 2) in mixed and (2, 0) in mixed
 
 

@@ -179,14 +179,15 @@ def lead_slot(values: Mapping[str, float], names: Sequence[tuple[str, str | None
     return min(slots, key=lambda k: float(values.get(str(names[k][1]), math.inf)))
 
 
-def place_choices(index: int, n_slots: int) -> list[int | tuple[int, ...]]:
-    """Where a change of ``n_slots`` pieces at place ``index`` is refitted: each other place whole, and a change of
-    two pieces (two steps, a loss and its partial recovery) also each piece in its own place — two losses in two
+def place_choices(index: int, forms: Sequence[str]) -> list[int | tuple[int, ...]]:
+    """Where a change of pieces of ``forms`` at place ``index`` is refitted: each other place whole, and a change of
+    two steps (two losses, a loss and its partial recovery) also each step in its own place (a window's two ramps,
+    a step and its settling are one change: they move whole) — two losses in two
     sections at two instants (MBIT.a, k1 −6 % at 5 s and k3 −6 % at 12 s, was kept as two steps of k3 and said
     "section 3 lost 5.99 % … at 4.997 s; and section 3 lost 5.33 % … at 11.998 s", 0.984 σ, section 1 never named:
     its place was probed only for both steps at once, 1.394 σ)."""
     whole: list[int | tuple[int, ...]] = [i for i in range(N_PLACES) if i != index]
-    if n_slots != 2:
+    if list(forms) != ["on_step", "on_step"]:
         return whole
     return whole + [ij for ij in itertools.product(range(N_PLACES), repeat=2) if ij[0] != ij[1]]
 
@@ -207,7 +208,7 @@ def place_change(setup: Any, progress: Any, settings: Any) -> None:
     far = h > PLACE_BELOW_SIGMA  # far from the noise: a place that halves the error takes it, no twins named
     tol = 1.0 / FAR_MOVE_SHARE if far else tol
     near = PLACE_NEAR * max(whole_rms(setup.targets, progress.outcome), 1.0) if progress.outcome else math.inf
-    placed = [p for i in place_choices(term.index, len(slots))
+    placed = [p for i in place_choices(term.index, [setup.terms[k].form for k in slots])
               if (p := place_refit(setup, state, slots, i, near, settings.threads, settings.max_nfev)) is not None]
     progress.n_sims += sum(p.n_sims for p in placed)
     for p in placed:
