@@ -38,7 +38,7 @@ from workbench.discover._finite_change import (
     whole_rms,
     whole_scores,
 )
-from workbench.discover._gates import GROW_GATES, SIGN_GATES, SOFT_GATES
+from workbench.discover._gates import GROW_GATES, SIGN_GATES, SOFT_GATES, onset_floor
 from workbench.discover._onset import MAX_LOSS
 from workbench.discover._search import SearchState, refine
 from workbench.discover._twins import MAX_TWINS, PLACE_BELOW_SIGMA, twin_tolerance
@@ -127,7 +127,7 @@ def placed_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], 
         out.append(freed(cname, terms[k].unit, lo, c + 2.0 * abs(c), False, "discover"))
         if gname is not None and is_timed(terms[k]):  # a switch keeps its switching point (volts, copied)
             g = start[gname]
-            out.append(freed(gname, "s", max(g - ONSET_FREE_S, 0.0), min(g + ONSET_FREE_S, t_end), False,
+            out.append(freed(gname, "s", onset_floor(g, ONSET_FREE_S), min(g + ONSET_FREE_S, t_end), False,
                              "discover"))
     return out
 

@@ -55,6 +55,7 @@ from workbench.discover._gates import (
     STEP_AT,
     SWITCH_RANGE,
     gate_values,
+    onset_before,
     onsets,
     param_label,
 )
@@ -308,7 +309,7 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                         terms += [Term("damage", index, "one", "on_step", t0, param, rng)
                                   for t0, rng in onsets(duration, STEP_AT)]
                         terms += [Term("damage", index, "one", "on_ramp", t0, param, rng)
-                                  for t0, rng in onsets(duration, RAMP_AT)]
+                                  for t0, rng in (onset_before(duration), *onsets(duration, RAMP_AT))]
                 elif what in ("soft", "soft_rate", "soft_tip", "soft_drive"):
                     sig = {"soft": f"delta{index + 1}", "soft_rate": f"ddelta{index + 1}", "soft_tip": "z3",
                            "soft_drive": "va" if driven else "vc"}[what]

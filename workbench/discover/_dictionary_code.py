@@ -235,8 +235,9 @@ def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDiction
         if gname is not None:
             gi = len(params)
             signed = term.form in SIGN_GATES  # a switching point: either side of zero
+            early = term.form == "on_ramp"  # a ramp's onset may lie before the record (a loss under way at t = 0)
             params.append(f"        Parameter({gname!r}, {term.shape_unit!r}, {0.0 if signed else 1.0}, "
-                          f"{'-math.inf' if signed else '0.0'}, math.inf, "
+                          f"{'-math.inf' if signed or early else '0.0'}, math.inf, "
                           f"'shape of {term.key}'),")
         hi = None
         if term.form in WIDTH_GATES:

@@ -319,8 +319,9 @@ def _switch_range(term: Term, g: float) -> tuple[float, float]:
 
 
 def _shape_parameter(term: Term, gname: str, g: float) -> str:
-    """The source line of a term's shape parameter: bounds a factor of 20 either way, an onset time from 0 to
-    ten times its refit range past it, a switching point its refit range widened by its width either way.
+    """The source line of a term's shape parameter: bounds a factor of 20 either way, an onset time from 0 (a ramp's
+    onset placed before the record: from ten times its refit range before it) to ten times its refit range past it, a
+    switching point its refit range widened by its width either way.
 
     An onset time is fitted only when asked (``fit_by_default=False``; ``shm fit --free g_…``): ``shm discover``
     placed it on the whole record, held-out blocks too, and half the instants an event can happen at lie in a
@@ -329,7 +330,7 @@ def _shape_parameter(term: Term, gname: str, g: float) -> str:
     moved it to 10.55 s (training 0.98 σ) and left 11.5 σ held out."""
     if term.form in TIME_GATES:
         lo, hi = term.shape_range or (0.0, max(g, 1.0))
-        bounds = (0.0, _r(max(g, hi) + 10 * (hi - lo)))
+        bounds = (min(0.0, _r(min(g, lo) - 10 * (hi - lo))), _r(max(g, hi) + 10 * (hi - lo)))
         unit = "s"
     elif term.form in SIGN_GATES:
         lo, hi = _switch_range(term, g)
@@ -354,8 +355,8 @@ def _shape_fit_range(term: Term, g: float) -> str:
     quarter of its range either way), a gap or delay in log."""
     if term.form in TIME_GATES:
         lo, hi = term.shape_range or (0.0, max(2 * g, 1.0))
-        half = max(0.25 * (hi - lo), 1e-3)
-        return f"FitRange({_r(max(g - half, 0.0))!r}, {_r(g + half)!r})"
+        half = max(0.25 * (hi - lo), 1e-3)  # within the record, or before it for an onset placed there
+        return f"FitRange({_r(max(g - half, min(lo, 0.0)))!r}, {_r(g + half)!r})"
     if term.form in SIGN_GATES:  # a switching point, either sign: linearly, a quarter of its range either way
         lo, hi = _switch_range(term, g)
         half = 0.25 * (hi - lo)

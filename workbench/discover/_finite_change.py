@@ -33,7 +33,7 @@ from workbench.discover._dictionary_code import term_default_width, width_name
 from workbench.discover._effect_writer import describe_term
 from workbench.discover._event_check import static_twin
 from workbench.discover._gate_words import describe_finite_change, describe_recovery
-from workbench.discover._gates import WIDTH_GATES
+from workbench.discover._gates import WIDTH_GATES, onset_floor
 from workbench.discover._onset import ONSET_RESOLUTION_S, whole_record_rms
 from workbench.discover._results import FoundTerm
 from workbench.discover._search import SearchState, probe_batch, refine
@@ -164,7 +164,7 @@ def window_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], 
         c, g = start[cname], start[str(gname)]
         out.append(freed(cname, "1/s", c - 2.0 * abs(rate), c + 2.0 * abs(rate), False, "discover"))
         if onset_half is not None:
-            out.append(freed(str(gname), "s", max(g - onset_half, 0.0), min(g + onset_half, t_end), False,
+            out.append(freed(str(gname), "s", onset_floor(g, onset_half), min(g + onset_half, t_end), False,
                              "discover"))
     return out
 
@@ -220,7 +220,8 @@ def zoom_window(probe: WindowProbe, first: Sequence[Window]) -> tuple[Window, fl
     while step > ONSET_RESOLUTION_S:
         grid = [Window(best.start + i * step, best.end + j * step, best.total * m) for i in (-1, 0, 1)
                 for j in (-1, 0, 1) for m in ZOOM_TOTAL if (i, j, m) != (0, 0, 1.0)]
-        grid = [w for w in grid if 0.0 <= w.start < w.end <= probe.t_end]
+        # within the record, or from before it for a change already under way when the record began
+        grid = [w for w in grid if min(best.start, 0.0) <= w.start < w.end <= probe.t_end]
         best, score = lowest([best, *grid], [score, *probe.scores(grid)]) or (best, score)
         n += len(grid)
         step *= 0.5
@@ -343,6 +344,6 @@ def _staged(a: FoundTerm, b: FoundTerm) -> bool:
 
 
 def _placed(ft: FoundTerm, words: str, said_with: str = "") -> FoundTerm:
-    near = (max(ft.shape - 2.0 * EMITTED_ONSET_S, 0.0), ft.shape + 2.0 * EMITTED_ONSET_S)
+    near = (onset_floor(ft.shape, 2.0 * EMITTED_ONSET_S), ft.shape + 2.0 * EMITTED_ONSET_S)
     return FoundTerm(replace(ft.term, shape_range=near), ft.coef, ft.shape, ft.scale, words, ft.twins, ft.shape_se,
                      said_with)

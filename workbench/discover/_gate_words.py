@@ -99,6 +99,8 @@ def _instant(t0: float, se: float | None) -> str:
     if se is None or not math.isfinite(se) or se <= 0:
         return f"t = {t0:.4g} s"
     d = _decimals(se)
+    if float(f"{se:.{d}f}") == 0.0:  # below the last decimal quoted: the instant alone
+        return f"t = {t0:.{d}f} s"
     return f"t = {t0:.{d}f} ± {se:.{d}f} s"
 
 
@@ -140,11 +142,28 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
         return _describe_accelerating(param, n, coef, shape, shape_se, -width)
     if form == "on_ramp" and width > 0.0:
         return _describe_settling(param, n, coef, shape, shape_se, width)
+    if form == "on_ramp" and shape < 0.0:
+        return _describe_under_way(param, n, coef, shape, shape_se)
     if form == "on_ramp":
         rate = f"{100 * abs(coef):.3g} %/s"
         return (f"{what} {'falling' if lower else 'rising'} by {rate} from {_instant(shape, shape_se)} on "
                 "(damage growing during the record)")
     raise KeyError(form)
+
+
+def _describe_under_way(param: str, n: int, coef: float, shape: float, shape_se: float | None) -> str:
+    """A change growing at the rate ``coef`` (1/s) since ``shape`` < 0 s, before the record began: a share of it
+    already there at t = 0 (−coef · shape), the rest growing through the record."""
+    rate = f"{100 * abs(coef):.3g} %/s"
+    at_start = f"{100 * abs(coef * shape):.3g} %"
+    began = f"at that rate it began about {-shape:.3g} s before the record"
+    if param == "k" and coef < 0:
+        return (f"section {n} had already lost {at_start} of its stiffness when the record began and went on losing "
+                f"{rate} through it (damage under way before the record: {began})")
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    return (f"{what} already {at_start} {'lower' if coef < 0 else 'higher'} when the record began and "
+            f"{'falling' if coef < 0 else 'rising'} by {rate} through it (a change under way before the record: "
+            f"{began})")
 
 
 def _depolarised(param: str, n: int, how: str) -> str:

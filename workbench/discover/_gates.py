@@ -97,6 +97,12 @@ STEP_WIDTH_S = 1e-3
 #: way, so together they span the record), and those of a ramp
 STEP_AT = (0.125, 0.375, 0.625, 0.875)
 RAMP_AT = (0.25, 0.75)
+#: a ramp begun before the record — a loss already under way when the record starts, a share of it lost and the rest
+#: still growing, c·(t − G) with G < 0 — is screened at this fraction of the record before its start and its onset
+#: refitted from :data:`RAMP_BEFORE_REACH` records before the start to the start (a root loss begun 7.5 s before a
+#: 15 s sweep: the library's drifts and a constant loss with a ramp from 3.75 s left 16.5 σ; one term at G < 0 is it)
+RAMP_BEFORE_AT = -0.5
+RAMP_BEFORE_REACH = 2.0
 #: gaps, fractions of the section deflection's scale
 GAP_AT = (0.3, 0.6)
 #: edge widths a soft gate is screened at (fraction of its signal's scale; the refit moves it a factor of four)
@@ -310,6 +316,18 @@ def class_stem(param: str, index: int, form: str, signal: str = "") -> str:
                    "on_neg_soft": f"{on}OpeningNegative", "on_pos_grow": "GrowingPositive",
                    "on_neg_grow": "GrowingNegative", "on_gap": "BeyondGap", "on_step": "Event",
                    "on_ramp": "Growth"}[form]
+
+
+def onset_floor(onset: float, half: float) -> float:
+    """The lower end (s) of a refit window ``half`` wide below an ``onset``: kept inside the record (≥ 0) for an
+    onset inside it, free below one placed before it (a ramp begun before the record)."""
+    return onset - half if onset < 0.0 else max(onset - half, 0.0)
+
+
+def onset_before(duration_s: float) -> tuple[float, tuple[float, float]]:
+    """(t0, refit range of t0) of the ramp begun before a record of ``duration_s``: :data:`RAMP_BEFORE_AT` of it
+    before the start, refitted between :data:`RAMP_BEFORE_REACH` records before the start and the start."""
+    return RAMP_BEFORE_AT * duration_s, (-RAMP_BEFORE_REACH * duration_s, 0.0)
 
 
 def onsets(duration_s: float, fractions: Sequence[float]) -> list[tuple[float, tuple[float, float]]]:

@@ -111,13 +111,13 @@ def _total_change(row: ScreenRow, coef: float, rest: float) -> float:
 
 
 def _next_probes(best: Mapping[str, ScreenRow], probed: Mapping[str, list[float]], refined: set[tuple[str, float]],
-                 rest: float) -> list[tuple[ScreenRow, float, float]]:
+                 rests: Mapping[str, float]) -> list[tuple[ScreenRow, float, float]]:
     """Each key's next probes: its best refined by :data:`COEF_REFINE` (once per best), and, when the best is the
     largest probe of its sign (the change may be larger), :data:`EDGE_OUT` times it (a loss up to
-    :data:`MAX_LOSS`)."""
+    :data:`MAX_LOSS`); ``rests``: each key's time from its onset to the record's end (s)."""
     out: list[tuple[ScreenRow, float, float]] = []
     for key, b in best.items():
-        at = float(b.shape if b.shape is not None else 0.0)
+        at, rest = float(b.shape if b.shape is not None else 0.0), rests[key]
         total = _total_change(b, b.coef, rest)
         same_sign = [v for v in probed[key] if v * total > 0]
         coefs: list[float] = []
@@ -132,20 +132,34 @@ def _next_probes(best: Mapping[str, ScreenRow], probed: Mapping[str, list[float]
     return out
 
 
+def _began_before(term: Term) -> bool:
+    """Whether ``term`` is the ramp begun before the record (its onset's refit range ends at the record's start)."""
+    return term.shape_range is not None and term.shape_range[1] <= 0.0
+
+
+def probe_key(term: Term) -> str:
+    """The key a time-gated term is probed under: its own, the ramp begun before the record apart."""
+    return term.key + (" before" if _began_before(term) else "")
+
+
 def onset_probe(rows: Sequence[ScreenRow], names: Mapping[Term, tuple[str, str | None]], targets: Sequence[Target],
                 models: Sequence[PlantModel], values: Mapping[str, float], t0: float, t_end: float,
                 threads: int | None) -> tuple[list[ScreenRow], int]:
     """Every time-gated key probed at the onset ``t0`` (s; ``t_end`` the record's end) at the relative changes of
     :data:`STEP_PROBES` / :data:`RAMP_PROBES`, then refined and followed outwards (:func:`_next_probes`), one batch a
-    round; one row per key at its best probe (``shape`` = t0), best first, and the number of probes per record."""
+    round; one row per key at its best probe (``shape`` = t0), best first, and the number of probes per record. The
+    ramp begun before the record is probed at its own onset (its term's shape, before t = 0) at the same total
+    changes over the time from there to the record's end."""
     firsts: dict[str, ScreenRow] = {}
     for r in rows:
         if r.term.form in TIME_GATES and names[r.term][1] is not None:
-            firsts.setdefault(r.term.key, r)
-    rest = max(t_end - t0, 1e-3)
+            firsts.setdefault(probe_key(r.term), r)
+    # a ramp begun before the record is no event at t0: it is probed at its own onset, with the time left from it
+    onset = {k: (r.term.shape if _began_before(r.term) else t0) for k, r in firsts.items()}
+    rests = {k: max(t_end - at, 1e-3) for k, at in onset.items()}
     flat = [(r, v, t0 - lead) for r in firsts.values() if r.term.form == "on_step" for v in STEP_PROBES
             for lead in STEP_LEADS_S]
-    flat += [(r, v / rest, t0) for r in firsts.values() if r.term.form == "on_ramp" for v in RAMP_PROBES]
+    flat += [(r, v / rests[k], onset[k]) for k, r in firsts.items() if r.term.form == "on_ramp" for v in RAMP_PROBES]
     best: dict[str, ScreenRow] = {}
     probed: dict[str, list[float]] = {k: [] for k in firsts}
     refined: set[tuple[str, float]] = set()
@@ -153,15 +167,17 @@ def onset_probe(rows: Sequence[ScreenRow], names: Mapping[Term, tuple[str, str |
     for _ in range(PROBE_ROUNDS):
         if not flat:
             break
-        settings = [{names[r.term][0]: c, str(names[r.term][1]): max(at, 0.0)} for r, c, at in flat]
+        at_or_0 = [at if _began_before(r.term) else max(at, 0.0) for r, _, at in flat]
+        settings = [{names[r.term][0]: c, str(names[r.term][1]): at} for (r, c, _), at in zip(flat, at_or_0)]
         held, train, ok = probe_batch(targets, models, values, settings, threads)
         n += len(flat)
         refined |= {(k, b.coef) for k, b in best.items()}
-        for (r, c, at), h, e, good in zip(flat, held, train, ok):
-            probed[r.term.key].append(_total_change(r, c, rest))
-            if good and (r.term.key not in best or e < best[r.term.key].train_rms_sigma):
-                best[r.term.key] = ScreenRow(r.term, c, float(h), float(e), max(at, 0.0))
-        flat = _next_probes(best, probed, refined, rest)
+        for (r, c, _), at, h, e, good in zip(flat, at_or_0, held, train, ok):
+            key = probe_key(r.term)
+            probed[key].append(_total_change(r, c, rests[key]))
+            if good and (key not in best or e < best[key].train_rms_sigma):
+                best[key] = ScreenRow(r.term, c, float(h), float(e), at)
+        flat = _next_probes(best, probed, refined, rests)
     return sorted(best.values(), key=lambda r: r.train_rms_sigma), n
 
 

@@ -124,9 +124,11 @@ def onset_held_blind(setup: Any, state: SearchState, k: int, out: FitOutcome, th
     (10 µm) k2 lost 15 % at 11.0 s, inside the held-out block 10–12 s; the same step of k1 refitted to 1.08 σ held
     out and k2's, training 0.998 σ alike, to 2.62 σ — its onset left where the training blocks do not look — so the
     verdict named section 1 alone. Returns the refit kept (the one the whole record prefers) and the simulations
-    run. ``setup``: the rounds' objects."""
+    run (an onset before the record, a ramp begun before it, lies in no block: left). ``setup``: the rounds'
+    objects."""
     gname = setup.names[k][1]
     if setup.terms[k].form not in TIME_GATES or gname is None or gname not in out.values \
+            or out.values[gname] < 0.0 \
             or out.held_rms_sigma <= max(out.train_rms_sigma, 1.0) * twin_tolerance(setup.n_held):
         return out, 0
     start, end = record_span(setup.targets)

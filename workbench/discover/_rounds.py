@@ -196,8 +196,10 @@ def refit_term(setup: SearchSetup, progress: SearchProgress, settings: SearchSet
     if row.placed and names[k][1] is not None and row.shape is not None:  # its instant known: start there
         start[str(names[k][1])] = row.shape
     elif row.term.form in TIME_GATES:  # an onset time: start the refit from a scan around its onset
-        scan, n_probes = onset_scan(row, names[k], targets, models, state.values, (0.0, setup.scales["t"]),
-                                    threads)
+        span = (0.0, setup.scales["t"])  # the record, or before it for the ramp begun before the record
+        if row.term.shape_range is not None and row.term.shape_range[1] <= 0.0:
+            span = row.term.shape_range
+        scan, n_probes = onset_scan(row, names[k], targets, models, state.values, span, threads)
         start.update(scan)
         progress.n_sims += n_probes * len(targets)
     free = free_for(terms, names, [*state.kept, k], start, k)

@@ -151,6 +151,8 @@ def probe_batch(targets: Sequence[Target], models: Sequence[PlantModel], values:
     held = np.zeros(n)
     train = np.zeros(n)
     ok = np.ones(n, bool)
+    if n == 0:  # nothing to probe (a zoom whose every neighbour left the record)
+        return held, train, ok
     for tg, m in zip(targets, models):
         p0 = m.p_nominal.copy()
         for name, v in values.items():

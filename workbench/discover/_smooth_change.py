@@ -33,6 +33,7 @@ from workbench.discover._finite_change import (
     whole_rms,
     whole_scores,
 )
+from workbench.discover._gates import onset_floor
 from workbench.discover._onset import MAX_LOSS, ONSET_RESOLUTION_S
 from workbench.discover._search import SearchState, refine
 from workbench.discover._simplex_place import simplex_search
@@ -234,7 +235,7 @@ def edge_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], st
     out.append(freed(cname, terms[slot].unit, lo, c + 2.0 * abs(c), False, "discover"))
     half = max(w, 0.05) if terms[slot].form == "on_step" else max(-0.25 * w, RAMP_ONSET_FREE_S)
     if onsets:
-        out.append(freed(str(gname), "s", max(g - half, 0.0), min(g + half, t_end), False, "discover"))
+        out.append(freed(str(gname), "s", onset_floor(g, half), min(g + half, t_end), False, "discover"))
     shortest = min(w / 3.0, -ACCEL_MIN_SHARE * t_end)  # −T of the shortest growth allowed
     out.append(freed(width_name(slot), "s", w / 3.0, w * 3.0, True, "discover") if w > 0.0 else
                freed(width_name(slot), "s", min(3.0 * w, 3.0 * shortest), shortest, False, "discover"))
@@ -281,7 +282,7 @@ def smooth_refit(targets: Sequence[Target], models: Sequence[PlantModel], terms:
         free = edge_free(terms, names, state, start, slot, replaced, t_end, onsets)  # puts them
         if level is not None and onsets:  # the step's instant moves with the recovery's onset
             g0 = start[level[2]]
-            free.append(freed(level[2], "s", max(g0 - RAMP_ONSET_FREE_S, 0.0), min(g0 + RAMP_ONSET_FREE_S, t_end),
+            free.append(freed(level[2], "s", onset_floor(g0, RAMP_ONSET_FREE_S), min(g0 + RAMP_ONSET_FREE_S, t_end),
                               False, "discover"))
         obj = Objective(targets, models, free, base_values=start, threads=threads)
         out = refine(obj, start, max_nfev)

@@ -35,6 +35,7 @@ from workbench.discover._finite_change import (
     window_refit,
     zoom_window,
 )
+from workbench.discover._gates import onset_floor
 from workbench.discover._onset import MAX_LOSS
 from workbench.discover._onset_profile import HELD_ONSET_S, placed_on_whole
 from workbench.discover._search import SearchState, refine
@@ -103,7 +104,7 @@ def stage_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], s
         cname, gname = names[k]
         c, g = start[cname], start[str(gname)]
         out.append(freed(cname, terms[k].unit, max(c - 2.0 * size, MAX_LOSS), c + 2.0 * size, False, "discover"))
-        out.append(freed(str(gname), "s", max(g - onset_half, 0.0), min(g + onset_half, t_end), False,
+        out.append(freed(str(gname), "s", onset_floor(g, onset_half), min(g + onset_half, t_end), False,
                          "discover"))
     return out
 
