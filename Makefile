@@ -50,10 +50,11 @@ system-packages:
 run: setup
 	$(BIN)/shm run --force --out $(OUT)/run
 
+# --durations: the thirty slowest tests end the log, so a suite that grows past ~15 minutes says where
 test: setup typecheck
 	$(BIN)/ruff check .
 	$(BIN)/lint-imports
-	$(BIN)/pytest -n 2 --timeout=600 -m "not realtime and not heavy"
+	$(BIN)/pytest -n 2 --timeout=600 --durations=30 -m "not realtime and not heavy"
 
 # The long versions of behaviours `make test` covers with a smaller case (the whole library as candidates, the
 # challenge's own records; minutes each when their compositions compile cold; docs/testing.md lists them).
