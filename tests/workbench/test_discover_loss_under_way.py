@@ -119,3 +119,17 @@ def test_the_ramp_begun_before_the_record_is_probed_at_its_own_onset_and_the_oth
     assert out[0].term is ramp_before and out[0].shape == -7.5 and out[0].coef * 22.5 == pytest.approx(-0.15, rel=0.2)
     assert {_onset.probe_key(r.term) for r in out} == {"k1_ramp_t", "k1_ramp_t before", "k1_step_t"}
     assert n == len(seen)
+
+
+def test_an_emitted_onset_inside_the_record_stays_at_or_after_its_start_and_one_before_it_may_move_back(tmp_path):
+    from plant import resolve_effect
+
+    terms = [Term("damage", 1, "one", "on_step", 4.0, "k", (2.0, 6.0)),
+             Term("damage", 0, "one", "on_ramp", -3.0, "k", (-20.0, 0.0))]
+    names = parameter_names_for(terms)
+    f = tmp_path / "two.py"
+    f.write_text(emit_effect_source(terms, {names[0][0]: -0.2, str(names[0][1]): 4.0,
+                                            names[1][0]: -0.01, str(names[1][1]): -3.0}))
+    lows = {p.name: p.lower for p in resolve_effect(str(f)).own_parameters()}
+    assert lows[str(names[0][1])] == 0.0 and lows[str(names[1][1])] < -20.0
+    assert all(t.before_record == (t.shape < 0) for t in terms)

@@ -191,6 +191,11 @@ class Term:
             return base
         return "1" if den == base else f"{base}/{den}"
 
+    @property
+    def before_record(self) -> bool:
+        """Whether this is a ramp begun before the record (its onset's refit range ends at the record's start)."""
+        return self.shape_range is not None and self.shape_range[1] <= 0.0 and self.form == "on_ramp"
+
     def with_shape(self, shape: float) -> Term:
         return replace(self, shape=float(shape))
 

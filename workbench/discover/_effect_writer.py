@@ -330,7 +330,8 @@ def _shape_parameter(term: Term, gname: str, g: float) -> str:
     moved it to 10.55 s (training 0.98 σ) and left 11.5 σ held out."""
     if term.form in TIME_GATES:
         lo, hi = term.shape_range or (0.0, max(g, 1.0))
-        bounds = (min(0.0, _r(min(g, lo) - 10 * (hi - lo))), _r(max(g, hi) + 10 * (hi - lo)))
+        early = min(g, lo)  # an onset placed before the record (a ramp begun before it) may move further back
+        bounds = (0.0 if early >= 0.0 else _r(early - 10 * (hi - lo)), _r(max(g, hi) + 10 * (hi - lo)))
         unit = "s"
     elif term.form in SIGN_GATES:
         lo, hi = _switch_range(term, g)

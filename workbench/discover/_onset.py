@@ -132,14 +132,9 @@ def _next_probes(best: Mapping[str, ScreenRow], probed: Mapping[str, list[float]
     return out
 
 
-def _began_before(term: Term) -> bool:
-    """Whether ``term`` is the ramp begun before the record (its onset's refit range ends at the record's start)."""
-    return term.shape_range is not None and term.shape_range[1] <= 0.0
-
-
 def probe_key(term: Term) -> str:
     """The key a time-gated term is probed under: its own, the ramp begun before the record apart."""
-    return term.key + (" before" if _began_before(term) else "")
+    return term.key + (" before" if term.before_record else "")
 
 
 def onset_probe(rows: Sequence[ScreenRow], names: Mapping[Term, tuple[str, str | None]], targets: Sequence[Target],
@@ -155,7 +150,7 @@ def onset_probe(rows: Sequence[ScreenRow], names: Mapping[Term, tuple[str, str |
         if r.term.form in TIME_GATES and names[r.term][1] is not None:
             firsts.setdefault(probe_key(r.term), r)
     # a ramp begun before the record is no event at t0: it is probed at its own onset, with the time left from it
-    onset = {k: (r.term.shape if _began_before(r.term) else t0) for k, r in firsts.items()}
+    onset = {k: (r.term.shape if r.term.before_record else t0) for k, r in firsts.items()}
     rests = {k: max(t_end - at, 1e-3) for k, at in onset.items()}
     flat = [(r, v, t0 - lead) for r in firsts.values() if r.term.form == "on_step" for v in STEP_PROBES
             for lead in STEP_LEADS_S]
@@ -167,7 +162,7 @@ def onset_probe(rows: Sequence[ScreenRow], names: Mapping[Term, tuple[str, str |
     for _ in range(PROBE_ROUNDS):
         if not flat:
             break
-        at_or_0 = [at if _began_before(r.term) else max(at, 0.0) for r, _, at in flat]
+        at_or_0 = [at if r.term.before_record else max(at, 0.0) for r, _, at in flat]
         settings = [{names[r.term][0]: c, str(names[r.term][1]): at} for (r, c, _), at in zip(flat, at_or_0)]
         held, train, ok = probe_batch(targets, models, values, settings, threads)
         n += len(flat)

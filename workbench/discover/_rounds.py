@@ -197,7 +197,7 @@ def refit_term(setup: SearchSetup, progress: SearchProgress, settings: SearchSet
         start[str(names[k][1])] = row.shape
     elif row.term.form in TIME_GATES:  # an onset time: start the refit from a scan around its onset
         span = (0.0, setup.scales["t"])  # the record, or before it for the ramp begun before the record
-        if row.term.shape_range is not None and row.term.shape_range[1] <= 0.0:
+        if row.term.before_record and row.term.shape_range is not None:
             span = row.term.shape_range
         scan, n_probes = onset_scan(row, names[k], targets, models, state.values, span, threads)
         start.update(scan)
