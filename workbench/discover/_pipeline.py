@@ -43,7 +43,7 @@ import numpy as np
 from board_config import ParameterSet, load_parameter_set
 from plant import PhysicalEffect
 from plant.effect import EffectError, resolve_effect
-from workbench.discover._backward import backward_step
+from workbench.discover._backward import backward_step, drop_idle
 from workbench.discover._dictionary import build_dictionary
 from workbench.discover._dictionary_code import (
     dictionary_parameter_names,
@@ -114,6 +114,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         if not search_round(setup, progress, settings, round_no):
             break
     backward_step(setup, progress, settings)
+    drop_idle(setup, progress, settings)
     # --- stability guard: the kept model in free run at the records' full rate
     t0 = time.perf_counter()
     stable, note = True, "no term kept"
