@@ -37,13 +37,13 @@ def test_a_probe_at_its_edge_is_followed_outwards_and_a_loss_stops_at_its_bound(
     loss = _row("k", 1, "on_step", -0.3, 10.0)
     inner = _row("m", 1, "on_step", 0.1, 10.0)
     probed = {r.term.key: [-0.3, -0.1, -0.03, 0.03, 0.1, 0.3] for r in (rise, loss, inner)}
-    nxt = _next_probes({r.term.key: r for r in (rise, loss, inner)}, probed, set(), rest=2.0)
+    nxt = _next_probes({r.term.key: r for r in (rise, loss, inner)}, probed, set(), dict.fromkeys(probed, 2.0))
     by = {k: sorted(c for r, c, _ in nxt if r.term.key == k) for k in probed}
     assert 3.0 in [round(c, 9) for c in by[rise.term.key]] and max(by[rise.term.key]) == pytest.approx(3.0)
     assert min(by[loss.term.key]) == pytest.approx(MAX_LOSS)  # ×3 = −0.9, ×10 clipped at the bound
     assert max(by[inner.term.key]) == pytest.approx(0.13)  # not at its edge: refined only
     ramp = _row("k", 1, "on_ramp", -0.3 / 2.0, 10.0)  # a total change of −30 % over the 2 s left
-    nxt = _next_probes({ramp.term.key: ramp}, {ramp.term.key: [-0.3, -0.1, 0.1, 0.3]}, set(), rest=2.0)
+    nxt = _next_probes({ramp.term.key: ramp}, {ramp.term.key: [-0.3, -0.1, 0.1, 0.3]}, set(), {ramp.term.key: 2.0})
     assert min(c for _, c, _ in nxt) * 2.0 == pytest.approx(MAX_LOSS)
 
 
