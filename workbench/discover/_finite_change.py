@@ -96,6 +96,13 @@ class WindowFit:
     values: dict[str, float]
     n_sims: int
     kind: str = "window"
+    #: further kept slots of the change (a third step: :mod:`workbench.discover._third_stage`)
+    extra: tuple[int, ...] = ()
+
+    @property
+    def slots(self) -> tuple[int, ...]:
+        """Every dictionary index the change keeps, in order (the rise, the end, the extra ones)."""
+        return tuple(dict.fromkeys((self.rise, self.end, *self.extra)))
 
 
 def gate_slots(terms: Sequence[Term], term: Term, form: str) -> list[int]:
@@ -138,7 +145,7 @@ def window_setting(window: Window, rise: tuple[str, str | None], end: tuple[str,
 
 
 def others_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], state: SearchState,
-                start: dict[str, float], pair: tuple[int, int], replaced: int) -> list[Parameter]:
+                start: dict[str, float], pair: Sequence[int], replaced: int) -> list[Parameter]:
     """The coefficients of the kept terms other than ``pair`` and the ``replaced`` one, free within ±1.5 × their
     size (the refit of a change that replaces a kept term)."""
     out = []
@@ -276,11 +283,10 @@ def keep_window(state: SearchState, stderr: dict[str, float], twins: dict[int, l
                 fit: WindowFit) -> None:
     """Keep the window's two ramps in place of the term it replaces: the kept list, the values, the standard
     errors (the twins of a ramp that never ends are no twins of the window: dropped)."""
-    state.kept = [k for k in state.kept if k not in (fit.replaced, fit.rise, fit.end)] + list(
-        dict.fromkeys((fit.rise, fit.end)))
+    state.kept = [k for k in state.kept if k not in (fit.replaced, *fit.slots)] + list(fit.slots)
     state.values.update(fit.values)
     stderr.update({e.name: e.stderr for e in fit.outcome.estimates})
-    for k in (fit.replaced, fit.rise, fit.end):
+    for k in (fit.replaced, *fit.slots):
         twins.pop(k, None)
 
 

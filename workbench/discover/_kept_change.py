@@ -20,9 +20,9 @@ from workbench.discover._switch_edge import switch_edge_refit
 from workbench.fit import noise_tolerance
 
 #: how each kind of refit is said in the progress lines
-HOW = {"stages": "as two steps (", "smooth": "with a fitted edge (", "settle": "settling (",
-       "recover": "then settling (", "accelerate": "accelerating (", "window": "given an end (two ramps, ",
-       "edge": "with a fitted edge ("}
+HOW = {"stages": "as two steps (", "stages3": "as three steps (", "smooth": "with a fitted edge (",
+       "settle": "settling (", "recover": "then settling (", "accelerate": "accelerating (",
+       "window": "given an end (two ramps, ", "edge": "with a fitted edge ("}
 
 
 def refine_kept(setup: Any, progress: Any, settings: Any, min_share: float) -> None:

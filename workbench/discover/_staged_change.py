@@ -10,11 +10,21 @@ no later round could then place the second step. Probing pairs of steps on the f
 the round found, the second on a grid after it, the loss split between them — then zooming and refitting both
 places them.
 
+A third step (:func:`third_stage`): a crack that advances by pop-in — it arrests at each tougher ply and jumps on —
+loses a section's stiffness in a staircase. Section 3 losing 2 % of its stiffness at 3.75 s, 6.75 s and 9.75 s of a
+15 s sweep was kept as "lost 6 % between t = 0.00 s and 10.34 s, faster and faster" (1.55 σ held out): the step
+found the first jump (3.758 s, 8.3 σ), two steps reached 2.62 σ, and no shape of one or two pieces follows three
+jumps — the first sentence gave the damage's start as the record's. Two steps that still leave more than the noise
+are given a third step of their parameter, probed on the full model at instants evenly over the record (equal thirds
+of the total, or a share split off its nearest step), its instant placed on the whole record, the sizes refitted and
+every onset placed; :func:`change_refit` keeps it when it leaves the whole record lowest.
+
 Pure logic on the fit engine's objects; the rounds (:mod:`workbench.discover._rounds`) keep the result.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
@@ -30,8 +40,10 @@ from workbench.discover._finite_change import (
     WindowFit,
     WindowProbe,
     gate_slots,
+    lowest,
     others_free,
     whole_rms,
+    whole_scores,
     window_refit,
     zoom_window,
 )
@@ -93,11 +105,11 @@ def candidate_stages(firsts: Sequence[float], total: float, t_end: float, kept_a
 
 
 def stage_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], state: SearchState,
-               start: dict[str, float], pair: tuple[int, int], replaced: int, t_end: float,
+               start: dict[str, float], pair: Sequence[int], replaced: int, t_end: float,
                onset_half: float = ONSET_FREE_S) -> list[Parameter]:
-    """Free parameters of the two steps' refit: the other kept terms' coefficients (±1.5 × their size), both steps'
-    sizes (within ±2 × the larger, a loss never past :data:`~workbench.discover._onset.MAX_LOSS`) and both onsets
-    (± ``onset_half``, s)."""
+    """Free parameters of the steps' refit (two, or three: :mod:`workbench.discover._third_stage`): the other kept
+    terms' coefficients (±1.5 × their size), every step's size (within ±2 × the largest, a loss never past
+    :data:`~workbench.discover._onset.MAX_LOSS`) and onset (± ``onset_half``, s)."""
     out = others_free(terms, names, state, start, pair, replaced)
     size = max(abs(start[names[k][0]]) for k in pair)
     for k in pair:
@@ -172,7 +184,7 @@ def stages_placed(targets: Sequence[Target], models: Sequence[PlantModel], terms
     12.6 σ held out; placed, 1.03 σ. Sizes and onsets trade on a sweep (a step placed late is sized larger): on the
     15 s sweep (25 % at 4.5 s, 15 % back at 9.75 s) one placement left 22.3 % at 4.440 s and 12.2 % at 9.893 s —
     so what still leaves more than the noise is then moved all at once (:func:`_stages_together`)."""
-    pair = (fit.rise, fit.end)
+    pair = fit.slots
     onsets = [str(names[k][1]) for k in pair]
     n = 0
     for _ in range(PLACE_CYCLES):
@@ -203,10 +215,10 @@ def _stages_together(targets: Sequence[Target], models: Sequence[PlantModel], te
     score = whole_rms(targets, fit.outcome)
     if score <= TOGETHER_ABOVE_SIGMA:
         return fit, 0
-    pair = (fit.rise, fit.end)
+    pair = fit.slots
     onsets, sizes = [str(names[k][1]) for k in pair], [names[k][0] for k in pair]
     values, moved, n = placed_together(targets, models, dict(fit.values), onsets, sizes, (0.0, t_end), threads)
-    if moved >= score or abs(values[onsets[0]] - values[onsets[1]]) < STAGES_APART_S:
+    if moved >= score or min_gap([values[g] for g in onsets]) < STAGES_APART_S:
         return fit, n
     obj = Objective(targets, models, stage_free(terms, names, state, values, pair, fit.replaced, t_end,
                                                 HELD_ONSET_S), base_values=values, threads=threads)
@@ -214,6 +226,74 @@ def _stages_together(targets: Sequence[Target], models: Sequence[PlantModel], te
     if again.ok and whole_rms(targets, again) < score:
         fit = replace(fit, outcome=again, values=values | again.values)
     return fit, n + obj.n_sims
+
+
+def min_gap(instants: Sequence[float]) -> float:
+    """The shortest time (s) between two of ``instants``."""
+    ordered = sorted(instants)
+    return min((b - a for a, b in itertools.pairwise(ordered)), default=math.inf)
+
+
+#: instants probed for the third step, evenly over the record (15 on a 15 s record: one a second)
+THIRD_INSTANTS = 15
+#: shares of its nearest step the third one takes (the nearest keeps the rest), beside equal thirds of the total
+THIRD_SHARES = (0.3, 0.5)
+
+
+def third_settings(steps: Sequence[tuple[float, float, tuple[str, str | None]]], third: tuple[str, str | None],
+                   t_end: float) -> list[dict[str, float]]:
+    """The settings probed for a third step (``third``: its (coefficient, onset) names) beside ``steps`` — each
+    (onset s, size, its names): at :data:`THIRD_INSTANTS` instants evenly inside the record (none within
+    :data:`STAGES_APART_S` of a step), the total split in equal thirds, and
+    :data:`THIRD_SHARES` of the nearest step moved to the new instant."""
+    total = sum(size for _, size, _ in steps)
+    out: list[dict[str, float]] = []
+    for i in range(1, THIRD_INSTANTS + 1):
+        at = t_end * i / (THIRD_INSTANTS + 1)
+        if min(abs(at - onset) for onset, _, _ in steps) < STAGES_APART_S:
+            continue
+        equal = {names[0]: total / 3.0 for _, _, names in steps}
+        out.append(equal | {third[0]: total / 3.0, str(third[1]): at})
+        _, size, names = min(steps, key=lambda s: abs(at - s[0]))
+        out += [{names[0]: (1.0 - share) * size, third[0]: share * size, str(third[1]): at} for share in THIRD_SHARES]
+    return out
+
+
+def third_stage(targets: Sequence[Target], models: Sequence[PlantModel], terms: Sequence[Term],
+                names: Sequence[tuple[str, str | None]], state: SearchState, fit: WindowFit, t_end: float,
+                threads: int | None, max_nfev: int) -> WindowFit | None:
+    """The two steps ``fit`` given a third step of their parameter when they leave more than
+    :data:`TOGETHER_ABOVE_SIGMA` over the whole record: the settings of
+    :func:`third_settings` probed on the full model, the best one's instant placed on the whole record, the sizes
+    refitted and every onset placed. None when the two steps explain the records, their parameter has no third
+    step free or nothing integrates."""
+    if fit.kind != "stages" or fit.extra or whole_rms(targets, fit.outcome) <= TOGETHER_ABOVE_SIGMA:
+        return None
+    free = [k for k in step_slots(terms, terms[fit.rise]) if k not in fit.slots and k not in state.kept]
+    if not free:
+        return None
+    third = free[0]
+    values = dict(fit.values)
+    steps = [(float(values[str(names[k][1])]), float(values[names[k][0]]), names[k]) for k in fit.slots]
+    settings = third_settings(steps, names[third], t_end)
+    found = lowest(settings, whole_scores(targets, models, values, settings, threads))
+    if found is None:
+        return None
+    start = values | found[0]
+    gname = str(names[third][1])
+    start[gname], _, m = placed_on_whole(targets, models, start, gname, found[1], threads)
+    slots = (*fit.slots, third)
+    obj = Objective(targets, models, stage_free(terms, names, state, start, slots, fit.replaced, t_end),
+                    base_values=start, threads=threads)
+    out = refine(obj, start, max_nfev)
+    if not out.ok:
+        return None
+    n_sims = len(settings) * len(targets) + m + obj.n_sims
+    three = WindowFit(fit.rise, fit.end, fit.replaced, out, start | out.values, n_sims, kind="stages3",
+                      extra=(third,))
+    three = stages_placed(targets, models, terms, names, state, three, t_end, threads, max_nfev)
+    first, second, last = sorted(three.slots, key=lambda k: three.values[str(names[k][1])])
+    return replace(three, rise=first, end=second, extra=(last,))  # in time order: said so
 
 
 def change_refit(setup: Any, progress: Any, settings: Any, kept: int, done: Sequence[WindowFit] = ()
@@ -257,6 +337,9 @@ def _change_refits(setup: Any, progress: Any, settings: Any, kept: int, like: in
         fits.append(staged_refit(*args, firsts, t_end, threads, nfev, like))
     fits += [smooth_refit(*args, t_end, threads, nfev, variant, like) for variant in VARIANTS
              if variant not in done_kinds and (like is None or variant != "recover")]
+    two = [f for f in fits if f is not None and f.kind == "stages"]
+    fits += [third_stage(setup.targets, setup.models, setup.terms, setup.names, progress.state, f, t_end, threads,
+                         nfev) for f in two[:1]]
     made = [f for f in fits if f is not None]
     progress.n_sims += sum(f.n_sims for f in made if all(f is not g for g in done))
     for f in made:
@@ -264,7 +347,7 @@ def _change_refits(setup: Any, progress: Any, settings: Any, kept: int, like: in
     return min(made, key=lambda f: whole_rms(setup.targets, f.outcome), default=None)
 
 
-KIND_WORDS = {"window": "a change over a finite time (two ramps)", "stages": "two steps",
+KIND_WORDS = {"window": "a change over a finite time (two ramps)", "stages": "two steps", "stages3": "three steps",
                "smooth": "a step with a fitted edge (an S-curve)", "settle": "a ramp that settles",
                "recover": "a step, then a settling change (a partial recovery)",
                "accelerate": "a change that accelerates, then holds"}
