@@ -116,18 +116,17 @@ def test_not_found_on_a_clean_record():
 
 
 def test_done_when_chain_foreign_friction(tmp_path, capsys):
-    """diagnose → discover → emitted file → shm fit --add FILE.py → held-out error near the noise floor."""
+    """diagnose → discover → emitted file → shm fit --add FILE.py → held-out error near the noise floor, each step
+    by hand (``diagnose --no-discover``; the one command that runs the discovery itself is
+    test_diagnose_one_command.py's and the damage challenge's smoke test)."""
     rec = _sweep("TipDryFriction", {"F_coulomb": 1e-3})
     path = write_record(rec, tmp_path / "friction.csv")
     # diagnose: the library does not explain it, and the verdict ends with the discover command
     assert main(["diagnose", str(path), "--params", "table2", "--fit-top", "1", "--out", str(tmp_path / "diag"),
-                 "--json"]) == 0
+                 "--no-discover", "--json"]) == 0
     diag = json.loads(capsys.readouterr().out)
-    # … and runs the discovery step itself: its first sentence names the friction at the tip, with the file to add
-    assert diag["verdict"] == "discovered", diag["message"]
-    first = diag["message"].split(". ", 1)[0]
-    assert first.startswith("Found beyond the library") and "mass 3" in first and "friction" in first
-    assert "--add" in diag["fit_command"] and Path(diag["discover"]["emitted"]["file"]).is_file()
+    assert diag["verdict"] in ("partial", "unexplained"), diag["message"]
+    assert "shm discover" in diag["next_command"] and diag["discover"]["reason"] == "--no-discover"
     # discover names the physics and writes the effect file
     emit = tmp_path / "tip_friction.py"
     assert main(["discover", str(path), "--params", "table2", "--emit", str(emit), "--out", str(tmp_path / "disc"),
