@@ -16,13 +16,16 @@ os.environ.setdefault("MFC_SHM_THREADS", "1")
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Mark the measured-slow tests of ``slow_tests.SLOW_TESTS`` ``slow`` (``make test-fast`` leaves them out)."""
+    """Mark the measured-slow tests of ``slow_tests.SLOW_TESTS`` ``slow`` (``make test-fast`` leaves them out), then
+    run the slow ones first: ``pytest -n 2`` hands tests out in this order, and a long test left for the end keeps
+    one worker busy while the other idles (the longest first is the classic rule for the shortest makespan)."""
     from slow_tests import SLOW_TESTS
 
     for item in items:
         name = getattr(item, "originalname", None) or item.name
         if f"{item.path.name}::{name}" in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
+    items.sort(key=lambda item: item.get_closest_marker("slow") is None)  # stable: files keep their order
 
 
 @pytest.fixture(scope="session")
