@@ -96,7 +96,7 @@ class WindowFit:
     values: dict[str, float]
     n_sims: int
     kind: str = "window"
-    #: further kept slots of the change (a third step: :mod:`workbench.discover._third_stage`)
+    #: further kept slots of the change (a third step: :func:`workbench.discover._staged_change.third_stage`)
     extra: tuple[int, ...] = ()
 
     @property

@@ -107,7 +107,7 @@ def candidate_stages(firsts: Sequence[float], total: float, t_end: float, kept_a
 def stage_free(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], state: SearchState,
                start: dict[str, float], pair: Sequence[int], replaced: int, t_end: float,
                onset_half: float = ONSET_FREE_S) -> list[Parameter]:
-    """Free parameters of the steps' refit (two, or three: :mod:`workbench.discover._third_stage`): the other kept
+    """Free parameters of the steps' refit (two, or three: :func:`third_stage`): the other kept
     terms' coefficients (±1.5 × their size), every step's size (within ±2 × the largest, a loss never past
     :data:`~workbench.discover._onset.MAX_LOSS`) and onset (± ``onset_half``, s)."""
     out = others_free(terms, names, state, start, pair, replaced)
