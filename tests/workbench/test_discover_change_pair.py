@@ -5,6 +5,7 @@ instant. The pair probes the kept step in each place with a second step elsewher
 
 from __future__ import annotations
 
+import math
 from types import SimpleNamespace
 
 import pytest
@@ -82,3 +83,49 @@ def test_only_a_kept_step_far_from_the_noise_is_probed_as_a_pair(monkeypatch):
     progress = _progress(46.7, kept_slot=6)  # a crack, constant in time
     pair.pair_change(_setup(), progress, SimpleNamespace(threads=1, max_nfev=3, say=print), 0.25)
     assert progress.state.kept == [6, 6]
+
+
+def test_the_best_probes_are_taken_once_per_pair_of_places_in_either_order():
+    tries = [((0, 5), {"a": 1.0}), ((5, 0), {"a": 2.0}), ((0, 5), {"a": 3.0}), ((2, 5), {"a": 4.0}),
+             ((4, 0), {"a": 5.0})]
+    scores = [3.0, 1.0, 2.0, math.inf, 4.0]
+    found = pair.best_distinct(tries, scores, 3)
+    # (5, 0) and (0, 5) are one pair of places: its lowest kept; an infinite score ends the list
+    assert [(t[0], e) for t, e in found] == [((5, 0), 1.0), ((4, 0), 4.0)]
+    assert pair.best_distinct(tries, scores, 1) == [(tries[1], 1.0)]
+
+
+def test_swapping_the_places_moves_each_instant_with_its_size():
+    values = {"c4": -0.068, "g4": 3.742, "c1": -0.034, "g1": 9.005}
+    slots, change = pair.swapped(NAMES, (4, 1), values)
+    assert slots == (1, 4)  # the first instant's slot first
+    assert change == {"c4": -0.034, "g4": 9.005, "c1": -0.068, "g1": 3.742}
+
+
+def test_the_refits_are_the_three_lowest_and_the_best_one_swapped():
+    # two pairs found and placed (indices 0, 1), then the same two swapped (2, 3)
+    placed = [((4, 1), {"v": 0.0}, 31.8), ((4, 3), {"v": 1.0}, 33.8), ((1, 4), {"v": 2.0}, 141.9),
+              ((3, 4), {"v": 3.0}, 53.9)]
+    assert [s for s, _ in pair.refit_order(placed, 2)] == [(4, 1), (4, 3), (3, 4), (1, 4)]
+    placed[2] = ((1, 4), {"v": 2.0}, 40.0)  # the best's swap among the three lowest: no fourth
+    assert [s for s, _ in pair.refit_order(placed, 2)] == [(4, 1), (4, 3), (1, 4)]
+
+
+def test_the_pair_kept_is_the_refit_the_held_out_blocks_prefer_not_the_probe_lowest_before_it(monkeypatch):
+    tries = [((4, 1), {"c1": -0.03}), ((4, 3), {"c3": -0.03})]
+    monkeypatch.setattr(pair, "whole_scores", lambda *a: [31.8, 33.8])
+    placed = [((4, 1), {"v": 0.0}, 31.8), ((4, 3), {"v": 1.0}, 33.8), ((1, 4), {"v": 2.0}, 141.9),
+              ((3, 4), {"v": 3.0}, 53.9)]
+    monkeypatch.setattr(pair, "pair_tries", lambda *a: tries)
+    monkeypatch.setattr(pair, "_placed", lambda *a: (placed, 7))
+    held = {(4, 1): 3.81, (4, 3): 20.0, (3, 4): 5.0, (1, 4): 0.976}  # the best's swap refits lowest
+
+    def refit(setup, state, slot, slots, start, threads, nfev):
+        out = SimpleNamespace(ok=True, held_rms_sigma=held[slots])
+        return pair.PairChange(slots, out, dict(start), 10)
+
+    monkeypatch.setattr(pair, "_pair_refit_one", refit)
+    setup = SimpleNamespace(terms=_terms(), names=NAMES, scales={"t": 15.0}, targets=[object()], models=[object()])
+    got = pair.pair_refit(setup, SimpleNamespace(values={}, kept=[4]), 4, 1, 3)
+    assert got is not None and got.slots == (1, 4) and got.outcome.held_rms_sigma == 0.976
+    assert got.n_sims == 2 * 1 + 7 + 4 * 10  # the probes, the placing, four refits
