@@ -9,6 +9,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from workbench.discover._change_pair import pair_change
 from workbench.discover._change_place import place_change, placeable
 from workbench.discover._change_split import split_change
 from workbench.discover._event_check import is_timed
@@ -39,6 +40,7 @@ def refine_kept(setup: Any, progress: Any, settings: Any, min_share: float) -> N
         # a change in time whose round refitted no other place of its parameter (it was chosen as the kind of
         # another parameter's event: sections 1 and 2 losing 7 % at once on MBIT.a, said as section 1's loss with
         # the patches' authority as twins, section 2 never refitted)
+    pair_change(setup, progress, settings, min_share)  # far from the noise: two steps in two places, two instants
     split_change(setup, progress, settings, min_share)
     progress.timings["refit_s"] += time.perf_counter() - t0
 

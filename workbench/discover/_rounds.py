@@ -45,7 +45,7 @@ from workbench.discover._search import (
     refit_list,
 )
 from workbench.discover._section_reading import section_rows
-from workbench.discover._shaped_event import judged_with_end, shaped_instead
+from workbench.discover._shaped_event import event_leads, judged_with_end, shaped_instead
 from workbench.discover._twins import place_switch_family, switch_family, twin_tolerance, twins_of
 from workbench.fit import FitOutcome, Objective, Target, explained, noise_tolerance, rms
 
@@ -363,6 +363,11 @@ def plausible_best(setup: SearchSetup, progress: SearchProgress, settings: Searc
     if close:
         alt = min(close, key=lambda b: b.held_rms_sigma)
         twin = best.held_rms_sigma <= max(alt.held_rms_sigma, 1.0) * twin_tolerance(setup.n_held)
+        if twin and event_leads(setup, progress, settings, best, alt):
+            settings.say(f"  {term.key} ({best.held_rms_sigma:.4g} σ) and {setup.terms[alt.index].key} "
+                         f"({alt.held_rms_sigma:.4g} σ, constant in time) explain the records alike, neither near the "
+                         "noise: the event leads (the model matches before its onset), the other named as its twin")
+            return best, alt
         settings.say(f"  {term.key} ({best.held_rms_sigma:.4g} σ) and {setup.terms[alt.index].key} "
                      f"({alt.held_rms_sigma:.4g} σ, constant in time) "
                      + ("explain the records alike: the constant one is kept, the event named as what the records "

@@ -48,6 +48,7 @@ from workbench.discover._event_check import (
     record_span,
 )
 from workbench.discover._finite_change import WindowFit, whole_rms, window_refit
+from workbench.discover._onset_profile import place_onset
 from workbench.discover._search import SearchState
 from workbench.discover._smooth_change import VARIANTS, smooth_refit
 from workbench.discover._staged_change import KIND_WORDS, staged_refit
@@ -179,3 +180,24 @@ def _shapes(setup: Any, settings: Any, trial: SearchState, kept: int, more: bool
 
 def _as(fit: WindowFit) -> str:
     return "given an end" if fit.kind == "window" else f"as {KIND_WORDS[fit.kind]}"
+
+
+#: an event that explains the records alike its twin constant in time leads when neither comes near the noise floor
+#: (the constant one leaves more than this, σ held out) and the event looks like one (:func:`event_leads`)
+EVENT_LEADS_ABOVE_SIGMA = 3.0
+
+
+def event_leads(setup: Any, progress: Any, settings: Any, best: Any, alt: Any) -> bool:
+    """Whether the round's event ``best`` (a time-gated ``BestRefit``) leads over ``alt``, the member of its
+    parameter constant in time that explains the records alike: only when ``alt`` leaves more than
+    :data:`EVENT_LEADS_ABOVE_SIGMA` and the event is plausible as one — its onset placed on the whole record, the model
+    with it matching the records before it (:func:`~workbench.discover._event_check.onset_issue`). Near the noise
+    the constant one keeps the lead (a crack on a sweep is no event). Far from it neither explains the records, and
+    a plausible event is the one the later refits can build on (:mod:`workbench.discover._change_pair`): the root
+    losing 6 % at 3.75 s and the tip 6 % at 9 s of a 15 s sweep — the tip's step at the first instant 46.7 σ, a
+    crack in section 3 open on one side 44.3 σ — kept the crack, and no later round placed either loss (32.5 σ).
+    ``setup``, ``progress``, ``settings``: the rounds' objects."""
+    if alt.held_rms_sigma <= EVENT_LEADS_ABOVE_SIGMA:
+        return False
+    place_onset(setup, progress, settings, best)
+    return onset_issue(setup.targets, best.outcome, setup.names[best.index][1] or "") is None
