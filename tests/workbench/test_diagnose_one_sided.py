@@ -56,3 +56,26 @@ def test_a_patch_weak_for_positive_charge_on_a_step_is_named_in_the_first_senten
     first = first_sentence(d.message)
     assert first.startswith("d_ep is wrong") and "re-estimate it" in first, first
     assert "positive patch voltage" in first and "cannot tell it from" in first, first
+
+
+def test_each_member_of_a_pair_is_read_on_its_own_side():
+    """MBIT.b's tip crack opened by the mid section's bend was "Two things at once: k3 is wrong (−10 %); d_ep is
+    wrong (+4 %)" — a step bends section 3 one way and charges the patches one way: each member has its one-sided
+    reading, said after it; a tied group and an effect's parameter have none."""
+    from types import SimpleNamespace
+
+    from workbench.diagnose._verdict import one_sided_twins
+    from workbench.fit import CandidateSpec
+    from workbench.fit._candidates import ParameterCandidate
+
+    names = ("v_patch1", "v_patch2", "v_patch3", "delta3", "delta1")
+    full = np.stack([300.0 * (1.0 - np.exp(-T / 0.1))] * 3 + [1e-3 * (1.0 - np.exp(-T / 0.05)), np.sin(T * 9)], 1)
+    d = SimpleNamespace(baseline_sim=SimpleNamespace(full=[full[None]]),
+                        targets=[SimpleNamespace(model=SimpleNamespace(output_names=names))])
+    spec = CandidateSpec(params=(ParameterCandidate("k3", ("k3",)), ParameterCandidate("d_ep", ("d_ep",)),
+                                 ParameterCandidate("k1", ("k1",)), ParameterCandidate("ks", ("k3", "k1"), True)))
+    twins = one_sided_twins(d, SimpleNamespace(spec=spec))
+    assert set(twins) == {"k3", "d_ep"}  # δ1 swings both ways; a tied group is no one parameter
+    assert "section 3" in twins["k3"] and "crack" in twins["k3"] and "δ3 > 0" in twins["k3"]
+    assert "positive patch voltage" in twins["d_ep"]
+    assert one_sided_twins(SimpleNamespace(baseline_sim=None, targets=[]), SimpleNamespace(spec=spec)) == {}

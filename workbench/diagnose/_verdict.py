@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import math
 import shlex
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from board_config import ParameterSet
@@ -64,9 +64,11 @@ def discover_command(d: Any, params_label: str) -> str:
     return f"shm discover {_records_arg(d)} --params {shlex.quote(params_label)} --emit my_effect.py --out discover"
 
 
-def parameter_words(cand: CandidateResult, base: ParameterSet, wrong: bool = True) -> str:
+def parameter_words(cand: CandidateResult, base: ParameterSet, wrong: bool = True,
+                    twins: Mapping[str, str] | None = None) -> str:
     """'m3 is wrong: 2.09 g instead of 1.39 g (+50 %)' (or a group scaled together, or a pair); with ``wrong``
-    False, 'm3 re-estimated: 2.09 g instead of 1.39 g (+50 %)' (a part of the story, not its cure)."""
+    False, 'm3 re-estimated: 2.09 g instead of 1.39 g (+50 %)' (a part of the story, not its cure). ``twins``:
+    parameter → its one-sided reading (:func:`~workbench.diagnose._one_sided.one_sided_twin`), said after it."""
     o = cand.outcome
     spec = cand.spec
     assert o is not None and spec is not None
@@ -85,8 +87,9 @@ def parameter_words(cand: CandidateResult, base: ParameterSet, wrong: bool = Tru
             e = est[n]
             old = float(base.values[n])
             rel = f" ({percent_change(e.value / old - 1)})" if old != 0 else ""
+            twin = (twins or {}).get(n)
             bits.append(f"{n} {'is wrong' if wrong else 're-estimated'}: {show(e.value, e.unit)} instead of "
-                        f"{show(old, e.unit)}{rel}")
+                        f"{show(old, e.unit)}{rel}" + (f" — {twin}" if twin else ""))
         phrases.append("; ".join(bits))
     return "; ".join(phrases)
 
@@ -236,11 +239,28 @@ def _one_sided(d: Any, winner: CandidateResult) -> str | None:
     """:func:`~workbench.diagnose._one_sided.one_sided_twin` of a single re-estimated parameter, on the nominal
     model's simulated outputs (None when there are none)."""
     spec = winner.spec
-    sim = getattr(d, "baseline_sim", None)
-    if spec is None or spec.effects or len(spec.params) != 1 or spec.params[0].tied or sim is None or not sim.full:
+    if spec is None or spec.effects or len(spec.params) != 1:
         return None
+    return one_sided_twins(d, winner).get(spec.params[0].members[0])
+
+
+def one_sided_twins(d: Any, cand: CandidateResult) -> dict[str, str]:
+    """Each parameter re-estimated alone in ``cand`` (not scaled with others) whose switching signal stays on one
+    side over every record → its one-sided reading, on the nominal model's simulated outputs. A pair is read member
+    by member: on MBIT.b (a step bending every section one way) a tip crack opened by the mid section's bend was
+    "Two things at once: k3 is wrong (−10 %); d_ep is wrong (+4 %)" — each as good as a section 3 that lost
+    stiffness on one side, and a patch weaker for one polarity."""
+    spec = cand.spec
+    sim = getattr(d, "baseline_sim", None)
+    if spec is None or sim is None or not sim.full:
+        return {}
     traces = [{n: full[0, :, j] for j, n in enumerate(tg.model.output_names)} for tg, full in zip(d.targets, sim.full)]
-    return one_sided_twin(spec.params[0].members[0], traces)
+    out = {}
+    for pc in spec.params:
+        twin = None if pc.tied or len(pc.members) != 1 else one_sided_twin(pc.members[0], traces)
+        if twin:
+            out[pc.members[0]] = twin
+    return out
 
 
 def _cure_head(d: Any, winner: CandidateResult, base: ParameterSet, kind: str, cut: str) -> str:
@@ -258,7 +278,7 @@ def _cure_head(d: Any, winner: CandidateResult, base: ParameterSet, kind: str, c
 
         sub = CandidateResult(winner.effect, "", "", "", winner.free, winner.outcome,
                               spec=CandidateSpec(params=spec.params))
-        parts.append(parameter_words(sub, base))
+        parts.append(parameter_words(sub, base, twins=one_sided_twins(d, winner)))
     if spec is not None and spec.effects:
         parts.append(_effect_words(winner))
     head = (f"{'Two' if len(winner.members) == 2 else 'Several'} things at once: {'; and '.join(parts)}. "
