@@ -83,6 +83,15 @@ def test_no_third_step_when_two_explain_the_records_or_none_is_free(monkeypatch,
     assert staged.third_stage([], [], _k3_steps(), NAMES, SimpleNamespace(kept=kept), fit, 15.0, 1, 3) is None
 
 
+@pytest.mark.parametrize(("placed_at", "three"), [(8.1, False), (8.0 + 0.02 * 15.0 + 0.01, True)])
+def test_a_third_step_that_ends_beside_another_is_one_step_split_in_two(monkeypatch, placed_at, three):
+    """MBIT.b's root loss at 0.75 s and tip loss at 1.8 s were kept as section 1 losing 6.01 % at 0.750 s, 2.69 % at
+    1.794 s and 2.67 % at 1.811 s: two steps within 2 % of the record of each other are not two stages."""
+    _fakes(monkeypatch, best_at=placed_at - 0.05)
+    fit = staged.third_stage([], [], _k3_steps(), NAMES, SimpleNamespace(kept=[0]), _two_steps(2.62), 15.0, 1, 3)
+    assert (fit is not None) == three
+
+
 def test_three_steps_are_kept_in_place_of_the_change():
     from workbench.discover._finite_change import keep_window
 
