@@ -133,10 +133,11 @@ def _placed(setup: Any, state: SearchState, found: Sequence[tuple[tuple[tuple[in
 
 
 def pair_refit(setup: Any, state: SearchState, slot: int, threads: int | None, max_nfev: int) -> PairChange | None:
-    """The kept step ``slot`` as the pair of :func:`pair_tries` that leaves the whole record lowest once the best
-    :data:`PAIR_PLACED` have their second instant placed on the whole record, each scored with its places swapped
-    too; both sizes refitted (onsets within :data:`~workbench.discover._finite_change.ONSET_FREE_S`); None when no
-    pair is possible or nothing integrates. ``setup``: the rounds' objects."""
+    """The kept step ``slot`` as a pair of :func:`pair_tries`: the best :data:`PAIR_PLACED` pairs of places by the
+    whole record's RMS have their second instant placed on the whole record and are scored with their places
+    swapped too (:func:`_placed`); those of :func:`refit_order` are refitted (both sizes, onsets within
+    :data:`~workbench.discover._finite_change.ONSET_FREE_S`) and the refit the held-out blocks prefer is returned;
+    None when no pair is possible or nothing integrates. ``setup``: the rounds' objects."""
     tries = pair_tries(setup.terms, setup.names, state.values, state.kept, slot, setup.scales["t"])
     if not tries:
         return None
