@@ -43,11 +43,22 @@ def test_the_candidates_are_the_same_change_with_another_shape():
     assert keys == {"k2_neg_delta2", "k2_neg_soft_delta2", "k2_neg_z3", "k2_neg_soft_z3"}
     drive = terms[_key(terms, "d_ep2_pos_soft_va")]
     keys = {terms[k].key for k in gs.shape_candidates(terms, drive)}
-    assert keys == {"d_ep2_pos_va", "d_ep2_pos_vc", "d_ep2_pos_grow_vc"}  # a voltage of either kind
+    assert keys == {"d_ep2_pos_va", "d_ep2_pos_vc", "d_ep2_pos_grow_vc", "d_ep2_pos_soft_va"}  # either voltage
     assert gs.shape_candidates(terms, terms[_key(terms, "k2_gap_delta2")]) == []
     hinge = terms[_key(terms, "k1_pos_delta1")]  # a sharp switch is probed over the grid itself too
     keys = {terms[k].key for k in gs.shape_candidates(terms, hinge)}
     assert keys == {"k1_pos_delta1", "k1_pos_soft_delta1", "k1_pos_grow_delta1", "k1_pos_z3", "k1_pos_soft_z3"}
+    rate = _key(terms, "k3_neg_soft_ddelta3")  # a smooth switch too: its edge over the grid, once per shape
+    cands = gs.shape_candidates(terms, terms[rate])
+    assert sorted(terms[k].key for k in cands) == ["k3_neg_ddelta3", "k3_neg_soft_ddelta3"] and rate in cands
+
+
+def test_a_rate_switch_edge_is_probed_from_near_the_sharp_switch():
+    # a tip crack switched by δ̇3 < 0 over 0.2 mm/s on a sweep whose δ̇3 reaches 0.43 m/s: the grid brackets it
+    terms = build_dictionary(SCALES)
+    grid = gs.shape_grid(terms[_key(terms, "k3_neg_soft_ddelta3")], 0.43)
+    assert min(grid) < 2e-4 < max(grid) and max(grid) == pytest.approx(0.043)
+    assert gs.shape_grid(terms[_key(terms, "k3_neg_soft_delta3")], 1e-3) == pytest.approx([3e-5, 1e-4, 3e-4, 1e-3])
 
 
 def _run(monkeypatch, best_key: str, truth_key: str, truth_shape: float, held: float = 26.0):
@@ -86,6 +97,14 @@ def test_a_hinge_off_zero_comes_back_placed_at_its_point(monkeypatch):
     assert rows and rows[0].term.key == "k2_neg_delta2" and rows[0].placed
     assert rows[0].shape == pytest.approx(-4.0e-4, abs=1.3e-5) and rows[0].coef == pytest.approx(-0.3, rel=0.2)
     assert progress.n_sims > 0 and "another gate shape" in said[0]
+
+
+def test_a_rate_switch_kept_with_the_screen_edge_comes_back_at_its_own(monkeypatch):
+    # the screen's edge (0.5 mm/s on a 0.1 m/s scale) refitted stays a factor of four from 0.2 mm/s; the grid, zoomed,
+    # places the smooth switch at its edge
+    rows, _, _ = _run(monkeypatch, "k3_neg_soft_ddelta3", "k3_neg_soft_ddelta3", 2.0e-4)
+    assert rows and rows[0].term.key == "k3_neg_soft_ddelta3"
+    assert rows[0].shape == pytest.approx(2.0e-4, rel=0.15)
 
 
 def test_nothing_comes_back_at_the_noise_or_when_no_shape_is_near(monkeypatch):

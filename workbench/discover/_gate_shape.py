@@ -35,6 +35,12 @@ from workbench.discover._search import probe_batch
 POINTS = (-0.75, -0.6, -0.45, -0.3, -0.15, 0.0, 0.15, 0.3, 0.45, 0.6, 0.75)
 #: edge widths (a smooth gate) and saturations (a growing one) probed, fractions of the signal's scale
 WIDTHS = (0.03, 0.1, 0.3, 1.0)
+#: edge widths probed for a smooth gate on a section's rate (fractions of the rate's scale): a direction-dependent
+#: stiffness switches near the turning points and its error is not monotone in the edge (see
+#: :data:`~workbench.discover._gates.SOFT_RATE_AT`) — a tip crack switched by δ̇3 < 0 over 0.2 mm/s was kept at
+#: ±5.34 mm/s, the screen's 21 mm/s refitted to the bottom of its range (22.4 σ; sweep, blind set 5) — so over
+#: 2.5 decades, from near the sharp switch
+RATE_WIDTHS = (0.0003, 0.001, 0.003, 0.01, 0.03, 0.1)
 SATURATIONS = (0.25, 0.5, 1.0, 2.0)
 #: sizes probed, multiples of the best refit's coefficient (a sharp switch gives the whole change where a smooth or
 #: growing one gives part of it)
@@ -84,7 +90,9 @@ def shape_grid(term: Term, scale: float) -> list[float]:
     if term.form in SIGN_GATES:
         lo, hi = term.shape_range or (-scale, scale)
         return sorted({min(max(f * scale, lo), hi) for f in POINTS})
-    return [f * scale for f in (WIDTHS if term.form in SOFT_GATES else SATURATIONS)]
+    if term.form in SOFT_GATES:
+        return [f * scale for f in (RATE_WIDTHS if term.signal.startswith("ddelta") else WIDTHS)]
+    return [f * scale for f in SATURATIONS]
 
 
 def shape_candidates(terms: list[Term], best: Term) -> list[int]:
@@ -93,14 +101,18 @@ def shape_candidates(terms: list[Term], best: Term) -> list[int]:
     at 0), the grid starts it elsewhere (patch 3 weak below −100 V of drive, MBIT.a: the sharp switch refitted from
     0 V stayed in its basin, 8.0 σ). A sharp switch is its own candidate too: its refit moved its switching point
     from 0 only as far as the nearest basin (a root crack open at rest, cornered at δ1 = −0.25 mm, refitted to
-    −0.17 mm with a wide edge: 14.7 σ, sweep)."""
+    −0.17 mm with a wide edge: 14.7 σ, sweep). So is a smooth switch, its edge probed over the grid (its refit moves
+    the edge a factor of four from the screen's; one candidate per form and signal, whatever the screen's widths)."""
     side = gate_side(best.form)
     if best.placement != "damage" or not side:
         return []
-    return [k for k, t in enumerate(terms)
-            if t.placement == "damage" and (t.param, t.index) == (best.param, best.index)
-            and gate_side(t.form) == side and same_kind(best.signal, t.signal)
-            and (t.form in SIGN_GATES or (t.form, t.signal) != (best.form, best.signal))]
+    out: dict[tuple[str, str], int] = {}
+    for k, t in enumerate(terms):
+        if (t.placement == "damage" and (t.param, t.index) == (best.param, best.index) and gate_side(t.form) == side
+                and same_kind(best.signal, t.signal) and (t.form in (*SIGN_GATES, *SOFT_GATES)
+                                                          or (t.form, t.signal) != (best.form, best.signal))):
+            out.setdefault((t.form, t.signal), k)  # one per shape: the screen's several widths share one grid
+    return list(out.values())
 
 
 def _zoomed(trial: Trial, step: float, sign: bool) -> list[Trial]:
