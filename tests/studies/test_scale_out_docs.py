@@ -3,7 +3,8 @@ as copied, in order, in a shell (quotes and globs as a user's shell treats them)
 ``dask scheduler``/``dask worker`` lines of the by-hand cluster. What a reader replaces is replaced: the example
 cluster ``tcp://10.0.0.5:8786`` and port 8786 by this test's cluster on a free loopback port, ``--boards 20`` by 2,
 the 24-visit ``aging`` life by README's ``short-aging.toml`` (5 visits 250 h apart), and ``records/`` holds two short
-records. The ``python -m bench`` lines are test_scale_out_cases.py's. Each line must exit 0; a ``--json`` line prints
+records. Both docs run in one folder, in order, as a reader who follows both would; a line README repeats word for
+word from docs/scale-out.md runs once (its output is already there for the lines after it). The ``python -m bench`` lines are test_scale_out_cases.py's. Each line must exit 0; a ``--json`` line prints
 one JSON document."""
 
 from __future__ import annotations
@@ -99,15 +100,19 @@ def test_every_shell_example_runs_as_copied(tmp_path):
     # the cluster the examples' tcp://10.0.0.5:8786 stands for (the by-hand block starts its own on `port`)
     start(f"dask scheduler --host 127.0.0.1 --port {example_port} --no-dashboard", tmp_path / "example_cluster.log")
     start(f"dask worker tcp://127.0.0.1:{example_port} --nthreads 1 --no-dashboard", tmp_path / "example_worker.log")
+    here = tmp_path / "reader"  # one folder, the docs read in order: README's lines follow docs/scale-out.md's
+    _setup(here)
+    done: set[str] = set()
     try:
         for doc, lines in doc_examples().items():
-            here = tmp_path / doc.replace("/", "_")
-            _setup(here)
             for line in lines:
                 command = _as_run_here(line, example_port, port)
                 if command.endswith("&"):  # the by-hand cluster: kept running for the lines after it
                     start(command.rstrip("&"), here / f"daemon{len(daemons)}.log")
                     continue
+                if command in done:  # the same line in both docs, already run here: its output is in place
+                    continue
+                done.add(command)
                 r = subprocess.run(["bash", "-c", command], cwd=here, env=env, capture_output=True, text=True,
                                    timeout=600)
                 if r.returncode != 0:
