@@ -54,10 +54,10 @@ def test_the_hinge_is_the_lost_force_beyond_the_switching_point_and_today_s_gate
         assert np.all(np.isfinite(pos)) and np.all(np.abs(np.diff(pos)) <= np.diff(d) + 1e-15)  # continuous at G
     # at G = 0 the hinge is exactly the step gate times δ: the screened terms are today's
     assert np.array_equal(gate_values("on_pos", d, 0.0, t, "m", hinge=True), d * gate_values("on_pos", d, 0.0, t, "m"))
-    code = gate_code("on_pos", "k", "delta2", 1).replace("math.tanh", "np.tanh")
+    code = gate_code("on_pos", "k", "delta2").replace("math.tanh", "np.tanh")
     assert np.allclose(eval(code, {"np": np, "S": d, "G": 3e-4, "H": 1e-7}),
                        gate_values("on_pos", d, 3e-4, t, "m", hinge=True))
-    assert gate_code("on_pos", "c", "delta2", 1) != code  # damping gated by δ: a step of c·δ̇ at G, not a hinge
+    assert gate_code("on_pos", "c", "delta2") != code  # damping gated by δ: a step of c·δ̇ at G, not a hinge
 
 
 def test_the_step_gates_switch_at_their_point():

@@ -128,9 +128,6 @@ def _signals() -> dict[str, Signal]:
         out[f"delta{j + 1}"] = Signal(f"delta{j + 1}", f"x[X_DELTA + {j}]", "m", f"deformation of section {j + 1}")
         out[f"ddelta{j + 1}"] = Signal(f"ddelta{j + 1}", f"x[X_DDELTA + {j}]", "m/s",
                                        f"deformation rate of section {j + 1}")
-    for j in range(2):  # the kink across the junction of sections j+1 and j+2: their relative bending
-        out[f"kink{j + 1}{j + 2}"] = Signal(f"kink{j + 1}{j + 2}", f"(x[X_DELTA + {j + 1}] - x[X_DELTA + {j}])", "m",
-                                            f"relative deflection δ{j + 2} − δ{j + 1} across the junction")
     out["vc"] = Signal("vc", "bus[B_VC + i]", "V", "patch voltage")
     out["va"] = Signal("va", "bus[B_VA_DEMAND]", "V", "drive voltage")
     out["one"] = Signal("one", "1.0", "1", "constant (a time gate's signal)")
@@ -295,14 +292,6 @@ def build_dictionary(scales: Mapping[str, float], *, driven: bool = True) -> lis
     return terms + damage_terms(scales, driven=driven)
 
 
-def neighbour_signals(what: str, index: int) -> list[str]:
-    """The signals of a gate on another section's bending for section ``index`` (0-based): ``other_delta`` the other
-    sections' deflections, ``kink`` the relative deflection across each junction the section meets."""
-    if what == "other_delta":
-        return [f"delta{j + 1}" for j in range(3) if j != index]
-    return [f"kink{j + 1}{j + 2}" for j in range(2) if index in (j, j + 1)]
-
-
 def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Term]:
     """Every core parameter's contribution crossed with the gates it meets (:data:`~workbench.discover._gates.
     GATED_BY`): sign gates on the section's own deflection or rate, on the drive (when ``driven``) or the patch
@@ -337,11 +326,6 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                     if ok(sig := "vc" if what == "grow_volt" else f"delta{index + 1}"):
                         terms += [Term("damage", index, sig, g, f * scales[sig], param) for g in GROW_GATES
                                   for f in GROW_AT]
-                elif what in ("other_delta", "kink"):  # a crack opened by another section's bending
-                    for sig in neighbour_signals(what, index):
-                        if ok(sig):
-                            rng = (-SWITCH_RANGE * scales[sig], SWITCH_RANGE * scales[sig])
-                            terms += [Term("damage", index, sig, g, 0.0, param, rng) for g in ("on_pos", "on_neg")]
                 elif what == "gap":
                     if ok(sig):
                         terms += [Term("damage", index, sig, "on_gap", f * scales[sig], param) for f in GAP_AT]

@@ -73,7 +73,7 @@ def _value_code(slot: TermSlot) -> str:
         h = _lit(term.width if term.width != 0.0 else gate_width(term.form, SIGNALS[term.signal].unit))
     else:
         h = "0.0"
-    code = gate_code(term.form, term.param, term.signal, term.index) if term.placement == "damage" else form.code
+    code = gate_code(term.form, term.param, term.signal) if term.placement == "damage" else form.code
     if term.form in WIDTH_CODE and (slot.width_param is not None or term.width != 0.0):
         code = WIDTH_CODE[term.form]  # the edge (a step) or the saturation (a ramp) at a fitted width
     expr = code.replace("G", g).replace("W", w).replace("V", v).replace("H", h)
@@ -109,7 +109,7 @@ def hook_bodies(slots: Sequence[TermSlot], guard: bool = False) -> dict[str, lis
             else:
                 bodies["rates"].extend("        " + ln for ln in state_lines)
         if term.placement == "damage":
-            hinge = is_hinge(term.param, term.form, term.signal, term.index)
+            hinge = is_hinge(term.param, term.form, term.signal)
             for hook, lines in contribution_lines(term.param, term.index, value, hinge).items():
                 if guard:
                     bodies[hook].append(f"        if p[po + {slot.coef}] != 0.0:")

@@ -37,8 +37,6 @@ def signal_scales(targets: Sequence[Target]) -> tuple[dict[str, float], dict[str
             sig.setdefault(f"zd{j + 1}", []).append(bus[:, L.B_ZD + j])
             sig.setdefault(f"delta{j + 1}", []).append(xs[:, L.X_DELTA + j])
             sig.setdefault(f"ddelta{j + 1}", []).append(xs[:, L.X_DDELTA + j])
-        for j in range(2):
-            sig.setdefault(f"kink{j + 1}{j + 2}", []).append(xs[:, L.X_DELTA + j + 1] - xs[:, L.X_DELTA + j])
         sig.setdefault("vc", []).append(bus[:, L.B_VC])
         sig.setdefault("va", []).append(bus[:, L.B_VA_DEMAND])
         sig.setdefault("one", []).append(np.ones(tg.t.size))

@@ -80,7 +80,7 @@ def same_kind(signal: str, other: str) -> bool:
     volts = ("va", "vc")
 
     def position(s: str) -> bool:
-        return s.startswith(("delta", "kink")) or (s.startswith("z") and not s.startswith("zd"))
+        return s.startswith("delta") or (s.startswith("z") and not s.startswith("zd"))
 
     return signal == other or (signal in volts and other in volts) or (position(signal) and position(other))
 

@@ -14,7 +14,7 @@ def _switch_value(signal: str, g: float) -> str:
     sign = "−" if g < 0 else ""
     if signal.startswith("ddelta"):
         return f"{sign}{abs(g) * 1e3:.3g} mm/s"
-    if signal.startswith(("delta", "kink")) or _is_position(signal):
+    if signal.startswith("delta") or _is_position(signal):
         return sign + (f"{abs(g) * 1e3:.3g} mm" if abs(g) >= 1e-4 else _length(abs(g)))
     if signal in ("va", "vc"):
         return f"{'−' if g < 0 else '+'}{abs(g):.3g} V"
@@ -36,8 +36,6 @@ def _condition(form: str, signal: str, g: float = 0.0) -> str:
         return f"δ̇{signal[-1]} {op} {at}"
     if signal.startswith("delta"):
         return f"δ{signal[-1]} {op} {at}"
-    if signal.startswith("kink"):
-        return f"δ{signal[-1]} − δ{signal[-2]} {op} {at}"
     if _is_position(signal):
         where = "the tip" if signal == "z3" else f"mass {signal[-1]}"
         return f"{where} is {'above' if positive else 'below'} {at} ({signal} {op} {at})"
@@ -68,8 +66,6 @@ def _describe_sign(param: str, index: int, form: str, signal: str, coef: float, 
     lh = "lower" if lower else "higher"
     cond = _condition(form, signal, g)
     when = "while" if g != 0.0 and signal in ("va", "vc") else "for"
-    if param == "k" and (signal.startswith("kink") or (signal.startswith("delta") and signal != f"delta{n}")):
-        return _neighbour_crack(n, signal, coef, cond)
     if param == "k" and signal.startswith("delta"):
         at = "" if g == 0.0 else f" switching at {_switch_value(signal, g)}"
         side = "on that side" if g == 0.0 else "beyond that deflection"
@@ -206,19 +202,6 @@ def _swing_crack(n: int, coef: float, cond: str, edge: str) -> str:
         return (f"a crack in section {n} opened by the beam's swing: stiffness k{n} lower by {pct} while {cond}"
                 f"{edge} (a crack that opens on one side of the motion)")
     return f"section {n} is stiffer by {pct} while {cond}{edge} (a contact that closes on one side of the motion)"
-
-
-def _neighbour_crack(n: int, signal: str, coef: float, cond: str) -> str:
-    """Section ``n``'s stiffness switched by another section's deflection or by the kink across a junction."""
-    pct = f"{100 * abs(coef):.3g} %"
-    by = (f"the kink across its junction with section {signal[-2] if signal[-1] == str(n) else signal[-1]} (the "
-          "relative bending of the two sections)" if signal.startswith("kink") else
-          f"the bending of section {signal[-1]}")
-    if coef < 0:
-        why = "the jump of curvature across it" if signal.startswith("kink") else "its neighbour's bending"
-        return (f"a crack in section {n} opened by {by}: stiffness k{n} lower by {pct} while {cond} (a crack at a "
-                f"junction that opens on one side of {why})")
-    return f"section {n} is stiffer by {pct} while {cond} (a contact closed by {by})"
 
 
 def _debonded_patch(n: int, coef: float, cond: str, edge: str) -> str:

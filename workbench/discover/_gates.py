@@ -184,13 +184,9 @@ CONTRIBUTIONS: dict[str, Contribution] = {
 #: polarisation that fades over a range of field); "grow_volt" the patch's own voltage with the change growing with
 #: it up to a saturation (a coupling that fades progressively as the voltage rises on one polarity: electrode
 #: fingers that lose contact one by one, domains that back-switch by degrees). A patch's own coupling meets its
-#: section's deflection too (a patch whose bond opens while its section bends one way: partly debonded).
-#: "other_delta": the sign of another section's deflection (a crack at a junction opened by the neighbour that
-#: carries the bending moment there); "kink": the sign of the relative deflection across a junction the section
-#: meets, δ_{j+1} − δ_j (a crack at a stiffness discontinuity opened by the jump of curvature across it)
+#: section's deflection too (a patch whose bond opens while its section bends one way: partly debonded)
 GATED_BY: dict[str, tuple[str, ...]] = {
-    "k": ("own_delta", "own_ddelta", "soft", "soft_rate", "grow", "tip", "soft_tip", "gap", "time", "other_delta",
-          "kink"),
+    "k": ("own_delta", "own_ddelta", "soft", "soft_rate", "grow", "tip", "soft_tip", "gap", "time"),
     "c": ("own_ddelta", "own_delta", "soft", "soft_rate", "grow", "gap", "time"),
     "m": ("time",),
     "d_ep": ("va", "vc", "soft_drive", "grow_volt", "time"),
@@ -209,11 +205,10 @@ def param_label(param: str, index: int) -> str:
     return f"{param}{index + 1}" if CONTRIBUTIONS[param].per != "patch" else param
 
 
-def is_hinge(param: str, form: str, signal: str, index: int) -> bool:
-    """Whether the term is section ``index``'s stiffness gated by the sign of its own deflection: a bilinear spring,
-    whose lost force c·k·(δ − G)⁺ (resp. (δ − G)⁻) is continuous at the switching point G (a hinge, not a step of
-    k·δ). Gated by another section's deflection it is a step of k·δ: a crack opened by the neighbour's bending."""
-    return param == "k" and form in SIGN_GATES and signal == f"delta{index + 1}"
+def is_hinge(param: str, form: str, signal: str) -> bool:
+    """Whether the term is a section's stiffness gated by the sign of its own deflection: a bilinear spring, whose
+    lost force c·k·(δ − G)⁺ (resp. (δ − G)⁻) is continuous at the switching point G (a hinge, not a step of k·δ)."""
+    return param == "k" and form in SIGN_GATES and signal.startswith("delta")
 
 
 #: the hinge's gate (code in S, G, H): (S − G) times the smoothed step at G, so the stiffness line drops its δ; at
@@ -227,9 +222,9 @@ HINGE_CODE = {form: f"(S - G) * {GATES[form].code} + G * {GATES[form].code.repla
 _HINGE_LINES = {"rates": ("bus[B_S + {i}] += -({A}) * p[P_K + {i}]",)}
 
 
-def gate_code(form: str, param: str, signal: str, index: int) -> str:
+def gate_code(form: str, param: str, signal: str) -> str:
     """Numba code (in S, G, H, t) of the gate of a damage term: the hinge for a bilinear spring, else the gate's."""
-    return HINGE_CODE[form] if is_hinge(param, form, signal, index) else GATES[form].code
+    return HINGE_CODE[form] if is_hinge(param, form, signal) else GATES[form].code
 
 
 def contribution_lines(param: str, index: int, factor: str, hinge: bool = False) -> dict[str, list[str]]:
@@ -299,12 +294,11 @@ def damage_formula(param: str, index: int, form: str, signal: str, cname: str, g
     if form in SIGN_GATES and width > 0.0:  # the switch's edge: ½(1 ± tanh((S − G)/H)) at the fitted H
         return (damage_formula(param, index, form, signal, cname, gname)
                 + f"   (its edge ½(1 {'+' if form == 'on_pos' else '−'} tanh(({signal} − {g}) / {width:.4g})), SI)")
-    if is_hinge(param, form, signal, index):  # the bilinear spring: the lost force beyond the switching point
+    if is_hinge(param, form, signal):  # the bilinear spring: the lost force beyond the switching point
         n = index + 1
         side = "⁺" if form == "on_pos" else "⁻"
         return f"S_{n} += −{cname} · k{n} · ((δ{n} − {g}){side} − (−{g}){side})   (no force at rest)"
-    sig = {"one": "1", "kink12": "(delta2 − delta1)", "kink23": "(delta3 − delta2)"}.get(signal, signal)
-    gate = GATES[form].formula.replace("S", sig).replace("G", g)
+    gate = GATES[form].formula.replace("S", {"one": "1"}.get(signal, signal)).replace("G", g)
     con = CONTRIBUTIONS[param].formula.format(n=index + 1)
     return f"{con}   with c = {cname} · {gate}"
 
@@ -317,9 +311,7 @@ def class_stem(param: str, index: int, form: str, signal: str = "") -> str:
             "alpha_h": "PatchHysteresisShare", "beta_h": "PatchHysteresis",
             "R_ep": "PatchResistance", "C_ep": "PatchCapacitance"}[param]
     on = ("Rate" if signal.startswith("ddelta") else "Tip" if signal == "z3" else "Drive" if signal in ("va", "vc")
-          and form in SOFT_GATES else "Bend" if signal.startswith("delta") and param == "d_ep_i" else
-          "Kink" if signal.startswith("kink") else f"Bend{signal[-1]}" if signal.startswith("delta")
-          and signal != f"delta{index + 1}" else "")
+          and form in SOFT_GATES else "Bend" if signal.startswith("delta") and param == "d_ep_i" else "")
     return base + {"on_pos": f"{on}Positive", "on_neg": f"{on}Negative", "on_pos_soft": f"{on}OpeningPositive",
                    "on_neg_soft": f"{on}OpeningNegative", "on_pos_grow": "GrowingPositive",
                    "on_neg_grow": "GrowingNegative", "on_gap": "BeyondGap", "on_step": "Event",

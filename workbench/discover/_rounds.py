@@ -33,7 +33,6 @@ from workbench.discover._finite_change import WindowFit
 from workbench.discover._gate_shape import shape_rows
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._kept_change import refine_kept
-from workbench.discover._neighbour_gate import neighbour_may_lead, neighbour_rows
 from workbench.discover._onset import change_point, event_onset, onset_probe, onset_scan, with_onsets
 from workbench.discover._onset_profile import onset_held_blind, place_onset
 from workbench.discover._results import DiscoverError, ScreenRow, excess_share_removed, noise_free_match
@@ -395,20 +394,17 @@ def family_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSe
     at the same instant elsewhere (:func:`~workbench.discover._event_check.place_family`), refitted too (logged in
     ``tried``), and another parameter changing at that instant (its kind family): one of them replaces it only when it
     fits clearly better — beyond the twins' tolerance — or, within it, when only it moves its parameter the way
-    damage does (:func:`~workbench.discover._event_check.damage_lead`); then a section's stiffness switched by another
-    bending signal (:func:`~workbench.discover._neighbour_gate.neighbour_rows`); last, the same change with another
-    gate shape (:func:`~workbench.discover._gate_shape.shape_rows`)."""
+    damage does (:func:`~workbench.discover._event_check.damage_lead`); last, the same change with another gate
+    shape (:func:`~workbench.discover._gate_shape.shape_rows`)."""
     for family in (lambda b: switch_family(setup.terms[b.index], rows, {t["term"] for t in tried}),
                    lambda b: place_switch_family(setup.terms[b.index], rows, {t["term"] for t in tried},
                                                  b.held_rms_sigma),
                    lambda b: place_rows(setup, progress, settings, b, {t["term"] for t in tried}),
                    lambda b: place_rows(setup, progress, settings, b, {t["term"] for t in tried}, kinds=True),
                    lambda b: section_rows(setup, progress, settings, b, {t["term"] for t in tried}),
-                   lambda b: neighbour_rows(setup, b, rows, {t["term"] for t in tried}),
                    lambda b: shape_rows(setup, progress, settings, b)):
         more = refit_best(setup, progress, settings, rows_, tried) if (rows_ := family(best)) else None
-        if (more is not None and more.held_rms_sigma * twin_tolerance(setup.n_held) < best.held_rms_sigma
-                and neighbour_may_lead(setup.terms[more.index], more.held_rms_sigma)):
+        if more is not None and more.held_rms_sigma * twin_tolerance(setup.n_held) < best.held_rms_sigma:
             best = more
     return damage_lead(setup, progress, settings, best)
 
