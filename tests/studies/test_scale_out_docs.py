@@ -4,8 +4,8 @@ as copied, in order, in a shell (quotes and globs as a user's shell treats them)
 cluster ``tcp://10.0.0.5:8786`` and port 8786 by this test's cluster on a free loopback port, ``--boards 20`` by 2,
 the 24-visit ``aging`` life by README's ``short-aging.toml`` (5 visits 250 h apart), and ``records/`` holds two short
 records. Both docs run in one folder, in order, as a reader who follows both would; a line README repeats word for
-word from docs/scale-out.md runs once (its output is already there for the lines after it). The ``python -m bench`` lines are test_scale_out_cases.py's. Each line must exit 0; a ``--json`` line prints
-one JSON document."""
+word from docs/scale-out.md runs once (its output is already there for the lines after it). The ``python -m bench``
+lines are test_scale_out_cases.py's. Each line must exit 0; a ``--json`` line prints one JSON document."""
 
 from __future__ import annotations
 
