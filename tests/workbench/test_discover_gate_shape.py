@@ -54,10 +54,12 @@ def test_the_candidates_are_the_same_change_with_another_shape():
 
 
 def test_a_rate_switch_edge_is_probed_from_near_the_sharp_switch():
-    # a tip crack switched by δ̇3 < 0 over 0.2 mm/s on a sweep whose δ̇3 reaches 0.43 m/s: the grid brackets it
+    # a tip crack switched by δ̇3 < 0 over 0.2 mm/s on a sweep whose δ̇3 reaches 0.88 m/s: the grid, with its zoom
+    # (three rounds, × / ÷ 1.5, 1.25, 1.125), reaches it
     terms = build_dictionary(SCALES)
-    grid = gs.shape_grid(terms[_key(terms, "k3_neg_soft_ddelta3")], 0.43)
-    assert min(grid) < 2e-4 < max(grid) and max(grid) == pytest.approx(0.043)
+    grid = gs.shape_grid(terms[_key(terms, "k3_neg_soft_ddelta3")], 0.88)
+    reach = (1 + gs.SHAPE_STEP) * (1 + gs.SHAPE_STEP / 2) * (1 + gs.SHAPE_STEP / 4)
+    assert min(grid) / reach < 2e-4 < max(grid) and max(grid) == pytest.approx(0.088)
     assert gs.shape_grid(terms[_key(terms, "k3_neg_soft_delta3")], 1e-3) == pytest.approx([3e-5, 1e-4, 3e-4, 1e-3])
 
 

@@ -38,8 +38,9 @@ WIDTHS = (0.03, 0.1, 0.3, 1.0)
 #: edge widths probed for a smooth gate on a section's rate (fractions of the rate's scale): a direction-dependent
 #: stiffness switches near the turning points and its error is not monotone in the edge (see
 #: :data:`~workbench.discover._gates.SOFT_RATE_AT`) — a tip crack switched by δ̇3 < 0 over 0.2 mm/s was kept at
-#: ±5.34 mm/s, the screen's 21 mm/s refitted to the bottom of its range (22.4 σ; sweep, blind set 5) — so over
-#: 2.5 decades, from near the sharp switch
+#: ±5.34 mm/s, the screen's 4.4 mm/s (0.5 % of δ̇3's 0.88 m/s scale) refitted into a basin a factor of 25 from the
+#: truth (22.4 σ; sweep, blind set 5) — so over 2.5 decades from near the sharp switch, the zoom reaching a factor
+#: of two below the smallest
 RATE_WIDTHS = (0.0003, 0.001, 0.003, 0.01, 0.03, 0.1)
 SATURATIONS = (0.25, 0.5, 1.0, 2.0)
 #: sizes probed, multiples of the best refit's coefficient (a sharp switch gives the whole change where a smooth or
