@@ -58,6 +58,7 @@ from workbench.discover._dictionary_effect import (
     term_scale,
 )
 from workbench.discover._finite_change import finite_changes, found_term
+from workbench.discover._pair_refit import pair_step
 from workbench.discover._results import (
     DiscoverError,
     Discovery,
@@ -114,6 +115,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         if not search_round(setup, progress, settings, round_no):
             break
     backward_step(setup, progress, settings)
+    pair_step(setup, progress, settings)
     drop_idle(setup, progress, settings)
     # --- stability guard: the kept model in free run at the records' full rate
     t0 = time.perf_counter()

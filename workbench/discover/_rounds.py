@@ -108,6 +108,8 @@ class SearchProgress:
     #: every shape of that event refitted while it was judged (:mod:`workbench.discover._shaped_event`): the
     #: finite-change step does not refit them again
     shaped: list[WindowFit] = field(default_factory=list)
+    #: the first round's sensitivity batch (the pair step screens its pairs, :mod:`workbench.discover._pair_refit`)
+    first_batch: SensitivityBatch | None = None
 
 
 @dataclass(frozen=True)
@@ -474,7 +476,7 @@ def search_round(setup: SearchSetup, progress: SearchProgress, settings: SearchS
         how = "on the full model at the screened coefficients"
     timings["screen_s"] += time.perf_counter() - t0
     if round_no == 0:
-        progress.screen_rows = rows[:12]
+        progress.screen_rows, progress.first_batch = rows[:12], batch
     settings.say(f"round {round_no + 1}: screened {len(rows)} terms in {time.perf_counter() - t0:.2g} s; best "
                  f"{how} (held-out): " + ", ".join(f"{r.term.key} {r.held_rms_sigma:.3g} σ" for r in rows[:4]))
     t0 = time.perf_counter()
