@@ -52,7 +52,10 @@ class PairRow:
 def screen_matrices(targets: Sequence, ys: Sequence[np.ndarray], eps: np.ndarray) -> ScreenMatrices:
     """The screen's matrices from a sensitivity batch: ``ys[t]`` the measured channels of target t (member 0 the
     current model, member k + 1 candidate k switched on by ``eps[k]``; shape members × channels × samples)."""
-    r_tr, r_he, x_tr, x_he = [], [], [], []
+    r_tr: list[np.ndarray] = []
+    r_he: list[np.ndarray] = []
+    x_tr: list[np.ndarray] = []
+    x_he: list[np.ndarray] = []
     for tg, y in zip(targets, ys):
         for mask, rr, xx in ((tg.train, r_tr, x_tr), (tg.held, r_he, x_he)):
             meas = tg.measured[:, mask] / tg.sigma[:, None]
