@@ -40,7 +40,8 @@ def test_the_pair_screen_finds_the_two_changes_the_single_screen_misses():
     m, _ = _matrices()
     usable = np.array([True, True, True, True, False])  # without the near-twin of column 0 (that pair ties)
     singles = single_held(m, usable)
-    assert int(np.argmin(singles)) == 2 and singles[4] == np.inf  # alone, the proxy of their average is the best single term
+    # alone, the proxy of their average is the best single term
+    assert int(np.argmin(singles)) == 2 and singles[4] == np.inf
     rows = pair_screen(m, ["a", "b", "c", "d", "e"], usable, np.full(5, np.inf), 3)
     best = rows[0]
     assert (best.i, best.j) == (0, 1)
