@@ -19,7 +19,7 @@ from plant.warm import main as plant_main
 from workbench.discover import build_dictionary, dictionary_source, generated_effect
 
 #: the signals a record's scales name (workbench.discover.signal_scales), all moving
-SIGNALS = (*(f"{s}{j}" for s in ("z", "zd", "delta", "ddelta") for j in (1, 2, 3)), "vc", "va", "one", "t")
+SIGNALS = (*(f"{s}{j}" for s in ("z", "zd", "delta", "ddelta") for j in (1, 2, 3)), "vc", "va", "ic", "one", "t")
 
 
 def discover_compositions() -> list[ShippedComposition]:

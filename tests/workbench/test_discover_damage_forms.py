@@ -58,6 +58,11 @@ def test_words_name_the_damage_as_an_engineer_would():
     edge = describe_damage("k", 1, "on_pos_soft", "ddelta2", -0.25, 1e-3)
     assert "for δ̇2 > 0 (switching over about ±1 mm/s of δ̇2" in edge and "direction of motion" in edge
     assert "contact damping" in describe_damage("c", 1, "on_gap", "delta2", 2.0, 3e-4)
+    charging = describe_damage("d_ep_i", 0, "on_pos", "ic", -0.4, 0.0)  # one sense of the charging, not of the volts
+    assert charging.startswith("patch 1 (on section 1) whose authority d_ep is 40 % lower while its charging current "
+                               "is positive (the charge rising, i_c > 0)")
+    assert "±0.2 mA" in describe_damage("d_ep_i", 0, "on_pos_soft", "ic", -0.4, 2e-4)
+    assert class_stem("d_ep_i", 0, "on_pos", "ic") == "Patch1CouplingChargingPositive"
     assert class_stem("k", 1, "on_pos", "ddelta2") != class_stem("k", 1, "on_pos", "delta2")
     term = Term("damage", 1, "one", "on_step", 20.0, "k", (15.0, 22.5))
     assert describe_term(term, -0.25, 20.04, 1.0, 0.08) == event

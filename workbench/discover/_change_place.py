@@ -70,7 +70,7 @@ def placeable(term: Term) -> bool:
     if term.placement != "damage" or term.index < 0:
         return False
     on_volts = term.form in (*SIGN_GATES, *SOFT_GATES, *GROW_GATES)
-    return is_timed(term) or (on_volts and (term.signal == "va" or term.signal.startswith("vc")))
+    return is_timed(term) or (on_volts and (term.signal in ("va", "ic") or term.signal.startswith("vc")))
 
 
 def counterpart(terms: Sequence[Term], slot: int, index: int) -> int | None:

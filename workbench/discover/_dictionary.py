@@ -130,6 +130,8 @@ def _signals() -> dict[str, Signal]:
                                        f"deformation rate of section {j + 1}")
     out["vc"] = Signal("vc", "bus[B_VC + i]", "V", "patch voltage")
     out["va"] = Signal("va", "bus[B_VA_DEMAND]", "V", "drive voltage")
+    # the current charging the patch through R_ep (its own; the rate of its charge less the piezo share)
+    out["ic"] = Signal("ic", "((bus[B_VA] - bus[B_VC + i]) / p[P_R_EP])", "A", "patch charging current")
     out["one"] = Signal("one", "1.0", "1", "constant (a time gate's signal)")
     return out
 
@@ -315,9 +317,9 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                                   for t0, rng in onsets(duration, STEP_AT)]
                         terms += [Term("damage", index, "one", "on_ramp", t0, param, rng)
                                   for t0, rng in (onset_before(duration), *onsets(duration, RAMP_AT))]
-                elif what in ("soft", "soft_rate", "soft_tip", "soft_drive"):
+                elif what in ("soft", "soft_rate", "soft_tip", "soft_drive", "soft_charge"):
                     sig = {"soft": f"delta{index + 1}", "soft_rate": f"ddelta{index + 1}", "soft_tip": "z3",
-                           "soft_drive": "va" if driven else "vc"}[what]
+                           "soft_drive": "va" if driven else "vc", "soft_charge": "ic"}[what]
                     if ok(sig):
                         widths = SOFT_RATE_AT if what == "soft_rate" else (SOFT_AT,)
                         terms += [Term("damage", index, sig, g, w * scales[sig], param) for g in SOFT_GATES

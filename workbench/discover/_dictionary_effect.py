@@ -39,6 +39,7 @@ def signal_scales(targets: Sequence[Target]) -> tuple[dict[str, float], dict[str
             sig.setdefault(f"ddelta{j + 1}", []).append(xs[:, L.X_DDELTA + j])
         sig.setdefault("vc", []).append(bus[:, L.B_VC])
         sig.setdefault("va", []).append(bus[:, L.B_VA_DEMAND])
+        sig.setdefault("ic", []).append(bus[:, L.B_IR])
         sig.setdefault("one", []).append(np.ones(tg.t.size))
     scales = {k: float(np.percentile(np.abs(np.concatenate(v)), 99)) for k, v in sig.items()}
     scales["t"] = max(float(tg.t[-1]) for tg in targets)  # the longest record's duration (s): the time gates' span

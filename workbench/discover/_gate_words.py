@@ -18,6 +18,8 @@ def _switch_value(signal: str, g: float) -> str:
         return sign + (f"{abs(g) * 1e3:.3g} mm" if abs(g) >= 1e-4 else _length(abs(g)))
     if signal in ("va", "vc"):
         return f"{'−' if g < 0 else '+'}{abs(g):.3g} V"
+    if signal == "ic":
+        return f"{'−' if g < 0 else '+'}{abs(g) * 1e3:.3g} mA"
     return f"{g:.3g}"
 
 
@@ -44,6 +46,11 @@ def _condition(form: str, signal: str, g: float = 0.0) -> str:
         if g == 0.0:
             return f"{'positive' if positive else 'negative'} {what}"
         return f"the {what} is {'above' if positive else 'below'} {at}"
+    if signal == "ic":
+        if g == 0.0:
+            sense = "positive (the charge rising" if positive else "negative (the charge falling"
+            return f"its charging current is {sense}, i_c {op} 0)"
+        return f"its charging current is {'above' if positive else 'below'} {at} (i_c {op} {at})"
     return f"{signal} {op} {at}"
 
 
@@ -65,7 +72,7 @@ def _describe_sign(param: str, index: int, form: str, signal: str, coef: float, 
     lower = coef < 0
     lh = "lower" if lower else "higher"
     cond = _condition(form, signal, g)
-    when = "while" if g != 0.0 and signal in ("va", "vc") else "for"
+    when = "while" if (g != 0.0 and signal in ("va", "vc")) or signal == "ic" else "for"
     if param == "k" and signal.startswith("delta"):
         at = "" if g == 0.0 else f" switching at {_switch_value(signal, g)}"
         side = "on that side" if g == 0.0 else "beyond that deflection"
@@ -87,6 +94,8 @@ def _describe_sign(param: str, index: int, form: str, signal: str, coef: float, 
         return _swing_crack(n, coef, cond, "")
     if param == "d_ep_i" and signal.startswith("delta"):
         return _debonded_patch(n, coef, cond, "")
+    if param in ("d_ep", "d_ep_i") and signal == "ic":
+        return _charging_patch(param, n, f"{pct} {lh} {when} {cond}")
     if param in ("d_ep", "d_ep_i"):
         return _depolarised(param, n, f"{pct} {lh} {when} {cond}")
     if param == "c" and signal.startswith("delta"):
@@ -175,6 +184,16 @@ def _depolarised(param: str, n: int, how: str) -> str:
     return f"a patch whose authority d_ep is {how} (polarisation-dependent coupling: a partly depolarised patch)"
 
 
+def _charging_patch(param: str, n: int, how: str) -> str:
+    """A patch's coupling (every patch's ``d_ep``, or patch ``n``'s own) changed ``how`` ('40 % lower while its
+    charging current is positive …') in one sense of its charging, not of its voltage."""
+    why = ("a coupling lost in one sense of the charging, not of the voltage: domain walls pinned while the field "
+           "changes that way")
+    if param == "d_ep_i":
+        return f"patch {n} (on section {n}) whose authority d_ep is {how}, the other patches as modelled ({why})"
+    return f"a patch whose authority d_ep is {how} ({why})"
+
+
 def _fading_patch(param: str, n: int, form: str, signal: str, coef: float, shape: float) -> str:
     """A coupling (or another patch parameter) whose change grows in proportion to the patch voltage on one
     polarity, reaching ``coef`` at ``shape`` (V) and holding beyond."""
@@ -238,6 +257,11 @@ def _describe_edge(param: str, index: int, form: str, signal: str, coef: float, 
                     "the direction of motion — a crack whose faces separate or catch as the section moves one way)")
         return f"{what} {pct} {lh} for δ̇{n} {op} 0 ({edge}: direction-dependent)"
     cond = _condition("on_pos" if op == ">" else "on_neg", signal)
+    if signal == "ic":
+        edge = f", switching over about ±{1e3 * abs(shape):.3g} mA"
+        if param in ("d_ep", "d_ep_i"):
+            return _charging_patch(param, n, f"{pct} {lh} while {cond}{edge}")
+        return f"{what} {pct} {lh} while {cond}{edge} (a change with the sense of the patch's charging)"
     if signal in ("va", "vc"):
         edge = f", switching over about ±{abs(shape):.3g} V"
         if param in ("d_ep", "d_ep_i"):

@@ -91,7 +91,7 @@ WIDTH_CODE = {"on_step": "0.5 * (1.0 + math.tanh((t - G) / H))",
 #: record, smooth for the integrator), and of the time step (s: below a sample at the fits' 250 Hz — a 25 % loss of
 #: k2 at 20 s of a sweep, switched over 10 ms, differed from the same loss switched at once by 2.5 σ RMS, 0.06 σ
 #: over 1 ms)
-SIGN_WIDTH = {"m": 1e-7, "m/s": 1e-5, "V": 1e-2}
+SIGN_WIDTH = {"m": 1e-7, "m/s": 1e-5, "V": 1e-2, "A": 1e-7}
 STEP_WIDTH_S = 1e-3
 #: onset times a step is screened at (fractions of the record; the refit moves t0 by up to half the spacing either
 #: way, so together they span the record), and those of a ramp
@@ -184,13 +184,15 @@ CONTRIBUTIONS: dict[str, Contribution] = {
 #: polarisation that fades over a range of field); "grow_volt" the patch's own voltage with the change growing with
 #: it up to a saturation (a coupling that fades progressively as the voltage rises on one polarity: electrode
 #: fingers that lose contact one by one, domains that back-switch by degrees). A patch's own coupling meets its
-#: section's deflection too (a patch whose bond opens while its section bends one way: partly debonded)
+#: section's deflection too (a patch whose bond opens while its section bends one way: partly debonded), and the sign
+#: of its charging current "ic", (v_a − v_c)/R_ep, sharp or with a smooth edge ("soft_charge"): a coupling lost while
+#: the patch charges, not while it discharges (domain walls pinned while the field rises in the poling sense)
 GATED_BY: dict[str, tuple[str, ...]] = {
     "k": ("own_delta", "own_ddelta", "soft", "soft_rate", "grow", "tip", "soft_tip", "gap", "time"),
     "c": ("own_ddelta", "own_delta", "soft", "soft_rate", "grow", "gap", "time"),
     "m": ("time",),
-    "d_ep": ("va", "vc", "soft_drive", "grow_volt", "time"),
-    "d_ep_i": ("va", "vc", "soft_drive", "grow_volt", "own_delta", "soft", "time"),
+    "d_ep": ("va", "vc", "soft_drive", "grow_volt", "ic", "soft_charge", "time"),
+    "d_ep_i": ("va", "vc", "soft_drive", "grow_volt", "ic", "soft_charge", "own_delta", "soft", "time"),
     "alpha_h": ("va", "vc", "time"),
     "beta_h": ("va", "vc", "time"),
     "R_ep": ("va", "vc", "time"),
@@ -310,7 +312,8 @@ def class_stem(param: str, index: int, form: str, signal: str = "") -> str:
             "d_ep": "PatchCoupling", "d_ep_i": f"Patch{index + 1}Coupling",
             "alpha_h": "PatchHysteresisShare", "beta_h": "PatchHysteresis",
             "R_ep": "PatchResistance", "C_ep": "PatchCapacitance"}[param]
-    on = ("Rate" if signal.startswith("ddelta") else "Tip" if signal == "z3" else "Drive" if signal in ("va", "vc")
+    on = ("Rate" if signal.startswith("ddelta") else "Tip" if signal == "z3" else "Charging" if signal == "ic"
+          else "Drive" if signal in ("va", "vc")
           and form in SOFT_GATES else "Bend" if signal.startswith("delta") and param == "d_ep_i" else "")
     return base + {"on_pos": f"{on}Positive", "on_neg": f"{on}Negative", "on_pos_soft": f"{on}OpeningPositive",
                    "on_neg_soft": f"{on}OpeningNegative", "on_pos_grow": "GrowingPositive",

@@ -186,7 +186,8 @@ def describe_units(found: Sequence[FoundTerm]) -> list[str]:
         line = f"{f.term.key}: coefficient {f.coef:.4g} {f.term.unit}"
         if ALL_FORMS[f.term.form].shape:
             unit = ("s" if f.term.form in (*DELAY_FORMS, *TIME_GATES) else
-                    "m/s" if f.term.signal.startswith(("zd", "dd")) else "V" if f.term.signal in ("va", "vc") else "m")
+                    "m/s" if f.term.signal.startswith(("zd", "dd")) else "V" if f.term.signal in ("va", "vc")
+                    else "A" if f.term.signal == "ic" else "m")
             line += f", {ALL_FORMS[f.term.form].shape} {f.shape:.4g} {unit}"
         if f.term.width > 0.0:
             line += f", edge width {f.term.width:.4g} s"
