@@ -24,10 +24,14 @@ def test_every_blind_case_has_a_check_for_its_physics():
 #: read on their own side, three steps two of which coincide taken for two (the set re-run whole 03:58–04:40 UTC,
 #: then the steps' five 04:41–04:48 UTC) — sweep root_then_tip_loss and MBIT.b tip_crack_on_mid_bend: 21 of 33; a
 #: smooth switch's edge probed over a grid from near the sharp switch on a rate (68859ec; the sweep's case through
-#: discover 2026-11-29 05:38 UTC, the walk 06:09–06:25 UTC) — the sweep's tip_crack_moving_down: 22 of 33.
+#: discover 2026-11-29 05:38 UTC, the walk 06:09–06:25 UTC) — the sweep's tip_crack_moving_down: 22 of 33; a pair
+#: step after the rounds (abb4be4; the walk 08:38 UTC) — the sweep's patches13_opposite_polarity; a coupling switched
+#: by the sense of the patch's charging current (1b13287; the walk 09:16–09:25 UTC) — the sweep's
+#: patch1_weak_charging: 24 of 33.
 PASSING5: dict[str, tuple[str, ...]] = {
     "sweep": ("mid_crack_claps", "mid_loss_after_overload", "patch3_weak_positive_charge",
-              "root_drift_started_before", "root_then_tip_loss", "tip_loss_in_jumps", "tip_crack_moving_down"),
+              "root_drift_started_before", "root_then_tip_loss", "tip_loss_in_jumps", "tip_crack_moving_down",
+              "patches13_opposite_polarity", "patch1_weak_charging"),
     "mbit-a": ("mid_crack_on_kink", "tip_crack_on_mid_bend", "mid_crack_claps", "mid_loss_after_overload",
                "patch3_weak_positive_charge", "root_then_tip_loss", "root_drift_started_before", "tip_loss_in_jumps"),
     "mbit-b": ("tip_crack_moving_down", "mid_crack_on_kink", "tip_crack_on_mid_bend", "patch3_weak_positive_charge",
