@@ -87,7 +87,7 @@ def test_setup_builds_the_kernel_a_first_shm_discover_loads():
     warmed = {n for n in sys.modules if n.startswith("_mfc_shm_kernel_")} - before
     scales = {"z1": 9e-4, "zd1": 0.016, "delta1": 9e-4, "ddelta1": 0.016, "z2": 2e-3, "zd2": 0.04, "delta2": 1e-3,
               "ddelta2": 0.028, "z3": 3.4e-3, "zd3": 0.11, "delta3": 1.5e-3, "ddelta3": 0.088, "vc": 300.0,
-              "va": 300.0, "one": 1.0, "t": 2.0}  # a 2 s MBIT.b record's
+              "va": 300.0, "ic": 2e-3, "one": 1.0, "t": 2.0}  # a 2 s MBIT.b record's
     cls = generated_effect(dictionary_source(build_dictionary(scales, driven=True)), "dictionary_driven")
     PlantModel("table2", effects=[cls], terminal="amplifier").uncached_kernels(comps[0].entries)
     assert len(warmed) == 1 and {n for n in sys.modules if n.startswith("_mfc_shm_kernel_")} - before == warmed
