@@ -35,6 +35,7 @@ from workbench.discover._gates import TIME_GATES
 from workbench.discover._kept_change import refine_kept
 from workbench.discover._onset import change_point, event_onset, onset_probe, onset_scan, with_onsets
 from workbench.discover._onset_profile import onset_held_blind, place_onset
+from workbench.discover._pair_screen import screen_matrices
 from workbench.discover._results import DiscoverError, ScreenRow, excess_share_removed, noise_free_match
 from workbench.discover._search import (
     SearchState,
@@ -158,21 +159,9 @@ def sensitivities(setup: SearchSetup, progress: SearchProgress, settings: Search
 
 def linear_screen(setup: SearchSetup, batch: SensitivityBatch) -> list[ScreenRow]:
     """Each candidate's coefficient by least squares on the training blocks, ranked by the held-out residual left."""
-    r_tr: list[np.ndarray] = []
-    r_he: list[np.ndarray] = []
-    X_tr: list[np.ndarray] = []
-    X_he: list[np.ndarray] = []
-    cand, eps = batch.cand, setup.eps
-    for tg, y in zip(setup.targets, batch.ys):
-        for part, rr, XX in (("train", r_tr, X_tr), ("held", r_he, X_he)):
-            mask = tg.train if part == "train" else tg.held
-            meas = tg.measured[:, mask] / tg.sigma[:, None]
-            y0 = y[0][:, mask] / tg.sigma[:, None]
-            rr.append((meas - y0).ravel())
-            sens = (y[1:, :, :][:, :, mask] - y[0][None, :, mask]) / tg.sigma[None, :, None]
-            XX.append(sens.reshape(sens.shape[0], -1) / eps[cand][:, None])
-    r_tr_v, r_he_v = np.concatenate(r_tr), np.concatenate(r_he)
-    Xtr, Xhe = np.concatenate(X_tr, axis=1), np.concatenate(X_he, axis=1)
+    cand = batch.cand
+    m = screen_matrices(setup.targets, batch.ys, setup.eps[cand])
+    r_tr_v, r_he_v, Xtr, Xhe = m.r_train, m.r_held, m.x_train, m.x_held
     rows = []
     for j, k in enumerate(cand):
         if not batch.ok[j + 1]:
