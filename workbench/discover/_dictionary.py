@@ -47,6 +47,7 @@ from workbench.discover._gates import (
     GATED_BY,
     GATES,
     GROW_AT,
+    GROW_CHARGE_AT,
     GROW_GATES,
     RAMP_AT,
     SOFT_AT,
@@ -324,10 +325,10 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                         widths = SOFT_RATE_AT if what == "soft_rate" else (SOFT_AT,)
                         terms += [Term("damage", index, sig, g, w * scales[sig], param) for g in SOFT_GATES
                                   for w in widths]
-                elif what in ("grow", "grow_volt"):
-                    if ok(sig := "vc" if what == "grow_volt" else f"delta{index + 1}"):
+                elif what in ("grow", "grow_volt", "grow_charge"):
+                    if ok(sig := {"grow_volt": "vc", "grow_charge": "ic"}.get(what, f"delta{index + 1}")):
                         terms += [Term("damage", index, sig, g, f * scales[sig], param) for g in GROW_GATES
-                                  for f in GROW_AT]
+                                  for f in (GROW_CHARGE_AT if what == "grow_charge" else GROW_AT)]
                 elif what == "gap":
                     if ok(sig):
                         terms += [Term("damage", index, sig, "on_gap", f * scales[sig], param) for f in GAP_AT]

@@ -242,6 +242,11 @@ def _describe_edge(param: str, index: int, form: str, signal: str, coef: float, 
     op = ">" if form.startswith("on_pos") else "<"
     if form in GROW_GATES and signal in ("va", "vc"):
         return _fading_patch(param, n, form, signal, coef, shape)
+    if form in GROW_GATES and signal == "ic":
+        reach = _switch_value(signal, shape if op == ">" else -shape)
+        how = (f"{pct} {lh} once its charging current reaches {reach}, in proportion to the current from 0 up to there "
+               f"and not at all while it {'discharges' if op == '>' else 'charges'}")
+        return _charging_patch(param, n, how) if param in ("d_ep", "d_ep_i") else f"{what} {how}"
     if form in GROW_GATES:
         side = f"δ{n} {op} 0"
         reach = f"{'−' if op == '<' else ''}{_length(shape)}"

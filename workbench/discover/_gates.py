@@ -115,6 +115,11 @@ SOFT_RATE_AT = (0.005, 0.05)
 #: saturations a growing gate is screened at (fractions of its signal's scale; the refit moves it a factor of four:
 #: from a quarter of the scale — nearly a sharp switch — to four times it, a loss quadratic over the whole motion)
 GROW_AT = (1.0,)
+#: ... and those of a growing gate on a patch's charging current (fractions of its scale): the current's 99th
+#: percentile is set by the drive's fastest edges, far above the currents most of a record carries (MBIT.a: a scale
+#: of 4 mA, a coupling lost over the first 0.2 mA), so its saturation is screened low, where a factor of four either
+#: way spans 0.05–0.8 mA there (screened at the scale, the refit could not leave 83 σ; here 6.8 σ on that case)
+GROW_CHARGE_AT = (0.05,)
 #: a sign gate is screened switching at 0 and its switching point G refitted linearly within ± this fraction of
 #: its signal's scale (the 99th percentile of |signal|): a crack or a depoled patch that switches off zero
 SWITCH_RANGE = 0.8
@@ -186,13 +191,14 @@ CONTRIBUTIONS: dict[str, Contribution] = {
 #: fingers that lose contact one by one, domains that back-switch by degrees). A patch's own coupling meets its
 #: section's deflection too (a patch whose bond opens while its section bends one way: partly debonded), and the sign
 #: of its charging current "ic", (v_a − v_c)/R_ep, sharp or with a smooth edge ("soft_charge"): a coupling lost while
-#: the patch charges, not while it discharges (domain walls pinned while the field rises in the poling sense)
+#: the patch charges, not while it discharges (domain walls pinned while the field rises in the poling sense), or
+#: growing with that current up to a saturation ("grow_charge": none at rest, all of it once the current is strong)
 GATED_BY: dict[str, tuple[str, ...]] = {
     "k": ("own_delta", "own_ddelta", "soft", "soft_rate", "grow", "tip", "soft_tip", "gap", "time"),
     "c": ("own_ddelta", "own_delta", "soft", "soft_rate", "grow", "gap", "time"),
     "m": ("time",),
-    "d_ep": ("va", "vc", "soft_drive", "grow_volt", "ic", "soft_charge", "time"),
-    "d_ep_i": ("va", "vc", "soft_drive", "grow_volt", "ic", "soft_charge", "own_delta", "soft", "time"),
+    "d_ep": ("va", "vc", "soft_drive", "grow_volt", "ic", "soft_charge", "grow_charge", "time"),
+    "d_ep_i": ("va", "vc", "soft_drive", "grow_volt", "ic", "soft_charge", "grow_charge", "own_delta", "soft", "time"),
     "alpha_h": ("va", "vc", "time"),
     "beta_h": ("va", "vc", "time"),
     "R_ep": ("va", "vc", "time"),
@@ -316,8 +322,10 @@ def class_stem(param: str, index: int, form: str, signal: str = "") -> str:
           else "Drive" if signal in ("va", "vc")
           and form in SOFT_GATES else "Bend" if signal.startswith("delta") and param == "d_ep_i" else "")
     return base + {"on_pos": f"{on}Positive", "on_neg": f"{on}Negative", "on_pos_soft": f"{on}OpeningPositive",
-                   "on_neg_soft": f"{on}OpeningNegative", "on_pos_grow": "GrowingPositive",
-                   "on_neg_grow": "GrowingNegative", "on_gap": "BeyondGap", "on_step": "Event",
+                   "on_neg_soft": f"{on}OpeningNegative",
+                   "on_pos_grow": ("Charging" if signal == "ic" else "") + "GrowingPositive",
+                   "on_neg_grow": ("Charging" if signal == "ic" else "") + "GrowingNegative", "on_gap": "BeyondGap",
+                   "on_step": "Event",
                    "on_ramp": "Growth"}[form]
 
 
