@@ -15,7 +15,7 @@ from workbench.discover import build_dictionary, dictionary_source
 from workbench.discover._dictionary import GATE_FORMS, Term
 from workbench.discover._effect_writer import describe_term, emit_effect_source, parameter_names_for
 from workbench.discover._gate_words import describe_damage
-from workbench.discover._gates import class_stem, gate_values, gate_width, onsets
+from workbench.discover._gates import class_stem, damage_formula, gate_values, gate_width, onsets
 
 
 def test_gate_code_agrees_with_its_numpy_values():
@@ -25,7 +25,7 @@ def test_gate_code_agrees_with_its_numpy_values():
         code = form.code.replace("math.tanh", "np.tanh").replace("abs(", "np.abs(").replace("max(", "np.maximum(")
         code = code.replace("min(", "np.minimum(")
         h = gate_width(name, "m")
-        g = 5e-4 if name == "on_gap" or name.endswith("_grow") else 1.4
+        g = 5e-4 if name == "on_gap" or name.endswith(("_grow", "_sat")) else 1.4
         got = eval(code, {"np": np, "S": s, "G": g, "H": h, "t": t})
         want = gate_values(name, s, g, t, "m")
         assert np.allclose(got, want), name
@@ -63,6 +63,11 @@ def test_words_name_the_damage_as_an_engineer_would():
                                "is positive (the charge rising, i_c > 0)")
     assert "±0.2 mA" in describe_damage("d_ep_i", 0, "on_pos_soft", "ic", -0.4, 2e-4)
     assert class_stem("d_ep_i", 0, "on_pos", "ic") == "Patch1CouplingChargingPositive"
+    saturating = describe_damage("d_ep_i", 0, "on_pos_sat", "ic", -0.4, 2e-4)  # more of it the faster it charges
+    assert saturating.startswith("patch 1 (on section 1) whose authority d_ep is 40 % lower while it charges, the "
+                                 "more the stronger the current (63 % of it at +0.2 mA") and "discharges" in saturating
+    assert class_stem("d_ep_i", 0, "on_pos_sat", "ic") == "Patch1CouplingChargingSaturatingPositive"
+    assert damage_formula("d_ep_i", 0, "on_pos_sat", "ic", "a", "g").endswith("with c = a · tanh(ic⁺ / g)")
     assert class_stem("k", 1, "on_pos", "ddelta2") != class_stem("k", 1, "on_pos", "delta2")
     term = Term("damage", 1, "one", "on_step", 20.0, "k", (15.0, 22.5))
     assert describe_term(term, -0.25, 20.04, 1.0, 0.08) == event

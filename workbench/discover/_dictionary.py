@@ -50,6 +50,7 @@ from workbench.discover._gates import (
     GROW_CHARGE_AT,
     GROW_GATES,
     RAMP_AT,
+    SAT_GATES,
     SOFT_AT,
     SOFT_GATES,
     SOFT_RATE_AT,
@@ -325,10 +326,14 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                         widths = SOFT_RATE_AT if what == "soft_rate" else (SOFT_AT,)
                         terms += [Term("damage", index, sig, g, w * scales[sig], param) for g in SOFT_GATES
                                   for w in widths]
-                elif what in ("grow", "grow_volt", "grow_charge"):
-                    if ok(sig := {"grow_volt": "vc", "grow_charge": "ic"}.get(what, f"delta{index + 1}")):
+                elif what in ("grow", "grow_volt"):
+                    if ok(sig := "vc" if what == "grow_volt" else f"delta{index + 1}"):
                         terms += [Term("damage", index, sig, g, f * scales[sig], param) for g in GROW_GATES
-                                  for f in (GROW_CHARGE_AT if what == "grow_charge" else GROW_AT)]
+                                  for f in GROW_AT]
+                elif what == "sat_charge":
+                    if ok(sig := "ic"):
+                        terms += [Term("damage", index, sig, g, GROW_CHARGE_AT * scales[sig], param)
+                                  for g in SAT_GATES]
                 elif what == "gap":
                     if ok(sig):
                         terms += [Term("damage", index, sig, "on_gap", f * scales[sig], param) for f in GAP_AT]

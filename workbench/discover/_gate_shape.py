@@ -26,7 +26,7 @@ import numpy as np
 
 from workbench.discover._dictionary import Term
 from workbench.discover._finite_change import whole_rms
-from workbench.discover._gates import GROW_GATES, SIGN_GATES, SOFT_GATES
+from workbench.discover._gates import GROW_GATES, SAT_GATES, SIGN_GATES, SOFT_GATES
 from workbench.discover._onset import whole_record_rms
 from workbench.discover._results import ScreenRow
 from workbench.discover._search import probe_batch
@@ -43,6 +43,9 @@ WIDTHS = (0.03, 0.1, 0.3, 1.0)
 #: of two below the smallest
 RATE_WIDTHS = (0.0003, 0.001, 0.003, 0.01, 0.03, 0.1)
 SATURATIONS = (0.25, 0.5, 1.0, 2.0)
+#: saturations probed for a smoothly saturating gate (on a patch's charging current, whose scale is set by the drive's
+#: fastest edges: see :data:`~workbench.discover._gates.GROW_CHARGE_AT`)
+SMOOTH_SATURATIONS = (0.0125, 0.025, 0.05, 0.1, 0.2)
 #: sizes probed, multiples of the best refit's coefficient (a sharp switch gives the whole change where a smooth or
 #: growing one gives part of it)
 SIZES = (0.7, 1.0, 1.4)
@@ -68,7 +71,7 @@ Trial = tuple[int, float, float]
 
 def gate_side(form: str) -> str:
     """"pos" or "neg" for a gate that acts on one side of its signal, "" for any other (a gap, a time gate)."""
-    if form in (*SIGN_GATES, *SOFT_GATES, *GROW_GATES):
+    if form in (*SIGN_GATES, *SOFT_GATES, *GROW_GATES, *SAT_GATES):
         return "pos" if form.startswith("on_pos") else "neg"
     return ""
 
@@ -93,7 +96,7 @@ def shape_grid(term: Term, scale: float) -> list[float]:
         return sorted({min(max(f * scale, lo), hi) for f in POINTS})
     if term.form in SOFT_GATES:
         return [f * scale for f in (RATE_WIDTHS if term.signal.startswith("ddelta") else WIDTHS)]
-    return [f * scale for f in SATURATIONS]
+    return [f * scale for f in (SMOOTH_SATURATIONS if term.form in SAT_GATES else SATURATIONS)]
 
 
 def shape_candidates(terms: list[Term], best: Term) -> list[int]:

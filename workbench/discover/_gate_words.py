@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import math
 
-from workbench.discover._gates import CONTRIBUTIONS, GROW_GATES, SIGN_GATES, SOFT_GATES, STEP_WIDTH_S
+from workbench.discover._gates import CONTRIBUTIONS, GROW_GATES, SAT_GATES, SIGN_GATES, SOFT_GATES, STEP_WIDTH_S
 
 
 def _switch_value(signal: str, g: float) -> str:
@@ -128,7 +128,7 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
                 + f" — a gradual switch: 10–90 % of it over {span} about that point")
     if form in SIGN_GATES:
         return _describe_sign(param, index, form, signal, coef, named_switch(shape, shape_se))
-    if form in SOFT_GATES or form in GROW_GATES:
+    if form in (*SOFT_GATES, *GROW_GATES, *SAT_GATES):
         return _describe_edge(param, index, form, signal, coef, shape)
     if form == "on_gap":
         if param == "k":
@@ -242,10 +242,11 @@ def _describe_edge(param: str, index: int, form: str, signal: str, coef: float, 
     op = ">" if form.startswith("on_pos") else "<"
     if form in GROW_GATES and signal in ("va", "vc"):
         return _fading_patch(param, n, form, signal, coef, shape)
-    if form in GROW_GATES and signal == "ic":
+    if form in SAT_GATES and signal == "ic":
         reach = _switch_value(signal, shape if op == ">" else -shape)
-        how = (f"{pct} {lh} once its charging current reaches {reach}, in proportion to the current from 0 up to there "
-               f"and not at all while it {'discharges' if op == '>' else 'charges'}")
+        how = (f"{pct} {lh} while it {'charges' if op == '>' else 'discharges'}, the more the stronger the current "
+               f"(63 % of it at {reach}, nearly all beyond three times that: tanh) and not at all while it "
+               f"{'discharges' if op == '>' else 'charges'}")
         return _charging_patch(param, n, how) if param in ("d_ep", "d_ep_i") else f"{what} {how}"
     if form in GROW_GATES:
         side = f"δ{n} {op} 0"

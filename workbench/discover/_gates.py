@@ -62,6 +62,11 @@ GATES: dict[str, Gate] = {
     # progressively (its lost stiffness grows with the opening: quadratic in δ, then linear beyond G)
     "on_pos_grow": Gate("on_pos_grow", "min(max(S, 0.0) / G, 1.0)", "saturation", formula="min(S⁺ / G, 1)"),
     "on_neg_grow": Gate("on_neg_grow", "min(max(-S, 0.0) / G, 1.0)", "saturation", formula="min(S⁻ / G, 1)"),
+    # one side, the change saturating smoothly as the signal grows past 0 (63 % of it at G): a patch's coupling lost
+    # with its charging current, none at rest and nearly all once the current is a few G (domain walls pinned by
+    # degrees as the field's rate rises)
+    "on_pos_sat": Gate("on_pos_sat", "math.tanh(max(S, 0.0) / G)", "saturation", formula="tanh(S⁺ / G)"),
+    "on_neg_sat": Gate("on_neg_sat", "math.tanh(max(-S, 0.0) / G)", "saturation", formula="tanh(S⁻ / G)"),
     "on_gap": Gate("on_gap", "max(abs(S) - G, 0.0) / max(abs(S), G)", "gap", formula="(|S| − G)⁺ / |S|"),
     "on_step": Gate("on_step", "0.5 * (1.0 + math.tanh((t - G) / H))", "onset time", formula="[t > G]"),
     "on_ramp": Gate("on_ramp", "max(t - G, 0.0)", "onset time", per_second=True, formula="(t − G)⁺"),
@@ -71,6 +76,7 @@ GATES: dict[str, Gate] = {
 SIGN_GATES = ("on_pos", "on_neg")
 SOFT_GATES = ("on_pos_soft", "on_neg_soft")
 GROW_GATES = ("on_pos_grow", "on_neg_grow")
+SAT_GATES = ("on_pos_sat", "on_neg_sat")
 TIME_GATES = ("on_step", "on_ramp")
 #: the gates whose edge width H is a fitted parameter of the dictionary (``h_NN``, default the fixed width below): a
 #: step whose change took time — a loss that ran and arrested along an S-curve — is the same step with a wide edge;
@@ -115,11 +121,11 @@ SOFT_RATE_AT = (0.005, 0.05)
 #: saturations a growing gate is screened at (fractions of its signal's scale; the refit moves it a factor of four:
 #: from a quarter of the scale — nearly a sharp switch — to four times it, a loss quadratic over the whole motion)
 GROW_AT = (1.0,)
-#: ... and those of a growing gate on a patch's charging current (fractions of its scale): the current's 99th
-#: percentile is set by the drive's fastest edges, far above the currents most of a record carries (MBIT.a: a scale
-#: of 4 mA, a coupling lost over the first 0.2 mA), so its saturation is screened low, where a factor of four either
-#: way spans 0.05–0.8 mA there (screened at the scale, the refit could not leave 83 σ; here 6.8 σ on that case)
-GROW_CHARGE_AT = (0.05,)
+#: ... and the saturation of a smoothly saturating gate on a patch's charging current (fraction of its scale): the
+#: current's 99th percentile is set by the drive's fastest edges, far above the currents most of a record carries
+#: (MBIT.a: a scale of 4 mA, a coupling lost over the first 0.2 mA), so it is screened low, where a factor of four
+#: either way spans 0.05–0.8 mA there (a growing gate screened at the scale could not leave 83 σ on that case)
+GROW_CHARGE_AT = 0.05
 #: a sign gate is screened switching at 0 and its switching point G refitted linearly within ± this fraction of
 #: its signal's scale (the 99th percentile of |signal|): a crack or a depoled patch that switches off zero
 SWITCH_RANGE = 0.8
@@ -192,13 +198,14 @@ CONTRIBUTIONS: dict[str, Contribution] = {
 #: section's deflection too (a patch whose bond opens while its section bends one way: partly debonded), and the sign
 #: of its charging current "ic", (v_a − v_c)/R_ep, sharp or with a smooth edge ("soft_charge"): a coupling lost while
 #: the patch charges, not while it discharges (domain walls pinned while the field rises in the poling sense), or
-#: growing with that current up to a saturation ("grow_charge": none at rest, all of it once the current is strong)
+#: saturating smoothly as that current grows ("sat_charge", tanh(i⁺/G): none at rest, nearly all of it once the
+#: current is a few G)
 GATED_BY: dict[str, tuple[str, ...]] = {
     "k": ("own_delta", "own_ddelta", "soft", "soft_rate", "grow", "tip", "soft_tip", "gap", "time"),
     "c": ("own_ddelta", "own_delta", "soft", "soft_rate", "grow", "gap", "time"),
     "m": ("time",),
-    "d_ep": ("va", "vc", "soft_drive", "grow_volt", "ic", "soft_charge", "grow_charge", "time"),
-    "d_ep_i": ("va", "vc", "soft_drive", "grow_volt", "ic", "soft_charge", "grow_charge", "own_delta", "soft", "time"),
+    "d_ep": ("va", "vc", "soft_drive", "grow_volt", "ic", "soft_charge", "sat_charge", "time"),
+    "d_ep_i": ("va", "vc", "soft_drive", "grow_volt", "ic", "soft_charge", "sat_charge", "own_delta", "soft", "time"),
     "alpha_h": ("va", "vc", "time"),
     "beta_h": ("va", "vc", "time"),
     "R_ep": ("va", "vc", "time"),
@@ -278,6 +285,8 @@ def gate_values(form: str, s: np.ndarray, g: float, t: np.ndarray, unit: str, hi
         return 0.5 * (1.0 + np.tanh(s / g)) if form == "on_pos_soft" else 0.5 * (1.0 - np.tanh(s / g))
     if form in GROW_GATES:
         return np.minimum(np.maximum(s if form == "on_pos_grow" else -s, 0.0) / g, 1.0)
+    if form in SAT_GATES:
+        return np.tanh(np.maximum(s if form == "on_pos_sat" else -s, 0.0) / g)
     if form == "on_gap":
         return np.maximum(np.abs(s) - g, 0.0) / np.maximum(np.abs(s), g)
     if form == "on_step":
@@ -323,9 +332,9 @@ def class_stem(param: str, index: int, form: str, signal: str = "") -> str:
           and form in SOFT_GATES else "Bend" if signal.startswith("delta") and param == "d_ep_i" else "")
     return base + {"on_pos": f"{on}Positive", "on_neg": f"{on}Negative", "on_pos_soft": f"{on}OpeningPositive",
                    "on_neg_soft": f"{on}OpeningNegative",
-                   "on_pos_grow": ("Charging" if signal == "ic" else "") + "GrowingPositive",
-                   "on_neg_grow": ("Charging" if signal == "ic" else "") + "GrowingNegative", "on_gap": "BeyondGap",
-                   "on_step": "Event",
+                   "on_pos_grow": "GrowingPositive", "on_neg_grow": "GrowingNegative",
+                   "on_pos_sat": f"{on}SaturatingPositive", "on_neg_sat": f"{on}SaturatingNegative",
+                   "on_gap": "BeyondGap", "on_step": "Event",
                    "on_ramp": "Growth"}[form]
 
 
