@@ -68,6 +68,9 @@ def test_words_name_the_damage_as_an_engineer_would():
                                  "more the stronger the current (63 % of it at +0.2 mA") and "discharges" in saturating
     assert class_stem("d_ep_i", 0, "on_pos_sat", "ic") == "Patch1CouplingChargingSaturatingPositive"
     assert damage_formula("d_ep_i", 0, "on_pos_sat", "ic", "a", "g").endswith("with c = a · tanh(ic⁺ / g)")
+    fading = describe_damage("d_ep_i", 1, "on_neg_sat", "vc", -0.35, 80.0)  # on one polarity, saturating
+    assert fading.startswith("patch 2 (on section 2) whose authority d_ep is 35 % lower for negative voltage, the "
+                             "more the stronger the voltage (63 % of it at −80 V")
     assert class_stem("k", 1, "on_pos", "ddelta2") != class_stem("k", 1, "on_pos", "delta2")
     term = Term("damage", 1, "one", "on_step", 20.0, "k", (15.0, 22.5))
     assert describe_term(term, -0.25, 20.04, 1.0, 0.08) == event

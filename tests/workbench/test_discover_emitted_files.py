@@ -109,7 +109,8 @@ def test_the_dictionary_spans_the_damage_family(short_sweep):
         # and by the sense of its charging current, sharp and smooth (a coupling lost while it charges)
         charging = {("d_ep_i", g, "ic") for g in ("on_pos", "on_neg", "on_pos_soft", "on_neg_soft", "on_pos_sat",
                                                   "on_neg_sat")}
-        assert {("d_ep_i", g, s) for g in ("on_pos", "on_neg") for s in ("va", "vc")} | charging | {
+        fading = {("d_ep_i", g, "vc") for g in ("on_pos_grow", "on_neg_grow", "on_pos_sat", "on_neg_sat")}
+        assert {("d_ep_i", g, s) for g in ("on_pos", "on_neg") for s in ("va", "vc")} | charging | fading | {
             ("d_ep_i", "on_step", "one"), ("d_ep_i", "on_ramp", "one")} <= {
             (t.param, t.form, t.signal) for t in short_sweep["terms"] if t.placement == "damage" and t.index == i}
     steps = sorted(t.shape for t in short_sweep["terms"] if t.key == "k2_step_t")

@@ -51,6 +51,7 @@ from workbench.discover._gates import (
     GROW_GATES,
     RAMP_AT,
     SAT_GATES,
+    SAT_VOLT_AT,
     SOFT_AT,
     SOFT_GATES,
     SOFT_RATE_AT,
@@ -330,10 +331,10 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                     if ok(sig := "vc" if what == "grow_volt" else f"delta{index + 1}"):
                         terms += [Term("damage", index, sig, g, f * scales[sig], param) for g in GROW_GATES
                                   for f in GROW_AT]
-                elif what == "sat_charge":
-                    if ok(sig := "ic"):
-                        terms += [Term("damage", index, sig, g, GROW_CHARGE_AT * scales[sig], param)
-                                  for g in SAT_GATES]
+                elif what in ("sat_charge", "sat_volt"):
+                    if ok(sig := "ic" if what == "sat_charge" else "vc"):
+                        at = GROW_CHARGE_AT if sig == "ic" else SAT_VOLT_AT
+                        terms += [Term("damage", index, sig, g, at * scales[sig], param) for g in SAT_GATES]
                 elif what == "gap":
                     if ok(sig):
                         terms += [Term("damage", index, sig, "on_gap", f * scales[sig], param) for f in GAP_AT]

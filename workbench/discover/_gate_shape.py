@@ -46,6 +46,8 @@ SATURATIONS = (0.25, 0.5, 1.0, 2.0)
 #: saturations probed for a smoothly saturating gate (on a patch's charging current, whose scale is set by the drive's
 #: fastest edges: see :data:`~workbench.discover._gates.GROW_CHARGE_AT`)
 SMOOTH_SATURATIONS = (0.0125, 0.025, 0.05, 0.1, 0.2)
+#: ... and on a patch's own voltage (its scale is the voltage's 99th percentile)
+VOLT_SATURATIONS = (0.05, 0.1, 0.2, 0.4, 0.8)
 #: sizes probed, multiples of the best refit's coefficient (a sharp switch gives the whole change where a smooth or
 #: growing one gives part of it)
 SIZES = (0.7, 1.0, 1.4)
@@ -96,7 +98,9 @@ def shape_grid(term: Term, scale: float) -> list[float]:
         return sorted({min(max(f * scale, lo), hi) for f in POINTS})
     if term.form in SOFT_GATES:
         return [f * scale for f in (RATE_WIDTHS if term.signal.startswith("ddelta") else WIDTHS)]
-    return [f * scale for f in (SMOOTH_SATURATIONS if term.form in SAT_GATES else SATURATIONS)]
+    if term.form in SAT_GATES:
+        return [f * scale for f in (SMOOTH_SATURATIONS if term.signal == "ic" else VOLT_SATURATIONS)]
+    return [f * scale for f in SATURATIONS]
 
 
 def shape_candidates(terms: list[Term], best: Term) -> list[int]:

@@ -194,6 +194,25 @@ def _charging_patch(param: str, n: int, how: str) -> str:
     return f"a patch whose authority d_ep is {how} ({why})"
 
 
+def _saturating_patch(param: str, n: int, form: str, signal: str, coef: float, shape: float) -> str:
+    """A coupling (or another patch parameter) whose change on one polarity of the voltage saturates smoothly with
+    it: 63 % of ``coef`` at ``shape`` (V), nearly all of it beyond three times that (tanh)."""
+    positive = form.startswith("on_pos")
+    whose = "drive" if signal == "va" else "voltage"
+    sign = "positive" if positive else "negative"
+    how = (f"{100 * abs(coef):.3g} % {'lower' if coef < 0 else 'higher'} for {sign} {whose}, the more the stronger "
+           f"the {whose} (63 % of it at {_switch_value(signal, shape if positive else -shape)}, nearly all beyond "
+           f"three times that: tanh)")
+    why = (f"a coupling that fades with its {sign} polarity and saturates: electrode fingers that lose contact or "
+           "domains that back-switch by degrees")
+    if param == "d_ep_i":
+        return f"patch {n} (on section {n}) whose authority d_ep is {how}, the other patches as modelled ({why})"
+    if param == "d_ep":
+        return f"all three patches' authority d_ep is {how} ({why})"
+    what = CONTRIBUTIONS[param].what.format(n=n)
+    return f"{what} {how} (a change that saturates with the {whose} on one polarity)"
+
+
 def _fading_patch(param: str, n: int, form: str, signal: str, coef: float, shape: float) -> str:
     """A coupling (or another patch parameter) whose change grows in proportion to the patch voltage on one
     polarity, reaching ``coef`` at ``shape`` (V) and holding beyond."""
@@ -248,6 +267,8 @@ def _describe_edge(param: str, index: int, form: str, signal: str, coef: float, 
                f"(63 % of it at {reach}, nearly all beyond three times that: tanh) and not at all while it "
                f"{'discharges' if op == '>' else 'charges'}")
         return _charging_patch(param, n, how) if param in ("d_ep", "d_ep_i") else f"{what} {how}"
+    if form in SAT_GATES and signal in ("va", "vc"):
+        return _saturating_patch(param, n, form, signal, coef, shape)
     if form in GROW_GATES:
         side = f"δ{n} {op} 0"
         reach = f"{'−' if op == '<' else ''}{_length(shape)}"

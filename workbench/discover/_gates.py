@@ -126,6 +126,8 @@ GROW_AT = (1.0,)
 #: (MBIT.a: a scale of 4 mA, a coupling lost over the first 0.2 mA), so it is screened low, where a factor of four
 #: either way spans 0.05–0.8 mA there (a growing gate screened at the scale could not leave 83 σ on that case)
 GROW_CHARGE_AT = 0.05
+#: ... and on a patch's own voltage (a quarter of its scale; the refit spans 1/16 to the whole scale)
+SAT_VOLT_AT = 0.25
 #: a sign gate is screened switching at 0 and its switching point G refitted linearly within ± this fraction of
 #: its signal's scale (the 99th percentile of |signal|): a crack or a depoled patch that switches off zero
 SWITCH_RANGE = 0.8
@@ -199,13 +201,15 @@ CONTRIBUTIONS: dict[str, Contribution] = {
 #: of its charging current "ic", (v_a − v_c)/R_ep, sharp or with a smooth edge ("soft_charge"): a coupling lost while
 #: the patch charges, not while it discharges (domain walls pinned while the field rises in the poling sense), or
 #: saturating smoothly as that current grows ("sat_charge", tanh(i⁺/G): none at rest, nearly all of it once the
-#: current is a few G)
+#: current is a few G); the patch's own voltage meets the same smooth saturation ("sat_volt": a coupling lost on one
+#: polarity the more the stronger the field, saturating — beside "grow_volt"'s linear rise to a corner)
 GATED_BY: dict[str, tuple[str, ...]] = {
     "k": ("own_delta", "own_ddelta", "soft", "soft_rate", "grow", "tip", "soft_tip", "gap", "time"),
     "c": ("own_ddelta", "own_delta", "soft", "soft_rate", "grow", "gap", "time"),
     "m": ("time",),
-    "d_ep": ("va", "vc", "soft_drive", "grow_volt", "ic", "soft_charge", "sat_charge", "time"),
-    "d_ep_i": ("va", "vc", "soft_drive", "grow_volt", "ic", "soft_charge", "sat_charge", "own_delta", "soft", "time"),
+    "d_ep": ("va", "vc", "soft_drive", "grow_volt", "sat_volt", "ic", "soft_charge", "sat_charge", "time"),
+    "d_ep_i": ("va", "vc", "soft_drive", "grow_volt", "sat_volt", "ic", "soft_charge", "sat_charge", "own_delta",
+               "soft", "time"),
     "alpha_h": ("va", "vc", "time"),
     "beta_h": ("va", "vc", "time"),
     "R_ep": ("va", "vc", "time"),
