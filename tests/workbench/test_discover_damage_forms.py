@@ -46,7 +46,7 @@ def test_words_name_the_damage_as_an_engineer_would():
     event = describe_damage("k", 1, "on_step", "one", -0.25, 20.04, 0.08)
     assert event.startswith("section 2 lost 25 % of its stiffness at t = 20.04 ± 0.08 s")
     patch = describe_damage("d_ep", -1, "on_neg", "va", -0.3, 0.0)
-    assert patch.startswith("a patch whose authority d_ep is 30 % lower for negative drive")
+    assert patch.startswith("all three patches' authority d_ep is 30 % lower for negative drive")
     play = describe_damage("k", 0, "on_gap", "delta1", 0.4, 2e-5)
     assert "section 1 is stiffer by 40 % beyond ±20 µm of δ1" in play and "free play" in play
     ramp = describe_damage("c", 2, "on_ramp", "one", 0.01, 5.0, 0.5)
@@ -117,7 +117,7 @@ CASES = {
     "crack": ("Section2BreathingCrack", {"open_loss": 0.25}, "k2_pos_delta2",
               ("a breathing crack in section 2 that opens for δ2 > 0",)),
     "polarity": ("PatchWeakNegative", {"neg_loss": 0.3}, "d_ep_neg_va",
-                 ("a patch whose authority d_ep is", "lower for negative drive")),
+                 ("all three patches' authority d_ep is", "lower for negative drive")),
 }
 
 

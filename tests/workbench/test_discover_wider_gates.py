@@ -125,5 +125,5 @@ def test_a_coupling_fading_with_its_own_voltage_is_a_member_and_said_so():
     assert words.startswith("patch 1 (on section 1) whose authority d_ep is 40 % lower once its voltage reaches "
                             "+250 V, in proportion to the voltage from 0 V up to there and not at all for negative")
     every = describe_damage("d_ep", -1, "on_neg_grow", "vc", 0.1, 80.0)
-    assert every.startswith("a patch whose authority d_ep is 10 % higher once its voltage reaches −80 V")
+    assert every.startswith("all three patches' authority d_ep is 10 % higher once its voltage reaches −80 V")
 

@@ -46,8 +46,8 @@ def _reading(param: str, side: int) -> tuple[str, str]:
     """(the one-sided reading in words, the signal staying on its side in words)."""
     sign = "positive" if side > 0 else "negative"
     if param == "d_ep":
-        return (f"a patch whose authority changed only for {sign} patch voltage (polarisation-dependent coupling: "
-                "a partly depolarised patch)", f"the patch voltage stays {sign} throughout")
+        return (f"all three patches' authority changed only for {sign} patch voltage (polarisation-dependent "
+                "coupling: partly depolarised patches)", f"the patch voltage stays {sign} throughout")
     i = param[1:]
     what = "stiffness" if param.startswith("k") else "damping"
     rel = ">" if side > 0 else "<"
