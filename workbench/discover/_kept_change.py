@@ -9,6 +9,7 @@ from __future__ import annotations
 import time
 from typing import Any
 
+from workbench.discover._change_kinds import kind_split_change
 from workbench.discover._change_pair import pair_change
 from workbench.discover._change_place import place_change, placeable
 from workbench.discover._change_split import split_change
@@ -42,6 +43,7 @@ def refine_kept(setup: Any, progress: Any, settings: Any, min_share: float) -> N
         # the patches' authority as twins, section 2 never refitted)
     pair_change(setup, progress, settings, min_share)  # far from the noise: two steps in two places, two instants
     split_change(setup, progress, settings, min_share)
+    kind_split_change(setup, progress, settings, min_share)  # far from the noise: another kind in two places
     progress.timings["refit_s"] += time.perf_counter() - t0
 
 
