@@ -66,8 +66,10 @@ def test_the_best_pair_replaces_the_kept_step_only_when_it_removes_the_share(mon
     progress = _progress(terms, names, kept, 116.2)
     k2, k3 = _slot(terms, "k2_step_t"), _slot(terms, "k3_step_t")
 
-    def scores(targets, models, values, settings, threads):  # the k2 + k3 pair at −12 % each scores best
-        return [1.0 if s.get(names[k2][0]) == -0.1 and s.get(names[k3][0]) == -0.1 else 50.0 for s in settings]
+    def scores(targets, models, values, settings, threads):  # the k2 + k3 pair at −10 % each scores best, at 7.5 s
+        g = str(names[k3][1])
+        return [1.0 + abs(s[g] - 7.5) if s.get(names[k2][0]) == -0.1 and s.get(names[k3][0]) == -0.1 else 50.0
+                for s in settings]
 
     out = SimpleNamespace(ok=True, held_rms_sigma=refit_held, train_rms_sigma=refit_held, estimates=[],
                           values={names[k2][0]: -0.12, names[k3][0]: -0.12})
@@ -80,6 +82,7 @@ def test_the_best_pair_replaces_the_kept_step_only_when_it_removes_the_share(mon
     if replaced:
         assert progress.state.values[names[kept][0]] == 0.0 and progress.state.values[names[k3][0]] == -0.12
         assert kept not in progress.twins and progress.current_held == 1.2
+        assert progress.state.values[str(names[k2][1])] == pytest.approx(7.5)  # the common onset scanned to 7.5 s
     else:
         assert progress.state.kept == [kept] and progress.current_held == 116.2
 

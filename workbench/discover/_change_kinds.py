@@ -35,6 +35,9 @@ KINDS = ("k", "c", "m", "d_ep_i")
 SIZES = (0.05, 0.1, 0.2, 0.3)
 DAMPING_SIZES = (0.5, 1.0, 2.0)
 SECOND_SHARE = (0.5, 1.0, 2.0)
+#: the pair's common onset is scanned this far either side of the kept one, in these steps (s)
+ONSET_SCAN_S = 0.1
+ONSET_STEP_S = 0.005
 #: a kept step is probed as another kind in two places only while the round leaves more than this (σ held out)
 KIND_ABOVE_SIGMA = 3.0
 
@@ -69,6 +72,20 @@ def kind_tries(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], v
     return out
 
 
+def common_onset(setup: Any, values: Mapping[str, float], pair: tuple[int, int], setting: dict[str, float],
+                 threads: int | None) -> tuple[dict[str, float], int]:
+    """``setting`` with the pair's common onset moved to where the whole record's RMS is lowest within
+    ± :data:`ONSET_SCAN_S` of the kept instant (steps of :data:`ONSET_STEP_S`): the kept step's onset fitted a
+    mimic, and a least-squares refit hardly moves a sharp step's instant (its Jacobian is zero but for a sample or
+    two). Also the simulations run."""
+    gnames = [str(setup.names[k][1]) for k in pair]
+    t0 = float(setting[gnames[0]])
+    n = round(ONSET_SCAN_S / ONSET_STEP_S)
+    tries = [setting | {g: t0 + i * ONSET_STEP_S for g in gnames} for i in range(-n, n + 1)]
+    found = lowest(tries, whole_scores(setup.targets, setup.models, dict(values), tries, threads))
+    return (found[0] if found is not None else setting), len(tries) * len(setup.targets)
+
+
 def kind_split_change(setup: Any, progress: Any, settings: Any, min_share: float) -> None:
     """The step the round kept last, still far from the noise (:data:`KIND_ABOVE_SIGMA`), probed as another kind in
     two places at its instant (:func:`kind_tries`); the best pair refitted and kept in its stead when it removes
@@ -90,6 +107,8 @@ def kind_split_change(setup: Any, progress: Any, settings: Any, min_share: float
     if found is None:
         return
     (pair, setting), _ = found
+    setting, n_scan = common_onset(setup, state.values, pair, setting, settings.threads)
+    progress.n_sims += n_scan
     start = dict(state.values) | setting
     others = [j for j in state.kept if j not in slots]
     obj = Objective(setup.targets, setup.models,
