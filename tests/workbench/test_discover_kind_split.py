@@ -40,7 +40,7 @@ def test_every_other_kind_is_probed_in_every_pair_of_places_at_the_kept_instant(
         assert setting[names[kept][0]] == 0.0  # the kept step off
         assert setting[str(names[a][1])] == setting[str(names[b][1])] == 7.48  # both at its instant
         ca, cb = setting[names[a][0]], setting[names[b][0]]
-        assert abs(cb) < 0.9 and cb / ca in (0.5, 1.0, 2.0)
+        assert cb > -0.9 and cb / ca in (0.5, 1.0, 2.0)
         if terms[a].param == "k":
             assert ca < 0.0  # a stiffness is lost
         if terms[a].param == "c":

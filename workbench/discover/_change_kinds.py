@@ -68,7 +68,7 @@ def kind_tries(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], v
                 for share in SECOND_SHARE:
                     setting = off | {ca: c, cb: share * c}
                     setting |= {str(g): t0 for g in (ga, gb) if g is not None}
-                    if abs(share * c) < 0.9:  # no loss of the whole
+                    if share * c > -0.9:  # no loss of the whole (a rise of damping may be several-fold)
                         out.append(((ka, kb), setting))
     return out
 
