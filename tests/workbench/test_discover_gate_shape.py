@@ -43,7 +43,8 @@ def test_the_candidates_are_the_same_change_with_another_shape():
     assert keys == {"k2_neg_delta2", "k2_neg_soft_delta2", "k2_neg_z3", "k2_neg_soft_z3"}
     drive = terms[_key(terms, "d_ep2_pos_soft_va")]
     keys = {terms[k].key for k in gs.shape_candidates(terms, drive)}
-    assert keys == {"d_ep2_pos_va", "d_ep2_pos_vc", "d_ep2_pos_grow_vc", "d_ep2_pos_soft_va"}  # either voltage
+    assert keys == {"d_ep2_pos_va", "d_ep2_pos_vc", "d_ep2_pos_grow_vc", "d_ep2_pos_sat_vc",
+                    "d_ep2_pos_soft_va"}  # either voltage; a linear rise or a smooth saturation
     assert gs.shape_candidates(terms, terms[_key(terms, "k2_gap_delta2")]) == []
     hinge = terms[_key(terms, "k1_pos_delta1")]  # a sharp switch is probed over the grid itself too
     keys = {terms[k].key for k in gs.shape_candidates(terms, hinge)}
