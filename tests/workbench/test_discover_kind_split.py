@@ -30,8 +30,7 @@ def _slot(terms, key: str) -> int:
 def test_every_other_kind_is_probed_in_every_pair_of_places_at_the_kept_instant(dictionary):
     terms, names = dictionary
     kept = _slot(terms, "m3_step_t")
-    values = {n: 0.0 for pair in names for n in pair if n} | {names[kept][0]: 0.13, str(names[kept][1]): 7.48}
-    tries = ck.kind_tries(terms, names, values, [kept], 7.48)
+    tries = ck.kind_tries(terms, names, [kept], 7.48)
     pairs = {(terms[a].key, terms[b].key) for (a, b), _ in tries}
     assert ("k2_step_t", "k3_step_t") in pairs and ("k1_step_t", "k2_step_t") in pairs
     assert ("c1_step_t", "c3_step_t") in pairs and ("d_ep1_step_t", "d_ep2_step_t") in pairs

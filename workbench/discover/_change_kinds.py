@@ -50,8 +50,8 @@ def kind_sizes(param: str) -> tuple[float, ...]:
     return tuple(sign * s for s in sizes) if sign is not None else (*(-s for s in sizes), *sizes)
 
 
-def kind_tries(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], values: Mapping[str, float],
-               slots: Sequence[int], t0: float) -> list[tuple[tuple[int, int], dict[str, float]]]:
+def kind_tries(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], slots: Sequence[int],
+               t0: float) -> list[tuple[tuple[int, int], dict[str, float]]]:
     """Every pair of places of every other kind, stepping at ``t0`` with the kept ``slots`` off: ((slot a, slot
     b), the dictionary parameters)."""
     kept = terms[slots[0]]
@@ -104,8 +104,7 @@ def _pair_refit(setup: Any, progress: Any, settings: Any, others: list[int], pai
             break
         if best is None or out.held_rms_sigma < best[1].held_rms_sigma:
             best = (start, out)
-        setting = setting | {n: v for k in pair for n in setup.names[k] if n is not None
-                             for v in [out.values.get(n, setting.get(n))] if v is not None}
+        setting = setting | {n: out.values[n] for k in pair for n in setup.names[k] if n in out.values}
     return best
 
 
@@ -121,7 +120,7 @@ def kind_split_change(setup: Any, progress: Any, settings: Any, min_share: float
             or progress.current_held <= KIND_ABOVE_SIGMA):
         return
     slots = change_slots(setup.terms, state.kept, term)
-    tries = kind_tries(setup.terms, setup.names, state.values, slots, float(state.values[gname]))
+    tries = kind_tries(setup.terms, setup.names, slots, float(state.values[gname]))
     if not tries:
         return
     scores = whole_scores(setup.targets, setup.models, state.values, [s for _, s in tries], settings.threads)

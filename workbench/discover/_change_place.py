@@ -38,7 +38,7 @@ from workbench.discover._finite_change import (
     whole_rms,
     whole_scores,
 )
-from workbench.discover._gates import GROW_GATES, SAT_GATES, SIGN_GATES, SOFT_GATES, onset_floor
+from workbench.discover._gates import SIDED_GATES, onset_floor
 from workbench.discover._onset import MAX_LOSS
 from workbench.discover._search import SearchState, refine
 from workbench.discover._twins import MAX_TWINS, PLACE_BELOW_SIGMA, twin_tolerance
@@ -69,7 +69,7 @@ def placeable(term: Term) -> bool:
     point would need mapping between sections)."""
     if term.placement != "damage" or term.index < 0:
         return False
-    on_volts = term.form in (*SIGN_GATES, *SOFT_GATES, *GROW_GATES, *SAT_GATES)
+    on_volts = term.form in SIDED_GATES
     return is_timed(term) or (on_volts and (term.signal in ("va", "ic") or term.signal.startswith("vc")))
 
 

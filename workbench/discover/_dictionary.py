@@ -47,9 +47,9 @@ from workbench.discover._gates import (
     GATED_BY,
     GATES,
     GROW_AT,
-    GROW_CHARGE_AT,
     GROW_GATES,
     RAMP_AT,
+    SAT_CHARGE_AT,
     SAT_GATES,
     SAT_VOLT_AT,
     SOFT_AT,
@@ -333,7 +333,7 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                                   for f in GROW_AT]
                 elif what in ("sat_charge", "sat_volt"):
                     if ok(sig := "ic" if what == "sat_charge" else "vc"):
-                        at = GROW_CHARGE_AT if sig == "ic" else SAT_VOLT_AT
+                        at = SAT_CHARGE_AT if sig == "ic" else SAT_VOLT_AT
                         terms += [Term("damage", index, sig, g, at * scales[sig], param) for g in SAT_GATES]
                 elif what == "gap":
                     if ok(sig):

@@ -26,7 +26,7 @@ import numpy as np
 
 from workbench.discover._dictionary import Term
 from workbench.discover._finite_change import whole_rms
-from workbench.discover._gates import GROW_GATES, SAT_GATES, SIGN_GATES, SOFT_GATES
+from workbench.discover._gates import SAT_GATES, SIDED_GATES, SIGN_GATES, SOFT_GATES
 from workbench.discover._onset import whole_record_rms
 from workbench.discover._results import ScreenRow
 from workbench.discover._search import probe_batch
@@ -44,7 +44,7 @@ WIDTHS = (0.03, 0.1, 0.3, 1.0)
 RATE_WIDTHS = (0.0003, 0.001, 0.003, 0.01, 0.03, 0.1)
 SATURATIONS = (0.25, 0.5, 1.0, 2.0)
 #: saturations probed for a smoothly saturating gate (on a patch's charging current, whose scale is set by the drive's
-#: fastest edges: see :data:`~workbench.discover._gates.GROW_CHARGE_AT`)
+#: fastest edges: see :data:`~workbench.discover._gates.SAT_CHARGE_AT`)
 SMOOTH_SATURATIONS = (0.0125, 0.025, 0.05, 0.1, 0.2)
 #: ... and on a patch's own voltage (its scale is the voltage's 99th percentile)
 VOLT_SATURATIONS = (0.05, 0.1, 0.2, 0.4, 0.8)
@@ -73,7 +73,7 @@ Trial = tuple[int, float, float]
 
 def gate_side(form: str) -> str:
     """"pos" or "neg" for a gate that acts on one side of its signal, "" for any other (a gap, a time gate)."""
-    if form in (*SIGN_GATES, *SOFT_GATES, *GROW_GATES, *SAT_GATES):
+    if form in SIDED_GATES:
         return "pos" if form.startswith("on_pos") else "neg"
     return ""
 

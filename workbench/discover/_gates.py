@@ -77,6 +77,8 @@ SIGN_GATES = ("on_pos", "on_neg")
 SOFT_GATES = ("on_pos_soft", "on_neg_soft")
 GROW_GATES = ("on_pos_grow", "on_neg_grow")
 SAT_GATES = ("on_pos_sat", "on_neg_sat")
+#: the gates that act on one side of their signal (a sharp or smooth switch, a linear rise or a smooth saturation)
+SIDED_GATES = (*SIGN_GATES, *SOFT_GATES, *GROW_GATES, *SAT_GATES)
 TIME_GATES = ("on_step", "on_ramp")
 #: the gates whose edge width H is a fitted parameter of the dictionary (``h_NN``, default the fixed width below): a
 #: step whose change took time — a loss that ran and arrested along an S-curve — is the same step with a wide edge;
@@ -125,7 +127,7 @@ GROW_AT = (1.0,)
 #: current's 99th percentile is set by the drive's fastest edges, far above the currents most of a record carries
 #: (MBIT.a: a scale of 4 mA, a coupling lost over the first 0.2 mA), so it is screened low, where a factor of four
 #: either way spans 0.05–0.8 mA there (a growing gate screened at the scale could not leave 83 σ on that case)
-GROW_CHARGE_AT = 0.05
+SAT_CHARGE_AT = 0.05
 #: ... and on a patch's own voltage (a quarter of its scale; the refit spans 1/16 to the whole scale)
 SAT_VOLT_AT = 0.25
 #: a sign gate is screened switching at 0 and its switching point G refitted linearly within ± this fraction of
