@@ -12,6 +12,7 @@ import pytest
 
 import workbench.discover._change_pair as pair
 from workbench.discover._dictionary import Term
+from workbench.discover._rounds import SearchProgress
 
 
 def _terms() -> list[Term]:
@@ -43,10 +44,10 @@ def test_a_place_whose_step_is_kept_already_is_not_a_first_place():
     assert {slots for slots, _ in tries} == {(2, 1), (2, 5), (4, 1), (4, 2)}
 
 
-def _progress(held: float, kept_slot: int = 4) -> SimpleNamespace:
+def _progress(held: float, kept_slot: int = 4) -> SearchProgress:
     state = SimpleNamespace(kept=[6, kept_slot], values={"c4": -0.057, "g4": 3.74, "c6": -0.05})
-    return SimpleNamespace(state=state, current_held=held, current_train=held, n_sims=0, rounds=[], stderr={},
-                           twins={kept_slot: [{"key": "k3_neg_delta3"}]}, outcome=None)
+    return SearchProgress(state=state, current_held=held, current_train=held, n_sims=0, rounds=[], stderr={},
+                           twins={kept_slot: [{"key": "k3_neg_delta3"}]}, outcome=None, timings={"refit_s": 0.0})
 
 
 def _setup() -> SimpleNamespace:

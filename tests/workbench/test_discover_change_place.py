@@ -13,6 +13,7 @@ import pytest
 from workbench.discover._change_place import change_slots, change_twin, counterpart, lead_slot, transplant
 from workbench.discover._dictionary import Term, build_dictionary
 from workbench.discover._dictionary_code import dictionary_parameter_names, width_name
+from workbench.discover._rounds import SearchProgress
 
 SCALES = {"t": 15.0, **{f"delta{i}": 1e-3 for i in (1, 2, 3)}, **{f"ddelta{i}": 1e-2 for i in (1, 2, 3)},
           **{f"z{i}": 1e-3 for i in (1, 2, 3)}, **{f"dz{i}": 1e-2 for i in (1, 2, 3)}, "va": 300.0, "vc": 300.0}
@@ -117,9 +118,9 @@ def _placed_run(monkeypatch, current: float, there: float) -> tuple[object, list
     monkeypatch.setattr(cp, "place_refit", place_refit)
     monkeypatch.setattr(cp, "whole_rms", lambda tg, out: current)
     setup = SimpleNamespace(terms=terms, names=names, scales=SCALES, targets=[], n_held=4000)
-    progress = SimpleNamespace(state=SimpleNamespace(values={names[k2][0]: -0.4, names[k2][1]: -80.0}, kept=[k2]),
+    progress = SearchProgress(state=SimpleNamespace(values={names[k2][0]: -0.4, names[k2][1]: -80.0}, kept=[k2]),
                                current_held=current, current_train=current, outcome=object(), n_sims=0, stderr={},
-                               twins={})
+                               twins={}, timings={"refit_s": 0.0})
     said: list[str] = []
     cp.place_change(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=said.append))
     return progress, [*said, str(k3)]

@@ -10,6 +10,7 @@ import pytest
 
 import workbench.discover._change_split as split
 from workbench.discover._dictionary import Term
+from workbench.discover._rounds import SearchProgress
 
 
 def _terms() -> list[Term]:
@@ -43,8 +44,9 @@ def _run(monkeypatch: pytest.MonkeyPatch, held_after: float | None, current: flo
 
     monkeypatch.setattr(split, "split_refit", fake)
     setup = SimpleNamespace(terms=terms, names=NAMES, n_held=4000)
-    progress = SimpleNamespace(state=SimpleNamespace(values={"a1": -0.096, "g1": 6.75}, kept=[1]), n_sims=0,
-                               current_held=current, current_train=current, stderr={}, rounds=[], outcome=None)
+    progress = SearchProgress(state=SimpleNamespace(values={"a1": -0.096, "g1": 6.75}, kept=[1]), n_sims=0,
+                              current_held=current, current_train=current, stderr={}, rounds=[],
+                              timings={"refit_s": 0.0})
     said: list[str] = []
     split.split_change(setup, progress, SimpleNamespace(threads=1, max_nfev=3, say=said.append), 0.2)
     return progress, said + [str(c) for c in calls]

@@ -11,16 +11,17 @@ from types import SimpleNamespace
 import pytest
 
 import workbench.discover._joint_polish as jp
+from workbench.discover._rounds import SearchProgress
 
 
-def _case(held: float, kept: list[int]) -> tuple[SimpleNamespace, SimpleNamespace]:
+def _case(held: float, kept: list[int]) -> tuple[SimpleNamespace, SearchProgress]:
     terms = [SimpleNamespace(key=k, placement="damage", unit="1", form=f, shape_range=None, shape_unit="m")
              for k, f in (("k2_pos_delta2", "on_pos"), ("c2_pos_soft_delta2", "on_pos_soft"), ("z3m_lin_z3", "lin"))]
     setup = SimpleNamespace(terms=terms, names=[("a_00", "g_00"), ("a_01", "g_01"), ("a_02", None)],
                             targets=[], models=[], held_before=454.0, n_held=1875)
     state = SimpleNamespace(values={"a_00": -0.254, "g_00": 2.02e-5, "a_01": 0.746, "g_01": 2.88e-4, "a_02": 0.0},
                             kept=kept)
-    progress = SimpleNamespace(state=state, current_held=held, current_train=held, stderr={}, outcome=None,
+    progress = SearchProgress(state=state, current_held=held, current_train=held, stderr={}, outcome=None,
                                rounds=[], timings={"refit_s": 0.0}, n_sims=0)
     return setup, progress
 

@@ -12,6 +12,7 @@ import pytest
 import workbench.discover._change_kinds as ck
 from workbench.discover import build_dictionary
 from workbench.discover._dictionary_code import dictionary_parameter_names
+from workbench.discover._rounds import SearchProgress
 
 SCALES = {f"{s}{i}": v for s, v in (("z", 1e-3), ("zd", 0.1), ("delta", 1e-3), ("ddelta", 0.1)) for i in (1, 2, 3)} \
     | {"vc": 50.0, "va": 100.0, "ic": 2e-3, "one": 1.0, "t": 15.0}
@@ -48,11 +49,11 @@ def test_every_other_kind_is_probed_in_every_pair_of_places_at_the_kept_instant(
     assert {round(s[names[_slot(terms, "k2_step_t")][0]], 3) for s in k23} == {-0.05, -0.1, -0.2, -0.3}
 
 
-def _progress(terms, names, kept: int, held: float) -> SimpleNamespace:
+def _progress(terms, names, kept: int, held: float) -> SearchProgress:
     values = {n: 0.0 for pair in names for n in pair if n} | {names[kept][0]: 0.13, str(names[kept][1]): 7.48}
     state = SimpleNamespace(values=values, kept=[kept])
-    return SimpleNamespace(state=state, current_held=held, current_train=held, twins={kept: ["x"]}, stderr={},
-                           outcome=None, rounds=[], n_sims=0)
+    return SearchProgress(state=state, current_held=held, current_train=held, twins={kept: ["x"]}, stderr={},
+                           outcome=None, rounds=[], n_sims=0, timings={"refit_s": 0.0})
 
 
 @pytest.mark.parametrize(("refit_held", "replaced"), [(1.2, True), (110.0, False)])

@@ -16,6 +16,7 @@ import pytest
 
 import workbench.discover._pair_refit as pr
 from workbench.discover._pair_screen import PairRow, ScreenMatrices, pair_screen, screen_matrices, single_held
+from workbench.discover._rounds import SearchProgress
 from workbench.discover._twins import twin_tolerance
 
 RNG = np.random.default_rng(7)
@@ -83,9 +84,9 @@ def test_the_screen_matrices_are_the_single_screens():
     assert np.allclose(m.x_train[0], 2.0) and np.allclose(m.x_train[1], 4.0)
 
 
-def _progress(held: float) -> SimpleNamespace:
+def _progress(held: float) -> SearchProgress:
     state = SimpleNamespace(values={"a_00": -0.1, "a_01": 0.0, "a_02": 0.0}, kept=[0])
-    return SimpleNamespace(state=state, current_held=held, current_train=held, twins={0: ["x"]}, stderr={},
+    return SearchProgress(state=state, current_held=held, current_train=held, twins={0: ["x"]}, stderr={},
                            outcome=None, rounds=[], timings={"refit_s": 0.0}, n_sims=0, first_batch=None)
 
 

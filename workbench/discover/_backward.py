@@ -32,9 +32,7 @@ def backward_step(setup: SearchSetup, progress: SearchProgress, settings: Search
                                                  "set_held_rms_sigma": progress.current_held}})
             state.kept = [k]
             state.values = start | alone.values
-            progress.stderr.update({e.name: e.stderr for e in alone.estimates})
-            progress.current_train, progress.current_held = alone.train_rms_sigma, alone.held_rms_sigma
-            progress.outcome = alone
+            progress.adopt(alone)
             break
     progress.timings["refit_s"] += time.perf_counter() - t0
 
@@ -83,7 +81,5 @@ def drop_idle(setup: SearchSetup, progress: SearchProgress, settings: SearchSett
         state.kept = rest
         state.values = start | without.values
         progress.twins.pop(k, None)
-        progress.stderr.update({e.name: e.stderr for e in without.estimates})
-        progress.current_train, progress.current_held = without.train_rms_sigma, without.held_rms_sigma
-        progress.outcome = without
+        progress.adopt(without)
     progress.timings["refit_s"] += time.perf_counter() - t0

@@ -146,6 +146,4 @@ def kind_split_change(setup: Any, progress: Any, settings: Any, min_share: float
     state.kept[:] = [*others, *pair]
     state.values.update(start | out.values)
     progress.twins.pop(k, None)
-    progress.stderr.update({e.name: e.stderr for e in out.estimates})
-    progress.current_train, progress.current_held = out.train_rms_sigma, h
-    progress.outcome = out
+    progress.adopt(out)

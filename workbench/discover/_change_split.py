@@ -111,6 +111,4 @@ def split_change(setup: Any, progress: Any, settings: Any, min_share: float) -> 
         return
     state.kept.extend(split.added)
     state.values.update(split.values)
-    progress.stderr.update({e.name: e.stderr for e in split.outcome.estimates})
-    progress.current_train, progress.current_held = split.outcome.train_rms_sigma, h
-    progress.outcome = split.outcome
+    progress.adopt(split.outcome)

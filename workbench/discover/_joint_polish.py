@@ -43,6 +43,4 @@ def polish_step(setup: SearchSetup, progress: SearchProgress, settings: SearchSe
     progress.rounds.append({"polish": {"terms": keys, "held_rms_sigma": out.held_rms_sigma,
                                        "set_held_rms_sigma": progress.current_held}})
     state.values = start | out.values
-    progress.stderr.update({e.name: e.stderr for e in out.estimates})
-    progress.current_train, progress.current_held = out.train_rms_sigma, out.held_rms_sigma
-    progress.outcome = out
+    progress.adopt(out)

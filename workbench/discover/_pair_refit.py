@@ -92,6 +92,4 @@ def pair_step(setup: SearchSetup, progress: SearchProgress, settings: SearchSett
     state.kept = [ki, kj]
     state.values = start | out.values
     progress.twins = {}
-    progress.stderr.update({e.name: e.stderr for e in out.estimates})
-    progress.current_train, progress.current_held = out.train_rms_sigma, out.held_rms_sigma
-    progress.outcome = out
+    progress.adopt(out)

@@ -112,6 +112,13 @@ class SearchProgress:
     #: the first round's sensitivity batch (the pair step screens its pairs, :mod:`workbench.discover._pair_refit`)
     first_batch: SensitivityBatch | None = None
 
+    def adopt(self, outcome: FitOutcome) -> None:
+        """Take ``outcome`` as the current refit: its standard errors, residuals (σ) and the outcome itself (the
+        caller has already set the kept terms and their values)."""
+        self.stderr.update({e.name: e.stderr for e in outcome.estimates})
+        self.current_train, self.current_held = outcome.train_rms_sigma, outcome.held_rms_sigma
+        self.outcome = outcome
+
 
 @dataclass(frozen=True)
 class SensitivityBatch:
@@ -420,9 +427,7 @@ def keep_best(setup: SearchSetup, progress: SearchProgress, settings: SearchSett
         return False
     progress.state.kept.append(k_new)
     progress.state.values.update(out.values)
-    progress.stderr.update({e.name: e.stderr for e in out.estimates})
-    progress.current_train, progress.current_held = out.train_rms_sigma, h_new
-    progress.outcome = out
+    progress.adopt(out)
     return True
 
 
