@@ -8,6 +8,7 @@ an emitted event's onset, placed on the whole record, is refitted only when aske
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -17,6 +18,9 @@ import workbench.discover._rounds as rounds
 from workbench.discover._dictionary import Term
 from workbench.discover._effect_writer import emit_effect_source, parameter_names_for
 from workbench.discover._results import ScreenRow
+
+#: a record of ten samples, every one held out and trained on (the whole record's RMS is then the members')
+TARGET = SimpleNamespace(held=np.ones(10, bool), train=np.ones(10, bool), channels=("z3",))
 
 
 def _terms() -> list[Term]:
@@ -62,16 +66,43 @@ def test_a_kind_is_probed_both_ways_and_refitted_from_its_best_probe(monkeypatch
 
     monkeypatch.setattr(ec, "probe_batch", probe_batch)
     said: list[str] = []
-    setup = SimpleNamespace(terms=terms, names=names, targets=[object()], models=[object()])
+    setup = SimpleNamespace(terms=terms, names=names, targets=[TARGET], models=[object()])
     progress = SimpleNamespace(state=SimpleNamespace(values={}), n_sims=0)
     best = rounds.BestRefit(1.1, 0, SimpleNamespace(values={"a0": 0.25, "g0": 10.0}))
     rows = ec.place_rows(setup, progress, SimpleNamespace(threads=1, say=said.append), best, set(), kinds=True)
     assert [r.term.key for r in rows] == ["k1_step_t"]
     assert math.isclose(rows[0].coef, -0.2)  # −0.25 / 1.25: the static twin, its best probe
-    changes = {round(s["a1"], 4) for s in probed if "a1" in s}
+    n_kinds = 2 * len(ec.family_probes(0.25, True))
+    changes = {round(s["a1"], 4) for s in probed[:n_kinds] if "a1" in s}
     assert {-0.3, 0.3, 0.25, -0.25, -0.2} <= changes
-    assert all(s.get("g1", s.get("g2")) == 10.0 for s in probed)
+    assert all(s.get("g1", s.get("g2")) == 10.0 for s in probed[:n_kinds])
+    assert rows[0].shape == 10.0  # its own onset scanned after (a flat record keeps the kept instant)
+    assert {s["g1"] for s in probed[n_kinds:]} > {10.0} and progress.n_sims == len(probed)
     assert "2 probed, 1 within" in said[0] and "k1_step_t" in said[0]
+
+
+def test_a_near_kind_is_refitted_from_its_own_instant_not_its_mimics(monkeypatch):
+    """Section 3 losing 20 % at 14.000 s of MBIT.a was kept first as d_ep rising at 14.008 s: k3's step refitted from
+    that instant stopped at 14.011 s (9.54 σ) — a refit hardly moves a sharp step's instant; from its own it reached
+    1.2 σ. Each near member's onset is scanned (± 40 ms, then ± 4 ms in 1 ms) before its refit."""
+    terms = _terms()[:3]
+    names = _names(terms)
+
+    def probe_batch(targets, models, values, settings, threads):
+        held = np.array([1.0 + 50 * abs(s["a1"] + 0.2) + 200 * abs(s["g1"] - 9.993) if "a1" in s else 40.0
+                         for s in settings])
+        return held, held, np.ones(len(settings), bool)
+
+    monkeypatch.setattr(ec, "probe_batch", probe_batch)
+    setup = SimpleNamespace(terms=terms, names=names, targets=[TARGET], models=[object()])
+    progress = SimpleNamespace(state=SimpleNamespace(values={}), n_sims=0)
+    best = rounds.BestRefit(1.1, 0, SimpleNamespace(values={"a0": 0.25, "g0": 10.0}))
+    rows = ec.place_rows(setup, progress, SimpleNamespace(threads=1, say=lambda _m: None), best, set(), kinds=True)
+    assert [r.term.key for r in rows] == ["k1_step_t"] and rows[0].placed
+    assert math.isclose(rows[0].shape, 9.993, abs_tol=1e-9)
+    # an onset outside the slot's refit range is never probed
+    edge = ec.own_onsets(setup, progress, SimpleNamespace(threads=1), [replace(rows[0], shape=13.99)])
+    assert edge[0].shape <= 14.0
 
 
 def _lead(kept: tuple[int, float, float, float], others: list[tuple[int, float, float, float]]) -> object:

@@ -360,13 +360,15 @@ def test_an_events_places_are_refitted_only_when_a_probe_comes_near_the_kept_cha
         return held, held, np.ones(len(settings), bool)
 
     monkeypatch.setattr(ec, "probe_batch", probe_batch)
-    setup = SimpleNamespace(terms=terms, names=names, targets=[object()], models=[object()])
+    target = SimpleNamespace(held=np.ones(10, bool), train=np.ones(10, bool), channels=("z3",))
+    setup = SimpleNamespace(terms=terms, names=names, targets=[target], models=[object()])
     progress = SimpleNamespace(state=SimpleNamespace(values={}), n_sims=0)
     best = rounds.BestRefit(1.0, 0, SimpleNamespace(values={"a0": -0.15, "g0": 11.0}))
     rows = ec.place_rows(setup, progress, SimpleNamespace(threads=1), best, set())
-    assert [r.term.key for r in rows] == ["k2_step_t"]
-    assert len(probed) == 2 * len(ec.PLACE_PROBES) and progress.n_sims == len(probed)
-    assert all(s.get("g1", s.get("g2")) == 11.0 for s in probed)  # at the kept instant, in place of the kept change
+    assert [r.term.key for r in rows] == ["k2_step_t"] and rows[0].shape == 11.0
+    n_places = 2 * len(ec.PLACE_PROBES)  # then only k2's own onset is scanned
+    assert all("a1" in s for s in probed[n_places:]) and progress.n_sims == len(probed)
+    assert all(s.get("g1", s.get("g2")) == 11.0 for s in probed[:n_places])  # at the kept instant, for the kept change
 
 
 def _shaped_instead(monkeypatch: pytest.MonkeyPatch, event_held: float, stages_held: float,

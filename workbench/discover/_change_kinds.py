@@ -24,6 +24,7 @@ from workbench.discover._change_place import N_PLACES, change_slots, placed_free
 from workbench.discover._dictionary import Term
 from workbench.discover._event_check import DAMAGE_SIGN
 from workbench.discover._finite_change import lowest, whole_scores
+from workbench.discover._onset import shifted_onsets
 from workbench.discover._results import excess_share_removed
 from workbench.discover._search import refine
 from workbench.fit import FitOutcome, Objective, noise_tolerance
@@ -78,10 +79,7 @@ def common_onset(setup: Any, values: Mapping[str, float], pair: tuple[int, int],
     """``setting`` with the pair's common onset moved to where the whole record's RMS is lowest within ± ``span_s``
     of the first slot's (steps of ``step_s``): the kept step's onset fitted a mimic, and a least-squares refit hardly
     moves a sharp step's instant (its Jacobian is zero but for a sample or two). Also the simulations run."""
-    gnames = [str(setup.names[k][1]) for k in pair]
-    t0 = float(setting[gnames[0]])
-    n = round(span_s / step_s)
-    tries = [setting | {g: t0 + i * step_s for g in gnames} for i in range(-n, n + 1)]
+    tries = shifted_onsets(setting, [str(setup.names[k][1]) for k in pair], span_s, step_s)
     found = lowest(tries, whole_scores(setup.targets, setup.models, dict(values), tries, threads))
     return (found[0] if found is not None else setting), len(tries) * len(setup.targets)
 

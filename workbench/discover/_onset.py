@@ -247,3 +247,14 @@ def with_onsets(todo: list[ScreenRow], leads: Sequence[ScreenRow], first: bool =
     timed = [r for r in leads if (r.term.param, r.term.index) in chosen]
     rest = [r for r in todo if r.term.form not in TIME_GATES]
     return timed + rest if first else rest + timed
+
+
+def shifted_onsets(setting: dict[str, float], gnames: Sequence[str], span_s: float, step_s: float
+                   ) -> list[dict[str, float]]:
+    """``setting`` with the onsets ``gnames`` moved together by every multiple of ``step_s`` within ± ``span_s`` of
+    the first one's, unmoved first, then the nearest either side (a tie keeps the instant it has: the first of the
+    lowest score)."""
+    t0 = float(setting[gnames[0]])
+    n = round(span_s / step_s)
+    shifts = sorted(range(-n, n + 1), key=lambda i: (abs(i), i))
+    return [setting | {g: t0 + i * step_s for g in gnames} for i in shifts]
