@@ -234,3 +234,26 @@ def test_a_constant_damage_is_refitted_in_the_other_places_its_screen_comes_near
     assert place_switch_family(Term("force_mass", 2, "z3", "lin"), rows, set()) == []  # not a switch
     assert place_switch_family(clips[2], rows, set(), held=2.9) != []
     assert place_switch_family(clips[2], rows, set(), held=95.0) == []  # far from a cure: the next round decides
+
+
+def test_a_section_lost_past_a_point_leads_a_force_on_a_mass_that_lets_go():
+    """A root crack held shut by a preload, opening past δ1 = 0.3 mm on the sweep, was said "a one-sided force on
+    mass 1 (the root) … acting only when z1 > 298 µm: a support that lets go", the crack its twin at the same 1.33 σ:
+    the section's own loss past the point leads (damage of the beam); a stop (the force's other sign) keeps it."""
+    terms = [Term("force_mass", 0, "z1", "pos", 3e-4), Term("damage", 0, "delta1", "on_pos", 3e-4, "k", (-1e-3, 1e-3)),
+             Term("damage", 1, "delta2", "on_pos", 3e-4, "k", (-1e-3, 1e-3))]
+    names = [("a0", "g0"), ("a1", "g1"), ("a2", "g2")]
+
+    def lead(force: float, crack: float, held: float = 1.34) -> int:
+        best = rounds.BestRefit(1.33, 0, SimpleNamespace(values={"a0": force, "g0": 3e-4}))
+        progress = SimpleNamespace(refits=[best, rounds.BestRefit(held, 1, SimpleNamespace(values={"a1": crack}))])
+        setup = SimpleNamespace(terms=terms, names=names, n_held=5000, targets=[])
+        said: list[str] = []
+        out = ec.damage_lead(setup, progress, SimpleNamespace(say=said.append), best).index
+        assert bool(said) == (out == 1)
+        return out
+
+    assert lead(82.8, -0.249) == 1  # lets go; the section lost 24.9 % past 0.3 mm: the crack leads
+    assert lead(-82.8, 0.249) == 0  # a stop, the section stiffer past the point: no damage of the beam
+    assert lead(82.8, 0.249) == 0  # a stiffness gained is no damage either
+    assert lead(82.8, -0.249, held=4.0) == 0  # beyond the twins' tolerance

@@ -27,7 +27,7 @@ import numpy as np
 
 from workbench.discover._dictionary import Term
 from workbench.discover._effect_writer import describe_term
-from workbench.discover._gates import TIME_GATES
+from workbench.discover._gates import SIGN_GATES, TIME_GATES
 from workbench.discover._onset import shifted_onsets, whole_record_rms
 from workbench.discover._results import ScreenRow
 from workbench.discover._search import probe_batch
@@ -246,6 +246,11 @@ def damage_like(term: Term, coef: float) -> bool:
     return sign is None or sign * coef > 0
 
 
+#: the one-sided forms of a force on a mass: with a positive coefficient it lets go past its point (the words of
+#: :func:`workbench.discover._effect_writer.describe_term`: "a support that lets go"; negative, "a stop")
+LETS_GO = ("pos", "neg")
+
+
 #: core parameters that no damage raises on one side of the motion or the drive: a patch does not gain authority
 #: while its section bends one way (a stiffness may: a contact, a crack that closes)
 NO_SWITCHED_GAIN = ("d_ep", "d_ep_i")
@@ -259,12 +264,22 @@ def damage_lead(setup: Any, progress: Any, settings: Any, best: Any) -> Any:
     and damage is what a monitor is there to see; the other stays named as its twin. The same for a patch's
     authority *gained* on one side of a switch (:data:`NO_SWITCHED_GAIN`; on MBIT.a a crack at the root opening for
     δ1 < 0 was said as "patch 3 … 25 % higher for δ3 < 0"): a damage-like switched change refitted this round
-    leads. ``best``: a ``BestRefit``."""
+    leads. And a one-sided force on a mass that lets go past a point (:data:`LETS_GO`): a section's own stiffness
+    lost past a point of its deflection, refitted this round (:mod:`workbench.discover._section_reading`) and alike,
+    leads — a root crack held shut by a preload, opening past δ1 = 0.3 mm on the sweep, was said "a one-sided force
+    on mass 1 (the root) … acting only when z1 > 298 µm: a support that lets go", the crack its twin at the same
+    1.33 σ. ``best``: a ``BestRefit``."""
     term = setup.terms[best.index]
     cname, gname = setup.names[best.index]
-    if term.placement != "damage" or damage_like(term, float(best.outcome.values.get(cname, 0.0))):
+    coef = float(best.outcome.values.get(cname, 0.0))
+    why = "moves its parameter the way damage does not"
+    if term.placement == "force_mass" and term.form in LETS_GO and coef > 0:
+        def same(t: Term, b: Any, g: str | None) -> bool:
+            return t.placement == "damage" and t.param == "k" and t.form in SIGN_GATES
+        where, why = "(a section's own switch)", "is a force on a mass from outside the beam"
+    elif term.placement != "damage" or damage_like(term, coef):
         return best
-    if is_timed(term) and gname is not None:
+    elif is_timed(term) and gname is not None:
         t0 = float(best.outcome.values[gname])
         start, end = record_span(setup.targets)
 
@@ -285,7 +300,7 @@ def damage_lead(setup: Any, progress: Any, settings: Any, best: Any) -> Any:
     if not alike:
         return best
     lead = min(alike, key=lambda b: b.held_rms_sigma)
-    settings.say(f"  {term.key} ({best.held_rms_sigma:.4g} σ) moves its parameter the way damage does not; "
+    settings.say(f"  {term.key} ({best.held_rms_sigma:.4g} σ) {why}; "
                  f"{setup.terms[lead.index].key} ({lead.held_rms_sigma:.4g} σ) {where} explains the records alike "
                  "and moves its own the way damage does: it leads, the other is named as its twin")
     return lead
