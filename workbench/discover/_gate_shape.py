@@ -20,6 +20,7 @@ for a refit. The rounds keep it only when it fits clearly better (:func:`workben
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -131,23 +132,26 @@ def _zoomed(trial: Trial, step: float, sign: bool) -> list[Trial]:
     return [(k, c * m, h) for h in shapes for m in (1.0 / ZOOM_SIZE, 1.0, ZOOM_SIZE) if (h, m) != (g, 1.0)]
 
 
-def _probe(setup: Any, progress: Any, settings: Any, trials: list[Trial]) -> np.ndarray:
-    """The whole record's RMS (σ) with each trial (inf where it does not integrate)."""
+def _probe(setup: Any, progress: Any, settings: Any, trials: list[Trial],
+           base: Mapping[str, float] | None = None) -> np.ndarray:
+    """The whole record's RMS (σ) with each trial on top of ``base`` (the kept set's values when None; inf where it
+    does not integrate)."""
     settings_ = [{setup.names[k][0]: c} | ({str(setup.names[k][1]): g} if setup.names[k][1] else {})
                  for k, c, g in trials]
-    held, train, ok = probe_batch(setup.targets, setup.models, progress.state.values, settings_, settings.threads)
+    values = progress.state.values if base is None else base
+    held, train, ok = probe_batch(setup.targets, setup.models, values, settings_, settings.threads)
     progress.n_sims += len(trials) * len(setup.targets)
     return np.where(ok, whole_record_rms(setup.targets, held, train), np.inf)
 
 
-def best_shapes(setup: Any, progress: Any, settings: Any, cands: list[int], coef: float
-                ) -> dict[int, tuple[float, Trial]]:
+def best_shapes(setup: Any, progress: Any, settings: Any, cands: list[int], coef: float,
+                base: Mapping[str, float] | None = None) -> dict[int, tuple[float, Trial]]:
     """Each candidate's best (whole-record RMS, trial) over :func:`shape_grid` × :data:`SIZES` × ``coef``, zoomed
-    for :data:`ZOOM_ROUNDS` rounds (the step halved each round)."""
+    for :data:`ZOOM_ROUNDS` rounds (the step halved each round), on top of ``base`` (the kept set's when None)."""
     trials = [(k, coef * m, g) for k in cands
               for g in shape_grid(setup.terms[k], setup.scales.get(setup.terms[k].signal, 1.0)) for m in SIZES]
     found: dict[int, tuple[float, Trial]] = {}
-    for tr, e in zip(trials, _probe(setup, progress, settings, trials)):
+    for tr, e in zip(trials, _probe(setup, progress, settings, trials, base)):
         if math.isfinite(e) and e < found.get(tr[0], (math.inf, tr))[0]:
             found[tr[0]] = (float(e), tr)
     for r in range(ZOOM_ROUNDS):
@@ -155,7 +159,7 @@ def best_shapes(setup: Any, progress: Any, settings: Any, cands: list[int], coef
                      if setup.terms[k].form in SIGN_GATES else 0.5 ** r * SHAPE_STEP) for k in found}
         near = [n for k, (_, tr) in found.items() for n in _zoomed(tr, steps[k], setup.terms[k].form in SIGN_GATES)]
         near = [n for n in near if _within(setup.terms[n[0]], n[2])]
-        for tr, e in zip(near, _probe(setup, progress, settings, near) if near else []):
+        for tr, e in zip(near, _probe(setup, progress, settings, near, base) if near else []):
             if math.isfinite(e) and e < found[tr[0]][0]:
                 found[tr[0]] = (float(e), tr)
     return found

@@ -58,6 +58,7 @@ from workbench.discover._dictionary_effect import (
     term_scale,
 )
 from workbench.discover._finite_change import finite_changes, found_term
+from workbench.discover._form_swap import swap_step
 from workbench.discover._joint_polish import polish_step
 from workbench.discover._pair_refit import pair_step
 from workbench.discover._results import (
@@ -116,6 +117,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
         if not search_round(setup, progress, settings, round_no):
             break
     polish_step(setup, progress, settings)
+    swap_step(setup, progress, settings)
     backward_step(setup, progress, settings)
     pair_step(setup, progress, settings)
     drop_idle(setup, progress, settings)

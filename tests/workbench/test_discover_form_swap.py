@@ -1,0 +1,77 @@
+"""A kept switch tried in its other gate shapes beside the rest of the set (issue 26, ``_form_swap.py``): a tip crack
+open for δ3 > 0 whose faces also rub while open (blind set 7, 15 s sweep) was kept in round 1 as a loss growing with
+the opening (190 σ), round 2 added the damping switched at δ3 > 0 (73.7 σ) and the verdict fell back to the
+parameters. Here the step's rule with the probes and refits faked: what it probes on, what it frees, when it runs,
+and that the set changes only when a swap fits clearly better."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+import workbench.discover._form_swap as fs
+from workbench.discover._rounds import SearchProgress
+
+KEYS = ("k3_pos_grow_delta3", "c3_pos_delta3", "k3_pos_delta3")
+
+
+def _case(held: float, kept: list[int]) -> tuple[SimpleNamespace, SearchProgress]:
+    terms = [SimpleNamespace(key=k, placement="damage", unit="1", form=f, shape_range=rng, shape_unit="m")
+             for k, f, rng in zip(KEYS, ("on_pos_grow", "on_pos", "on_pos"), (None, (-1e-3, 1e-3), (-1e-3, 1e-3)))]
+    setup = SimpleNamespace(terms=terms, names=[("a_00", "g_00"), ("a_01", "g_01"), ("a_02", "g_02")],
+                            targets=[], models=[], held_before=441.0, n_held=1875)
+    state = SimpleNamespace(values={"a_00": -0.211, "g_00": 0.012, "a_01": 0.38, "g_01": 0.0, "a_02": 0.0,
+                                    "g_02": 0.0}, kept=kept)
+    progress = SearchProgress(state=state, current_held=held, current_train=held, twins={0: ["x"]},
+                              timings={"refit_s": 0.0}, n_sims=0)
+    return setup, progress
+
+
+def _fake(monkeypatch, refit_held: float, seen: dict[str, list]) -> None:
+    def best_shapes(setup, progress, settings, cands, coef, base):
+        seen["probed"] = [cands, coef, dict(base)]
+        return {2: (80.0, (2, -0.12, 1e-6))}
+
+    class Obj:
+        def __init__(self, targets, models, free, base_values, threads):
+            seen.setdefault("free", []).append(sorted(fp.name for fp in free))
+            seen["start"] = dict(base_values)
+            self.n_sims = 5
+
+    out = SimpleNamespace(ok=True, held_rms_sigma=refit_held, train_rms_sigma=refit_held, estimates=[],
+                          values={"a_02": -0.12, "g_02": 2e-6, "a_01": 0.36})
+    monkeypatch.setattr(fs, "shape_candidates", lambda terms, term: [0, 2] if term.key == KEYS[0] else [])
+    monkeypatch.setattr(fs, "best_shapes", best_shapes)
+    monkeypatch.setattr(fs, "Objective", Obj)
+    monkeypatch.setattr(fs, "refine", lambda obj, start, nfev: out)
+
+
+@pytest.mark.parametrize(("refit_held", "taken"), [(1.1, True), (72.0, False)])
+def test_a_kept_switch_is_swapped_for_another_shape_only_when_it_fits_clearly_better(monkeypatch, refit_held,
+                                                                                   taken):
+    setup, progress = _case(73.7, [0, 1])
+    seen: dict[str, list] = {}
+    _fake(monkeypatch, refit_held, seen)
+    said: list[str] = []
+    fs.swap_step(setup, progress, SimpleNamespace(say=said.append, threads=1, max_nfev=12))
+    cands, coef, base = seen["probed"]
+    assert cands == [2] and coef == -0.211  # not the kept term itself; probed at its size
+    assert base["a_00"] == 0.0 and base["a_01"] == 0.38  # with that term off, the rest of the set on
+    assert seen["free"] == [["a_01", "a_02", "g_02"]]  # every kept coefficient, the new term's shape
+    assert seen["start"]["a_02"] == -0.12 and seen["start"]["g_02"] == 1e-6 and progress.n_sims == 5
+    assert progress.rounds[-1]["shape_swap"]["taken"] is taken and ("taken" in said[-1])
+    if taken:
+        assert progress.state.kept == [2, 1] and progress.current_held == 1.1
+        assert progress.state.values["a_00"] == 0.0 and progress.state.values["g_02"] == 2e-6
+        assert 0 not in progress.twins
+    else:
+        assert progress.state.kept == [0, 1] and progress.current_held == 73.7 and progress.twins == {0: ["x"]}
+
+
+@pytest.mark.parametrize(("held", "kept"), [(73.7, [0]), (2.9, [0, 1])])
+def test_no_swap_for_one_term_or_near_the_noise(monkeypatch, held, kept):
+    setup, progress = _case(held, kept)
+    monkeypatch.setattr(fs, "best_shapes", lambda *a: pytest.fail("probed"))
+    fs.swap_step(setup, progress, SimpleNamespace(say=lambda _m: None, threads=1, max_nfev=12))
+    assert progress.current_held == held and not progress.rounds
