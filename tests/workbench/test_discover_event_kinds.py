@@ -12,6 +12,7 @@ from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
+import pytest
 
 import workbench.discover._event_check as ec
 import workbench.discover._rounds as rounds
@@ -257,3 +258,32 @@ def test_a_section_lost_past_a_point_leads_a_force_on_a_mass_that_lets_go():
     assert lead(-82.8, 0.249) == 0  # a stop, the section stiffer past the point: no damage of the beam
     assert lead(82.8, 0.249) == 0  # a stiffness gained is no damage either
     assert lead(82.8, -0.249, held=4.0) == 0  # beyond the twins' tolerance
+
+
+def test_a_damage_like_kind_beyond_the_limit_is_refitted_when_the_kept_event_is_not_damage(monkeypatch):
+    """Section 3 losing 2 %/s from 11.0 s of MBIT.a was kept as patch 3's authority rising 2.37 %/s from 11.23 s
+    (1.73 σ); k3's ramp at the kept change's static twin and instant left 6.58 σ, beyond the 5.2 σ limit, and was
+    never refitted (from its probe the refit reaches −2 %/s from 11.0 s, 0.98 σ). The best two damage-like kinds
+    within three times the limit are refitted; none when the kept event is damage already."""
+    terms = _terms()[:4]  # d_ep of patch 1, k1, k2, c1: steps in one slot
+    names = _names(terms)
+
+    def probe_batch(targets, models, values, settings, threads):
+        def one(s: dict[str, float]) -> float:
+            if "a1" in s:
+                return 6.5 + 40 * abs(s["a1"] + 0.2)  # k1 lost: near, but beyond the limit
+            if "a2" in s:
+                return 9.0 + 40 * abs(s["a2"] + 0.2)
+            return 30.0 + 40 * abs(s.get("a3", 0.0))  # damping: far
+        held = np.array([one(s) for s in settings])
+        return held, held, np.ones(len(settings), bool)
+
+    monkeypatch.setattr(ec, "probe_batch", probe_batch)
+    setup = SimpleNamespace(terms=terms, names=names, targets=[TARGET], models=[object()])
+    said: list[str] = []
+    for kept, coef, expect in ((0, 0.25, ["k1_step_t", "k2_step_t"]), (1, -0.2, [])):
+        progress = SimpleNamespace(state=SimpleNamespace(values={}), n_sims=0)
+        best = rounds.BestRefit(1.73, kept, SimpleNamespace(values={f"a{kept}": coef, f"g{kept}": 10.0}))
+        rows = ec.place_rows(setup, progress, SimpleNamespace(threads=1, say=said.append), best, set(), kinds=True)
+        assert [r.term.key for r in rows] == expect
+        assert all(r.coef == pytest.approx(-0.2) for r in rows)  # each from its best damage-like probe

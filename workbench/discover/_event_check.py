@@ -55,6 +55,13 @@ KIND_PROBES = (-0.3, -0.15, -0.05, 0.05, 0.15, 0.3)
 #: section 3 losing 20 % at 14.000 s of MBIT.a, kept as d_ep rising at 14.008 s: k3's step refitted from there stopped
 #: at 14.011 s (9.54 σ); from 14.000 s it reaches 1.2 σ
 FAMILY_ONSET_PASSES = ((0.04, 0.004), (0.004, 0.001))
+#: when the kept event moves its parameter the way damage does not, the best :data:`MAX_DAMAGE_KINDS` kinds that move
+#: theirs the way damage does are refitted when their probe leaves at most DAMAGE_NEAR × the kinds' limit: probed at
+#: the kept instant and the kept change's static twin they sit off their own — section 3 losing 2 %/s from 11.0 s of
+#: MBIT.a, kept as patch 3's authority rising 2.37 %/s from 11.23 s (1.73 σ): k3's ramp probed at −2.32 %/s from
+#: 11.23 s, 6.58 σ (beyond the 5.2 σ limit); at −2 %/s from 11.0 s, 0.98 σ
+DAMAGE_NEAR = 3.0
+MAX_DAMAGE_KINDS = 2
 #: the way damage moves a core parameter (the sign of its relative change): a section's stiffness and a patch's
 #: authority are lost, damping is gained; the other parameters may move either way
 DAMAGE_SIGN = {"k": -1.0, "c": 1.0, "d_ep": -1.0, "d_ep_i": -1.0}
@@ -198,12 +205,20 @@ def place_rows(setup: Any, progress: Any, settings: Any, best: Any, done: set[st
     progress.n_sims += len(trials) * len(setup.targets)
     limit = PLACE_NEAR * max(best.held_rms_sigma, 1.0)
     probed: dict[str, tuple[float, float]] = {}  # key: (held-out σ, change) of its best probe
+    damage: dict[str, tuple[float, float]] = {}  # ... of its best probe moving its parameter the way damage does
     for i, (r, trial) in enumerate(trials):
-        if ok[i] and held[i] <= limit and held[i] < probed.get(r.term.key, (math.inf, 0.0))[0]:
-            probed[r.term.key] = (float(held[i]), trial[names[r.term.key][0]])
+        h, change = float(held[i]), trial[names[r.term.key][0]]
+        if ok[i] and h <= limit and h < probed.get(r.term.key, (math.inf, 0.0))[0]:
+            probed[r.term.key] = (h, change)
+        if ok[i] and damage_like(r.term, change) and h < damage.get(r.term.key, (math.inf, 0.0))[0]:
+            damage[r.term.key] = (h, change)
+    kept_coef = float(best.outcome.values.get(setup.names[best.index][0], 0.0))
+    if kinds and not damage_like(setup.terms[best.index], kept_coef):
+        near = sorted((v, k) for k, v in damage.items() if k not in probed and v[0] <= DAMAGE_NEAR * limit)
+        probed |= {k: v for v, k in near[:MAX_DAMAGE_KINDS]}
     if kinds:
         settings.say(f"  other parameters changing at t = {t0:.4g} s: {len(rows)} probed, {len(probed)} within "
-                     f"{limit:.3g} σ" + "".join(f", {k} {h:.3g} σ" for k, (h, _) in
+                     f"{limit:.3g} σ or moving theirs the way damage does" + "".join(f", {k} {h:.3g} σ" for k, (h, _) in
                                                  sorted(probed.items(), key=lambda kv: kv[1])[:3]))
     # each refit starts from its best probe's change (the kept change may have the other sign for another kind)
     return own_onsets(setup, progress, settings, [replace(r, coef=probed[r.term.key][1]) for r in rows
