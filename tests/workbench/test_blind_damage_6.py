@@ -19,14 +19,15 @@ def test_every_blind_case_has_a_check_for_its_physics():
 #: Since then: the common d_ep said as all three patches' (c227c70), a kept step probed as another kind in two places
 #: at its instant (2bf4ce9, f2cbbce), a coupling fading smoothly with one polarity of the patch voltage (3005d92) —
 #: the sweep's all_patches_weak_negative, mid_tip_impact and patch2_negative_saturating (re-run 12:49–12:53 UTC):
-#: 25 of 31.
+#: 25 of 31. Then each member of an event's place and kind families scanned for its own instant (352a320) — MBIT.a's
+#: tip_cracks_through (re-run 2026-11-29 14:50 UTC): 26 of 31.
 PASSING6: dict[str, tuple[str, ...]] = {
     "sweep": ("root_crack_opens_up", "tip_crack_opens_down", "mid_crack_rubs_open_up", "root_bilinear_spring_down",
               "tip_cracks_through", "root_ramp_half_second", "tip_mass_breaks_off", "patch3_weak_negative_v",
               "patch1_weak_positive_drive", "all_patches_weak_negative", "mid_tip_impact",
               "patch2_negative_saturating"),
     "mbit-a": ("root_crack_opens_up", "tip_crack_opens_down", "mid_crack_rubs_open_up", "root_bilinear_spring_down",
-               "root_ramp_half_second", "patch3_weak_negative_v", "patch1_weak_positive_drive"),
+               "root_ramp_half_second", "patch3_weak_negative_v", "patch1_weak_positive_drive", "tip_cracks_through"),
     "mbit-b": ("root_crack_opens_up", "mid_crack_rubs_open_up", "tip_cracks_through", "root_ramp_half_second",
                "mid_tip_impact", "tip_mass_breaks_off"),
 }
