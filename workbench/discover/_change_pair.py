@@ -207,6 +207,4 @@ def pair_change(setup: Any, progress: Any, settings: Any, min_share: float) -> N
     state.kept = [k for k in state.kept if k != slot] + list(pair.slots)
     progress.twins.pop(slot, None)  # the single step's twins are no twins of the pair
     state.values.update(pair.values | ({setup.names[slot][0]: 0.0} if slot not in pair.slots else {}))
-    progress.stderr.update({e.name: e.stderr for e in pair.outcome.estimates})
-    progress.current_train, progress.current_held = pair.outcome.train_rms_sigma, h
-    progress.outcome = pair.outcome
+    progress.adopt(pair.outcome)

@@ -220,9 +220,7 @@ def place_change(setup: Any, progress: Any, settings: Any) -> None:
     if best is not None and best.outcome.held_rms_sigma * tol < h:  # the old place is no twin: clearly worse
         state.kept = [k for k in state.kept if k not in slots] + list(best.slots)
         state.values.update(best.values)
-        progress.stderr.update({e.name: e.stderr for e in best.outcome.estimates})
-        progress.current_train, progress.current_held = best.outcome.train_rms_sigma, best.outcome.held_rms_sigma
-        progress.outcome = best.outcome
+        progress.adopt(best.outcome)
         for k in slots:
             progress.twins.pop(k, None)
         settings.say(f"  the change moves to {setup.terms[best.slots[0]].key}'s place: it fits clearly better")
