@@ -72,6 +72,10 @@ def test_words_name_the_damage_as_an_engineer_would():
     assert fading.startswith("patch 2 (on section 2) whose authority d_ep is 35 % lower for negative voltage, the "
                              "more the stronger the voltage (63 % of it at −80 V")
     assert class_stem("k", 1, "on_pos", "ddelta2") != class_stem("k", 1, "on_pos", "delta2")
+    high_field = describe_damage("d_ep_i", 1, "on_gap", "vc", -0.3, 150.0)  # either polarity, past a magnitude
+    assert high_field.startswith("patch 2 (on section 2) whose authority d_ep is 30 % lower above ±150 V of v_c2, "
+                                 "in either polarity") and "back-switch" in high_field
+    assert class_stem("d_ep_i", 1, "on_gap", "vc") == "Patch2CouplingAboveMagnitude"
     term = Term("damage", 1, "one", "on_step", 20.0, "k", (15.0, 22.5))
     assert describe_term(term, -0.25, 20.04, 1.0, 0.08) == event
     assert term.key == "k2_step_t" and term.unit == "1"

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import workbench.discover._event_check as ec
+import workbench.discover._onset as scoring
 import workbench.discover._rounds as rounds
 from workbench.discover._dictionary import Term
 from workbench.discover._effect_writer import emit_effect_source, parameter_names_for
@@ -65,7 +66,8 @@ def test_a_kind_is_probed_both_ways_and_refitted_from_its_best_probe(monkeypatch
         held = np.array([1.1 + 50 * abs(s["a1"] + 0.2) if "a1" in s else 40.0 for s in settings])
         return held, held, np.ones(len(settings), bool)
 
-    monkeypatch.setattr(ec, "probe_batch", probe_batch)
+    monkeypatch.setattr(ec, "probe_batch", probe_batch)  # the places, held out
+    monkeypatch.setattr(scoring, "probe_batch", probe_batch)  # their own onsets, over the whole record
     said: list[str] = []
     setup = SimpleNamespace(terms=terms, names=names, targets=[TARGET], models=[object()])
     progress = SimpleNamespace(state=SimpleNamespace(values={}), n_sims=0)
@@ -94,7 +96,8 @@ def test_a_near_kind_is_refitted_from_its_own_instant_not_its_mimics(monkeypatch
                          for s in settings])
         return held, held, np.ones(len(settings), bool)
 
-    monkeypatch.setattr(ec, "probe_batch", probe_batch)
+    monkeypatch.setattr(ec, "probe_batch", probe_batch)  # the places, held out
+    monkeypatch.setattr(scoring, "probe_batch", probe_batch)  # their own onsets, over the whole record
     setup = SimpleNamespace(terms=terms, names=names, targets=[TARGET], models=[object()])
     progress = SimpleNamespace(state=SimpleNamespace(values={}), n_sims=0)
     best = rounds.BestRefit(1.1, 0, SimpleNamespace(values={"a0": 0.25, "g0": 10.0}))
@@ -278,7 +281,8 @@ def test_a_damage_like_kind_beyond_the_limit_is_refitted_when_the_kept_event_is_
         held = np.array([one(s) for s in settings])
         return held, held, np.ones(len(settings), bool)
 
-    monkeypatch.setattr(ec, "probe_batch", probe_batch)
+    monkeypatch.setattr(ec, "probe_batch", probe_batch)  # the places, held out
+    monkeypatch.setattr(scoring, "probe_batch", probe_batch)  # their own onsets, over the whole record
     setup = SimpleNamespace(terms=terms, names=names, targets=[TARGET], models=[object()])
     said: list[str] = []
     for kept, coef, expect in ((0, 0.25, ["k1_step_t", "k2_step_t"]), (1, -0.2, [])):

@@ -13,6 +13,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+import workbench.discover._onset as scoring
 import workbench.discover._rounds as rounds
 from workbench.discover._dictionary import Term
 from workbench.discover._event_check import invariant_siblings, onset_issue, refit_twins
@@ -359,7 +360,8 @@ def test_an_events_places_are_refitted_only_when_a_probe_comes_near_the_kept_cha
         held = np.array([2.5 if "a1" in s else 40.0 for s in settings])  # k2 near the kept 1 σ, k3 far
         return held, held, np.ones(len(settings), bool)
 
-    monkeypatch.setattr(ec, "probe_batch", probe_batch)
+    monkeypatch.setattr(ec, "probe_batch", probe_batch)  # the places, held out
+    monkeypatch.setattr(scoring, "probe_batch", probe_batch)  # their own onsets, over the whole record
     target = SimpleNamespace(held=np.ones(10, bool), train=np.ones(10, bool), channels=("z3",))
     setup = SimpleNamespace(terms=terms, names=names, targets=[target], models=[object()])
     progress = SimpleNamespace(state=SimpleNamespace(values={}), n_sims=0)

@@ -11,6 +11,7 @@ from types import SimpleNamespace
 import pytest
 
 import workbench.discover._form_swap as fs
+import workbench.discover._term_swap as term_swap
 from workbench.discover._rounds import SearchProgress
 
 KEYS = ("k3_pos_grow_delta3", "c3_pos_delta3", "k3_pos_delta3")
@@ -43,8 +44,8 @@ def _fake(monkeypatch, refit_held: float, seen: dict[str, list]) -> None:
                           values={"a_02": -0.12, "g_02": 2e-6, "a_01": 0.36})
     monkeypatch.setattr(fs, "shape_candidates", lambda terms, term: [0, 2] if term.key == KEYS[0] else [])
     monkeypatch.setattr(fs, "best_shapes", best_shapes)
-    monkeypatch.setattr(fs, "Objective", Obj)
-    monkeypatch.setattr(fs, "refine", lambda obj, start, nfev: out)
+    monkeypatch.setattr(term_swap, "Objective", Obj)
+    monkeypatch.setattr(term_swap, "refine", lambda obj, start, nfev: out)
 
 
 @pytest.mark.parametrize(("refit_held", "taken"), [(1.1, True), (72.0, False)])

@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 import workbench.discover._gate_shape as gs
+import workbench.discover._onset as scoring
 from workbench.discover import build_dictionary
 from workbench.discover._effect_writer import parameter_names_for
 
@@ -82,8 +83,8 @@ def _run(monkeypatch, best_key: str, truth_key: str, truth_shape: float, held: f
         a = np.array(out)
         return a, a, np.ones(len(a), bool)
 
-    monkeypatch.setattr(gs, "probe_batch", probe)
-    monkeypatch.setattr(gs, "whole_record_rms", lambda targets, h, t: np.asarray(h))
+    monkeypatch.setattr(scoring, "probe_batch", probe)
+    monkeypatch.setattr(scoring, "whole_record_rms", lambda targets, h, t: np.asarray(h))
     monkeypatch.setattr(gs, "whole_rms", lambda targets, out: out.held_rms_sigma)
     setup = SimpleNamespace(terms=terms, names=names, scales=SCALES, targets=[object()], models=[])
     progress = SimpleNamespace(state=SimpleNamespace(values={}), n_sims=0)

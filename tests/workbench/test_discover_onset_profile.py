@@ -11,6 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+import workbench.discover._onset as scoring
 import workbench.discover._onset_profile as op
 from workbench.discover._dictionary import Term
 
@@ -64,7 +65,7 @@ def test_place_onset_replaces_the_training_error_by_the_whole_records(monkeypatc
         rms = np.sqrt(1.0 + op.CHI2_95 * ((g - 10.0) / 0.02) ** 2 / n)
         return rms, rms, np.ones(len(settings), bool)
 
-    monkeypatch.setattr(op, "probe_batch", probe_batch)
+    monkeypatch.setattr(scoring, "probe_batch", probe_batch)
     t = np.linspace(0.0, 20.0, 500)
     target = SimpleNamespace(t=t, held=np.arange(500) % 2 == 0, train=np.arange(500) % 2 == 1, channels=["z3"])
     setup = SimpleNamespace(terms=[Term("damage", 0, "one", "on_step", 10.0, "k", (6.0, 14.0))],
@@ -107,7 +108,7 @@ def test_an_onset_the_training_blocks_cannot_see_is_placed_on_the_whole_record(m
         def __init__(self, targets, models, free, base_values, threads):
             self.free, self.n_sims = free, 7
 
-    monkeypatch.setattr(op, "probe_batch", probe_batch)
+    monkeypatch.setattr(scoring, "probe_batch", probe_batch)
     monkeypatch.setattr(op, "refine", refine)
     monkeypatch.setattr(op, "Objective", Objective)
     monkeypatch.setattr(op, "free_for", lambda terms, names, idx, start, new: [SimpleNamespace(name="a")])

@@ -27,7 +27,7 @@ from typing import Any
 
 from board_config.parameter import Parameter, freed
 from workbench.discover._dictionary import Term
-from workbench.discover._dictionary_code import width_name
+from workbench.discover._dictionary_code import since_name, width_name
 from workbench.discover._event_check import PLACE_NEAR, PLACE_PROBES, is_timed
 from workbench.discover._finite_change import (
     ONSET_FREE_S,
@@ -100,6 +100,8 @@ def transplant(values: Mapping[str, float], names: Sequence[tuple[str, str | Non
             out[g2] = float(values[g])
         if width_name(k) in values:
             out[width_name(k2)] = float(values[width_name(k)])
+        if since_name(k) in values and since_name(k2) in values:  # a switched change begun at an instant
+            out[since_name(k2)] = float(values[since_name(k)])
     return out
 
 

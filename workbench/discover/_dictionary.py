@@ -149,7 +149,8 @@ class Term:
     A damage term (placement ``damage``) is ``coefficient × contribution(param) × gate(signal)``, the gate being
     its form; ``shape_range`` is where the refit may move its shape (an onset time or a switching point: linear),
     None for a factor of four either way. ``width``: a fitted edge time scale (s) of a step whose change took time
-    (an S-shaped loss: ½(1 + tanh((t − t0)/width))); 0 for the gate's own fixed, sharp edge."""
+    (an S-shaped loss: ½(1 + tanh((t − t0)/width))); 0 for the gate's own fixed, sharp edge. ``since``: the instant
+    (s) a switched change began at, found (:mod:`workbench.discover._since_onset`); None for the whole record."""
 
     placement: str
     index: int
@@ -159,6 +160,7 @@ class Term:
     param: str = ""
     shape_range: tuple[float, float] | None = None
     width: float = 0.0
+    since: float | None = None
 
     @property
     def key(self) -> str:
@@ -335,8 +337,8 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                     if ok(sig := "ic" if what == "sat_charge" else "vc"):
                         at = SAT_CHARGE_AT if sig == "ic" else SAT_VOLT_AT
                         terms += [Term("damage", index, sig, g, at * scales[sig], param) for g in SAT_GATES]
-                elif what == "gap":
-                    if ok(sig):
+                elif what in ("gap", "gap_volt"):
+                    if ok(sig := "vc" if what == "gap_volt" else sig):
                         terms += [Term("damage", index, sig, "on_gap", f * scales[sig], param) for f in GAP_AT]
                 elif ok(sig) and (driven or sig != "va"):
                     rng = (-SWITCH_RANGE * scales[sig], SWITCH_RANGE * scales[sig])

@@ -178,12 +178,15 @@ _DESCRIBERS: dict[str, Callable[[Term, float, float, float], str | None]] = {
 }
 
 
-def describe_term(term: Term, coef: float, shape: float, scale: float, shape_se: float | None = None) -> str:
+def describe_term(term: Term, coef: float, shape: float, scale: float, shape_se: float | None = None,
+                  since_se: float | None = None) -> str:
     """One sentence: what the fitted term is, in words, numbers and units (``scale``: the signal's 99th percentile
-    of |value| along the records, SI; ``shape_se``: the shape's standard error, said with an onset time)."""
+    of |value| along the records, SI; ``shape_se``: the shape's standard error, said with an onset time;
+    ``since_se``: that of the instant a switched change began at, ``term.since``)."""
     c, g = float(coef), float(shape)
     if term.placement == "damage":
-        return describe_damage(term.param, term.index, term.form, term.signal, c, g, shape_se, term.width)
+        return describe_damage(term.param, term.index, term.form, term.signal, c, g, shape_se, term.width,
+                               term.since, since_se)
     describer = _DESCRIBERS.get(term.placement)
     words = describer(term, c, g, scale) if describer is not None else None
     return words if words is not None else f"{c:.3g} {term.unit} × {term.form}({term.signal})"
@@ -192,7 +195,8 @@ def describe_term(term: Term, coef: float, shape: float, scale: float, shape_se:
 def formula(term: Term, cname: str, gname: str | None) -> str:
     """The term as a formula in words-free notation (for the docstring)."""
     if term.placement == "damage":
-        return damage_formula(term.param, term.index, term.form, term.signal, cname, gname, term.width)
+        return damage_formula(term.param, term.index, term.form, term.signal, cname, gname, term.width,
+                              term.since)
     s = {"one": "1"}.get(term.signal, term.signal)
     code = FORMS[term.form].code
     g = gname or "g"

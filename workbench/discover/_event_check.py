@@ -28,7 +28,7 @@ import numpy as np
 from workbench.discover._dictionary import Term
 from workbench.discover._effect_writer import describe_term
 from workbench.discover._gates import SIGN_GATES, TIME_GATES
-from workbench.discover._onset import shifted_onsets, whole_record_rms
+from workbench.discover._onset import shifted_onsets, whole_scores
 from workbench.discover._results import ScreenRow
 from workbench.discover._search import probe_batch
 from workbench.discover._twins import place_first, twin_tolerance
@@ -237,9 +237,8 @@ def own_onsets(setup: Any, progress: Any, settings: Any, rows: list[ScreenRow]) 
         tries = [[t for t in shifted_onsets(f, [str(g)], span_s, step_s) if _in_range(r.term, t[str(g)])]
                  for f, r, (_, g) in zip(found, rows, slots)]
         flat = [t for ts in tries for t in ts]
-        held, train, ok = probe_batch(setup.targets, setup.models, progress.state.values, flat, settings.threads)
+        scores = whole_scores(setup.targets, setup.models, progress.state.values, flat, settings.threads)
         progress.n_sims += len(flat) * len(setup.targets)
-        scores = np.where(np.asarray(ok, bool), whole_record_rms(setup.targets, held, train), np.inf)
         at = 0
         for j, ts in enumerate(tries):
             mine = scores[at:at + len(ts)]

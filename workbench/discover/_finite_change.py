@@ -29,14 +29,14 @@ import numpy as np
 from board_config.parameter import Parameter, freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
-from workbench.discover._dictionary_code import term_default_width, width_name
+from workbench.discover._dictionary_code import since_name, term_default_width, width_name
 from workbench.discover._effect_writer import describe_term
 from workbench.discover._event_check import static_twin
 from workbench.discover._gate_words import describe_finite_change, describe_recovery
-from workbench.discover._gates import WIDTH_GATES, onset_floor
-from workbench.discover._onset import ONSET_RESOLUTION_S, whole_record_rms
+from workbench.discover._gates import SINCE_NEVER_S, WIDTH_GATES, onset_floor
+from workbench.discover._onset import ONSET_RESOLUTION_S, whole_record_rms, whole_scores
 from workbench.discover._results import FoundTerm
-from workbench.discover._search import SearchState, probe_batch, refine
+from workbench.discover._search import SearchState, refine
 from workbench.fit import FitOutcome, Objective, Target
 
 T = TypeVar("T")
@@ -198,14 +198,6 @@ class WindowProbe:
         return whole_scores(self.targets, self.models, self.values, [self.setting(w) for w in windows], self.threads)
 
 
-def whole_scores(targets: Sequence[Target], models: Sequence[PlantModel], values: dict[str, float],
-                 settings: Sequence[dict[str, float]], threads: int | None) -> list[float]:
-    """The whole record's RMS (σ) with each of ``settings`` on top of ``values`` (inf where it does not
-    integrate)."""
-    held, train, ok = probe_batch(targets, models, values, settings, threads)
-    return [e if good else math.inf for e, good in zip(whole_record_rms(targets, held, train), ok)]
-
-
 def lowest(items: Sequence[T], scores: Sequence[float]) -> tuple[T, float] | None:
     """The first item of the lowest finite score, with its score (None when no score is finite)."""
     k = min(range(len(items)), key=lambda i: scores[i], default=None)
@@ -305,8 +297,11 @@ def found_term(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], s
         width, default = values.get(width_name(k), 0.0), term_default_width(term)
         if width != 0.0 and abs(width - default) > 1e-3 * default:
             term = replace(term, width=float(width))
-    return FoundTerm(term.with_shape(shape), coef, shape, scale, describe_term(term, coef, shape, scale, se), twins,
-                     se)
+    since = values.get(since_name(k), SINCE_NEVER_S)
+    if since > 0.5 * SINCE_NEVER_S:  # a switched change begun during the record: said and written so
+        term = replace(term, since=float(since))
+    words = describe_term(term, coef, shape, scale, se, stderr.get(since_name(k)))
+    return FoundTerm(term.with_shape(shape), coef, shape, scale, words, twins, se)
 
 
 def finite_changes(found: Sequence[FoundTerm]) -> list[FoundTerm]:

@@ -19,9 +19,8 @@ import time
 
 from workbench.discover._gate_shape import best_shapes, shape_candidates
 from workbench.discover._rounds import SearchProgress, SearchSettings, SearchSetup
-from workbench.discover._search import free_for, refine
-from workbench.discover._twins import twin_tolerance
-from workbench.fit import FitOutcome, Objective, explained
+from workbench.discover._term_swap import best_replacement, take_replacement
+from workbench.fit import explained
 
 #: a set is tried in other shapes only when it leaves more than this (σ held out): the swaps cost a grid of probes
 #: and two refits of the whole set per kept term, and a set near the noise has its shapes
@@ -54,28 +53,7 @@ def _swap_one(setup: SearchSetup, progress: SearchProgress, settings: SearchSett
         return
     base = dict(state.values) | {cname: 0.0}
     found = best_shapes(setup, progress, settings, cands, coef, base)
-    best: tuple[int, dict[str, float], FitOutcome] | None = None
-    for _, (j, c, g) in sorted(found.values(), key=lambda et: et[0])[:MAX_SWAPS]:
-        kept = [j if i == k else i for i in state.kept]
-        start = base | {names[j][0]: c} | ({str(names[j][1]): g} if names[j][1] else {})
-        robj = Objective(setup.targets, setup.models, free_for(setup.terms, names, kept, start, j),
-                         base_values=start, threads=settings.threads)
-        out = refine(robj, start, settings.max_nfev)
-        progress.n_sims += robj.n_sims
-        if out.ok and (best is None or out.held_rms_sigma < best[2].held_rms_sigma):
-            best = (j, start, out)
-    if best is None:
-        return
-    j, start, out = best
-    old, new = setup.terms[k].key, setup.terms[j].key
-    taken = out.held_rms_sigma * twin_tolerance(setup.n_held) < progress.current_held
-    settings.say(f"  {old} in another shape beside the set: {new} {out.held_rms_sigma:.4g} σ held-out (the set "
-                 f"{progress.current_held:.4g} σ): " + ("taken" if taken else "not taken"))
-    progress.rounds.append({"shape_swap": {"term": old, "as": new, "held_rms_sigma": out.held_rms_sigma,
-                                           "set_held_rms_sigma": progress.current_held, "taken": taken}})
-    if not taken:
-        return
-    state.kept = [j if i == k else i for i in state.kept]
-    state.values = start | out.values
-    progress.twins.pop(k, None)
-    progress.adopt(out)
+    tries = [(j, base | {names[j][0]: c} | ({str(names[j][1]): g} if names[j][1] else {}), ())
+             for _, (j, c, g) in sorted(found.values(), key=lambda et: et[0])[:MAX_SWAPS]]
+    take_replacement(setup, progress, settings, best_replacement(setup, progress, settings, k, tries),
+                     "shape_swap", "in another shape beside the set")

@@ -28,9 +28,8 @@ import numpy as np
 from workbench.discover._dictionary import Term
 from workbench.discover._finite_change import whole_rms
 from workbench.discover._gates import SAT_GATES, SIDED_GATES, SIGN_GATES, SOFT_GATES
-from workbench.discover._onset import whole_record_rms
+from workbench.discover._onset import whole_scores
 from workbench.discover._results import ScreenRow
-from workbench.discover._search import probe_batch
 
 #: switching points probed (fractions of the signal's scale; within the term's own range)
 POINTS = (-0.75, -0.6, -0.45, -0.3, -0.15, 0.0, 0.15, 0.3, 0.45, 0.6, 0.75)
@@ -139,9 +138,8 @@ def _probe(setup: Any, progress: Any, settings: Any, trials: list[Trial],
     settings_ = [{setup.names[k][0]: c} | ({str(setup.names[k][1]): g} if setup.names[k][1] else {})
                  for k, c, g in trials]
     values = progress.state.values if base is None else base
-    held, train, ok = probe_batch(setup.targets, setup.models, values, settings_, settings.threads)
     progress.n_sims += len(trials) * len(setup.targets)
-    return np.where(ok, whole_record_rms(setup.targets, held, train), np.inf)
+    return np.asarray(whole_scores(setup.targets, setup.models, values, settings_, settings.threads))
 
 
 def best_shapes(setup: Any, progress: Any, settings: Any, cands: list[int], coef: float,

@@ -114,9 +114,21 @@ def _instant(t0: float, se: float | None) -> str:
 
 
 def describe_damage(param: str, index: int, form: str, signal: str, coef: float, shape: float,
-                    shape_se: float | None = None, width: float = 0.0) -> str:
+                    shape_se: float | None = None, width: float = 0.0, since: float | None = None,
+                    since_se: float | None = None) -> str:
     """One sentence, in an engineer's words, for the damage term ``coef`` × contribution(``param``) × gate
-    (``width``: a step's fitted edge time scale, s; 0 for a sharp step)."""
+    (``width``: a step's fitted edge time scale, s; 0 for a sharp step; ``since``: the instant, s, a switched change
+    began at, with its standard error ``since_se``; None: it held through the record)."""
+    words = _describe_gated(param, index, form, signal, coef, shape, shape_se, width)
+    if since is None:
+        return words
+    began = "a crack that appeared" if param == "k" and coef < 0 else "damage that began"
+    return f"{words}, from {_instant(since, since_se)} on ({began} during the record)"
+
+
+def _describe_gated(param: str, index: int, form: str, signal: str, coef: float, shape: float,
+                    shape_se: float | None, width: float) -> str:
+    """The words of :func:`describe_damage` for a change that held through the record."""
     n = index + 1
     what = CONTRIBUTIONS[param].what.format(n=n)
     pct = f"{100 * abs(coef):.3g} %"
@@ -130,6 +142,8 @@ def describe_damage(param: str, index: int, form: str, signal: str, coef: float,
         return _describe_sign(param, index, form, signal, coef, named_switch(shape, shape_se))
     if form in (*SOFT_GATES, *GROW_GATES, *SAT_GATES):
         return _describe_edge(param, index, form, signal, coef, shape)
+    if form == "on_gap" and signal in ("va", "vc"):
+        return _above_magnitude(param, n, signal, coef, shape)
     if form == "on_gap":
         if param == "k":
             return (f"section {n} is {'softer' if lower else 'stiffer'} by {pct} beyond ±{_length(shape)} of δ{n}"
@@ -184,6 +198,19 @@ def _depolarised(param: str, n: int, how: str) -> str:
         return (f"patch {n} (on section {n}) whose authority d_ep is {how}, the other patches as modelled "
                 "(polarisation-dependent coupling: that patch partly depolarised)")
     return f"all three patches' authority d_ep is {how} (polarisation-dependent coupling: partly depolarised patches)"
+
+
+def _above_magnitude(param: str, n: int, signal: str, coef: float, shape: float) -> str:
+    """A patch's coupling (every patch's ``d_ep``, or patch ``n``'s own) changed by ``coef`` past a voltage magnitude
+    ``shape`` (V) in either polarity, growing as (|v| − shape)⁺/|v|."""
+    v = (f"v_c{n}" if param == "d_ep_i" else "v_c") if signal == "vc" else "v_a"
+    how = (f"{100 * abs(coef):.3g} % {'lower' if coef < 0 else 'higher'} above ±{shape:.3g} V of {v}, in either "
+           f"polarity (growing as (|{v}| − {shape:.3g} V)⁺/|{v}|)")
+    why = ("coupling lost at high field: domains that saturate forward and back-switch in reverse" if coef < 0 else
+           "a coupling that grows with the field")
+    if param == "d_ep_i":
+        return f"patch {n} (on section {n}) whose authority d_ep is {how}, the other patches as modelled ({why})"
+    return f"all three patches' authority d_ep is {how} ({why})"
 
 
 def _charging_patch(param: str, n: int, how: str) -> str:

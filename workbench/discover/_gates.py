@@ -111,6 +111,14 @@ RAMP_AT = (0.25, 0.75)
 #: 15 s sweep: the library's drifts and a constant loss with a ramp from 3.75 s left 16.5 σ; one term at G < 0 is it)
 RAMP_BEFORE_AT = -0.5
 RAMP_BEFORE_REACH = 2.0
+#: a switched change that began during the record — a crack that appears at an instant and then breathes, a
+#: polarity that goes weak mid-test (an electrode finger cracks; blind set 7: patch 3 weak for v_c3 > 0 from 6 s of
+#: a 15 s sweep, 21.9 σ as a whole-record switch) — is its switched term times a step at the instant ``since``:
+#: ½(1 + tanh((t − since)/STEP_WIDTH_S)). Every switched damage term of these parameters carries it as a fitted
+#: parameter of the dictionary (``s_NN``), from :data:`SINCE_NEVER_S` (long before any record: the factor is exactly
+#: 1, the term as before) until :mod:`workbench.discover._since_onset` places it
+SINCE_PARAMS = ("k", "c", "d_ep", "d_ep_i")
+SINCE_NEVER_S = -1e12
 #: gaps, fractions of the section deflection's scale
 GAP_AT = (0.3, 0.6)
 #: edge widths a soft gate is screened at (fraction of its signal's scale; the refit moves it a factor of four)
@@ -204,14 +212,17 @@ CONTRIBUTIONS: dict[str, Contribution] = {
 #: the patch charges, not while it discharges (domain walls pinned while the field rises in the poling sense), or
 #: saturating smoothly as that current grows ("sat_charge", tanh(i⁺/G): none at rest, nearly all of it once the
 #: current is a few G); the patch's own voltage meets the same smooth saturation ("sat_volt": a coupling lost on one
-#: polarity the more the stronger the field, saturating — beside "grow_volt"'s linear rise to a corner)
+#: polarity the more the stronger the field, saturating — beside "grow_volt"'s linear rise to a corner) and a gap in
+#: its magnitude ("gap_volt", (|v_c| − G)⁺/|v_c|: a coupling lost above a field magnitude in either polarity — fatigued
+#: domains that saturate forward and back-switch in reverse; blind set 7's patch 2 weak above 150 V left 48 σ)
 GATED_BY: dict[str, tuple[str, ...]] = {
     "k": ("own_delta", "own_ddelta", "soft", "soft_rate", "grow", "tip", "soft_tip", "gap", "time"),
     "c": ("own_ddelta", "own_delta", "soft", "soft_rate", "grow", "gap", "time"),
     "m": ("time",),
-    "d_ep": ("va", "vc", "soft_drive", "grow_volt", "sat_volt", "ic", "soft_charge", "sat_charge", "time"),
-    "d_ep_i": ("va", "vc", "soft_drive", "grow_volt", "sat_volt", "ic", "soft_charge", "sat_charge", "own_delta",
-               "soft", "time"),
+    "d_ep": ("va", "vc", "soft_drive", "grow_volt", "sat_volt", "ic", "soft_charge", "sat_charge", "gap_volt",
+             "time"),
+    "d_ep_i": ("va", "vc", "soft_drive", "grow_volt", "sat_volt", "ic", "soft_charge", "sat_charge", "gap_volt",
+               "own_delta", "soft", "time"),
     "alpha_h": ("va", "vc", "time"),
     "beta_h": ("va", "vc", "time"),
     "R_ep": ("va", "vc", "time"),
@@ -263,6 +274,17 @@ def contribution_lines(param: str, index: int, factor: str, hinge: bool = False)
     return out
 
 
+def has_since(param: str, form: str) -> bool:
+    """Whether a damage term of ``param`` gated by ``form`` may begin at an instant of the record (a switched change
+    of :data:`SINCE_PARAMS`; not a step or a ramp, which have their own onset)."""
+    return param in SINCE_PARAMS and form not in TIME_GATES
+
+
+def since_factor(since: str) -> str:
+    """Numba code (in t) of the step at the instant ``since`` (code or a literal, s) a switched change begins at."""
+    return f"0.5 * (1.0 + math.tanh((t - {since}) / {STEP_WIDTH_S!r}))"
+
+
 def default_width(form: str, unit: str = "s") -> float:
     """The edge width a fitted-width gate on a signal of ``unit`` starts from (SI): the sharp step's, a ramp that
     never saturates, a sign gate's sharp switch."""
@@ -303,9 +325,18 @@ def gate_values(form: str, s: np.ndarray, g: float, t: np.ndarray, unit: str, hi
 
 
 def damage_formula(param: str, index: int, form: str, signal: str, cname: str, gname: str | None,
-                   width: float = 0.0) -> str:
+                   width: float = 0.0, since: float | None = None) -> str:
     """The term as a formula (for the emitted file's docstring); ``width``: a fitted width (a step's edge, a ramp's
-    settling time, s; a switch's edge, SI of its signal)."""
+    settling time, s; a switch's edge, SI of its signal); ``since``: the instant (s) a switched change began at."""
+    out = _gated_formula(param, index, form, signal, cname, gname, width)
+    if since is None:
+        return out
+    return f"{out}   × (1 + tanh((t − {since:.10g} s) / {STEP_WIDTH_S * 1e3:g} ms)) / 2   (from t = {since:.4g} s on)"
+
+
+def _gated_formula(param: str, index: int, form: str, signal: str, cname: str, gname: str | None,
+                   width: float) -> str:
+    """The formula of :func:`damage_formula` for a change that held through the record."""
     g = gname or "g"
     if form in TIME_GATES and width != 0.0:
         con = CONTRIBUTIONS[param].formula.format(n=index + 1)
@@ -315,7 +346,7 @@ def damage_formula(param: str, index: int, form: str, signal: str, cname: str, g
             return f"{con}   with c = {cname} · {width:.4g} s · (1 − exp(−(t − {g})⁺ / {width:.4g} s))"
         return f"{con}   with c = {cname} · (1 + tanh((t − {g}) / {width:.4g} s)) / 2"
     if form in SIGN_GATES and width > 0.0:  # the switch's edge: ½(1 ± tanh((S − G)/H)) at the fitted H
-        return (damage_formula(param, index, form, signal, cname, gname)
+        return (_gated_formula(param, index, form, signal, cname, gname, 0.0)
                 + f"   (its edge ½(1 {'+' if form == 'on_pos' else '−'} tanh(({signal} − {g}) / {width:.4g})), SI)")
     if is_hinge(param, form, signal):  # the bilinear spring: the lost force beyond the switching point
         n = index + 1
@@ -340,7 +371,7 @@ def class_stem(param: str, index: int, form: str, signal: str = "") -> str:
                    "on_neg_soft": f"{on}OpeningNegative",
                    "on_pos_grow": "GrowingPositive", "on_neg_grow": "GrowingNegative",
                    "on_pos_sat": f"{on}SaturatingPositive", "on_neg_sat": f"{on}SaturatingNegative",
-                   "on_gap": "BeyondGap", "on_step": "Event",
+                   "on_gap": "AboveMagnitude" if signal in ("va", "vc") else "BeyondGap", "on_step": "Event",
                    "on_ramp": "Growth"}[form]
 
 

@@ -181,6 +181,14 @@ def onset_probe(rows: Sequence[ScreenRow], names: Mapping[Term, tuple[str, str |
 ZOOM_COEF = (0.97, 1.0, 1.03)
 
 
+def whole_scores(targets: Sequence[Target], models: Sequence[PlantModel], values: Mapping[str, float],
+                 settings: Sequence[Mapping[str, float]], threads: int | None) -> list[float]:
+    """The whole record's RMS (σ) with each of ``settings`` on top of ``values``, one batch on the full model (inf
+    where a member does not integrate): how every probe of the search that places a change is scored."""
+    held, train, ok = probe_batch(targets, models, values, settings, threads)
+    return [float(e) if good else math.inf for e, good in zip(whole_record_rms(targets, held, train), ok)]
+
+
 def whole_record_rms(targets: Sequence[Target], held: np.ndarray, train: np.ndarray) -> np.ndarray:
     """The RMS (σ) over every sample of ``targets`` from the held-out and training RMS of each member."""
     n_h = sum(int(tg.held.sum()) * len(tg.channels) for tg in targets)
@@ -215,10 +223,10 @@ def onset_scan(row: ScreenRow, name: tuple[str, str | None], targets: Sequence[T
     n = 0
     spread: tuple[float, ...] = ZOOM_COEF
     while True:
-        held, train, ok = probe_batch(targets, models, values, [{cname: c, gname: t0} for c, t0 in grid], threads)
+        scores = whole_scores(targets, models, values, [{cname: c, gname: t0} for c, t0 in grid], threads)
         n += len(grid)
-        for (c, t0), e, good in zip(grid, whole_record_rms(targets, held, train), ok):
-            if good and (best is None or e < best[0]):
+        for (c, t0), e in zip(grid, scores):
+            if math.isfinite(e) and (best is None or e < best[0]):
                 best = (float(e), c, t0)
         if best is None or step <= ONSET_RESOLUTION_S:
             break

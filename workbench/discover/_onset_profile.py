@@ -25,8 +25,8 @@ from workbench.discover._dictionary import Term
 from workbench.discover._event_check import record_span
 from workbench.discover._finite_change import whole_rms
 from workbench.discover._gates import TIME_GATES
-from workbench.discover._onset import whole_record_rms
-from workbench.discover._search import SearchState, free_for, probe_batch, refine
+from workbench.discover._onset import whole_scores
+from workbench.discover._search import SearchState, free_for, refine
 from workbench.discover._twins import twin_tolerance
 from workbench.fit import FitOutcome, Objective, Target
 
@@ -82,10 +82,11 @@ def place_onset(setup: Any, progress: Any, settings: Any, best: Any) -> None:
     start, end = record_span(setup.targets)
     values = dict(progress.state.values) | dict(best.outcome.values)
     grid = [t0] + [min(max(t0 + s * d, start), end) for s in (-1.0, 1.0) for d in PROFILE_OFFSETS_S]
-    held, train, ok = probe_batch(setup.targets, setup.models, values, [{gname: g} for g in grid], settings.threads)
+    whole = np.asarray(whole_scores(setup.targets, setup.models, values, [{gname: g} for g in grid],
+                                    settings.threads))
     progress.n_sims += len(grid) * len(setup.targets)
     n = sum((int(tg.held.sum()) + int(tg.train.sum())) * len(tg.channels) for tg in setup.targets)
-    chi2 = np.where(ok, n * whole_record_rms(setup.targets, held, train) ** 2, np.inf)
+    chi2 = n * whole ** 2
     k = len(PROFILE_OFFSETS_S)
     lo, hi = profile_interval(PROFILE_OFFSETS_S, float(chi2[0]), chi2[1:1 + k].tolist(), chi2[1 + k:].tolist(), n)
     if not (math.isfinite(lo) or math.isfinite(hi)):
@@ -106,9 +107,8 @@ def placed_on_whole(targets: Sequence[Target], models: Sequence[PlantModel], val
     t0, n = float(values[gname]), 0
     for _ in range(PLACE_PASSES):
         grid = [min(max(t0 + s * d, start), end) for s in (-1.0, 1.0) for d in PROFILE_OFFSETS_S]
-        held, train, ok = probe_batch(targets, models, values, [{gname: g} for g in grid], threads)
+        rms = np.asarray(whole_scores(targets, models, values, [{gname: g} for g in grid], threads))
         n += len(grid) * len(targets)
-        rms = np.where(ok, whole_record_rms(targets, held, train), np.inf)
         if float(rms.min()) >= score:
             break
         t0, score = grid[int(rms.argmin())], float(rms.min())

@@ -47,6 +47,7 @@ from workbench.discover._backward import backward_step, drop_idle
 from workbench.discover._dictionary import build_dictionary
 from workbench.discover._dictionary_code import (
     dictionary_parameter_names,
+    dictionary_since_names,
     dictionary_source,
     dictionary_width_names,
     term_default_width,
@@ -57,10 +58,13 @@ from workbench.discover._dictionary_effect import (
     signal_scales,
     term_scale,
 )
+from workbench.discover._event_side import side_step
 from workbench.discover._finite_change import finite_changes, found_term
 from workbench.discover._form_swap import swap_step
+from workbench.discover._gates import SINCE_NEVER_S
 from workbench.discover._joint_polish import polish_step
 from workbench.discover._pair_refit import pair_step
+from workbench.discover._patch_place import patch_step
 from workbench.discover._results import (
     DiscoverError,
     Discovery,
@@ -77,6 +81,7 @@ from workbench.discover._rounds import (
     search_round,
 )
 from workbench.discover._search import SearchState, free_run_check
+from workbench.discover._since_onset import since_step
 from workbench.fit import (
     DEFAULT_BLOCKS,
     DEFAULT_MAX_RATE_HZ,
@@ -118,6 +123,9 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
             break
     polish_step(setup, progress, settings)
     swap_step(setup, progress, settings)
+    patch_step(setup, progress, settings)
+    side_step(setup, progress, settings)
+    since_step(setup, progress, settings)
     backward_step(setup, progress, settings)
     pair_step(setup, progress, settings)
     drop_idle(setup, progress, settings)
@@ -166,6 +174,7 @@ def prepare_search(records: Sequence[Record | FrfRecord], params: ParameterSet |
             shaped = terms[k].shape > 0 or terms[k].shape_range is not None  # a switching point may be 0
             state.values[gname] = terms[k].shape if shaped else 1.0
     state.values.update({h: term_default_width(terms[k]) for k, h in dictionary_width_names(terms).items()})
+    state.values.update(dict.fromkeys(dictionary_since_names(terms).values(), SINCE_NEVER_S))
     ref = reference_magnitudes(targets[0].model, scales)
     eps = np.array([ref[t.placement] / max(term_scale(t, sig, targets), 1e-300) for t in terms])
     base_obj = Objective(targets, models, [], base_values=state.values)

@@ -81,7 +81,8 @@ class FoundTerm:
         return {"key": self.term.key, "placement": self.term.placement, "index": self.term.index,
                 "signal": self.term.signal, "form": self.term.form, "coefficient": self.coef,
                 "coefficient_unit": self.term.unit, "shape": self.shape if ALL_FORMS[self.term.form].shape else None,
-                "edge_width_s": self.term.width or None, "signal_scale": self.scale, "words": self.words,
+                "edge_width_s": self.term.width or None, "since_s": self.term.since, "signal_scale": self.scale,
+                "words": self.words,
                 "twins": self.twins,
                 "description": self.description, "said_with": self.said_with}
 
@@ -193,5 +194,7 @@ def describe_units(found: Sequence[FoundTerm]) -> list[str]:
             line += f", edge width {f.term.width:.4g} s"
         elif f.term.width < 0.0:  # an accelerating ramp's growth time
             line += f", growth time {-f.term.width:.4g} s"
+        if f.term.since is not None:  # a switched change begun during the record
+            line += f", from t = {f.term.since:.4g} s"
         out.append(line)
     return out

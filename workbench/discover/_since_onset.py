@@ -1,0 +1,137 @@
+"""A kept switch that began during the record (issue 26: damage of two kinds at once, a side *and* an instant).
+
+A crack that appears at an instant and then breathes, or a patch whose one polarity goes weak mid-test (an electrode
+finger cracks), is a switched change — open on one side of the motion or the drive — that holds only from that
+instant on. The dictionary's switched terms span the whole record, so the search keeps the switch diluted over it:
+blind set 7's tip patch weak for v_c3 > 0 from 6 s of a 15 s sweep was kept as patch 3 weak on that side all along
+and left 21.9 σ. Every switched damage term of :data:`~workbench.discover._gates.SINCE_PARAMS` carries the instant
+its change began (``s_NN``, from before any record: the term unchanged).
+
+:func:`since_step`: after the joint polish and the shape swaps, when the set still leaves more than
+:data:`ABOVE_SIGMA`, each kept switched term is probed begun at :data:`SINCE_AT` of the record — its coefficient
+scaled up by the share of the record it then misses (the whole-record fit spread the change over all of it) and
+half way to that — on the whole record's RMS; the best :data:`MAX_REFITS` instants (apart by more than one grid
+step) are refitted with every kept coefficient, the term's shape and the instant free within a grid step either
+way. The instant is taken when it lowers the held-out error beyond the twins' tolerance: a change that held all
+along keeps its whole record.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Sequence
+
+import numpy as np
+
+from board_config.parameter import Parameter, freed
+from workbench.discover._dictionary_code import since_name
+from workbench.discover._finite_change import whole_rms
+from workbench.discover._gates import SINCE_NEVER_S
+from workbench.discover._onset import whole_scores
+from workbench.discover._onset_profile import placed_on_whole
+from workbench.discover._rounds import SearchProgress, SearchSettings, SearchSetup
+from workbench.discover._term_swap import best_replacement
+from workbench.discover._twins import twin_tolerance
+from workbench.fit import explained
+
+#: a set is tried begun at an instant only when it leaves more than this (σ held out)
+ABOVE_SIGMA = 3.0
+#: instants probed, fractions of the record (the refit moves the best a grid step either way)
+SINCE_AT = tuple(np.round(np.arange(0.05, 0.951, 0.05), 3))
+#: at most this many instants of one kept term are refitted (the best by their probes, apart by a grid step)
+MAX_REFITS = 2
+
+
+def since_step(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings) -> None:
+    """Each kept switched term tried as begun at an instant of the record (see the module docstring)."""
+    duration = float(setup.scales.get("t", 0.0))
+    if (duration <= 0.0 or progress.current_held <= ABOVE_SIGMA
+            or explained(progress.current_held, setup.held_before, setup.n_held)):
+        return
+    t0 = time.perf_counter()
+    for k in list(progress.state.kept):
+        if progress.current_held > ABOVE_SIGMA and whole_record(progress.state.values, k):
+            _since_one(setup, progress, settings, k, duration)
+    progress.timings["refit_s"] += time.perf_counter() - t0
+
+
+def whole_record(values: dict[str, float], k: int) -> bool:
+    """Whether dictionary term ``k`` may begin at an instant and still spans the whole record."""
+    name = since_name(k)
+    return name in values and values[name] <= 0.5 * SINCE_NEVER_S
+
+
+def probe_grid(coef: float, duration_s: float) -> list[tuple[float, float]]:
+    """(instant s, coefficient) of every probe: at each of :data:`SINCE_AT`, the whole-record coefficient ``coef``
+    scaled by the share of the record the change then misses, D/(D − T), and by its square root."""
+    out = []
+    for f in SINCE_AT:
+        gain = 1.0 / (1.0 - f)
+        out += [(f * duration_s, coef * gain), (f * duration_s, coef * float(np.sqrt(gain)))]
+    return out
+
+
+def best_instants(grid: Sequence[tuple[float, float]], scores: np.ndarray, step_s: float
+                  ) -> list[tuple[float, float]]:
+    """The best :data:`MAX_REFITS` probes (instant, coefficient) by ``scores`` (whole-record RMS, inf where a probe
+    failed), each more than ``step_s`` from a better one."""
+    out: list[tuple[float, float]] = []
+    for i in np.argsort(scores, kind="stable"):
+        if not np.isfinite(scores[i]) or len(out) == MAX_REFITS:
+            break
+        if all(abs(grid[i][0] - t) > step_s * 1.01 for t, _ in out):
+            out.append(grid[i])
+    return out
+
+
+def since_free(name: str, at_s: float, step_s: float, duration_s: float) -> Parameter:
+    """The instant's free parameter: within a grid step of ``at_s``, inside the record."""
+    return freed(name, "s", max(at_s - step_s, 0.0), min(at_s + step_s, duration_s), False, "discover")
+
+
+def _since_one(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, k: int,
+               duration: float) -> None:
+    """Kept term ``k`` begun at its best instant when that fits clearly better than the whole record."""
+    state, (cname, _) = progress.state, setup.names[k]
+    coef = float(state.values.get(cname, 0.0))
+    if coef == 0.0:
+        return
+    sname, step = since_name(k), duration * (SINCE_AT[1] - SINCE_AT[0])
+    grid = probe_grid(coef, duration)
+    scores = np.asarray(whole_scores(setup.targets, setup.models, state.values,
+                                     [{cname: c, sname: t} for t, c in grid], settings.threads))
+    progress.n_sims += len(grid) * len(setup.targets)
+    tries = [(k, dict(state.values) | {cname: c, sname: at}, [since_free(sname, at, step, duration)])
+             for at, c in best_instants(grid, scores, step)]
+    best = best_replacement(setup, progress, settings, k, tries)
+    if best is None:
+        return
+    start, out = best.start, best.outcome
+    taken = out.held_rms_sigma * twin_tolerance(setup.n_held) < progress.current_held
+    at = float(out.values.get(sname, start[sname]))
+    settings.say(f"  {setup.terms[k].key} begun at t = {at:.4g} s: {out.held_rms_sigma:.4g} σ held-out (over the "
+                 f"whole record {progress.current_held:.4g} σ): " + ("taken" if taken else "not taken"))
+    progress.rounds.append({"since_instant": {"term": setup.terms[k].key, "since_s": at,
+                                              "held_rms_sigma": out.held_rms_sigma,
+                                              "whole_record_held_rms_sigma": progress.current_held,
+                                              "taken": taken}})
+    if taken:  # the whole-record twins no longer explain the records alike
+        state.values = start | out.values
+        progress.twins.pop(k, None)
+        progress.adopt(out)
+        place_instant(setup, progress, settings, sname)
+
+
+def place_instant(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, name: str) -> None:
+    """The kept set's instant ``name`` moved to where the whole record's RMS is lowest (:func:`~workbench.discover.
+    _onset_profile.placed_on_whole`): least squares hardly moves a sharp switch-on (blind set 7's patch weak from
+    6.0 s kept at its probe's 6.034 s)."""
+    if progress.outcome is None:
+        return
+    values = progress.state.values
+    at, _, n = placed_on_whole(setup.targets, setup.models, values, name, whole_rms(setup.targets, progress.outcome),
+                               settings.threads)
+    progress.n_sims += n
+    if at != values[name]:
+        values[name] = at
+        progress.stderr.pop(name, None)  # the refit's standard error was about the instant it started from
