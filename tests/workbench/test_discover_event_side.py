@@ -9,10 +9,9 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from term_swap_fakes import fake_refits
 
 import workbench.discover._event_side as es
-import workbench.discover._since_onset as since_onset
-import workbench.discover._term_swap as term_swap
 from workbench.discover._dictionary import Term
 from workbench.discover._dictionary_code import since_name
 from workbench.discover._gates import SINCE_NEVER_S
@@ -52,21 +51,9 @@ def _fake(monkeypatch, refit_held: float, seen: dict) -> None:
         j = cands[0]
         return {j: (8.0 if j == 1 else 12.0, (j, -0.5, 2.0))}
 
-    class Obj:
-        def __init__(self, targets, models, free, base_values, threads):
-            seen.setdefault("free", []).append({fp.name: (fp.lower, fp.upper) for fp in free})
-            seen.setdefault("start", []).append(dict(base_values))
-            self.n_sims = 4
-
-    out = SimpleNamespace(ok=True, held_rms_sigma=refit_held, train_rms_sigma=refit_held, estimates=[],
-                          values={"a_01": -0.3, "g_01": 1.5, since_name(1): 6.01})
     monkeypatch.setattr(es, "whole_scores", whole_scores)
     monkeypatch.setattr(es, "best_shapes", best_shapes)
-    monkeypatch.setattr(term_swap, "Objective", Obj)
-    monkeypatch.setattr(term_swap, "refine", lambda obj, start, nfev: out)
-    # the taken instant placed on the whole record (least squares hardly moves a sharp switch-on)
-    monkeypatch.setattr(since_onset, "placed_on_whole", lambda tg, m, values, name, score, th: (6.001, score, 5))
-    monkeypatch.setattr(since_onset, "whole_rms", lambda targets, out: out.held_rms_sigma)
+    fake_refits(monkeypatch, seen, refit_held, {"a_01": -0.3, "g_01": 1.5, since_name(1): 6.01})
 
 
 @pytest.mark.parametrize(("refit_held", "taken"), [(1.2, True), (14.5, False)])

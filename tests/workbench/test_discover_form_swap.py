@@ -9,9 +9,9 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import pytest
+from term_swap_fakes import fake_refits
 
 import workbench.discover._form_swap as fs
-import workbench.discover._term_swap as term_swap
 from workbench.discover._rounds import SearchProgress
 
 KEYS = ("k3_pos_grow_delta3", "c3_pos_delta3", "k3_pos_delta3")
@@ -34,18 +34,9 @@ def _fake(monkeypatch, refit_held: float, seen: dict[str, list]) -> None:
         seen["probed"] = [cands, coef, dict(base)]
         return {2: (80.0, (2, -0.12, 1e-6))}
 
-    class Obj:
-        def __init__(self, targets, models, free, base_values, threads):
-            seen.setdefault("free", []).append(sorted(fp.name for fp in free))
-            seen["start"] = dict(base_values)
-            self.n_sims = 5
-
-    out = SimpleNamespace(ok=True, held_rms_sigma=refit_held, train_rms_sigma=refit_held, estimates=[],
-                          values={"a_02": -0.12, "g_02": 2e-6, "a_01": 0.36})
     monkeypatch.setattr(fs, "shape_candidates", lambda terms, term: [0, 2] if term.key == KEYS[0] else [])
     monkeypatch.setattr(fs, "best_shapes", best_shapes)
-    monkeypatch.setattr(term_swap, "Objective", Obj)
-    monkeypatch.setattr(term_swap, "refine", lambda obj, start, nfev: out)
+    fake_refits(monkeypatch, seen, refit_held, {"a_02": -0.12, "g_02": 2e-6, "a_01": 0.36})
 
 
 @pytest.mark.parametrize(("refit_held", "taken"), [(1.1, True), (72.0, False)])
@@ -59,8 +50,8 @@ def test_a_kept_switch_is_swapped_for_another_shape_only_when_it_fits_clearly_be
     cands, coef, base = seen["probed"]
     assert cands == [2] and coef == -0.211  # not the kept term itself; probed at its size
     assert base["a_00"] == 0.0 and base["a_01"] == 0.38  # with that term off, the rest of the set on
-    assert seen["free"] == [["a_01", "a_02", "g_02"]]  # every kept coefficient, the new term's shape
-    assert seen["start"]["a_02"] == -0.12 and seen["start"]["g_02"] == 1e-6 and progress.n_sims == 5
+    assert [sorted(f) for f in seen["free"]] == [["a_01", "a_02", "g_02"]]  # every kept coefficient, its shape
+    assert seen["start"][-1]["a_02"] == -0.12 and seen["start"][-1]["g_02"] == 1e-6 and progress.n_sims == 4
     assert progress.rounds[-1]["shape_swap"]["taken"] is taken and ("taken" in said[-1])
     if taken:
         assert progress.state.kept == [2, 1] and progress.current_held == 1.1

@@ -8,9 +8,9 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import pytest
+from term_swap_fakes import fake_refits
 
 import workbench.discover._patch_place as pp
-import workbench.discover._term_swap as term_swap
 from workbench.discover._dictionary import Term
 from workbench.discover._dictionary_code import since_name
 from workbench.discover._gates import SINCE_NEVER_S
@@ -46,20 +46,12 @@ def test_every_patchs_change_moves_to_one_patch_only_when_it_fits_clearly_better
         return [2.0 if "a_03" in s and abs(s["a_03"] + 0.552) < 1e-9 else 5.0 if "a_05" in s else 9.0
                 for s in settings]
 
-    class Obj:
-        def __init__(self, targets, models, free, base_values, threads):
-            seen.setdefault("starts", []).append(dict(base_values))
-            self.n_sims = 3
-
-    out = SimpleNamespace(ok=True, held_rms_sigma=refit_held, train_rms_sigma=refit_held, estimates=[],
-                          values={"a_03": -0.6, "g_03": 150.0})
     monkeypatch.setattr(pp, "whole_scores", whole_scores)
-    monkeypatch.setattr(term_swap, "Objective", Obj)
-    monkeypatch.setattr(term_swap, "refine", lambda obj, start, nfev: out)
+    fake_refits(monkeypatch, seen, refit_held, {"a_03": -0.6, "g_03": 150.0})
     pp.patch_step(setup, progress, SimpleNamespace(say=lambda _m: None, threads=1, max_nfev=12))
     assert len(seen["probes"]) == 9 and all(p["a_00"] == 0.0 for p in seen["probes"])
-    first = seen["starts"][0]
+    first = seen["start"][0]
     assert first["a_00"] == 0.0 and first["a_03"] == pytest.approx(-0.552) and first["g_03"] == 170.0
-    assert len(seen["starts"]) == 2 and seen["starts"][1]["a_05"] != 0.0  # the two best patches refitted
+    assert len(seen["start"]) == 2 and seen["start"][1]["a_05"] != 0.0  # the two best patches refitted
     assert progress.rounds[-1]["patch_place"]["taken"] is taken
     assert progress.state.kept == ([3] if taken else [0])

@@ -11,9 +11,9 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
+from term_swap_fakes import fake_refits
 
 import workbench.discover._since_onset as so
-import workbench.discover._term_swap as term_swap
 from workbench.discover import build_dictionary, dictionary_source
 from workbench.discover._dictionary import Term
 from workbench.discover._dictionary_code import TermSlot, dictionary_since_names, hook_bodies, since_name
@@ -89,20 +89,8 @@ def _fake(monkeypatch, refit_held: float, seen: dict) -> None:
         seen["probed"] = list(settings)
         return np.abs(np.array([s[since_name(0)] for s in settings]) - 6.0) + 2.0
 
-    class Obj:
-        def __init__(self, targets, models, free, base_values, threads):
-            seen.setdefault("free", []).append({fp.name: (fp.lower, fp.upper) for fp in free})
-            seen.setdefault("start", []).append(dict(base_values))
-            self.n_sims = 5
-
-    out = SimpleNamespace(ok=True, held_rms_sigma=refit_held, train_rms_sigma=refit_held, estimates=[],
-                          values={"a_00": -0.3, "g_00": 1.0, since_name(0): 6.01, "a_01": 1e-6})
     monkeypatch.setattr(so, "whole_scores", whole_scores)
-    monkeypatch.setattr(term_swap, "Objective", Obj)
-    monkeypatch.setattr(term_swap, "refine", lambda obj, start, nfev: out)
-    # the taken instant placed on the whole record (least squares hardly moves a sharp switch-on)
-    monkeypatch.setattr(so, "placed_on_whole", lambda tg, m, values, name, score, th: (6.001, score, 5))
-    monkeypatch.setattr(so, "whole_rms", lambda targets, out: out.held_rms_sigma)
+    fake_refits(monkeypatch, seen, refit_held, {"a_00": -0.3, "g_00": 1.0, since_name(0): 6.01, "a_01": 1e-6})
 
 
 @pytest.mark.parametrize(("refit_held", "taken"), [(1.1, True), (21.0, False)])

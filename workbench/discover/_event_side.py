@@ -7,7 +7,7 @@ records from an instant on — so the rounds keep it as a step of its parameter 
 parameter, the place and the instant; what it lacks is the side.
 
 :func:`side_step`: after the joint polish and the shape swaps, when the set still leaves more than
-:data:`ABOVE_SIGMA`, each kept step of a parameter of :data:`~workbench.discover._gates.SINCE_PARAMS` is probed as
+3 σ, each kept step of a parameter of :data:`~workbench.discover._gates.SINCE_PARAMS` is probed as
 each switched term of its parameter and place begun at the step's instant or up to :data:`SIDE_BEFORE_S` before it
 (the switched change :data:`SIDE_SIZES` times the step's — on one side of a motion about half the time, it must be
 larger), alone: the terms kept beside the step made up for what the step missed, and with the step gone they only
@@ -21,7 +21,6 @@ is a step (or a record that never shows the other side) keeps its step.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
 
 import numpy as np
@@ -33,11 +32,8 @@ from workbench.discover._gates import SINCE_PARAMS, has_since
 from workbench.discover._onset import whole_scores
 from workbench.discover._rounds import SearchProgress, SearchSettings, SearchSetup
 from workbench.discover._since_onset import place_instant, since_free
-from workbench.discover._term_swap import best_replacement, take_replacement
-from workbench.fit import explained
+from workbench.discover._term_swap import best_replacement, for_each_kept, take_replacement
 
-#: a kept step is tried on one side only when the set leaves more than this (σ held out)
-ABOVE_SIGMA = 3.0
 #: the switched change probed at these multiples of the step's change (a one-sided change acts about half the time)
 SIDE_SIZES = (1.0, 1.4, 2.0)
 #: switched terms probed over their shapes (the best by their first probe), and refitted (the best by their shapes)
@@ -53,16 +49,12 @@ SIDE_ONSET_S = 0.15
 
 def side_step(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings) -> None:
     """Each kept step tried as a switched change begun at its instant (see the module docstring)."""
-    if (progress.current_held <= ABOVE_SIGMA or setup.scales.get("t", 0.0) <= 0.0
-            or explained(progress.current_held, setup.held_before, setup.n_held)):
-        return
-    t0 = time.perf_counter()
-    for k in list(progress.state.kept):
+    def applies(k: int) -> bool:
         term = setup.terms[k]
-        if (progress.current_held > ABOVE_SIGMA and term.placement == "damage" and term.form == "on_step"
-                and term.param in SINCE_PARAMS):
-            _side_one(setup, progress, settings, k)
-    progress.timings["refit_s"] += time.perf_counter() - t0
+        return term.placement == "damage" and term.form == "on_step" and term.param in SINCE_PARAMS
+
+    if setup.scales.get("t", 0.0) > 0.0:
+        for_each_kept(setup, progress, applies, lambda k: _side_one(setup, progress, settings, k))
 
 
 def side_candidates(terms: Sequence[Term], step: Term) -> list[int]:

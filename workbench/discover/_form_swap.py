@@ -7,7 +7,7 @@ damping switched at δ3 > 0 (73.7 σ held out) and the verdict fell back to re-e
 damping in, the sharp switch is the shape that fits.
 
 :func:`swap_step`: after the joint polish, when two or more terms are kept and the set still leaves more than
-:data:`ABOVE_SIGMA`, each kept switched term's other gate shapes
+3 σ, each kept switched term's other gate shapes
 (:func:`~workbench.discover._gate_shape.shape_candidates`) are probed over their grids with that term off and the
 rest of the set on, and the best :data:`MAX_SWAPS` are refitted with the whole set (every coefficient, the new
 term's shape); a swap is taken when it lowers the held-out error beyond the twins' tolerance.
@@ -15,16 +15,10 @@ term's shape); a swap is taken when it lowers the held-out error beyond the twin
 
 from __future__ import annotations
 
-import time
-
 from workbench.discover._gate_shape import best_shapes, shape_candidates
 from workbench.discover._rounds import SearchProgress, SearchSettings, SearchSetup
-from workbench.discover._term_swap import best_replacement, take_replacement
-from workbench.fit import explained
+from workbench.discover._term_swap import best_replacement, for_each_kept, take_replacement
 
-#: a set is tried in other shapes only when it leaves more than this (σ held out): the swaps cost a grid of probes
-#: and two refits of the whole set per kept term, and a set near the noise has its shapes
-ABOVE_SIGMA = 3.0
 #: at most this many other shapes of one kept term are refitted (the best by their probes)
 MAX_SWAPS = 2
 
@@ -32,15 +26,7 @@ MAX_SWAPS = 2
 def swap_step(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings) -> None:
     """Each kept switched term tried in its other gate shapes beside the rest of the set (see the module
     docstring); the set changes only when a swap fits clearly better."""
-    state = progress.state
-    if (len(state.kept) < 2 or progress.current_held <= ABOVE_SIGMA
-            or explained(progress.current_held, setup.held_before, setup.n_held)):
-        return
-    t0 = time.perf_counter()
-    for k in list(state.kept):
-        if progress.current_held > ABOVE_SIGMA:
-            _swap_one(setup, progress, settings, k)
-    progress.timings["refit_s"] += time.perf_counter() - t0
+    for_each_kept(setup, progress, lambda k: True, lambda k: _swap_one(setup, progress, settings, k), min_kept=2)
 
 
 def _swap_one(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings, k: int) -> None:

@@ -7,7 +7,7 @@ kept as "all three patches' authority d_ep is 18.4 % lower above ±170 V", 6.19 
 named.
 
 :func:`patch_step`: after the joint polish and the shape swaps, when the set still leaves more than
-:data:`ABOVE_SIGMA`, each kept switched change of every patch is probed as the same change in each one patch (its
+3 σ, each kept switched change of every patch is probed as the same change in each one patch (its
 switching point, gap or saturation and its instant held, :data:`PATCH_SIZES` times its size: one patch carries what
 three did), the every-patch term off; the best :data:`MAX_REFITS` patches are refitted with every kept coefficient
 and the shape free, and one is taken when it lowers the held-out error beyond the twins' tolerance.
@@ -15,7 +15,6 @@ and the shape free, and one is taken when it lowers the held-out error beyond th
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
 
 import numpy as np
@@ -25,11 +24,8 @@ from workbench.discover._dictionary_code import since_name
 from workbench.discover._gates import TIME_GATES
 from workbench.discover._onset import whole_scores
 from workbench.discover._rounds import SearchProgress, SearchSettings, SearchSetup
-from workbench.discover._term_swap import best_replacement, take_replacement
-from workbench.fit import explained
+from workbench.discover._term_swap import best_replacement, for_each_kept, take_replacement
 
-#: a kept change of every patch is tried in one patch only when the set leaves more than this (σ held out)
-ABOVE_SIGMA = 3.0
 #: one patch's change probed at these multiples of every patch's
 PATCH_SIZES = (1.0, 2.0, 3.0)
 #: patches refitted (the best by their probes)
@@ -38,16 +34,11 @@ MAX_REFITS = 2
 
 def patch_step(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings) -> None:
     """Each kept switched change of every patch tried in one patch (see the module docstring)."""
-    if (progress.current_held <= ABOVE_SIGMA
-            or explained(progress.current_held, setup.held_before, setup.n_held)):
-        return
-    t0 = time.perf_counter()
-    for k in list(progress.state.kept):
+    def applies(k: int) -> bool:
         term = setup.terms[k]
-        if (progress.current_held > ABOVE_SIGMA and term.placement == "damage" and term.param == "d_ep"
-                and term.form not in TIME_GATES):
-            _one_patch(setup, progress, settings, k)
-    progress.timings["refit_s"] += time.perf_counter() - t0
+        return term.placement == "damage" and term.param == "d_ep" and term.form not in TIME_GATES
+
+    for_each_kept(setup, progress, applies, lambda k: _one_patch(setup, progress, settings, k))
 
 
 def one_patch_terms(terms: Sequence[Term], every: Term) -> list[int]:

@@ -8,7 +8,7 @@ and left 21.9 σ. Every switched damage term of :data:`~workbench.discover._gate
 its change began (``s_NN``, from before any record: the term unchanged).
 
 :func:`since_step`: after the joint polish and the shape swaps, when the set still leaves more than
-:data:`ABOVE_SIGMA`, each kept switched term is probed begun at :data:`SINCE_AT` of the record — its coefficient
+3 σ, each kept switched term is probed begun at :data:`SINCE_AT` of the record — its coefficient
 scaled up by the share of the record it then misses (the whole-record fit spread the change over all of it) and
 half way to that — on the whole record's RMS; the best :data:`MAX_REFITS` instants (apart by more than one grid
 step) are refitted with every kept coefficient, the term's shape and the instant free within a grid step either
@@ -18,7 +18,6 @@ along keeps its whole record.
 
 from __future__ import annotations
 
-import time
 from collections.abc import Sequence
 
 import numpy as np
@@ -30,12 +29,9 @@ from workbench.discover._gates import SINCE_NEVER_S
 from workbench.discover._onset import whole_scores
 from workbench.discover._onset_profile import placed_on_whole
 from workbench.discover._rounds import SearchProgress, SearchSettings, SearchSetup
-from workbench.discover._term_swap import best_replacement
+from workbench.discover._term_swap import best_replacement, for_each_kept
 from workbench.discover._twins import twin_tolerance
-from workbench.fit import explained
 
-#: a set is tried begun at an instant only when it leaves more than this (σ held out)
-ABOVE_SIGMA = 3.0
 #: instants probed, fractions of the record (the refit moves the best a grid step either way)
 SINCE_AT = tuple(np.round(np.arange(0.05, 0.951, 0.05), 3))
 #: at most this many instants of one kept term are refitted (the best by their probes, apart by a grid step)
@@ -45,14 +41,9 @@ MAX_REFITS = 2
 def since_step(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings) -> None:
     """Each kept switched term tried as begun at an instant of the record (see the module docstring)."""
     duration = float(setup.scales.get("t", 0.0))
-    if (duration <= 0.0 or progress.current_held <= ABOVE_SIGMA
-            or explained(progress.current_held, setup.held_before, setup.n_held)):
-        return
-    t0 = time.perf_counter()
-    for k in list(progress.state.kept):
-        if progress.current_held > ABOVE_SIGMA and whole_record(progress.state.values, k):
-            _since_one(setup, progress, settings, k, duration)
-    progress.timings["refit_s"] += time.perf_counter() - t0
+    if duration > 0.0:
+        for_each_kept(setup, progress, lambda k: whole_record(progress.state.values, k),
+                      lambda k: _since_one(setup, progress, settings, k, duration))
 
 
 def whole_record(values: dict[str, float], k: int) -> bool:

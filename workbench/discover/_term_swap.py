@@ -5,19 +5,39 @@ a step on one side from its instant (:mod:`workbench.discover._event_side`), eve
 
 :func:`best_replacement` refits each try (the replacing term, its start, any extra free parameter) with every kept
 coefficient and the new term's shape free and returns the best by the held-out error; :func:`take_replacement`
-takes it when it lowers the held-out error beyond the twins' tolerance, and logs the try either way.
+takes it when it lowers the held-out error beyond the twins' tolerance, and logs the try either way;
+:func:`for_each_kept` is the loop each step runs over the kept set.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import time
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 from board_config.parameter import Parameter
 from workbench.discover._rounds import SearchProgress, SearchSettings, SearchSetup
 from workbench.discover._search import free_for, refine
 from workbench.discover._twins import twin_tolerance
-from workbench.fit import FitOutcome, Objective
+from workbench.fit import FitOutcome, Objective, explained
+
+#: the steps after the rounds try a kept term in another's place only while the set leaves more than this (σ held
+#: out): each costs a batch of probes and a few refits of the whole set, and a set near the noise has its terms
+ABOVE_SIGMA = 3.0
+
+
+def for_each_kept(setup: SearchSetup, progress: SearchProgress, applies: Callable[[int], bool],
+                  one: Callable[[int], None], min_kept: int = 1) -> None:
+    """``one(k)`` for each kept term ``k`` that ``applies``, while the set (of at least ``min_kept`` terms) leaves
+    more than :data:`ABOVE_SIGMA` and is not explained; the time counted as refits."""
+    if (len(progress.state.kept) < min_kept or progress.current_held <= ABOVE_SIGMA
+            or explained(progress.current_held, setup.held_before, setup.n_held)):
+        return
+    t0 = time.perf_counter()
+    for k in list(progress.state.kept):
+        if progress.current_held > ABOVE_SIGMA and k in progress.state.kept and applies(k):
+            one(k)
+    progress.timings["refit_s"] += time.perf_counter() - t0
 
 
 @dataclass(frozen=True)
