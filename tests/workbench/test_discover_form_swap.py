@@ -67,3 +67,32 @@ def test_no_swap_for_one_term_or_near_the_noise(monkeypatch, held, kept):
     monkeypatch.setattr(fs, "best_shapes", lambda *a: pytest.fail("probed"))
     fs.swap_step(setup, progress, SimpleNamespace(say=lambda _m: None, threads=1, max_nfev=12))
     assert progress.current_held == held and not progress.rounds
+
+
+def test_a_switch_given_an_instant_is_swapped_with_its_other_shapes_begun_at_that_instant(monkeypatch):
+    """A crack that appeared at 6.75 s and breathes, kept as one opening gradually and placed at 6.69 s: the swap
+    runs again for it alone, its other shapes probed and refitted from that instant (none of the others given it)."""
+    from workbench.discover._dictionary_code import since_name
+    from workbench.discover._gates import SINCE_NEVER_S
+
+    setup, progress = _case(34.0, [0])
+    progress.state.values |= {since_name(0): 6.69, since_name(1): SINCE_NEVER_S, since_name(2): SINCE_NEVER_S}
+    seen: dict[str, list] = {}
+    _fake(monkeypatch, 1.1, seen)
+    fs.placed_swap_step(setup, progress, SimpleNamespace(say=lambda _m: None, threads=1, max_nfev=12))
+    cands, _, base = seen["probed"]
+    assert cands == [2] and base[since_name(2)] == 6.69 and base["a_00"] == 0.0
+    start = seen["start"][-1]
+    assert start[since_name(2)] == 6.69 and start[since_name(1)] == SINCE_NEVER_S
+    assert progress.state.kept == [2] and progress.state.values[since_name(2)] == 6.69
+
+
+def test_no_second_swap_for_a_switch_over_the_whole_record(monkeypatch):
+    from workbench.discover._dictionary_code import since_name
+    from workbench.discover._gates import SINCE_NEVER_S
+
+    setup, progress = _case(34.0, [0])
+    progress.state.values[since_name(0)] = SINCE_NEVER_S
+    monkeypatch.setattr(fs, "best_shapes", lambda *a: pytest.fail("probed"))
+    fs.placed_swap_step(setup, progress, SimpleNamespace(say=lambda _m: None, threads=1, max_nfev=12))
+    assert not progress.rounds

@@ -60,7 +60,7 @@ from workbench.discover._dictionary_effect import (
 )
 from workbench.discover._event_side import side_step
 from workbench.discover._finite_change import finite_changes, found_term
-from workbench.discover._form_swap import swap_step
+from workbench.discover._form_swap import placed_swap_step, swap_step
 from workbench.discover._gates import SINCE_NEVER_S
 from workbench.discover._joint_polish import polish_step
 from workbench.discover._pair_refit import pair_step
@@ -126,6 +126,7 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
     patch_step(setup, progress, settings)
     side_step(setup, progress, settings)
     since_step(setup, progress, settings)
+    placed_swap_step(setup, progress, settings)
     backward_step(setup, progress, settings)
     pair_step(setup, progress, settings)
     drop_idle(setup, progress, settings)

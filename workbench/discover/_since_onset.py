@@ -18,7 +18,7 @@ along keeps its whole record.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 
 import numpy as np
 
@@ -44,6 +44,12 @@ def since_step(setup: SearchSetup, progress: SearchProgress, settings: SearchSet
     if duration > 0.0:
         for_each_kept(setup, progress, lambda k: whole_record(progress.state.values, k),
                       lambda k: _since_one(setup, progress, settings, k, duration))
+
+
+def placed(values: Mapping[str, float], k: int) -> bool:
+    """Whether dictionary term ``k``'s switched change has been given an instant inside the record."""
+    name = since_name(k)
+    return name in values and values[name] > 0.5 * SINCE_NEVER_S
 
 
 def whole_record(values: dict[str, float], k: int) -> bool:
