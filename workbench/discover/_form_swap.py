@@ -18,7 +18,7 @@ from __future__ import annotations
 from workbench.discover._dictionary_code import since_name
 from workbench.discover._gate_shape import best_shapes, shape_candidates
 from workbench.discover._rounds import SearchProgress, SearchSettings, SearchSetup
-from workbench.discover._since_onset import placed
+from workbench.discover._since_onset import place_instant, placed
 from workbench.discover._term_swap import best_replacement, for_each_kept, take_replacement
 
 #: at most this many other shapes of one kept term are refitted (the best by their probes)
@@ -55,5 +55,7 @@ def _swap_one(setup: SearchSetup, progress: SearchProgress, settings: SearchSett
     tries = [(j, base | {names[j][0]: c} | ({str(names[j][1]): g} if names[j][1] else {})
               | {s: v for s, v in since.items() if s == since_name(j)}, ())
              for _, (j, c, g) in sorted(found.values(), key=lambda et: et[0])[:MAX_SWAPS]]
-    take_replacement(setup, progress, settings, best_replacement(setup, progress, settings, k, tries),
-                     "shape_swap", "in another shape beside the set")
+    swap = best_replacement(setup, progress, settings, k, tries)
+    taken = take_replacement(setup, progress, settings, swap, "shape_swap", "in another shape beside the set")
+    if taken and since and swap is not None:
+        place_instant(setup, progress, settings, since_name(swap.index))  # the new shape's own instant
