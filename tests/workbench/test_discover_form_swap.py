@@ -82,7 +82,8 @@ def test_a_switch_given_an_instant_is_swapped_with_its_other_shapes_begun_at_tha
     fs.placed_swap_step(setup, progress, SimpleNamespace(say=lambda _m: None, threads=1, max_nfev=12))
     cands, _, base = seen["probed"]
     assert cands == [2] and base[since_name(2)] == 6.69 and base["a_00"] == 0.0
-    start = seen["start"][-1]
+    start, placed = seen["start"]  # the swap's refit, then the set's refit at the new shape's placed instant
+    assert placed[since_name(2)] == 6.001
     assert start[since_name(2)] == 6.69 and start[since_name(1)] == SINCE_NEVER_S
     assert progress.state.kept == [2] and progress.state.values[since_name(2)] == 6.001  # then placed on its own
 

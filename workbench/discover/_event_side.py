@@ -111,4 +111,4 @@ def _side_one(setup: SearchSetup, progress: SearchProgress, settings: SearchSett
         tries.append((j, start, [since_free(since_name(j), since, SIDE_ONSET_S, float(setup.scales["t"]))]))
     side = best_replacement(setup, progress, settings, k, tries)
     if take_replacement(setup, progress, settings, side, "event_side", "on one side from its instant") and side:
-        place_instant(setup, progress, settings, since_name(side.index))
+        place_instant(setup, progress, settings, side.index)

@@ -58,4 +58,4 @@ def _swap_one(setup: SearchSetup, progress: SearchProgress, settings: SearchSett
     swap = best_replacement(setup, progress, settings, k, tries)
     taken = take_replacement(setup, progress, settings, swap, "shape_swap", "in another shape beside the set")
     if taken and since and swap is not None:
-        place_instant(setup, progress, settings, since_name(swap.index))  # the new shape's own instant
+        place_instant(setup, progress, settings, swap.index)  # the new shape's own instant
