@@ -8,7 +8,7 @@ compiles once per machine. What the terms are (forms, signals, :class:`~workbenc
 from __future__ import annotations
 
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 from workbench.discover._dictionary import ALL_FORMS, GATE_FORMS, SIGNALS, Term, n_form_states
@@ -232,9 +232,21 @@ def since_name(k: int) -> str:
     return f"s_{k:02d}"
 
 
+def carries_since(term: Term) -> bool:
+    """Whether ``term`` is a switched damage term that may begin at an instant of the record (its ``s_NN``)."""
+    return term.placement == "damage" and has_since(term.param, term.form)
+
+
+def since_placed(values: Mapping[str, float], k: int) -> bool:
+    """Whether term ``k``'s switched change has been given an instant inside the record (not the default before any
+    record)."""
+    name = since_name(k)
+    return name in values and values[name] > 0.5 * SINCE_NEVER_S
+
+
 def dictionary_since_names(terms: Sequence[Term]) -> dict[int, str]:
     """The since-instant parameter of every term that may begin during the record (dictionary index → name)."""
-    return {k: since_name(k) for k, t in enumerate(terms) if t.placement == "damage" and has_since(t.param, t.form)}
+    return {k: since_name(k) for k, t in enumerate(terms) if carries_since(t)}
 
 
 def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDictionary",
@@ -266,7 +278,7 @@ def dictionary_source(terms: Sequence[Term], class_name: str = "DiscoveryDiction
                           "math.inf, "
                           f"'edge width or saturation time of {term.key}'),")
         si = None
-        if term.placement == "damage" and has_since(term.param, term.form):
+        if carries_since(term):
             si = len(params)
             params.append(f"        Parameter({since_name(len(slots))!r}, 's', {SINCE_NEVER_S!r}, -math.inf, "
                           f"math.inf, 'instant the switched change of {term.key} began'),")

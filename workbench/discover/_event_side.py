@@ -26,9 +26,9 @@ from collections.abc import Sequence
 import numpy as np
 
 from workbench.discover._dictionary import Term
-from workbench.discover._dictionary_code import since_name
+from workbench.discover._dictionary_code import carries_since, since_name
 from workbench.discover._gate_shape import best_shapes
-from workbench.discover._gates import SINCE_PARAMS, has_since
+from workbench.discover._gates import SINCE_PARAMS
 from workbench.discover._onset import whole_scores
 from workbench.discover._rounds import SearchProgress, SearchSettings, SearchSetup
 from workbench.discover._since_onset import place_instant, since_free
@@ -59,8 +59,7 @@ def side_step(setup: SearchSetup, progress: SearchProgress, settings: SearchSett
 
 def side_candidates(terms: Sequence[Term], step: Term) -> list[int]:
     """Dictionary indices of the switched terms of ``step``'s parameter and place that may begin at an instant."""
-    return [j for j, t in enumerate(terms) if t.placement == "damage" and (t.param, t.index) == (step.param, step.index)
-            and has_since(t.param, t.form)]
+    return [j for j, t in enumerate(terms) if carries_since(t) and (t.param, t.index) == (step.param, step.index)]
 
 
 def first_probes(setup: SearchSetup, cands: Sequence[int], coef: float, at: float) -> list[dict[str, float]]:

@@ -29,11 +29,11 @@ import numpy as np
 from board_config.parameter import Parameter, freed
 from plant import PlantModel
 from workbench.discover._dictionary import Term
-from workbench.discover._dictionary_code import since_name, term_default_width, width_name
+from workbench.discover._dictionary_code import since_name, since_placed, term_default_width, width_name
 from workbench.discover._effect_writer import describe_term
 from workbench.discover._event_check import static_twin
 from workbench.discover._gate_words import describe_finite_change, describe_recovery
-from workbench.discover._gates import SINCE_NEVER_S, WIDTH_GATES, onset_floor
+from workbench.discover._gates import WIDTH_GATES, onset_floor
 from workbench.discover._onset import ONSET_RESOLUTION_S, whole_record_rms, whole_scores
 from workbench.discover._results import FoundTerm
 from workbench.discover._search import SearchState, refine
@@ -297,9 +297,8 @@ def found_term(terms: Sequence[Term], names: Sequence[tuple[str, str | None]], s
         width, default = values.get(width_name(k), 0.0), term_default_width(term)
         if width != 0.0 and abs(width - default) > 1e-3 * default:
             term = replace(term, width=float(width))
-    since = values.get(since_name(k), SINCE_NEVER_S)
-    if since > 0.5 * SINCE_NEVER_S:  # a switched change begun during the record: said and written so
-        term = replace(term, since=float(since))
+    if since_placed(values, k):  # a switched change begun during the record: said and written so
+        term = replace(term, since=float(values[since_name(k)]))
     words = describe_term(term, coef, shape, scale, se, stderr.get(since_name(k)))
     return FoundTerm(term.with_shape(shape), coef, shape, scale, words, twins, se)
 

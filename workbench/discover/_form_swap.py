@@ -15,10 +15,10 @@ term's shape); a swap is taken when it lowers the held-out error beyond the twin
 
 from __future__ import annotations
 
-from workbench.discover._dictionary_code import since_name
+from workbench.discover._dictionary_code import since_name, since_placed
 from workbench.discover._gate_shape import best_shapes, shape_candidates
 from workbench.discover._rounds import SearchProgress, SearchSettings, SearchSetup
-from workbench.discover._since_onset import place_instant, placed
+from workbench.discover._since_onset import place_instant
 from workbench.discover._term_swap import best_replacement, for_each_kept, take_replacement
 
 #: at most this many other shapes of one kept term are refitted (the best by their probes)
@@ -36,7 +36,7 @@ def placed_swap_step(setup: SearchSetup, progress: SearchProgress, settings: Sea
     other shapes begun at that instant, one term kept or more: the round chose its shape over the whole record (own
     check: section 2 cracked at 6.75 s of a sweep and then breathing, kept as a crack opening gradually over ±815 µm,
     placed at 6.69 s, 34 σ; the sharp hinge is the crack)."""
-    for_each_kept(setup, progress, lambda k: placed(progress.state.values, k),
+    for_each_kept(setup, progress, lambda k: since_placed(progress.state.values, k),
                   lambda k: _swap_one(setup, progress, settings, k))
 
 
@@ -50,7 +50,7 @@ def _swap_one(setup: SearchSetup, progress: SearchProgress, settings: SearchSett
         return
     base = dict(state.values) | {cname: 0.0}
     since = ({since_name(j): state.values[since_name(k)] for j in cands if since_name(j) in state.values}
-             if placed(state.values, k) else {})  # the other shapes begun at the kept switch's instant
+             if since_placed(state.values, k) else {})  # the other shapes begun at the kept switch's instant
     found = best_shapes(setup, progress, settings, cands, coef, base | since)
     tries = [(j, base | {names[j][0]: c} | ({str(names[j][1]): g} if names[j][1] else {})
               | {s: v for s, v in since.items() if s == since_name(j)}, ())

@@ -23,14 +23,12 @@ from collections.abc import Mapping, Sequence
 import numpy as np
 
 from board_config.parameter import Parameter, freed
-from workbench.discover._dictionary_code import since_name
+from workbench.discover._dictionary_code import since_name, since_placed
 from workbench.discover._finite_change import whole_rms
-from workbench.discover._gates import SINCE_NEVER_S
 from workbench.discover._onset import whole_scores
 from workbench.discover._onset_profile import placed_on_whole
 from workbench.discover._rounds import SearchProgress, SearchSettings, SearchSetup
-from workbench.discover._term_swap import best_replacement, for_each_kept
-from workbench.discover._twins import twin_tolerance
+from workbench.discover._term_swap import best_replacement, for_each_kept, take_replacement
 
 #: instants probed, fractions of the record (the refit moves the best a grid step either way)
 SINCE_AT = tuple(np.round(np.arange(0.05, 0.951, 0.05), 3))
@@ -46,16 +44,9 @@ def since_step(setup: SearchSetup, progress: SearchProgress, settings: SearchSet
                       lambda k: _since_one(setup, progress, settings, k, duration))
 
 
-def placed(values: Mapping[str, float], k: int) -> bool:
-    """Whether dictionary term ``k``'s switched change has been given an instant inside the record."""
-    name = since_name(k)
-    return name in values and values[name] > 0.5 * SINCE_NEVER_S
-
-
-def whole_record(values: dict[str, float], k: int) -> bool:
+def whole_record(values: Mapping[str, float], k: int) -> bool:
     """Whether dictionary term ``k`` may begin at an instant and still spans the whole record."""
-    name = since_name(k)
-    return name in values and values[name] <= 0.5 * SINCE_NEVER_S
+    return since_name(k) in values and not since_placed(values, k)
 
 
 def probe_grid(coef: float, duration_s: float) -> list[tuple[float, float]]:
@@ -103,19 +94,9 @@ def _since_one(setup: SearchSetup, progress: SearchProgress, settings: SearchSet
     best = best_replacement(setup, progress, settings, k, tries)
     if best is None:
         return
-    start, out = best.start, best.outcome
-    taken = out.held_rms_sigma * twin_tolerance(setup.n_held) < progress.current_held
-    at = float(out.values.get(sname, start[sname]))
-    settings.say(f"  {setup.terms[k].key} begun at t = {at:.4g} s: {out.held_rms_sigma:.4g} σ held-out (over the "
-                 f"whole record {progress.current_held:.4g} σ): " + ("taken" if taken else "not taken"))
-    progress.rounds.append({"since_instant": {"term": setup.terms[k].key, "since_s": at,
-                                              "held_rms_sigma": out.held_rms_sigma,
-                                              "whole_record_held_rms_sigma": progress.current_held,
-                                              "taken": taken}})
-    if taken:  # the whole-record twins no longer explain the records alike
-        state.values = start | out.values
-        progress.twins.pop(k, None)
-        progress.adopt(out)
+    at = float(best.outcome.values.get(sname, best.start[sname]))
+    if take_replacement(setup, progress, settings, best, "since_instant", f"begun at t = {at:.4g} s",
+                        {"since_s": at}):  # the whole-record twins no longer explain the records alike
         place_instant(setup, progress, settings, k)
 
 

@@ -67,9 +67,11 @@ def best_replacement(setup: SearchSetup, progress: SearchProgress, settings: Sea
 
 
 def take_replacement(setup: SearchSetup, progress: SearchProgress, settings: SearchSettings,
-                     found: Replacement | None, log_key: str, words: str) -> bool:
+                     found: Replacement | None, log_key: str, words: str,
+                     extra: dict[str, float] | None = None) -> bool:
     """Take ``found`` when it lowers the held-out error beyond the twins' tolerance; say and log the try (``words``:
-    what was tried, e.g. "in another shape beside the set") under ``log_key``. Returns whether it was taken."""
+    what was tried, e.g. "in another shape beside the set") under ``log_key`` (with ``extra`` fields). Returns
+    whether it was taken."""
     if found is None:
         return False
     k, j, out = found.replaced, found.index, found.outcome
@@ -78,7 +80,7 @@ def take_replacement(setup: SearchSetup, progress: SearchProgress, settings: Sea
     settings.say(f"  {old} {words}: {new} {out.held_rms_sigma:.4g} σ held-out (the set {progress.current_held:.4g} "
                  "σ): " + ("taken" if taken else "not taken"))
     progress.rounds.append({log_key: {"term": old, "as": new, "held_rms_sigma": out.held_rms_sigma,
-                                      "set_held_rms_sigma": progress.current_held, "taken": taken}})
+                                      "set_held_rms_sigma": progress.current_held, "taken": taken, **(extra or {})}})
     if not taken:
         return False
     state = progress.state
