@@ -25,12 +25,15 @@ def test_gate_code_agrees_with_its_numpy_values():
         code = form.code.replace("math.tanh", "np.tanh").replace("abs(", "np.abs(").replace("max(", "np.maximum(")
         code = code.replace("min(", "np.minimum(")
         h = gate_width(name, "m")
-        g = 5e-4 if name == "on_gap" or name.endswith(("_grow", "_sat")) else 1.4
+        g = 5e-4 if name in ("on_gap", "on_excess") or name.endswith(("_grow", "_grow2", "_sat")) else 1.4
         got = eval(code, {"np": np, "S": s, "G": g, "H": h, "t": t})
         want = gate_values(name, s, g, t, "m")
         assert np.allclose(got, want), name
     # the gap gate times a stiffness is the dead zone k (δ − clip(δ, ±g)): continuous, free play within ±g
     assert np.allclose(s * gate_values("on_gap", s, 5e-4, t, "m"), s - np.clip(s, -5e-4, 5e-4))
+    # the excess gate: nothing within ±g, then rising linearly with the magnitude past it, either sign (1 at 2g)
+    v = np.array([-400.0, -300.0, -150.0, 0.0, 100.0, 150.0, 225.0, 300.0])
+    assert np.allclose(gate_values("on_excess", v, 150.0, v * 0.0, "V"), [5 / 3, 1.0, 0, 0, 0, 0, 0.5, 1.0])
 
 
 def test_onsets_span_the_record():
@@ -76,6 +79,17 @@ def test_words_name_the_damage_as_an_engineer_would():
     assert high_field.startswith("patch 2 (on section 2) whose authority d_ep is 30 % lower above ±150 V of v_c2, "
                                  "in either polarity") and "back-switch" in high_field
     assert class_stem("d_ep_i", 1, "on_gap", "vc") == "Patch2CouplingAboveMagnitude"
+    rising = describe_damage("d_ep_i", 1, "on_excess", "vc", -0.5, 150.0)  # growing linearly past a magnitude
+    assert rising.startswith("patch 2 (on section 2) whose authority d_ep is lower above ±150 V of v_c2, in either "
+                             "polarity, by 33.3 % per 100 V past that magnitude") and "back-switch" in rising
+    assert class_stem("d_ep_i", 1, "on_excess", "vc") == "Patch2CouplingGrowingAboveMagnitude"
+    square = describe_damage("k", 1, "on_neg_grow2", "delta2", -0.3, 4e-4)  # the share with the opening squared
+    assert square.startswith("a breathing crack in section 2 that opens for δ2 < 0, its lost stiffness growing with "
+                             "the square of the opening: k2 lower by 30 % once δ2 reaches −400 µm")
+    assert class_stem("k", 1, "on_neg_grow2", "delta2") == "Section2StiffnessGrowingSquareNegative"
+    d = np.array([-8e-4, -4e-4, -2e-4, 0.0, 2e-4])
+    assert np.allclose(gate_values("on_neg_grow2", d, 4e-4, d * 0.0, "m"), [1.0, 1.0, 0.25, 0.0, 0.0])
+    assert damage_formula("d_ep_i", 1, "on_excess", "vc", "a", "g").endswith("with c = a · (|vc| − g)⁺ / g")
     term = Term("damage", 1, "one", "on_step", 20.0, "k", (15.0, 22.5))
     assert describe_term(term, -0.25, 20.04, 1.0, 0.08) == event
     assert term.key == "k2_step_t" and term.unit == "1"

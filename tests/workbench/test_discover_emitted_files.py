@@ -101,15 +101,17 @@ def test_the_dictionary_spans_the_damage_family(short_sweep):
         assert {(param, "on_step", "one"), (param, "on_ramp", "one")} <= fams, param
     for i in (1, 2, 3):
         signs = ("on_pos", "on_neg", "on_pos_soft", "on_neg_soft")  # each on δ_i and δ̇_i, hard and smooth edge
+        growing = ("on_pos_grow", "on_neg_grow", "on_pos_grow2", "on_neg_grow2")  # the share with the opening (²)
         assert {(p, g, f"{s}{i}") for p in ("k", "c") for g in signs for s in ("delta", "ddelta")} \
-            | {("k", "on_gap", f"delta{i}"), ("c", "on_gap", f"delta{i}")} <= fams
+            | {(p, g, f"delta{i}") for p in ("k", "c") for g in (*growing, "on_gap")} <= fams
     for param in ("d_ep", "alpha_h", "beta_h", "R_ep", "C_ep"):
         assert {(param, "on_neg", "va"), (param, "on_pos", "vc")} <= fams
     for i in range(3):  # one patch's own coupling, by the drive's and its own charge's sign (a single weak patch)
         # and by the sense of its charging current, sharp and smooth (a coupling lost while it charges)
         charging = {("d_ep_i", g, "ic") for g in ("on_pos", "on_neg", "on_pos_soft", "on_neg_soft", "on_pos_sat",
                                                   "on_neg_sat")}
-        fading = {("d_ep_i", g, "vc") for g in ("on_pos_grow", "on_neg_grow", "on_pos_sat", "on_neg_sat")}
+        fading = {("d_ep_i", g, "vc") for g in ("on_pos_grow", "on_neg_grow", "on_pos_sat", "on_neg_sat", "on_gap",
+                                                "on_excess")}
         assert {("d_ep_i", g, s) for g in ("on_pos", "on_neg") for s in ("va", "vc")} | charging | fading | {
             ("d_ep_i", "on_step", "one"), ("d_ep_i", "on_ramp", "one")} <= {
             (t.param, t.form, t.signal) for t in short_sweep["terms"] if t.placement == "damage" and t.index == i}

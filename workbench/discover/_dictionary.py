@@ -55,6 +55,7 @@ from workbench.discover._gates import (
     SOFT_AT,
     SOFT_GATES,
     SOFT_RATE_AT,
+    SQUARE_GATES,
     STEP_AT,
     SWITCH_RANGE,
     gate_values,
@@ -331,15 +332,17 @@ def damage_terms(scales: Mapping[str, float], *, driven: bool = True) -> list[Te
                                   for w in widths]
                 elif what in ("grow", "grow_volt"):
                     if ok(sig := "vc" if what == "grow_volt" else f"delta{index + 1}"):
-                        terms += [Term("damage", index, sig, g, f * scales[sig], param) for g in GROW_GATES
+                        gates = GROW_GATES if what == "grow_volt" else (*GROW_GATES, *SQUARE_GATES)
+                        terms += [Term("damage", index, sig, g, f * scales[sig], param) for g in gates
                                   for f in GROW_AT]
                 elif what in ("sat_charge", "sat_volt"):
                     if ok(sig := "ic" if what == "sat_charge" else "vc"):
                         at = SAT_CHARGE_AT if sig == "ic" else SAT_VOLT_AT
                         terms += [Term("damage", index, sig, g, at * scales[sig], param) for g in SAT_GATES]
-                elif what in ("gap", "gap_volt"):
-                    if ok(sig := "vc" if what == "gap_volt" else sig):
-                        terms += [Term("damage", index, sig, "on_gap", f * scales[sig], param) for f in GAP_AT]
+                elif what in ("gap", "gap_volt", "excess_volt"):
+                    if ok(sig := "vc" if what.endswith("_volt") else sig):
+                        form = "on_excess" if what == "excess_volt" else "on_gap"
+                        terms += [Term("damage", index, sig, form, f * scales[sig], param) for f in GAP_AT]
                 elif ok(sig) and (driven or sig != "va"):
                     rng = (-SWITCH_RANGE * scales[sig], SWITCH_RANGE * scales[sig])
                     terms += [Term("damage", index, sig, g, 0.0, param, rng) for g in ("on_pos", "on_neg")]

@@ -6,7 +6,15 @@ from __future__ import annotations
 
 import math
 
-from workbench.discover._gates import CONTRIBUTIONS, GROW_GATES, SAT_GATES, SIGN_GATES, SOFT_GATES, STEP_WIDTH_S
+from workbench.discover._gates import (
+    CONTRIBUTIONS,
+    GROW_GATES,
+    SAT_GATES,
+    SIGN_GATES,
+    SOFT_GATES,
+    SQUARE_GATES,
+    STEP_WIDTH_S,
+)
 
 
 def _switch_value(signal: str, g: float) -> str:
@@ -140,10 +148,10 @@ def _describe_gated(param: str, index: int, form: str, signal: str, coef: float,
                 + f" — a gradual switch: 10–90 % of it over {span} about that point")
     if form in SIGN_GATES:
         return _describe_sign(param, index, form, signal, coef, named_switch(shape, shape_se))
-    if form in (*SOFT_GATES, *GROW_GATES, *SAT_GATES):
+    if form in (*SOFT_GATES, *GROW_GATES, *SQUARE_GATES, *SAT_GATES):
         return _describe_edge(param, index, form, signal, coef, shape)
-    if form == "on_gap" and signal in ("va", "vc"):
-        return _above_magnitude(param, n, signal, coef, shape)
+    if form in ("on_gap", "on_excess") and signal in ("va", "vc"):
+        return _above_magnitude(param, n, form, signal, coef, shape)
     if form == "on_gap":
         if param == "k":
             return (f"section {n} is {'softer' if lower else 'stiffer'} by {pct} beyond ±{_length(shape)} of δ{n}"
@@ -200,12 +208,20 @@ def _depolarised(param: str, n: int, how: str) -> str:
     return f"all three patches' authority d_ep is {how} (polarisation-dependent coupling: partly depolarised patches)"
 
 
-def _above_magnitude(param: str, n: int, signal: str, coef: float, shape: float) -> str:
-    """A patch's coupling (every patch's ``d_ep``, or patch ``n``'s own) changed by ``coef`` past a voltage magnitude
-    ``shape`` (V) in either polarity, growing as (|v| − shape)⁺/|v|."""
+def _above_magnitude(param: str, n: int, form: str, signal: str, coef: float, shape: float) -> str:
+    """A patch's coupling (every patch's ``d_ep``, or patch ``n``'s own) changed past a voltage magnitude ``shape``
+    (V) in either polarity: by ``coef`` × (|v| − shape)⁺/|v| (a gap, ``on_gap``), or growing linearly with the
+    excess, ``coef`` × (|v| − shape)⁺/shape (``on_excess``: ``coef`` per ``shape`` volts past the corner)."""
     v = (f"v_c{n}" if param == "d_ep_i" else "v_c") if signal == "vc" else "v_a"
-    how = (f"{100 * abs(coef):.3g} % {'lower' if coef < 0 else 'higher'} above ±{shape:.3g} V of {v}, in either "
-           f"polarity (growing as (|{v}| − {shape:.3g} V)⁺/|{v}|)")
+    lh = "lower" if coef < 0 else "higher"
+    if form == "on_excess":
+        per_100 = 100 * abs(coef) * 100.0 / max(shape, 1e-12)
+        how = (f"{lh} above ±{shape:.3g} V of {v}, in either polarity, by {per_100:.3g} % per 100 V past that "
+               f"magnitude ({100 * abs(coef):.3g} % × (|{v}| − {shape:.3g} V)⁺ / {shape:.3g} V: a loss growing "
+               "linearly with the field's excess)")
+    else:
+        how = (f"{100 * abs(coef):.3g} % {lh} above ±{shape:.3g} V of {v}, in either polarity (growing as "
+               f"(|{v}| − {shape:.3g} V)⁺/|{v}|)")
     why = ("coupling lost at high field: domains that saturate forward and back-switch in reverse" if coef < 0 else
            "a coupling that grows with the field")
     if param == "d_ep_i":
@@ -298,14 +314,16 @@ def _describe_edge(param: str, index: int, form: str, signal: str, coef: float, 
         return _charging_patch(param, n, how) if param in ("d_ep", "d_ep_i") else f"{what} {how}"
     if form in SAT_GATES and signal in ("va", "vc"):
         return _saturating_patch(param, n, form, signal, coef, shape)
-    if form in GROW_GATES:
+    if form in (*GROW_GATES, *SQUARE_GATES):
         side = f"δ{n} {op} 0"
         reach = f"{'−' if op == '<' else ''}{_length(shape)}"
+        how = "with the square of the opening" if form in SQUARE_GATES else "with the opening"
         if param == "k" and lower:
-            return (f"a breathing crack in section {n} that opens for {side}, its lost stiffness growing with the "
-                    f"opening: k{n} lower by {pct} once δ{n} reaches {reach}, less before (a crack whose faces part "
+            return (f"a breathing crack in section {n} that opens for {side}, its lost stiffness growing {how}: "
+                    f"k{n} lower by {pct} once δ{n} reaches {reach}, less before (a crack whose faces part "
                     "progressively)")
-        return f"{what} {pct} {lh} for {side}, growing with δ{n} up to {reach} (a change that grows with the opening)"
+        by = f"the square of δ{n}" if form in SQUARE_GATES else f"δ{n}"
+        return f"{what} {pct} {lh} for {side}, growing with {by} up to {reach} (a change that grows with the opening)"
     if signal.startswith("ddelta"):
         edge = f"switching over about ±{1e3 * abs(shape):.3g} mm/s of δ̇{n}"
         if param == "k":

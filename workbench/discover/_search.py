@@ -47,7 +47,8 @@ def refine(obj: Objective, guess: dict[str, float], max_nfev: int) -> FitOutcome
 #: forms whose linearisation along the nominal run misleads (stick, contact, play, saturation): probed at a
 #: 0.1, 1/3, 0.6, 1.7, 3 and 10 times the linearised coefficient as well
 HARD_FORMS = ("sign", "pos", "neg", "dead", "clip", "sat", "on_pos", "on_neg", "on_pos_soft", "on_neg_soft",
-              "on_pos_grow", "on_neg_grow", "on_pos_sat", "on_neg_sat", "on_gap")
+              "on_pos_grow", "on_neg_grow", "on_pos_sat", "on_neg_sat", "on_gap",
+              "on_excess", "on_pos_grow2", "on_neg_grow2")
 #: forms probed at several multiples of the linearised coefficient: the hard forms, and the polynomial ones whose
 #: strong cases change the motion they act on (strong velocity-squared drag halves the velocity the linearisation
 #: was taken along: the drag on mass 2 was screened out, a viscous term stood in at 94 sigma)
