@@ -51,6 +51,8 @@ class ShippedComposition:
     terminal: str
     core: tuple[str, ...] = NOMINAL_EFFECTS
     entries: tuple[str, ...] = MEMBER_ENTRIES
+    #: peak memory (bytes) its compile may take; 0 for the ordinary tens-of-MB kernels
+    peak_bytes: int = 0
 
     @property
     def label(self) -> str:
@@ -141,15 +143,52 @@ def main(argv: Sequence[str] | None = None,
         return 0
     print(f"plant kernels: compiling {len(todo)} of {len(comps)} shipped compositions into {cache} "
           f"({args.jobs} process(es); tens of seconds each, once per machine) …", flush=True)
-    done = 0
-    with ProcessPoolExecutor(args.jobs) as pool:
-        for future in as_completed([pool.submit(build, c) for c in todo]):
-            label, built, seconds = future.result()
-            done += 1
-            print(f"  [{done}/{len(todo)}] {label}: {', '.join(built) or 'already built'} ({seconds:.0f} s)",
-                  flush=True)
+    light = [c for c in todo if not c.peak_bytes]
+    heavy = [c for c in todo if c.peak_bytes]
+    done = _build_all(light, args.jobs, 0, len(todo))
+    if heavy:
+        jobs = jobs_for_memory(args.jobs, max(c.peak_bytes for c in heavy), available_memory_bytes())
+        print(f"plant kernels: {len(heavy)} large kernel(s) in {jobs} process(es) (up to "
+              f"{max(c.peak_bytes for c in heavy) / 2**30:.0f} GiB each) …", flush=True)
+        _build_all(heavy, jobs, done, len(todo))
     print(f"plant kernels: done in {time.perf_counter() - t0:.0f} s")
     return 0
+
+
+def _build_all(comps: list[ShippedComposition], jobs: int, done: int, total: int) -> int:
+    """Build ``comps`` in ``jobs`` processes, printing each as it ends (``done`` of ``total`` before); the count
+    after."""
+    if not comps:
+        return done
+    with ProcessPoolExecutor(jobs) as pool:
+        for future in as_completed([pool.submit(build, c) for c in comps]):
+            label, built, seconds = future.result()
+            done += 1
+            print(f"  [{done}/{total}] {label}: {', '.join(built) or 'already built'} ({seconds:.0f} s)", flush=True)
+    return done
+
+
+def available_memory_bytes() -> int:
+    """The memory the machine can give now (bytes): MemAvailable of /proc/meminfo, else the free pages; 0 when
+    neither can be read."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_AVPHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return 0
+
+
+def jobs_for_memory(jobs: int, peak_bytes: int, available_bytes: int) -> int:
+    """How many compiles of ``peak_bytes`` each run side by side: no more than ``jobs`` nor than fit in
+    ``available_bytes`` (at least one). Two of shm discover's dictionary kernels (12.6 GB each while LLVM optimises
+    them, 423 terms) side by side were killed for memory on a 24 GiB machine."""
+    return max(1, min(jobs, available_bytes // max(peak_bytes, 1)))
 
 
 if __name__ == "__main__":

@@ -18,6 +18,9 @@ from plant.warm import ShippedComposition
 from plant.warm import main as plant_main
 from workbench.discover import build_dictionary, dictionary_source, generated_effect
 
+#: the peak memory of one dictionary kernel's compile (12.6 GB resident measured, 423 terms, 2026-11-29): two side by
+#: side on a 24 GiB machine were killed for memory, so the warm runs as many as fit
+DICTIONARY_PEAK_BYTES = 14 * 2**30
 #: the signals a record's scales name (workbench.discover.signal_scales), all moving
 SIGNALS = (*(f"{s}{j}" for s in ("z", "zd", "delta", "ddelta") for j in (1, 2, 3)), "vc", "va", "ic", "one", "t")
 
@@ -28,7 +31,8 @@ def discover_compositions() -> list[ShippedComposition]:
     for driven, terminal in ((True, "amplifier"), (False, "open_circuit")):
         terms = build_dictionary(dict.fromkeys(SIGNALS, 1.0), driven=driven)
         cls = generated_effect(dictionary_source(terms), "dictionary_" + ("driven" if driven else "open"))
-        out.append(ShippedComposition("table2", (f"{inspect.getfile(cls)}:{cls.__name__}",), terminal))
+        out.append(ShippedComposition("table2", (f"{inspect.getfile(cls)}:{cls.__name__}",), terminal,
+                                      peak_bytes=DICTIONARY_PEAK_BYTES))
     return out
 
 

@@ -91,3 +91,17 @@ def test_setup_builds_the_kernel_a_first_shm_discover_loads():
     cls = generated_effect(dictionary_source(build_dictionary(scales, driven=True)), "dictionary_driven")
     PlantModel("table2", effects=[cls], terminal="amplifier").uncached_kernels(comps[0].entries)
     assert len(warmed) == 1 and {n for n in sys.modules if n.startswith("_mfc_shm_kernel_")} - before == warmed
+
+
+def test_large_kernels_compile_side_by_side_only_as_memory_allows():
+    # two dictionary kernels (12.6 GB each while LLVM optimises them) side by side were killed for memory on 24 GiB
+    from plant.warm import available_memory_bytes, jobs_for_memory
+    from workbench.warm import DICTIONARY_PEAK_BYTES, discover_compositions
+
+    gib = 2**30
+    assert jobs_for_memory(2, 14 * gib, 24 * gib) == 1 and jobs_for_memory(4, 14 * gib, 60 * gib) == 4
+    assert jobs_for_memory(2, 14 * gib, 0) == 1  # unreadable memory: one at a time, never none
+    assert jobs_for_memory(3, 0, 8 * gib) == 3
+    assert all(c.peak_bytes == DICTIONARY_PEAK_BYTES for c in discover_compositions())
+    assert not any(c.peak_bytes for c in shipped_compositions())
+    assert available_memory_bytes() > 0
