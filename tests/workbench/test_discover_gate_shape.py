@@ -40,8 +40,9 @@ def test_the_candidates_are_the_same_change_with_another_shape():
     terms = build_dictionary(SCALES)
     grow = terms[_key(terms, "k2_neg_grow_delta2")]
     keys = {terms[k].key for k in gs.shape_candidates(terms, grow)}
-    # section 2's stiffness, its side, a position: its own deflection or the tip's swing
-    assert keys == {"k2_neg_delta2", "k2_neg_soft_delta2", "k2_neg_z3", "k2_neg_soft_z3"}
+    # section 2's stiffness, its side, a position: its own deflection or the tip's swing; its share with the square of
+    # the opening
+    assert keys == {"k2_neg_delta2", "k2_neg_soft_delta2", "k2_neg_z3", "k2_neg_soft_z3", "k2_neg_grow2_delta2"}
     drive = terms[_key(terms, "d_ep2_pos_soft_va")]
     keys = {terms[k].key for k in gs.shape_candidates(terms, drive)}
     assert keys == {"d_ep2_pos_va", "d_ep2_pos_vc", "d_ep2_pos_grow_vc", "d_ep2_pos_sat_vc",
@@ -49,7 +50,8 @@ def test_the_candidates_are_the_same_change_with_another_shape():
     assert gs.shape_candidates(terms, terms[_key(terms, "k2_gap_delta2")]) == []
     hinge = terms[_key(terms, "k1_pos_delta1")]  # a sharp switch is probed over the grid itself too
     keys = {terms[k].key for k in gs.shape_candidates(terms, hinge)}
-    assert keys == {"k1_pos_delta1", "k1_pos_soft_delta1", "k1_pos_grow_delta1", "k1_pos_z3", "k1_pos_soft_z3"}
+    assert keys == {"k1_pos_delta1", "k1_pos_soft_delta1", "k1_pos_grow_delta1", "k1_pos_grow2_delta1",
+                    "k1_pos_z3", "k1_pos_soft_z3"}
     rate = _key(terms, "k3_neg_soft_ddelta3")  # a smooth switch too: its edge over the grid, once per shape
     cands = gs.shape_candidates(terms, terms[rate])
     assert sorted(terms[k].key for k in cands) == ["k3_neg_ddelta3", "k3_neg_soft_ddelta3"] and rate in cands
