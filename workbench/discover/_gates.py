@@ -21,7 +21,10 @@ crack δ_i > G — for the section's own stiffness the continuous hinge c·k·(�
 dependent damping: δ̇_i > G; polarisation: a drive or patch voltage below G), open over a smooth edge of fitted
 width ``G`` for the sign of a section's own deflection (a crack that opens gradually), beyond a gap
 ``(|S| − G)⁺/|S|`` (free play or contact: with the stiffness it is exactly k·(δ − clip(δ, ±G))), a step at an
-instant ``G`` = t0 inside the record (a damage event), and a ramp from t0 (damage growing). Which gates each
+instant ``G`` = t0 inside the record (a damage event), and a ramp from t0 (damage growing). A change may also grow
+with its signal: on one side linearly or with the square up to a saturation ``G`` (a crack whose faces part
+progressively), or linearly past a magnitude ``G`` of either sign, (|S| − G)⁺/G (a coupling lost by degrees past a
+field). Which gates each
 contribution meets is :data:`GATED_BY`; the dictionary crosses them (:func:`workbench.discover.build_dictionary`),
 so a form nobody wrote a test for is still a member.
 
