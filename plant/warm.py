@@ -147,9 +147,10 @@ def main(argv: Sequence[str] | None = None,
     heavy = [c for c in todo if c.peak_bytes]
     done = _build_all(light, args.jobs, 0, len(todo))
     if heavy:
-        jobs = jobs_for_memory(args.jobs, max(c.peak_bytes for c in heavy), available_memory_bytes())
-        print(f"plant kernels: {len(heavy)} large kernel(s) in {jobs} process(es) (up to "
-              f"{max(c.peak_bytes for c in heavy) / 2**30:.0f} GiB each) …", flush=True)
+        peak = max(c.peak_bytes for c in heavy)
+        jobs = jobs_for_memory(args.jobs, peak, available_memory_bytes())
+        print(f"plant kernels: {len(heavy)} large kernel(s) in {jobs} process(es) (up to {peak / 2**30:.0f} GiB "
+              "each) …", flush=True)
         _build_all(heavy, jobs, done, len(todo))
     print(f"plant kernels: done in {time.perf_counter() - t0:.0f} s")
     return 0
