@@ -46,7 +46,7 @@ def test_a_kept_switch_is_swapped_for_another_shape_only_when_it_fits_clearly_be
     seen: dict[str, list] = {}
     _fake(monkeypatch, refit_held, seen)
     said: list[str] = []
-    fs.swap_step(setup, progress, SimpleNamespace(say=said.append, threads=1, max_nfev=12))
+    assert fs.swap_step(setup, progress, SimpleNamespace(say=said.append, threads=1, max_nfev=12)) is taken
     cands, coef, base = seen["probed"]
     assert cands == [2] and coef == -0.211  # not the kept term itself; probed at its size
     assert base["a_00"] == 0.0 and base["a_01"] == 0.38  # with that term off, the rest of the set on
@@ -97,3 +97,15 @@ def test_no_second_swap_for_a_switch_over_the_whole_record(monkeypatch):
     monkeypatch.setattr(fs, "best_shapes", lambda *a: pytest.fail("probed"))
     fs.placed_swap_step(setup, progress, SimpleNamespace(say=lambda _m: None, threads=1, max_nfev=12))
     assert not progress.rounds
+
+
+def test_after_a_move_the_swap_runs_down_to_the_fix_limit(monkeypatch):
+    """A set at 2.71 σ of 441 σ ("explained" by share, above the 1.5 σ a fix must reach): after a kept term moved to
+    another place the shapes are tried again down to that limit (``above``), not below it."""
+    setup, progress = _case(2.71, [0, 1])
+    seen: dict[str, list] = {}
+    _fake(monkeypatch, 1.1, seen)
+    settings = SimpleNamespace(say=lambda _m: None, threads=1, max_nfev=12)
+    assert fs.swap_step(setup, progress, settings) is False and "probed" not in seen
+    assert fs.swap_step(setup, progress, settings, above=1.5) is True and progress.current_held == 1.1
+    assert fs.swap_step(setup, progress, settings, above=1.5) is False  # at the limit: nothing more is tried

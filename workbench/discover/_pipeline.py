@@ -65,6 +65,8 @@ from workbench.discover._gates import SINCE_NEVER_S
 from workbench.discover._joint_polish import polish_step
 from workbench.discover._pair_refit import pair_step
 from workbench.discover._patch_place import patch_step
+from workbench.discover._place_swap import ABOVE_SIGMA as PLACE_ABOVE_SIGMA
+from workbench.discover._place_swap import place_step
 from workbench.discover._results import (
     DiscoverError,
     Discovery,
@@ -123,6 +125,10 @@ def discover(records: Sequence[Record | FrfRecord], params: ParameterSet | str =
             break
     polish_step(setup, progress, settings)
     swap_step(setup, progress, settings)
+    moved = place_step(setup, progress, settings)
+    for _ in range(2 if moved else 0):  # shapes chosen beside the old place, tried again (one swap may free another)
+        if not swap_step(setup, progress, settings, above=PLACE_ABOVE_SIGMA):
+            break
     patch_step(setup, progress, settings)
     side_step(setup, progress, settings)
     since_step(setup, progress, settings)

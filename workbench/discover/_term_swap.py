@@ -27,15 +27,17 @@ ABOVE_SIGMA = 3.0
 
 
 def for_each_kept(setup: SearchSetup, progress: SearchProgress, applies: Callable[[int], bool],
-                  one: Callable[[int], None], min_kept: int = 1) -> None:
+                  one: Callable[[int], None], min_kept: int = 1, above: float | None = None) -> None:
     """``one(k)`` for each kept term ``k`` that ``applies``, while the set (of at least ``min_kept`` terms) leaves
-    more than :data:`ABOVE_SIGMA` and is not explained; the time counted as refits."""
-    if (len(progress.state.kept) < min_kept or progress.current_held <= ABOVE_SIGMA
-            or explained(progress.current_held, setup.held_before, setup.n_held)):
+    more than :data:`ABOVE_SIGMA` and is not explained — or, given ``above`` (σ), more than that whatever share of
+    the excess it removed; the time counted as refits."""
+    limit = ABOVE_SIGMA if above is None else above
+    if (len(progress.state.kept) < min_kept or progress.current_held <= limit
+            or (above is None and explained(progress.current_held, setup.held_before, setup.n_held))):
         return
     t0 = time.perf_counter()
     for k in list(progress.state.kept):
-        if progress.current_held > ABOVE_SIGMA and k in progress.state.kept and applies(k):
+        if progress.current_held > limit and k in progress.state.kept and applies(k):
             one(k)
     progress.timings["refit_s"] += time.perf_counter() - t0
 
