@@ -27,14 +27,18 @@ def test_every_blind_case_has_a_check_for_its_physics():
 #: whose share grows with the square of its opening — won the sweep's patch2_weak_above_magnitude (0.97 σ) and
 #: mid_crack_down_quadratic (0.97 σ) and MBIT.b's patch2_weak_above_magnitude (1.01 σ, patch 2 named again); lost the
 #: sweep's tip_crack_open_up_damps (round 1 now keeps the square law, 189.1 σ against the linear 190.2 σ, and round 2
-#: then adds section 2's damping instead of section 3's: 73.5 σ): 17 of 33 (52 %).
+#: then adds section 2's damping instead of section 3's: 73.5 σ): 17 of 33 (52 %). A kept switch tried in the other
+#: places (10529be, session of 23:39 UTC) — won back the sweep's tip_crack_open_up_damps (the damping moved to section
+#: 3, then both shapes swapped: 0.98 σ, re-run 01:06 UTC) and won MBIT.b's patch2_weak_charge_falls (1.00 σ, patch 2
+#: named, patch 1 as its twin; re-run 00:35 UTC): 19 of 33 (58 %).
 PASSING7: dict[str, tuple[str, ...]] = {
     "sweep": ("root_crack_past_preload_up", "root_loss_two_steps", "mid_loss_exponential", "tip_loss_grows_to_end",
               "patch1_weak_root_down", "patch2_weak_charge_falls", "patch3_weak_positive_from_instant",
-              "patch2_weak_above_magnitude", "mid_crack_down_quadratic"),
+              "patch2_weak_above_magnitude", "mid_crack_down_quadratic", "tip_crack_open_up_damps"),
     "mbit-a": ("mid_crack_on_tip_bend_down", "tip_crack_open_up_damps", "patch1_weak_root_down",
                "patch2_weak_charge_falls", "tip_loss_grows_to_end"),
-    "mbit-b": ("root_crack_past_preload_up", "root_loss_two_steps", "patch2_weak_above_magnitude"),
+    "mbit-b": ("root_crack_past_preload_up", "root_loss_two_steps", "patch2_weak_above_magnitude",
+               "patch2_weak_charge_falls"),
 }
 
 
