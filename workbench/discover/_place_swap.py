@@ -11,8 +11,8 @@ damage in the wrong place, and the set never recovers:
   section 3 at 2.23 σ — on the one quasi-static mode section 3's corner near zero stands in for section 1's gradual
   opening, neither fits to the noise.
 
-:func:`place_step`: after the joint polish, while the set leaves more than :data:`ABOVE_SIGMA` held out, each kept
-switched change of one section or one patch (not a time gate: a step's place has its own step,
+:func:`place_step`: after the joint polish and the shape swap, while the set leaves more than :data:`ABOVE_SIGMA`
+held out, each kept switched change of one section or one patch (not a time gate: a step's place has its own step,
 :mod:`workbench.discover._event_check`) is probed in each other place (:func:`place_candidates`: the same
 parameter and form, its own section's signal moved with it, and each of that place's other gate shapes) over the
 shapes' grids with that term off and the rest of the set on; the best :data:`MAX_PLACES` are refitted with every kept
@@ -120,7 +120,7 @@ def _place_one(setup: SearchSetup, progress: SearchProgress, settings: SearchSet
     term, (cname, gname) = setup.terms[new], setup.names[new]
     values = progress.state.values
     same = [j for j in place_candidates(setup.terms, new) if setup.terms[j].form == term.form
-            and j not in progress.state.kept][:2]  # the same change in each other place, the old one's among them
+            and j not in progress.state.kept][:2]  # the same change in each other place, the old place among them
     tries = []
     for j in same:
         cj, gj = setup.names[j]
