@@ -28,11 +28,11 @@ import time
 from collections.abc import Mapping, Sequence
 
 from workbench.discover._dictionary import Term
-from workbench.discover._dictionary_code import since_name, since_placed
 from workbench.discover._event_check import event_twin
 from workbench.discover._form_swap import replace_by_best
 from workbench.discover._gate_shape import shape_candidates
 from workbench.discover._gates import TIME_GATES
+from workbench.discover._patch_place import moved_values
 from workbench.discover._rounds import SearchProgress, SearchSettings, SearchSetup
 from workbench.discover._term_swap import Replacement, best_replacement
 from workbench.discover._twins import place_first, twin_tolerance
@@ -117,18 +117,12 @@ def _place_one(setup: SearchSetup, progress: SearchProgress, settings: SearchSet
         _name_twins(setup, progress, k, [found])
         return False
     new = found.index
-    term, (cname, gname) = setup.terms[new], setup.names[new]
-    values = progress.state.values
+    term, values = setup.terms[new], progress.state.values
     same = [j for j in place_candidates(setup.terms, new) if setup.terms[j].form == term.form
             and j not in progress.state.kept][:2]  # the same change in each other place, the old place among them
-    tries = []
-    for j in same:
-        cj, gj = setup.names[j]
-        start = dict(values) | {cname: 0.0, cj: values[cname] * place_ratio(nominal, term, setup.terms[j])}
-        start |= {gj: values[gname]} if gj is not None and gname is not None else {}
-        start |= ({since_name(j): values[since_name(new)]} if since_placed(values, new)
-                  and since_name(j) in values else {})
-        tries.append(best_replacement(setup, progress, settings, new, [(j, start, ())]))
+    coef = values[setup.names[new][0]]
+    tries = [best_replacement(setup, progress, settings, new, [(j, dict(values) | moved_values(
+        values, setup.names, new, j, coef * place_ratio(nominal, term, setup.terms[j])), ())]) for j in same]
     _name_twins(setup, progress, new, [r for r in tries if r is not None])
     return True
 
